@@ -1,0 +1,37 @@
+"""The ``hil`` command: one sub-command per module in this package.
+
+User errors (:class:`~hil.errors.HilError`) are printed as diagnostics and
+exit with status 1; no traceback is shown for them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from hil.cli import check
+from hil.errors import HilError
+
+#: sub-command name -> module with ``add_arguments(parser)`` and ``run(args) -> int``
+COMMANDS = {"check": check}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="hil", description="Hardware-in-the-loop controller stack for robot arms.")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, module in COMMANDS.items():
+        sub = commands.add_parser(name, help=module.HELP, description=module.HELP)
+        module.add_arguments(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return COMMANDS[args.command].run(args)
+    except HilError as exc:
+        print(exc, file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130

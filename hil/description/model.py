@@ -1,0 +1,245 @@
+"""Typed, immutable robot description: links, joints, transmissions.
+
+This is what the rest of hil sees of a robot; it is built once from URDF
+(see :mod:`hil.description.urdf`) and never holds raw XML.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+from hil.errors import Diagnostic
+
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A URDF ``<origin>``: translation in metres, roll-pitch-yaw in radians."""
+
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+
+    @property
+    def distance(self) -> float:
+        return math.sqrt(sum(c * c for c in self.xyz))
+
+
+@dataclass(frozen=True)
+class Inertial:
+    """Mass (kg), centre of mass frame and inertia tensor (kg m^2) about it."""
+
+    mass: float
+    origin: Pose
+    ixx: float
+    ixy: float
+    ixz: float
+    iyy: float
+    iyz: float
+    izz: float
+
+    def equivalent_box(self) -> Vec3:
+        """Edge lengths (x, y, z) of the uniform box with this mass and inertia.
+
+        hil draws links whose meshes are missing as this box at the centre of
+        mass: it has the link's size and proportions without any mesh data.
+        Off-diagonal terms are ignored; a degenerate axis gets 1 cm.
+        """
+        mass = max(self.mass, 1e-9)
+        ixx, iyy, izz = self.ixx, self.iyy, self.izz
+        squares = (6 * (iyy + izz - ixx) / mass, 6 * (ixx + izz - iyy) / mass,
+                   6 * (ixx + iyy - izz) / mass)
+        return tuple(max(math.sqrt(max(s, 0.0)), 0.01) for s in squares)
+
+
+class GeometryKind(enum.Enum):
+    BOX = "box"
+    CYLINDER = "cylinder"
+    SPHERE = "sphere"
+    MESH = "mesh"
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """A visual or collision shape.
+
+    ``size`` is (x, y, z) for a box, (radius, length) for a cylinder, (radius,)
+    for a sphere and the mesh scale for a mesh. ``mesh`` is the resolved file,
+    or None when the mesh could not be found (then ``kind`` is a primitive
+    stand-in and ``missing_mesh`` keeps the original URI).
+    """
+
+    kind: GeometryKind
+    size: tuple[float, ...]
+    mesh: Path | None = None
+    missing_mesh: str | None = None
+
+
+@dataclass(frozen=True)
+class Visual:
+    origin: Pose
+    geometry: Geometry
+    rgba: tuple[float, float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class Link:
+    name: str
+    inertial: Inertial | None = None
+    visuals: tuple[Visual, ...] = ()
+
+
+class JointType(enum.Enum):
+    REVOLUTE = "revolute"
+    CONTINUOUS = "continuous"
+    PRISMATIC = "prismatic"
+    FIXED = "fixed"
+    FLOATING = "floating"
+    PLANAR = "planar"
+
+    @property
+    def is_rotational(self) -> bool:
+        return self in (JointType.REVOLUTE, JointType.CONTINUOUS)
+
+    @property
+    def unit(self) -> str:
+        return "m" if self is JointType.PRISMATIC else "rad"
+
+    @property
+    def effort_unit(self) -> str:
+        return "N" if self is JointType.PRISMATIC else "N·m"
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """``<limit>``: position range (None for continuous joints), effort, velocity."""
+
+    lower: float | None
+    upper: float | None
+    effort: float
+    velocity: float
+
+
+@dataclass(frozen=True)
+class JointDynamics:
+    """``<dynamics>``: viscous damping and Coulomb friction, joint side."""
+
+    damping: float = 0.0
+    friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class Mimic:
+    """``<mimic>``: q = multiplier * q_leader + offset."""
+
+    joint: str
+    multiplier: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class Joint:
+    name: str
+    type: JointType
+    parent: str
+    child: str
+    origin: Pose = Pose()
+    axis: Vec3 = (1.0, 0.0, 0.0)
+    limits: JointLimits | None = None
+    dynamics: JointDynamics = JointDynamics()
+    mimic: Mimic | None = None
+
+    @property
+    def is_movable(self) -> bool:
+        return self.type in (JointType.REVOLUTE, JointType.CONTINUOUS, JointType.PRISMATIC)
+
+
+@dataclass(frozen=True)
+class TransmissionJoint:
+    """A joint's side of a transmission (ros2_control ``<joint>`` in ``<transmission>``)."""
+
+    name: str
+    role: str | None = None
+    reduction: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class TransmissionActuator:
+    """An actuator's side of a transmission.
+
+    ``rotor_inertia`` (kg m^2, motor side) is a hil extension: the plant adds
+    it as reflected inertia. ROS tools ignore the element.
+    """
+
+    name: str
+    role: str | None = None
+    reduction: float = 1.0
+    rotor_inertia: float = 0.0
+
+
+@dataclass(frozen=True)
+class TransmissionSpec:
+    """A ``<transmission>`` as written in the URDF; turned into maps by
+    :func:`hil.transmissions.build_transmission`."""
+
+    name: str
+    type: str
+    joints: tuple[TransmissionJoint, ...]
+    actuators: tuple[TransmissionActuator, ...]
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """A whole robot, validated. Joints are in URDF order."""
+
+    name: str
+    source: Path
+    links: tuple[Link, ...]
+    joints: tuple[Joint, ...]
+    transmissions: tuple[TransmissionSpec, ...]
+    warnings: tuple[Diagnostic, ...] = field(default=(), compare=False)
+
+    def link(self, name: str) -> Link:
+        return self._links_by_name[name]
+
+    def joint(self, name: str) -> Joint:
+        return self._joints_by_name[name]
+
+    @cached_property
+    def _links_by_name(self) -> dict[str, Link]:
+        return {link.name: link for link in self.links}
+
+    @cached_property
+    def _joints_by_name(self) -> dict[str, Joint]:
+        return {joint.name: joint for joint in self.joints}
+
+    @property
+    def root_link(self) -> str:
+        children = {j.child for j in self.joints}
+        return next(link.name for link in self.links if link.name not in children)
+
+    @property
+    def movable_joints(self) -> tuple[Joint, ...]:
+        return tuple(j for j in self.joints if j.is_movable)
+
+    @property
+    def driven_joints(self) -> tuple[Joint, ...]:
+        """Joints moved by an actuator through a transmission, in URDF order."""
+        names = {tj.name for t in self.transmissions for tj in t.joints}
+        return tuple(j for j in self.joints if j.name in names)
+
+    @property
+    def actuators(self) -> tuple[TransmissionActuator, ...]:
+        return tuple(a for t in self.transmissions for a in t.actuators)
+
+    @property
+    def total_mass(self) -> float:
+        return sum(link.inertial.mass for link in self.links if link.inertial)
+
+    def children_of(self, link: str) -> tuple[Joint, ...]:
+        return tuple(j for j in self.joints if j.parent == link)

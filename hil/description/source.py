@@ -1,0 +1,115 @@
+"""Reading a robot's XML: xacro expansion and well-formedness, with errors
+that name the file, the line and what to do.
+
+xacro (the PyPI package, ROS 2's xacro) does the expansion; this module only
+translates its failures into :class:`~hil.errors.HilError` and records which
+files took part, so later checks can point at lines in them.
+"""
+
+from __future__ import annotations
+
+import re
+import xml.etree.ElementTree as ET
+import xml.parsers.expat
+from dataclasses import dataclass
+from pathlib import Path
+
+from hil.description.packages import AmentPrefix, PackagePath
+from hil.errors import HilError
+
+
+@dataclass(frozen=True)
+class RobotSource:
+    """The expanded URDF of a robot, parsed, and the files it came from."""
+
+    path: Path
+    root: ET.Element
+    files: tuple[Path, ...]
+
+
+def read_robot_source(path: Path, package_path: PackagePath) -> RobotSource:
+    """Expand ``path`` (.xacro, or plain .urdf) into URDF text."""
+    path = Path(path)
+    if not path.is_file():
+        raise HilError.single(f"robot description '{path}' does not exist",
+                              hint="give the path of a .urdf or .xacro file")
+    if path.suffix == ".urdf":
+        text = path.read_text(encoding="utf-8", errors="replace")
+        try:
+            root = ET.fromstring(text)
+        except ET.ParseError as exc:
+            line, column = exc.position
+            raise _xml_error(path, text, line, column, str(exc).split(":")[0]) from None
+        return RobotSource(path, root, (path.resolve(),))
+    return _expand_xacro(path, package_path)
+
+
+def _xml_error(path: Path, text: str, lineno: int, offset: int, reason: str) -> HilError:
+    """Explain an XML syntax error, recognising the seeds' common defects."""
+    lines = text.splitlines()
+    line = lines[lineno - 1] if 0 < lineno <= len(lines) else ""
+    if line[offset:].startswith("<!--"):
+        tag = _enclosing_tag(lines, lineno, offset)
+        return HilError.single(
+            f"XML comment inside the start tag of <{tag}> (column {offset + 1}): "
+            "XML allows comments only between tags, not between attributes",
+            path, lineno,
+            hint=f"move the comment after the '>' that closes <{tag} ...>, "
+                 "e.g. <joint name=\"j\" type=\"revolute\">  <!-- note -->")
+    return HilError.single(f"malformed XML: {reason} (column {offset + 1})", path, lineno,
+                           hint="fix the XML syntax at that position")
+
+
+def _enclosing_tag(lines: list[str], lineno: int, offset: int) -> str:
+    before = "\n".join(lines[: lineno - 1] + [lines[lineno - 1][:offset]])
+    starts = re.findall(r"<([A-Za-z_][\w:.-]*)", before)
+    return starts[-1] if starts else "?"
+
+
+def _expand_xacro(path: Path, package_path: PackagePath) -> RobotSource:
+    import xacro  # imported here: its import is slow and plain URDF does not need it
+
+    known_includes = len(xacro.all_includes)
+    with AmentPrefix(package_path):
+        try:
+            doc = xacro.process_file(str(path))
+        except xml.parsers.expat.ExpatError as exc:
+            failing = Path(xacro.filestack[-1] or path)
+            raise _xml_error(failing, failing.read_text(errors="replace"), exc.lineno,
+                             exc.offset, xml.parsers.expat.ErrorString(exc.code)) from None
+        except xacro.XacroException as exc:
+            raise _xacro_error(exc, path, xacro.filestack, package_path) from None
+    includes = tuple(Path(p).resolve() for p in xacro.all_includes[known_includes:])
+    files = tuple(dict.fromkeys((path.resolve(), *includes)))
+    return RobotSource(path, ET.fromstring(doc.toxml()), files)
+
+
+def _xacro_error(exc, path: Path, filestack: list, package_path: PackagePath) -> HilError:
+    current = Path(filestack[-1]) if filestack and filestack[-1] else path
+    cause = exc.exc
+    if type(cause).__name__ == "PackageNotFoundError":
+        package = re.search(r"'([^']+)'", str(cause))
+        name = package.group(1) if package else str(cause)
+        return HilError.single(
+            f"$(find {name}): no package named '{name}' on the package search path "
+            f"({package_path.describe()})",
+            current, _line_of(current, f"$(find {name})"),
+            hint=f"add the folder that contains '{name}' with --package-path DIR "
+                 f"or the HIL_PACKAGE_PATH environment variable")
+    if isinstance(cause, OSError) and getattr(cause, "filename", None):
+        missing = Path(cause.filename)
+        return HilError.single(
+            f"included file '{missing}' does not exist",
+            current, _line_of(current, missing.name),
+            hint="fix the <xacro:include filename=...> or add the missing file")
+    return HilError.single(f"xacro: {exc}", current, hint="fix the xacro at the named file")
+
+
+def _line_of(path: Path, needle: str) -> int | None:
+    try:
+        for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+            if needle in line:
+                return number
+    except OSError:
+        pass
+    return None

@@ -1,0 +1,6 @@
+"""The MuJoCo plant: physics of the robot behind the virtual drives."""
+
+from hil.plant.builder import DEFAULT_TIMESTEP, ActuatorBinding, build_spec, rpy_to_quat
+from hil.plant.plant import Plant
+
+__all__ = ["ActuatorBinding", "DEFAULT_TIMESTEP", "Plant", "build_spec", "rpy_to_quat"]

@@ -1,0 +1,202 @@
+"""Robot description -> MuJoCo model, through ``mujoco.MjSpec``.
+
+The body tree is built directly from the typed description rather than by
+MuJoCo's URDF importer, because that importer ignores transmissions, drops
+visuals and fails on missing meshes; building from the description keeps one
+parser (hil's, with its error messages) and lets transmissions act in physics:
+
+* a SimpleTransmission becomes a motor actuator on the joint with
+  ``gear = reduction``, so actuator length = motor position (for a zero
+  offset) and actuator force = motor torque; the rotor's reflected inertia
+  ``J N^2`` is the joint's armature;
+* a Differential/FourBar transmission becomes one fixed tendon per actuator
+  whose coefficients are the row of the position map ``a = P q``; a motor on
+  that tendon applies ``P^T tau_a`` to the joints (virtual work) and the
+  tendon's armature ``J`` adds exactly the reflected inertia ``P^T J P``;
+* joint damping and Coulomb friction come from ``<dynamics>``; mimic joints
+  are joint equality constraints ``q = multiplier q_leader + offset``;
+* motor torque range is the joint effort limit mapped through the
+  transmission (effort / reduction for a simple one).
+
+Geoms are visual only (no contacts): hil simulates the arm's dynamics, not
+collisions with itself or a scene.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from hil.description import GeometryKind, Joint, JointType, Link, RobotDescription
+from hil.errors import HilError
+from hil.transmissions import SimpleTransmission, Transmission
+
+DEFAULT_TIMESTEP = 0.001
+_VISUAL_GROUP = 1
+
+
+@dataclass(frozen=True)
+class ActuatorBinding:
+    """Where one actuator of a transmission lives in the MuJoCo model."""
+
+    name: str
+    transmission: int
+    index_in_transmission: int
+    torque_limit: float
+
+
+def rpy_to_quat(rpy: tuple[float, float, float]) -> np.ndarray:
+    """URDF roll-pitch-yaw (fixed axes X, Y, Z) as a MuJoCo quaternion (w, x, y, z)."""
+    quat = np.zeros(4)
+    mujoco.mju_euler2Quat(quat, np.asarray(rpy, dtype=float), "XYZ")
+    return quat
+
+
+def build_spec(description: RobotDescription, transmissions: tuple[Transmission, ...],
+               timestep: float = DEFAULT_TIMESTEP) -> tuple[mujoco.MjSpec, tuple[ActuatorBinding, ...]]:
+    spec = mujoco.MjSpec()
+    spec.modelname = description.name
+    spec.compiler.degree = False
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    spec.option.timestep = timestep
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+
+    armature = _reflected_joint_armature(description, transmissions)
+    _add_body(spec.worldbody, description, description.root_link, None, armature)
+    _add_mimic_constraints(spec, description)
+    bindings = _add_actuators(spec, description, transmissions)
+    return spec, bindings
+
+
+def compile_model(spec: mujoco.MjSpec, description: RobotDescription) -> mujoco.MjModel:
+    try:
+        return spec.compile()
+    except ValueError as exc:
+        raise HilError.single(f"MuJoCo rejects the model of '{description.name}': {exc}",
+                              description.source,
+                              hint="check the named link or joint's inertial and limits") from None
+
+
+def _reflected_joint_armature(description: RobotDescription,
+                              transmissions: tuple[Transmission, ...]) -> dict[str, float]:
+    return {t.joints[0]: spec.actuators[0].rotor_inertia * t.reduction ** 2
+            for spec, t in zip(description.transmissions, transmissions)
+            if isinstance(t, SimpleTransmission)}
+
+
+def _add_body(parent, description: RobotDescription, link_name: str, joint: Joint | None,
+              armature: dict[str, float]) -> None:
+    link = description.link(link_name)
+    body = parent.add_body(name=link.name)
+    if joint is not None:
+        body.pos = joint.origin.xyz
+        body.quat = rpy_to_quat(joint.origin.rpy)
+        if joint.is_movable:
+            _add_joint(body, joint, armature.get(joint.name, 0.0))
+    _set_inertial(body, link)
+    _add_visuals(body, link)
+    for child in description.children_of(link.name):
+        _add_body(body, description, child.child, child, armature)
+
+
+def _add_joint(body, joint: Joint, armature: float) -> None:
+    mj_joint = body.add_joint(name=joint.name)
+    mj_joint.type = (mujoco.mjtJoint.mjJNT_SLIDE if joint.type is JointType.PRISMATIC
+                     else mujoco.mjtJoint.mjJNT_HINGE)
+    mj_joint.axis = joint.axis
+    limits = joint.limits
+    if limits is not None and limits.lower is not None:
+        mj_joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+        mj_joint.range = (limits.lower, limits.upper)
+    else:
+        mj_joint.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+    # MuJoCo 4 takes [linear, polynomial terms...]; URDF damping is the linear one.
+    mj_joint.damping = [joint.dynamics.damping, 0.0, 0.0]
+    mj_joint.frictionloss = joint.dynamics.friction
+    mj_joint.armature = armature
+
+
+def _set_inertial(body, link: Link) -> None:
+    inertial = link.inertial
+    if inertial is None or inertial.mass <= 0:
+        return
+    body.explicitinertial = True
+    body.mass = inertial.mass
+    body.ipos = inertial.origin.xyz
+    body.iquat = rpy_to_quat(inertial.origin.rpy)
+    body.fullinertia = (inertial.ixx, inertial.iyy, inertial.izz,
+                        inertial.ixy, inertial.ixz, inertial.iyz)
+
+
+def _add_visuals(body, link: Link) -> None:
+    for visual in link.visuals:
+        geometry = visual.geometry
+        origin = visual.origin
+        if geometry.kind is GeometryKind.BOX and geometry.size:
+            kind, size = mujoco.mjtGeom.mjGEOM_BOX, [s / 2 for s in geometry.size]
+        elif geometry.kind is GeometryKind.CYLINDER:
+            kind, size = mujoco.mjtGeom.mjGEOM_CYLINDER, [geometry.size[0], geometry.size[1] / 2, 0]
+        elif geometry.kind is GeometryKind.SPHERE:
+            kind, size = mujoco.mjtGeom.mjGEOM_SPHERE, [geometry.size[0], 0, 0]
+        elif link.inertial is not None:
+            # mesh (present or missing): MuJoCo draws the link's equivalent-inertia box
+            kind, size = mujoco.mjtGeom.mjGEOM_BOX, [s / 2 for s in link.inertial.equivalent_box()]
+            origin = link.inertial.origin
+        else:
+            continue
+        geom = body.add_geom(type=kind, size=size)
+        geom.pos, geom.quat = origin.xyz, rpy_to_quat(origin.rpy)
+        geom.contype, geom.conaffinity, geom.group = 0, 0, _VISUAL_GROUP
+        geom.mass = 0.0
+        if visual.rgba is not None:
+            geom.rgba = visual.rgba
+
+
+def _add_mimic_constraints(spec: mujoco.MjSpec, description: RobotDescription) -> None:
+    for joint in description.joints:
+        if joint.mimic is None:
+            continue
+        equality = spec.add_equality(name=f"mimic_{joint.name}")
+        equality.type = mujoco.mjtEq.mjEQ_JOINT
+        equality.objtype = mujoco.mjtObj.mjOBJ_JOINT
+        equality.name1, equality.name2 = joint.name, joint.mimic.joint
+        polynomial = np.zeros_like(equality.data)  # q = c0 + c1 q_leader + c2 q_leader^2 ...
+        polynomial[:2] = (joint.mimic.offset, joint.mimic.multiplier)
+        equality.data = polynomial
+
+
+def _add_actuators(spec: mujoco.MjSpec, description: RobotDescription,
+                   transmissions: tuple[Transmission, ...]) -> tuple[ActuatorBinding, ...]:
+    bindings = []
+    for t_index, (t_spec, transmission) in enumerate(zip(description.transmissions,
+                                                          transmissions)):
+        efforts = [description.joint(j).limits.effort if description.joint(j).limits
+                   else math.inf for j in transmission.joints]
+        limits = transmission.actuator_effort_limits(efforts)
+        for k, name in enumerate(transmission.actuators):
+            actuator = spec.add_actuator(name=name)
+            if isinstance(transmission, SimpleTransmission):
+                actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
+                actuator.target = transmission.joints[0]
+                actuator.gear = [transmission.reduction, 0, 0, 0, 0, 0]
+            else:
+                tendon = spec.add_tendon(name=f"{name}_tendon")
+                for j, joint in enumerate(transmission.joints):
+                    if transmission.position_matrix[k, j] != 0.0:
+                        tendon.wrap_joint(joint, transmission.position_matrix[k, j])
+                tendon.armature = t_spec.actuators[k].rotor_inertia
+                actuator.trntype = mujoco.mjtTrn.mjTRN_TENDON
+                actuator.target = tendon.name
+                actuator.gear = [1, 0, 0, 0, 0, 0]
+            actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+            actuator.gainprm = [1.0] + [0.0] * 9
+            actuator.biastype = mujoco.mjtBias.mjBIAS_NONE
+            if math.isfinite(limits[k]):
+                actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+                actuator.ctrlrange = (-limits[k], limits[k])
+            bindings.append(ActuatorBinding(name, t_index, k, float(limits[k])))
+    return tuple(bindings)
+

@@ -1,0 +1,121 @@
+"""The MuJoCo plant: the robot's physics, seen from the motors.
+
+Drives call :meth:`Plant.motor_positions` / :meth:`Plant.motor_velocities`
+(motor side, through the transmissions), :meth:`Plant.set_motor_torques`
+and :meth:`Plant.step`; everything else reads joint states.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import mujoco
+import numpy as np
+
+from hil.description import RobotDescription
+from hil.plant.builder import DEFAULT_TIMESTEP, build_spec, compile_model
+from hil.transmissions import Transmission, build_transmissions
+
+
+class Plant:
+    """A MuJoCo model of one robot with one motor per transmission actuator.
+
+    Actuator arrays are ordered as :attr:`actuator_names`; joint arrays as
+    :attr:`joint_names` (every movable joint, mimic joints included, in URDF
+    order). Units are SI on both sides: rad or m for joints, rad for motors,
+    N·m or N for efforts.
+    """
+
+    def __init__(self, description: RobotDescription, timestep: float = DEFAULT_TIMESTEP):
+        self.description = description
+        self.transmissions: tuple[Transmission, ...] = build_transmissions(description)
+        self.spec, self.bindings = build_spec(description, self.transmissions, timestep)
+        self.model = compile_model(self.spec, description)
+        self.data = mujoco.MjData(self.model)
+        mujoco.mj_forward(self.model, self.data)
+
+        self.joint_names = tuple(j.name for j in description.movable_joints)
+        self.actuator_names = tuple(b.name for b in self.bindings)
+        self._qpos = np.array([self.model.joint(n).qposadr[0] for n in self.joint_names])
+        self._dof = np.array([self.model.joint(n).dofadr[0] for n in self.joint_names])
+        driven = [j for t in self.transmissions for j in t.joints]
+        self._driven_qpos = np.array([self.model.joint(n).qposadr[0] for n in driven])
+        self._driven_dof = np.array([self.model.joint(n).dofadr[0] for n in driven])
+        # One block-diagonal map for all transmissions: a = P (q_driven - offset).
+        self._position_map = _block_diagonal([t.position_matrix for t in self.transmissions])
+        self._offsets = np.concatenate([t.joint_offsets for t in self.transmissions])
+        self._actuator_ids = np.array([self.model.actuator(n).id for n in self.actuator_names])
+
+    # --- motor side --------------------------------------------------------
+
+    @property
+    def torque_limits(self) -> np.ndarray:
+        return np.array([b.torque_limit for b in self.bindings])
+
+    def motor_positions(self) -> np.ndarray:
+        q = self.data.qpos[self._driven_qpos]
+        return self._position_map @ (q - self._offsets)
+
+    def motor_velocities(self) -> np.ndarray:
+        return self._position_map @ self.data.qvel[self._driven_dof]
+
+    def set_motor_torques(self, torques) -> None:
+        """Command motor torques; MuJoCo saturates them at :attr:`torque_limits`."""
+        self.data.ctrl[self._actuator_ids] = torques
+
+    def motor_torques(self) -> np.ndarray:
+        """Torques the motors actually apply (after saturation)."""
+        return self.data.actuator_force[self._actuator_ids].copy()
+
+    # --- time --------------------------------------------------------------
+
+    @property
+    def timestep(self) -> float:
+        return float(self.model.opt.timestep)
+
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    def step(self, steps: int = 1) -> None:
+        mujoco.mj_step(self.model, self.data, nstep=steps)
+
+    # --- joint side ---------------------------------------------------------
+
+    def joint_positions(self) -> np.ndarray:
+        return self.data.qpos[self._qpos].copy()
+
+    def joint_velocities(self) -> np.ndarray:
+        return self.data.qvel[self._dof].copy()
+
+    def joint_efforts(self) -> np.ndarray:
+        """Actuator efforts at the joints (motor torques through the transmissions)."""
+        return self.data.qfrc_actuator[self._dof].copy()
+
+    def set_joint_positions(self, positions: Mapping[str, float]) -> None:
+        """Place joints (e.g. an initial pose) at rest, mimic joints following."""
+        for name, value in positions.items():
+            self.data.qpos[self.model.joint(name).qposadr[0]] = value
+        for joint in self.description.joints:
+            if joint.mimic is not None:
+                leader = self.data.qpos[self.model.joint(joint.mimic.joint).qposadr[0]]
+                self.data.qpos[self.model.joint(joint.name).qposadr[0]] = (
+                    joint.mimic.multiplier * leader + joint.mimic.offset)
+        self.data.qvel[:] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+
+    def inverse_dynamics(self) -> np.ndarray:
+        """Joint forces MuJoCo needs for the current state and acceleration."""
+        mujoco.mj_inverse(self.model, self.data)
+        return self.data.qfrc_inverse[self._dof].copy()
+
+
+def _block_diagonal(blocks: list[np.ndarray]) -> np.ndarray:
+    rows = sum(b.shape[0] for b in blocks)
+    cols = sum(b.shape[1] for b in blocks)
+    result = np.zeros((rows, cols))
+    r = c = 0
+    for block in blocks:
+        result[r:r + block.shape[0], c:c + block.shape[1]] = block
+        r, c = r + block.shape[0], c + block.shape[1]
+    return result

@@ -1,0 +1,66 @@
+"""The transmission seam: pure maps between actuator and joint space.
+
+A concrete transmission only states its two linear maps, joint -> actuator,
+for position/velocity (``P``) and for effort (``E``), from its reductions;
+the base class does the rest (offsets, inverses, every direction). The maps
+are those of ros2_control's ``transmission_interface``, so a controller
+written against ros2_control sees the same numbers.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+
+class Transmission(ABC):
+    """Maps position, velocity and effort between actuators and joints.
+
+    Positions: ``a = P (q - offset)`` and ``q = P^-1 a + offset``;
+    velocities: ``a' = P q'``; efforts: ``tau_a = E tau_j``.
+    Arrays are ordered as ``joints`` and ``actuators``.
+    """
+
+    def __init__(self, joints: tuple[str, ...], actuators: tuple[str, ...],
+                 joint_offsets: tuple[float, ...]):
+        self.joints = tuple(joints)
+        self.actuators = tuple(actuators)
+        self.joint_offsets = np.asarray(joint_offsets, dtype=float)
+        self.position_matrix = np.asarray(self._position_matrix(), dtype=float)
+        self.effort_matrix = np.asarray(self._effort_matrix(), dtype=float)
+        self._position_inverse = np.linalg.inv(self.position_matrix)
+        self._effort_inverse = np.linalg.inv(self.effort_matrix)
+
+    @abstractmethod
+    def _position_matrix(self) -> np.ndarray:
+        """P: actuator positions (and velocities) from joint ones."""
+
+    @abstractmethod
+    def _effort_matrix(self) -> np.ndarray:
+        """E: actuator efforts from joint efforts."""
+
+    def joint_to_actuator_position(self, q) -> np.ndarray:
+        return self.position_matrix @ (np.asarray(q, dtype=float) - self.joint_offsets)
+
+    def actuator_to_joint_position(self, a) -> np.ndarray:
+        return self._position_inverse @ np.asarray(a, dtype=float) + self.joint_offsets
+
+    def joint_to_actuator_velocity(self, dq) -> np.ndarray:
+        return self.position_matrix @ np.asarray(dq, dtype=float)
+
+    def actuator_to_joint_velocity(self, da) -> np.ndarray:
+        return self._position_inverse @ np.asarray(da, dtype=float)
+
+    def joint_to_actuator_effort(self, tau_j) -> np.ndarray:
+        return self.effort_matrix @ np.asarray(tau_j, dtype=float)
+
+    def actuator_to_joint_effort(self, tau_a) -> np.ndarray:
+        return self._effort_inverse @ np.asarray(tau_a, dtype=float)
+
+    def actuator_effort_limits(self, joint_efforts) -> np.ndarray:
+        """Largest actuator effort needed to reach the joints' effort limits."""
+        return np.abs(self.effort_matrix) @ np.abs(np.asarray(joint_efforts, dtype=float))
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(joints={self.joints}, actuators={self.actuators})"

@@ -1,0 +1,36 @@
+"""DifferentialTransmission: two actuators drive two joints through a differential."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hil.transmissions.base import Transmission
+
+
+class DifferentialTransmission(Transmission):
+    """ros2_control DifferentialTransmission, with actuator reductions ``ar`` and
+    joint reductions ``jr``:
+
+    ``a1 = ar1 (jr1 q1 + jr2 q2)``, ``a2 = ar2 (jr1 q1 - jr2 q2)`` (q less offsets);
+    ``tau_a1 = (tau_j1/jr1 + tau_j2/jr2) / (2 ar1)``,
+    ``tau_a2 = (tau_j1/jr1 - tau_j2/jr2) / (2 ar2)``.
+    """
+
+    def __init__(self, joints: tuple[str, str], actuators: tuple[str, str],
+                 actuator_reductions: tuple[float, float], joint_reductions: tuple[float, float],
+                 joint_offsets: tuple[float, float] = (0.0, 0.0)):
+        if 0.0 in (*actuator_reductions, *joint_reductions):
+            raise ValueError("transmission reduction ratios cannot be zero")
+        self.actuator_reductions = tuple(map(float, actuator_reductions))
+        self.joint_reductions = tuple(map(float, joint_reductions))
+        super().__init__(joints, actuators, joint_offsets)
+
+    def _position_matrix(self) -> np.ndarray:
+        (ar1, ar2), (jr1, jr2) = self.actuator_reductions, self.joint_reductions
+        return np.array([[ar1 * jr1, ar1 * jr2],
+                         [ar2 * jr1, -ar2 * jr2]])
+
+    def _effort_matrix(self) -> np.ndarray:
+        (ar1, ar2), (jr1, jr2) = self.actuator_reductions, self.joint_reductions
+        return np.array([[1 / (2 * ar1 * jr1), 1 / (2 * ar1 * jr2)],
+                         [1 / (2 * ar2 * jr1), -1 / (2 * ar2 * jr2)]])
