@@ -52,18 +52,20 @@ def summary(description: RobotDescription, plant: Plant) -> str:
                      f"{limits.velocity if limits else 0:>10.4g}"
                      f"{limits.effort if limits else 0:>9.4g}"
                      f"{joint.dynamics.damping:>9.4g}{joint.dynamics.friction:>9.4g}  {mimic}")
-    lines += ["", f"  {'transmission':<22}{'type':<14}{'joint(s)':<26}{'actuator(s)':<24}"
-                  f"{'reduction':>10}{'rotor J':>10}{'max motor torque':>18}"]
+    lines += ["", f"  {'transmission':<22}{'type':<16}{'actuator':<22}{'reduction':>10}"
+                  f"{'rotor J':>10}{'max torque':>12}  joint(s)"]
     limits = dict(zip(plant.actuator_names, plant.torque_limits))
     for spec in description.transmissions:
         kind = spec.type.rsplit("/", 1)[-1].replace("Transmission", "")
-        reductions = " ".join(f"{a.reduction * j.reduction:.5g}"
-                              for a, j in zip(spec.actuators, spec.joints))
-        rotor = " ".join(f"{a.rotor_inertia:.2g}" for a in spec.actuators)
-        torque = " ".join(f"{limits[a.name]:.4g}" for a in spec.actuators)
-        lines.append(f"  {spec.name:<22}{kind:<14}{', '.join(j.name for j in spec.joints):<26}"
-                     f"{', '.join(a.name for a in spec.actuators):<24}{reductions:>10}"
-                     f"{rotor:>10}{torque:>18}")
+        simple = len(spec.joints) == 1
+        joints = ", ".join(
+            j.name + ("" if simple or j.reduction == 1 else f" x{j.reduction:g}")
+            + (f" offset {j.offset:g}" if j.offset else "") for j in spec.joints)
+        for actuator in spec.actuators:
+            reduction = actuator.reduction * (spec.joints[0].reduction if simple else 1.0)
+            lines.append(f"  {spec.name:<22}{kind:<16}{actuator.name:<22}{reduction:>10.5g}"
+                         f"{actuator.rotor_inertia:>10.2g}{limits[actuator.name]:>12.4g}  "
+                         f"{joints}")
     model = plant.model
     lines += ["", f"  MuJoCo: {model.nq} dof, {model.nu} actuators, {model.neq} mimic "
                   f"constraint(s), timestep {model.opt.timestep * 1e3:g} ms"]

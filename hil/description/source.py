@@ -70,22 +70,23 @@ def _expand_xacro(path: Path, package_path: PackagePath) -> RobotSource:
     import xacro  # imported here: its import is slow and plain URDF does not need it
 
     known_includes = len(xacro.all_includes)
+    # Paths are resolved inside the block: the prefix's package links vanish after it.
     with AmentPrefix(package_path):
         try:
             doc = xacro.process_file(str(path))
         except xml.parsers.expat.ExpatError as exc:
-            failing = Path(xacro.filestack[-1] or path)
+            failing = Path(xacro.filestack[-1] or path).resolve()
             raise _xml_error(failing, failing.read_text(errors="replace"), exc.lineno,
                              exc.offset, xml.parsers.expat.ErrorString(exc.code)) from None
         except xacro.XacroException as exc:
-            raise _xacro_error(exc, path, xacro.filestack, package_path) from None
-    includes = tuple(Path(p).resolve() for p in xacro.all_includes[known_includes:])
+            current = Path(xacro.filestack[-1] or path).resolve() if xacro.filestack else path
+            raise _xacro_error(exc, current, package_path) from None
+        includes = [Path(p).resolve() for p in xacro.all_includes[known_includes:]]
     files = tuple(dict.fromkeys((path.resolve(), *includes)))
     return RobotSource(path, ET.fromstring(doc.toxml()), files)
 
 
-def _xacro_error(exc, path: Path, filestack: list, package_path: PackagePath) -> HilError:
-    current = Path(filestack[-1]) if filestack and filestack[-1] else path
+def _xacro_error(exc, current: Path, package_path: PackagePath) -> HilError:
     cause = exc.exc
     if type(cause).__name__ == "PackageNotFoundError":
         package = re.search(r"'([^']+)'", str(cause))

@@ -124,12 +124,12 @@ def parse_urdf(source: RobotSource, package_path: PackagePath) -> RobotDescripti
     _check_visuals(reader, links, joints)
 
     errors = [d for d in reader.diagnostics if d.severity is Severity.ERROR]
+    warnings = tuple(d for d in reader.diagnostics if d.severity is Severity.WARNING)
     if errors:
-        raise HilError(errors)
+        raise HilError(errors + list(warnings))
     return RobotDescription(
         name=root.get("name") or source.path.stem, source=source.path, links=links,
-        joints=joints, transmissions=transmissions,
-        warnings=tuple(d for d in reader.diagnostics if d.severity is Severity.WARNING))
+        joints=joints, transmissions=transmissions, warnings=warnings)
 
 
 # --- links -----------------------------------------------------------------
@@ -355,7 +355,8 @@ def _check_tree(reader: _Reader, links: tuple[Link, ...], joints: tuple[Joint, .
             reader.report(error, f"link '{child}' is the child of several joints "
                           f"({', '.join(names)}); URDF needs a tree", "link", child)
     roots = [link.name for link in links if link.name not in parents_of]
-    if links and not roots:
+    dangling = any(j.parent not in link_names for j in joints)
+    if links and not roots and not dangling:
         reader.diagnostics.append(error("the joints form a loop: no link is a root",
                                         reader.source.path))
     elif len(roots) > 1:
@@ -376,9 +377,17 @@ def _missing_link_hint(reader: _Reader, link: str) -> str:
                 continue
             if pattern.search(candidate.read_text(errors="replace")):
                 return (f"'{link}' is defined in {candidate}, which is not included: add "
-                        f"<xacro:include filename=\"{candidate}\"/> (or $(find pkg)/... form)")
+                        f"<xacro:include filename=\"{_find_form(candidate, reader.package_path)}\"/>")
     return (f"define <link name=\"{link}\"/> or include the file that defines it "
             "(no file on the package search path does)")
+
+
+def _find_form(file: Path, package_path: PackagePath) -> str:
+    """``$(find pkg)/rel`` for a file inside a package on the path, else the plain path."""
+    for name, folder in package_path.packages().items():
+        if file.resolve().is_relative_to(folder.resolve()):
+            return f"$(find {name})/{file.resolve().relative_to(folder.resolve())}"
+    return str(file)
 
 
 def _check_mimic(reader: _Reader, joints: tuple[Joint, ...]) -> None:
@@ -407,11 +416,10 @@ def _read_transmission(reader: _Reader, element: ET.Element) -> TransmissionSpec
         text = part.findtext("mechanicalReduction") or part.findtext("mechanical_reduction")
         value = reader.number(text, f"transmission '{name}' {what} reduction", "transmission",
                               name, 1.0)
-        if value <= 0:
-            reader.report(error, f"transmission '{name}' {what} has mechanical reduction "
-                          f"{value}; it must be > 0", "transmission", name,
-                          hint="a reduction is motor turns per joint turn, e.g. 100; to flip "
-                               "the direction, flip the joint's <axis>")
+        if value == 0:
+            reader.report(error, f"transmission '{name}' {what} has mechanical reduction 0",
+                          "transmission", name,
+                          hint="a reduction is motor turns per joint turn, e.g. 100")
         return value
 
     def role(part: ET.Element) -> str | None:
@@ -461,6 +469,8 @@ def _check_transmissions(reader: _Reader, joints: tuple[Joint, ...],
                           "transmission", spec.name,
                           hint=f"use one of: {', '.join(TRANSMISSION_TYPES)}")
             continue
+        if kind == "simple":
+            _check_simple_reduction(reader, spec)
         arity = _ARITY[kind]
         if len(spec.joints) != arity or len(spec.actuators) != arity:
             reader.report(error, f"transmission '{spec.name}' ({kind}) has "
@@ -490,6 +500,16 @@ def _check_transmissions(reader: _Reader, joints: tuple[Joint, ...],
             reader.report(warning, f"joint '{joint.name}' has no transmission: it is passive "
                           "(no actuator moves it)", "joint", joint.name,
                           hint="add a <transmission> if a motor drives this joint")
+
+
+def _check_simple_reduction(reader: _Reader, spec: TransmissionSpec) -> None:
+    # Coupled transmissions use signs for their direction conventions (as in
+    # ros2_control); a simple one has the joint axis for that.
+    for part in (*spec.joints, *spec.actuators):
+        if part.reduction < 0:
+            reader.report(error, f"transmission '{spec.name}' has mechanical reduction "
+                          f"{part.reduction} on '{part.name}'; it must be > 0", "transmission",
+                          spec.name, hint="to reverse the direction, flip the joint's <axis>")
 
 
 def _check_unique(reader: _Reader, what: str, named: list[tuple[str, TransmissionSpec]],

@@ -163,6 +163,9 @@ def _add_mimic_constraints(spec: mujoco.MjSpec, description: RobotDescription) -
         equality.type = mujoco.mjtEq.mjEQ_JOINT
         equality.objtype = mujoco.mjtObj.mjOBJ_JOINT
         equality.name1, equality.name2 = joint.name, joint.mimic.joint
+        # Stiffer than MuJoCo's default (0.02 s) so the follower lags by well under
+        # a millimetre; two timesteps is the stiffest MuJoCo integrates stably.
+        equality.solref = (2 * spec.option.timestep, 1.0)
         polynomial = np.zeros_like(equality.data)  # q = c0 + c1 q_leader + c2 q_leader^2 ...
         polynomial[:2] = (joint.mimic.offset, joint.mimic.multiplier)
         equality.data = polynomial

@@ -1,0 +1,127 @@
+"""Every defect of the bad-input corpus gets a clear message: file, line, what to do.
+
+The corpus (tests/corpus/) is built from the seeds' own defects.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from hil.cli import main
+from hil.description import load_description
+from hil.errors import HilError, Severity
+from conftest import CORPUS
+
+
+def diagnostics_of(path, package_path, strict=False):
+    with pytest.raises(HilError) as caught:
+        load_description(path, package_path, strict=strict)
+    return caught.value.diagnostics
+
+
+def test_comment_inside_start_tag_names_file_line_and_tag(package_path):
+    (diag,) = diagnostics_of(CORPUS / "pigot_arm_model_as_printed.xacro", package_path)
+    assert diag.file.name == "pigot_arm_model_as_printed.xacro"
+    assert diag.line == 12  # xyz="0 -0.3 0.05"   <!--原点坐标x,y,z-->
+    assert "XML comment inside the start tag of <origin>" in diag.message
+    assert "move the comment after the '>'" in diag.hint
+
+
+def test_seed_ur3_duplicate_transmission_and_actuator_names(package_path):
+    diagnostics = diagnostics_of(CORPUS / "ur3_as_published.xacro", package_path)
+    errors = [d for d in diagnostics if d.severity is Severity.ERROR]
+    assert len(errors) == 2
+    trans, motor = errors
+    assert "transmission name 'trans1' is used by 6 transmissions" in trans.message
+    assert "joint1; joint2; joint3; joint4; joint5; joint6" in trans.message
+    assert trans.line == 9 and "${joint_name}" in trans.hint
+    assert "actuator name 'motor1' is used by 6 transmissions" in motor.message
+    assert motor.line == 14
+
+
+def test_seed_ur3_warnings_travel_with_its_errors(package_path):
+    diagnostics = diagnostics_of(CORPUS / "ur3_as_published.xacro", package_path)
+    text = "\n".join(d.message for d in diagnostics if d.severity is Severity.WARNING)
+    assert "link 'link3' colour rgba=\"1 10 13 1\"" in text
+    assert "link 'base_link' visual origin is 25.0 m" in text
+    assert "mesh 'package://ur3/meshes/base_link.STL' not found" in text
+
+
+@pytest.mark.parametrize("name, message, hint", [
+    ("rgba_above_one.urdf", "colour rgba=\"1 10 13 1\" has components outside 0..1",
+     "divide 0-255 values by 255"),
+    ("visual_far_away.urdf", "visual origin is 25.0 m from the link frame",
+     "unit or export error"),
+    ("mesh_missing.urdf", "mesh 'package://ur3/meshes/base_link.STL' not found; drawn as a box",
+     "--strict"),
+])
+def test_cosmetic_defects_warn_with_line_and_still_load(name, message, hint, package_path):
+    description = load_description(CORPUS / name, package_path)
+    (diag,) = description.warnings
+    assert message in diag.message and hint in diag.hint
+    assert diag.file.name == name and diag.line == 7
+
+
+def test_strict_turns_a_missing_mesh_into_an_error(package_path):
+    (diag,) = diagnostics_of(CORPUS / "mesh_missing.urdf", package_path, strict=True)
+    assert diag.severity is Severity.ERROR and "not found" in diag.message
+
+
+def test_unknown_package_lists_the_search_path(package_path):
+    (diag,) = diagnostics_of(CORPUS / "find_unknown_package.xacro", package_path)
+    assert "$(find pigot_stl_model): no package named 'pigot_stl_model'" in diag.message
+    assert str(CORPUS) in diag.message  # the search path is listed
+    assert diag.line == 6
+    assert "--package-path" in diag.hint and "HIL_PACKAGE_PATH" in diag.hint
+
+
+def test_undefined_parent_link_names_the_file_missing_from_includes(package_path):
+    root = CORPUS / "missing_include_description" / "urdf"
+    (diag,) = diagnostics_of(root / "robot.xacro", package_path)
+    assert "parent link 'body_link' is not defined" in diag.message
+    assert diag.file.name == "arm.xacro" and diag.line == 3
+    assert "body.xacro, which is not included" in diag.hint
+    assert "$(find missing_include_description)/urdf/body.xacro" in diag.hint
+
+
+@pytest.mark.parametrize("name, line, message", [
+    ("transmission_unknown_joint.urdf", 16,
+     "transmission 'shoulder_trans' names joint 'elbow', which does not exist"),
+    ("reduction_zero.urdf", 16, "actuator 'shoulder_motor' has mechanical reduction 0"),
+    ("reduction_negative.urdf", 16, "has mechanical reduction -50.0 on 'shoulder_motor'"),
+    ("mimic_unknown_joint.urdf", 19,
+     "joint 'finger_joint' mimics joint 'gripper_joint', which does not exist"),
+    ("limits_inverted.urdf", 10, "joint 'shoulder' limits lower=1.5 > upper=-1.5"),
+])
+def test_semantic_errors_name_the_element_and_line(name, line, message, package_path):
+    errors = [d for d in diagnostics_of(CORPUS / name, package_path)
+              if d.severity is Severity.ERROR]
+    assert len(errors) == 1
+    assert message in errors[0].message
+    assert errors[0].file.name == name and errors[0].line == line
+    assert errors[0].hint
+
+
+def test_cli_reports_errors_without_traceback_and_exits_1(capsys):
+    assert main(["check", str(CORPUS / "ur3_as_published.xacro"),
+                 "--package-path", str(CORPUS)]) == 1
+    err = capsys.readouterr().err
+    assert "ur3_as_published.xacro:9: error: transmission name 'trans1'" in err
+    assert "what to do:" in err
+
+
+def test_cli_process_prints_no_traceback_for_malformed_xml():
+    result = subprocess.run(
+        [sys.executable, "-m", "hil", "check", str(CORPUS / "pigot_arm_model_as_printed.xacro")],
+        capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1
+    assert "Traceback" not in result.stderr
+    assert "pigot_arm_model_as_printed.xacro:12: error: XML comment inside" in result.stderr
+
+
+def test_missing_file_is_a_clear_error(tmp_path, capsys):
+    assert main(["check", str(tmp_path / "nope.urdf")]) == 1
+    assert "does not exist" in capsys.readouterr().err
