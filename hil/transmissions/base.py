@@ -64,3 +64,17 @@ class Transmission(ABC):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(joints={self.joints}, actuators={self.actuators})"
+
+
+class CoupledTransmission(Transmission):
+    """Two actuators, two joints, with reductions on both sides (ros2_control's
+    ``actuator_reduction`` / ``joint_reduction``); subclasses give the maps."""
+
+    def __init__(self, joints: tuple[str, str], actuators: tuple[str, str],
+                 actuator_reductions: tuple[float, float], joint_reductions: tuple[float, float],
+                 joint_offsets: tuple[float, float] = (0.0, 0.0)):
+        if 0.0 in (*actuator_reductions, *joint_reductions):
+            raise ValueError("transmission reduction ratios cannot be zero")
+        self.actuator_reductions = tuple(map(float, actuator_reductions))
+        self.joint_reductions = tuple(map(float, joint_reductions))
+        super().__init__(joints, actuators, joint_offsets)

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from hil.transmissions.base import Transmission
+from hil.transmissions.base import CoupledTransmission
 
 
-class DifferentialTransmission(Transmission):
+class DifferentialTransmission(CoupledTransmission):
     """ros2_control DifferentialTransmission, with actuator reductions ``ar`` and
     joint reductions ``jr``:
 
@@ -15,15 +15,6 @@ class DifferentialTransmission(Transmission):
     ``tau_a1 = (tau_j1/jr1 + tau_j2/jr2) / (2 ar1)``,
     ``tau_a2 = (tau_j1/jr1 - tau_j2/jr2) / (2 ar2)``.
     """
-
-    def __init__(self, joints: tuple[str, str], actuators: tuple[str, str],
-                 actuator_reductions: tuple[float, float], joint_reductions: tuple[float, float],
-                 joint_offsets: tuple[float, float] = (0.0, 0.0)):
-        if 0.0 in (*actuator_reductions, *joint_reductions):
-            raise ValueError("transmission reduction ratios cannot be zero")
-        self.actuator_reductions = tuple(map(float, actuator_reductions))
-        self.joint_reductions = tuple(map(float, joint_reductions))
-        super().__init__(joints, actuators, joint_offsets)
 
     def _position_matrix(self) -> np.ndarray:
         (ar1, ar2), (jr1, jr2) = self.actuator_reductions, self.joint_reductions

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from hil.transmissions.base import Transmission
+from hil.transmissions.base import CoupledTransmission
 
 
-class FourBarLinkageTransmission(Transmission):
+class FourBarLinkageTransmission(CoupledTransmission):
     """ros2_control FourBarLinkageTransmission:
 
     ``a1 = ar1 jr1 q1``, ``a2 = ar2 (q1 + jr2 q2)`` (q less offsets);
@@ -17,15 +17,6 @@ class FourBarLinkageTransmission(Transmission):
     so it does not conserve power; hil reproduces it exactly here, and the
     plant (which must conserve energy) uses the position map's transpose.
     """
-
-    def __init__(self, joints: tuple[str, str], actuators: tuple[str, str],
-                 actuator_reductions: tuple[float, float], joint_reductions: tuple[float, float],
-                 joint_offsets: tuple[float, float] = (0.0, 0.0)):
-        if 0.0 in (*actuator_reductions, *joint_reductions):
-            raise ValueError("transmission reduction ratios cannot be zero")
-        self.actuator_reductions = tuple(map(float, actuator_reductions))
-        self.joint_reductions = tuple(map(float, joint_reductions))
-        super().__init__(joints, actuators, joint_offsets)
 
     def _position_matrix(self) -> np.ndarray:
         (ar1, ar2), (jr1, jr2) = self.actuator_reductions, self.joint_reductions
