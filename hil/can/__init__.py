@@ -1,0 +1,47 @@
+"""CAN transports: every bus is a python-can bus, picked by interface name.
+
+SocketCAN (``socketcan``, e.g. ``vcan0``) is the first-class target. Where a
+kernel has no CAN, ``zenoh`` (this package's python-can plug-in) carries
+frames across processes over loopback, and python-can's ``virtual`` works
+inside one process.
+"""
+
+from __future__ import annotations
+
+import errno
+
+import can
+
+from hil.can.frames import BusLoad, bus_load, frame_bits
+from hil.errors import HilError
+
+__all__ = ["BusLoad", "bus_load", "frame_bits", "open_bus"]
+
+
+def open_bus(interface: str, channel: str, bitrate: int | None = None, **options) -> can.BusABC:
+    """Open a python-can bus, turning the usual set-up failures into clear errors."""
+    kwargs = dict(options)
+    if bitrate and interface not in ("socketcan", "virtual", "zenoh"):
+        kwargs["bitrate"] = bitrate   # virtual/socketcan/zenoh have no bitrate to set
+    try:
+        return can.Bus(interface=interface, channel=channel, **kwargs)
+    except OSError as exc:
+        raise _explain(interface, channel, exc) from None
+    except (can.CanError, ValueError, ImportError) as exc:
+        raise HilError.single(
+            f"cannot open CAN bus '{channel}' with python-can interface '{interface}': {exc}",
+            hint="check 'interface' and 'channel' in the bus config "
+                 f"(python-can knows: {', '.join(sorted(can.VALID_INTERFACES))})") from None
+
+
+def _explain(interface: str, channel: str, exc: OSError) -> HilError:
+    if exc.errno == errno.EAFNOSUPPORT:
+        return HilError.single(
+            f"cannot open '{channel}': this kernel has no SocketCAN (AF_CAN)",
+            hint="use interface 'zenoh' (cross-process over loopback), or run inside "
+                 "User-Mode Linux with tools/uml_run.py, which has vcan")
+    if exc.errno in (errno.ENODEV, errno.ENXIO):
+        return HilError.single(
+            f"CAN interface '{channel}' does not exist",
+            hint=f"create it: sudo tools/vcan-setup.sh {channel}")
+    return HilError.single(f"cannot open CAN bus '{channel}' ({interface}): {exc}")

@@ -1,0 +1,116 @@
+"""A python-can interface that carries CAN frames over Zenoh.
+
+Registered as python-can interface ``zenoh`` (entry point group
+``can.interface``), so ``can.Bus(interface="zenoh", channel="ur3/arm")``
+works in any program. Every bus on the same channel, in any process that
+reaches the same Zenoh network, sees every frame the others send, in order
+per sender, like a CAN bus; a bus does not receive its own frames unless
+``receive_own_messages=True``. There is no arbitration or bandwidth limit:
+``hil check`` estimates the load a real bus would carry.
+
+Why: SocketCAN ``vcan`` needs a Linux kernel with CAN; python-can's
+``virtual`` bus is one process only and ``udp_multicast`` sends to the
+network. Zenoh over loopback TCP is cross-process, loopback-only by default,
+and also lets a bench put drives and controller on different hosts.
+
+Wire format of one frame (little-endian): sender id u64, arbitration id u32,
+flags u8 (1 extended, 2 remote, 4 error), DLC u8, then the data bytes.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import queue
+import random
+import struct
+import time
+from pathlib import Path
+
+import can
+import zenoh
+
+from hil.zenoh_session import ZenohSettings, session
+
+log = logging.getLogger(__name__)
+
+KEY_PREFIX = "hil/can/"
+_HEADER = struct.Struct("<QIBB")
+_EXTENDED, _REMOTE, _ERROR = 1, 2, 4
+
+
+def encode_frame(sender: int, msg: can.Message) -> bytes:
+    flags = ((_EXTENDED if msg.is_extended_id else 0) | (_REMOTE if msg.is_remote_frame else 0)
+             | (_ERROR if msg.is_error_frame else 0))
+    return _HEADER.pack(sender, msg.arbitration_id, flags, msg.dlc) + bytes(msg.data or b"")
+
+
+def decode_frame(payload: bytes, channel: str) -> tuple[int, can.Message]:
+    """Raise ValueError for anything that is not a well-formed frame."""
+    if len(payload) < _HEADER.size:
+        raise ValueError(f"{len(payload)} bytes is shorter than a frame header")
+    sender, arbitration_id, flags, dlc = _HEADER.unpack_from(payload)
+    data = payload[_HEADER.size:]
+    remote = bool(flags & _REMOTE)
+    if dlc > 8 or (not remote and len(data) != dlc) or (remote and data):
+        raise ValueError(f"DLC {dlc} does not match {len(data)} data bytes")
+    limit = 0x1FFFFFFF if flags & _EXTENDED else 0x7FF
+    if arbitration_id > limit:
+        raise ValueError(f"identifier 0x{arbitration_id:X} out of range")
+    return sender, can.Message(timestamp=time.time(), arbitration_id=arbitration_id,
+                               is_extended_id=bool(flags & _EXTENDED), is_remote_frame=remote,
+                               is_error_frame=bool(flags & _ERROR), dlc=dlc, data=data,
+                               channel=channel, is_rx=True)
+
+
+class ZenohBus(can.BusABC):
+    """python-can bus over Zenoh pub/sub on key ``hil/can/<channel>``.
+
+    Options: ``listen`` / ``connect`` (lists of Zenoh endpoints),
+    ``zenoh_config`` (path of a Zenoh config file), ``receive_own_messages``.
+    """
+
+    def __init__(self, channel: str, listen=(), connect=(), zenoh_config=None,
+                 receive_own_messages: bool = False, **kwargs):
+        self.channel_info = f"Zenoh {KEY_PREFIX}{channel}"
+        self._channel = str(channel)
+        self._receive_own = receive_own_messages
+        self._sender = random.getrandbits(63) ^ os.getpid()
+        self._queue: queue.SimpleQueue[can.Message] = queue.SimpleQueue()
+        self._malformed = 0
+        settings = ZenohSettings(tuple(listen), tuple(connect),
+                                 Path(zenoh_config) if zenoh_config else None)
+        self._session = session(settings)
+        key = KEY_PREFIX + self._channel
+        self._publisher = self._session.declare_publisher(
+            key, congestion_control=zenoh.CongestionControl.BLOCK, express=True)
+        self._subscriber = self._session.declare_subscriber(key, self._on_sample)
+        super().__init__(channel=channel, **kwargs)
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        try:
+            sender, msg = decode_frame(sample.payload.to_bytes(), self._channel)
+        except ValueError as exc:
+            self._malformed += 1
+            if self._malformed == 1 or self._malformed % 1000 == 0:
+                log.warning("%s: dropped %d malformed frame(s) from Zenoh: %s",
+                            self.channel_info, self._malformed, exc)
+            return
+        if sender != self._sender or self._receive_own:
+            self._queue.put(msg)
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self._publisher.put(encode_frame(self._sender, msg))
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        try:
+            return self._queue.get(timeout=timeout), False
+        except queue.Empty:
+            return None, False
+
+    def shutdown(self) -> None:
+        if self._is_shutdown:
+            return
+        super().shutdown()
+        self._subscriber.undeclare()
+        self._publisher.undeclare()

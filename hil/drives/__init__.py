@@ -1,0 +1,14 @@
+"""Virtual servo drives: a protocol-free core behind a drive profile.
+
+:data:`PROFILES` picks the profile class by the ``protocol`` string of a bus
+config, the way python-can picks an interface.
+"""
+
+from hil.drives.cia402 import Cia402Drive
+from hil.drives.core import DriveCore, DriveParameters, DriveStatus, Fault, Mode, Power
+
+#: protocol name -> drive class
+PROFILES = {"cia402": Cia402Drive}
+
+__all__ = ["Cia402Drive", "DriveCore", "DriveParameters", "DriveStatus",
+           "Fault", "Mode", "PROFILES", "Power"]

@@ -1,0 +1,408 @@
+"""CANopen CiA 402 drive profile on top of python ``canopen``'s LocalNode.
+
+``canopen`` gives the object dictionary (from ``bus_config/cia402_drive.eds``),
+the SDO server, NMT slave with boot-up and heartbeat, the EMCY producer and
+PDO maps. It does not answer SYNC with TPDOs, does not tie PDO contents to
+the object dictionary, and implements no 402 device (canopen issues #555,
+#558, #166): those parts are written here.
+
+Threading: canopen calls back from python-can's Notifier thread. Every
+callback takes the ``lock`` the owner passes in, the same lock the owner
+holds while stepping the physics, so a drive never sees a half-done step.
+For every SYNC on the drive's bus the owner calls
+:meth:`Cia402Drive.sync_receive` (take setpoints), then
+:meth:`Cia402Drive.prepare_tpdos` (sample the state) and
+:meth:`Cia402Drive.send_tpdos`; in lock-step it steps the physics between
+the last two, so the reply carries the state at SYNC and arrives only once
+the step is done.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import math
+import struct
+import threading
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import canopen
+from canopen.sdo import SdoAbortedError
+
+from hil.drives.core import DriveCore, Fault, Mode, Power
+
+log = logging.getLogger(__name__)
+
+EDS_PATH = Path(__file__).resolve().parents[2] / "bus_config" / "cia402_drive.eds"
+
+SYNC_ID = 0x080
+NMT_ID = 0x000
+OPERATIONAL = "OPERATIONAL"
+
+#: CiA 402 modes of operation (0x6060/0x6061) this drive supports.
+MODE_CODES = {8: Mode.POSITION, 9: Mode.VELOCITY, 10: Mode.TORQUE}
+CODE_OF_MODE = {mode: code for code, mode in MODE_CODES.items()}
+
+#: EMCY codes that are not drive faults (CiA 301).
+EMCY_PDO_LENGTH = 0x8210
+EMCY_SYNC_LENGTH = 0x8240
+EMCY_NO_ERROR = 0x0000
+_ERROR_REGISTER = {Fault.FOLLOWING_ERROR: 0x21, Fault.POSITION_LIMIT: 0x21,
+                   Fault.CONTROLLER_SILENT: 0x11}
+
+
+class State(enum.Enum):
+    """The CiA 402 power states, with their statusword value (mask 0x6F)."""
+
+    NOT_READY_TO_SWITCH_ON = 0x00
+    SWITCH_ON_DISABLED = 0x40
+    READY_TO_SWITCH_ON = 0x21
+    SWITCHED_ON = 0x23
+    OPERATION_ENABLED = 0x27
+    QUICK_STOP_ACTIVE = 0x07
+    FAULT_REACTION_ACTIVE = 0x0F
+    FAULT = 0x08
+
+
+class Cia402StateMachine:
+    """The 402 power state machine driven by controlword 0x6040.
+
+    The drive core owns whether power is on; this class holds the disabled
+    sub-states (switch on disabled / ready to switch on / switched on) and
+    translates controlword commands into core calls.
+    """
+
+    def __init__(self, core: DriveCore, quick_stop_option: int = 6):
+        self.core = core
+        self.quick_stop_option = quick_stop_option
+        self._disabled_state = State.SWITCH_ON_DISABLED
+        self._last_controlword = 0
+
+    @property
+    def state(self) -> State:
+        power = self.core.power
+        if power is Power.FAULT:
+            return State.FAULT
+        if power is Power.QUICK_STOP:
+            return State.QUICK_STOP_ACTIVE
+        if power is Power.ENABLED:
+            return State.OPERATION_ENABLED
+        return self._disabled_state
+
+    def controlword(self, word: int) -> None:
+        """Apply one controlword (CiA 402 transitions 2-12, 15, 16)."""
+        rising_reset = bool(word & 0x80) and not self._last_controlword & 0x80
+        self._last_controlword = word
+        state = self.state
+        if state is State.FAULT:
+            if rising_reset:
+                self.core.reset_fault()
+                self._disabled_state = State.SWITCH_ON_DISABLED
+            return
+        if word & 0x82 == 0x00:                                   # disable voltage
+            self._to_disabled(State.SWITCH_ON_DISABLED)
+        elif word & 0x86 == 0x02:                                 # quick stop
+            if state is State.OPERATION_ENABLED:
+                self.core.quick_stop()
+            elif state is not State.QUICK_STOP_ACTIVE:
+                self._to_disabled(State.SWITCH_ON_DISABLED)
+        elif word & 0x87 == 0x06:                                 # shutdown
+            if state is not State.QUICK_STOP_ACTIVE:
+                self._to_disabled(State.READY_TO_SWITCH_ON)
+        elif word & 0x8F == 0x07:                                 # switch on / disable op.
+            if state in (State.READY_TO_SWITCH_ON, State.OPERATION_ENABLED):
+                self._to_disabled(State.SWITCHED_ON)
+        elif word & 0x8F == 0x0F:                                 # enable operation
+            if state in (State.READY_TO_SWITCH_ON, State.SWITCHED_ON) or (
+                    state is State.QUICK_STOP_ACTIVE and self.quick_stop_option >= 5):
+                self.core.enable()
+
+    def after_update(self) -> None:
+        """Quick stop option 1-4: once stopped, fall to switch on disabled."""
+        if (self.core.power is Power.QUICK_STOP and self.quick_stop_option < 5
+                and self.core.status().stopped):
+            self._to_disabled(State.SWITCH_ON_DISABLED)
+
+    def _to_disabled(self, state: State) -> None:
+        self.core.disable()
+        self._disabled_state = state
+
+
+def statusword(state: State, core: DriveCore) -> int:
+    """0x6041 for a state and the core's flags."""
+    status = core.status()
+    word = state.value | 0x0200                                   # bit 9: remote
+    if state in (State.READY_TO_SWITCH_ON, State.SWITCHED_ON, State.OPERATION_ENABLED,
+                 State.QUICK_STOP_ACTIVE):
+        word |= 0x0010                                            # bit 4: voltage enabled
+    if status.target_reached:
+        word |= 0x0400
+    if status.internal_limit:
+        word |= 0x0800
+    if state is State.OPERATION_ENABLED and status.mode is not Mode.TORQUE:
+        word |= 0x1000                                            # bit 12: following targets
+    if status.following_error_exceeded and status.mode is Mode.POSITION:
+        word |= 0x2000
+    return word
+
+
+class Cia402Drive:
+    """A CiA 402 servo drive on a CANopen network, around a :class:`DriveCore`."""
+
+    protocol = "cia402"
+    #: Payload bytes of the frames one drive exchanges per SYNC with the default
+    #: mapping: RPDO1 (controlword + target), TPDO1, TPDO2.
+    cyclic_payloads = (6, 6, 6)
+
+    def __init__(self, node_id: int, core: DriveCore, lock: threading.RLock,
+                 rated_torque: float, heartbeat_ms: int = 100, eds: Path = EDS_PATH):
+        self.node_id = node_id
+        self.core = core
+        self.lock = lock
+        self.rated_torque = rated_torque
+        self.machine = Cia402StateMachine(core)
+        self.node = canopen.LocalNode(node_id, str(eds))
+        self._heartbeat_ms = heartbeat_ms
+        self._latched: dict[int, bytes] = {}
+        self._fault_reported = False
+        self._pending: list[tuple[int, bytes]] = []
+        self._counts_per_rad = core.parameters.counts_per_rev / (2 * math.pi)
+        self._store_configuration()
+        self.node.add_read_callback(self._on_read)
+        self.node.add_write_callback(self._on_write)
+
+    # --- network life cycle ---------------------------------------------------
+
+    def attach(self, network: canopen.Network) -> None:
+        """Join the network: PDO maps from the object dictionary, boot-up, heartbeat."""
+        network.add_node(self.node)
+        network.subscribe(NMT_ID, self._after_nmt)
+        self._configure_pdos()
+        self._boot()
+
+    def detach(self) -> None:
+        network = self.node.network
+        self.node.nmt.stop_heartbeat()
+        network.unsubscribe(NMT_ID, self._after_nmt)
+        for pdo in self.node.rpdo.map.values():
+            if pdo.enabled and pdo.cob_id in network.subscribers:
+                network.unsubscribe(pdo.cob_id, pdo.on_message)
+        self.node.remove_network()
+
+    def _boot(self) -> None:
+        """Boot-up message, pre-operational, heartbeat (CiA 301 initialisation)."""
+        self.node.nmt.send_command(0x81)   # reset node: state 0, sends the boot-up frame
+        self.node.nmt.send_command(0x80)   # enter pre-operational: starts the heartbeat
+
+    def _after_nmt(self, can_id: int, data: bytes, timestamp: float) -> None:
+        """Runs after canopen's NMT slave has applied a command."""
+        if len(data) != 2 or data[1] not in (0, self.node_id):
+            return
+        with self.lock:
+            state = self.node.nmt.state
+            if state == "INITIALISING":
+                self._reset(communication_only=data[0] == 0x82)
+            elif state == OPERATIONAL and data[0] == 0x01:
+                self._configure_pdos()     # mappings written by SDO take effect on start
+            elif state != OPERATIONAL and self.core.power is Power.ENABLED:
+                # leaving OPERATIONAL while enabled: abort connection option 3 (quick stop)
+                self.core.quick_stop()
+
+    def _reset(self, communication_only: bool) -> None:
+        if not communication_only:
+            self.machine.controlword(0x0000)
+            self.core.reset_fault()
+            self.node.data_store.clear()
+            self._store_configuration()
+        self._configure_pdos()
+        self._latched.clear()
+        self._boot()
+
+    def _configure_pdos(self) -> None:
+        for pdo in self.node.rpdo.map.values():
+            if pdo.enabled and pdo.cob_id in self.node.network.subscribers:
+                self.node.network.unsubscribe(pdo.cob_id, pdo.on_message)
+        self.node.tpdo.read()
+        self.node.rpdo.read()
+        for number, pdo in self.node.rpdo.map.items():
+            pdo.callbacks = [lambda pdo, n=number: self._on_rpdo(n, pdo)]
+
+    # --- cyclic exchange --------------------------------------------------------
+
+    def _on_rpdo(self, number: int, pdo) -> None:
+        expected = math.ceil(pdo.length / 8)
+        if len(pdo.data) != expected:
+            self.node.emcy.send(EMCY_PDO_LENGTH, 0x11,
+                                struct.pack("<HB", len(pdo.data), expected) + b"\0\0")
+            return
+        if self.node.nmt.state != OPERATIONAL:
+            return
+        with self.lock:
+            self._latched[number] = bytes(pdo.data)
+            self.core.new_setpoint(now=time.monotonic())
+            if pdo.trans_type is not None and pdo.trans_type >= 254:
+                self._apply(number)
+
+    def sync_receive(self, data: bytes) -> None:
+        """SYNC: take the latched setpoints (caller holds the lock)."""
+        if len(data) > 1:
+            self.node.emcy.send(EMCY_SYNC_LENGTH, 0x11)
+            return
+        if self.node.nmt.state != OPERATIONAL:
+            return
+        for number in sorted(self._latched):
+            self._apply(number)
+        self._latched.clear()
+
+    def prepare_tpdos(self) -> None:
+        """SYNC: pack the synchronous TPDOs with the current state (caller holds the lock)."""
+        self._pending = []
+        if self.node.nmt.state != OPERATIONAL:
+            return
+        values = self._live_values()
+        for pdo in self.node.tpdo.map.values():
+            if pdo.enabled and pdo.trans_type is not None and 1 <= pdo.trans_type <= 240:
+                for variable in pdo.map:
+                    if variable.index in values:
+                        variable.raw = values[variable.index]
+                self._pending.append((pdo.cob_id, bytes(pdo.data)))
+
+    def send_tpdos(self) -> None:
+        """Send what :meth:`prepare_tpdos` packed."""
+        for cob_id, data in self._pending:
+            self.node.network.send_message(cob_id, data)
+        self._pending = []
+
+    def _apply(self, number: int) -> None:
+        pdo = self.node.rpdo.map[number]
+        pdo.data = self._latched.get(number, pdo.data)
+        fields = {variable.index: variable.raw for variable in pdo.map}
+        if 0x6040 in fields:
+            self.machine.controlword(fields[0x6040])
+        if 0x6060 in fields:
+            self._set_mode(fields[0x6060])
+        self.core.new_setpoint(
+            position=fields[0x607A] / self._counts_per_rad if 0x607A in fields else None,
+            velocity=fields[0x60FF] / self._counts_per_rad if 0x60FF in fields else None,
+            torque=fields[0x6071] * self.rated_torque / 1000 if 0x6071 in fields else None)
+
+    def after_update(self) -> None:
+        """After the inner loops ran: state machine follow-ups and EMCY for new faults."""
+        self.machine.after_update()
+        events, self.core.events = self.core.events, []
+        for fault in events:
+            self.node.emcy.send(fault.code, _ERROR_REGISTER[fault])
+        if self._fault_reported and self.core.fault is None:
+            self.node.emcy.send(EMCY_NO_ERROR, 0)       # error reset
+        self._fault_reported = self.core.fault is not None
+
+    # --- object dictionary ---------------------------------------------------------
+
+    def _live_values(self) -> dict[int, int]:
+        status = self.core.status()
+        state = self.machine.state
+        return {
+            0x6041: statusword(state, self.core),
+            0x6061: CODE_OF_MODE[status.mode],
+            0x6064: _int32(status.position * self._counts_per_rad),
+            0x606C: _int32(status.velocity * self._counts_per_rad),
+            0x6077: _int16(status.torque / self.rated_torque * 1000),
+            0x60F4: _int32(status.following_error * self._counts_per_rad),
+            0x603F: status.fault.code if status.fault else 0,
+            0x1001: _ERROR_REGISTER[status.fault] if status.fault else 0,
+        }
+
+    def _on_read(self, index: int, subindex: int, od) -> int | None:
+        if index in _LIVE_OBJECTS:
+            with self.lock:
+                return self._live_values()[index]
+        return None
+
+    def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
+        value = od.decode_raw(data)
+        with self.lock:
+            if index == 0x6040:
+                self.machine.controlword(value)
+            elif index == 0x6060:
+                self._set_mode(value)
+            elif index == 0x605A:
+                if value not in (1, 2, 5, 6):
+                    raise SdoAbortedError(0x06090030)
+                self.machine.quick_stop_option = value
+            elif index in _PARAMETER_WRITERS:
+                self.core.parameters = _PARAMETER_WRITERS[index](
+                    self.core.parameters, subindex, value, self._counts_per_rad)
+
+    def _set_mode(self, code: int) -> None:
+        if code not in MODE_CODES:
+            raise SdoAbortedError(0x06090030)   # value range of parameter exceeded
+        self.core.set_mode(MODE_CODES[code])
+
+    def _store_configuration(self) -> None:
+        """Write the drive's configured values into its object dictionary."""
+        p = self.core.parameters
+        cpr = self._counts_per_rad
+        store = self.node.data_store
+        od = self.node.object_dictionary
+
+        def put(index, subindex, value):
+            entry = od[index] if subindex is None else od[index][subindex]
+            store.setdefault(index, {})[subindex or 0] = entry.encode_raw(value)
+
+        put(0x1017, None, self._heartbeat_ms)
+        put(0x6076, None, round(self.rated_torque * 1000))
+        put(0x6072, None, round(p.peak_torque / self.rated_torque * 1000))
+        put(0x608F, 1, p.counts_per_rev)
+        put(0x607F, None, _uint32(p.max_velocity * cpr))
+        put(0x6085, None, _uint32(p.quick_stop_deceleration * cpr))
+        put(0x6065, None, _uint32(p.following_error_limit * cpr))
+        put(0x6066, None, round(p.following_error_timeout * 1000))
+        put(0x2010, None, round(p.watchdog_timeout * 1000))
+        put(0x2000, 1, p.position_kp)
+        put(0x2000, 2, p.velocity_kp)
+        put(0x2000, 3, p.velocity_ki)
+        if p.position_limits is not None:
+            put(0x607D, 1, _int32(p.position_limits[0] * cpr))
+            put(0x607D, 2, _int32(p.position_limits[1] * cpr))
+
+
+_LIVE_OBJECTS = frozenset({0x6041, 0x6061, 0x6064, 0x606C, 0x6077, 0x60F4, 0x603F, 0x1001})
+
+
+def _gains(p, subindex, value, cpr):
+    name = {1: "position_kp", 2: "velocity_kp", 3: "velocity_ki"}.get(subindex)
+    return replace(p, **{name: float(value)}) if name else p
+
+
+def _limits(p, subindex, value, cpr):
+    low, high = p.position_limits or (-math.inf, math.inf)
+    if subindex == 1:
+        low = value / cpr
+    elif subindex == 2:
+        high = value / cpr
+    return replace(p, position_limits=(low, high))
+
+
+#: SDO-writable parameters that take effect at once: index -> (parameters, sub, value, counts/rad)
+_PARAMETER_WRITERS = {
+    0x2000: _gains,
+    0x2010: lambda p, s, v, c: replace(p, watchdog_timeout=v / 1000),
+    0x6065: lambda p, s, v, c: replace(p, following_error_limit=v / c),
+    0x6066: lambda p, s, v, c: replace(p, following_error_timeout=v / 1000),
+    0x6085: lambda p, s, v, c: replace(p, quick_stop_deceleration=v / c),
+    0x607D: _limits,
+}
+
+
+def _int32(value: float) -> int:
+    return max(-2**31, min(2**31 - 1, round(value)))
+
+
+def _uint32(value: float) -> int:
+    return max(0, min(2**32 - 1, round(value)))
+
+
+def _int16(value: float) -> int:
+    return max(-2**15, min(2**15 - 1, round(value)))

@@ -1,0 +1,322 @@
+"""The protocol-free core of a virtual servo drive.
+
+Everything a servo drive does between its CAN frames and its motor lives
+here: the power stage (disabled with holding brake, enabled, quick stop,
+fault), the position -> velocity -> torque cascade with feed-forward and
+anti-windup, setpoint interpolation, torque and velocity saturation,
+following-error and position-limit faults, and the controller-silence
+watchdog. A drive profile (CiA 402, ...) only turns frames into calls on
+this class and its state into frames.
+
+All quantities are on the motor side in SI units: rad, rad/s, N·m.
+The core is not thread-safe; its owner serialises access.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+
+class Power(enum.Enum):
+    """What the power stage does."""
+
+    DISABLED = "disabled"        # no torque; holding brake engaged if fitted
+    ENABLED = "enabled"          # following targets in the active mode
+    QUICK_STOP = "quick stop"    # ramping to standstill, then holding
+    FAULT = "fault"              # disabled until the fault is reset
+
+
+class Mode(enum.Enum):
+    """Cyclic synchronous modes: the setpoint arrives every control cycle."""
+
+    POSITION = "position"
+    VELOCITY = "velocity"
+    TORQUE = "torque"
+
+
+class Fault(enum.Enum):
+    """Drive faults, each with its CANopen EMCY error code (CiA 301/402)."""
+
+    FOLLOWING_ERROR = (0x8611, "following error")
+    POSITION_LIMIT = (0x8612, "position limit exceeded")
+    CONTROLLER_SILENT = (0x8250, "setpoints stopped arriving (RPDO timeout)")
+
+    @property
+    def code(self) -> int:
+        return self.value[0]
+
+    @property
+    def text(self) -> str:
+        return self.value[1]
+
+
+@dataclass(frozen=True)
+class DriveParameters:
+    """A drive's configuration, motor side, SI units."""
+
+    counts_per_rev: int
+    rated_torque: float
+    peak_torque: float
+    position_kp: float                 # 1/s
+    velocity_kp: float                 # N·m·s/rad
+    velocity_ki: float                 # N·m/rad
+    max_velocity: float                # rad/s
+    following_error_limit: float       # rad
+    following_error_timeout: float     # s
+    quick_stop_deceleration: float     # rad/s^2
+    watchdog_timeout: float            # s; 0 disables the watchdog
+    position_limits: tuple[float, float] | None = None
+    holding_brake: bool = True
+    brake_torque: float | None = None  # N·m; default: rated torque
+
+    @property
+    def radians_per_count(self) -> float:
+        return 2.0 * math.pi / self.counts_per_rev
+
+
+@dataclass
+class DriveStatus:
+    """What the drive reports each cycle (its profile encodes this)."""
+
+    power: Power
+    mode: Mode
+    position: float
+    velocity: float
+    torque: float
+    following_error: float
+    target_reached: bool
+    internal_limit: bool           # a target was clamped to the position limits
+    following_error_exceeded: bool
+    stopped: bool                  # quick stop has reached standstill
+    fault: Fault | None
+
+
+class DriveCore:
+    """One axis' drive electronics between setpoints and motor torque."""
+
+    #: Encoder counts beyond the software position limits before a limit fault.
+    LIMIT_MARGIN_COUNTS = 1000
+
+    def __init__(self, parameters: DriveParameters):
+        self.parameters = parameters
+        self.power = Power.DISABLED
+        self.mode = Mode.POSITION
+        self.fault: Fault | None = None
+        self.events: list[Fault] = []   # faults raised since the owner last drained them
+        self._position = 0.0
+        self._velocity = 0.0
+        self._torque = 0.0
+        self._integral = 0.0
+        self._hold = 0.0                # position held by brake / quick stop
+        self._segment_start = 0.0       # CSP interpolation: previous target
+        self._segment_end = 0.0         # CSP interpolation: latest target
+        self._segment_elapsed = 0.0
+        self._cycle = 1e-3
+        self._target_velocity = 0.0
+        self._target_torque = 0.0
+        self._stop_velocity = 0.0
+        self._following_time = 0.0
+        self._following_error = 0.0
+        self._internal_limit = False
+        self._last_setpoint: float | None = None
+
+    # --- commands from the profile ------------------------------------------
+
+    def measure(self, position: float, velocity: float) -> None:
+        """Latest motor position/velocity (quantised to encoder counts)."""
+        step = self.parameters.radians_per_count
+        self._position = round(position / step) * step
+        self._velocity = velocity
+
+    def enable(self) -> None:
+        if self.power is Power.FAULT:
+            return
+        if self.power is not Power.ENABLED:
+            self._integral = 0.0
+            self._segment_start = self._segment_end = self._position
+            self._segment_elapsed = self._cycle
+            self._target_velocity = self._target_torque = 0.0
+        self.power = Power.ENABLED
+
+    def disable(self) -> None:
+        if self.power is not Power.FAULT:
+            self._engage_brake()
+            self.power = Power.DISABLED
+
+    def quick_stop(self) -> None:
+        if self.power is Power.ENABLED:
+            self._stop_velocity = self._velocity
+            self._integral_from_torque()
+            self.power = Power.QUICK_STOP
+
+    def reset_fault(self) -> None:
+        if self.power is Power.FAULT:
+            self.fault = None
+            self._engage_brake()
+            self.power = Power.DISABLED
+
+    def set_mode(self, mode: Mode) -> None:
+        if mode is not self.mode:
+            self.mode = mode
+            self._segment_start = self._segment_end = self._position
+            self._integral_from_torque()
+
+    def set_cycle(self, cycle: float) -> None:
+        """The control cycle (SYNC period) over which position targets are interpolated."""
+        self._cycle = cycle
+
+    def new_setpoint(self, position: float | None = None, velocity: float | None = None,
+                     torque: float | None = None, now: float | None = None) -> None:
+        """A cyclic setpoint, taken at SYNC: starts a new interpolation segment."""
+        if position is not None:
+            self._segment_start = self._interpolated_target()
+            self._segment_end = self._clamp_to_limits(position)
+            self._segment_elapsed = 0.0
+        if velocity is not None:
+            limit = self.parameters.max_velocity
+            self._target_velocity = max(-limit, min(limit, velocity))
+        if torque is not None:
+            peak = self.parameters.peak_torque
+            self._target_torque = max(-peak, min(peak, torque))
+        if now is not None:
+            self._last_setpoint = now
+
+    def check_watchdog(self, now: float) -> None:
+        """Quick-stop when setpoints stop arriving while enabled (wall-clock time)."""
+        timeout = self.parameters.watchdog_timeout
+        if (timeout > 0 and self.power is Power.ENABLED and self._last_setpoint is not None
+                and now - self._last_setpoint > timeout):
+            self.events.append(Fault.CONTROLLER_SILENT)
+            self.quick_stop()
+
+    def raise_fault(self, fault: Fault) -> None:
+        if self.power is not Power.FAULT:
+            self._engage_brake()
+            self.power = Power.FAULT
+            self.fault = fault
+            self.events.append(fault)
+
+    # --- the inner loops ----------------------------------------------------
+
+    def update(self, dt: float) -> float:
+        """Advance the inner loops by ``dt`` and return the motor torque command."""
+        p = self.parameters
+        self._check_position_limits()
+        if self.power is Power.ENABLED:
+            torque = self._enabled_torque(dt)
+        elif self.power is Power.QUICK_STOP:
+            torque = self._quick_stop_torque(dt)
+        elif p.holding_brake:
+            torque = self._brake_torque(dt)
+        else:
+            torque = 0.0
+        self._torque = max(-p.peak_torque, min(p.peak_torque, torque))
+        return self._torque
+
+    def _enabled_torque(self, dt: float) -> float:
+        p = self.parameters
+        if self.mode is Mode.TORQUE:
+            self._following_error = 0.0
+            return self._target_torque
+        if self.mode is Mode.VELOCITY:
+            self._following_error = 0.0
+            return self._velocity_loop(self._target_velocity, dt)
+        self._segment_elapsed = min(self._segment_elapsed + dt, self._cycle)
+        target = self._interpolated_target()
+        feed_forward = ((self._segment_end - self._segment_start) / self._cycle
+                        if self._segment_elapsed < self._cycle else 0.0)
+        self._following_error = target - self._position
+        self._check_following_error(dt)
+        velocity = feed_forward + p.position_kp * self._following_error
+        return self._velocity_loop(velocity, dt)
+
+    def _quick_stop_torque(self, dt: float) -> float:
+        p = self.parameters
+        step = p.quick_stop_deceleration * dt
+        if abs(self._stop_velocity) > step:
+            self._stop_velocity -= math.copysign(step, self._stop_velocity)
+            self._hold = self._position
+            return self._velocity_loop(self._stop_velocity, dt)
+        self._stop_velocity = 0.0
+        return self._velocity_loop(p.position_kp * (self._hold - self._position), dt)
+
+    def _brake_torque(self, dt: float) -> float:
+        """A holding brake: a stiff position hold that slips above its torque."""
+        p = self.parameters
+        limit = p.brake_torque if p.brake_torque is not None else p.rated_torque
+        velocity = p.position_kp * (self._hold - self._position)
+        torque = self._velocity_loop(velocity, dt)
+        return max(-limit, min(limit, torque))
+
+    def _velocity_loop(self, velocity: float, dt: float) -> float:
+        p = self.parameters
+        velocity = max(-p.max_velocity, min(p.max_velocity, velocity))
+        error = velocity - self._velocity
+        proportional = p.velocity_kp * error
+        integral = self._integral + p.velocity_ki * error * dt
+        # anti-windup: the integral only holds what the torque limit leaves room for
+        room = p.peak_torque - abs(proportional)
+        integral = max(-room, min(room, integral)) if room > 0 else 0.0
+        self._integral = integral
+        return proportional + integral
+
+    def _interpolated_target(self) -> float:
+        if self._cycle <= 0 or self._segment_elapsed >= self._cycle:
+            return self._segment_end
+        fraction = self._segment_elapsed / self._cycle
+        return self._segment_start + (self._segment_end - self._segment_start) * fraction
+
+    def _clamp_to_limits(self, position: float) -> float:
+        limits = self.parameters.position_limits
+        self._internal_limit = False
+        if limits is None:
+            return position
+        clamped = max(limits[0], min(limits[1], position))
+        self._internal_limit = clamped != position
+        return clamped
+
+    def _check_following_error(self, dt: float) -> None:
+        p = self.parameters
+        if p.following_error_limit <= 0 or abs(self._following_error) <= p.following_error_limit:
+            self._following_time = 0.0
+            return
+        self._following_time += dt
+        if self._following_time >= p.following_error_timeout:
+            self.raise_fault(Fault.FOLLOWING_ERROR)
+
+    def _check_position_limits(self) -> None:
+        limits = self.parameters.position_limits
+        if limits is None or self.power not in (Power.ENABLED, Power.QUICK_STOP):
+            return
+        margin = self.LIMIT_MARGIN_COUNTS * self.parameters.radians_per_count
+        if not limits[0] - margin <= self._position <= limits[1] + margin:
+            self.raise_fault(Fault.POSITION_LIMIT)
+
+    def _engage_brake(self) -> None:
+        self._hold = self._position
+        self._integral = 0.0
+
+    def _integral_from_torque(self) -> None:
+        """Bumpless transfer: the integrator takes over the last torque."""
+        self._integral = max(-self.parameters.peak_torque,
+                             min(self.parameters.peak_torque, self._torque))
+
+    # --- status ---------------------------------------------------------------
+
+    def status(self) -> DriveStatus:
+        p = self.parameters
+        if self.mode is Mode.VELOCITY:
+            reached = abs(self._velocity - self._target_velocity) < 0.01 * p.max_velocity
+        else:
+            reached = abs(self._segment_end - self._position) <= 10 * p.radians_per_count
+        return DriveStatus(
+            power=self.power, mode=self.mode, position=self._position, velocity=self._velocity,
+            torque=self._torque, following_error=self._following_error,
+            target_reached=reached and self.power is Power.ENABLED,
+            internal_limit=self._internal_limit,
+            following_error_exceeded=(p.following_error_limit > 0 and
+                                      abs(self._following_error) > p.following_error_limit),
+            stopped=self.power is Power.QUICK_STOP and self._stop_velocity == 0.0,
+            fault=self.fault)

@@ -1,0 +1,239 @@
+"""The simulated bench: the MuJoCo plant and every drive of a bus config.
+
+Two time modes:
+
+* real-time: the plant steps at its rate, paced by the wall clock; drives
+  answer each SYNC at once with the latest state;
+* lock-step: the plant advances exactly one control period per SYNC (once
+  SYNC has arrived on every bus), so a run is reproducible bit for bit and
+  may go faster than real time. The TPDOs of the last bus to see SYNC leave
+  only after the step, so the controller cannot start the next cycle early.
+
+Threads: python-can's Notifier calls back per bus; one re-entrant lock
+guards the plant and all drives. The watchdogs run on the wall clock in both
+modes.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import can
+import canopen
+import mujoco
+import numpy as np
+
+from hil.bus_config import BusConfig, DriveConfig, SystemConfig
+from hil.drives import PROFILES, DriveCore, DriveParameters
+from hil.plant import Plant
+
+log = logging.getLogger(__name__)
+
+SYNC_ID = 0x080
+WATCHDOG_PERIOD = 0.01
+
+
+def drive_parameters(drive: DriveConfig, motor_inertia: float) -> DriveParameters:
+    """Drive parameters, with gains tuned to the motor-side inertia unless configured.
+
+    Tuning: velocity-loop bandwidth w = 2*pi*velocity_bandwidth_hz, Kv = J w,
+    Ki = Kv w / 4, position-loop gain w / 4 (1/s).
+    """
+    gains = drive.gains
+    if gains is None:
+        omega = 2 * math.pi * drive.velocity_bandwidth_hz
+        velocity_kp = motor_inertia * omega
+        position_kp, velocity_ki = omega / 4, velocity_kp * omega / 4
+    else:
+        position_kp, velocity_kp, velocity_ki = (gains.position_kp, gains.velocity_kp,
+                                                 gains.velocity_ki)
+    return DriveParameters(
+        counts_per_rev=drive.encoder_counts_per_rev, rated_torque=drive.rated_torque,
+        peak_torque=drive.peak_torque, position_kp=position_kp, velocity_kp=velocity_kp,
+        velocity_ki=velocity_ki, max_velocity=drive.max_velocity,
+        following_error_limit=drive.following_error_limit,
+        following_error_timeout=drive.following_error_timeout,
+        quick_stop_deceleration=drive.quick_stop_deceleration,
+        watchdog_timeout=drive.watchdog_timeout, position_limits=drive.position_limits,
+        holding_brake=drive.holding_brake)
+
+
+def motor_inertias(plant: Plant) -> dict[str, float]:
+    """Each actuator's inertia seen from its motor shaft (rotor + reflected load).
+
+    For a transmission a = P q, the motor-space inertia is P^-T M P^-1.
+    """
+    mass = np.zeros((plant.model.nv, plant.model.nv))
+    mujoco.mj_fullM(plant.model, plant.data, mass)
+    inertias = {}
+    for transmission in plant.transmissions:
+        dofs = [plant.model.joint(j).dofadr[0] for j in transmission.joints]
+        inverse = np.linalg.inv(transmission.position_matrix)
+        motor_space = inverse.T @ mass[np.ix_(dofs, dofs)] @ inverse
+        inertias.update(zip(transmission.actuators, np.diag(motor_space)))
+    return inertias
+
+
+@dataclass
+class _BusRuntime:
+    config: BusConfig
+    bus: can.BusABC
+    network: canopen.Network
+    drives: list
+    syncs_waiting: int = 0
+
+
+class Simulator:
+    """Plant + drives + buses. Start with :meth:`start`, end with :meth:`close`."""
+
+    def __init__(self, config: SystemConfig, buses: dict[str, can.BusABC], lock_step: bool = False):
+        self.config = config
+        self.lock_step = lock_step
+        self.lock = threading.RLock()
+        self.plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz)
+        self.steps_per_cycle = config.steps_per_cycle
+        self.cycles = 0
+        self.overruns = 0
+        inertias = motor_inertias(self.plant)
+        actuator_index = {name: i for i, name in enumerate(self.plant.actuator_names)}
+        self._runtimes: list[_BusRuntime] = []
+        self.drives = []
+        self._drive_actuators: list[int] = []   # plant actuator index of each drive
+        for bus_config in config.buses:
+            network = canopen.Network(buses[bus_config.name])
+            drives = []
+            for drive_config in bus_config.drives:
+                core = DriveCore(drive_parameters(drive_config, inertias[drive_config.actuator]))
+                core.set_cycle(bus_config.cycle)
+                drive = PROFILES[drive_config.protocol](
+                    drive_config.node_id, core, self.lock, drive_config.rated_torque,
+                    heartbeat_ms=round(drive_config.heartbeat_period * 1000))
+                drives.append(drive)
+                self._drive_actuators.append(actuator_index[drive_config.actuator])
+            self._runtimes.append(_BusRuntime(bus_config, buses[bus_config.name], network, drives))
+            self.drives += drives
+        self._torques = np.zeros(len(self.plant.actuator_names))
+        self._stop = threading.Event()
+        self._measure()
+
+    # --- life cycle -------------------------------------------------------------
+
+    def start(self) -> None:
+        """Connect every drive to its bus: boot-up messages, heartbeats, SYNC handling."""
+        for runtime in self._runtimes:
+            runtime.network.notifier = can.Notifier(runtime.bus, runtime.network.listeners, 0.2)
+            for drive in runtime.drives:
+                drive.attach(runtime.network)
+            runtime.network.subscribe(SYNC_ID, self._sync_handler(runtime))
+
+    def close(self) -> None:
+        """Disable every drive (brakes on), stop heartbeats, release the buses."""
+        self._stop.set()
+        with self.lock:
+            for drive in self.drives:
+                drive.core.disable()
+        for runtime in self._runtimes:
+            for drive in runtime.drives:
+                drive.detach()
+            if runtime.network.notifier is not None:
+                runtime.network.notifier.stop(1.0)
+            runtime.network.bus = None
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    # --- time -------------------------------------------------------------------
+
+    def run(self, duration: float | None = None) -> None:
+        """Run until :meth:`stop` (or ``duration`` seconds of plant time)."""
+        end = None if duration is None else self.plant.time + duration
+        if self.lock_step:
+            while not self._stop.wait(WATCHDOG_PERIOD):
+                self._check_watchdogs()
+                if end is not None and self.plant.time >= end:
+                    return
+            return
+        dt = self.plant.timestep
+        next_step = time.perf_counter()
+        while not self._stop.is_set() and (end is None or self.plant.time < end):
+            with self.lock:
+                self._step()
+            self._check_watchdogs()
+            next_step += dt
+            delay = next_step - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+            elif delay < -0.05:   # more than 50 steps behind: do not try to catch up
+                self.overruns += 1
+                next_step = time.perf_counter()
+
+    def _step(self) -> None:
+        """One plant step with the drives' inner loops (lock held)."""
+        dt = self.plant.timestep
+        for drive, actuator in zip(self.drives, self._drive_actuators):
+            self._torques[actuator] = drive.core.update(dt)
+        self.plant.set_motor_torques(self._torques)
+        self.plant.step()
+        self._measure()
+        for drive in self.drives:
+            drive.after_update()
+
+    def _measure(self) -> None:
+        positions = self.plant.motor_positions()
+        velocities = self.plant.motor_velocities()
+        for drive, actuator in zip(self.drives, self._drive_actuators):
+            drive.core.measure(positions[actuator], velocities[actuator])
+
+    def _check_watchdogs(self) -> None:
+        now = time.monotonic()
+        with self.lock:
+            for drive in self.drives:
+                drive.core.check_watchdog(now)
+                drive.after_update()
+
+    def _sync_handler(self, runtime: _BusRuntime):
+        def on_sync(can_id: int, data: bytes, timestamp: float) -> None:
+            with self.lock:
+                for drive in runtime.drives:
+                    drive.sync_receive(data)
+                    drive.prepare_tpdos()
+                if not self.lock_step:
+                    self._send(runtime)
+                    return
+                runtime.syncs_waiting += 1
+                if any(r.syncs_waiting == 0 for r in self._runtimes):
+                    return          # other buses have not seen this cycle's SYNC yet
+                for _ in range(self.steps_per_cycle):
+                    self._step()
+                self.cycles += 1
+                for waiting in self._runtimes:
+                    waiting.syncs_waiting -= 1
+                    self._send(waiting)
+        return on_sync
+
+    @staticmethod
+    def _send(runtime: _BusRuntime) -> None:
+        for drive in runtime.drives:
+            drive.send_tpdos()
+
+    # --- status -------------------------------------------------------------------
+
+    def status_lines(self) -> list[str]:
+        with self.lock:
+            lines = [f"t = {self.plant.time:8.3f} s   cycles {self.cycles}   "
+                     f"{'lock-step' if self.lock_step else 'real-time'}"]
+            joints = dict(zip(self.plant.joint_names, self.plant.joint_positions()))
+            for runtime in self._runtimes:
+                for drive in runtime.drives:
+                    status = drive.core.status()
+                    config = next(d for d in runtime.config.drives if d.node_id == drive.node_id)
+                    positions = " ".join(f"{j}={joints[j]:+.4f}" for j in config.joints)
+                    fault = f"  FAULT {status.fault.text}" if status.fault else ""
+                    lines.append(f"  {runtime.config.name:>8} node {drive.node_id:>3} "
+                                 f"{drive.node.nmt.state:<15} {drive.machine.state.name:<22} "
+                                 f"{positions}  torque {status.torque:+.4f} N·m{fault}")
+            return lines

@@ -1,0 +1,72 @@
+"""How a hil process joins Zenoh: endpoints in, one shared session out.
+
+Every process (sim, control, viz, clients) is a Zenoh peer. By default it
+talks to loopback only: multicast scouting is off, and peers find each other
+through explicit ``listen``/``connect`` endpoints (``tcp/127.0.0.1:PORT``).
+For several hosts, give routable endpoints or a Zenoh config file.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+import zenoh
+
+from hil.errors import HilError
+
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+
+
+@dataclass(frozen=True)
+class ZenohSettings:
+    """Where this process listens and whom it connects to."""
+
+    listen: tuple[str, ...] = ()
+    connect: tuple[str, ...] = ()
+    config_file: Path | None = None
+
+    def to_config(self) -> zenoh.Config:
+        try:
+            config = (zenoh.Config.from_file(str(self.config_file)) if self.config_file
+                      else zenoh.Config())
+            if self.config_file is None:
+                config.insert_json5("mode", '"peer"')
+                config.insert_json5("scouting/multicast/enabled", "false")
+            if self.listen:
+                config.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
+            if self.connect:
+                config.insert_json5("connect/endpoints", json.dumps(list(self.connect)))
+        except zenoh.ZError as exc:
+            raise HilError.single(f"invalid Zenoh configuration: {exc}", self.config_file,
+                                  hint="check the endpoints (e.g. tcp/127.0.0.1:7447)") from None
+        return config
+
+
+_sessions: dict[ZenohSettings, zenoh.Session] = {}
+_lock = threading.Lock()
+
+
+def session(settings: ZenohSettings) -> zenoh.Session:
+    """The process' session for these settings (opened once, shared)."""
+    with _lock:
+        if settings not in _sessions:
+            try:
+                _sessions[settings] = zenoh.open(settings.to_config())
+            except zenoh.ZError as exc:
+                raise HilError.single(
+                    f"cannot open a Zenoh session (listen {list(settings.listen)}, connect "
+                    f"{list(settings.connect)}): {exc}",
+                    hint="is the listen port already taken by another hil process? "
+                         "choose another with --listen") from None
+        return _sessions[settings]
+
+
+def close_all() -> None:
+    """Close every session this process opened."""
+    with _lock:
+        for opened in _sessions.values():
+            opened.close()
+        _sessions.clear()
