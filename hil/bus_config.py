@@ -16,13 +16,15 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import can
 import yaml
 
-from hil.can import BusLoad, bus_load
+from hil.can import BusLoad, bus_load, open_bus
 from hil.description import JointType, PackagePath, RobotDescription, load_description
 from hil.drives import PROFILES
 from hil.errors import Diagnostic, HilError, Severity, error, warning
 from hil.transmissions import SimpleTransmission, Transmission, build_transmissions
+from hil.zenoh_session import ZenohSettings
 
 #: Bus load above which a bus has no room left for SDO, EMCY, heartbeats and retries.
 LOAD_WARNING = 0.8
@@ -116,8 +118,10 @@ class SystemConfig:
 class _Mapping(dict):
     """A YAML mapping that remembers the line of the mapping and of each key."""
 
-    line: int = 0
-    key_lines: dict
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.line: int | None = None
+        self.key_lines: dict[str, int] = {}
 
 
 class _Loader(yaml.SafeLoader):
@@ -165,6 +169,7 @@ class _Reader:
         if key not in mapping:
             if default is None:
                 self.fail(f"{what}: '{key}' is missing", mapping.line)
+                return 1        # placeholder: the error above fails the load
             return default
         value = mapping[key]
         if isinstance(value, bool) or not isinstance(value, (int, float)) or (
@@ -435,3 +440,30 @@ def _check_load(reader: _Reader, bus: BusConfig) -> None:
     elif load.worst_ratio > LOAD_WARNING:
         reader.warn(f"{summary}: above {LOAD_WARNING:.0%}, no room for SDO, EMCY and retries",
                     bus.line, hint=hint)
+
+
+def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None = None,
+               channels: dict[str, str] | None = None) -> dict[str, can.BusABC]:
+    """Open every bus of a config, with optional interface/channel overrides.
+
+    Zenoh buses join the process' Zenoh session given by ``zenoh``.
+    """
+    channels = channels or {}
+    unknown = set(channels) - {bus.name for bus in config.buses}
+    if unknown:
+        raise HilError.single(f"--channel names unknown bus(es) {', '.join(sorted(unknown))}",
+                              config.path,
+                              hint=f"buses: {', '.join(bus.name for bus in config.buses)}")
+    opened: dict[str, can.BusABC] = {}
+    try:
+        for bus in config.buses:
+            name = interface or bus.interface
+            options = ({"listen": zenoh.listen, "connect": zenoh.connect,
+                        "zenoh_config": zenoh.config_file} if name == "zenoh" else {})
+            opened[bus.name] = open_bus(name, channels.get(bus.name, bus.channel), bus.bitrate,
+                                        **options)
+    except HilError:
+        for bus in opened.values():
+            bus.shutdown()
+        raise
+    return opened

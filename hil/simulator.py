@@ -158,11 +158,15 @@ class Simulator:
                     return
             return
         dt = self.plant.timestep
+        watchdog_steps = max(1, round(WATCHDOG_PERIOD / dt))
         next_step = time.perf_counter()
+        steps = 0
         while not self._stop.is_set() and (end is None or self.plant.time < end):
             with self.lock:
                 self._step()
-            self._check_watchdogs()
+            steps += 1
+            if steps % watchdog_steps == 0:
+                self._check_watchdogs()
             next_step += dt
             delay = next_step - time.perf_counter()
             if delay > 0:

@@ -35,3 +35,105 @@ def pigot(package_path):
 @pytest.fixture(scope="session")
 def coupled(package_path):
     return load_description(COUPLED_URDF, package_path)
+
+
+# --- CAN benches -------------------------------------------------------------
+
+import socket
+import threading
+import uuid
+
+import can
+import canopen
+
+from hil.bus_config import load_bus_config
+from hil.simulator import Simulator
+
+UR3_VIRTUAL = TESTS / "fixtures" / "ur3_virtual.yaml"
+EDS = ROOT / "bus_config" / "cia402_drive.eds"
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "socketcan: needs a SocketCAN vcan0 (runs inside "
+                                       "User-Mode Linux in CI, see tools/uml_run.py)")
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that is free right now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def socketcan_missing() -> str | None:
+    """None if vcan0 can be opened, else why not."""
+    if not hasattr(socket, "AF_CAN"):
+        return "this Python has no AF_CAN"
+    try:
+        with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as s:
+            s.bind(("vcan0",))
+    except OSError as exc:
+        return f"no SocketCAN vcan0 here ({exc.strerror}); tools/uml_run.py runs these tests " \
+               "inside User-Mode Linux (test_socketcan_in_uml.py)"
+    return None
+
+
+@pytest.fixture(params=["virtual", pytest.param("socketcan", marks=pytest.mark.socketcan)])
+def transport(request):
+    """(interface, channel) of a fresh bus: python-can virtual, or SocketCAN vcan0."""
+    if request.param == "socketcan":
+        missing = socketcan_missing()
+        if missing:
+            pytest.skip(missing)
+        return "socketcan", "vcan0"
+    return "virtual", f"hil-test-{uuid.uuid4().hex[:8]}"
+
+
+class Bench:
+    """A Simulator of the ur3 fixture config plus a master-side bus and canopen network."""
+
+    def __init__(self, interface: str, channel: str, lock_step: bool = False):
+        self.interface, self.channel = interface, channel
+        self.config = load_bus_config(UR3_VIRTUAL)
+        self.sim_bus = can.Bus(interface=interface, channel=channel)
+        self.master_bus = can.Bus(interface=interface, channel=channel)
+        self.sim = Simulator(self.config, {"arm": self.sim_bus}, lock_step=lock_step)
+        self.network = canopen.Network(self.master_bus)
+        self.network.notifier = can.Notifier(self.master_bus, self.network.listeners, 0.1)
+        self._sync_running = False
+        self.sim.start()
+        self.thread = threading.Thread(target=self.sim.run, daemon=True)
+        self.thread.start()
+
+    def stop_sync(self) -> None:
+        """Stop the SYNC producer (idempotent: a second BCM delete fails on SocketCAN)."""
+        if self._sync_running:
+            self.network.sync.stop()
+            self._sync_running = False
+
+    def start_sync(self, period: float) -> None:
+        self.network.sync.start(period)
+        self._sync_running = True
+
+    def node402(self, node_id: int) -> canopen.BaseNode402:
+        node = canopen.BaseNode402(node_id, str(EDS))
+        self.network.add_node(node)
+        return node
+
+    def close(self) -> None:
+        self.stop_sync()
+        for node in self.network.values():
+            node.rpdo.stop()
+        self.sim.stop()
+        self.thread.join(5)
+        self.sim.close()
+        self.network.notifier.stop(1)
+        self.master_bus.shutdown()
+        self.sim_bus.shutdown()
+
+
+@pytest.fixture
+def bench(transport):
+    made = Bench(*transport)
+    yield made
+    made.close()

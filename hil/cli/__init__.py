@@ -9,11 +9,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hil.cli import check
+from hil.cli import check, sim
 from hil.errors import HilError
 
 #: sub-command name -> module with ``add_arguments(parser)`` and ``run(args) -> int``
-COMMANDS = {"check": check}
+COMMANDS = {"check": check, "sim": sim}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,36 +1,72 @@
-"""``hil check PATH``: validate a robot description and print its summary."""
+"""``hil check PATH``: validate a robot description or a bus config; print a summary."""
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
-from hil.description import PackagePath, RobotDescription, load_description
-from hil.errors import HilError
+from hil.bus_config import SystemConfig, load_bus_config
+from hil.cli import common
+from hil.description import RobotDescription, load_description
+from hil.errors import HilError, Severity
 from hil.plant import Plant
 
-HELP = "validate a robot (.xacro/.urdf) and print a summary of it"
+HELP = "validate a robot (.xacro/.urdf) or a bus config (.yaml) and print a summary"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("path", type=Path, help="robot description (.xacro or .urdf)")
-    parser.add_argument("--package-path", action="append", default=[], metavar="DIR",
-                        help="folder to search for $(find pkg) / package:// packages "
-                             "(repeatable; before $HIL_PACKAGE_PATH and robots/)")
+    parser.add_argument("path", type=Path,
+                        help="robot description (.xacro, .urdf) or bus config (.yaml)")
+    common.add_package_path(parser)
     parser.add_argument("--strict", action="store_true",
                         help="treat warnings (missing meshes, odd colours, ...) as errors")
 
 
 def run(args: argparse.Namespace) -> int:
+    package_path = common.package_path(args)
+    if args.path.suffix in (".yaml", ".yml"):
+        config = load_bus_config(args.path, package_path)
+        if args.strict and config.warnings:
+            raise HilError([replace(w, severity=Severity.ERROR) for w in config.warnings])
+        print(bus_summary(config))
+        return 0
     if args.path.suffix not in (".xacro", ".urdf"):
-        raise HilError.single(f"cannot check '{args.path}': not a .xacro or .urdf file",
+        raise HilError.single(f"cannot check '{args.path}': not a .xacro, .urdf or .yaml file",
                               hint="give a robot description, e.g. "
-                                   "robots/ur3_description/urdf/ur3.xacro")
-    package_path = PackagePath.from_environment(args.package_path)
+                                   "robots/ur3_description/urdf/ur3.xacro, or a bus config, "
+                                   "e.g. bus_config/ur3.yaml")
     description = load_description(args.path, package_path, strict=args.strict)
-    plant = Plant(description)
-    print(summary(description, plant))
+    print(summary(description, Plant(description)))
     return 0
+
+
+def bus_summary(config: SystemConfig) -> str:
+    """The buses and drives of a bus config, with each bus' worst-case load."""
+    lines = [f"bus config {config.path}: robot '{config.robot.name}' ({config.robot.source}), "
+             f"plant {config.plant_rate_hz:g} Hz, control cycle {config.cycle_hz:g} Hz"]
+    for bus in config.buses:
+        load = bus.load()
+        lines += ["", f"  bus '{bus.name}': {bus.interface} {bus.channel}, "
+                      f"{bus.bitrate / 1e3:,.0f} kbit/s, {len(bus.drives)} drive(s); load "
+                      f"{load.worst_ratio:.0%} worst case, {load.nominal_ratio:.0%} nominal "
+                      f"({load.frames_per_second:,.0f} frames/s)",
+                  f"    {'node':>4}  {'joint(s)':<22}{'protocol':<9}{'counts/rev':>11}"
+                  f"{'rated':>9}{'peak':>9}{'max vel':>9}{'foll.err':>9}{'watchdog':>9}  brake"]
+        for d in bus.drives:
+            lines.append(f"    {d.node_id:>4}  {', '.join(d.joints):<22}{d.protocol:<9}"
+                         f"{d.encoder_counts_per_rev:>11} {d.rated_torque:>8.3g} "
+                         f"{d.peak_torque:>8.3g} {d.max_velocity:>8.4g} "
+                         f"{d.following_error_limit:>8.4g} {d.watchdog_timeout:>8.3g}  "
+                         f"{'yes' if d.holding_brake else 'no'}")
+    lines.append("")
+    lines.append("  units: motor side; torque N·m, velocity rad/s, following error rad, "
+                 "watchdog s")
+    if config.warnings:
+        lines += ["", f"  {len(config.warnings)} warning(s):"] + [f"  {w}" for w in config.warnings]
+    else:
+        lines.append("  no warnings")
+    return "\n".join(lines)
 
 
 def summary(description: RobotDescription, plant: Plant) -> str:

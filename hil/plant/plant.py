@@ -7,6 +7,8 @@ and :meth:`Plant.step`; everything else reads joint states.
 
 from __future__ import annotations
 
+import ctypes
+import time
 from collections.abc import Mapping
 
 import mujoco
@@ -27,6 +29,7 @@ class Plant:
     """
 
     def __init__(self, description: RobotDescription, timestep: float = DEFAULT_TIMESTEP):
+        _avoid_slow_clock()
         self.description = description
         self.transmissions: tuple[Transmission, ...] = build_transmissions(description)
         self.spec, self.bindings = build_spec(description, self.transmissions, timestep)
@@ -108,6 +111,33 @@ class Plant:
         """Joint forces MuJoCo needs for the current state and acceleration."""
         mujoco.mj_inverse(self.model, self.data)
         return self.data.qfrc_inverse[self._dof].copy()
+
+
+_clock_checked = False
+
+
+def _avoid_slow_clock() -> None:
+    """Keep MuJoCo's profiling timers off the clock where reading it is a syscall.
+
+    MuJoCo reads its timer about 30 times per step for the statistics in
+    ``mjData.timer``, which hil does not use. Where the clock has no vDSO
+    (User-Mode Linux, some sandboxes) each read is a system call and a step
+    becomes ~1000x slower. There, MuJoCo gets libc's ``drand48`` as its time
+    source: native, no system call (a Python callable would cost more than
+    the step); its timer statistics are then meaningless.
+    """
+    global _clock_checked
+    if _clock_checked:
+        return
+    _clock_checked = True
+    start = time.perf_counter()
+    for _ in range(200):
+        time.perf_counter()
+    if (time.perf_counter() - start) / 200 < 2e-6:    # vDSO clock: ~50 ns per read
+        return
+    source = ctypes.CDLL(None).drand48
+    source.restype, source.argtypes = ctypes.c_double, []
+    mujoco.set_mjcb_time(source)
 
 
 def _block_diagonal(blocks: list[np.ndarray]) -> np.ndarray:

@@ -1,0 +1,62 @@
+"""Options shared by several sub-commands."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from hil.description import PackagePath
+from hil.errors import HilError
+from hil.zenoh_session import DEFAULT_ENDPOINT, ZenohSettings
+
+
+def add_package_path(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--package-path", action="append", default=[], metavar="DIR",
+                        help="folder to search for $(find pkg) / package:// packages "
+                             "(repeatable; before $HIL_PACKAGE_PATH and robots/)")
+
+
+def package_path(args: argparse.Namespace) -> PackagePath:
+    return PackagePath.from_environment(args.package_path)
+
+
+def add_zenoh(parser: argparse.ArgumentParser, listens: bool) -> None:
+    default = "listens on" if listens else "connects to"
+    group = parser.add_argument_group("Zenoh", f"by default this process {default} "
+                                               f"{DEFAULT_ENDPOINT} (loopback only)")
+    group.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
+                       help="Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)")
+    group.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
+                       help="Zenoh endpoint of another hil process (repeatable)")
+    group.add_argument("--zenoh-config", type=Path, metavar="FILE",
+                       help="a Zenoh JSON5 config file (endpoints above still apply)")
+    parser.set_defaults(zenoh_listens=listens)
+
+
+def zenoh_settings(args: argparse.Namespace) -> ZenohSettings:
+    listen, connect = tuple(args.listen), tuple(args.connect)
+    if not listen and not connect and args.zenoh_config is None:
+        if args.zenoh_listens:
+            listen = (DEFAULT_ENDPOINT,)
+        else:
+            connect = (DEFAULT_ENDPOINT,)
+    return ZenohSettings(listen, connect, args.zenoh_config)
+
+
+def add_can_override(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--interface", metavar="NAME",
+                        help="python-can interface for every bus instead of the config's "
+                             "(e.g. socketcan, zenoh, virtual)")
+    parser.add_argument("--channel", action="append", default=[], metavar="BUS=CHANNEL",
+                        help="channel for one bus instead of the config's, e.g. arm=vcan0")
+
+
+def can_overrides(args: argparse.Namespace) -> tuple[str | None, dict[str, str]]:
+    channels = {}
+    for item in args.channel:
+        bus, sep, channel = item.partition("=")
+        if not sep or not bus or not channel:
+            raise HilError.single(f"--channel '{item}' is not BUS=CHANNEL",
+                                  hint="e.g. --channel arm=vcan0")
+        channels[bus] = channel
+    return args.interface, channels

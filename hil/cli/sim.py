@@ -1,0 +1,75 @@
+"""``hil sim CONFIG``: the MuJoCo plant and every virtual drive of a bus config."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+
+from hil.bus_config import load_bus_config, open_buses
+from hil.cli import common
+from hil.simulator import Simulator
+from hil.zenoh_session import close_all, session
+
+HELP = "run the plant and all virtual drives of a bus config"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml")
+    parser.add_argument("--lock-step", action="store_true",
+                        help="advance the plant one control period per SYNC (reproducible, "
+                             "as fast as the controller) instead of following the wall clock")
+    parser.add_argument("--duration", type=float, metavar="S",
+                        help="stop after S seconds of plant time")
+    parser.add_argument("--status-period", type=float, default=2.0, metavar="S",
+                        help="print the status every S seconds (0: never; default 2)")
+    common.add_can_override(parser)
+    common.add_package_path(parser)
+    common.add_zenoh(parser, listens=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    config = load_bus_config(args.config, common.package_path(args))
+    for warning in config.warnings:
+        print(warning, file=sys.stderr)
+    zenoh = common.zenoh_settings(args)
+    interface, channels = common.can_overrides(args)
+    buses = open_buses(config, zenoh, interface, channels)
+    simulator = Simulator(config, buses, lock_step=args.lock_step)
+    token = session(zenoh).liveliness().declare_token(f"hil/{config.robot.name}/sim")
+    stop = threading.Event()
+
+    def on_signal(signum, frame):
+        stop.set()
+        simulator.stop()
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    printer = threading.Thread(target=_print_status, args=(simulator, stop, args.status_period),
+                               daemon=True)
+    try:
+        simulator.start()
+        print(f"hil sim: {config.robot.name}, {len(config.drives)} drive(s) on "
+              f"{', '.join(f'{b.name} ({buses[b.name].channel_info})' for b in config.buses)}, "
+              f"{'lock-step' if args.lock_step else 'real-time'}, plant {config.plant_rate_hz:g} Hz, "
+              f"cycle {config.cycle_hz:g} Hz", flush=True)
+        printer.start()
+        simulator.run(args.duration)
+    finally:
+        stop.set()
+        simulator.close()
+        token.undeclare()
+        for bus in buses.values():
+            bus.shutdown()
+        close_all()
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    print("hil sim: stopped; all drives disabled", flush=True)
+    return 0
+
+
+def _print_status(simulator: Simulator, stop: threading.Event, period: float) -> None:
+    if period <= 0:
+        return
+    while not stop.wait(period):
+        print("\n".join(simulator.status_lines()), flush=True)

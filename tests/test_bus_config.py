@@ -1,0 +1,112 @@
+"""Bus configs: typed parsing, validation against the robot, bus-load feasibility."""
+
+from __future__ import annotations
+
+import pytest
+
+from hil.bus_config import load_bus_config
+from hil.can import frame_bits
+from hil.cli import main
+from hil.errors import HilError
+from conftest import ROOT
+
+UR3 = "robots/ur3_description/urdf/ur3.xacro"
+
+
+def write_config(tmp_path, body: str):
+    path = tmp_path / "bench.yaml"
+    path.write_text(f"robot: {ROOT / UR3}\n" + body)
+    return path
+
+
+def one_bus(drives: str, cycle_hz=500, bitrate=1000000) -> str:
+    lines = "".join(f"      {line}\n" for line in drives.splitlines())
+    return ("buses:\n  - name: arm\n    interface: virtual\n    channel: test\n"
+            f"    bitrate: {bitrate}\n    cycle_hz: {cycle_hz}\n    drives:\n{lines}")
+
+
+ALL_SIX = "".join(f"- {{node_id: {i}, joint: joint{i}}}\n" for i in range(1, 7))
+
+
+def errors_of(path):
+    with pytest.raises(HilError) as caught:
+        load_bus_config(path)
+    return caught.value.diagnostics
+
+
+@pytest.mark.parametrize("name", ["ur3.yaml", "pigot.yaml"])
+def test_shipped_configs_load_and_check(name, capsys):
+    config = load_bus_config(ROOT / "bus_config" / name)
+    assert all(bus.load().worst_ratio <= 1.0 for bus in config.buses)
+    assert {d.actuator for d in config.drives} == {a.name for a in config.robot.actuators}
+    assert main(["check", str(ROOT / "bus_config" / name)]) == 0
+    assert "worst case" in capsys.readouterr().out
+
+
+def test_frame_bits_match_can_arithmetic():
+    assert frame_bits(8) == (111, 135)
+    assert frame_bits(0) == (47, 55)
+    assert frame_bits(6) == (95, 115)
+    assert frame_bits(8, extended=True) == (131, 160)
+
+
+def test_seven_drives_at_1khz_on_one_bus_is_rejected_with_numbers(tmp_path):
+    drives = ALL_SIX + "- {node_id: 7, joint: joint6}\n"
+    (diag, *_) = [d for d in errors_of(write_config(tmp_path, one_bus(drives, 1000)))
+                  if "infeasible" in d.message]
+    assert "7 drive(s) at 1000 Hz need 2,475 kbit/s worst case" in diag.message
+    assert "1,000 kbit/s bus: 247%" in diag.message
+    assert "split the drives over buses of at most" in diag.hint and "cycle_hz" in diag.hint
+
+
+def test_six_drives_at_1khz_is_infeasible_but_at_250hz_fits(tmp_path):
+    assert any("infeasible" in d.message for d in
+               errors_of(write_config(tmp_path, one_bus(ALL_SIX, 1000))))
+    config = load_bus_config(write_config(tmp_path, one_bus(ALL_SIX, 250)))
+    assert config.buses[0].load().worst_ratio == pytest.approx(0.53, abs=0.01)
+
+
+def test_heavy_but_feasible_load_warns(tmp_path):
+    config = load_bus_config(write_config(tmp_path, one_bus(ALL_SIX, 250, bitrate=625000)))
+    (warning,) = config.warnings
+    assert "above 80%" in warning.message
+
+
+@pytest.mark.parametrize("drives, message", [
+    (ALL_SIX.replace("node_id: 2,", "node_id: 1,"), "node id 1 is used by"),
+    (ALL_SIX.replace("node_id: 3,", "node_id: 130,"), "node id 130 is outside 1..127"),
+    (ALL_SIX.replace("joint: joint4", "joint: joint9"), "joint 'joint9' does not exist"),
+    (ALL_SIX.replace("- {node_id: 6, joint: joint6}\n", ""), "actuator 'joint6_motor' (joint "
+                                                             "joint6) has no drive"),
+    (ALL_SIX.replace("joint: joint5}", "joint: joint5, protocol: canfd402}"),
+     "unknown protocol 'canfd402'"),
+    (ALL_SIX.replace("joint: joint1}", "joint: joint1, peak_torque: -1}"),
+     "'peak_torque' must be > 0"),
+    (ALL_SIX.replace("joint: joint1}", "joint: joint1, gian: 3}"), "unknown key 'gian'"),
+])
+def test_config_errors_name_the_drive_and_line(tmp_path, drives, message):
+    diagnostics = errors_of(write_config(tmp_path, one_bus(drives)))
+    matching = [d for d in diagnostics if message in d.message]
+    assert matching, [str(d) for d in diagnostics]
+    assert matching[0].file.name == "bench.yaml" and matching[0].line
+
+
+def test_yaml_syntax_error_has_a_line(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("robot: x.xacro\nbuses:\n  - name: [unclosed\n")
+    (diag,) = errors_of(path)
+    assert diag.line and "YAML syntax" in diag.message
+
+
+def test_cycle_must_divide_plant_rate(tmp_path):
+    diagnostics = errors_of(write_config(tmp_path, one_bus(ALL_SIX, 300)))
+    assert any("does not divide plant_rate_hz 1000" in d.message for d in diagnostics)
+
+
+def test_motor_side_defaults_come_from_the_robot(tmp_path):
+    config = load_bus_config(write_config(tmp_path, one_bus(ALL_SIX, 250)))
+    joint1 = config.drives[0]
+    assert joint1.peak_torque == pytest.approx(100 / 120)       # effort / reduction
+    assert joint1.max_velocity == pytest.approx(1.0 * 120)      # velocity limit x reduction
+    assert joint1.position_limits == pytest.approx((-3.14 * 120, 3.14 * 120))
+    assert joint1.following_error_limit == pytest.approx(0.1 * 120)

@@ -1,0 +1,224 @@
+"""Virtual CiA 402 drives driven by python canopen's own master (RemoteNode/BaseNode402).
+
+Each test runs over python-can's in-process ``virtual`` bus here and over real
+SocketCAN vcan0 inside User-Mode Linux (the ``socketcan`` marked variant).
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import struct
+import time
+
+import can
+import canopen
+import pytest
+
+from conftest import EDS
+
+from hil.drives.core import Fault
+
+CYCLE = 0.01          # the fixture config's 100 Hz SYNC
+COUNTS = 131072       # encoder counts per motor revolution (fixture default)
+REDUCTION = 120.0     # joint1 of the ur3
+
+
+def enable_csp(bench, node_id: int = 1):
+    """The canopen master's way: NMT, PDO maps read over SDO, SYNC, 402 to OPERATION ENABLED."""
+    node = bench.node402(node_id)
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.setup_402_state_machine(read_pdos=True)
+    node.nmt.state = "OPERATIONAL"
+    bench.start_sync(CYCLE)
+    node.rpdo[1].start(CYCLE)
+    node.op_mode = "CYCLIC SYNCHRONOUS POSITION"
+    node.rpdo[1]["Target position"].raw = node.tpdo[1]["Position actual value"].raw
+    node.state = "OPERATION ENABLED"
+    return node
+
+
+def emcy_logged_after(node, code: int, earlier: int | None = None,
+                      timeout: float = 1.0) -> bool:
+    """Whether EMCY ``code`` arrives (or arrived) after EMCY ``earlier`` (or at all)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        codes = [e.code for e in node.emcy.log]
+        if earlier is None and code in codes:
+            return True
+        if earlier in codes and code in codes[codes.index(earlier) + 1:]:
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def joint_from_counts(counts: int) -> float:
+    return counts / COUNTS * 2 * math.pi / REDUCTION
+
+
+def test_canopen_master_moves_the_mujoco_joint_in_csp(bench):
+    node = enable_csp(bench)
+    assert node.state == "OPERATION ENABLED"
+    assert node.op_mode == "CYCLIC SYNCHRONOUS POSITION"
+    start = node.tpdo[1]["Position actual value"].raw
+    goal = start + round(0.2 * REDUCTION / (2 * math.pi) * COUNTS)
+    for i in range(1, 51):                       # ramp 0.2 rad over 0.5 s
+        node.rpdo[1]["Target position"].raw = start + (goal - start) * i // 50
+        node.tpdo[1].wait_for_reception(1)
+    deadline = time.monotonic() + 3
+    while abs(node.tpdo[1]["Position actual value"].raw - goal) > 50 and time.monotonic() < deadline:
+        node.tpdo[1].wait_for_reception(1)
+    actual_counts = node.tpdo[1]["Position actual value"].raw
+    assert abs(actual_counts - goal) <= 50       # the arm got there
+    # freeze the physics, then one SYNC: the TPDO reports the frozen plant
+    bench.stop_sync()
+    bench.sim.stop()
+    bench.thread.join(5)
+    bench.network.sync.transmit()
+    assert node.tpdo[1].wait_for_reception(1) is not None
+    actual_counts = node.tpdo[1]["Position actual value"].raw
+    joint = bench.sim.plant.joint_positions()[0]
+    # TPDO position converted through the transmission = MuJoCo joint within one count
+    assert abs(joint_from_counts(actual_counts) - joint) <= 2 * math.pi / COUNTS / REDUCTION
+    assert joint == pytest.approx(0.2, abs=1e-3)
+
+
+def test_statusword_and_mode_over_sdo_match_the_pdo(bench):
+    node = enable_csp(bench)
+    assert node.sdo[0x6041].raw & 0x6F == 0x27
+    assert node.sdo[0x6061].raw == 8
+    assert node.sdo[0x6502].raw == 0x380
+    assert node.sdo[0x608F][1].raw == COUNTS
+    with pytest.raises(Exception):               # unsupported mode: SDO abort
+        node.sdo[0x6060].raw = 1
+
+
+def test_silent_controller_trips_the_watchdog_into_quick_stop_with_emcy(bench):
+    node = enable_csp(bench)
+    timeout = bench.config.drives[0].watchdog_timeout
+    node.rpdo[1].stop()                          # setpoints stop; SYNC goes on
+    silent_since = time.monotonic()
+    emcy = node.emcy.wait(0x8250, timeout=timeout + 2)
+    waited = time.monotonic() - silent_since
+    assert emcy is not None, "no RPDO-timeout EMCY"
+    assert timeout * 0.9 <= waited < timeout + 1.0
+    node.tpdo[1].wait_for_reception(1)
+    assert node.state == "QUICK STOP ACTIVE"
+
+
+def test_following_error_faults_with_emcy_and_fault_reset_recovers(bench):
+    node = enable_csp(bench)
+    start = node.tpdo[1]["Position actual value"].raw
+    jump = round(1.0 * REDUCTION / (2 * math.pi) * COUNTS)   # 1 rad in one 10 ms cycle
+    node.rpdo[1]["Target position"].raw = start + jump
+    assert emcy_logged_after(node, Fault.FOLLOWING_ERROR.code, timeout=2)
+    assert next(e for e in node.emcy.log if e.code == Fault.FOLLOWING_ERROR.code).register & 0x01
+    node.tpdo[1].wait_for_reception(1)
+    node.tpdo[1].wait_for_reception(1)
+    assert node.state == "FAULT"
+    assert node.sdo[0x603F].raw == 0x8611
+    here = node.tpdo[1]["Position actual value"].raw
+    node.rpdo[1]["Target position"].raw = here
+    node.reset_from_fault()                      # rising edge of bit 7, then back to enabled
+    assert node.state == "OPERATION ENABLED"
+    assert emcy_logged_after(node, 0x0000, Fault.FOLLOWING_ERROR.code)   # "error reset" EMCY
+
+
+def test_garbage_frames_never_crash_the_drive(bench):
+    node = enable_csp(bench)
+    send = bench.master_bus.send
+    send(can.Message(arbitration_id=0x201, data=b"\x0f\x00\x01", is_extended_id=False))
+    assert emcy_logged_after(node, 0x8210)                    # PDO length error
+    send(can.Message(arbitration_id=0x080, data=b"\x01\x02\x03", is_extended_id=False))
+    assert emcy_logged_after(node, 0x8240)                    # SYNC length error
+    rng = random.Random(402)
+    for _ in range(3000):
+        arbitration_id = rng.choice([0x000, 0x080, 0x201, 0x301, 0x401, 0x601, 0x77F,
+                                     rng.randrange(0x800)])
+        data = bytes(rng.randrange(256) for _ in range(rng.randrange(9)))
+        send(can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False))
+    send(can.Message(arbitration_id=0x1FFFFFFF, data=b"\xff" * 8, is_extended_id=True))
+    time.sleep(0.3)
+    assert bench.thread.is_alive()
+    # still a working CANopen node: reset it, it boots, and a fresh master (whose SDO
+    # client saw none of the garbage's replies) reads its device type
+    time.sleep(0.5)
+    boot = can.BufferedReader()
+    bench.network.notifier.add_listener(boot)
+    try:
+        node.nmt.send_command(0x81)
+        deadline = time.monotonic() + 2
+        booted = False
+        while time.monotonic() < deadline and not booted:
+            msg = boot.get_message(0.1)
+            booted = msg is not None and msg.arbitration_id == 0x701 and bytes(msg.data) == b"\0"
+    finally:
+        bench.network.notifier.remove_listener(boot)
+    assert booted, "no boot-up message after the garbage"
+    fresh_bus = can.Bus(interface=bench.interface, channel=bench.channel)
+    fresh = canopen.Network(fresh_bus)
+    fresh.notifier = can.Notifier(fresh_bus, fresh.listeners, 0.1)
+    try:
+        remote = canopen.RemoteNode(1, str(EDS))
+        fresh.add_node(remote)
+        remote.sdo.MAX_RETRIES = 10              # a slow machine may still be draining
+        assert remote.sdo[0x1000].raw == 0x00020192
+    finally:
+        fresh.notifier.stop(1)
+        fresh_bus.shutdown()
+
+
+def test_heartbeat_reports_the_nmt_state(bench):
+    node = bench.node402(1)
+    node.nmt.state = "OPERATIONAL"
+    node.nmt.wait_for_heartbeat(timeout=1)
+    assert node.nmt.state == "OPERATIONAL"
+    node.nmt.state = "STOPPED"
+    node.nmt.wait_for_heartbeat(timeout=1)
+    node.nmt.wait_for_heartbeat(timeout=1)
+    assert node.nmt.state == "STOPPED"
+
+
+def test_pdo_mapping_is_the_documented_default(bench):
+    node = bench.node402(3)
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.tpdo.read()
+    node.rpdo.read()
+    assert [v.index for v in node.rpdo[1]] == [0x6040, 0x607A]
+    assert [v.index for v in node.rpdo[2]] == [0x6040, 0x60FF]
+    assert [v.index for v in node.rpdo[3]] == [0x6040, 0x6071]
+    assert [v.index for v in node.tpdo[1]] == [0x6041, 0x6064]
+    assert [v.index for v in node.tpdo[2]] == [0x606C, 0x6077]
+    assert (node.rpdo[1].cob_id, node.tpdo[1].cob_id, node.tpdo[2].cob_id) == (0x203, 0x183, 0x283)
+    assert node.tpdo[1].trans_type == 1
+
+
+def _raw(bench, arbitration_id, data):
+    bench.master_bus.send(can.Message(arbitration_id=arbitration_id, data=data,
+                                      is_extended_id=False))
+
+
+def test_csv_and_cst_modes_move_the_joint(bench):
+    node = enable_csp(bench)
+    node.op_mode = "CYCLIC SYNCHRONOUS VELOCITY"
+    node.rpdo[1].stop()
+    start = node.tpdo[1]["Position actual value"].raw
+    velocity = round(0.2 * REDUCTION / (2 * math.pi) * COUNTS)      # 0.2 rad/s at the joint
+    deadline = time.monotonic() + 5
+    measured = 0
+    while time.monotonic() < deadline and abs(measured - velocity) > 0.05 * velocity:
+        _raw(bench, 0x301, struct.pack("<Hi", 0x0F, velocity))
+        node.tpdo[2].wait_for_reception(1)
+        measured = node.tpdo[2]["Velocity actual value"].raw
+    assert abs(measured - velocity) <= 0.05 * velocity
+    node.tpdo[1].wait_for_reception(1)
+    assert node.tpdo[1]["Position actual value"].raw > start
+    node.op_mode = "CYCLIC SYNCHRONOUS TORQUE"
+    torque = 100                                                      # per mille of rated
+    deadline = time.monotonic() + 5
+    measured = 0
+    while time.monotonic() < deadline and measured != torque:
+        _raw(bench, 0x401, struct.pack("<Hh", 0x0F, torque))
+        node.tpdo[2].wait_for_reception(1)
+        measured = node.tpdo[2]["Torque actual value"].raw
+    assert measured == torque

@@ -1,0 +1,153 @@
+"""The protocol-free drive core and the CiA 402 state machine, without a bus."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from hil.drives.cia402 import Cia402StateMachine, State, statusword
+from hil.drives.core import DriveCore, DriveParameters, Fault, Mode, Power
+
+DT = 0.001
+
+
+def parameters(**changes) -> DriveParameters:
+    # gains for the 1e-3 kg m^2 test motor: velocity loop ~200 rad/s, position loop 40/s
+    base = dict(counts_per_rev=4096, rated_torque=1.0, peak_torque=2.0, position_kp=40.0,
+                velocity_kp=0.2, velocity_ki=10.0, max_velocity=100.0,
+                following_error_limit=0.5, following_error_timeout=0.005,
+                quick_stop_deceleration=500.0, watchdog_timeout=0.1,
+                position_limits=(-50.0, 50.0))
+    base.update(changes)
+    return DriveParameters(**base)
+
+
+class Motor:
+    """A bare motor shaft: J dw/dt = torque (motor side)."""
+
+    def __init__(self, inertia=1e-3):
+        self.inertia, self.position, self.velocity = inertia, 0.0, 0.0
+
+    def run(self, core: DriveCore, seconds: float) -> None:
+        for _ in range(round(seconds / DT)):
+            core.measure(self.position, self.velocity)
+            torque = core.update(DT)
+            self.velocity += torque / self.inertia * DT
+            self.position += self.velocity * DT
+
+
+def test_csp_follows_interpolated_setpoints():
+    core, motor = DriveCore(parameters()), Motor()
+    core.set_cycle(0.01)
+    core.enable()
+    for k in range(1, 101):
+        core.new_setpoint(position=0.05 * k, now=0.0)
+        motor.run(core, 0.01)
+    motor.run(core, 0.5)
+    assert motor.position == pytest.approx(5.0, abs=2 * 2 * math.pi / 4096)
+    assert core.status().target_reached
+
+
+def test_torque_saturates_at_peak():
+    core, motor = DriveCore(parameters()), Motor()
+    core.enable()
+    core.new_setpoint(position=40.0, now=0.0)
+    core.set_cycle(1.0)
+    motor.run(core, 0.002)
+    assert abs(core.status().torque) <= 2.0
+
+
+def test_following_error_faults_after_its_timeout():
+    core, motor = DriveCore(parameters(peak_torque=0.01)), Motor()
+    core.set_cycle(0.001)
+    core.enable()
+    core.new_setpoint(position=10.0, now=0.0)
+    motor.run(core, 0.05)
+    assert core.power is Power.FAULT and core.fault is Fault.FOLLOWING_ERROR
+    assert Fault.FOLLOWING_ERROR in core.events
+    core.reset_fault()
+    assert core.power is Power.DISABLED and core.fault is None
+
+
+def test_setpoints_beyond_position_limits_are_clamped_and_flagged():
+    core, motor = DriveCore(parameters(following_error_limit=0.0)), Motor()
+    core.set_cycle(0.01)
+    core.enable()
+    core.new_setpoint(position=80.0, now=0.0)
+    assert core.status().internal_limit
+    motor.run(core, 2.0)
+    assert motor.position == pytest.approx(50.0, abs=0.01)
+
+
+def test_leaving_the_position_range_faults():
+    core, motor = DriveCore(parameters()), Motor()
+    core.enable()
+    core.set_mode(Mode.TORQUE)
+    core.new_setpoint(torque=2.0, now=0.0)
+    motor.run(core, 1.0)
+    assert core.fault is Fault.POSITION_LIMIT
+
+
+def test_watchdog_quick_stops_then_holds():
+    core, motor = DriveCore(parameters()), Motor()
+    core.set_mode(Mode.VELOCITY)
+    core.enable()
+    core.new_setpoint(velocity=20.0, now=0.0)
+    motor.run(core, 0.3)
+    core.check_watchdog(now=0.05)
+    assert core.power is Power.ENABLED
+    core.check_watchdog(now=0.2)
+    assert core.power is Power.QUICK_STOP and Fault.CONTROLLER_SILENT in core.events
+    motor.run(core, 0.3)                         # 20 rad/s at 500 rad/s^2: 40 ms
+    assert core.status().stopped and abs(motor.velocity) < 0.05
+
+
+def test_disabled_drive_with_brake_holds_against_load():
+    core, motor = DriveCore(parameters()), Motor()
+    core.measure(1.0, 0.0)
+    core.disable()
+    motor.position = 1.0
+    motor.run(core, 0.2)
+    assert motor.position == pytest.approx(1.0, abs=1e-3)
+
+
+def test_state_machine_walks_to_operation_enabled_and_back():
+    core = DriveCore(parameters())
+    machine = Cia402StateMachine(core)
+    assert machine.state is State.SWITCH_ON_DISABLED
+    for word, state in ((0x06, State.READY_TO_SWITCH_ON), (0x07, State.SWITCHED_ON),
+                        (0x0F, State.OPERATION_ENABLED), (0x07, State.SWITCHED_ON),
+                        (0x0F, State.OPERATION_ENABLED), (0x02, State.QUICK_STOP_ACTIVE),
+                        (0x0F, State.OPERATION_ENABLED), (0x00, State.SWITCH_ON_DISABLED)):
+        machine.controlword(word)
+        assert machine.state is state, hex(word)
+
+
+def test_enable_operation_is_ignored_from_switch_on_disabled():
+    machine = Cia402StateMachine(DriveCore(parameters()))
+    machine.controlword(0x0F)
+    assert machine.state is State.SWITCH_ON_DISABLED
+
+
+def test_fault_reset_needs_a_rising_edge():
+    core = DriveCore(parameters())
+    machine = Cia402StateMachine(core)
+    core.raise_fault(Fault.FOLLOWING_ERROR)
+    assert machine.state is State.FAULT
+    machine.controlword(0x80)
+    assert machine.state is State.SWITCH_ON_DISABLED
+    core.raise_fault(Fault.FOLLOWING_ERROR)
+    machine.controlword(0x80)                    # bit 7 still high: no new edge
+    assert machine.state is State.FAULT
+
+
+@pytest.mark.parametrize("state, value", [
+    (State.SWITCH_ON_DISABLED, 0x40), (State.READY_TO_SWITCH_ON, 0x21),
+    (State.SWITCHED_ON, 0x23), (State.OPERATION_ENABLED, 0x27),
+    (State.QUICK_STOP_ACTIVE, 0x07), (State.FAULT, 0x08)])
+def test_statusword_matches_cia402_masks(state, value):
+    word = statusword(state, DriveCore(parameters()))
+    mask = 0x4F if state in (State.SWITCH_ON_DISABLED, State.FAULT) else 0x6F
+    assert word & mask == value
+    assert word & 0x0200                         # remote

@@ -1,0 +1,115 @@
+"""The simulator's time modes and process behaviour."""
+
+from __future__ import annotations
+
+import math
+import signal
+import struct
+import subprocess
+import sys
+import time
+
+import can
+import numpy as np
+import pytest
+
+from conftest import ROOT, Bench, free_port
+
+REDUCTIONS = (120, 120, 120, 100, 100, 100)
+COUNTS = 131072
+
+
+def run_lock_step(channel: str, cycles: int = 120) -> tuple[np.ndarray, list[bytes]]:
+    """Drive all six ur3 axes through a fixed setpoint sequence with a raw CAN master."""
+    bench = Bench("virtual", channel, lock_step=True)
+    reader = can.BufferedReader()
+    bench.network.notifier.add_listener(reader)
+    send = bench.master_bus.send
+    history, replies = [], []
+    try:
+        send(can.Message(arbitration_id=0x000, data=[0x01, 0x00], is_extended_id=False))
+        time.sleep(0.2)                          # NMT start reaches every node
+        while reader.get_message(0.01) is not None:
+            pass                                 # drop boot-up and heartbeat frames
+        for k in range(cycles):
+            controlword = (0x06, 0x07)[k] if k < 2 else 0x0F
+            for node, reduction in enumerate(REDUCTIONS, start=1):
+                joint = 0.3 * math.sin(2 * math.pi * 0.8 * k * 0.01 + node)
+                if k < 20:
+                    joint *= k / 20              # ease in from the braked start
+                target = round(joint * reduction / (2 * math.pi) * COUNTS) if k >= 2 else 0
+                send(can.Message(arbitration_id=0x200 + node,
+                                 data=struct.pack("<Hi", controlword, target),
+                                 is_extended_id=False))
+            send(can.Message(arbitration_id=0x080, data=b"", is_extended_id=False))
+            pending = {0x180 + n for n in range(1, 7)} | {0x280 + n for n in range(1, 7)}
+            deadline = time.monotonic() + 5
+            while pending and time.monotonic() < deadline:
+                msg = reader.get_message(0.1)
+                if msg is not None and msg.arbitration_id in pending:
+                    pending.discard(msg.arbitration_id)
+                    replies.append(bytes(msg.data))
+            assert not pending, f"cycle {k}: no TPDO from {sorted(map(hex, pending))}"
+            with bench.sim.lock:
+                history.append(bench.sim.plant.data.qpos.copy())
+    finally:
+        bench.network.notifier.remove_listener(reader)
+        bench.close()
+    return np.array(history), replies
+
+
+def test_lock_step_runs_are_bit_identical():
+    first, first_replies = run_lock_step("hil-lockstep-a")
+    second, second_replies = run_lock_step("hil-lockstep-b")
+    assert np.abs(first).max() > 0.05            # the arm really moved
+    assert np.array_equal(first, second)         # bit for bit
+    assert sorted(first_replies) == sorted(second_replies)
+
+
+def test_lock_step_advances_one_control_period_per_sync():
+    bench = Bench("virtual", "hil-lockstep-period", lock_step=True)
+    try:
+        reader = can.BufferedReader()
+        bench.network.notifier.add_listener(reader)
+        bench.master_bus.send(can.Message(arbitration_id=0x000, data=[0x01, 0x00],
+                                          is_extended_id=False))
+        time.sleep(0.2)
+        before = bench.sim.plant.time
+        for _ in range(5):
+            bench.master_bus.send(can.Message(arbitration_id=0x080, is_extended_id=False))
+            time.sleep(0.05)
+        assert bench.sim.plant.time - before == pytest.approx(5 * 0.01)
+        time.sleep(0.3)                          # no SYNC, no time
+        assert bench.sim.plant.time - before == pytest.approx(5 * 0.01)
+    finally:
+        bench.close()
+
+
+def test_hil_sim_process_starts_and_stops_cleanly_on_sigterm(tmp_path):
+    port = free_port()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hil", "sim", str(ROOT / "bus_config" / "ur3.yaml"),
+         "--listen", f"tcp/127.0.0.1:{port}", "--status-period", "0"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        banner = process.stdout.readline()
+        assert "hil sim: ur3, 6 drive(s)" in banner, process.stderr.read()
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=20)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 0, err
+    assert "all drives disabled" in out
+    assert "Traceback" not in err
+
+
+def test_hil_sim_reports_a_bad_config_without_traceback(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(f"robot: {ROOT / 'robots/ur3_description/urdf/ur3.xacro'}\nbuses: []\n")
+    result = subprocess.run([sys.executable, "-m", "hil", "sim", str(bad)],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1
+    assert "bad.yaml:2: error: 'buses' must be a non-empty list" in result.stderr
+    assert "Traceback" not in result.stderr
