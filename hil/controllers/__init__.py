@@ -1,0 +1,14 @@
+"""Controllers: they see named joint states and commands only, never drives or frames."""
+
+from hil.controllers.trajectory import (
+    GOAL_TOLERANCE_VIOLATED, HARDWARE_FAULT, INVALID_GOAL, INVALID_JOINTS,
+    PATH_TOLERANCE_VIOLATED, SUCCESSFUL, ControllerState, Defaults, GoalRejected, GoalResult,
+    GoalStatus, JointTolerance, JointTrajectoryController, TrajectoryGoal, TrajectoryPoint,
+)
+
+__all__ = [
+    "ControllerState", "Defaults", "GOAL_TOLERANCE_VIOLATED", "GoalRejected", "GoalResult",
+    "GoalStatus", "HARDWARE_FAULT", "INVALID_GOAL", "INVALID_JOINTS", "JointTolerance",
+    "JointTrajectoryController", "PATH_TOLERANCE_VIOLATED", "SUCCESSFUL", "TrajectoryGoal",
+    "TrajectoryPoint",
+]

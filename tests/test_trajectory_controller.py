@@ -1,0 +1,196 @@
+"""Joint trajectory controller semantics, against an ideal or lagging follower."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hil.controllers import (
+    GOAL_TOLERANCE_VIOLATED, INVALID_GOAL, INVALID_JOINTS, PATH_TOLERANCE_VIOLATED,
+    GoalRejected, GoalStatus, JointTolerance, JointTrajectoryController, TrajectoryGoal,
+    TrajectoryPoint,
+)
+
+DT = 0.002
+
+
+class Follower:
+    """Actual state that tracks the command with a first-order lag (0 = ideal)."""
+
+    def __init__(self, controller, lag: float = 0.0):
+        self.controller, self.lag = controller, lag
+        n = len(controller.joint_names)
+        self.q, self.v, self.t = np.zeros(n), np.zeros(n), 0.0
+
+    def run(self, seconds: float):
+        for _ in range(round(seconds / DT)):
+            command, _ = self.controller.update(self.t, self.q.copy(), self.v.copy())
+            alpha = 1.0 if self.lag == 0 else DT / self.lag
+            new_q = self.q + alpha * (command - self.q)
+            self.v = (new_q - self.q) / DT
+            self.q = new_q
+            self.t += DT
+        return self.controller.finished()
+
+
+def goal(names, *points, **kwargs):
+    return TrajectoryGoal(tuple(names), tuple(TrajectoryPoint(t, tuple(p), *extra)
+                                              for t, p, *extra in points), **kwargs)
+
+
+@pytest.fixture
+def ur3_jtc(ur3):
+    return JointTrajectoryController(ur3)
+
+
+def test_multi_point_goal_succeeds_at_the_last_point(ur3_jtc):
+    follower = Follower(ur3_jtc)
+    follower.run(0.01)
+    ur3_jtc.submit("g1", goal(["joint1", "joint2"], (1.0, [0.3, -0.2]), (2.0, [0.5, 0.1])))
+    results = follower.run(2.5)
+    assert results == [("g1", results[0][1])] and results[0][1].status is GoalStatus.SUCCEEDED
+    assert follower.q[:2] == pytest.approx([0.5, 0.1], abs=1e-9)
+    assert follower.q[2:] == pytest.approx(0.0)                 # partial goal: others hold
+
+
+def test_linear_interpolation_for_positions_only(ur3_jtc):
+    follower = Follower(ur3_jtc)
+    follower.run(0.01)
+    ur3_jtc.submit("g", goal(["joint1"], (1.0, [0.4])))
+    follower.run(0.5)
+    assert follower.q[0] == pytest.approx(0.2, abs=0.005)
+
+
+def test_cubic_when_velocities_are_given_passes_through_with_that_velocity(ur3_jtc):
+    follower = Follower(ur3_jtc)
+    follower.run(0.01)
+    ur3_jtc.submit("g", goal(["joint1"], (1.0, [0.3], [0.5]), (2.0, [0.6], [0.0])))
+    follower.run(1.0)
+    state = ur3_jtc.state()
+    assert state.desired_positions[0] == pytest.approx(0.3, abs=2e-3)
+    assert state.desired_velocities[0] == pytest.approx(0.5, abs=5e-3)
+
+
+def test_quintic_when_accelerations_are_given(ur3_jtc):
+    follower = Follower(ur3_jtc)
+    follower.run(0.01)
+    ur3_jtc.submit("g", goal(["joint1"], (1.0, [0.5], [0.0], [0.0])))
+    follower.run(0.5)                                        # symmetric: half way at t/2
+    assert ur3_jtc.state().desired_positions[0] == pytest.approx(0.25, abs=3e-3)
+    assert follower.run(0.6)[0][1].status is GoalStatus.SUCCEEDED
+
+
+def test_trajectory_may_start_in_the_future(ur3_jtc):
+    follower = Follower(ur3_jtc)
+    follower.run(0.01)
+    ur3_jtc.submit("g", goal(["joint1"], (0.5, [0.2]), start_time=follower.t + 1.0))
+    follower.run(0.9)
+    assert follower.q[0] == pytest.approx(0.0)
+    follower.run(0.7)
+    assert follower.q[0] == pytest.approx(0.2)
+
+
+def test_new_goal_preempts_the_active_one_with_a_reason(ur3_jtc):
+    follower = Follower(ur3_jtc)
+    follower.run(0.01)
+    ur3_jtc.submit("first", goal(["joint1"], (2.0, [0.5])))
+    follower.run(0.5)
+    ur3_jtc.submit("second", goal(["joint1"], (1.0, [-0.2])))
+    (preempted,) = ur3_jtc.finished()
+    assert preempted[0] == "first" and preempted[1].status is GoalStatus.ABORTED
+    assert "preempted by goal second" in preempted[1].error_string
+    assert follower.run(1.5)[0][1].status is GoalStatus.SUCCEEDED
+    assert follower.q[0] == pytest.approx(-0.2)
+
+
+def test_cancel_holds_the_current_position(ur3_jtc):
+    follower = Follower(ur3_jtc)
+    follower.run(0.01)
+    ur3_jtc.submit("g", goal(["joint1"], (2.0, [1.0])))
+    follower.run(1.0)
+    assert ur3_jtc.cancel("g")
+    held = ur3_jtc.state().desired_positions[0]      # the last measured position
+    assert 0.3 < held < 0.7
+    (result,) = ur3_jtc.finished()
+    assert result[1].status is GoalStatus.CANCELED
+    follower.run(1.0)
+    assert follower.q[0] == pytest.approx(held, abs=1e-9)
+    assert not ur3_jtc.cancel("g")
+
+
+def test_path_tolerance_violation_aborts_naming_the_joint(ur3_jtc):
+    follower = Follower(ur3_jtc, lag=0.3)
+    follower.run(0.01)
+    ur3_jtc.submit("g", goal(["joint1", "joint3"], (1.0, [0.0, 0.8]),
+                             path_tolerance=(JointTolerance("joint3", position=0.05),)))
+    (result,) = follower.run(1.0)
+    assert result[1].status is GoalStatus.ABORTED
+    assert result[1].error_code == PATH_TOLERANCE_VIOLATED
+    assert "joint 'joint3' position error" in result[1].error_string
+
+
+def test_goal_tolerance_violation_after_goal_time(ur3_jtc):
+    follower = Follower(ur3_jtc, lag=2.0)
+    follower.run(0.01)
+    ur3_jtc.submit("g", goal(["joint2"], (1.0, [0.8]),
+                             goal_tolerance=(JointTolerance("joint2", position=0.001),),
+                             goal_time_tolerance=0.2))
+    (result,) = follower.run(1.5)
+    assert result[1].error_code == GOAL_TOLERANCE_VIOLATED
+    assert "joint 'joint2'" in result[1].error_string and "goal_time_tolerance 0.2" in \
+        result[1].error_string
+
+
+@pytest.mark.parametrize("bad, code, words", [
+    (goal(["joint9"], (1.0, [0.1])), INVALID_JOINTS, "unknown joint 'joint9'"),
+    (goal(["joint1", "joint1"], (1.0, [0.1, 0.1])), INVALID_JOINTS, "named twice"),
+    (goal(["joint1"], (1.0, [4.0])), INVALID_GOAL, "point 0 joint 'joint1' position 4 is outside"),
+    (goal(["joint1"], (1.0, [0.1]), (1.0, [0.2])), INVALID_GOAL,
+     "point 1 time_from_start 1.0 is not after"),
+    (goal(["joint1"], (1.0, [math.nan])), INVALID_GOAL, "point 0 joint 'joint1' position is nan"),
+    (goal(["joint1"], (1.0, [0.1], [math.inf])), INVALID_GOAL, "velocitie is inf"),
+    (goal(["joint1"], (1.0, [0.1], [2.0])), INVALID_GOAL, "velocity 2 exceeds its limit 1"),
+    (goal(["joint1"], (1.0, [0.1]), (1.1, [0.5])), INVALID_GOAL,
+     "point 1 joint 'joint1' needs 4 on average"),
+    (goal(["joint1"], (0.1, [0.5])), INVALID_GOAL, "point 0 joint 'joint1' needs 5 on average"),
+    (goal(["joint1"], (1.0, [0.1, 0.2])), INVALID_GOAL, "point 0 has 2 positions for 1 joints"),
+    (goal(["joint1"]), INVALID_GOAL, "no points"),
+])
+def test_bad_goals_are_rejected_before_any_motion(ur3_jtc, bad, code, words):
+    follower = Follower(ur3_jtc)
+    follower.run(0.01)
+    with pytest.raises(GoalRejected) as caught:
+        ur3_jtc.submit("bad", bad)
+    assert caught.value.error_code == code and words in str(caught.value)
+    follower.run(0.2)
+    assert follower.q == pytest.approx(0.0) and ur3_jtc.active_goal is None
+
+
+def test_mimic_joint_cannot_be_commanded(pigot):
+    jtc = JointTrajectoryController(pigot)
+    assert "finger_pri_2" not in jtc.joint_names
+    with pytest.raises(GoalRejected, match="mimics 'finger_pri_1'"):
+        jtc.submit("g", goal(["finger_pri_2"], (1.0, [0.01])))
+
+
+def test_continuous_joint_takes_the_short_way_round(tmp_path, package_path):
+    from hil.description import load_description
+    urdf = tmp_path / "wheel.urdf"
+    inertial = ('<inertial><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" '
+                'iyz="0" izz="0.01"/></inertial>')
+    urdf.write_text(f'<robot name="w"><link name="a">{inertial}</link><link name="b">{inertial}'
+                    '</link><joint name="spin" type="continuous"><parent link="a"/><child '
+                    'link="b"/><limit effort="1" velocity="10"/></joint><transmission name="t">'
+                    '<type>transmission_interface/SimpleTransmission</type><joint name="spin"/>'
+                    '<actuator name="m"><mechanicalReduction>10</mechanicalReduction></actuator>'
+                    '</transmission></robot>')
+    jtc = JointTrajectoryController(load_description(urdf, package_path))
+    follower = Follower(jtc)
+    follower.q[:] = 3.0
+    follower.run(0.01)
+    jtc.submit("g", goal(["spin"], (1.0, [-3.0])))          # -3 == 3.283: +0.28 rad, not -6
+    follower.run(0.5)
+    assert 3.0 < follower.q[0] < 3.3
+    assert follower.run(1.0)[0][1].status is GoalStatus.SUCCEEDED
