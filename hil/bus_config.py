@@ -22,6 +22,7 @@ import yaml
 from hil.can import BusLoad, bus_load, open_bus
 from hil.description import JointType, PackagePath, RobotDescription, load_description
 from hil.drives import PROFILES
+from hil.drives.cia402 import EDS_PATH as DEFAULT_EDS   # the CiA 402 drives' device description
 from hil.errors import Diagnostic, HilError, Severity, error, warning
 from hil.transmissions import SimpleTransmission, Transmission, build_transmissions
 from hil.zenoh_session import ZenohSettings

@@ -18,6 +18,7 @@ import zenoh
 from hil.errors import HilError
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+LOOPBACK_ANY_PORT = "tcp/127.0.0.1:0"
 
 
 @dataclass(frozen=True)
@@ -35,8 +36,11 @@ class ZenohSettings:
             if self.config_file is None:
                 config.insert_json5("mode", '"peer"')
                 config.insert_json5("scouting/multicast/enabled", "false")
-            if self.listen:
-                config.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
+            # Zenoh's own default listener is tcp/[::]:0, every interface and IPv6 only
+            # where IPv6 exists; a process that only connects listens on loopback instead.
+            listen = self.listen or (() if self.config_file else (LOOPBACK_ANY_PORT,))
+            if listen:
+                config.insert_json5("listen/endpoints", json.dumps(list(listen)))
             if self.connect:
                 config.insert_json5("connect/endpoints", json.dumps(list(self.connect)))
         except zenoh.ZError as exc:

@@ -74,6 +74,7 @@ def test_canopen_master_moves_the_mujoco_joint_in_csp(bench):
     bench.stop_sync()
     bench.sim.stop()
     bench.thread.join(5)
+    time.sleep(0.3)                              # let late replies to earlier SYNCs drain
     bench.network.sync.transmit()
     assert node.tpdo[1].wait_for_reception(1) is not None
     actual_counts = node.tpdo[1]["Position actual value"].raw

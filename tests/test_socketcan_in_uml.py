@@ -25,7 +25,8 @@ def test_socketcan_suite_passes_inside_user_mode_linux():
     if missing:
         pytest.skip(f"User-Mode Linux unavailable: {missing}")
     result = subprocess.run(
-        [sys.executable, str(ROOT / "tools" / "uml_run.py"), "--timeout", "900", "--",
+        [sys.executable, str(ROOT / "tools" / "uml_run.py"), "--timeout", "900",
+         "--vcan", "vcan0", "--vcan", "vcan1", "--",
          sys.executable, "-m", "pytest", "-m", "socketcan", "-p", "no:cacheprovider",
          "-q", "-rs", "--color=no", str(ROOT / "tests")],
         cwd=ROOT, capture_output=True, text=True, timeout=960)

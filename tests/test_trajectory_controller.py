@@ -170,6 +170,7 @@ def test_bad_goals_are_rejected_before_any_motion(ur3_jtc, bad, code, words):
 
 def test_mimic_joint_cannot_be_commanded(pigot):
     jtc = JointTrajectoryController(pigot)
+    Follower(jtc).run(0.01)
     assert "finger_pri_2" not in jtc.joint_names
     with pytest.raises(GoalRejected, match="mimics 'finger_pri_1'"):
         jtc.submit("g", goal(["finger_pri_2"], (1.0, [0.01])))
@@ -194,3 +195,8 @@ def test_continuous_joint_takes_the_short_way_round(tmp_path, package_path):
     follower.run(0.5)
     assert 3.0 < follower.q[0] < 3.3
     assert follower.run(1.0)[0][1].status is GoalStatus.SUCCEEDED
+
+
+def test_goals_wait_for_the_first_joint_state(ur3_jtc):
+    with pytest.raises(GoalRejected, match="no joint state yet"):
+        ur3_jtc.submit("early", goal(["joint1"], (1.0, [0.1])))

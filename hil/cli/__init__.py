@@ -9,11 +9,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hil.cli import check, sim
+from hil.cli import check, control, send, sim
 from hil.errors import HilError
 
 #: sub-command name -> module with ``add_arguments(parser)`` and ``run(args) -> int``
-COMMANDS = {"check": check, "sim": sim}
+COMMANDS = {"check": check, "sim": sim, "control": control, "send": send}
 
 
 def build_parser() -> argparse.ArgumentParser:

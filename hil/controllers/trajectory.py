@@ -197,12 +197,18 @@ class JointTrajectoryController:
         self._actual = np.zeros(n)
         self._actual_velocity = np.zeros(n)
         self._now = 0.0
+        self._fault: str | None = None
 
     # --- goals ------------------------------------------------------------------
 
     def submit(self, goal_id: str, goal: TrajectoryGoal) -> None:
         """Validate and start a goal, preempting the active one; raises GoalRejected."""
         with self._lock:
+            if self._fault is not None:
+                raise GoalRejected(f"the hardware is faulted: {self._fault}", HARDWARE_FAULT)
+            if not self._initialised:
+                raise GoalRejected("the controller has no joint state yet (hardware starting)",
+                                   HARDWARE_FAULT)
             indices = self._validate(goal)
             active = self._plan(goal_id, goal, indices)
             if self._active is not None and self._active.result is None:
@@ -222,11 +228,16 @@ class JointTrajectoryController:
             return True
 
     def abort(self, reason: str, error_code: int = HARDWARE_FAULT) -> None:
-        """Abort the active goal (e.g. a drive fault) and hold the measured position."""
+        """A hardware fault: abort the active goal, hold, refuse goals until :meth:`clear_fault`."""
         with self._lock:
+            self._fault = reason
             self._hold_actual()
             if self._active is not None and self._active.result is None:
                 self._finish(self._active, GoalResult(GoalStatus.ABORTED, error_code, reason))
+
+    def clear_fault(self) -> None:
+        with self._lock:
+            self._fault = None
 
     def finished(self) -> list[tuple[str, GoalResult]]:
         """Results of goals that ended since the last call."""

@@ -290,8 +290,12 @@ class DriveCore:
         limits = self.parameters.position_limits
         if limits is None or self.power not in (Power.ENABLED, Power.QUICK_STOP):
             return
+        # beyond a limit, moving further out faults; moving back in is allowed (an axis
+        # enabled where gravity left it past its limit can be brought back)
         margin = self.LIMIT_MARGIN_COUNTS * self.parameters.radians_per_count
-        if not limits[0] - margin <= self._position <= limits[1] + margin:
+        creep = 0.01 * self.parameters.max_velocity
+        if ((self._position < limits[0] - margin and self._velocity < -creep)
+                or (self._position > limits[1] + margin and self._velocity > creep)):
             self.raise_fault(Fault.POSITION_LIMIT)
 
     def _engage_brake(self) -> None:

@@ -1,0 +1,68 @@
+"""``hil control CONFIG``: the controller process (CAN master + controllers + Zenoh)."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+
+from hil.bus_config import load_bus_config, open_buses
+from hil.cli import common
+from hil.control_node import ControlNode
+from hil.controllers import Defaults
+from hil.hardware import CanHardwareInterface, FakeHardwareInterface
+from hil.zenoh_session import close_all, session
+
+HELP = "run the CAN master, joint state publisher and joint trajectory controller"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml")
+    parser.add_argument("--fake", action="store_true",
+                        help="no CAN, no physics: echo the commands as the measured state")
+    parser.add_argument("--lock-step", action="store_true",
+                        help="run each cycle as soon as the drives answered (with hil sim "
+                             "--lock-step); the controller clock advances one period per cycle")
+    parser.add_argument("--joint-state-rate", type=float, default=100.0, metavar="HZ",
+                        help="joint state publication rate (default 100)")
+    parser.add_argument("--goal-tolerance", type=float, default=Defaults.goal_position_tolerance,
+                        metavar="RAD", help="default goal position tolerance")
+    common.add_can_override(parser)
+    common.add_package_path(parser)
+    common.add_zenoh(parser, listens=False)
+
+
+def run(args: argparse.Namespace) -> int:
+    config = load_bus_config(args.config, common.package_path(args))
+    zenoh = common.zenoh_settings(args)
+    buses = {}
+    if args.fake:
+        hardware = FakeHardwareInterface(config.robot)
+    else:
+        interface, channels = common.can_overrides(args)
+        buses = open_buses(config, zenoh, interface, channels)
+        hardware = CanHardwareInterface(config, buses,
+                                        reply_timeout=1.0 if args.lock_step else None)
+    node = ControlNode(hardware, session(zenoh), config.cycle_hz, lock_step=args.lock_step,
+                       joint_state_hz=args.joint_state_rate,
+                       defaults=Defaults(goal_position_tolerance=args.goal_tolerance))
+    previous = {s: signal.signal(s, lambda *_: node.stop()) for s in (signal.SIGINT,
+                                                                      signal.SIGTERM)}
+    mode = "fake hardware" if args.fake else f"{len(config.drives)} drive(s)"
+    print(f"hil control: {config.robot.name}, {mode}, {config.cycle_hz:g} Hz, "
+          f"{'lock-step' if args.lock_step else 'real-time'}; goals on "
+          f"hil/{config.robot.name}/follow_joint_trajectory", flush=True)
+    try:
+        node.run()
+    finally:
+        for bus in buses.values():
+            bus.shutdown()
+        close_all()
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    for fault in node.faults:
+        print(f"hil control: fault: {fault}", file=sys.stderr)
+    if not args.lock_step:
+        print(f"hil control: {node.statistics.summary()}")
+    print("hil control: stopped; drives disabled", flush=True)
+    return 0

@@ -1,0 +1,113 @@
+"""``hil send ROBOT``: send a trajectory goal, print feedback and the result."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+import yaml
+
+from hil.cli import common
+from hil.controllers import (
+    GoalRejected, GoalStatus, JointTolerance, TrajectoryGoal, TrajectoryPoint,
+)
+from hil.errors import HilError
+from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient
+from hil.zenoh_session import close_all, session
+
+HELP = "send a joint trajectory to a running hil control and wait for the result"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("robot", help="robot name, e.g. ur3")
+    parser.add_argument("file", nargs="?", type=Path,
+                        help="trajectory as YAML/JSON: joint_names, points (positions, "
+                             "velocities, accelerations, time_from_start), optional "
+                             "path_tolerance / goal_tolerance {joint: rad}, goal_time_tolerance")
+    parser.add_argument("--joint", action="append", default=[], help="joint to move (short form)")
+    parser.add_argument("--to", action="append", type=float, default=[],
+                        help="its target position, one per --joint")
+    parser.add_argument("--in", dest="duration", default="2s",
+                        help="time to get there, e.g. 2s or 500ms (default 2s)")
+    parser.add_argument("--timeout", type=float, default=60.0, help="seconds to wait (60)")
+    parser.add_argument("--quiet", action="store_true", help="print the result only")
+    common.add_zenoh(parser, listens=False)
+
+
+def run(args: argparse.Namespace) -> int:
+    goal = _goal(args)
+    client = TrajectoryActionClient(session(common.zenoh_settings(args)), args.robot)
+    try:
+        if not client.wait_for_controller(15.0):
+            raise HilError.single(f"no hil control for robot '{args.robot}' is reachable",
+                                  hint="start `hil control CONFIG` (or check --connect)")
+        try:
+            goal_id = client.send_goal(goal)
+        except GoalRejected as exc:
+            print(f"hil send: {exc}", file=sys.stderr)
+            return 1
+        print(f"hil send: goal {goal_id[:8]} accepted", flush=True)
+        shown = [0]
+
+        def show(feedback):
+            shown[0] += 1
+            if not args.quiet and shown[0] % 5 == 1:
+                errors = " ".join(f"{n}={e:+.4f}" for n, e in zip(feedback.joint_names,
+                                                                   feedback.error.positions))
+                print(f"  error {errors}", flush=True)
+        try:
+            result = client.wait_result(goal_id, args.timeout, show)
+        except (ControllerGone, TimeoutError) as exc:
+            print(f"hil send: {exc}", file=sys.stderr)
+            return 1
+        text = f" ({result.error_string})" if result.error_string else ""
+        print(f"hil send: {result.status.name.lower()}, error_code {result.error_code}{text}")
+        return 0 if result.status is GoalStatus.SUCCEEDED else 1
+    finally:
+        client.close()
+        close_all()
+
+
+def _goal(args: argparse.Namespace) -> TrajectoryGoal:
+    if args.file is not None:
+        return goal_from_file(args.file)
+    if not args.joint or len(args.joint) != len(args.to):
+        raise HilError.single("give a trajectory file, or --joint NAME --to POSITION pairs",
+                              hint="e.g. hil send ur3 --joint joint2 --to 0.5 --in 2s")
+    seconds = _duration(args.duration)
+    return TrajectoryGoal(tuple(args.joint), (TrajectoryPoint(seconds, tuple(args.to)),))
+
+
+def _duration(text: str) -> float:
+    match = re.fullmatch(r"\s*([0-9.]+)\s*(ms|s)?\s*", text)
+    if not match:
+        raise HilError.single(f"--in '{text}' is not a duration", hint="e.g. 2s, 1.5, 500ms")
+    value = float(match.group(1))
+    return value / 1000 if match.group(2) == "ms" else value
+
+
+def goal_from_file(path: Path) -> TrajectoryGoal:
+    """Read a trajectory file (YAML or JSON), with errors naming the file."""
+    try:
+        data = yaml.safe_load(path.read_text()) if path.suffix != ".json" else json.loads(
+            path.read_text())
+        names = tuple(data["joint_names"])
+        points = tuple(TrajectoryPoint(float(p["time_from_start"]),
+                                       tuple(float(x) for x in p["positions"]),
+                                       tuple(float(x) for x in p.get("velocities", ())),
+                                       tuple(float(x) for x in p.get("accelerations", ())))
+                       for p in data["points"])
+        tolerance = lambda key: tuple(JointTolerance(j, float(v))  # noqa: E731
+                                      for j, v in (data.get(key) or {}).items())
+        return TrajectoryGoal(names, points, None, tolerance("path_tolerance"),
+                              tolerance("goal_tolerance"),
+                              float(data.get("goal_time_tolerance", 0.0)))
+    except OSError as exc:
+        raise HilError.single(f"cannot read '{path}': {exc.strerror}") from None
+    except (yaml.YAMLError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise HilError.single(f"'{path}' is not a trajectory: {exc!r}", path,
+                              hint="needs joint_names and points with positions and "
+                                   "time_from_start") from None

@@ -1,0 +1,123 @@
+"""The controller process: hardware interface + controllers + Zenoh, one loop.
+
+Each cycle: exchange with the hardware (setpoints out, feedback in), report
+faults to the trajectory controller (which aborts and holds), run the
+controller, publish joint states, feedback and results. Real-time mode paces
+the cycle from a monotonic clock and keeps period statistics; lock-step mode
+runs the next cycle as soon as the hardware answered, with the controller's
+clock advancing one period per cycle.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import zenoh
+
+from hil.controllers import Defaults, JointTrajectoryController
+from hil.controllers.joint_state import JointStateBroadcaster
+from hil.hardware import HardwareInterface
+from hil.messaging.zenoh_api import JointStatePublisher, TrajectoryActionServer, key
+
+
+@dataclass
+class PeriodStatistics:
+    """Measured cycle periods (real-time mode), in seconds."""
+
+    nominal: float
+    samples: list[float] = field(default_factory=list)
+
+    def summary(self) -> str:
+        if not self.samples:
+            return "no cycles"
+        errors = np.abs(np.array(self.samples) - self.nominal) * 1e6
+        missed = int(np.sum(np.array(self.samples) > 1.5 * self.nominal))
+        return (f"{len(self.samples)} cycles, period mean {np.mean(self.samples) * 1e3:.3f} ms, "
+                f"|error| p50 {np.percentile(errors, 50):.0f} us, p99 "
+                f"{np.percentile(errors, 99):.0f} us, max {errors.max():.0f} us, "
+                f"missed {missed}")
+
+
+class ControlNode:
+    """Runs the control loop until :meth:`stop`."""
+
+    def __init__(self, hardware: HardwareInterface, session: zenoh.Session, cycle_hz: float,
+                 lock_step: bool = False, joint_state_hz: float = 100.0,
+                 feedback_hz: float = 20.0, defaults: Defaults = Defaults()):
+        self.hardware = hardware
+        robot = hardware.robot
+        self.period = 1.0 / cycle_hz
+        self.lock_step = lock_step
+        self.controller = JointTrajectoryController(robot, defaults)
+        self.broadcaster = JointStateBroadcaster(robot, hardware.joint_names)
+        self._cycle = 0
+        self._start = time.monotonic()
+        self.server = TrajectoryActionServer(session, robot.name, self.controller, self.clock)
+        self.joint_states = JointStatePublisher(session, robot.name)
+        self._session = session
+        self._token = None      # declared once the hardware follows commands
+        self._every_states = max(1, round(cycle_hz / joint_state_hz))
+        self._every_feedback = max(1, round(cycle_hz / feedback_hz))
+        self.statistics = PeriodStatistics(self.period)
+        self.faults: list[str] = []
+        self._stop = threading.Event()
+
+    def clock(self) -> float:
+        """The controller's time: cycles x period in lock-step, monotonic otherwise."""
+        return self._cycle * self.period if self.lock_step else time.monotonic() - self._start
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def run(self) -> None:
+        hardware = self.hardware
+        try:
+            start = hardware.start()
+            command = start.positions      # the first setpoint: where the joints are
+            velocity = np.zeros(len(hardware.joint_names))
+            self.controller.update(self.clock(), start.positions, start.velocities)
+            self._token = self._session.liveliness().declare_token(
+                key(self.hardware.robot.name, "control"))
+            next_cycle = time.perf_counter()
+            last = None
+            while not self._stop.is_set():
+                feedback = hardware.cycle(command, velocity)
+                self._cycle += 1
+                for fault in hardware.faults():
+                    self.faults.append(fault)
+                    self.controller.abort(fault)
+                command, velocity = self.controller.update(self.clock(), feedback.positions,
+                                                           feedback.velocities)
+                self._publish(feedback)
+                if not self.lock_step:
+                    now = time.perf_counter()
+                    if last is not None:
+                        self.statistics.samples.append(now - last)
+                    last = now
+                    next_cycle += self.period
+                    delay = next_cycle - time.perf_counter()
+                    if delay > 0:
+                        time.sleep(delay)
+                    elif delay < -10 * self.period:
+                        next_cycle = time.perf_counter()
+        finally:
+            self.controller.abort("the controller is shutting down")
+            self.server.publish_results()
+            hardware.stop()
+            self.server.close()
+            self.joint_states.close()
+            if self._token is not None:
+                self._token.undeclare()
+
+    def _publish(self, feedback) -> None:
+        if self._cycle % self._every_states == 0:
+            positions, velocities, efforts = self.broadcaster.compute(
+                feedback.positions, feedback.velocities, feedback.efforts)
+            self.joint_states.publish(time.time(), self.broadcaster.names, positions,
+                                      velocities, efforts)
+        if self._cycle % self._every_feedback == 0:
+            self.server.publish_feedback()
+        self.server.publish_results()

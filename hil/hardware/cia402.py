@@ -1,0 +1,187 @@
+"""The master's side of one CiA 402 drive: bring-up over SDO/NMT, cyclic PDOs.
+
+Bring-up uses python ``canopen`` (NMT, SDO client, PDO map upload); the cyclic
+exchange packs and parses its PDOs by hand with ``struct`` because it runs
+every cycle for every axis and must stay cheap and allocation-light.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import threading
+import time
+from dataclasses import dataclass
+
+import canopen
+
+from hil.bus_config import DEFAULT_EDS, DriveConfig
+from hil.errors import HilError
+
+_RPDO1 = struct.Struct("<Hi")       # controlword, target position
+_TPDO1 = struct.Struct("<Hi")       # statusword, position actual
+_TPDO2 = struct.Struct("<ih")       # velocity actual, torque actual
+
+#: EMCY codes a CiA 402 drive may send, for messages
+EMCY_TEXT = {0x8611: "following error", 0x8612: "position limit exceeded",
+             0x8250: "RPDO timeout (setpoints stopped arriving)",
+             0x8210: "PDO length error", 0x8240: "unexpected SYNC length",
+             0x8130: "heartbeat/life guard error"}
+
+SHUTDOWN, SWITCH_ON, ENABLE, QUICK_STOP, DISABLE_VOLTAGE = 0x06, 0x07, 0x0F, 0x02, 0x00
+STANDSTILL = 0.01       # fraction of the max velocity below which an axis counts as still
+
+
+def state_of(statusword: int) -> str:
+    """The CiA 402 state name of a statusword."""
+    for mask, value, name in ((0x4F, 0x08, "FAULT"), (0x4F, 0x0F, "FAULT REACTION ACTIVE"),
+                              (0x4F, 0x40, "SWITCH ON DISABLED"),
+                              (0x6F, 0x27, "OPERATION ENABLED"), (0x6F, 0x23, "SWITCHED ON"),
+                              (0x6F, 0x21, "READY TO SWITCH ON"),
+                              (0x6F, 0x07, "QUICK STOP ACTIVE"),
+                              (0x4F, 0x00, "NOT READY TO SWITCH ON")):
+        if statusword & mask == value:
+            return name
+    return "UNKNOWN"
+
+
+@dataclass
+class AxisFeedback:
+    statusword: int = 0
+    position: float = 0.0      # rad, motor
+    velocity: float = 0.0      # rad/s, motor
+    torque: float = 0.0        # N·m, motor
+    tpdo_cycle: int = -1       # cycle of the last TPDO1
+
+
+class Cia402Axis:
+    """One drive as the master sees it."""
+
+    def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
+        self.config = config
+        self.bus_name = bus_name
+        self.node_id = config.node_id
+        self.label = f"drive node {config.node_id} ({', '.join(config.joints)}) on bus '{bus_name}'"
+        self.node = canopen.RemoteNode(config.node_id, str(DEFAULT_EDS))
+        self.feedback = AxisFeedback()
+        self.counts_per_rad = config.encoder_counts_per_rev / (2 * math.pi)
+        self.rated_torque = config.rated_torque
+        self.controlword = SHUTDOWN
+        self.last_emcy: int | None = None
+        self.last_heartbeat = time.monotonic()
+        self.booted = threading.Event()
+        self._cycle = 0
+        self._on_feedback = on_feedback      # called after each TPDO1
+
+    # --- network hooks ----------------------------------------------------------
+
+    def attach(self, network: canopen.Network) -> None:
+        network.add_node(self.node)
+        network.subscribe(0x180 + self.node_id, self._on_tpdo1)
+        network.subscribe(0x280 + self.node_id, self._on_tpdo2)
+        network.subscribe(0x080 + self.node_id, self._on_emcy)
+        network.subscribe(0x700 + self.node_id, self._on_heartbeat)
+
+    def _on_tpdo1(self, can_id, data, timestamp) -> None:
+        if len(data) == _TPDO1.size:
+            statusword, counts = _TPDO1.unpack(data)
+            self.feedback.statusword = statusword
+            self.feedback.position = counts / self.counts_per_rad
+            self.feedback.tpdo_cycle = self._cycle
+            self._on_feedback()
+
+    def _on_tpdo2(self, can_id, data, timestamp) -> None:
+        if len(data) == _TPDO2.size:
+            velocity, torque = _TPDO2.unpack(data)
+            self.feedback.velocity = velocity / self.counts_per_rad
+            self.feedback.torque = torque * self.rated_torque / 1000
+
+    def _on_emcy(self, can_id, data, timestamp) -> None:
+        if len(data) >= 2:
+            code = struct.unpack_from("<H", data)[0]
+            self.last_emcy = code
+
+    def _on_heartbeat(self, can_id, data, timestamp) -> None:
+        self.last_heartbeat = time.monotonic()
+        if len(data) >= 1 and data[0] == 0:
+            self.booted.set()
+
+    # --- bring-up ------------------------------------------------------------------
+
+    def configure(self) -> None:
+        """After boot: check the device, read its units and PDO maps, select CSP (SDO)."""
+        try:
+            device_type = self.node.sdo[0x1000].raw
+            if device_type & 0xFFFF != 402:
+                raise HilError.single(f"{self.label} is not a CiA 402 drive (device type "
+                                      f"0x{device_type:08X})",
+                                      hint="check node_id and protocol in the bus config")
+            resolution = self.node.sdo[0x608F][1].raw
+            if resolution != self.config.encoder_counts_per_rev:
+                raise HilError.single(
+                    f"{self.label} reports {resolution} encoder counts/rev (0x608F), the bus "
+                    f"config says {self.config.encoder_counts_per_rev}",
+                    hint="make encoder_counts_per_rev match the drive")
+            self.rated_torque = self.node.sdo[0x6076].raw / 1000
+            self.node.tpdo.read()
+            self.node.rpdo.read()
+            self._check_mapping()
+            self.node.sdo[0x6060].raw = 8        # cyclic synchronous position
+        except canopen.SdoCommunicationError as exc:
+            raise HilError.single(f"{self.label} does not answer SDO: {exc}",
+                                  hint="is the drive powered and on this bus?") from None
+        except canopen.SdoAbortedError as exc:
+            raise HilError.single(f"{self.label} refused an SDO request: {exc}") from None
+
+    def _check_mapping(self) -> None:
+        expected = {("rpdo", 1): [0x6040, 0x607A], ("tpdo", 1): [0x6041, 0x6064],
+                    ("tpdo", 2): [0x606C, 0x6077]}
+        for (kind, number), indices in expected.items():
+            pdo = getattr(self.node, kind)[number]
+            found = [v.index for v in pdo.map]
+            if found != indices or not pdo.enabled:
+                raise HilError.single(
+                    f"{self.label} {kind.upper()}{number} maps "
+                    f"{', '.join(f'0x{i:04X}' for i in found) or 'nothing'}; hil expects "
+                    f"{', '.join(f'0x{i:04X}' for i in indices)} (the EDS default)",
+                    hint="restore the drive's default PDO mapping")
+
+    # --- cyclic ------------------------------------------------------------------------
+
+    @property
+    def state(self) -> str:
+        return state_of(self.feedback.statusword)
+
+    def next_controlword(self, stopping: bool) -> int:
+        """Walk the 402 state machine toward OPERATION ENABLED, or quick-stop."""
+        state = self.state
+        if stopping:
+            return QUICK_STOP if state == "OPERATION ENABLED" or state == "QUICK STOP ACTIVE" \
+                else SHUTDOWN
+        if state == "SWITCHED ON" and (
+                self.feedback.tpdo_cycle < self._cycle - 1
+                or abs(self.feedback.velocity) > STANDSTILL * self.config.max_velocity):
+            # enable only at standstill and with last cycle's position as the setpoint: a
+            # brake-less axis still falling is caught where it comes to rest, not mid-fall
+            return SWITCH_ON
+        return {"SWITCH ON DISABLED": SHUTDOWN, "READY TO SWITCH ON": SWITCH_ON,
+                "SWITCHED ON": ENABLE, "OPERATION ENABLED": ENABLE}.get(state, SHUTDOWN)
+
+    def rpdo(self, controlword: int, target: float) -> bytes:
+        counts = max(-2**31, min(2**31 - 1, round(target * self.counts_per_rad)))
+        return _RPDO1.pack(controlword, counts)
+
+    def begin_cycle(self, cycle: int) -> None:
+        self._cycle = cycle
+
+    def fault_text(self, stopping: bool = False) -> str | None:
+        """Why this axis cannot be used, or None."""
+        if self.state == "QUICK STOP ACTIVE" and not stopping:
+            code = self.last_emcy
+            why = f" after EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".rstrip() if code else ""
+            return f"{self.label} quick-stopped on its own{why}"
+        if self.state in ("FAULT", "FAULT REACTION ACTIVE"):
+            code = self.last_emcy
+            what = f"EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".strip() if code else "fault"
+            return f"{self.label} is in FAULT: {what}"
+        return None

@@ -1,0 +1,183 @@
+"""ROS 2 message layouts, encoded as CDR with ``rosbags`` (a maintained, pure-Python codec).
+
+Payloads on Zenoh are the CDR encoding ROS 2 uses on the wire (little-endian
+header ``00 01 00 00``), so a ROS 2 bridge maps keys, not bytes. Types that
+rosbags does not ship (control_msgs' FollowJointTrajectory, action_msgs'
+CancelGoal service) are registered from their .msg/.action field layouts;
+``hil_msgs/GoalResult`` is hil's one own type (a goal's terminal status).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from hil.controllers import (
+    GoalResult, GoalStatus, JointTolerance, TrajectoryGoal, TrajectoryPoint,
+)
+
+_DEFINITIONS = {
+    "control_msgs/msg/JointTolerance":
+        "string name\nfloat64 position\nfloat64 velocity\nfloat64 acceleration",
+    "control_msgs/msg/JointComponentTolerance":
+        "string joint_name\nuint16 component\nfloat64 position\nfloat64 velocity\n"
+        "float64 acceleration",
+    "control_msgs/action/FollowJointTrajectory_Goal":
+        "trajectory_msgs/JointTrajectory trajectory\n"
+        "trajectory_msgs/MultiDOFJointTrajectory multi_dof_trajectory\n"
+        "control_msgs/JointTolerance[] path_tolerance\n"
+        "control_msgs/JointComponentTolerance[] component_path_tolerance\n"
+        "control_msgs/JointTolerance[] goal_tolerance\n"
+        "control_msgs/JointComponentTolerance[] component_goal_tolerance\n"
+        "builtin_interfaces/Duration goal_time_tolerance",
+    "control_msgs/action/FollowJointTrajectory_Result":
+        "int32 error_code\nstring error_string",
+    "control_msgs/action/FollowJointTrajectory_Feedback":
+        "std_msgs/Header header\nstring[] joint_names\n"
+        "trajectory_msgs/JointTrajectoryPoint desired\n"
+        "trajectory_msgs/JointTrajectoryPoint actual\n"
+        "trajectory_msgs/JointTrajectoryPoint error\nstring[] multi_dof_joint_names\n"
+        "trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_desired\n"
+        "trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_actual\n"
+        "trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_error",
+    "control_msgs/action/FollowJointTrajectory_SendGoal_Request":
+        "unique_identifier_msgs/UUID goal_id\n"
+        "control_msgs/action/FollowJointTrajectory_Goal goal",
+    "control_msgs/action/FollowJointTrajectory_SendGoal_Response":
+        "bool accepted\nbuiltin_interfaces/Time stamp",
+    "control_msgs/action/FollowJointTrajectory_FeedbackMessage":
+        "unique_identifier_msgs/UUID goal_id\n"
+        "control_msgs/action/FollowJointTrajectory_Feedback feedback",
+    "control_msgs/action/FollowJointTrajectory_GetResult_Request":
+        "unique_identifier_msgs/UUID goal_id",
+    "control_msgs/action/FollowJointTrajectory_GetResult_Response":
+        "int8 status\ncontrol_msgs/action/FollowJointTrajectory_Result result",
+    "action_msgs/srv/CancelGoal_Request": "action_msgs/GoalInfo goal_info",
+    "action_msgs/srv/CancelGoal_Response":
+        "int8 return_code\naction_msgs/GoalInfo[] goals_canceling",
+    "hil_msgs/msg/GoalResult":
+        "unique_identifier_msgs/UUID goal_id\nint8 status\n"
+        "control_msgs/action/FollowJointTrajectory_Result result",
+}
+
+TYPES = get_typestore(Stores.ROS2_HUMBLE)
+for _name, _text in _DEFINITIONS.items():
+    TYPES.register(get_types_from_msg(_text, _name))
+
+JOINT_STATE = "sensor_msgs/msg/JointState"
+SEND_GOAL_REQUEST = "control_msgs/action/FollowJointTrajectory_SendGoal_Request"
+SEND_GOAL_RESPONSE = "control_msgs/action/FollowJointTrajectory_SendGoal_Response"
+FEEDBACK_MESSAGE = "control_msgs/action/FollowJointTrajectory_FeedbackMessage"
+GET_RESULT_REQUEST = "control_msgs/action/FollowJointTrajectory_GetResult_Request"
+GET_RESULT_RESPONSE = "control_msgs/action/FollowJointTrajectory_GetResult_Response"
+CANCEL_REQUEST = "action_msgs/srv/msg/CancelGoal_Request"   # rosbags files srv parts so
+CANCEL_RESPONSE = "action_msgs/srv/msg/CancelGoal_Response"
+GOAL_RESULT = "hil_msgs/msg/GoalResult"
+
+
+def msg(typename: str, **fields):
+    return TYPES.types[typename](**fields)
+
+
+def encode(message) -> bytes:
+    return bytes(TYPES.serialize_cdr(message, message.__msgtype__))
+
+
+def decode(data: bytes, typename: str):
+    """Decode CDR; raises ValueError (with the type) for anything malformed."""
+    try:
+        return TYPES.deserialize_cdr(bytes(data), typename)
+    except Exception as exc:   # rosbags raises struct/index/assertion errors on bad input
+        raise ValueError(f"malformed {typename} payload ({len(data)} bytes): {exc}") from None
+
+
+# --- small builders -----------------------------------------------------------
+
+def time_msg(seconds: float):
+    sec = int(seconds // 1)
+    return msg("builtin_interfaces/msg/Time", sec=sec, nanosec=int(round((seconds - sec) * 1e9)))
+
+
+def duration_msg(seconds: float):
+    sec = int(seconds // 1)
+    return msg("builtin_interfaces/msg/Duration", sec=sec,
+               nanosec=int(round((seconds - sec) * 1e9)))
+
+
+def seconds_of(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def uuid_msg(goal_id: str):
+    raw = bytes.fromhex(goal_id)
+    return msg("unique_identifier_msgs/msg/UUID", uuid=np.frombuffer(raw, dtype=np.uint8).copy())
+
+
+def goal_id_of(uuid) -> str:
+    return bytes(uuid.uuid).hex()
+
+
+def header(seconds: float, frame: str = ""):
+    return msg("std_msgs/msg/Header", stamp=time_msg(seconds), frame_id=frame)
+
+
+def point_msg(positions=(), velocities=(), accelerations=(), time_from_start: float = 0.0):
+    array = lambda values: np.asarray(values, dtype=np.float64)   # noqa: E731
+    return msg("trajectory_msgs/msg/JointTrajectoryPoint", positions=array(positions),
+               velocities=array(velocities), accelerations=array(accelerations),
+               effort=array(()), time_from_start=duration_msg(time_from_start))
+
+
+def joint_state_msg(stamp: float, names, positions, velocities, efforts):
+    return msg(JOINT_STATE, header=header(stamp), name=list(names),
+               position=np.asarray(positions, dtype=np.float64),
+               velocity=np.asarray(velocities, dtype=np.float64),
+               effort=np.asarray(efforts, dtype=np.float64))
+
+
+# --- goals ----------------------------------------------------------------------
+
+def goal_msg(goal: TrajectoryGoal, stamp: float = 0.0):
+    """A FollowJointTrajectory goal; ``stamp`` 0 means "start now"."""
+    tolerances = lambda items: [msg("control_msgs/msg/JointTolerance", name=t.name,  # noqa: E731
+                                    position=t.position, velocity=t.velocity, acceleration=0.0)
+                                for t in items]
+    trajectory = msg("trajectory_msgs/msg/JointTrajectory", header=header(stamp),
+                     joint_names=list(goal.joint_names),
+                     points=[point_msg(p.positions, p.velocities, p.accelerations,
+                                       p.time_from_start) for p in goal.points])
+    multi = msg("trajectory_msgs/msg/MultiDOFJointTrajectory", header=header(0.0),
+                joint_names=[], points=[])
+    return msg("control_msgs/action/FollowJointTrajectory_Goal", trajectory=trajectory,
+               multi_dof_trajectory=multi, path_tolerance=tolerances(goal.path_tolerance),
+               component_path_tolerance=[], goal_tolerance=tolerances(goal.goal_tolerance),
+               component_goal_tolerance=[],
+               goal_time_tolerance=duration_msg(goal.goal_time_tolerance))
+
+
+def goal_from_msg(goal, start_time: float | None) -> TrajectoryGoal:
+    """The controller's goal; ``start_time`` is the header stamp on its clock (None = now)."""
+    trajectory = goal.trajectory
+    if len(goal.multi_dof_trajectory.joint_names):
+        raise ValueError("multi-DOF trajectories are not supported")
+    points = tuple(TrajectoryPoint(seconds_of(p.time_from_start),
+                                   tuple(float(x) for x in p.positions),
+                                   tuple(float(x) for x in p.velocities),
+                                   tuple(float(x) for x in p.accelerations))
+                   for p in trajectory.points)
+    tolerance = lambda items: tuple(JointTolerance(t.name, t.position, t.velocity)  # noqa: E731
+                                    for t in items)
+    return TrajectoryGoal(tuple(trajectory.joint_names), points, start_time,
+                          tolerance(goal.path_tolerance), tolerance(goal.goal_tolerance),
+                          seconds_of(goal.goal_time_tolerance))
+
+
+def result_msg(goal_id: str, result: GoalResult):
+    return msg(GOAL_RESULT, goal_id=uuid_msg(goal_id), status=result.status.value,
+               result=msg("control_msgs/action/FollowJointTrajectory_Result",
+                          error_code=result.error_code, error_string=result.error_string))
+
+
+def result_from_msg(message) -> GoalResult:
+    return GoalResult(GoalStatus(message.status), message.result.error_code,
+                      message.result.error_string)
