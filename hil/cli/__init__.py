@@ -27,7 +27,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, extras = parser.parse_known_args(argv)
+    # argparse cannot match positionals given after options (`hil send ur3 --connect EP
+    # FILE`); commands with a variable `target` list take such leftovers
+    if extras and hasattr(args, "target") and not any(e.startswith("-") for e in extras):
+        args.target += extras
+    elif extras:
+        parser.error(f"unrecognized arguments: {' '.join(extras)}")
     try:
         return COMMANDS[args.command].run(args)
     except HilError as exc:

@@ -22,11 +22,11 @@ HELP = "send a joint trajectory to a running hil control and wait for the result
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("robot", help="robot name, e.g. ur3")
-    parser.add_argument("file", nargs="?", type=Path,
-                        help="trajectory as YAML/JSON: joint_names, points (positions, "
-                             "velocities, accelerations, time_from_start), optional "
-                             "path_tolerance / goal_tolerance {joint: rad}, goal_time_tolerance")
+    parser.add_argument("target", nargs="+", metavar="ROBOT [FILE]",
+                        help="robot name (e.g. ur3), then optionally a trajectory as "
+                             "YAML/JSON: joint_names, points (positions, velocities, "
+                             "accelerations, time_from_start), optional path_tolerance / "
+                             "goal_tolerance {joint: rad}, goal_time_tolerance")
     parser.add_argument("--joint", action="append", default=[], help="joint to move (short form)")
     parser.add_argument("--to", action="append", type=float, default=[],
                         help="its target position, one per --joint")
@@ -38,6 +38,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if len(args.target) > 2:
+        raise HilError.single(f"too many arguments: {' '.join(args.target[2:])}",
+                              hint="hil send ROBOT [FILE] [--joint NAME --to POS ...]")
+    args.robot = args.target[0]
+    args.file = Path(args.target[1]) if len(args.target) == 2 else None
     goal = _goal(args)
     client = TrajectoryActionClient(session(common.zenoh_settings(args)), args.robot)
     try:
