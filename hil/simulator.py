@@ -29,11 +29,11 @@ import numpy as np
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig
 from hil.drives import PROFILES, DriveCore, DriveParameters
+from hil.drives.cia402 import SYNC_ID
 from hil.plant import Plant
 
 log = logging.getLogger(__name__)
 
-SYNC_ID = 0x080
 WATCHDOG_PERIOD = 0.01
 
 

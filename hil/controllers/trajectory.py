@@ -136,7 +136,6 @@ def _segment(t0, t1, p0, v0, a0, p1, v1, a1, order: int) -> _Segment:
 @dataclass
 class _ActiveGoal:
     goal_id: str
-    goal: TrajectoryGoal
     indices: np.ndarray            # controller joint index of each goal joint
     segments: list[_Segment]
     start: float
@@ -423,7 +422,7 @@ class JointTrajectoryController:
                                           self.defaults.goal_velocity_tolerance)
         goal_time = (goal.goal_time_tolerance if goal.goal_time_tolerance > 0 else
                      self.defaults.goal_time_tolerance)
-        return _ActiveGoal(goal_id, goal, indices, segments, start, t0, path_p, path_v, goal_p,
+        return _ActiveGoal(goal_id, indices, segments, start, t0, path_p, path_v, goal_p,
                            goal_v, goal_time, p0)
 
     def _check_reachable(self, goal: TrajectoryGoal, indices: np.ndarray, here: np.ndarray) -> None:

@@ -151,7 +151,6 @@ def statusword(state: State, core: DriveCore) -> int:
 class Cia402Drive:
     """A CiA 402 servo drive on a CANopen network, around a :class:`DriveCore`."""
 
-    protocol = "cia402"
     #: Payload bytes of the frames one drive exchanges per SYNC with the default
     #: mapping: RPDO1 (controlword + target), TPDO1, TPDO2.
     cyclic_payloads = (6, 6, 6)

@@ -23,11 +23,11 @@ import numpy as np
 
 from hil.bus_config import SystemConfig
 from hil.description import RobotDescription
+from hil.drives.cia402 import SYNC_ID   # CiA 301's SYNC COB-ID
 from hil.errors import HilError
 from hil.hardware.cia402 import DISABLE_VOLTAGE, SHUTDOWN, Cia402Axis
 from hil.transmissions import build_transmissions
 
-SYNC_ID = 0x080
 BOOT_TIMEOUT = 3.0
 ENABLE_TIMEOUT = 10.0
 MISSED_TPDO_LIMIT = 5
