@@ -33,6 +33,12 @@ TRANSMISSION_TYPES = {
 _ARITY = {"simple": 1, "differential": 2, "four_bar": 2}
 
 
+def start_tag(tag: str, name: str) -> re.Pattern:
+    """The start tag ``<tag ... name="name"``, across lines and other attributes."""
+    return re.compile(rf"<{re.escape(tag)}\b[^>]*?\bname\s*=\s*[\"']{re.escape(name)}[\"']",
+                      re.DOTALL)
+
+
 class SourceIndex:
     """Finds the file and line where a named element is written.
 
@@ -47,8 +53,7 @@ class SourceIndex:
         self._texts = {f: f.read_text(errors="replace") for f in files if f.is_file()}
 
     def locate(self, tag: str, name: str) -> tuple[Path, int | None]:
-        pattern = re.compile(rf"<{re.escape(tag)}\b[^>]*?\bname\s*=\s*[\"']{re.escape(name)}[\"']",
-                             re.DOTALL)
+        pattern = start_tag(tag, name)
         for file, text in self._texts.items():
             match = pattern.search(text)
             if match:
@@ -367,7 +372,7 @@ def _check_tree(reader: _Reader, links: tuple[Link, ...], joints: tuple[Joint, .
 
 def _missing_link_hint(reader: _Reader, link: str) -> str:
     """Name the file that defines ``link`` if it lies on the package path unincluded."""
-    pattern = re.compile(rf"<link\b[^>]*?\bname\s*=\s*[\"']{re.escape(link)}[\"']", re.DOTALL)
+    pattern = start_tag("link", link)
     loaded = set(reader.source.files)
     for root in reader.package_path.roots:
         if not root.is_dir():

@@ -14,6 +14,7 @@ import time
 from dataclasses import dataclass
 
 import canopen
+from canopen.profiles.p402 import State402
 
 from hil.bus_config import DEFAULT_EDS, DriveConfig
 from hil.errors import HilError
@@ -33,13 +34,8 @@ STANDSTILL = 0.01       # fraction of the max velocity below which an axis count
 
 
 def state_of(statusword: int) -> str:
-    """The CiA 402 state name of a statusword."""
-    for mask, value, name in ((0x4F, 0x08, "FAULT"), (0x4F, 0x0F, "FAULT REACTION ACTIVE"),
-                              (0x4F, 0x40, "SWITCH ON DISABLED"),
-                              (0x6F, 0x27, "OPERATION ENABLED"), (0x6F, 0x23, "SWITCHED ON"),
-                              (0x6F, 0x21, "READY TO SWITCH ON"),
-                              (0x6F, 0x07, "QUICK STOP ACTIVE"),
-                              (0x4F, 0x00, "NOT READY TO SWITCH ON")):
+    """The CiA 402 state name of a statusword (canopen's own mask table)."""
+    for name, (mask, value) in State402.SW_MASK.items():
         if statusword & mask == value:
             return name
     return "UNKNOWN"

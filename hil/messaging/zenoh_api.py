@@ -97,10 +97,8 @@ class TrajectoryActionServer:
                                                      stamp=T.time_msg(time.time()))))
 
     def _on_cancel(self, query: zenoh.Query) -> None:
-        try:
-            request = T.decode(_payload(query), T.CANCEL_REQUEST)
-        except ValueError as exc:
-            query.reply_err(str(exc))
+        request = _decode_or_reply_error(query, T.CANCEL_REQUEST)
+        if request is None:
             return
         goal_id = T.goal_id_of(request.goal_info.goal_id)
         canceled = self.controller.cancel(goal_id)
@@ -110,10 +108,8 @@ class TrajectoryActionServer:
             goals_canceling=[request.goal_info] if canceled else [])))
 
     def _on_get_result(self, query: zenoh.Query) -> None:
-        try:
-            request = T.decode(_payload(query), T.GET_RESULT_REQUEST)
-        except ValueError as exc:
-            query.reply_err(str(exc))
+        request = _decode_or_reply_error(query, T.GET_RESULT_REQUEST)
+        if request is None:
             return
         with self._lock:
             result = self._results.get(T.goal_id_of(request.goal_id))
@@ -155,6 +151,15 @@ class JointStatePublisher:
 
     def close(self) -> None:
         self._publisher.undeclare()
+
+
+def _decode_or_reply_error(query: zenoh.Query, typename: str):
+    """The query's request, or None after answering a malformed one with an error."""
+    try:
+        return T.decode(_payload(query), typename)
+    except ValueError as exc:
+        query.reply_err(str(exc))
+        return None
 
 
 def _payload(query: zenoh.Query) -> bytes:
