@@ -1,3 +1,5 @@
+"""``python -m hil``: the same as the ``hil`` command."""
+
 import sys
 
 from hil.cli import main

@@ -2,7 +2,8 @@
 
 Each cycle: exchange with the hardware (setpoints out, feedback in), report
 faults to the trajectory controller (which aborts and holds), run the
-controller, publish joint states, feedback and results. Real-time mode paces
+controller, publish joint states, feedback and results, and record the cycle
+(published in batches as ``hil_msgs/ControlSamples``). Real-time mode paces
 the cycle from a monotonic clock and keeps period statistics; lock-step mode
 runs the next cycle as soon as the hardware answered, with the controller's
 clock advancing one period per cycle.
@@ -20,7 +21,10 @@ import zenoh
 from hil.controllers import Defaults, JointTrajectoryController
 from hil.controllers.joint_state import JointStateBroadcaster
 from hil.hardware import HardwareInterface
-from hil.messaging.zenoh_api import JointStatePublisher, TrajectoryActionServer, key
+from hil.messaging.samples import ControlSampleBuffer
+from hil.messaging.zenoh_api import (
+    ControlSamplesPublisher, JointStatePublisher, TrajectoryActionServer, key,
+)
 
 
 @dataclass
@@ -46,7 +50,8 @@ class ControlNode:
 
     def __init__(self, hardware: HardwareInterface, session: zenoh.Session, cycle_hz: float,
                  lock_step: bool = False, joint_state_hz: float = 100.0,
-                 feedback_hz: float = 20.0, defaults: Defaults = Defaults()):
+                 feedback_hz: float = 20.0, samples_hz: float = 10.0,
+                 defaults: Defaults = Defaults()):
         self.hardware = hardware
         robot = hardware.robot
         self.period = 1.0 / cycle_hz
@@ -57,6 +62,9 @@ class ControlNode:
         self._start = time.monotonic()
         self.server = TrajectoryActionServer(session, robot.name, self.controller, self.clock)
         self.joint_states = JointStatePublisher(session, robot.name)
+        self.samples = ControlSampleBuffer(hardware.joint_names, hardware.actuator_names,
+                                           self.period, max(1, round(cycle_hz / samples_hz)))
+        self.sample_publisher = ControlSamplesPublisher(session, robot.name)
         self._session = session
         self._token = None      # declared once the hardware follows commands
         self._every_states = max(1, round(cycle_hz / joint_state_hz))
@@ -91,6 +99,7 @@ class ControlNode:
                     self.controller.abort(fault)
                 command, velocity = self.controller.update(self.clock(), feedback.positions,
                                                            feedback.velocities)
+                self.samples.add(self._cycle, self.clock(), command, velocity, feedback)
                 self._publish(feedback)
                 if not self.lock_step:
                     now = time.perf_counter()
@@ -107,8 +116,10 @@ class ControlNode:
             self.controller.abort("the controller is shutting down")
             self.server.publish_results()
             hardware.stop()
+            self._publish_samples()
             self.server.close()
             self.joint_states.close()
+            self.sample_publisher.close()
             if self._token is not None:
                 self._token.undeclare()
 
@@ -121,3 +132,10 @@ class ControlNode:
         if self._cycle % self._every_feedback == 0:
             self.server.publish_feedback()
         self.server.publish_results()
+        if self.samples.full:
+            self._publish_samples()
+
+    def _publish_samples(self) -> None:
+        batch = self.samples.take()
+        if batch is not None:
+            self.sample_publisher.publish(batch)

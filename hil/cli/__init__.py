@@ -9,11 +9,12 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hil.cli import check, control, send, sim
+from hil.cli import check, common, control, send, sim, up, viz
 from hil.errors import HilError
 
 #: sub-command name -> module with ``add_arguments(parser)`` and ``run(args) -> int``
-COMMANDS = {"check": check, "sim": sim, "control": control, "send": send}
+COMMANDS = {"check": check, "sim": sim, "control": control, "send": send, "viz": viz,
+            "up": up}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -27,6 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    common.end_with_parent_if_asked()
     parser = build_parser()
     args, extras = parser.parse_known_args(argv)
     # argparse cannot match positionals given after options (`hil send ur3 --connect EP

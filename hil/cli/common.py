@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
+import signal
+import sys
+import threading
 from pathlib import Path
 
 from hil.description import PackagePath
@@ -60,3 +65,28 @@ def can_overrides(args: argparse.Namespace) -> tuple[str | None, dict[str, str]]
                                   hint="e.g. --channel arm=vcan0")
         channels[bus] = channel
     return args.interface, channels
+
+
+def display_available() -> bool:
+    """Whether a rerun viewer could open a window here."""
+    has_display = sys.platform == "darwin" or bool(os.environ.get("DISPLAY")
+                                                   or os.environ.get("WAYLAND_DISPLAY"))
+    return has_display and shutil.which("rerun") is not None
+
+
+#: set by ``hil up`` in its children: the pid whose death must end this process too
+PARENT_PID_VARIABLE = "HIL_PARENT_PID"
+
+
+def end_with_parent_if_asked() -> None:
+    """In a child of ``hil up``: SIGTERM this process (a clean stop) once that parent is
+    gone, however it died."""
+    parent = os.environ.get(PARENT_PID_VARIABLE, "")
+    if not parent.isdigit():
+        return
+
+    def watch() -> None:
+        while os.getppid() == int(parent):
+            threading.Event().wait(0.2)
+        os.kill(os.getpid(), signal.SIGTERM)
+    threading.Thread(target=watch, name="end-with-parent", daemon=True).start()

@@ -6,11 +6,15 @@ import argparse
 import signal
 import sys
 import threading
+import time
 
 from hil.bus_config import load_bus_config, open_buses
 from hil.cli import common
 from hil.simulator import Simulator
+from hil.messaging.zenoh_api import SimClockPublisher
 from hil.zenoh_session import close_all, session
+
+CLOCK_PERIOD = 0.05
 
 HELP = "run the plant and all virtual drives of a bus config"
 
@@ -47,6 +51,9 @@ def run(args: argparse.Namespace) -> int:
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     printer = threading.Thread(target=_print_status, args=(simulator, stop, args.status_period),
                                daemon=True)
+    clock = SimClockPublisher(session(zenoh), config.robot.name)
+    clock_thread = threading.Thread(target=_publish_clock, args=(simulator, clock, stop),
+                                    daemon=True)
     try:
         simulator.start()
         print(f"hil sim: {config.robot.name}, {len(config.drives)} drive(s) on "
@@ -54,9 +61,13 @@ def run(args: argparse.Namespace) -> int:
               f"{'lock-step' if args.lock_step else 'real-time'}, plant {config.plant_rate_hz:g} Hz, "
               f"cycle {config.cycle_hz:g} Hz", flush=True)
         printer.start()
+        clock_thread.start()
         simulator.run(args.duration)
     finally:
         stop.set()
+        if clock_thread.is_alive():
+            clock_thread.join()
+        clock.close()
         simulator.close()
         token.undeclare()
         for bus in buses.values():
@@ -73,3 +84,11 @@ def _print_status(simulator: Simulator, stop: threading.Event, period: float) ->
         return
     while not stop.wait(period):
         print("\n".join(simulator.status_lines()), flush=True)
+
+
+def _publish_clock(simulator: Simulator, clock: SimClockPublisher, stop: threading.Event) -> None:
+    """The plant's time against the wall clock, for placing samples on the sim-time timeline."""
+    while not stop.wait(CLOCK_PERIOD):
+        with simulator.lock:
+            sim_time, wall_time = simulator.plant.time, time.time()
+        clock.publish(wall_time, sim_time)

@@ -35,9 +35,14 @@ MISSED_TPDO_LIMIT = 5
 
 @dataclass
 class JointFeedback:
+    """One cycle's measurements: joint space, plus what each drive reported of itself
+    (``HardwareInterface.actuator_names`` order)."""
+
     positions: np.ndarray
     velocities: np.ndarray
     efforts: np.ndarray
+    motor_torques: np.ndarray       # N·m on the motor shaft, as the drive reports it
+    drive_states: tuple[str, ...]   # each drive's state in its own protocol's words
 
 
 class HardwareInterface(ABC):
@@ -46,6 +51,7 @@ class HardwareInterface(ABC):
     def __init__(self, robot: RobotDescription):
         self.robot = robot
         self.joint_names = tuple(j.name for j in robot.driven_joints)
+        self.actuator_names = tuple(a.name for a in robot.actuators)
 
     @abstractmethod
     def start(self) -> JointFeedback:
@@ -69,7 +75,10 @@ class FakeHardwareInterface(HardwareInterface):
     def __init__(self, robot: RobotDescription):
         super().__init__(robot)
         n = len(self.joint_names)
-        self._state = JointFeedback(np.zeros(n), np.zeros(n), np.zeros(n))
+        self._torques = np.zeros(len(self.actuator_names))
+        self._states = ("FAKE",) * len(self.actuator_names)
+        self._state = JointFeedback(np.zeros(n), np.zeros(n), np.zeros(n), self._torques,
+                                    self._states)
 
     def start(self) -> JointFeedback:
         return self._state
@@ -77,7 +86,8 @@ class FakeHardwareInterface(HardwareInterface):
     def cycle(self, positions, velocities) -> JointFeedback:
         feedback = self._state
         self._state = JointFeedback(np.array(positions, dtype=float),
-                                    np.array(velocities, dtype=float), np.zeros(len(positions)))
+                                    np.array(velocities, dtype=float), np.zeros(len(positions)),
+                                    self._torques, self._states)
         return feedback
 
 
@@ -98,12 +108,13 @@ class CanHardwareInterface(HardwareInterface):
             for drive in bus.drives:
                 self.axes.append(Cia402Axis(drive, bus.name, on_feedback=self._on_feedback))
         self._by_actuator = {a.config.actuator: a for a in self.axes}
+        self.actuator_names = tuple(a.config.actuator for a in self.axes)
         self.transmissions = build_transmissions(config.robot)
         index = {name: i for i, name in enumerate(self.joint_names)}
         self._joint_slices = [np.array([index[j] for j in t.joints]) for t in self.transmissions]
         self._cycle = 0
         self._stopping = False
-        self._reported: set[str] = set()
+        self._reported: set[tuple[str, str, str]] = set()
         self._pending: list[str] = []
         self._arrived = threading.Condition()
 
@@ -188,23 +199,28 @@ class CanHardwareInterface(HardwareInterface):
             velocities[joints] = transmission.actuator_to_joint_velocity(
                 [f.velocity for f in axes])
             efforts[joints] = transmission.actuator_to_joint_effort([f.torque for f in axes])
-        return JointFeedback(positions, velocities, efforts)
+        return JointFeedback(positions, velocities, efforts,
+                             np.array([a.feedback.torque for a in self.axes]),
+                             tuple(a.state for a in self.axes))
 
     # --- faults -----------------------------------------------------------------------------
 
     def _watch(self) -> None:
         now = time.monotonic()
         for axis in self.axes:
-            problems = [axis.fault_text(self._stopping)]
+            # (what, text): a silence is reported once per axis, not once per silent cycle
+            problems = [("fault", axis.fault_text(self._stopping))]
             silence = now - axis.last_heartbeat
             if silence > 3 * axis.config.heartbeat_period:
-                problems.append(f"{axis.label} is silent: no heartbeat for {silence * 1e3:.0f} ms")
+                problems.append(("heartbeat", f"{axis.label} is silent: no heartbeat for "
+                                              f"{silence * 1e3:.0f} ms"))
             if self._cycle - axis.feedback.tpdo_cycle > MISSED_TPDO_LIMIT:
-                problems.append(f"{axis.label} is silent: no TPDO for "
-                                f"{self._cycle - axis.feedback.tpdo_cycle} cycles")
-            for problem in problems:
-                if problem and problem not in self._reported:
-                    self._reported.add(problem)
+                problems.append(("tpdo", f"{axis.label} is silent: no TPDO for "
+                                         f"{self._cycle - axis.feedback.tpdo_cycle} cycles"))
+            for what, problem in problems:
+                key = (axis.label, what, problem if what == "fault" else "")
+                if problem and key not in self._reported:
+                    self._reported.add(key)
                     self._pending.append(problem)
                     self._stopping = True
 

@@ -4,7 +4,9 @@ Payloads on Zenoh are the CDR encoding ROS 2 uses on the wire (little-endian
 header ``00 01 00 00``), so a ROS 2 bridge maps keys, not bytes. Types that
 rosbags does not ship (control_msgs' FollowJointTrajectory, action_msgs'
 CancelGoal service) are registered from their .msg/.action field layouts;
-``hil_msgs/GoalResult`` is hil's one own type (a goal's terminal status).
+hil's own types are ``hil_msgs/GoalResult`` (a goal's terminal status),
+``hil_msgs/ControlSamples`` (a batch of control cycles, for recording and
+plotting) and ``hil_msgs/SimClock`` (the plant's time against the wall clock).
 """
 
 from __future__ import annotations
@@ -58,6 +60,14 @@ _DEFINITIONS = {
     "hil_msgs/msg/GoalResult":
         "unique_identifier_msgs/UUID goal_id\nint8 status\n"
         "control_msgs/action/FollowJointTrajectory_Result result",
+    # arrays marked (cycles x N) are row-major, one row per control cycle, oldest first
+    "hil_msgs/msg/ControlSamples":
+        "uint64 first_cycle\nfloat64 period\nfloat64[] wall_time\nfloat64[] control_time\n"
+        "string[] joint_names\nfloat64[] reference\nfloat64[] reference_velocity\n"
+        "float64[] position\nfloat64[] velocity\nfloat64[] effort\n"
+        "string[] actuator_names\nfloat64[] motor_torque\nuint8[] drive_state\n"
+        "string[] state_names",
+    "hil_msgs/msg/SimClock": "float64 wall_time\nfloat64 sim_time",
 }
 
 TYPES = get_typestore(Stores.ROS2_HUMBLE)
@@ -73,6 +83,8 @@ GET_RESULT_RESPONSE = "control_msgs/action/FollowJointTrajectory_GetResult_Respo
 CANCEL_REQUEST = "action_msgs/srv/msg/CancelGoal_Request"   # rosbags files srv parts so
 CANCEL_RESPONSE = "action_msgs/srv/msg/CancelGoal_Response"
 GOAL_RESULT = "hil_msgs/msg/GoalResult"
+CONTROL_SAMPLES = "hil_msgs/msg/ControlSamples"
+SIM_CLOCK = "hil_msgs/msg/SimClock"
 
 
 def msg(typename: str, **fields):

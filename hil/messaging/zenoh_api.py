@@ -10,7 +10,10 @@ Keys, all under ``hil/<robot>/``:
 ``follow_joint_trajectory/_action/get_result``         query: GetResult_Request -> GetResult_Response
 ``follow_joint_trajectory/_action/feedback``           publication, FeedbackMessage
 ``follow_joint_trajectory/_action/result``             publication, hil_msgs/GoalResult
-``control``, ``sim``                                   liveliness tokens of the processes
+``control/samples``                                    publication, hil_msgs/ControlSamples: every
+                                                       control cycle, in batches (10 Hz)
+``sim/clock``                                          publication, hil_msgs/SimClock (20 Hz)
+``control``, ``sim``, ``viz``                          liveliness tokens of the processes
 =====================================================  ==========================================
 
 A malformed payload is answered with an error reply naming what was wrong;
@@ -32,6 +35,7 @@ from hil.controllers import (
     GoalRejected, GoalResult, GoalStatus, JointTrajectoryController, TrajectoryGoal,
 )
 from hil.messaging import types as T
+from hil.messaging.samples import ControlSamples
 
 ACTION = "follow_joint_trajectory/_action"
 
@@ -151,6 +155,102 @@ class JointStatePublisher:
 
     def close(self) -> None:
         self._publisher.undeclare()
+
+
+class ControlSamplesPublisher:
+    """Publishes hil_msgs/ControlSamples batches on ``hil/<robot>/control/samples``."""
+
+    def __init__(self, session: zenoh.Session, robot: str):
+        # BLOCK: a recording must not lose cycles to a momentarily slow subscriber
+        self._publisher = session.declare_publisher(
+            key(robot, "control/samples"), congestion_control=zenoh.CongestionControl.BLOCK)
+
+    def publish(self, samples: ControlSamples) -> None:
+        self._publisher.put(samples.encode())
+
+    def close(self) -> None:
+        self._publisher.undeclare()
+
+
+class SimClockPublisher:
+    """Publishes hil_msgs/SimClock (plant time against wall time) on ``hil/<robot>/sim/clock``."""
+
+    def __init__(self, session: zenoh.Session, robot: str):
+        self._publisher = session.declare_publisher(key(robot, "sim/clock"))
+
+    def publish(self, wall_time: float, sim_time: float) -> None:
+        self._publisher.put(T.encode(T.msg(T.SIM_CLOCK, wall_time=wall_time, sim_time=sim_time)))
+
+    def close(self) -> None:
+        self._publisher.undeclare()
+
+
+class RunSubscriber:
+    """Receives a robot's recorded cycles and sim clock; malformed payloads are counted
+    and reported (key and reason) through ``on_error``, never passed on."""
+
+    def __init__(self, session: zenoh.Session, robot: str,
+                 on_samples: Callable[[ControlSamples], None],
+                 on_clock: Callable[[float, float], None],
+                 on_error: Callable[[str], None]):
+        self.malformed = 0
+        self._on_samples, self._on_clock, self._on_error = on_samples, on_clock, on_error
+        self._subscribers = [
+            session.declare_subscriber(key(robot, "control/samples"), self._samples),
+            session.declare_subscriber(key(robot, "sim/clock"), self._clock),
+        ]
+
+    def _samples(self, sample: zenoh.Sample) -> None:
+        try:
+            batch = ControlSamples.decode(sample.payload.to_bytes())
+        except ValueError as exc:
+            self._malformed(sample, exc)
+            return
+        self._on_samples(batch)
+
+    def _clock(self, sample: zenoh.Sample) -> None:
+        try:
+            clock = T.decode(sample.payload.to_bytes(), T.SIM_CLOCK)
+        except ValueError as exc:
+            self._malformed(sample, exc)
+            return
+        self._on_clock(clock.wall_time, clock.sim_time)
+
+    def _malformed(self, sample: zenoh.Sample, exc: ValueError) -> None:
+        self.malformed += 1
+        self._on_error(f"{sample.key_expr}: dropped a malformed payload: {exc}")
+
+    def close(self) -> None:
+        for subscriber in self._subscribers:
+            subscriber.undeclare()
+
+
+class ProcessWatch:
+    """Which of a robot's processes (``sim``, ``control``, ``viz``) are alive, from their
+    liveliness tokens."""
+
+    def __init__(self, session: zenoh.Session, robot: str):
+        self._prefix = key(robot, "")
+        self._alive: set[str] = set()
+        self._changed = threading.Condition()
+        self._subscriber = session.liveliness().declare_subscriber(
+            key(robot, "*"), self._on_token, history=True)
+
+    def _on_token(self, sample: zenoh.Sample) -> None:
+        name = str(sample.key_expr).removeprefix(self._prefix)
+        with self._changed:
+            if sample.kind == zenoh.SampleKind.PUT:
+                self._alive.add(name)
+            else:
+                self._alive.discard(name)
+            self._changed.notify_all()
+
+    def wait_alive(self, name: str, timeout: float) -> bool:
+        with self._changed:
+            return self._changed.wait_for(lambda: name in self._alive, timeout)
+
+    def close(self) -> None:
+        self._subscriber.undeclare()
 
 
 def _decode_or_reply_error(query: zenoh.Query, typename: str):
@@ -279,5 +379,6 @@ class TrajectoryActionClient:
         self._liveliness.undeclare()
 
 
-__all__ = ["ControllerGone", "GoalStatus", "JointStatePublisher", "TrajectoryActionClient",
+__all__ = ["ControlSamplesPublisher", "ControllerGone", "GoalStatus", "JointStatePublisher",
+           "ProcessWatch", "RunSubscriber", "SimClockPublisher", "TrajectoryActionClient",
            "TrajectoryActionServer", "key"]

@@ -1,0 +1,89 @@
+"""Watching a bus as an analyser does: every frame on it, counted in bits.
+
+A :class:`BusLoadMeter` is a python-can ``Listener``: give it to a
+``can.Notifier`` together with a ``can.Logger`` and the same buses, and it
+measures what the logger records.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import can
+
+from hil.can.frames import frame_bits
+
+
+@dataclass(frozen=True)
+class MeasuredLoad:
+    """One bus over one interval: frames per second and load as a fraction of the bitrate."""
+
+    bus: str
+    frames_per_second: float
+    nominal: float            # without stuff bits
+    worst_case: float         # with worst-case bit stuffing
+
+
+class BusLoadMeter(can.Listener):
+    """Counts frames and bits per bus; :meth:`take` gives the load since the last call.
+
+    ``channels`` maps each bus' python-can channel to (bus name, bitrate);
+    frames are told apart by ``Message.channel``.
+    """
+
+    def __init__(self, channels: dict[str, tuple[str, int]], now: float):
+        self._buses = {str(channel): name for channel, (name, _) in channels.items()}
+        self._counts = {name: [0, 0, 0] for name, _ in channels.values()}
+        self._bitrates = dict(channels.values())
+        self._since = now
+        self._lock = threading.Lock()
+        self.unknown_channel_frames = 0
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.is_error_frame:
+            return
+        bus = self._buses.get(str(msg.channel))
+        if bus is None:
+            self.unknown_channel_frames += 1
+            return
+        nominal, worst = frame_bits(0 if msg.is_remote_frame else len(msg.data),
+                                    msg.is_extended_id)
+        with self._lock:
+            counts = self._counts[bus]
+            counts[0] += 1
+            counts[1] += nominal
+            counts[2] += worst
+
+    def take(self, now: float) -> list[MeasuredLoad]:
+        with self._lock:
+            counts, self._counts = self._counts, {name: [0, 0, 0] for name in self._counts}
+            interval, self._since = now - self._since, now
+        if interval <= 0:
+            return []
+        return [MeasuredLoad(bus, frames / interval, nominal / interval / self._bitrates[bus],
+                             worst / interval / self._bitrates[bus])
+                for bus, (frames, nominal, worst) in counts.items()]
+
+
+class BusMonitor:
+    """Listens to buses opened for monitoring: measures their load and optionally writes
+    every frame to a python-can log file (format by suffix: .log is candump's, .asc,
+    .blf, .csv, .trc ...)."""
+
+    def __init__(self, buses: dict[str, can.BusABC], channels: dict[str, str],
+                 bitrates: dict[str, int], log_path=None, now: float = 0.0):
+        self.buses = buses
+        self.meter = BusLoadMeter({channels[name]: (name, bitrates[name]) for name in buses},
+                                  now)
+        self.logger = can.Logger(log_path) if log_path is not None else None
+        listeners = [self.meter] + ([self.logger] if self.logger is not None else [])
+        self._notifier = can.Notifier(list(buses.values()), listeners, timeout=0.1)
+
+    def close(self) -> None:
+        """Stop listening, close the log (flushed) and the buses."""
+        self._notifier.stop(1.0)
+        if self.logger is not None:
+            self.logger.stop()
+        for bus in self.buses.values():
+            bus.shutdown()

@@ -1,0 +1,406 @@
+"""``hil up [ROBOT|CONFIG]``: sim, controller and visualiser as three processes, one command.
+
+The seed's launch file, reborn: each part is its own ``hil`` process (so any
+of them could run elsewhere), started in order and waited for through its
+Zenoh liveliness token. ``hil up`` then optionally runs a demo goal, shows
+progress, and stops everything in a known order: controller first (goal
+aborted, drives disabled), then the visualiser (recording flushed), then the
+sim. A child that dies early ends the run with status 1 and its last log
+lines. Children run in their own session, so Ctrl-C reaches ``hil up`` only,
+and they stop themselves if ``hil up`` is killed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hil.bus_config import SystemConfig, load_bus_config
+from hil.cli import common
+from hil.controllers import GoalRejected, GoalStatus
+from hil.controllers.demo import demo_goal
+from hil.description import project_robots_dir
+from hil.errors import HilError
+from hil.messaging.samples import ControlSamples
+from hil.messaging.zenoh_api import (
+    ControllerGone, ProcessWatch, RunSubscriber, TrajectoryActionClient,
+)
+from hil.zenoh_session import ZenohSettings, close_all, session
+
+HELP = "start sim, controller and visualiser together (optionally run a demo), record the run"
+
+#: how long each child may take to come up (s); the first run compiles MuJoCo models
+START_TIMEOUT = 60.0
+#: how long each child may take to stop after SIGTERM before it is killed (s)
+STOP_TIMEOUT = 15.0
+LAST_LINES = 15
+#: fewer usable CPUs than this: lock-step unless --real-time is asked for
+REAL_TIME_CPUS = 4
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("target", nargs="*", metavar="ROBOT|CONFIG",
+                        help="a robot with a config in bus_config/ (pigot, ur3) or a bus config "
+                             "path (default: pigot)")
+    parser.add_argument("--demo", action="store_true",
+                        help="run a goal that moves every axis (and opens/closes grippers), "
+                             "then stop")
+    parser.add_argument("--keep-running", action="store_true",
+                        help="after the demo, keep running until Ctrl-C")
+    parser.add_argument("--duration", type=float, metavar="S",
+                        help="without --demo: stop after S seconds (default: run until Ctrl-C)")
+    parser.add_argument("--save", type=Path, default=Path("run.rrd"), metavar="FILE.rrd",
+                        help="the rerun recording (default run.rrd); the CAN log "
+                             "(FILE.can.log, candump format) and the processes' logs "
+                             "(FILE.logs/) go beside it")
+    timing = parser.add_mutually_exclusive_group()
+    timing.add_argument("--lock-step", dest="timing", action="store_const", const="lock-step",
+                        help="sim and controller in lock-step (reproducible, as fast as they go)")
+    timing.add_argument("--real-time", dest="timing", action="store_const", const="real-time",
+                        help="sim and controller on the wall clock (default with at least "
+                             f"{REAL_TIME_CPUS} CPUs; with fewer, three real-time processes "
+                             "and a visualiser starve each other and lock-step is the default)")
+    parser.add_argument("--can", action="append", default=[], metavar="CHANNEL",
+                        help="use SocketCAN: one channel per bus of the config, in its order "
+                             "(e.g. --can vcan0 --can vcan1)")
+    parser.add_argument("--spawn", action="store_true",
+                        help="also spawn a rerun viewer (default where a display exists)")
+    parser.add_argument("--no-viewer", action="store_true", help="never spawn a viewer")
+    parser.add_argument("--viewer", metavar="URL", help="also stream to a running rerun viewer")
+    common.add_can_override(parser)
+    common.add_package_path(parser)
+
+
+@dataclass
+class Child:
+    """One ``hil`` sub-process, its log file and what it must be stopped with."""
+
+    name: str
+    argv: list[str]
+    log_path: Path
+    process: subprocess.Popen | None = None
+    expected_exit: bool = False
+
+    def start(self) -> None:
+        env = dict(os.environ, PYTHONUNBUFFERED="1", **{common.PARENT_PID_VARIABLE: str(os.getpid())})
+        with open(self.log_path, "wb") as log:
+            self.process = subprocess.Popen(
+                [sys.executable, "-m", "hil", *self.argv], stdout=log, stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL, env=env, start_new_session=True)
+
+    @property
+    def pid(self) -> int:
+        return self.process.pid
+
+    def exited(self) -> int | None:
+        return None if self.process is None else self.process.poll()
+
+    def last_lines(self) -> str:
+        try:
+            with open(self.log_path, errors="replace") as log:
+                lines = deque(log, maxlen=LAST_LINES)
+        except OSError:
+            return "    (no log)"
+        return "".join(f"    {line}" for line in lines).rstrip() or "    (its log is empty)"
+
+    def stop(self) -> str | None:
+        """SIGTERM, wait, SIGKILL if needed; return a problem in words, or None."""
+        if self.process is None or self.process.poll() is not None:
+            return None
+        self.expected_exit = True
+        self.process.send_signal(signal.SIGTERM)
+        try:
+            status = self.process.wait(STOP_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+            return f"{self.name} did not stop within {STOP_TIMEOUT:g} s and was killed"
+        return None if status == 0 else f"{self.name} stopped with status {status}"
+
+
+class ChildFailed(Exception):
+    """A child exited (or failed to come up) while it should have been running."""
+
+
+class Run:
+    """The three children of one ``hil up`` and their supervision."""
+
+    def __init__(self, children: list[Child], stop: threading.Event):
+        self.children = children
+        self.stop = stop
+
+    def check(self) -> None:
+        """Raise ChildFailed naming a child that has died unexpectedly."""
+        for child in self.children:
+            status = child.exited()
+            if status is not None and not child.expected_exit:
+                raise ChildFailed(f"{child.name} (pid {child.pid}) exited with status {status}; "
+                                  f"its last lines ({child.log_path}):\n{child.last_lines()}")
+
+    def wait(self, seconds: float) -> None:
+        """Sleep up to ``seconds``, checking the children; return early when stopped."""
+        deadline = time.monotonic() + seconds
+        while not self.stop.is_set() and time.monotonic() < deadline:
+            self.check()
+            self.stop.wait(min(0.1, max(0.0, deadline - time.monotonic())))
+
+    def shut_down(self) -> list[str]:
+        """Stop the running children: controller, visualiser, sim; return problems."""
+        order = {"control": 0, "viz": 1, "sim": 2}
+        problems = []
+        for child in sorted(self.children, key=lambda c: order[c.name]):
+            child.expected_exit = True
+            problem = child.stop()
+            if problem:
+                problems.append(problem)
+        return problems
+
+
+def run(args: argparse.Namespace) -> int:
+    config_path = resolve_config(args.target)
+    config = load_bus_config(config_path, common.package_path(args))
+    for warning in config.warnings:
+        print(warning, file=sys.stderr)
+    robot = config.robot.name
+    can_options = _can_options(args, config)
+    save = args.save
+    logs = save.with_name(save.stem + ".logs")
+    logs.mkdir(parents=True, exist_ok=True)
+    can_log = save.with_name(save.stem + ".can.log")
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    shared = [str(config_path), *can_options,
+              *(f"--package-path={p}" for p in args.package_path)]
+    timing = args.timing or ("real-time" if len(os.sched_getaffinity(0)) >= REAL_TIME_CPUS
+                             else "lock-step")
+    lock_step = ["--lock-step"] if timing == "lock-step" else []
+    viewer = _viewer_options(args)
+    children = {
+        "sim": Child("sim", ["sim", *shared, *lock_step, "--listen", endpoint,
+                             "--status-period", "0"], logs / "sim.log"),
+        "control": Child("control", ["control", *shared, *lock_step, "--connect", endpoint],
+                         logs / "control.log"),
+        "viz": Child("viz", ["viz", *shared, "--connect", endpoint, "--save", str(save),
+                             "--can-log", str(can_log), *viewer], logs / "viz.log"),
+    }
+    stop = threading.Event()
+    supervised = Run([], stop)
+    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT,
+                                                                      signal.SIGTERM)}
+    chosen = "" if args.timing else (f" (chosen: {len(os.sched_getaffinity(0))} CPUs; "
+                                     "--real-time or --lock-step to choose)")
+    print(f"hil up: {robot} from {config_path}; Zenoh {endpoint}; {timing}{chosen}; "
+          f"process logs in {logs}/", flush=True)
+    zenoh = ZenohSettings(connect=(endpoint,))
+    status = 0
+    watch = None
+    try:
+        # the visualiser starts before the controller: its start-up (rerun, the robot model)
+        # is CPU-heavy, and must not starve the first real-time cycles
+        for name in ("sim", "viz", "control"):
+            child = children[name]
+            child.start()
+            supervised.children.append(child)
+            if watch is None:          # the sim listens on the endpoint: now it can be reached
+                watch = ProcessWatch(session(zenoh), robot)
+            _wait_alive(supervised, watch, child)
+            if stop.is_set():
+                break
+        if not stop.is_set():
+            status = _supervise(args, config, supervised, zenoh)
+    except ChildFailed as exc:
+        print(f"hil up: {exc}", file=sys.stderr, flush=True)
+        status = 1
+    finally:
+        if stop.is_set():
+            print("hil up: interrupted", flush=True)
+            status = 130
+        print("hil up: stopping control, viz and sim", flush=True)
+        problems = supervised.shut_down()
+        if watch is not None:
+            watch.close()
+        close_all()
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    for problem in problems:
+        print(f"hil up: {problem}", file=sys.stderr)
+    if problems and status == 0:
+        status = 1
+    _report_outputs(save, can_log, children["viz"])
+    return status
+
+
+def resolve_config(target: list[str]) -> Path:
+    """A bus config path, from a path or a robot name (bus_config/<name>.yaml)."""
+    if len(target) > 1:
+        raise HilError.single(f"too many arguments: {' '.join(target[1:])}",
+                              hint="hil up [ROBOT|CONFIG] [options]")
+    name = target[0] if target else "pigot"
+    path = Path(name)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        return path
+    for folder in (Path("bus_config"), project_robots_dir().parent / "bus_config"):
+        candidate = folder / f"{name}.yaml"
+        if candidate.is_file():
+            return candidate
+    raise HilError.single(f"no bus config for robot '{name}'",
+                          hint="give a bus config path, or a robot with bus_config/<robot>.yaml")
+
+
+def _can_options(args: argparse.Namespace, config: SystemConfig) -> list[str]:
+    options = [f"--channel={c}" for c in args.channel]
+    if args.interface:
+        options.append(f"--interface={args.interface}")
+    if args.can:
+        if len(args.can) != len(config.buses):
+            raise HilError.single(
+                f"--can gave {len(args.can)} channel(s) for {len(config.buses)} bus(es) "
+                f"({', '.join(b.name for b in config.buses)})", config.path,
+                hint="give one --can CHANNEL per bus, in the config's order")
+        options = ["--interface=socketcan"] + [f"--channel={bus.name}={channel}" for bus, channel
+                                               in zip(config.buses, args.can)]
+    return options
+
+
+def _viewer_options(args: argparse.Namespace) -> list[str]:
+    options = []
+    if args.spawn or (not args.no_viewer and common.display_available()):
+        options.append("--spawn")
+    if args.viewer:
+        options += ["--viewer", args.viewer]
+    return options
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def _wait_alive(run: Run, watch: ProcessWatch, child: Child) -> None:
+    deadline = time.monotonic() + START_TIMEOUT
+    while not watch.wait_alive(child.name, 0.1):
+        run.check()
+        if run.stop.is_set():
+            return
+        if time.monotonic() > deadline:
+            raise ChildFailed(f"{child.name} (pid {child.pid}) did not come up within "
+                              f"{START_TIMEOUT:g} s; its last lines ({child.log_path}):\n"
+                              f"{child.last_lines()}")
+    print(f"hil up: {child.name} ready (pid {child.pid})", flush=True)
+
+
+class Progress:
+    """Follows the recorded cycles: how many, and the largest tracking error."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.cycles = 0
+        self.control_time = 0.0
+        self.positions: np.ndarray | None = None
+        self.joint_names: tuple[str, ...] = ()
+        self.worst = (0.0, "")
+
+    def on_samples(self, batch: ControlSamples) -> None:
+        errors = np.abs(batch.reference - batch.position).max(axis=0)
+        with self.lock:
+            self.cycles += len(batch)
+            self.control_time = float(batch.control_time[-1])
+            self.positions, self.joint_names = batch.position[-1], batch.joint_names
+            if len(errors) and errors.max() > self.worst[0]:
+                self.worst = (float(errors.max()), batch.joint_names[int(errors.argmax())])
+
+    def line(self) -> str:
+        with self.lock:
+            worst, self.worst = self.worst, (0.0, "")
+            return (f"cycles {self.cycles:>7}   largest tracking error {worst[0]:.4f} "
+                    f"({worst[1] or '-'})")
+
+
+def _supervise(args, config: SystemConfig, run: Run, zenoh: ZenohSettings) -> int:
+    progress = Progress()
+    problems: list[str] = []
+    samples = RunSubscriber(session(zenoh), config.robot.name, progress.on_samples,
+                            lambda wall, sim: None, problems.append)
+    try:
+        if not args.demo:
+            limit = args.duration if args.duration is not None else float("inf")
+            started = time.monotonic()
+            while not run.stop.is_set() and time.monotonic() - started < limit:
+                run.wait(min(1.0, limit - (time.monotonic() - started)))
+                print(f"  [{time.monotonic() - started:6.1f} s]  {progress.line()}", flush=True)
+            return 0
+        status = _demo(config, run, zenoh, progress)
+        if args.keep_running and status == 0:
+            print("hil up: demo done; running until Ctrl-C", flush=True)
+            while not run.stop.is_set():
+                run.wait(1.0)
+        return status
+    finally:
+        samples.close()
+        for problem in problems[:5]:
+            print(f"hil up: {problem}", file=sys.stderr)
+
+
+def _demo(config: SystemConfig, run: Run, zenoh: ZenohSettings, progress: Progress) -> int:
+    while progress.positions is None:          # the first samples tell where the joints are
+        run.wait(0.05)
+        if run.stop.is_set():
+            return 1
+    with progress.lock:
+        names, positions = progress.joint_names, progress.positions.copy()
+    goal = demo_goal(config.robot, names, positions)
+    client = TrajectoryActionClient(session(zenoh), config.robot.name)
+    try:
+        duration = goal.points[-1].time_from_start
+        print(f"hil up: demo: {len(goal.points)} waypoints for {len(names)} joints over "
+              f"{duration:.1f} s", flush=True)
+        try:
+            goal_id = client.send_goal(goal)
+        except (GoalRejected, ControllerGone) as exc:
+            print(f"hil up: the demo goal was refused: {exc}", file=sys.stderr, flush=True)
+            return 1
+        started = progress.control_time     # progress on the controller's clock (lock-step!)
+        while True:
+            try:
+                result = client.wait_result(goal_id, 1.0)
+                break
+            except TimeoutError:
+                pass
+            except ControllerGone as exc:
+                run.check()
+                print(f"hil up: {exc}", file=sys.stderr, flush=True)
+                return 1
+            run.check()
+            if run.stop.is_set():
+                return 1
+            elapsed = progress.control_time - started
+            print(f"  [{elapsed:6.1f} s]  demo {min(100, 100 * elapsed / duration):3.0f} %   "
+                  f"{progress.line()}", flush=True)
+        text = f" ({result.error_string})" if result.error_string else ""
+        print(f"hil up: demo {result.status.name.lower()}{text}", flush=True)
+        return 0 if result.status is GoalStatus.SUCCEEDED else 1
+    finally:
+        client.close()
+
+
+def _report_outputs(save: Path, can_log: Path, viz: Child) -> None:
+    for path, what in ((save, "rerun recording"), (can_log, "CAN log (candump)")):
+        if path.is_file():
+            print(f"hil up: {what}: {path} ({path.stat().st_size / 1e6:.1f} MB)")
+    if viz.process is not None:
+        summary = [line for line in viz.last_lines().splitlines() if "cycles in" in line]
+        if summary:
+            print(f"hil up: recorded {summary[-1].strip().removeprefix('hil viz: ')}")
+    if save.is_file():
+        print(f"hil up: review with: rerun {save}")

@@ -1,0 +1,121 @@
+"""``hil viz CONFIG``: log a running robot to rerun (viewer, .rrd file, or both)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import rerun as rr
+
+from hil.bus_config import SystemConfig, load_bus_config, open_buses
+from hil.can.monitor import BusMonitor
+from hil.cli import common
+from hil.description.source import read_robot_source
+from hil.errors import HilError
+from hil.visualisation import RunRecorder
+from hil.visualisation.node import VizNode
+from hil.zenoh_session import ZenohSettings, close_all, session
+
+HELP = "show and record every axis of a running robot in rerun"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml")
+    sinks = parser.add_argument_group(
+        "rerun", "where the recording goes (several may be given); default: a spawned viewer "
+                 "where a display exists, else --save run.rrd")
+    sinks.add_argument("--save", type=Path, metavar="FILE.rrd", help="record to an .rrd file")
+    sinks.add_argument("--spawn", action="store_true", help="spawn a rerun viewer")
+    sinks.add_argument("--viewer", metavar="URL",
+                       help="stream to a running viewer, e.g. rerun+http://HOST:9876/proxy")
+    sinks.add_argument("--serve", action="store_true",
+                       help="serve the web viewer (prints its address)")
+    parser.add_argument("--can-log", type=Path, metavar="FILE",
+                        help="also write every CAN frame to FILE (python-can format by suffix; "
+                             ".log is candump's)")
+    parser.add_argument("--no-can", action="store_true",
+                        help="do not open the CAN buses (no bus load, no CAN log): for a host "
+                             "that cannot reach them")
+    common.add_can_override(parser)
+    common.add_package_path(parser)
+    common.add_zenoh(parser, listens=False)
+
+
+def run(args: argparse.Namespace) -> int:
+    config = load_bus_config(args.config, common.package_path(args))
+    if args.no_can and args.can_log:
+        raise HilError.single("--can-log needs the CAN buses, but --no-can was given")
+    zenoh = common.zenoh_settings(args)
+    recording = rr.RecordingStream("hil", recording_id=f"{config.robot.name}-{os.getpid()}")
+    described = _open_sinks(recording, args)
+    with tempfile.TemporaryDirectory(prefix="hil-viz-") as folder:
+        urdf = Path(folder) / f"{config.robot.name}.urdf"
+        urdf.write_bytes(ET.tostring(read_robot_source(config.robot.source,
+                                                       common.package_path(args)).root))
+        recorder = RunRecorder(recording, config.robot, urdf, _actuator_joints(config),
+                               tuple(b.name for b in config.buses))
+        recorder.log_static()
+        monitor = None if args.no_can else _monitor(config, zenoh, args)
+        node = VizNode(recorder, session(zenoh), config.robot.name, monitor)
+        previous = {s: signal.signal(s, lambda *_: node.stop())
+                    for s in (signal.SIGINT, signal.SIGTERM)}
+        print(f"hil viz: {config.robot.name}; {described}"
+              + (f"; CAN log {args.can_log}" if args.can_log else ""), flush=True)
+        try:
+            node.run()
+        finally:
+            if monitor is not None:
+                monitor.close()
+            recording.flush()
+            close_all()
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
+    print(f"hil viz: {node.summary()}", flush=True)
+    return 0
+
+
+def _open_sinks(recording: rr.RecordingStream, args: argparse.Namespace) -> str:
+    """Attach the chosen sinks; return what was chosen, in words."""
+    spawn, save = args.spawn, args.save
+    if not (spawn or save or args.viewer or args.serve):
+        if common.display_available():
+            spawn = True
+        else:
+            save = Path("run.rrd")
+    sinks, words = [], []
+    if spawn:
+        recording.spawn(connect=False)
+        sinks.append(rr.GrpcSink())
+        words.append("viewer spawned")
+    if args.viewer:
+        sinks.append(rr.GrpcSink(args.viewer))
+        words.append(f"streaming to {args.viewer}")
+    if args.serve:
+        server = rr.GrpcServerSink()
+        sinks.append(server)
+        rr.serve_web_viewer(connect_to=server.uri, open_browser=False)
+        words.append(f"web viewer at http://localhost:9090 (data at {server.uri})")
+    if save:
+        save.parent.mkdir(parents=True, exist_ok=True)
+        sinks.append(rr.FileSink(str(save)))
+        words.append(f"recording to {save}")
+    if sinks:
+        recording.set_sinks(*sinks)
+    return ", ".join(words)
+
+
+def _actuator_joints(config: SystemConfig) -> dict[str, tuple[str, ...]]:
+    return {a.name: tuple(tj.name for tj in t.joints)
+            for t in config.robot.transmissions for a in t.actuators}
+
+
+def _monitor(config: SystemConfig, zenoh: ZenohSettings, args: argparse.Namespace) -> BusMonitor:
+    interface, channels = common.can_overrides(args)
+    buses = open_buses(config, zenoh, interface, channels)
+    return BusMonitor(buses, {b.name: channels.get(b.name, b.channel) for b in config.buses},
+                      {b.name: b.bitrate for b in config.buses}, args.can_log)

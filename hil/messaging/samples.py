@@ -1,0 +1,136 @@
+"""Every control cycle, recorded: what the controller commanded and what it measured.
+
+The controller fills a :class:`ControlSampleBuffer` each cycle (preallocated
+arrays, no allocation per cycle) and publishes a :class:`ControlSamples`
+batch a few dozen times a second as ``hil_msgs/ControlSamples``. Batches
+carry the number of their first cycle, so a receiver can tell a lost batch
+from a quiet controller.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from hil.hardware import JointFeedback
+from hil.messaging import types as T
+
+
+@dataclass(frozen=True)
+class ControlSamples:
+    """A batch of consecutive control cycles; 2-D arrays are (cycles, joints|actuators)."""
+
+    first_cycle: int
+    period: float
+    wall_time: np.ndarray            # s since the epoch
+    control_time: np.ndarray         # s on the controller's clock
+    joint_names: tuple[str, ...]
+    reference: np.ndarray            # the trajectory controller's desired position
+    reference_velocity: np.ndarray
+    position: np.ndarray             # measured, joint side
+    velocity: np.ndarray
+    effort: np.ndarray
+    actuator_names: tuple[str, ...]
+    motor_torque: np.ndarray         # N·m on the motor shaft, as the drive reports it
+    drive_state: np.ndarray          # uint8 index into state_names
+    state_names: tuple[str, ...]
+
+    def __len__(self) -> int:
+        return len(self.wall_time)
+
+    @property
+    def next_cycle(self) -> int:
+        return self.first_cycle + len(self)
+
+    def encode(self) -> bytes:
+        return T.encode(T.msg(
+            T.CONTROL_SAMPLES, first_cycle=self.first_cycle, period=self.period,
+            wall_time=self.wall_time, control_time=self.control_time,
+            joint_names=list(self.joint_names), reference=self.reference.ravel(),
+            reference_velocity=self.reference_velocity.ravel(), position=self.position.ravel(),
+            velocity=self.velocity.ravel(), effort=self.effort.ravel(),
+            actuator_names=list(self.actuator_names), motor_torque=self.motor_torque.ravel(),
+            drive_state=self.drive_state.ravel(), state_names=list(self.state_names)))
+
+    @classmethod
+    def decode(cls, data: bytes) -> ControlSamples:
+        """Raise ValueError naming what is wrong with a malformed payload."""
+        message = T.decode(data, T.CONTROL_SAMPLES)
+        cycles = len(message.wall_time)
+        joints, actuators = len(message.joint_names), len(message.actuator_names)
+
+        def table(name: str, width: int) -> np.ndarray:
+            values = np.asarray(getattr(message, name))
+            if len(values) != cycles * width:
+                raise ValueError(f"malformed {T.CONTROL_SAMPLES}: '{name}' has {len(values)} "
+                                 f"values, {cycles} cycles x {width} expected")
+            return values.reshape(cycles, width)
+
+        if len(message.control_time) != cycles:
+            raise ValueError(f"malformed {T.CONTROL_SAMPLES}: {len(message.control_time)} "
+                             f"control times for {cycles} wall times")
+        states = table("drive_state", actuators)
+        if states.size and states.max() >= len(message.state_names):
+            raise ValueError(f"malformed {T.CONTROL_SAMPLES}: drive state {states.max()} "
+                             f"but only {len(message.state_names)} state names")
+        return cls(message.first_cycle, message.period, np.asarray(message.wall_time),
+                   np.asarray(message.control_time), tuple(message.joint_names),
+                   table("reference", joints), table("reference_velocity", joints),
+                   table("position", joints), table("velocity", joints),
+                   table("effort", joints), tuple(message.actuator_names),
+                   table("motor_torque", actuators), states, tuple(message.state_names))
+
+
+class ControlSampleBuffer:
+    """Collects one row per control cycle; :meth:`take` empties it into a batch."""
+
+    def __init__(self, joint_names, actuator_names, period: float, capacity: int):
+        self.joint_names, self.actuator_names = tuple(joint_names), tuple(actuator_names)
+        self.period, self.capacity = period, capacity
+        joints, actuators = len(self.joint_names), len(self.actuator_names)
+        self._wall, self._time = np.zeros(capacity), np.zeros(capacity)
+        self._joint_tables = [np.zeros((capacity, joints)) for _ in range(5)]
+        self._torque = np.zeros((capacity, actuators))
+        self._state = np.zeros((capacity, actuators), dtype=np.uint8)
+        self._state_index: dict[str, int] = {}
+        self._rows = 0
+        self._first_cycle = 0
+
+    @property
+    def full(self) -> bool:
+        return self._rows == self.capacity
+
+    def add(self, cycle: int, control_time: float, reference: np.ndarray,
+            reference_velocity: np.ndarray, feedback: JointFeedback) -> None:
+        """Record cycle ``cycle`` (consecutive cycles make one batch). Ignored when full."""
+        row = self._rows
+        if row == self.capacity:
+            return
+        if row == 0:
+            self._first_cycle = cycle
+        self._wall[row], self._time[row] = time.time(), control_time
+        for table, values in zip(self._joint_tables, (reference, reference_velocity,
+                                                      feedback.positions, feedback.velocities,
+                                                      feedback.efforts)):
+            table[row] = values
+        self._torque[row] = feedback.motor_torques
+        for column, state in enumerate(feedback.drive_states):
+            code = self._state_index.setdefault(state, len(self._state_index))
+            self._state[row, column] = code
+        self._rows = row + 1
+
+    def take(self) -> ControlSamples | None:
+        """The rows recorded since the last call (None if there are none)."""
+        rows = self._rows
+        if rows == 0:
+            return None
+        self._rows = 0
+        reference, reference_velocity, position, velocity, effort = (
+            table[:rows].copy() for table in self._joint_tables)
+        return ControlSamples(
+            self._first_cycle, self.period, self._wall[:rows].copy(), self._time[:rows].copy(),
+            self.joint_names, reference, reference_velocity, position, velocity, effort,
+            self.actuator_names, self._torque[:rows].copy(), self._state[:rows].copy(),
+            tuple(self._state_index))

@@ -1,0 +1,252 @@
+"""Logging a run into rerun: every axis on sim-time and wall-time timelines, the 3D robot.
+
+Entities (a control batch's series go out as one Arrow record batch, which
+rerun splits into one chunk per entity: one ``rr.log`` per scalar costs tens of
+microseconds, one ``send_columns`` per entity about 200 us, the record batch
+for all of them 1-3 ms per batch):
+
+======================================  ==============================================
+``axes/<joint>/position``               reference and measured position
+``axes/<joint>/error``                  reference - measured
+``axes/<joint>/velocity``               reference and measured velocity
+``axes/<joint>/effort``                 joint-side effort (from the drive's torque)
+``drives/<actuator>/torque``            motor torque as the drive reports it
+``drives/<actuator>/state``             the drive's state (StateChange, on change)
+``bus/<bus>/load``                      measured bus load, % of the bitrate
+``robot/...``, ``joints/<joint>``       the URDF (rerun's loader) and joint transforms
+======================================  ==============================================
+
+Timelines: ``wall_time``; ``control_time`` (the controller's clock);
+``sim_time`` (the plant's clock, found from the sim's clock pairs by
+interpolation over wall time; absent while no sim has been heard).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import rerun as rr
+from rerun.urdf import UrdfTree
+
+from hil.can.monitor import MeasuredLoad
+from hil.description import RobotDescription
+from hil.messaging.samples import ControlSamples
+from hil.visualisation.blueprint import run_blueprint
+
+#: the 3D robot is posed at most this often (Hz): the eye needs no more
+POSE_RATE = 30.0
+
+
+class SimTimeMap:
+    """The plant's time at given wall-clock times, from (wall, sim) pairs the sim publishes.
+
+    Inside the pairs: linear interpolation. After the last: extrapolated with
+    the latest rate (1 in real time; the speed-up in lock-step).
+    """
+
+    def __init__(self, keep: int = 400):
+        self._wall: deque[float] = deque(maxlen=keep)
+        self._sim: deque[float] = deque(maxlen=keep)
+
+    def add(self, wall: float, sim: float) -> None:
+        if self._wall and wall <= self._wall[-1]:
+            return
+        if self._sim and sim < self._sim[-1]:       # the sim restarted: forget the old run
+            self._wall.clear()
+            self._sim.clear()
+        self._wall.append(wall)
+        self._sim.append(sim)
+
+    def __call__(self, wall_times: np.ndarray) -> np.ndarray | None:
+        if not self._wall:
+            return None
+        wall, sim = np.array(self._wall), np.array(self._sim)
+        rate = 1.0 if len(wall) < 2 else (sim[-1] - sim[-2]) / (wall[-1] - wall[-2])
+        mapped = np.interp(wall_times, wall, sim)
+        after = wall_times > wall[-1]
+        mapped[after] = sim[-1] + rate * (wall_times[after] - wall[-1])
+        before = wall_times < wall[0]
+        mapped[before] = sim[0] + (wall_times[before] - wall[0])
+        return mapped
+
+
+class RunRecorder:
+    """Turns a robot's control samples and bus loads into rerun entities."""
+
+    def __init__(self, recording: rr.RecordingStream, robot: RobotDescription,
+                 urdf_path: Path, actuator_joints: dict[str, tuple[str, ...]],
+                 buses: tuple[str, ...]):
+        self.recording = recording
+        self.robot = robot
+        self.sim_time = SimTimeMap()
+        self.cycles_logged = 0
+        self.cycles_lost = 0
+        self._next_cycle: int | None = None
+        self._last_states: dict[str, str] = {}
+        self._last_pose = -np.inf
+        self._urdf = UrdfTree.from_file_path(urdf_path)
+        self._urdf_path = urdf_path
+        self._actuator_joints = actuator_joints
+        self._buses = buses
+        self._mimics = {j.name: j.mimic for j in robot.joints if j.mimic is not None}
+
+    def log_static(self) -> None:
+        """The robot model, series names and the blueprint; once, before any sample."""
+        rec = self.recording
+        rec.log_file_from_path(self._urdf_path, entity_path_prefix="robot", static=True)
+        for joint in self.robot.driven_joints:
+            unit = joint.type.unit
+            rec.log(f"axes/{joint.name}/position",
+                    rr.SeriesLines(names=[f"reference [{unit}]", f"measured [{unit}]"]),
+                    static=True)
+            rec.log(f"axes/{joint.name}/error", rr.SeriesLines(names=[f"error [{unit}]"]),
+                    static=True)
+            rec.log(f"axes/{joint.name}/velocity",
+                    rr.SeriesLines(names=[f"reference [{unit}/s]", f"measured [{unit}/s]"]),
+                    static=True)
+            rec.log(f"axes/{joint.name}/effort",
+                    rr.SeriesLines(names=[f"joint effort [{joint.type.effort_unit}]"]),
+                    static=True)
+        for actuator in self._actuator_joints:
+            rec.log(f"drives/{actuator}/torque", rr.SeriesLines(names=["motor torque [N·m]"]),
+                    static=True)
+        for bus in self._buses:
+            rec.log(f"bus/{bus}/load",
+                    rr.SeriesLines(names=["load [%]", "load, worst-case stuffing [%]"]),
+                    static=True)
+        rec.send_blueprint(run_blueprint(self.robot, self._actuator_joints, self._buses))
+
+    def log_clock(self, wall_time: float, sim_time: float) -> None:
+        self.sim_time.add(wall_time, sim_time)
+
+    def log_samples(self, batch: ControlSamples) -> None:
+        """Log every cycle of a batch. Gaps in the cycle numbers are counted as lost."""
+        if self._next_cycle is not None and batch.first_cycle > self._next_cycle:
+            self.cycles_lost += batch.first_cycle - self._next_cycle
+        self._next_cycle = batch.next_cycle
+        self.cycles_logged += len(batch)
+        rec = self.recording
+        times = self._times(batch.wall_time, batch.control_time)
+        table = _ScalarTable(times)
+        for i, joint in enumerate(batch.joint_names):
+            reference, position = batch.reference[:, i], batch.position[:, i]
+            table.add(f"/axes/{joint}/position", reference, position)
+            table.add(f"/axes/{joint}/error", reference - position)
+            table.add(f"/axes/{joint}/velocity", batch.reference_velocity[:, i],
+                      batch.velocity[:, i])
+            table.add(f"/axes/{joint}/effort", batch.effort[:, i])
+        for k, actuator in enumerate(batch.actuator_names):
+            table.add(f"/drives/{actuator}/torque", batch.motor_torque[:, k])
+        table.send(self.recording)
+        for k, actuator in enumerate(batch.actuator_names):
+            self._log_state_changes(actuator, batch, k, times)
+        self._log_pose(batch, times)
+
+    def log_bus_load(self, wall_time: float, loads: list[MeasuredLoad]) -> None:
+        table = _ScalarTable(self._times(np.array([wall_time])))
+        for load in loads:
+            table.add(f"/bus/{load.bus}/load", np.array([100 * load.nominal]),
+                      np.array([100 * load.worst_case]))
+        table.send(self.recording)
+
+    # --- helpers -----------------------------------------------------------------------
+
+    def _times(self, wall: np.ndarray, control: np.ndarray | None = None) -> _Times:
+        return _Times(wall, control, self.sim_time(wall))
+
+    def _log_state_changes(self, actuator: str, batch: ControlSamples, column: int,
+                           times: _Times) -> None:
+        codes = batch.drive_state[:, column]
+        if not len(codes):
+            return
+        rows = np.flatnonzero(np.diff(codes)) + 1
+        if batch.state_names[codes[0]] != self._last_states.get(actuator):
+            rows = np.concatenate(([0], rows))
+        self._last_states[actuator] = batch.state_names[codes[-1]]
+        if len(rows):
+            self.recording.send_columns(
+                f"drives/{actuator}/state", indexes=times.columns(rows),
+                columns=rr.StateChange.columns(state=[batch.state_names[c] for c in codes[rows]]))
+
+    def _log_pose(self, batch: ControlSamples, times: _Times) -> None:
+        """Joint transforms for the 3D robot, decimated to POSE_RATE."""
+        wall = batch.wall_time
+        rows = []
+        for row, t in enumerate(wall):
+            if t - self._last_pose >= 1.0 / POSE_RATE:
+                rows.append(row)
+                self._last_pose = t
+        if not rows:
+            return
+        rows = np.array(rows)
+        positions = dict(zip(batch.joint_names, batch.position[rows].T))
+        for name, mimic in self._mimics.items():
+            if mimic.joint in positions:
+                positions[name] = mimic.multiplier * positions[mimic.joint] + mimic.offset
+        selected = times.columns(rows)
+        for name, values in positions.items():
+            joint = self._urdf.get_joint_by_name(name)
+            if joint is not None:
+                self.recording.send_columns(
+                    f"joints/{name}", indexes=selected,
+                    columns=joint.compute_transform_columns(values, clamp=False))
+
+
+@dataclass(frozen=True)
+class _Times:
+    """The times of a batch's rows on each timeline (sim time may be unknown)."""
+
+    wall: np.ndarray
+    control: np.ndarray | None
+    sim: np.ndarray | None
+
+    def named(self) -> list[tuple[str, np.ndarray]]:
+        return [(name, values) for name, values in (("wall_time", self.wall),
+                                                    ("control_time", self.control),
+                                                    ("sim_time", self.sim))
+                if values is not None]
+
+    def columns(self, rows: np.ndarray | slice = slice(None)) -> list[rr.TimeColumn]:
+        columns = [rr.TimeColumn("wall_time", timestamp=self.wall[rows])]
+        if self.control is not None:
+            columns.append(rr.TimeColumn("control_time", duration=self.control[rows]))
+        if self.sim is not None:
+            columns.append(rr.TimeColumn("sim_time", duration=self.sim[rows]))
+        return columns
+
+
+class _ScalarTable:
+    """Scalar series of many entities on the same rows, sent as one Arrow record batch.
+
+    The ``rerun:*`` field metadata is rerun's documented column classification
+    (``Chunk.from_record_batch``): which columns are timelines, and which entity
+    and component every other column is.
+    """
+
+    def __init__(self, times: _Times):
+        self._fields, self._columns = [], []
+        for name, values in times.named():
+            kind = pa.timestamp("ns") if name == "wall_time" else pa.duration("ns")
+            self._fields.append(pa.field(name, kind, metadata={
+                "rerun:kind": "index", "rerun:index_name": name}))
+            self._columns.append(pa.array(np.round(values * 1e9).astype(np.int64), kind))
+
+    def add(self, entity: str, *series: np.ndarray) -> None:
+        """One row per time, one scalar per series (as many series as lines on the plot)."""
+        values = np.column_stack(series).ravel() if len(series) > 1 else series[0]
+        self._fields.append(pa.field("Scalars:scalars", pa.list_(pa.float64()), metadata={
+            "rerun:kind": "data", "rerun:entity_path": entity,
+            "rerun:archetype": "rerun.archetypes.Scalars", "rerun:component": "Scalars:scalars",
+            "rerun:component_type": "rerun.components.Scalar"}))
+        offsets = np.arange(0, len(values) + 1, len(series), dtype=np.int32)
+        self._columns.append(pa.ListArray.from_arrays(pa.array(offsets),
+                                                      pa.array(values, pa.float64())))
+
+    def send(self, recording: rr.RecordingStream) -> None:
+        rr.send_record_batch(pa.RecordBatch.from_arrays(self._columns,
+                                                        schema=pa.schema(self._fields)),
+                             recording=recording)

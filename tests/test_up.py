@@ -1,0 +1,181 @@
+"""`hil viz` and `hil up` as processes: what they record, and how they end."""
+
+from __future__ import annotations
+
+import collections
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import can
+import pytest
+import rerun.chunk
+
+from hil.messaging.zenoh_api import RunSubscriber
+from hil.zenoh_session import ZenohSettings, session
+from conftest import ROOT, free_port
+
+PIGOT_CONFIG = str(ROOT / "bus_config" / "pigot.yaml")
+
+
+def hil(*args, **kwargs) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "hil", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kwargs)
+
+
+def read_rrd(path):
+    """Rows per entity (temporal) and the static entity paths of an .rrd file."""
+    rows, static = collections.Counter(), set()
+    for chunk in rerun.chunk.RrdReader(path).store().stream():
+        if chunk.is_static:
+            static.add(chunk.entity_path)
+        else:
+            rows[chunk.entity_path] += chunk.num_rows
+    return rows, static
+
+
+def gone(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    with open(f"/proc/{pid}/stat") as stat:       # a zombie has ended too
+        return stat.read().split(")")[-1].split()[0] == "Z"
+
+
+@pytest.fixture
+def processes():
+    """Processes a test starts; every one is ended (and reaped) afterwards."""
+    started: list[subprocess.Popen] = []
+    yield started
+    for process in started:
+        if process.poll() is None:
+            process.kill()
+        process.communicate()
+
+
+def test_viz_records_every_published_cycle_of_the_controller(tmp_path, processes):
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    control = hil("control", PIGOT_CONFIG, "--fake", "--listen", endpoint)
+    processes.append(control)
+    assert "hil control:" in control.stdout.readline()
+    published = []
+    listener = RunSubscriber(session(ZenohSettings(connect=(endpoint,))), "pigot",
+                             published.append, lambda *_: None, pytest.fail)
+    viz = hil("viz", PIGOT_CONFIG, "--no-can", "--connect", endpoint,
+              "--save", str(tmp_path / "run.rrd"))
+    processes.append(viz)
+    assert "hil viz:" in viz.stdout.readline()
+    time.sleep(3.0)                          # 500 Hz: about 1500 cycles
+    control.send_signal(signal.SIGTERM)      # its last batch goes out as it stops
+    control.communicate(timeout=20)
+    time.sleep(0.5)
+    viz.send_signal(signal.SIGTERM)
+    out, err = viz.communicate(timeout=30)
+    listener.close()
+    assert viz.returncode == 0, err
+    # the viz may have joined after the first batches: compare from its first one on
+    rows, _ = read_rrd(tmp_path / "run.rrd")
+    logged = rows["/axes/arm_rot_1/position"]
+    summary = re.search(r"(\d+) cycles in (\d+) batches, (\d+) lost", out)
+    assert summary, out
+    assert int(summary.group(1)) == logged and int(summary.group(3)) == 0
+    tail = sum(len(b) for b in published[-int(summary.group(2)):])
+    assert logged == tail and logged > 500, (logged, tail)
+    for joint in ("arm_rot_1", "arm_rot_6", "finger_pri_1"):
+        assert rows[f"/axes/{joint}/effort"] == logged
+
+
+def test_up_runs_the_demo_and_records_axes_robot_and_can_traffic(tmp_path):
+    save = tmp_path / "out" / "run.rrd"
+    result = subprocess.run([sys.executable, "-m", "hil", "up", "pigot", "--demo", "--lock-step",
+                             "--no-viewer", "--save", str(save)], capture_output=True,
+                            text=True, timeout=300, cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "demo succeeded" in result.stdout
+    rows, static = read_rrd(save)
+    for joint in ("arm_rot_1", "arm_rot_2", "arm_rot_3", "arm_rot_4", "arm_rot_5", "arm_rot_6",
+                  "finger_pri_1"):
+        for quantity in ("position", "effort", "velocity", "error"):
+            assert rows[f"/axes/{joint}/{quantity}"] > 1000, (joint, quantity)
+        assert rows[f"/joints/{joint}"] > 10
+        assert rows[f"/drives/{joint}_motor/torque"] > 1000
+    assert rows["/bus/arm/load"] > 0 and rows["/bus/wrist/load"] > 0
+    assert any(p.startswith("/robot/pigot/visual_geometries/arm_link_6") for p in static)
+    frames = collections.Counter(
+        (m.channel, m.arbitration_id) for m in can.LogReader(save.with_name("run.can.log")))
+    for node in range(1, 8):                 # every drive's TPDO1 and every RPDO
+        bus = "pigot/arm" if node <= 3 else "pigot/wrist"
+        assert frames[(bus, 0x180 + node)] > 1000 and frames[(bus, 0x200 + node)] > 1000
+    logs = save.with_name("run.logs")
+    assert {p.name for p in logs.iterdir()} == {"sim.log", "control.log", "viz.log"}
+
+
+def start_up(tmp_path, processes) -> tuple[subprocess.Popen, dict[str, int], list[str]]:
+    """`hil up` (no demo) until all three children are ready; their pids by name."""
+    up = hil("up", "pigot", "--lock-step", "--no-viewer", "--save", str(tmp_path / "run.rrd"),
+             cwd=tmp_path)
+    processes.append(up)
+    pids, lines = {}, []
+    while len(pids) < 3:
+        line = up.stdout.readline()
+        assert line, "hil up ended early: " + "".join(lines) + up.stderr.read()
+        lines.append(line)
+        ready = re.search(r"hil up: (\w+) ready \(pid (\d+)\)", line)
+        if ready:
+            pids[ready.group(1)] = int(ready.group(2))
+    drain = threading.Thread(target=lambda: lines.extend(up.stdout), daemon=True)
+    drain.start()
+    return up, pids, lines
+
+
+@pytest.mark.parametrize("victim", ["sim", "control"])
+def test_up_with_a_killed_child_ends_nonzero_naming_it_and_leaves_no_process(
+        victim, tmp_path, processes):
+    up, pids, _ = start_up(tmp_path, processes)
+    os.kill(pids[victim], signal.SIGKILL)
+    up.wait(timeout=60)
+    err = up.stderr.read()
+    assert up.returncode == 1
+    assert f"{victim} (pid {pids[victim]}) exited with status -9" in err
+    assert "its last lines" in err
+    for name, pid in pids.items():
+        assert gone(pid), f"{name} (pid {pid}) is still running"
+
+
+def test_up_stops_every_child_cleanly_on_ctrl_c(tmp_path, processes):
+    up, pids, lines = start_up(tmp_path, processes)
+    up.send_signal(signal.SIGINT)
+    up.wait(timeout=60)
+    assert up.returncode == 130, up.stderr.read()
+    for name, pid in pids.items():
+        assert gone(pid), f"{name} (pid {pid}) is still running"
+    control_log = (tmp_path / "run.logs" / "control.log").read_text()
+    assert "stopped; drives disabled" in control_log
+    assert (tmp_path / "run.rrd").stat().st_size > 0
+
+
+def test_killed_up_takes_its_children_with_it(tmp_path, processes):
+    up, pids, _ = start_up(tmp_path, processes)
+    up.kill()                                 # no chance to clean up: the children notice
+    up.wait()
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and not all(gone(pid) for pid in pids.values()):
+        time.sleep(0.2)
+    for name, pid in pids.items():
+        assert gone(pid), f"{name} (pid {pid}) outlived hil up"
+    assert "stopped; drives disabled" in (tmp_path / "run.logs" / "control.log").read_text()
+
+
+def test_up_with_a_bad_config_says_so_and_starts_nothing(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("robot: nowhere.xacro\nbuses: []\n")
+    result = subprocess.run([sys.executable, "-m", "hil", "up", str(bad)], capture_output=True,
+                            text=True, timeout=60, cwd=tmp_path)
+    assert result.returncode == 1
+    assert "bad.yaml" in result.stderr and "Traceback" not in result.stderr
+    assert not (tmp_path / "run.logs").exists()

@@ -1,0 +1,213 @@
+"""Recording a run to rerun: control samples on the wire, the recorder, the bus-load meter."""
+
+from __future__ import annotations
+
+import collections
+import xml.etree.ElementTree as ET
+
+import can
+import numpy as np
+import pytest
+import rerun as rr
+import rerun.chunk
+
+from hil.bus_config import load_bus_config
+from hil.can.monitor import BusLoadMeter
+from hil.controllers.demo import demo_goal
+from hil.description.source import read_robot_source
+from hil.hardware import JointFeedback
+from hil.messaging.samples import ControlSampleBuffer, ControlSamples
+from hil.visualisation import RunRecorder, SimTimeMap
+from conftest import PIGOT_XACRO, ROOT, UR3_XACRO
+
+PIGOT_CONFIG = ROOT / "bus_config" / "pigot.yaml"
+
+
+def feedback(positions, actuators: int, state: str = "OPERATION ENABLED") -> JointFeedback:
+    positions = np.asarray(positions, dtype=float)
+    return JointFeedback(positions, positions * 2, positions * 3, np.full(actuators, 0.5),
+                         (state,) * actuators)
+
+
+def make_batches(joints, actuators, count: int, size: int, states=None):
+    """`count` batches of `size` consecutive cycles; position of joint i = cycle + i/10."""
+    buffer = ControlSampleBuffer(joints, actuators, 0.002, size)
+    batches, cycle = [], 0
+    for _ in range(count):
+        for _ in range(size):
+            cycle += 1
+            positions = cycle + np.arange(len(joints)) / 10
+            state = states(cycle) if states else "OPERATION ENABLED"
+            buffer.add(cycle, cycle * 0.002, positions + 0.01, np.zeros(len(joints)),
+                       feedback(positions, len(actuators), state))
+        batches.append(buffer.take())
+    return batches
+
+
+def test_control_samples_survive_encoding_exactly():
+    batch = make_batches(("a", "b"), ("m1", "m2"), 1, 7,
+                         states=lambda c: "FAULT" if c > 4 else "OPERATION ENABLED")[0]
+    decoded = ControlSamples.decode(batch.encode())
+    assert decoded.first_cycle == 1 and len(decoded) == 7
+    assert decoded.joint_names == ("a", "b") and decoded.actuator_names == ("m1", "m2")
+    for name in ("wall_time", "control_time", "reference", "position", "velocity", "effort",
+                 "motor_torque", "drive_state"):
+        np.testing.assert_array_equal(getattr(decoded, name), getattr(batch, name))
+    names = [decoded.state_names[c] for c in decoded.drive_state[:, 0]]
+    assert names == ["OPERATION ENABLED"] * 4 + ["FAULT"] * 3
+
+
+def test_malformed_control_samples_are_refused_with_the_field_named():
+    batch = make_batches(("a", "b"), ("m1",), 1, 3)[0]
+    with pytest.raises(ValueError, match="malformed"):
+        ControlSamples.decode(batch.encode()[:-9])
+    with pytest.raises(ValueError, match="malformed"):
+        ControlSamples.decode(b"\x00\x01\x00\x00garbage")
+    short = ControlSamples(**{**batch.__dict__, "position": batch.position[:2]})
+    with pytest.raises(ValueError, match="'position' has 4 values, 3 cycles x 2 expected"):
+        ControlSamples.decode(short.encode())
+
+
+def test_sample_buffer_reuses_its_arrays_and_starts_each_batch_at_its_first_cycle():
+    buffer = ControlSampleBuffer(("a",), ("m",), 0.001, 3)
+    for cycle in (10, 11):
+        buffer.add(cycle, 0.0, np.ones(1), np.zeros(1), feedback([1.0], 1))
+    first = buffer.take()
+    assert (first.first_cycle, len(first), first.next_cycle) == (10, 2, 12)
+    assert buffer.take() is None
+    for cycle in (12, 13, 14, 15):          # the fourth does not fit: ignored, never wrapped
+        buffer.add(cycle, 0.0, np.ones(1), np.zeros(1), feedback([2.0], 1))
+    assert buffer.full
+    second = buffer.take()
+    assert (second.first_cycle, len(second)) == (12, 3)
+    assert first.position[0, 0] == 1.0      # the first batch was copied out, not aliased
+
+
+def test_sim_time_map_interpolates_between_clock_pairs_and_extrapolates_at_their_rate():
+    sim_time = SimTimeMap()
+    assert sim_time(np.array([1.0])) is None
+    sim_time.add(100.0, 0.0)
+    np.testing.assert_allclose(sim_time(np.array([100.5])), [0.5])    # one pair: rate 1
+    sim_time.add(101.0, 2.0)                                          # lock-step at 2x
+    np.testing.assert_allclose(sim_time(np.array([100.25, 101.5, 99.0])), [0.5, 3.0, -1.0])
+    sim_time.add(102.0, 0.1)                                          # sim restarted
+    np.testing.assert_allclose(sim_time(np.array([102.5])), [0.6])
+
+
+def test_bus_load_meter_counts_each_bus_in_bits_against_its_bitrate():
+    meter = BusLoadMeter({"vcan0": ("arm", 1_000_000), "vcan1": ("wrist", 500_000)}, now=0.0)
+    for _ in range(100):
+        meter.on_message_received(can.Message(arbitration_id=0x181, data=bytes(8),
+                                              channel="vcan0", is_extended_id=False))
+    meter.on_message_received(can.Message(arbitration_id=0x80, data=b"", channel="vcan1",
+                                          is_extended_id=False))
+    meter.on_message_received(can.Message(arbitration_id=0x80, channel="elsewhere"))
+    loads = {load.bus: load for load in meter.take(now=0.1)}
+    assert loads["arm"].frames_per_second == pytest.approx(1000)
+    assert loads["arm"].nominal == pytest.approx(1000 * 111 / 1e6)     # 47 + 64 bits a frame
+    assert loads["arm"].worst_case == pytest.approx(1000 * 135 / 1e6)  # + 24 stuff bits
+    assert loads["wrist"].nominal == pytest.approx(10 * 47 / 5e5)
+    assert meter.unknown_channel_frames == 1
+    assert all(load.frames_per_second == 0 for load in meter.take(now=0.2))
+
+
+@pytest.fixture
+def recorded(tmp_path, pigot, package_path):
+    """A pigot run of 4 batches (one lost in transit), recorded to an .rrd and read back."""
+    urdf = tmp_path / "pigot.urdf"
+    urdf.write_bytes(ET.tostring(read_robot_source(PIGOT_XACRO, package_path).root))
+    recording = rr.RecordingStream("hil-test")
+    path = tmp_path / "run.rrd"
+    recording.save(str(path))
+    actuators = {a.name: tuple(j.name for j in t.joints)
+                 for t in pigot.transmissions for a in t.actuators}
+    recorder = RunRecorder(recording, pigot, urdf, actuators, ("arm", "wrist"))
+    recorder.log_static()
+    recorder.log_clock(0.0, 0.0)
+    joints = tuple(j.name for j in pigot.driven_joints)
+    batches = make_batches(joints, tuple(actuators), 4, 25,
+                           states=lambda c: "SWITCHED ON" if c <= 30 else "OPERATION ENABLED")
+    for index, batch in enumerate(batches):
+        if index != 2:                       # batch 2 never arrives
+            recorder.log_samples(batch)
+    recording.flush()
+    recording.disconnect()
+    rows = collections.Counter()
+    values = collections.defaultdict(list)
+    static = set()
+    for chunk in rerun.chunk.RrdReader(path).store().stream():
+        if chunk.is_static:
+            static.add(chunk.entity_path)
+        else:
+            rows[chunk.entity_path] += chunk.num_rows
+            values[chunk.entity_path].append(chunk.to_record_batch())
+    return recorder, joints, rows, values, static
+
+
+def test_recorder_logs_every_cycle_of_every_axis_and_counts_the_lost_batch(recorded):
+    recorder, joints, rows, values, _ = recorded
+    assert (recorder.cycles_logged, recorder.cycles_lost) == (75, 25)
+    for joint in joints:
+        for quantity in ("position", "error", "velocity", "effort"):
+            assert rows[f"/axes/{joint}/{quantity}"] == 75, (joint, quantity)
+    positions = np.concatenate([
+        np.array(b.column("Scalars:scalars").to_pylist()) for b in values["/axes/arm_rot_1/position"]])
+    # [reference, measured] per cycle: cycles 1..50 and 76..100, none twice, none invented
+    measured = np.sort(positions[:, 1])
+    np.testing.assert_allclose(measured, np.r_[1:51, 76:101])
+    np.testing.assert_allclose(positions[:, 0] - positions[:, 1], 0.01)
+    assert rows["/drives/arm_rot_1_motor/torque"] == 75
+
+
+def test_recorder_logs_drive_states_only_when_they_change(recorded):
+    _, _, rows, values, _ = recorded
+    assert rows["/drives/arm_rot_1_motor/state"] == 2      # SWITCHED ON, OPERATION ENABLED
+    states = [s for b in values["/drives/arm_rot_1_motor/state"]
+              for s in b.column(b.schema.names[-1]).to_pylist()]
+    assert [s[0] if isinstance(s, list) else s for s in states] == [
+        "SWITCHED ON", "OPERATION ENABLED"]
+
+
+def test_recorder_poses_the_3d_robot_including_its_mimic_joint(recorded):
+    _, _, rows, _, static = recorded
+    assert rows["/joints/arm_rot_1"] >= 1
+    assert rows["/joints/finger_pri_2"] == rows["/joints/finger_pri_1"]
+    links = {"body_link", "arm_link_1", "arm_link_6", "finger_link_1", "finger_link_2"}
+    drawn = {path.split("/")[4] for path in static
+             if path.startswith("/robot/pigot/visual_geometries/")}
+    assert links <= drawn
+
+
+@pytest.mark.parametrize("xacro", [PIGOT_XACRO, UR3_XACRO], ids=["pigot", "ur3"])
+def test_demo_goal_moves_every_joint_inside_its_limits_and_speed(xacro, package_path):
+    from hil.description import load_description
+    robot = load_description(xacro, package_path)
+    names = [j.name for j in robot.driven_joints]
+    current = [min(max(0.0, robot.joint(n).limits.lower), robot.joint(n).limits.upper)
+               for n in names]
+    current[0] = robot.joint(names[0]).limits.upper        # resting on a limit
+    goal = demo_goal(robot, names, current)
+    previous, start = np.array(current), 0.0
+    for point in goal.points:
+        positions = np.array(point.positions)
+        for name, position in zip(names, positions):
+            limits = robot.joint(name).limits
+            assert limits.lower < position < limits.upper, name
+        peak = 1.5 * np.abs(positions - previous) / (point.time_from_start - start)
+        limit = np.array([robot.joint(n).limits.velocity for n in names])
+        assert np.all(peak <= limit + 1e-9)
+        previous, start = positions, point.time_from_start
+    swings = np.ptp([p.positions for p in goal.points], axis=0)
+    assert np.all(swings > 0.01), dict(zip(names, swings))
+    for name, column in zip(names, np.array([p.positions for p in goal.points]).T):
+        joint = robot.joint(name)
+        if joint.type.name == "PRISMATIC":            # the gripper opens and closes fully
+            span = joint.limits.upper - joint.limits.lower
+            assert column.max() > joint.limits.upper - 0.1 * span
+            assert column.min() < joint.limits.lower + 0.1 * span
+
+
+def test_viz_refuses_can_log_without_can(tmp_path):
+    from hil.cli import main
+    assert main(["viz", str(PIGOT_CONFIG), "--no-can", "--can-log", str(tmp_path / "x.log"),
+                 "--save", str(tmp_path / "x.rrd")]) == 1
