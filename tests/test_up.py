@@ -179,3 +179,22 @@ def test_up_with_a_bad_config_says_so_and_starts_nothing(tmp_path):
     assert result.returncode == 1
     assert "bad.yaml" in result.stderr and "Traceback" not in result.stderr
     assert not (tmp_path / "run.logs").exists()
+
+
+@pytest.mark.socketcan
+def test_up_on_socketcan_runs_the_demo_and_logs_the_vcan_frames(tmp_path):
+    from conftest import socketcan_missing
+    missing = socketcan_missing()
+    if missing:
+        pytest.skip(missing)
+    save = tmp_path / "run.rrd"
+    result = subprocess.run([sys.executable, "-m", "hil", "up", "pigot", "--demo", "--lock-step",
+                             "--can", "vcan0", "--can", "vcan1", "--no-viewer", "--save",
+                             str(save)], capture_output=True, text=True, timeout=600,
+                            cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "demo succeeded" in result.stdout
+    channels = collections.Counter(m.channel for m in can.LogReader(save.with_name("run.can.log")))
+    assert channels["vcan0"] > 1000 and channels["vcan1"] > 1000, channels
+    rows, _ = read_rrd(save)
+    assert rows["/axes/finger_pri_1/position"] > 1000

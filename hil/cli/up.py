@@ -403,4 +403,5 @@ def _report_outputs(save: Path, can_log: Path, viz: Child) -> None:
         if summary:
             print(f"hil up: recorded {summary[-1].strip().removeprefix('hil viz: ')}")
     if save.is_file():
-        print(f"hil up: review with: rerun {save}")
+        beside = Path(sys.executable).with_name("rerun")      # the venv's viewer, if any
+        print(f"hil up: review with: {beside if beside.exists() else 'rerun'} {save}")
