@@ -11,6 +11,7 @@ clock advancing one period per cycle.
 
 from __future__ import annotations
 
+import queue
 import threading
 import time
 from dataclasses import dataclass, field
@@ -25,6 +26,20 @@ from hil.messaging.samples import ControlSampleBuffer
 from hil.messaging.zenoh_api import (
     ControlSamplesPublisher, JointStatePublisher, TrajectoryActionServer, key,
 )
+
+
+#: how long a fault reset may take to bring every drive back (s)
+RESET_TIMEOUT = 10.0
+
+
+@dataclass
+class FaultResetRequest:
+    """A fault reset asked for from another thread; the control loop fills in the answer."""
+
+    done: threading.Event = field(default_factory=threading.Event)
+    succeeded: bool = False
+    message: str = ""
+    deadline: float = 0.0
 
 
 @dataclass
@@ -72,6 +87,9 @@ class ControlNode:
         self.statistics = PeriodStatistics(self.period)
         self.faults: list[str] = []
         self._stop = threading.Event()
+        self._resets: queue.SimpleQueue[FaultResetRequest] = queue.SimpleQueue()
+        self._reset: FaultResetRequest | None = None
+        self.server.on_reset = self.reset_faults
 
     def clock(self) -> float:
         """The controller's time: cycles x period in lock-step, monotonic otherwise."""
@@ -79,6 +97,18 @@ class ControlNode:
 
     def stop(self) -> None:
         self._stop.set()
+
+    def reset_faults(self, timeout: float = RESET_TIMEOUT) -> tuple[bool, str]:
+        """Reset the hardware's faults and accept goals again, holding where the joints are.
+
+        Blocks until every drive follows commands again (True), or a fault persists or
+        ``timeout`` passes (False, with why). Safe to call from any thread.
+        """
+        request = FaultResetRequest()
+        self._resets.put(request)
+        if not request.done.wait(timeout + 1.0):
+            return False, "the control loop did not answer (is it running?)"
+        return request.succeeded, request.message
 
     def run(self) -> None:
         hardware = self.hardware
@@ -92,11 +122,16 @@ class ControlNode:
             next_cycle = time.perf_counter()
             last = None
             while not self._stop.is_set():
+                if self._reset is None and not self._resets.empty():
+                    self._begin_reset()
                 feedback = hardware.cycle(command, velocity)
                 self._cycle += 1
-                for fault in hardware.faults():
+                faults = hardware.faults()
+                for fault in faults:
                     self.faults.append(fault)
                     self.controller.abort(fault)
+                if self._reset is not None:
+                    self._advance_reset(faults)
                 command, velocity = self.controller.update(self.clock(), feedback.positions,
                                                            feedback.velocities)
                 self.samples.add(self._cycle, self.clock(), command, velocity, feedback)
@@ -113,6 +148,10 @@ class ControlNode:
                     elif delay < -10 * self.period:
                         next_cycle = time.perf_counter()
         finally:
+            if self._reset is not None:
+                self._finish_reset(False, "the controller is shutting down")
+            while not self._resets.empty():
+                self._resets.get_nowait().done.set()
             self.controller.abort("the controller is shutting down")
             self.server.publish_results()
             hardware.stop()
@@ -122,6 +161,29 @@ class ControlNode:
             self.sample_publisher.close()
             if self._token is not None:
                 self._token.undeclare()
+
+    def _begin_reset(self) -> None:
+        self._reset = self._resets.get_nowait()
+        if self.controller.fault is None and self.hardware.ready:
+            self._finish_reset(True, "no fault to reset")     # and an active goal runs on
+            return
+        self._reset.deadline = time.monotonic() + RESET_TIMEOUT
+        self.hardware.reset_faults()
+
+    def _advance_reset(self, faults: list[str]) -> None:
+        """Called each cycle of a reset: done when the hardware is ready, failed on a fault."""
+        if faults:
+            self._finish_reset(False, "; ".join(faults))
+        elif self.hardware.ready:
+            self.controller.clear_fault()
+            self._finish_reset(True, "every drive follows commands again; holding position")
+        elif time.monotonic() > self._reset.deadline:
+            self._finish_reset(False, f"drives not back within {RESET_TIMEOUT:g} s")
+
+    def _finish_reset(self, succeeded: bool, message: str) -> None:
+        request, self._reset = self._reset, None
+        request.succeeded, request.message = succeeded, message
+        request.done.set()
 
     def _publish(self, feedback) -> None:
         if self._cycle % self._every_states == 0:

@@ -234,9 +234,17 @@ class JointTrajectoryController:
             if self._active is not None and self._active.result is None:
                 self._finish(self._active, GoalResult(GoalStatus.ABORTED, error_code, reason))
 
+    @property
+    def fault(self) -> str | None:
+        """Why goals are refused (a hardware fault), or None."""
+        with self._lock:
+            return self._fault
+
     def clear_fault(self) -> None:
+        """Accept goals again, holding the joints where they are now."""
         with self._lock:
             self._fault = None
+            self._hold_actual()
 
     def finished(self) -> list[tuple[str, GoalResult]]:
         """Results of goals that ended since the last call."""

@@ -160,6 +160,7 @@ class Cia402Drive:
         self.node_id = node_id
         self.core = core
         self.lock = lock
+        self.attached = False      # on a bus; a detached drive is silent (its physics runs on)
         self.rated_torque = rated_torque
         self.machine = Cia402StateMachine(core)
         self.node = canopen.LocalNode(node_id, str(eds))
@@ -179,9 +180,14 @@ class Cia402Drive:
         network.add_node(self.node)
         network.subscribe(NMT_ID, self._after_nmt)
         self._configure_pdos()
+        self.attached = True
         self._boot()
 
     def detach(self) -> None:
+        """Leave the bus: from now on the drive sends and hears nothing (idempotent)."""
+        if not self.attached:
+            return
+        self.attached = False
         network = self.node.network
         self.node.nmt.stop_heartbeat()
         network.unsubscribe(NMT_ID, self._after_nmt)
@@ -270,6 +276,9 @@ class Cia402Drive:
 
     def send_tpdos(self) -> None:
         """Send what :meth:`prepare_tpdos` packed."""
+        if not self.attached:
+            self._pending = []
+            return
         for cob_id, data in self._pending:
             self.node.network.send_message(cob_id, data)
         self._pending = []
@@ -291,6 +300,8 @@ class Cia402Drive:
         """After the inner loops ran: state machine follow-ups and EMCY for new faults."""
         self.machine.after_update()
         events, self.core.events = self.core.events, []
+        if not self.attached:
+            return
         for fault in events:
             self.node.emcy.send(fault.code, _ERROR_REGISTER[fault])
         if self._fault_reported and self.core.fault is None:

@@ -30,6 +30,7 @@ EMCY_TEXT = {0x8611: "following error", 0x8612: "position limit exceeded",
              0x8130: "heartbeat/life guard error"}
 
 SHUTDOWN, SWITCH_ON, ENABLE, QUICK_STOP, DISABLE_VOLTAGE = 0x06, 0x07, 0x0F, 0x02, 0x00
+FAULT_RESET = 0x80
 STANDSTILL = 0.01       # fraction of the max velocity below which an axis counts as still
 
 
@@ -149,11 +150,20 @@ class Cia402Axis:
         return state_of(self.feedback.statusword)
 
     def next_controlword(self, stopping: bool) -> int:
-        """Walk the 402 state machine toward OPERATION ENABLED, or quick-stop."""
+        """Walk the 402 state machine toward OPERATION ENABLED, or quick-stop.
+
+        Not stopping, a drive in FAULT is reset (a rising edge of bit 7) and one in
+        QUICK STOP ACTIVE is disabled, and both walk up again from SWITCH ON DISABLED.
+        """
         state = self.state
         if stopping:
             return QUICK_STOP if state == "OPERATION ENABLED" or state == "QUICK STOP ACTIVE" \
                 else SHUTDOWN
+        if state == "FAULT":
+            self.controlword = SHUTDOWN if self.controlword == FAULT_RESET else FAULT_RESET
+            return self.controlword
+        if state == "QUICK STOP ACTIVE":
+            return DISABLE_VOLTAGE
         if state == "SWITCHED ON" and (
                 self.feedback.tpdo_cycle < self._cycle - 1
                 or abs(self.feedback.velocity) > STANDSTILL * self.config.max_velocity):

@@ -65,6 +65,15 @@ class HardwareInterface(ABC):
         """Faults found since the last call (each names the drive and joint)."""
         return []
 
+    def reset_faults(self) -> None:
+        """Clear latched faults and bring every actuator back to following commands; until
+        :attr:`ready`, each holds where it is."""
+
+    @property
+    def ready(self) -> bool:
+        """Whether every actuator follows commands (after start, or after a reset)."""
+        return True
+
     def stop(self) -> None:
         """Leave every actuator disabled (brakes on where fitted)."""
 
@@ -114,6 +123,7 @@ class CanHardwareInterface(HardwareInterface):
         self._joint_slices = [np.array([index[j] for j in t.joints]) for t in self.transmissions]
         self._cycle = 0
         self._stopping = False
+        self._recovering = False
         self._reported: set[tuple[str, str, str]] = set()
         self._pending: list[str] = []
         self._arrived = threading.Condition()
@@ -162,7 +172,7 @@ class CanHardwareInterface(HardwareInterface):
             axis.begin_cycle(self._cycle)
             controlword = axis.next_controlword(self._stopping)
             # until an axis follows setpoints, its setpoint is where it is (no jump on enable)
-            following = axis.state == "OPERATION ENABLED" and not enabling
+            following = axis.state == "OPERATION ENABLED" and not (enabling or self._recovering)
             target = targets[axis.config.actuator] if following else axis.feedback.position
             self._networks[axis.bus_name].send_message(0x200 + axis.node_id,
                                                        axis.rpdo(controlword, target))
@@ -170,6 +180,9 @@ class CanHardwareInterface(HardwareInterface):
             network.send_message(SYNC_ID, b"")
         self._await_feedback()
         self._watch()
+        if self._recovering and not self._stopping and all(
+                a.state == "OPERATION ENABLED" for a in self.axes):
+            self._recovering = False
         return self._joint_feedback()
 
     def _await_feedback(self) -> None:
@@ -231,6 +244,21 @@ class CanHardwareInterface(HardwareInterface):
     @property
     def stopping(self) -> bool:
         return self._stopping
+
+    def reset_faults(self) -> None:
+        """Fault-reset faulted drives, disable quick-stopped ones, and enable them all again at
+        standstill. A fault that persists (a silent drive, a fault still present) is reported
+        again by the next cycles."""
+        self._recovering = True
+        self._stopping = False
+        self._reported.clear()
+        self._pending.clear()
+        for axis in self.axes:
+            axis.last_emcy = None
+
+    @property
+    def ready(self) -> bool:
+        return not (self._stopping or self._recovering)
 
     def stop(self) -> None:
         """Disable every drive (shutdown, then disable voltage), then release the buses."""

@@ -40,6 +40,13 @@ class ControlSamples:
     def __len__(self) -> int:
         return len(self.wall_time)
 
+    @classmethod
+    def empty(cls) -> ControlSamples:
+        """A batch of no cycles (encoding one builds the codec ahead of time)."""
+        none, table = np.zeros(0), np.zeros((0, 0))
+        return cls(0, 0.0, none, none, (), table, table, table, table, table, (), table,
+                   np.zeros((0, 0), dtype=np.uint8), ())
+
     @property
     def next_cycle(self) -> int:
         return self.first_cycle + len(self)

@@ -68,6 +68,7 @@ _DEFINITIONS = {
         "string[] actuator_names\nfloat64[] motor_torque\nuint8[] drive_state\n"
         "string[] state_names",
     "hil_msgs/msg/SimClock": "float64 wall_time\nfloat64 sim_time",
+    "std_srvs/srv/Trigger_Response": "bool success\nstring message",
 }
 
 TYPES = get_typestore(Stores.ROS2_HUMBLE)
@@ -84,6 +85,7 @@ CANCEL_REQUEST = "action_msgs/srv/msg/CancelGoal_Request"   # rosbags files srv 
 CANCEL_RESPONSE = "action_msgs/srv/msg/CancelGoal_Response"
 GOAL_RESULT = "hil_msgs/msg/GoalResult"
 CONTROL_SAMPLES = "hil_msgs/msg/ControlSamples"
+TRIGGER_RESPONSE = "std_srvs/srv/msg/Trigger_Response"
 SIM_CLOCK = "hil_msgs/msg/SimClock"
 
 

@@ -13,6 +13,8 @@ Keys, all under ``hil/<robot>/``:
 ``control/samples``                                    publication, hil_msgs/ControlSamples: every
                                                        control cycle, in batches (10 Hz)
 ``sim/clock``                                          publication, hil_msgs/SimClock (20 Hz)
+``reset_faults``                                       query (no payload) -> std_srvs/Trigger response:
+                                                       reset drive faults, hold, accept goals again
 ``control``, ``sim``, ``viz``                          liveliness tokens of the processes
 =====================================================  ==========================================
 
@@ -52,6 +54,8 @@ class TrajectoryActionServer:
         self.session, self.robot, self.controller, self.clock = session, robot, controller, clock
         self._results: dict[str, GoalResult] = {}
         self._lock = threading.Lock()
+        #: answers a fault reset: () -> (succeeded, message); set by the control loop
+        self.on_reset: Callable[[], tuple[bool, str]] | None = None
         prefix = key(robot, ACTION)
         self._feedback = session.declare_publisher(f"{prefix}/feedback")
         self._result = session.declare_publisher(f"{prefix}/result")
@@ -60,6 +64,7 @@ class TrajectoryActionServer:
             session.declare_queryable(f"{prefix}/send_goal", self._on_send_goal),
             session.declare_queryable(f"{prefix}/cancel_goal", self._on_cancel),
             session.declare_queryable(f"{prefix}/get_result", self._on_get_result),
+            session.declare_queryable(key(robot, "reset_faults"), self._on_reset),
         ]
 
     def _warm_up(self) -> None:
@@ -122,6 +127,14 @@ class TrajectoryActionServer:
             return
         query.reply(query.key_expr, T.encode(T.result_msg(T.goal_id_of(request.goal_id), result)))
 
+    def _on_reset(self, query: zenoh.Query) -> None:
+        if self.on_reset is None:
+            query.reply_err("this controller cannot reset faults")
+            return
+        succeeded, message = self.on_reset()
+        query.reply(query.key_expr, T.encode(T.msg(T.TRIGGER_RESPONSE, success=succeeded,
+                                                     message=message)))
+
     def publish_feedback(self) -> None:
         state = self.controller.state()
         if state.goal_id is None:
@@ -164,6 +177,7 @@ class ControlSamplesPublisher:
         # BLOCK: a recording must not lose cycles to a momentarily slow subscriber
         self._publisher = session.declare_publisher(
             key(robot, "control/samples"), congestion_control=zenoh.CongestionControl.BLOCK)
+        ControlSamples.empty().encode()    # rosbags builds its codec on first use: not in a cycle
 
     def publish(self, samples: ControlSamples) -> None:
         self._publisher.put(samples.encode())
@@ -352,6 +366,16 @@ class TrajectoryActionClient:
         if not replies or replies[0].err is not None:
             return False
         return T.decode(replies[0].ok.payload.to_bytes(), T.CANCEL_RESPONSE).return_code == 0
+
+    def reset_faults(self, timeout: float = 15.0) -> tuple[bool, str]:
+        """Ask the controller to reset drive faults; (succeeded, what happened)."""
+        replies = list(self.session.get(key(self.robot, "reset_faults"), timeout=timeout))
+        if not replies:
+            raise ControllerGone(f"no controller answered on {key(self.robot, 'reset_faults')}")
+        if replies[0].err is not None:
+            return False, replies[0].err.payload.to_bytes().decode(errors="replace")
+        response = T.decode(replies[0].ok.payload.to_bytes(), T.TRIGGER_RESPONSE)
+        return response.success, response.message
 
     def wait_result(self, goal_id: str, timeout: float,
                     on_feedback: Callable | None = None) -> GoalResult:
