@@ -61,6 +61,7 @@ class DriveConfig:
     position_limits: tuple[float, float] | None
     gains: Gains | None
     velocity_bandwidth_hz: float
+    options: object | None = None     # the protocol's own settings (its profile's Options)
     line: int | None = None
 
     @property
@@ -82,12 +83,21 @@ class BusConfig:
     def cycle(self) -> float:
         return 1.0 / self.cycle_hz
 
+    @property
+    def uses_sync(self) -> bool:
+        return any(PROFILES[d.protocol].uses_sync for d in self.drives)
+
+    def frames(self, drive: DriveConfig) -> list[tuple[int, int, float]]:
+        """(id, payload bytes, frames/s) of one drive's traffic, as its profile says."""
+        return PROFILES[drive.protocol].bus_frames(drive.node_id, self.cycle_hz,
+                                                   drive.heartbeat_period, drive.options)
+
     def load(self) -> BusLoad:
-        """Worst-case traffic of the cyclic exchange plus heartbeats."""
-        streams = [(SYNC_PAYLOAD, self.cycle_hz)]
+        """Worst-case traffic of every drive's cyclic exchange and timed messages (each
+        profile's own frames and lengths), plus SYNC where a CANopen drive needs it."""
+        streams = [(SYNC_PAYLOAD, self.cycle_hz)] if self.uses_sync else []
         for drive in self.drives:
-            streams += [(p, self.cycle_hz) for p in PROFILES[drive.protocol].cyclic_payloads]
-            streams.append((HEARTBEAT_PAYLOAD, 1.0 / drive.heartbeat_period))
+            streams += [(payload, rate) for _, payload, rate in self.frames(drive) if rate > 0]
         return bus_load(self.bitrate, streams)
 
 
@@ -200,7 +210,8 @@ _BUS_KEYS = {"name", "interface", "channel", "bitrate", "cycle_hz", "drives"}
 _DRIVE_KEYS = {"node_id", "joint", "actuator", "protocol", "encoder_counts_per_rev",
                "rated_torque", "peak_torque", "max_velocity", "following_error_limit",
                "following_error_timeout", "quick_stop_deceleration", "watchdog_timeout",
-               "heartbeat_period", "holding_brake", "gains", "velocity_bandwidth_hz"}
+               "heartbeat_period", "holding_brake", "gains", "velocity_bandwidth_hz",
+               "options"}
 _GAIN_KEYS = {"position_kp", "velocity_kp", "velocity_ki"}
 
 
@@ -283,18 +294,23 @@ def _read_drive(reader: _Reader, raw, bus: str, robot: RobotDescription,
     merged.line, merged.key_lines = own.line, {**defaults.key_lines, **own.key_lines}
     node_id = reader.number(merged, "node_id", f"{bus} drive", 0, integer=True, positive=False)
     what = f"{bus} node {node_id}"
-    if not 1 <= node_id <= 127:
-        reader.fail(f"{what}: node id {node_id} is outside 1..127", merged.key_lines.get(
-            "node_id", merged.line), hint="CANopen node ids are 1..127")
-    found = _find_actuator(reader, merged, what, robot, transmissions)
-    if found is None:
-        return None
-    transmission, k = found
     protocol = reader.text(merged, "protocol", what, "cia402")
     if protocol not in PROFILES:
         reader.fail(f"{what}: unknown protocol '{protocol}'",
                     merged.key_lines.get("protocol", merged.line),
                     hint=f"use one of: {', '.join(PROFILES)}")
+        return None
+    profile = PROFILES[protocol]
+    if node_id not in profile.node_ids:
+        ids = profile.node_ids
+        reader.fail(f"{what}: node id {node_id} is outside {ids.start}..{ids.stop - 1}",
+                    merged.key_lines.get("node_id", merged.line),
+                    hint=f"{protocol} node ids are {ids.start}..{ids.stop - 1}")
+    options = _read_options(reader, merged, what, profile)
+    found = _find_actuator(reader, merged, what, robot, transmissions)
+    if found is None:
+        return None
+    transmission, k = found
     joint_limits = [robot.joint(j).limits for j in transmission.joints]
     motor_torque = transmission.actuator_effort_limits([lim.effort for lim in joint_limits])[k]
     motor_speed = abs(transmission.position_matrix[k]) @ [lim.velocity for lim in joint_limits]
@@ -336,7 +352,32 @@ def _read_drive(reader: _Reader, raw, bus: str, robot: RobotDescription,
         position_limits=_motor_limits(robot, transmission),
         gains=gains,
         velocity_bandwidth_hz=float(reader.number(merged, "velocity_bandwidth_hz", what, 40.0)),
-        line=own.line)
+        options=options, line=own.line)
+
+
+def _read_options(reader: _Reader, drive: _Mapping, what: str, profile) -> object | None:
+    """The protocol's own settings (``options:``), validated by its profile."""
+    raw = drive.get("options", _Mapping())
+    line = drive.key_lines.get("options", drive.line)
+    if profile.Options is None:
+        if raw:
+            reader.fail(f"{what}: protocol '{profile.protocol}' takes no 'options'", line)
+        return None
+    if not isinstance(raw, dict):
+        reader.fail(f"{what}: 'options' must be a mapping", line)
+        return None
+    unknown = sorted(set(raw) - set(profile.Options.KEYS))
+    if unknown:
+        reader.fail(f"{what}: unknown option(s) {', '.join(unknown)} for protocol "
+                    f"'{profile.protocol}'", line,
+                    hint=f"{profile.protocol} options: {', '.join(profile.Options.KEYS)}")
+        return None
+    try:
+        return profile.Options.from_mapping(dict(raw))
+    except (ValueError, TypeError) as exc:
+        reader.fail(f"{what}: options: {exc}", line,
+                    hint=f"{profile.protocol} options: {', '.join(profile.Options.KEYS)}")
+        return None
 
 
 def _find_actuator(reader: _Reader, drive: _Mapping, what: str, robot: RobotDescription,
@@ -386,13 +427,15 @@ def _check_system(reader: _Reader, config: SystemConfig, transmissions, top: _Ma
     for bus in config.buses:
         if names.count(bus.name) > 1:
             reader.fail(f"bus name '{bus.name}' is used twice", bus.line)
-        seen: dict[int, DriveConfig] = {}
+        seen: dict[tuple[str, int], DriveConfig] = {}     # node ids are per protocol
         for drive in bus.drives:
-            if drive.node_id in seen:
+            key = (drive.protocol, drive.node_id)
+            if key in seen:
                 reader.fail(f"bus '{bus.name}': node id {drive.node_id} is used by "
-                            f"{seen[drive.node_id].label} (line {seen[drive.node_id].line}) and "
+                            f"{seen[key].label} (line {seen[key].line}) and "
                             f"{drive.label}", drive.line, hint="give every drive on a bus its own node id")
-            seen[drive.node_id] = drive
+            seen[key] = drive
+        _check_ids(reader, bus)
         ratio = config.plant_rate_hz / bus.cycle_hz
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             reader.fail(f"bus '{bus.name}': cycle_hz {bus.cycle_hz:g} does not divide "
@@ -417,6 +460,29 @@ def _check_system(reader: _Reader, config: SystemConfig, transmissions, top: _Ma
                 reader.fail(f"actuator '{actuator}' (joint {', '.join(transmission.joints)}) "
                             "has no drive", top.key_lines.get("buses"),
                             hint="add a drive for it to one of the buses")
+
+
+def _check_ids(reader: _Reader, bus: BusConfig) -> None:
+    """Two drives (of any protocols) must not use the same CAN id on one bus."""
+    owners: dict[int, str] = {}
+    if bus.uses_sync:
+        owners.update({0x000: "CANopen NMT", 0x080: "CANopen SYNC"})
+    shared: dict[int, str] = {}
+    for drive in bus.drives:
+        profile = PROFILES[drive.protocol]
+        label = f"{drive.label} ({drive.protocol})"
+        for can_id in sorted({frame[0] for frame in bus.frames(drive)}):
+            if can_id in profile.shared_ids(drive.options) and shared.get(can_id) == drive.protocol:
+                continue
+            if can_id in owners:
+                reader.fail(f"bus '{bus.name}': CAN id 0x{can_id:03X} is used by {owners[can_id]} "
+                            f"and by {label}", drive.line,
+                            hint="change a node id (or a protocol option such as reply_id), or "
+                                 "put the drives on separate buses")
+                continue
+            owners[can_id] = label
+            if can_id in profile.shared_ids(drive.options):
+                shared[can_id] = drive.protocol
 
 
 def _check_load(reader: _Reader, bus: BusConfig) -> None:

@@ -3,11 +3,12 @@
 Two time modes:
 
 * real-time: the plant steps at its rate, paced by the wall clock; drives
-  answer each SYNC at once with the latest state;
-* lock-step: the plant advances exactly one control period per SYNC (once
-  SYNC has arrived on every bus), so a run is reproducible bit for bit and
-  may go faster than real time. The TPDOs of the last bus to see SYNC leave
-  only after the step, so the controller cannot start the next cycle early.
+  answer each cycle's command (SYNC, or a command frame) at once with the
+  latest state, and send their timed messages when due;
+* lock-step: the plant advances exactly one control period once every drive
+  has had its command of the cycle, so a run is reproducible bit for bit and
+  may go faster than real time. The replies leave only after the step, so
+  the controller cannot start the next cycle early.
 
 Threads: python-can's Notifier calls back per bus; one re-entrant lock
 guards the plant and all drives. The watchdogs run on the wall clock in both
@@ -28,8 +29,8 @@ import mujoco
 import numpy as np
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig
-from hil.drives import PROFILES, DriveCore, DriveParameters
-from hil.drives.cia402 import SYNC_ID
+from hil.drives import PROFILES, DriveCore, DriveParameters, DriveProfile
+from hil.drives.profile import start_network
 from hil.plant import Plant
 
 log = logging.getLogger(__name__)
@@ -55,7 +56,8 @@ def drive_parameters(drive: DriveConfig, motor_inertia: float) -> DriveParameter
         counts_per_rev=drive.encoder_counts_per_rev, rated_torque=drive.rated_torque,
         peak_torque=drive.peak_torque, position_kp=position_kp, velocity_kp=velocity_kp,
         velocity_ki=velocity_ki, max_velocity=drive.max_velocity,
-        following_error_limit=drive.following_error_limit,
+        following_error_limit=(drive.following_error_limit
+                               if PROFILES[drive.protocol].has_following_error else 0.0),
         following_error_timeout=drive.following_error_timeout,
         quick_stop_deceleration=drive.quick_stop_deceleration,
         watchdog_timeout=drive.watchdog_timeout, position_limits=drive.position_limits,
@@ -82,9 +84,8 @@ def motor_inertias(plant: Plant) -> dict[str, float]:
 class _BusRuntime:
     config: BusConfig
     bus: can.BusABC
-    network: canopen.Network
     drives: list
-    syncs_waiting: int = 0
+    network: canopen.Network | None = None      # started by Simulator.start
 
 
 class Simulator:
@@ -104,19 +105,20 @@ class Simulator:
         self.drives = []
         self._drive_actuators: list[int] = []   # plant actuator index of each drive
         for bus_config in config.buses:
-            network = canopen.Network(buses[bus_config.name])
             drives = []
             for drive_config in bus_config.drives:
                 core = DriveCore(drive_parameters(drive_config, inertias[drive_config.actuator]))
                 core.set_cycle(bus_config.cycle)
                 drive = PROFILES[drive_config.protocol](
                     drive_config.node_id, core, self.lock, drive_config.rated_torque,
-                    heartbeat_ms=round(drive_config.heartbeat_period * 1000))
+                    drive_config.heartbeat_period, drive_config.options)
+                drive.on_command = self._on_command
                 drives.append(drive)
                 self._drive_actuators.append(actuator_index[drive_config.actuator])
-            self._runtimes.append(_BusRuntime(bus_config, buses[bus_config.name], network, drives))
+            self._runtimes.append(_BusRuntime(bus_config, buses[bus_config.name], drives))
             self.drives += drives
         self._torques = np.zeros(len(self.plant.actuator_names))
+        self._waiting: set[DriveProfile] = set(self.drives)   # lock-step: no command yet
         self._stop = threading.Event()
         self._measure()
 
@@ -125,10 +127,9 @@ class Simulator:
     def start(self) -> None:
         """Connect every drive to its bus: boot-up messages, heartbeats, SYNC handling."""
         for runtime in self._runtimes:
-            runtime.network.notifier = can.Notifier(runtime.bus, runtime.network.listeners, 0.2)
+            runtime.network = start_network(runtime.bus, 0.2)
             for drive in runtime.drives:
                 drive.attach(runtime.network)
-            runtime.network.subscribe(SYNC_ID, self._sync_handler(runtime))
 
     def close(self) -> None:
         """Disable every drive (brakes on), stop heartbeats, release the buses."""
@@ -139,9 +140,9 @@ class Simulator:
         for runtime in self._runtimes:
             for drive in runtime.drives:
                 drive.detach()
-            if runtime.network.notifier is not None:
+            if runtime.network is not None:
                 runtime.network.notifier.stop(1.0)
-            runtime.network.bus = None
+                runtime.network.bus = None
 
     def stop(self) -> None:
         self._stop.set()
@@ -193,36 +194,29 @@ class Simulator:
             drive.core.measure(positions[actuator], velocities[actuator])
 
     def _check_watchdogs(self) -> None:
+        """Watchdogs and timed messages (heartbeats, cyclic rates), every WATCHDOG_PERIOD of
+        wall-clock time in both modes."""
         now = time.monotonic()
         with self.lock:
             for drive in self.drives:
                 drive.core.check_watchdog(now)
                 drive.after_update()
+                drive.tick(now)
 
-    def _sync_handler(self, runtime: _BusRuntime):
-        def on_sync(can_id: int, data: bytes, timestamp: float) -> None:
-            with self.lock:
-                for drive in runtime.drives:
-                    drive.sync_receive(data)
-                    drive.prepare_tpdos()
-                if not self.lock_step:
-                    self._send(runtime)
-                    return
-                runtime.syncs_waiting += 1
-                if any(r.syncs_waiting == 0 for r in self._runtimes):
-                    return          # other buses have not seen this cycle's SYNC yet
-                for _ in range(self.steps_per_cycle):
-                    self._step()
-                self.cycles += 1
-                for waiting in self._runtimes:
-                    waiting.syncs_waiting -= 1
-                    self._send(waiting)
-        return on_sync
-
-    @staticmethod
-    def _send(runtime: _BusRuntime) -> None:
-        for drive in runtime.drives:
-            drive.send_tpdos()
+    def _on_command(self, drive: DriveProfile) -> None:
+        """A drive has its command of this cycle (called with the lock held)."""
+        if not self.lock_step:
+            drive.send_replies()
+            return
+        self._waiting.discard(drive)
+        if self._waiting:
+            return                  # other drives have not had this cycle's command yet
+        for _ in range(self.steps_per_cycle):
+            self._step()
+        self.cycles += 1
+        self._waiting = {d for d in self.drives if d.attached}
+        for each in self.drives:
+            each.send_replies()
 
     # --- status -------------------------------------------------------------------
 
@@ -238,6 +232,6 @@ class Simulator:
                     positions = " ".join(f"{j}={joints[j]:+.4f}" for j in config.joints)
                     fault = f"  FAULT {status.fault.text}" if status.fault else ""
                     lines.append(f"  {runtime.config.name:>8} node {drive.node_id:>3} "
-                                 f"{drive.node.nmt.state:<15} {drive.machine.state.name:<22} "
+                                 f"{drive.protocol:<7} {drive.state_text:<34} "
                                  f"{positions}  torque {status.torque:+.4f} N·m{fault}")
             return lines

@@ -6,9 +6,10 @@ config, the way python-can picks an interface.
 
 from hil.drives.cia402 import Cia402Drive
 from hil.drives.core import DriveCore, DriveParameters, DriveStatus, Fault, Mode, Power
+from hil.drives.profile import DriveProfile
 
 #: protocol name -> drive class
 PROFILES = {"cia402": Cia402Drive}
 
-__all__ = ["Cia402Drive", "DriveCore", "DriveParameters", "DriveStatus",
+__all__ = ["Cia402Drive", "DriveCore", "DriveParameters", "DriveProfile", "DriveStatus",
            "Fault", "Mode", "PROFILES", "Power"]

@@ -9,12 +9,11 @@ the object dictionary, and implements no 402 device (canopen issues #555,
 Threading: canopen calls back from python-can's Notifier thread. Every
 callback takes the ``lock`` the owner passes in, the same lock the owner
 holds while stepping the physics, so a drive never sees a half-done step.
-For every SYNC on the drive's bus the owner calls
-:meth:`Cia402Drive.sync_receive` (take setpoints), then
-:meth:`Cia402Drive.prepare_tpdos` (sample the state) and
-:meth:`Cia402Drive.send_tpdos`; in lock-step it steps the physics between
-the last two, so the reply carries the state at SYNC and arrives only once
-the step is done.
+At every SYNC the drive takes its latched setpoints, samples the state its
+TPDOs will carry and reports the cycle's command (:class:`DriveProfile`'s
+contract); the owner sends the TPDOs at once, or in lock-step after the
+step, so the reply carries the state at SYNC and arrives only once the step
+is done.
 """
 
 from __future__ import annotations
@@ -32,6 +31,7 @@ import canopen
 from canopen.sdo import SdoAbortedError
 
 from hil.drives.core import DriveCore, Fault, Mode, Power
+from hil.drives.profile import DriveProfile
 
 log = logging.getLogger(__name__)
 
@@ -148,20 +148,18 @@ def statusword(state: State, core: DriveCore) -> int:
     return word
 
 
-class Cia402Drive:
+class Cia402Drive(DriveProfile):
     """A CiA 402 servo drive on a CANopen network, around a :class:`DriveCore`."""
 
-    #: Payload bytes of the frames one drive exchanges per SYNC with the default
-    #: mapping: RPDO1 (controlword + target), TPDO1, TPDO2.
-    cyclic_payloads = (6, 6, 6)
+    protocol = "cia402"
+    uses_sync = True
 
     def __init__(self, node_id: int, core: DriveCore, lock: threading.RLock,
-                 rated_torque: float, heartbeat_ms: int = 100, eds: Path = EDS_PATH):
-        self.node_id = node_id
-        self.core = core
-        self.lock = lock
-        self.attached = False      # on a bus; a detached drive is silent (its physics runs on)
+                 rated_torque: float, heartbeat_period: float = 0.1, options=None,
+                 eds: Path = EDS_PATH):
+        super().__init__(node_id, core, lock)
         self.rated_torque = rated_torque
+        heartbeat_ms = round(heartbeat_period * 1000)
         self.machine = Cia402StateMachine(core)
         self.node = canopen.LocalNode(node_id, str(eds))
         self._heartbeat_ms = heartbeat_ms
@@ -175,26 +173,40 @@ class Cia402Drive:
 
     # --- network life cycle ---------------------------------------------------
 
+    @classmethod
+    def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float, options=None
+                   ) -> list[tuple[int, int, float]]:
+        """(arbitration id, payload bytes, frames/s) of the default mapping's exchange:
+        RPDO1 (controlword, target), TPDO1, TPDO2 per SYNC; heartbeat; EMCY and SDO
+        only on events (their ids are reserved)."""
+        return [(0x200 + node_id, 6, cycle_hz), (0x180 + node_id, 6, cycle_hz),
+                (0x280 + node_id, 6, cycle_hz), (0x700 + node_id, 1, 1.0 / heartbeat_period),
+                (0x080 + node_id, 8, 0.0), (0x580 + node_id, 8, 0.0), (0x600 + node_id, 8, 0.0)]
+
+    def subscriptions(self):
+        return {NMT_ID: self._after_nmt, SYNC_ID: self._on_sync}
+
     def attach(self, network: canopen.Network) -> None:
         """Join the network: PDO maps from the object dictionary, boot-up, heartbeat."""
         network.add_node(self.node)
-        network.subscribe(NMT_ID, self._after_nmt)
+        super().attach(network)
         self._configure_pdos()
-        self.attached = True
         self._boot()
 
     def detach(self) -> None:
-        """Leave the bus: from now on the drive sends and hears nothing (idempotent)."""
         if not self.attached:
             return
-        self.attached = False
-        network = self.node.network
+        network = self.network
         self.node.nmt.stop_heartbeat()
-        network.unsubscribe(NMT_ID, self._after_nmt)
+        super().detach()
         for pdo in self.node.rpdo.map.values():
-            if pdo.enabled and pdo.cob_id in network.subscribers:
+            if pdo.enabled and pdo.on_message in network.subscribers.get(pdo.cob_id, []):
                 network.unsubscribe(pdo.cob_id, pdo.on_message)
         self.node.remove_network()
+
+    @property
+    def state_text(self) -> str:
+        return f"{self.node.nmt.state} {self.machine.state.name}"
 
     def _boot(self) -> None:
         """Boot-up message, pre-operational, heartbeat (CiA 301 initialisation)."""
@@ -250,6 +262,12 @@ class Cia402Drive:
             if pdo.trans_type is not None and pdo.trans_type >= 254:
                 self._apply(number)
 
+    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:
+        with self.lock:
+            self.sync_receive(data)
+            self.prepare_tpdos()
+            self.on_command(self)
+
     def sync_receive(self, data: bytes) -> None:
         """SYNC: take the latched setpoints (caller holds the lock)."""
         if len(data) > 1:
@@ -274,14 +292,11 @@ class Cia402Drive:
                         variable.raw = values[variable.index]
                 self._pending.append((pdo.cob_id, bytes(pdo.data)))
 
-    def send_tpdos(self) -> None:
-        """Send what :meth:`prepare_tpdos` packed."""
-        if not self.attached:
-            self._pending = []
-            return
-        for cob_id, data in self._pending:
-            self.node.network.send_message(cob_id, data)
-        self._pending = []
+    def send_replies(self) -> None:
+        """Send the TPDOs :meth:`prepare_tpdos` packed."""
+        pending, self._pending = self._pending, []
+        for cob_id, data in pending:
+            self.send(cob_id, data)
 
     def _apply(self, number: int) -> None:
         pdo = self.node.rpdo.map[number]

@@ -34,6 +34,8 @@ class Mode(enum.Enum):
     POSITION = "position"
     VELOCITY = "velocity"
     TORQUE = "torque"
+    #: torque = kp (p - p_actual) + kd (v - v_actual) + torque feed-forward (MIT motors)
+    IMPEDANCE = "impedance"
 
 
 class Fault(enum.Enum):
@@ -116,6 +118,10 @@ class DriveCore:
         self._cycle = 1e-3
         self._target_velocity = 0.0
         self._target_torque = 0.0
+        self._velocity_ff = 0.0          # position mode: added to the position loop's output
+        self._torque_ff = 0.0            # position/velocity mode: added to the velocity loop's
+        self._stiffness = 0.0            # impedance mode: kp (N·m/rad), kd (N·m·s/rad)
+        self._damping = 0.0
         self._stop_velocity = 0.0
         self._following_time = 0.0
         self._following_error = 0.0
@@ -138,6 +144,7 @@ class DriveCore:
             self._segment_start = self._segment_end = self._position
             self._segment_elapsed = self._cycle
             self._target_velocity = self._target_torque = 0.0
+            self._velocity_ff = self._torque_ff = self._stiffness = self._damping = 0.0
         self.power = Power.ENABLED
 
     def disable(self) -> None:
@@ -168,8 +175,20 @@ class DriveCore:
         self._cycle = cycle
 
     def new_setpoint(self, position: float | None = None, velocity: float | None = None,
-                     torque: float | None = None, now: float | None = None) -> None:
-        """A cyclic setpoint, taken at SYNC: starts a new interpolation segment."""
+                     torque: float | None = None, now: float | None = None, *,
+                     velocity_ff: float | None = None, torque_ff: float | None = None,
+                     stiffness: float | None = None, damping: float | None = None) -> None:
+        """A cyclic setpoint: a position starts a new interpolation segment (position mode)
+        or is the impedance target; ``velocity``/``torque`` are the velocity/torque mode
+        targets, or the impedance mode's v_des and feed-forward torque."""
+        if velocity_ff is not None:
+            self._velocity_ff = velocity_ff
+        if torque_ff is not None:
+            self._torque_ff = torque_ff
+        if stiffness is not None:
+            self._stiffness = stiffness
+        if damping is not None:
+            self._damping = damping
         if position is not None:
             self._segment_start = self._interpolated_target()
             self._segment_end = self._clamp_to_limits(position)
@@ -222,15 +241,21 @@ class DriveCore:
             return self._target_torque
         if self.mode is Mode.VELOCITY:
             self._following_error = 0.0
-            return self._velocity_loop(self._target_velocity, dt)
+            return self._velocity_loop(self._target_velocity, dt) + self._torque_ff
+        if self.mode is Mode.IMPEDANCE:
+            # no interpolation, no following-error check: the firmware of MIT motors has none
+            self._following_error = self._segment_end - self._position
+            return (self._stiffness * self._following_error
+                    + self._damping * (self._target_velocity - self._velocity)
+                    + self._target_torque)
         self._segment_elapsed = min(self._segment_elapsed + dt, self._cycle)
         target = self._interpolated_target()
         feed_forward = ((self._segment_end - self._segment_start) / self._cycle
                         if self._segment_elapsed < self._cycle else 0.0)
         self._following_error = target - self._position
         self._check_following_error(dt)
-        velocity = feed_forward + p.position_kp * self._following_error
-        return self._velocity_loop(velocity, dt)
+        velocity = feed_forward + self._velocity_ff + p.position_kp * self._following_error
+        return self._velocity_loop(velocity, dt) + self._torque_ff
 
     def _quick_stop_torque(self, dt: float) -> float:
         p = self.parameters

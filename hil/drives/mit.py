@@ -1,0 +1,212 @@
+"""The MIT motor protocol (mini-cheetah motor controller firmware; CubeMars AK, Damiao).
+
+A command is one 8-byte frame to the motor's CAN id: position (16 bit),
+velocity, kp, kd and feed-forward torque (12 bit each), every value mapped
+linearly onto its configured range and truncated to an unsigned integer, as
+the firmware's ``float_to_uint`` does. Three special frames (``FF..FC``
+enter motor mode, ``FF..FD`` exit, ``FF..FE`` set zero) switch the motor.
+Every frame is answered with 6 bytes to the master's id: motor id, position
+(16), velocity (12), torque (12). In motor mode the motor applies
+``tau = kp (p_des - p) + kd (v_des - v) + t_ff`` on its shaft, saturated.
+
+The packing is plain integer arithmetic: no library implements it (the
+firmware is C), and cantools has no signals for values packed across
+nibbles with per-motor ranges.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+
+from hil.drives.core import DriveCore, Fault, Mode, Power
+from hil.drives.profile import DriveProfile
+
+ENTER_MOTOR_MODE = bytes([0xFF] * 7 + [0xFC])
+EXIT_MOTOR_MODE = bytes([0xFF] * 7 + [0xFD])
+SET_ZERO = bytes([0xFF] * 7 + [0xFE])
+
+
+@dataclass(frozen=True)
+class MitRanges:
+    """Per-motor ranges of the packed values (firmware defaults: the classic mini-cheetah)."""
+
+    p_max: float = 12.5        # rad, position in [-p_max, p_max]
+    v_max: float = 65.0        # rad/s
+    kp_max: float = 500.0      # N·m/rad, kp in [0, kp_max]
+    kd_max: float = 5.0        # N·m·s/rad
+    t_max: float = 18.0        # N·m
+
+
+@dataclass(frozen=True)
+class MitOptions:
+    """A MIT motor's settings in a bus config (``options:`` of the drive)."""
+
+    ranges: MitRanges = MitRanges()
+    reply_id: int = 0          # the master's CAN id, which every reply is sent to
+    kp: float = 0.0            # the master's gains (motor side); required by the master
+    kd: float = 0.0
+
+    KEYS = ("p_max", "v_max", "kp_max", "kd_max", "t_max", "reply_id", "kp", "kd")
+
+    @classmethod
+    def from_mapping(cls, values: dict) -> MitOptions:
+        """Raise ValueError naming the key for anything out of range."""
+        ranges = MitRanges(**{k: float(values[k]) for k in
+                              ("p_max", "v_max", "kp_max", "kd_max", "t_max") if k in values})
+        for name in ("p_max", "v_max", "kp_max", "kd_max", "t_max"):
+            if not getattr(ranges, name) > 0:
+                raise ValueError(f"'{name}' must be > 0")
+        options = cls(ranges, int(values.get("reply_id", 0)), float(values.get("kp", 0.0)),
+                      float(values.get("kd", 0.0)))
+        if not 0 <= options.reply_id <= 0x7FF:
+            raise ValueError(f"'reply_id' {options.reply_id} is not an 11-bit CAN id")
+        if not (0 < options.kp <= ranges.kp_max and 0 <= options.kd <= ranges.kd_max):
+            raise ValueError(f"'kp' must be in (0, {ranges.kp_max:g}] and 'kd' in "
+                             f"[0, {ranges.kd_max:g}] (the master's motor-side gains)")
+        return options
+
+
+def float_to_uint(value: float, low: float, high: float, bits: int) -> int:
+    """The firmware's packing: clamp, scale onto 0..2^bits-1, truncate."""
+    value = min(max(value, low), high)
+    return int((value - low) * ((1 << bits) - 1) / (high - low))
+
+
+def uint_to_float(value: int, low: float, high: float, bits: int) -> float:
+    return value * (high - low) / ((1 << bits) - 1) + low
+
+
+@dataclass(frozen=True)
+class MitCommand:
+    position: float
+    velocity: float
+    kp: float
+    kd: float
+    torque: float
+
+
+def pack_command(command: MitCommand, ranges: MitRanges) -> bytes:
+    r = ranges
+    p = float_to_uint(command.position, -r.p_max, r.p_max, 16)
+    v = float_to_uint(command.velocity, -r.v_max, r.v_max, 12)
+    kp = float_to_uint(command.kp, 0.0, r.kp_max, 12)
+    kd = float_to_uint(command.kd, 0.0, r.kd_max, 12)
+    t = float_to_uint(command.torque, -r.t_max, r.t_max, 12)
+    return bytes([p >> 8, p & 0xFF, v >> 4, ((v & 0xF) << 4) | (kp >> 8), kp & 0xFF, kd >> 4,
+                  ((kd & 0xF) << 4) | (t >> 8), t & 0xFF])
+
+
+def unpack_command(data: bytes, ranges: MitRanges) -> MitCommand:
+    r = ranges
+    p = (data[0] << 8) | data[1]
+    v = (data[2] << 4) | (data[3] >> 4)
+    kp = ((data[3] & 0xF) << 8) | data[4]
+    kd = (data[5] << 4) | (data[6] >> 4)
+    t = ((data[6] & 0xF) << 8) | data[7]
+    return MitCommand(uint_to_float(p, -r.p_max, r.p_max, 16),
+                      uint_to_float(v, -r.v_max, r.v_max, 12),
+                      uint_to_float(kp, 0.0, r.kp_max, 12), uint_to_float(kd, 0.0, r.kd_max, 12),
+                      uint_to_float(t, -r.t_max, r.t_max, 12))
+
+
+@dataclass(frozen=True)
+class MitReply:
+    motor_id: int
+    position: float
+    velocity: float
+    torque: float
+
+
+def pack_reply(reply: MitReply, ranges: MitRanges) -> bytes:
+    r = ranges
+    p = float_to_uint(reply.position, -r.p_max, r.p_max, 16)
+    v = float_to_uint(reply.velocity, -r.v_max, r.v_max, 12)
+    t = float_to_uint(reply.torque, -r.t_max, r.t_max, 12)
+    return bytes([reply.motor_id, p >> 8, p & 0xFF, v >> 4, ((v & 0xF) << 4) | (t >> 8),
+                  t & 0xFF])
+
+
+def unpack_reply(data: bytes, ranges: MitRanges) -> MitReply:
+    r = ranges
+    p = (data[1] << 8) | data[2]
+    v = (data[3] << 4) | (data[4] >> 4)
+    t = ((data[4] & 0xF) << 8) | data[5]
+    return MitReply(data[0], uint_to_float(p, -r.p_max, r.p_max, 16),
+                    uint_to_float(v, -r.v_max, r.v_max, 12),
+                    uint_to_float(t, -r.t_max, r.t_max, 12))
+
+
+class MitDrive(DriveProfile):
+    """A quasi-direct-drive motor speaking the MIT protocol, around a DriveCore."""
+
+    protocol = "mit"
+    Options = MitOptions
+    has_following_error = False
+
+    def __init__(self, node_id: int, core: DriveCore, lock: threading.RLock,
+                 rated_torque: float, heartbeat_period: float = 0.1,
+                 options: MitOptions | None = None):
+        super().__init__(node_id, core, lock)
+        self.options = options or MitOptions()
+        self.ranges = self.options.ranges
+        self._zero = 0.0             # motor position at "set zero"
+        self._reply = b""
+        core.set_mode(Mode.IMPEDANCE)
+
+    @classmethod
+    def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float,
+                   options: MitOptions | None = None) -> list[tuple[int, int, float]]:
+        options = options or MitOptions()
+        return [(node_id, 8, cycle_hz), (options.reply_id, 6, cycle_hz)]
+
+    @classmethod
+    def shared_ids(cls, options: MitOptions | None = None) -> set[int]:
+        """Every motor replies to the master's one id (telling itself by the first byte)."""
+        return {(options or MitOptions()).reply_id}
+
+    def subscriptions(self):
+        return {self.node_id: self._on_frame}
+
+    def _on_frame(self, can_id: int, data: bytes, timestamp: float) -> None:
+        if len(data) != 8:
+            self.malformed += 1          # the firmware ignores frames that are not 8 bytes
+            return
+        with self.lock:
+            data = bytes(data)
+            if data == ENTER_MOTOR_MODE:
+                self.core.enable()          # with zero gains until the first command
+                self.core.new_setpoint(position=self.core.status().position, velocity=0.0,
+                                       torque=0.0, stiffness=0.0, damping=0.0)
+            elif data == EXIT_MOTOR_MODE:
+                self.core.disable()
+            elif data == SET_ZERO:
+                self._zero = self.core.status().position
+            elif self.core.power is Power.ENABLED:
+                command = unpack_command(data, self.ranges)
+                self.core.new_setpoint(position=command.position + self._zero,
+                                       velocity=command.velocity, torque=command.torque,
+                                       stiffness=command.kp, damping=command.kd,
+                                       now=time.monotonic())
+            status = self.core.status()
+            self._reply = pack_reply(MitReply(self.node_id, status.position - self._zero,
+                                              status.velocity, status.torque), self.ranges)
+            self.on_command(self)
+
+    def send_replies(self) -> None:
+        reply, self._reply = self._reply, b""
+        if reply:
+            self.send(self.options.reply_id, reply)
+
+    def after_update(self) -> None:
+        events, self.core.events = self.core.events, []
+        if Fault.CONTROLLER_SILENT in events:
+            # the firmware's CAN timeout: leave motor mode (no torque), nothing is reported
+            self.core.disable()
+
+    @property
+    def state_text(self) -> str:
+        if self.core.power is Power.FAULT:
+            return f"FAULT ({self.core.fault.text})"
+        return "MOTOR MODE" if self.core.power is Power.ENABLED else "REST MODE"

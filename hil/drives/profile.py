@@ -1,0 +1,149 @@
+"""The seam between a drive's CAN protocol and its :class:`~hil.drives.core.DriveCore`.
+
+Like python-can's ``BusABC``: one narrow abstract interface, the shared
+behaviour in the base, concrete profiles picked by a string
+(``PROFILES[protocol]``). Physics, limits, faults, the watchdog and the
+brake live in the core; a profile only turns frames into core commands and
+core state into frames.
+
+Every profile uses a ``canopen.Network`` as its bus: python canopen's
+network is a frame dispatcher by arbitration id (``subscribe``) over a
+python-can bus with a Notifier, whatever the protocol.
+
+Cycle contract with the simulator: when a drive receives its cyclic command
+(SYNC for CiA 402, a command frame for MIT and ODrive), it applies it,
+samples the state its reply will carry, and calls :attr:`on_command`. In
+real time the simulator answers at once (:meth:`send_replies`); in lock-step
+it first advances the plant one control period, once every drive has had its
+command.
+"""
+
+from __future__ import annotations
+
+import threading
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from typing import ClassVar
+
+import can
+import canopen
+
+from hil.drives.core import DriveCore
+
+
+class RemoteFrames(can.Listener):
+    """Routes remote (RTR) frames by id: python canopen's network drops them.
+
+    Whoever starts a network's Notifier adds one of these as ``network.remote_frames``
+    (see :func:`start_network`).
+    """
+
+    def __init__(self):
+        self.handlers: dict[int, Callable[[int], None]] = {}
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.is_remote_frame:
+            handler = self.handlers.get(msg.arbitration_id)
+            if handler is not None:
+                handler(msg.arbitration_id)
+
+
+def start_network(bus: can.BusABC, timeout: float = 0.1) -> canopen.Network:
+    """A canopen network on ``bus`` with its Notifier running and RTR frames routed."""
+    network = canopen.Network(bus)
+    network.remote_frames = RemoteFrames()
+    network.notifier = can.Notifier(bus, [*network.listeners, network.remote_frames], timeout)
+    return network
+
+
+class DriveProfile(ABC):
+    """A virtual drive on a bus, speaking one protocol, around a DriveCore."""
+
+    #: the ``protocol`` string of bus configs
+    protocol: ClassVar[str]
+    #: whether the bus needs a CANopen SYNC producer for this drive
+    uses_sync: ClassVar[bool] = False
+    #: the profile's own settings in a bus config (a frozen dataclass with ``from_mapping``
+    #: raising ValueError, and ``KEYS``)
+    Options: ClassVar[type | None] = None
+    #: the node ids the protocol can address
+    node_ids: ClassVar[range] = range(1, 128)
+    #: whether the drive faults on a following error (MIT and ODrive firmware do not)
+    has_following_error: ClassVar[bool] = True
+
+    def __init__(self, node_id: int, core: DriveCore, lock: threading.RLock):
+        self.node_id = node_id
+        self.core = core
+        self.lock = lock
+        self.network: canopen.Network | None = None
+        #: called (lock held) when this cycle's command has arrived; set by the simulator
+        self.on_command: Callable[[DriveProfile], None] = lambda drive: None
+        self.malformed = 0          # frames refused (wrong length, bad values)
+
+    # --- the two things a profile must say ------------------------------------------
+
+    @classmethod
+    @abstractmethod
+    def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float, options=None
+                   ) -> list[tuple[int, int, float]]:
+        """Every (arbitration id, payload bytes, frames per second) this drive and its
+        master use on the bus; rate 0 for ids used only on events. For bus load and for
+        id collisions between drives."""
+
+    @abstractmethod
+    def subscriptions(self) -> dict[int, Callable[[int, bytes, float], None]]:
+        """The arbitration ids this drive listens to, with their handlers."""
+
+    @abstractmethod
+    def send_replies(self) -> None:
+        """Send the reply to this cycle's command, as sampled when it arrived."""
+
+    @classmethod
+    def shared_ids(cls, options=None) -> set[int]:
+        """Ids that several drives of this protocol on one bus may use at once."""
+        return set()
+
+    def remote_subscriptions(self) -> dict[int, Callable[[int], None]]:
+        """Remote (RTR) frame ids this drive answers, with their handlers."""
+        return {}
+
+    # --- shared behaviour ------------------------------------------------------------
+
+    @property
+    def attached(self) -> bool:
+        """On a bus; a detached drive is silent (its physics runs on)."""
+        return self.network is not None
+
+    def attach(self, network: canopen.Network) -> None:
+        """Join a bus and start talking (boot-up, cyclic messages)."""
+        self.network = network
+        for can_id, handler in self.subscriptions().items():
+            network.subscribe(can_id, handler)
+        network.remote_frames.handlers.update(self.remote_subscriptions())
+
+    def detach(self) -> None:
+        """Leave the bus: from now on the drive sends and hears nothing (idempotent)."""
+        if self.network is None:
+            return
+        for can_id, handler in self.subscriptions().items():
+            if handler in self.network.subscribers.get(can_id, []):
+                self.network.unsubscribe(can_id, handler)
+        for can_id in self.remote_subscriptions():
+            self.network.remote_frames.handlers.pop(can_id, None)
+        self.network = None
+
+    def send(self, can_id: int, data: bytes, remote: bool = False) -> None:
+        """Send a frame, if on a bus."""
+        if self.network is not None:
+            self.network.send_message(can_id, data, remote)
+
+    def after_update(self) -> None:
+        """After each plant step (lock held): report new faults, state follow-ups."""
+
+    def tick(self, now: float) -> None:
+        """Timer-driven frames due at monotonic time ``now`` (lock held), in real time."""
+
+    @property
+    def state_text(self) -> str:
+        """The drive's state in its protocol's words."""
+        return self.core.power.name
