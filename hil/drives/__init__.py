@@ -5,11 +5,13 @@ config, the way python-can picks an interface.
 """
 
 from hil.drives.cia402 import Cia402Drive
+from hil.drives.mit import MitDrive
+from hil.drives.odrive import ODriveDrive
 from hil.drives.core import DriveCore, DriveParameters, DriveStatus, Fault, Mode, Power
 from hil.drives.profile import DriveProfile
 
 #: protocol name -> drive class
-PROFILES = {"cia402": Cia402Drive}
+PROFILES = {profile.protocol: profile for profile in (Cia402Drive, MitDrive, ODriveDrive)}
 
 __all__ = ["Cia402Drive", "DriveCore", "DriveParameters", "DriveProfile", "DriveStatus",
-           "Fault", "Mode", "PROFILES", "Power"]
+           "Fault", "MitDrive", "Mode", "ODriveDrive", "PROFILES", "Power"]

@@ -44,6 +44,7 @@ class Fault(enum.Enum):
     FOLLOWING_ERROR = (0x8611, "following error")
     POSITION_LIMIT = (0x8612, "position limit exceeded")
     CONTROLLER_SILENT = (0x8250, "setpoints stopped arriving (RPDO timeout)")
+    EMERGENCY_STOP = (0x9000, "emergency stop requested")
 
     @property
     def code(self) -> int:

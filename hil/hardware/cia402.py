@@ -9,15 +9,14 @@ from __future__ import annotations
 
 import math
 import struct
-import threading
 import time
-from dataclasses import dataclass
 
 import canopen
 from canopen.profiles.p402 import State402
 
 from hil.bus_config import DEFAULT_EDS, DriveConfig
 from hil.errors import HilError
+from hil.hardware.axis import Axis, Frame
 
 _RPDO1 = struct.Struct("<Hi")       # controlword, target position
 _TPDO1 = struct.Struct("<Hi")       # statusword, position actual
@@ -31,7 +30,6 @@ EMCY_TEXT = {0x8611: "following error", 0x8612: "position limit exceeded",
 
 SHUTDOWN, SWITCH_ON, ENABLE, QUICK_STOP, DISABLE_VOLTAGE = 0x06, 0x07, 0x0F, 0x02, 0x00
 FAULT_RESET = 0x80
-STANDSTILL = 0.01       # fraction of the max velocity below which an axis counts as still
 
 
 def state_of(statusword: int) -> str:
@@ -42,50 +40,37 @@ def state_of(statusword: int) -> str:
     return "UNKNOWN"
 
 
-@dataclass
-class AxisFeedback:
-    statusword: int = 0
-    position: float = 0.0      # rad, motor
-    velocity: float = 0.0      # rad/s, motor
-    torque: float = 0.0        # N·m, motor
-    tpdo_cycle: int = -1       # cycle of the last TPDO1
+class Cia402Axis(Axis):
+    """One CiA 402 drive as the master sees it."""
 
-
-class Cia402Axis:
-    """One drive as the master sees it."""
+    protocol = "cia402"
+    #: the bus needs SYNC after the RPDOs of every cycle
+    uses_sync = True
 
     def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
-        self.config = config
-        self.bus_name = bus_name
-        self.node_id = config.node_id
-        self.label = f"drive node {config.node_id} ({', '.join(config.joints)}) on bus '{bus_name}'"
+        super().__init__(config, bus_name, on_feedback)
         self.node = canopen.RemoteNode(config.node_id, str(DEFAULT_EDS))
-        self.feedback = AxisFeedback()
         self.counts_per_rad = config.encoder_counts_per_rev / (2 * math.pi)
         self.rated_torque = config.rated_torque
         self.controlword = SHUTDOWN
+        self.statusword = 0
         self.last_emcy: int | None = None
-        self.last_heartbeat = time.monotonic()
-        self.booted = threading.Event()
-        self._cycle = 0
-        self._on_feedback = on_feedback      # called after each TPDO1
 
     # --- network hooks ----------------------------------------------------------
 
+    def subscriptions(self):
+        return {0x180 + self.node_id: self._on_tpdo1, 0x280 + self.node_id: self._on_tpdo2,
+                0x080 + self.node_id: self._on_emcy, 0x700 + self.node_id: self._on_heartbeat}
+
     def attach(self, network: canopen.Network) -> None:
         network.add_node(self.node)
-        network.subscribe(0x180 + self.node_id, self._on_tpdo1)
-        network.subscribe(0x280 + self.node_id, self._on_tpdo2)
-        network.subscribe(0x080 + self.node_id, self._on_emcy)
-        network.subscribe(0x700 + self.node_id, self._on_heartbeat)
+        super().attach(network)
 
     def _on_tpdo1(self, can_id, data, timestamp) -> None:
         if len(data) == _TPDO1.size:
-            statusword, counts = _TPDO1.unpack(data)
-            self.feedback.statusword = statusword
+            self.statusword, counts = _TPDO1.unpack(data)
             self.feedback.position = counts / self.counts_per_rad
-            self.feedback.tpdo_cycle = self._cycle
-            self._on_feedback()
+            self.answered()
 
     def _on_tpdo2(self, can_id, data, timestamp) -> None:
         if len(data) == _TPDO2.size:
@@ -99,11 +84,16 @@ class Cia402Axis:
             self.last_emcy = code
 
     def _on_heartbeat(self, can_id, data, timestamp) -> None:
-        self.last_heartbeat = time.monotonic()
+        self.last_heard = time.monotonic()
         if len(data) >= 1 and data[0] == 0:
             self.booted.set()
 
     # --- bring-up ------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """NMT reset node: the drive boots afresh and sends its boot-up message."""
+        super().reset()
+        self.node.nmt.send_command(0x81)
 
     def configure(self) -> None:
         """After boot: check the device, read its units and PDO maps, select CSP (SDO)."""
@@ -124,6 +114,7 @@ class Cia402Axis:
             self.node.rpdo.read()
             self._check_mapping()
             self.node.sdo[0x6060].raw = 8        # cyclic synchronous position
+            self.node.nmt.send_command(0x01)     # start: operational
         except canopen.SdoCommunicationError as exc:
             raise HilError.single(f"{self.label} does not answer SDO: {exc}",
                                   hint="is the drive powered and on this bus?") from None
@@ -147,7 +138,26 @@ class Cia402Axis:
 
     @property
     def state(self) -> str:
-        return state_of(self.feedback.statusword)
+        return state_of(self.statusword)
+
+    @property
+    def enabled(self) -> bool:
+        return self.state == "OPERATION ENABLED"
+
+    def cycle_frames(self, target: float, velocity: float, stopping: bool,
+                     enabling: bool) -> list[Frame]:
+        controlword = self.next_controlword(stopping)
+        # until the axis follows setpoints, its setpoint is where it is (no jump on enable)
+        following = self.enabled and not enabling
+        return [(0x200 + self.node_id, self.rpdo(controlword, target if following
+                                                  else self.feedback.position), False)]
+
+    def disable_rounds(self) -> list[list[Frame]]:
+        return [[(0x200 + self.node_id, self.rpdo(word, self.feedback.position), False)]
+                for word in (SHUTDOWN, DISABLE_VOLTAGE)]
+
+    def forget_faults(self) -> None:
+        self.last_emcy = None
 
     def next_controlword(self, stopping: bool) -> int:
         """Walk the 402 state machine toward OPERATION ENABLED, or quick-stop.
@@ -164,9 +174,7 @@ class Cia402Axis:
             return self.controlword
         if state == "QUICK STOP ACTIVE":
             return DISABLE_VOLTAGE
-        if state == "SWITCHED ON" and (
-                self.feedback.tpdo_cycle < self._cycle - 1
-                or abs(self.feedback.velocity) > STANDSTILL * self.config.max_velocity):
+        if state == "SWITCHED ON" and not self.at_standstill():
             # enable only at standstill and with last cycle's position as the setpoint: a
             # brake-less axis still falling is caught where it comes to rest, not mid-fall
             return SWITCH_ON
@@ -176,9 +184,6 @@ class Cia402Axis:
     def rpdo(self, controlword: int, target: float) -> bytes:
         counts = max(-2**31, min(2**31 - 1, round(target * self.counts_per_rad)))
         return _RPDO1.pack(controlword, counts)
-
-    def begin_cycle(self, cycle: int) -> None:
-        self._cycle = cycle
 
     def fault_text(self, stopping: bool = False) -> str | None:
         """Why this axis cannot be used, or None."""

@@ -24,13 +24,20 @@ import numpy as np
 from hil.bus_config import SystemConfig
 from hil.description import RobotDescription
 from hil.drives.cia402 import SYNC_ID   # CiA 301's SYNC COB-ID
+from hil.drives.profile import start_network
 from hil.errors import HilError
-from hil.hardware.cia402 import DISABLE_VOLTAGE, SHUTDOWN, Cia402Axis
+from hil.hardware.axis import Axis
+from hil.hardware.cia402 import Cia402Axis
+from hil.hardware.mit import MitAxis
+from hil.hardware.odrive import ODriveAxis
 from hil.transmissions import build_transmissions
 
 BOOT_TIMEOUT = 3.0
 ENABLE_TIMEOUT = 10.0
-MISSED_TPDO_LIMIT = 5
+MISSED_ANSWER_LIMIT = 5
+
+#: protocol name -> master-side axis class (the drive side is hil.drives.PROFILES)
+AXES = {axis.protocol: axis for axis in (Cia402Axis, MitAxis, ODriveAxis)}
 
 
 @dataclass
@@ -101,7 +108,7 @@ class FakeHardwareInterface(HardwareInterface):
 
 
 class CanHardwareInterface(HardwareInterface):
-    """CAN master for every drive of a bus config."""
+    """CAN master for every drive of a bus config, each spoken to in its own protocol."""
 
     def __init__(self, config: SystemConfig, buses: dict[str, can.BusABC],
                  reply_timeout: float | None = None):
@@ -109,13 +116,11 @@ class CanHardwareInterface(HardwareInterface):
         self.config = config
         self.reply_timeout = reply_timeout if reply_timeout is not None else 0.8 * (
             1.0 / config.cycle_hz)
+        self._buses = buses
         self._networks: dict[str, canopen.Network] = {}
-        self.axes: list[Cia402Axis] = []
-        for bus in config.buses:
-            network = canopen.Network(buses[bus.name])
-            self._networks[bus.name] = network
-            for drive in bus.drives:
-                self.axes.append(Cia402Axis(drive, bus.name, on_feedback=self._on_feedback))
+        self.axes: list[Axis] = [AXES[drive.protocol](drive, bus.name, self._on_feedback)
+                                 for bus in config.buses for drive in bus.drives]
+        self._sync_buses = sorted({a.bus_name for a in self.axes if a.uses_sync})
         self._by_actuator = {a.config.actuator: a for a in self.axes}
         self.actuator_names = tuple(a.config.actuator for a in self.axes)
         self.transmissions = build_transmissions(config.robot)
@@ -131,76 +136,83 @@ class CanHardwareInterface(HardwareInterface):
     # --- bring-up ---------------------------------------------------------------------
 
     def start(self) -> JointFeedback:
-        for network in self._networks.values():
-            network.notifier = can.Notifier(network.bus, network.listeners, 0.1)
+        for name, bus in self._buses.items():
+            self._networks[name] = start_network(bus)
         for axis in self.axes:
             axis.attach(self._networks[axis.bus_name])
-        for axis in self.axes:                         # reset: every drive boots afresh
-            axis.node.nmt.send_command(0x81)
+        for axis in self.axes:                         # reset: every drive starts afresh
+            axis.reset()
+        hold = np.zeros(len(self.joint_names))
         deadline = time.monotonic() + BOOT_TIMEOUT
-        for axis in self.axes:
-            if not axis.booted.wait(max(0.0, deadline - time.monotonic())):
+        # cycles run meanwhile (unwatched): some protocols are heard only in answers
+        while not all(axis.booted.is_set() for axis in self.axes):
+            hold = self.cycle(hold, np.zeros_like(hold), enabling=True, watch=False).positions
+            if time.monotonic() > deadline:
+                silent = [a.label for a in self.axes if not a.booted.is_set()]
                 raise HilError.single(
-                    f"{axis.label} sent no boot-up message within {BOOT_TIMEOUT:g} s after "
-                    "NMT reset", hint="is `hil sim` (or the real drive) running on this bus, "
-                                      "with the same node id?")
+                    f"{'; '.join(silent)}: not heard within {BOOT_TIMEOUT:g} s after reset",
+                    hint="is `hil sim` (or the real drive) running on this bus, with the same "
+                         "node id and protocol?")
         for axis in self.axes:
             axis.configure()
-            axis.node.nmt.send_command(0x01)           # start: operational
+            axis.feedback.cycle = self._cycle    # missed answers count from here on
         deadline = time.monotonic() + ENABLE_TIMEOUT
-        hold = np.zeros(len(self.joint_names))
         while True:
             feedback = self.cycle(hold, np.zeros_like(hold), enabling=True)
             hold = feedback.positions
-            waiting = [a for a in self.axes if a.state != "OPERATION ENABLED"]
+            waiting = [a for a in self.axes if not a.enabled]
             if not waiting:
                 break
             faults = [a.fault_text() for a in waiting if a.fault_text()]
             if faults or time.monotonic() > deadline:
                 raise HilError.single(
-                    "drives did not reach OPERATION ENABLED: " + "; ".join(
+                    "drives did not enable: " + "; ".join(
                         faults or [f"{a.label} is {a.state}" for a in waiting]))
         self._pending.clear()
         return feedback
 
     # --- cyclic ------------------------------------------------------------------------------
 
-    def cycle(self, positions, velocities, enabling: bool = False) -> JointFeedback:
+    def cycle(self, positions, velocities, enabling: bool = False,
+              watch: bool = True) -> JointFeedback:
         self._cycle += 1
-        targets = self._actuator_targets(np.asarray(positions, dtype=float))
+        targets = self._actuator_targets(np.asarray(positions, dtype=float),
+                                         np.asarray(velocities, dtype=float))
+        hold = enabling or self._recovering
         for axis in self.axes:
             axis.begin_cycle(self._cycle)
-            controlword = axis.next_controlword(self._stopping)
-            # until an axis follows setpoints, its setpoint is where it is (no jump on enable)
-            following = axis.state == "OPERATION ENABLED" and not (enabling or self._recovering)
-            target = targets[axis.config.actuator] if following else axis.feedback.position
-            self._networks[axis.bus_name].send_message(0x200 + axis.node_id,
-                                                       axis.rpdo(controlword, target))
-        for network in self._networks.values():
-            network.send_message(SYNC_ID, b"")
+            target, velocity = targets[axis.config.actuator]
+            network = self._networks[axis.bus_name]
+            for can_id, data, remote in axis.cycle_frames(target, velocity, self._stopping,
+                                                          hold):
+                network.send_message(can_id, data, remote)
+        for name in self._sync_buses:
+            self._networks[name].send_message(SYNC_ID, b"")
         self._await_feedback()
-        self._watch()
-        if self._recovering and not self._stopping and all(
-                a.state == "OPERATION ENABLED" for a in self.axes):
+        if watch:
+            self._watch()
+        if self._recovering and not self._stopping and all(a.enabled for a in self.axes):
             self._recovering = False
         return self._joint_feedback()
 
     def _await_feedback(self) -> None:
-        """Wait (up to the reply timeout) until every axis' TPDO of this cycle is in."""
+        """Wait (up to the reply timeout) until every axis' answer of this cycle is in."""
         with self._arrived:
             self._arrived.wait_for(
-                lambda: all(a.feedback.tpdo_cycle == self._cycle for a in self.axes),
+                lambda: all(a.feedback.cycle == self._cycle for a in self.axes),
                 timeout=self.reply_timeout)
 
     def _on_feedback(self) -> None:
         with self._arrived:
             self._arrived.notify()
 
-    def _actuator_targets(self, joint_positions: np.ndarray) -> dict[str, float]:
+    def _actuator_targets(self, joint_positions: np.ndarray, joint_velocities: np.ndarray
+                          ) -> dict[str, tuple[float, float]]:
         targets = {}
         for transmission, joints in zip(self.transmissions, self._joint_slices):
             motor = transmission.joint_to_actuator_position(joint_positions[joints])
-            targets.update(zip(transmission.actuators, motor))
+            speed = transmission.joint_to_actuator_velocity(joint_velocities[joints])
+            targets.update(zip(transmission.actuators, zip(motor, speed)))
         return targets
 
     def _joint_feedback(self) -> JointFeedback:
@@ -223,13 +235,13 @@ class CanHardwareInterface(HardwareInterface):
         for axis in self.axes:
             # (what, text): a silence is reported once per axis, not once per silent cycle
             problems = [("fault", axis.fault_text(self._stopping))]
-            silence = now - axis.last_heartbeat
-            if silence > 3 * axis.config.heartbeat_period:
-                problems.append(("heartbeat", f"{axis.label} is silent: no heartbeat for "
+            silence = now - axis.last_heard
+            if silence > axis.silence_limit:
+                problems.append(("heartbeat", f"{axis.label} is silent: not heard for "
                                               f"{silence * 1e3:.0f} ms"))
-            if self._cycle - axis.feedback.tpdo_cycle > MISSED_TPDO_LIMIT:
-                problems.append(("tpdo", f"{axis.label} is silent: no TPDO for "
-                                         f"{self._cycle - axis.feedback.tpdo_cycle} cycles"))
+            if self._cycle - axis.feedback.cycle > MISSED_ANSWER_LIMIT:
+                problems.append(("answer", f"{axis.label} is silent: no answer for "
+                                           f"{self._cycle - axis.feedback.cycle} cycles"))
             for what, problem in problems:
                 key = (axis.label, what, problem if what == "fault" else "")
                 if problem and key not in self._reported:
@@ -254,27 +266,28 @@ class CanHardwareInterface(HardwareInterface):
         self._reported.clear()
         self._pending.clear()
         for axis in self.axes:
-            axis.last_emcy = None
+            axis.forget_faults()
 
     @property
     def ready(self) -> bool:
         return not (self._stopping or self._recovering)
 
     def stop(self) -> None:
-        """Disable every drive (shutdown, then disable voltage), then release the buses."""
-        for controlword in (SHUTDOWN, DISABLE_VOLTAGE):
+        """Disable every drive (each in its protocol's way), then release the buses."""
+        rounds = max((len(a.disable_rounds()) for a in self.axes), default=0)
+        for number in range(rounds):
             for axis in self.axes:
-                try:
-                    self._networks[axis.bus_name].send_message(
-                        0x200 + axis.node_id, axis.rpdo(controlword, axis.feedback.position))
-                except can.CanError:
-                    pass
-            for network in self._networks.values():
-                try:
-                    network.send_message(SYNC_ID, b"")
-                except can.CanError:
-                    pass
+                frames = axis.disable_rounds()
+                for can_id, data, remote in (frames[number] if number < len(frames) else []):
+                    self._send_quietly(axis.bus_name, can_id, data, remote)
+            for name in self._sync_buses:
+                self._send_quietly(name, SYNC_ID, b"", False)
             time.sleep(2.0 / self.config.cycle_hz)
         for network in self._networks.values():
-            if network.notifier is not None:
-                network.notifier.stop(1.0)
+            network.notifier.stop(1.0)
+
+    def _send_quietly(self, bus: str, can_id: int, data: bytes, remote: bool) -> None:
+        try:
+            self._networks[bus].send_message(can_id, data, remote)
+        except can.CanError:
+            pass

@@ -1,0 +1,370 @@
+"""ODrive CANSimple (firmware 0.6, ODrive Pro / S1 / Micro), drive side.
+
+Frames: 11-bit id ``node_id << 5 | cmd_id``, little-endian payloads, IEEE-754
+floats, positions in turns (rev) and velocities in rev/s of the motor, torques
+in N·m. ``Get_*`` messages are sent on request (an RTR frame with the same id)
+and, where configured, cyclically (heartbeat always). The layouts are
+``odrive-cansimple-0.6.10.dbc`` (ODrive's own DBC, shipped in the PyPI package
+``odrive-can``); the tests check both directions against it with cantools.
+They are packed here with ``struct`` because they run every cycle.
+
+Errors as an ODrive reports them: a violated limit, an expired watchdog or an
+estop disarms the axis (IDLE) with the error in ``active_errors`` and as the
+``disarm_reason``, in every heartbeat, until ``Clear_Errors``.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import struct
+import threading
+import time
+from dataclasses import dataclass, replace
+
+from hil.drives.core import DriveCore, Fault, Mode, Power
+from hil.drives.profile import DriveProfile
+
+TURN = 2 * math.pi
+
+
+class Cmd(enum.IntEnum):
+    """CANSimple command ids (the low 5 bits of the arbitration id)."""
+
+    GET_VERSION = 0x00
+    HEARTBEAT = 0x01
+    ESTOP = 0x02
+    GET_ERROR = 0x03
+    SET_AXIS_STATE = 0x07
+    GET_ENCODER_ESTIMATES = 0x09
+    SET_CONTROLLER_MODE = 0x0B
+    SET_INPUT_POS = 0x0C
+    SET_INPUT_VEL = 0x0D
+    SET_INPUT_TORQUE = 0x0E
+    SET_LIMITS = 0x0F
+    GET_IQ = 0x14
+    GET_TEMPERATURE = 0x15
+    REBOOT = 0x16
+    GET_BUS_VOLTAGE_CURRENT = 0x17
+    CLEAR_ERRORS = 0x18
+    GET_TORQUES = 0x1C
+    GET_POWERS = 0x1D
+
+
+#: payload layouts (struct formats, padded to the DBC's length)
+LAYOUT = {
+    Cmd.GET_VERSION: struct.Struct("<BBBBBBBB"),
+    Cmd.HEARTBEAT: struct.Struct("<IBBBx"),        # axis error, state, procedure, traj done
+    Cmd.GET_ERROR: struct.Struct("<II"),           # active errors, disarm reason
+    Cmd.SET_AXIS_STATE: struct.Struct("<I4x"),
+    Cmd.GET_ENCODER_ESTIMATES: struct.Struct("<ff"),   # pos (rev), vel (rev/s)
+    Cmd.SET_CONTROLLER_MODE: struct.Struct("<II"),     # control mode, input mode
+    Cmd.SET_INPUT_POS: struct.Struct("<fhh"),      # pos (rev), vel ff, torque ff (x 0.001)
+    Cmd.SET_INPUT_VEL: struct.Struct("<ff"),       # vel (rev/s), torque ff (N·m)
+    Cmd.SET_INPUT_TORQUE: struct.Struct("<f4x"),
+    Cmd.SET_LIMITS: struct.Struct("<ff"),          # velocity limit (rev/s), current limit (A)
+    Cmd.GET_IQ: struct.Struct("<ff"),              # setpoint, measured (A)
+    Cmd.GET_TEMPERATURE: struct.Struct("<ff"),     # FET, motor (deg C)
+    Cmd.REBOOT: struct.Struct("<B"),
+    Cmd.GET_BUS_VOLTAGE_CURRENT: struct.Struct("<ff"),
+    Cmd.CLEAR_ERRORS: struct.Struct("<B"),
+    Cmd.GET_TORQUES: struct.Struct("<ff"),         # target, estimate (N·m)
+    Cmd.GET_POWERS: struct.Struct("<ff"),          # electrical, mechanical (W)
+}
+
+
+class AxisState(enum.IntEnum):
+    UNDEFINED = 0
+    IDLE = 1
+    STARTUP_SEQUENCE = 2
+    FULL_CALIBRATION_SEQUENCE = 3
+    MOTOR_CALIBRATION = 4
+    ENCODER_INDEX_SEARCH = 6
+    ENCODER_OFFSET_CALIBRATION = 7
+    CLOSED_LOOP_CONTROL = 8
+
+
+class ControlMode(enum.IntEnum):
+    VOLTAGE_CONTROL = 0
+    TORQUE_CONTROL = 1
+    VELOCITY_CONTROL = 2
+    POSITION_CONTROL = 3
+
+
+class ODriveError(enum.IntFlag):
+    """ODrive 0.6 axis errors (the subset a simulated axis can raise)."""
+
+    NONE = 0
+    MISSING_INPUT = 0x40
+    CURRENT_LIMIT_VIOLATION = 0x1000
+    VELOCITY_LIMIT_VIOLATION = 0x8000
+    POSITION_LIMIT_VIOLATION = 0x10000
+    WATCHDOG_TIMER_EXPIRED = 0x1000000
+    ESTOP_REQUESTED = 0x2000000
+
+
+CONTROL_MODES = {ControlMode.TORQUE_CONTROL: Mode.TORQUE,
+                 ControlMode.VELOCITY_CONTROL: Mode.VELOCITY,
+                 ControlMode.POSITION_CONTROL: Mode.POSITION}
+#: core faults -> the ODrive error that disarms the axis
+FAULT_ERRORS = {Fault.POSITION_LIMIT: ODriveError.POSITION_LIMIT_VIOLATION,
+                Fault.CONTROLLER_SILENT: ODriveError.WATCHDOG_TIMER_EXPIRED,
+                Fault.EMERGENCY_STOP: ODriveError.ESTOP_REQUESTED}
+#: ODrive's vel_limit_tolerance: overspeed beyond this x the limit disarms
+VELOCITY_TOLERANCE = 1.2
+BUS_VOLTAGE = 24.0
+FIRMWARE = (0, 6, 10)
+
+
+def can_id(node_id: int, cmd: int) -> int:
+    return (node_id << 5) | cmd
+
+
+@dataclass(frozen=True)
+class ODriveOptions:
+    """An ODrive axis' CAN settings (``axis.config.can.*``) in a bus config; rates in
+    ms, 0 = only on request (RTR)."""
+
+    encoder_msg_rate_ms: int = 0
+    torques_msg_rate_ms: int = 0
+    error_msg_rate_ms: int = 0
+    iq_msg_rate_ms: int = 0
+    torque_constant: float = 0.0827   # N·m/A (8.27 / KV, KV 100)
+
+    KEYS = ("encoder_msg_rate_ms", "torques_msg_rate_ms", "error_msg_rate_ms",
+            "iq_msg_rate_ms", "torque_constant")
+
+    @classmethod
+    def from_mapping(cls, values: dict) -> ODriveOptions:
+        options = cls(**{k: (float(v) if k == "torque_constant" else int(v))
+                         for k, v in values.items()})
+        if options.torque_constant <= 0:
+            raise ValueError("'torque_constant' must be > 0")
+        rates = [getattr(options, k) for k in cls.KEYS[:4]]
+        if any(r < 0 for r in rates):
+            raise ValueError("message rates must be >= 0 ms")
+        return options
+
+    def rates(self) -> dict[Cmd, float]:
+        """Cyclic messages (besides the heartbeat) and their periods in s."""
+        return {cmd: ms / 1000 for cmd, ms in (
+            (Cmd.GET_ENCODER_ESTIMATES, self.encoder_msg_rate_ms),
+            (Cmd.GET_TORQUES, self.torques_msg_rate_ms), (Cmd.GET_ERROR, self.error_msg_rate_ms),
+            (Cmd.GET_IQ, self.iq_msg_rate_ms)) if ms > 0}
+
+
+class ODriveDrive(DriveProfile):
+    """One ODrive axis on CANSimple, around a DriveCore.
+
+    The cycle's command is the RTR for Get_Encoder_Estimates that a cyclic master
+    sends after its setpoint; its answer is the cycle's reply.
+    """
+
+    protocol = "odrive"
+    Options = ODriveOptions
+    node_ids = range(0, 64)
+    has_following_error = False
+
+    def __init__(self, node_id: int, core: DriveCore, lock: threading.RLock,
+                 rated_torque: float, heartbeat_period: float = 0.1,
+                 options: ODriveOptions | None = None):
+        super().__init__(node_id, core, lock)
+        self.options = options or ODriveOptions()
+        self.heartbeat_period = heartbeat_period
+        self.axis_state = AxisState.IDLE
+        self.active_errors = ODriveError.NONE
+        self.disarm_reason = ODriveError.NONE
+        self.control_mode = ControlMode.POSITION_CONTROL
+        self.input_mode = 1                       # passthrough
+        self.current_limit = core.parameters.peak_torque / self.options.torque_constant
+        self._due: dict[Cmd, float] = {}
+        self._reply = b""
+        core.set_mode(Mode.POSITION)
+        handlers = {Cmd.ESTOP: self._estop, Cmd.SET_AXIS_STATE: self._set_axis_state,
+                    Cmd.SET_CONTROLLER_MODE: self._set_controller_mode,
+                    Cmd.SET_INPUT_POS: self._set_input_pos, Cmd.SET_INPUT_VEL: self._set_input_vel,
+                    Cmd.SET_INPUT_TORQUE: self._set_input_torque,
+                    Cmd.SET_LIMITS: self._set_limits, Cmd.REBOOT: self._reboot,
+                    Cmd.CLEAR_ERRORS: self._clear_errors}
+        self._receivers = {can_id(node_id, cmd): self._receiver(cmd, handler)
+                           for cmd, handler in handlers.items()}
+        self._requests = {can_id(node_id, cmd): self._on_request for cmd in (
+            Cmd.GET_VERSION, Cmd.HEARTBEAT, Cmd.GET_ERROR, Cmd.GET_ENCODER_ESTIMATES,
+            Cmd.GET_IQ, Cmd.GET_TEMPERATURE, Cmd.GET_BUS_VOLTAGE_CURRENT, Cmd.GET_TORQUES,
+            Cmd.GET_POWERS)}
+
+    # --- bus ----------------------------------------------------------------------
+
+    @classmethod
+    def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float,
+                   options: ODriveOptions | None = None) -> list[tuple[int, int, float]]:
+        """A cyclic master's exchange: Set_Input_Pos, RTR + answer for Get_Torques and
+        Get_Encoder_Estimates per cycle; the heartbeat and configured cyclic messages;
+        every other command id is reserved for events."""
+        options = options or ODriveOptions()
+        frames = {cmd: (can_id(node_id, cmd), 0, 0.0) for cmd in Cmd}
+        frames[Cmd.SET_INPUT_POS] = (can_id(node_id, Cmd.SET_INPUT_POS), 8, cycle_hz)
+        frames[Cmd.HEARTBEAT] = (can_id(node_id, Cmd.HEARTBEAT), 8, 1.0 / heartbeat_period)
+        cyclic = [(cmd, 8, cycle_hz) for cmd in (Cmd.GET_TORQUES, Cmd.GET_ENCODER_ESTIMATES)]
+        cyclic += [(cmd, 8, 1.0 / period) for cmd, period in options.rates().items()]
+        result = list(frames.values())
+        for cmd, payload, rate in cyclic:
+            result.append((can_id(node_id, cmd), payload, rate))
+            if cmd in (Cmd.GET_TORQUES, Cmd.GET_ENCODER_ESTIMATES):
+                result.append((can_id(node_id, cmd), 0, rate))      # the master's RTR
+        return result
+
+    def subscriptions(self):
+        return self._receivers
+
+    def remote_subscriptions(self):
+        return self._requests
+
+    def attach(self, network) -> None:
+        super().attach(network)
+        self._due = {Cmd.HEARTBEAT: 0.0, **{cmd: 0.0 for cmd in self.options.rates()}}
+
+    def _receiver(self, cmd: Cmd, handler):
+        """A frame handler: check the length against the layout, take the lock, handle."""
+        layout = LAYOUT.get(cmd)
+        size = layout.size if layout is not None else 0
+
+        def receive(arbitration_id: int, data: bytes, timestamp: float) -> None:
+            if len(data) < size:
+                self.malformed += 1           # the firmware drops short frames too
+                return
+            with self.lock:
+                handler(layout.unpack_from(data) if layout is not None else ())
+        return receive
+
+    # --- commands -----------------------------------------------------------------
+
+    def _estop(self, _) -> None:
+        self.core.raise_fault(Fault.EMERGENCY_STOP)
+        self._disarm(ODriveError.ESTOP_REQUESTED)
+
+    def _set_axis_state(self, values) -> None:
+        requested = values[0]
+        if requested == AxisState.CLOSED_LOOP_CONTROL:
+            if self.active_errors:
+                self.disarm_reason = self.active_errors    # refused: the errors stand
+                return
+            self.core.set_mode(CONTROL_MODES.get(self.control_mode, Mode.POSITION))
+            self.core.enable()
+            self.axis_state = AxisState.CLOSED_LOOP_CONTROL
+        elif requested == AxisState.IDLE:
+            self.core.disable()
+            self.axis_state = AxisState.IDLE
+
+    def _set_controller_mode(self, values) -> None:
+        control, self.input_mode = values
+        if control in CONTROL_MODES:
+            self.control_mode = ControlMode(control)
+            self.core.set_mode(CONTROL_MODES[self.control_mode])
+
+    def _set_input_pos(self, values) -> None:
+        position, velocity_ff, torque_ff = values
+        if math.isfinite(position):
+            self.core.new_setpoint(position=position * TURN, now=time.monotonic(),
+                                   velocity_ff=velocity_ff * 0.001 * TURN,
+                                   torque_ff=torque_ff * 0.001)
+
+    def _set_input_vel(self, values) -> None:
+        velocity, torque_ff = values
+        if math.isfinite(velocity) and math.isfinite(torque_ff):
+            self.core.new_setpoint(velocity=velocity * TURN, torque_ff=torque_ff,
+                                   now=time.monotonic())
+
+    def _set_input_torque(self, values) -> None:
+        if math.isfinite(values[0]):
+            self.core.new_setpoint(torque=values[0], now=time.monotonic())
+
+    def _set_limits(self, values) -> None:
+        velocity_limit, current_limit = values
+        if math.isfinite(velocity_limit) and velocity_limit > 0:
+            self.core.parameters = replace(self.core.parameters,
+                                           max_velocity=velocity_limit * TURN)
+        if math.isfinite(current_limit) and current_limit > 0:
+            self.current_limit = current_limit
+            self.core.parameters = replace(
+                self.core.parameters, peak_torque=current_limit * self.options.torque_constant)
+
+    def _reboot(self, values) -> None:
+        if values[0] == 0:                        # 1-3: save/erase config, DFU: not simulated
+            self.core.disable()
+            self.core.reset_fault()
+            self.axis_state = AxisState.IDLE
+            self.active_errors = self.disarm_reason = ODriveError.NONE
+
+    def _clear_errors(self, _) -> None:
+        self.core.reset_fault()
+        self.active_errors = self.disarm_reason = ODriveError.NONE
+
+    def _disarm(self, error: ODriveError) -> None:
+        self.active_errors |= error
+        self.disarm_reason = error
+        self.axis_state = AxisState.IDLE
+        if self.core.power is not Power.FAULT:
+            self.core.raise_fault(Fault.CONTROLLER_SILENT if error is
+                                  ODriveError.WATCHDOG_TIMER_EXPIRED else Fault.EMERGENCY_STOP)
+        self.core.events.clear()
+
+    # --- answers ------------------------------------------------------------------
+
+    def _on_request(self, arbitration_id: int) -> None:
+        cmd = Cmd(arbitration_id & 0x1F)
+        with self.lock:
+            data = self._payload(cmd)
+            if cmd is Cmd.GET_ENCODER_ESTIMATES:
+                self._reply = data
+                self.on_command(self)
+                return
+        self.send(arbitration_id, data)
+
+    def send_replies(self) -> None:
+        reply, self._reply = self._reply, b""
+        if reply:
+            self.send(can_id(self.node_id, Cmd.GET_ENCODER_ESTIMATES), reply)
+
+    def _payload(self, cmd: Cmd) -> bytes:
+        status = self.core.status()
+        torque = status.torque
+        kt = self.options.torque_constant
+        values = {
+            Cmd.GET_VERSION: (2, 4, 0, 0, *FIRMWARE, 0),
+            Cmd.HEARTBEAT: (int(self.active_errors), int(self.axis_state), 0,
+                            int(status.target_reached)),
+            Cmd.GET_ERROR: (int(self.active_errors), int(self.disarm_reason)),
+            Cmd.GET_ENCODER_ESTIMATES: (status.position / TURN, status.velocity / TURN),
+            Cmd.GET_IQ: (torque / kt, torque / kt),
+            Cmd.GET_TEMPERATURE: (35.0, 40.0),
+            Cmd.GET_BUS_VOLTAGE_CURRENT: (BUS_VOLTAGE, abs(torque * status.velocity)
+                                          / BUS_VOLTAGE),
+            Cmd.GET_TORQUES: (torque, torque),
+            Cmd.GET_POWERS: (abs(torque * status.velocity), torque * status.velocity),
+        }[cmd]
+        return LAYOUT[cmd].pack(*values)
+
+    def after_update(self) -> None:
+        events, self.core.events = self.core.events, []
+        for fault in events:
+            self._disarm(FAULT_ERRORS[fault])
+        status = self.core.status()
+        limit = self.core.parameters.max_velocity
+        if (self.core.power is Power.ENABLED
+                and abs(status.velocity) > VELOCITY_TOLERANCE * limit):
+            self._disarm(ODriveError.VELOCITY_LIMIT_VIOLATION)
+
+    def tick(self, now: float) -> None:
+        if not self.attached:
+            return
+        periods = {Cmd.HEARTBEAT: self.heartbeat_period, **self.options.rates()}
+        for cmd, due in self._due.items():
+            if now >= due:
+                self._due[cmd] = max(due + periods[cmd], now)
+                self.send(can_id(self.node_id, cmd), self._payload(cmd))
+
+    @property
+    def state_text(self) -> str:
+        errors = f" {self.active_errors!r}" if self.active_errors else ""
+        return f"{self.axis_state.name}{errors}"

@@ -1,0 +1,123 @@
+"""The master's side of one drive: the seam between the CAN master and a protocol.
+
+:class:`CanHardwareInterface` drives every axis the same way: reset, wait
+until it is heard, configure, then each cycle send :meth:`Axis.cycle_frames`
+and wait for :attr:`Axis.feedback` of that cycle; :meth:`Axis.fault_text`
+says what is wrong. The concrete axes (``AXES[protocol]``) only turn these
+into their protocol's frames and back, in motor units (rad, rad/s, N·m).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import ClassVar
+
+import canopen
+
+from hil.bus_config import DriveConfig
+
+#: fraction of the max velocity below which an axis counts as still (enable only then)
+STANDSTILL = 0.01
+
+
+@dataclass
+class AxisFeedback:
+    position: float = 0.0      # rad, motor
+    velocity: float = 0.0      # rad/s, motor
+    torque: float = 0.0        # N·m, motor
+    cycle: int = -1            # the master cycle whose answer this is
+
+
+#: one frame to send: (arbitration id, data, remote)
+Frame = tuple[int, bytes, bool]
+
+
+class Axis(ABC):
+    """One drive as the master sees it."""
+
+    #: the ``protocol`` string of bus configs
+    protocol: ClassVar[str]
+    #: whether the bus needs a CANopen SYNC after every cycle's frames
+    uses_sync = False
+
+    def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
+        self.config = config
+        self.bus_name = bus_name
+        self.node_id = config.node_id
+        self.label = (f"drive node {config.node_id} ({', '.join(config.joints)}) on bus "
+                      f"'{bus_name}'")
+        self.feedback = AxisFeedback()
+        self.network: canopen.Network | None = None
+        self.last_heard = time.monotonic()      # the drive's last sign of life
+        self.booted = threading.Event()          # heard from since reset()
+        self._cycle = 0
+        self._on_feedback = on_feedback          # called when a cycle's answer is in
+
+    # --- what a protocol must say -------------------------------------------------------
+
+    @abstractmethod
+    def subscriptions(self) -> dict[int, object]:
+        """The ids this axis listens to, with their handlers (canopen Network callbacks)."""
+
+    @abstractmethod
+    def cycle_frames(self, target: float, velocity: float, stopping: bool,
+                     enabling: bool) -> list[Frame]:
+        """This cycle's frames: walk toward following ``target`` (rad, motor) unless
+        ``stopping`` (then bring the axis to rest); while ``enabling`` hold where it is."""
+
+    @property
+    @abstractmethod
+    def state(self) -> str:
+        """The drive's state in its protocol's words."""
+
+    @property
+    @abstractmethod
+    def enabled(self) -> bool:
+        """Whether the drive follows setpoints."""
+
+    # --- shared behaviour -----------------------------------------------------------
+
+    def attach(self, network: canopen.Network) -> None:
+        self.network = network
+        for can_id, handler in self.subscriptions().items():
+            network.subscribe(can_id, handler)
+
+    def reset(self) -> None:
+        """Ask the drive to start afresh; :attr:`booted` is set once it is heard."""
+        self.booted.clear()
+
+    def configure(self) -> None:
+        """After boot: check the drive and select cyclic position control."""
+
+    def disable_rounds(self) -> list[list[Frame]]:
+        """Frames that leave the drive disabled, in rounds sent a cycle or two apart."""
+        return []
+
+    def fault_text(self, stopping: bool = False) -> str | None:
+        """Why this axis cannot be used, or None."""
+        return None
+
+    def forget_faults(self) -> None:
+        """Before a fault reset: forget what the drive reported."""
+
+    @property
+    def silence_limit(self) -> float:
+        """Seconds without a sign of life after which the drive counts as gone."""
+        return 3 * self.config.heartbeat_period
+
+    def begin_cycle(self, cycle: int) -> None:
+        self._cycle = cycle
+
+    def at_standstill(self) -> bool:
+        """Fresh feedback (last cycle's) and not moving: safe to enable here."""
+        return (self.feedback.cycle >= self._cycle - 1
+                and abs(self.feedback.velocity) <= STANDSTILL * self.config.max_velocity)
+
+    def answered(self) -> None:
+        """The cycle's answer is in: record it and wake the master."""
+        self.feedback.cycle = self._cycle
+        self.last_heard = time.monotonic()
+        self._on_feedback()

@@ -1,0 +1,145 @@
+"""The master's side of an ODrive axis on CANSimple (see :mod:`hil.drives.odrive`).
+
+Bring-up: Clear_Errors, a heartbeat requested by RTR (the axis is heard),
+Set_Controller_Mode (position, passthrough) and Set_Limits, then
+Set_Axis_State CLOSED_LOOP_CONTROL at standstill. Each cycle: Set_Input_Pos
+(with velocity feed-forward), then RTRs for Get_Torques and
+Get_Encoder_Estimates, whose answer is the cycle's feedback. The heartbeat
+carries the axis state and errors; an error is reported with its name and
+the disarm reason (Get_Error).
+"""
+
+from __future__ import annotations
+
+import time
+
+from hil.bus_config import DriveConfig
+from hil.drives.odrive import (
+    LAYOUT, TURN, AxisState, Cmd, ControlMode, ODriveError, ODriveOptions, can_id,
+)
+from hil.hardware.axis import Axis, Frame
+
+PASSTHROUGH = 1
+#: Set_Input_Pos carries feed-forwards as int16 in units of 0.001
+FF_SCALE = 1000
+
+
+class ODriveAxis(Axis):
+    protocol = "odrive"
+
+    def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
+        super().__init__(config, bus_name, on_feedback)
+        self.options: ODriveOptions = config.options or ODriveOptions()
+        self.axis_state = AxisState.UNDEFINED
+        self.axis_error = ODriveError.NONE
+        self.disarm_reason = ODriveError.NONE
+        self._requested_closed_loop = False
+        self._pending: list[Frame] = []
+
+    def _id(self, cmd: Cmd) -> int:
+        return can_id(self.node_id, cmd)
+
+    def subscriptions(self):
+        return {self._id(Cmd.HEARTBEAT): self._on_heartbeat,
+                self._id(Cmd.GET_ENCODER_ESTIMATES): self._on_estimates,
+                self._id(Cmd.GET_TORQUES): self._on_torques,
+                self._id(Cmd.GET_ERROR): self._on_error}
+
+    def _on_heartbeat(self, can_id_, data, timestamp) -> None:
+        layout = LAYOUT[Cmd.HEARTBEAT]
+        if len(data) < layout.size:
+            return
+        error, state, _, _ = layout.unpack_from(data)
+        self.axis_error = ODriveError(error)
+        self.axis_state = AxisState(state) if state in AxisState._value2member_map_ \
+            else AxisState.UNDEFINED
+        if state != AxisState.CLOSED_LOOP_CONTROL:
+            self._requested_closed_loop = False
+        if error and self.disarm_reason == ODriveError.NONE:
+            self._pending.append((self._id(Cmd.GET_ERROR), b"", True))
+        self.booted.set()
+        self.last_heard = time.monotonic()
+
+    def _on_estimates(self, can_id_, data, timestamp) -> None:
+        layout = LAYOUT[Cmd.GET_ENCODER_ESTIMATES]
+        if len(data) >= layout.size:
+            position, velocity = layout.unpack_from(data)
+            self.feedback.position, self.feedback.velocity = position * TURN, velocity * TURN
+            self.answered()
+
+    def _on_torques(self, can_id_, data, timestamp) -> None:
+        layout = LAYOUT[Cmd.GET_TORQUES]
+        if len(data) >= layout.size:
+            self.feedback.torque = layout.unpack_from(data)[1]
+
+    def _on_error(self, can_id_, data, timestamp) -> None:
+        layout = LAYOUT[Cmd.GET_ERROR]
+        if len(data) >= layout.size:
+            active, reason = layout.unpack_from(data)
+            self.disarm_reason = ODriveError(reason)
+
+    # --- bring-up --------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Clear errors and ask for a heartbeat (the axis answers at once)."""
+        super().reset()
+        self.disarm_reason = ODriveError.NONE
+        self._pending += [(self._id(Cmd.CLEAR_ERRORS), LAYOUT[Cmd.CLEAR_ERRORS].pack(0), False),
+                          (self._id(Cmd.HEARTBEAT), b"", True)]
+
+    def configure(self) -> None:
+        c = self.config
+        self._pending += [
+            (self._id(Cmd.SET_CONTROLLER_MODE),
+             LAYOUT[Cmd.SET_CONTROLLER_MODE].pack(ControlMode.POSITION_CONTROL, PASSTHROUGH),
+             False),
+            (self._id(Cmd.SET_LIMITS), LAYOUT[Cmd.SET_LIMITS].pack(
+                c.max_velocity / TURN, c.peak_torque / self.options.torque_constant), False)]
+
+    # --- cyclic ------------------------------------------------------------------------
+
+    @property
+    def state(self) -> str:
+        errors = f" {self.axis_error!r}" if self.axis_error else ""
+        return f"{self.axis_state.name}{errors}"
+
+    @property
+    def enabled(self) -> bool:
+        return self.axis_state == AxisState.CLOSED_LOOP_CONTROL and not self.axis_error
+
+    def cycle_frames(self, target: float, velocity: float, stopping: bool,
+                     enabling: bool) -> list[Frame]:
+        frames, self._pending = self._pending, []
+        if (not stopping and not self.axis_error and not self.enabled
+                and not self._requested_closed_loop and self.at_standstill()
+                and self.axis_state == AxisState.IDLE):
+            self._requested_closed_loop = True
+            frames.append((self._id(Cmd.SET_AXIS_STATE),
+                           LAYOUT[Cmd.SET_AXIS_STATE].pack(AxisState.CLOSED_LOOP_CONTROL), False))
+        if not self.enabled:
+            frames.append((self._id(Cmd.HEARTBEAT), b"", True))     # watch it come up
+        if stopping or enabling or not self.enabled:
+            target, velocity = self.feedback.position, 0.0           # hold where it is
+        feed_forward = max(-32768, min(32767, round(velocity / TURN * FF_SCALE)))
+        frames += [
+            (self._id(Cmd.SET_INPUT_POS),
+             LAYOUT[Cmd.SET_INPUT_POS].pack(target / TURN, feed_forward, 0), False),
+            (self._id(Cmd.GET_TORQUES), b"", True),
+            (self._id(Cmd.GET_ENCODER_ESTIMATES), b"", True)]
+        return frames
+
+    def disable_rounds(self) -> list[list[Frame]]:
+        return [[(self._id(Cmd.SET_AXIS_STATE), LAYOUT[Cmd.SET_AXIS_STATE].pack(AxisState.IDLE),
+                  False)]]
+
+    def fault_text(self, stopping: bool = False) -> str | None:
+        if not self.axis_error:
+            return None
+        reason = (f", disarm reason {self.disarm_reason!r}"
+                  if self.disarm_reason != ODriveError.NONE else "")
+        return f"{self.label} disarmed: {self.axis_error!r}{reason}"
+
+    def forget_faults(self) -> None:
+        self.axis_error = self.disarm_reason = ODriveError.NONE   # the next heartbeat tells
+        self._pending.append((self._id(Cmd.CLEAR_ERRORS), LAYOUT[Cmd.CLEAR_ERRORS].pack(0),
+                              False))
