@@ -34,7 +34,7 @@ def errors_of(path):
     return caught.value.diagnostics
 
 
-@pytest.mark.parametrize("name", ["ur3.yaml", "pigot.yaml"])
+@pytest.mark.parametrize("name", ["ur3.yaml", "pigot.yaml", "pigot_mixed.yaml"])
 def test_shipped_configs_load_and_check(name, capsys):
     config = load_bus_config(ROOT / "bus_config" / name)
     assert all(bus.load().worst_ratio <= 1.0 for bus in config.buses)
@@ -83,6 +83,13 @@ def test_heavy_but_feasible_load_warns(tmp_path):
     (ALL_SIX.replace("joint: joint1}", "joint: joint1, peak_torque: -1}"),
      "'peak_torque' must be > 0"),
     (ALL_SIX.replace("joint: joint1}", "joint: joint1, gian: 3}"), "unknown key 'gian'"),
+    (ALL_SIX.replace("node_id: 6, joint: joint6}", "node_id: 64, joint: joint6, protocol: odrive}"),
+     "node id 64 is outside 0..63"),
+    (ALL_SIX.replace("joint: joint6}", "joint: joint6, protocol: mit}"), "options: 'kp' must be"),
+    (ALL_SIX.replace("joint: joint6}", "joint: joint6, protocol: mit, options: {kp: 1, kq: 2}}"),
+     "unknown option(s) kq for protocol 'mit'"),
+    (ALL_SIX.replace("joint: joint6}", "joint: joint6, options: {kp: 1}}"),
+     "protocol 'cia402' takes no 'options'"),
 ])
 def test_config_errors_name_the_drive_and_line(tmp_path, drives, message):
     diagnostics = errors_of(write_config(tmp_path, one_bus(drives)))
@@ -110,3 +117,36 @@ def test_motor_side_defaults_come_from_the_robot(tmp_path):
     assert joint1.max_velocity == pytest.approx(1.0 * 120)      # velocity limit x reduction
     assert joint1.position_limits == pytest.approx((-3.14 * 120, 3.14 * 120))
     assert joint1.following_error_limit == pytest.approx(0.1 * 120)
+
+
+MIT = "protocol: mit, options: {p_max: 400, v_max: 130, kp_max: 50, kd_max: 1, t_max: 1, kp: 5, kd: 0.1}"
+
+
+def test_mixed_protocols_share_a_bus_when_their_ids_do_not_collide(tmp_path):
+    drives = ("- {node_id: 1, joint: joint1}\n- {node_id: 2, joint: joint2}\n"
+              f"- {{node_id: 3, joint: joint3, {MIT[:-1]}, reply_id: 0x7F0}}}}\n"
+              f"- {{node_id: 4, joint: joint4, {MIT[:-1]}, reply_id: 0x7F0}}}}\n"
+              "- {node_id: 10, joint: joint5, protocol: odrive}\n"
+              "- {node_id: 11, joint: joint6, protocol: odrive}\n")
+    config = load_bus_config(write_config(tmp_path, one_bus(drives, 250)))
+    bus = config.buses[0]
+    # per cycle: 2 x (RPDO + 2 TPDO) + SYNC, 2 x (MIT command + answer), 2 x (ODrive
+    # Set_Input_Pos, 2 RTRs, 2 answers); heartbeats: CiA 1 byte, ODrive 8 bytes, 10/s
+    assert bus.load().frames_per_second == pytest.approx(250 * (6 + 1 + 4 + 10) + 4 * 10)
+
+
+@pytest.mark.parametrize("drives, clash", [
+    # MIT motors answer on the master's id 0 by default: CANopen's NMT id
+    ("- {node_id: 1, joint: joint1}\n" + f"- {{node_id: 2, joint: joint2, {MIT}}}\n",
+     "CAN id 0x000 is used by CANopen NMT and by node 2 (joint2) (mit)"),
+    # ODrive node 4 uses ids 0x080-0x09F: SYNC and the CiA 402 drives' EMCY ids
+    ("- {node_id: 1, joint: joint1}\n- {node_id: 4, joint: joint2, protocol: odrive}\n",
+     "CAN id 0x080 is used by CANopen SYNC and by node 4 (joint2) (odrive)"),
+    # an ODrive command id that is a MIT motor's id
+    (f"- {{node_id: 33, joint: joint1, {MIT}}}\n- {{node_id: 1, joint: joint2, protocol: odrive}}\n",
+     "CAN id 0x021 is used by node 33 (joint1) (mit) and by node 1 (joint2) (odrive)"),
+])
+def test_colliding_can_ids_of_mixed_protocols_are_rejected(tmp_path, drives, clash):
+    rest = "".join(f"- {{node_id: {i + 90}, joint: joint{i}}}\n" for i in range(3, 7))
+    diagnostics = errors_of(write_config(tmp_path, one_bus(drives + rest, 250)))
+    assert any(clash in d.message for d in diagnostics), [d.message for d in diagnostics]

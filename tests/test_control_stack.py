@@ -19,13 +19,19 @@ from hil.zenoh_session import ZenohSettings, session
 from conftest import ROOT, free_port, socketcan_missing
 
 
-class Stack:
-    """`hil sim` and `hil control` (or `hil control --fake`) on one loopback port."""
+#: bus configs whose robot is not named like the config
+ROBOT_OF = {"pigot_mixed": "pigot"}
 
-    def __init__(self, robot: str, fake: bool = False, can: str = "zenoh"):
+
+class Stack:
+    """`hil sim` and `hil control` (or `hil control --fake`) on one loopback port, for
+    bus_config/<name>.yaml."""
+
+    def __init__(self, name: str, fake: bool = False, can: str = "zenoh"):
+        robot = ROBOT_OF.get(name, name)
         self.robot = robot
         self.endpoint = f"tcp/127.0.0.1:{free_port()}"
-        config = str(ROOT / "bus_config" / f"{robot}.yaml")
+        config = str(ROOT / "bus_config" / f"{name}.yaml")
         # SocketCAN: each bus of the config on its own vcan (created by tools/uml_run.py),
         # in lock-step, because under User-Mode Linux the processes cannot keep real time
         transport = ["--interface", "socketcan", "--channel", "arm=vcan0",
@@ -80,9 +86,11 @@ class Stack:
                     process.communicate()
 
 
-@pytest.fixture(params=[("ur3", "zenoh"), ("pigot", "zenoh"),
+@pytest.fixture(params=[("ur3", "zenoh"), ("pigot", "zenoh"), ("pigot_mixed", "zenoh"),
                         pytest.param(("ur3", "socketcan"), marks=pytest.mark.socketcan),
-                        pytest.param(("pigot", "socketcan"), marks=pytest.mark.socketcan)],
+                        pytest.param(("pigot", "socketcan"), marks=pytest.mark.socketcan),
+                        pytest.param(("pigot_mixed", "socketcan"),
+                                     marks=pytest.mark.socketcan)],
                 ids=lambda p: f"{p[0]}-{p[1]}")
 def stack(request):
     robot, can = request.param

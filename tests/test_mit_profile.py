@@ -1,0 +1,168 @@
+"""The MIT motor protocol: packing against hand-computed firmware vectors, the motor's
+impedance law, special frames, and garbage on the bus."""
+
+from __future__ import annotations
+
+import threading
+import time
+import uuid
+
+import can
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hil.drives import DriveCore, DriveParameters, Mode, Power
+from hil.drives.mit import (
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitDrive, MitOptions, MitRanges,
+    MitReply, float_to_uint, pack_command, pack_reply, unpack_command, unpack_reply,
+)
+from hil.drives.profile import start_network
+
+CLASSIC = MitRanges(p_max=12.5, v_max=65.0, kp_max=500.0, kd_max=5.0, t_max=18.0)
+
+# Vectors worked out by hand from the mini-cheetah firmware's float_to_uint (truncating)
+# and its pack_cmd / pack_reply bit layout, with the classic ranges:
+#   x_int = (int)((x - min) * (2^bits - 1) / (max - min))
+COMMAND_VECTORS = [
+    # p, v, kp, kd, t_ff -> bytes
+    ((0.0, 0.0, 0.0, 0.0, 0.0), "7FFF7FF0000007FF"),     # 32767, 2047, 0, 0, 2047
+    ((12.5, -65.0, 500.0, 5.0, -18.0), "FFFF000FFFFFF000"),  # 65535, 0, 4095, 4095, 0
+    ((1.0, 2.0, 50.0, 1.0, 0.5), "8A3C83E199333838"),    # 35388, 2110, 409, 819, 2104
+    ((99.0, 99.0, 999.0, -1.0, 99.0), "FFFFFFFFFF000FFF"),  # clamped to the ranges
+]
+REPLY_VECTORS = [
+    # motor id, p, v, torque -> bytes
+    ((3, -1.0, -2.0, -0.5), "0375C27C07C6"),              # 30146, 1984, 1990
+    ((1, 0.0, 0.0, 0.0), "017FFF7FF7FF"),                 # 32767, 2047, 2047
+]
+
+
+@pytest.mark.parametrize("values, expected", COMMAND_VECTORS)
+def test_command_packing_matches_the_firmware_vectors(values, expected):
+    assert pack_command(MitCommand(*values), CLASSIC).hex().upper() == expected
+
+
+@pytest.mark.parametrize("values, expected", REPLY_VECTORS)
+def test_reply_packing_matches_the_firmware_vectors(values, expected):
+    assert pack_reply(MitReply(*values), CLASSIC).hex().upper() == expected
+    decoded = unpack_reply(bytes.fromhex(expected), CLASSIC)
+    assert decoded.motor_id == values[0]
+    for got, meant, span, bits in zip((decoded.position, decoded.velocity, decoded.torque),
+                                      values[1:], (25.0, 130.0, 36.0), (16, 12, 12)):
+        assert abs(got - meant) <= span / ((1 << bits) - 1)          # within 1 LSB
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(-12.5, 12.5), st.floats(-65, 65), st.floats(0, 500), st.floats(0, 5),
+       st.floats(-18, 18))
+def test_commands_survive_packing_within_one_lsb(p, v, kp, kd, t):
+    decoded = unpack_command(pack_command(MitCommand(p, v, kp, kd, t), CLASSIC), CLASSIC)
+    for got, meant, span, bits in zip(
+            (decoded.position, decoded.velocity, decoded.kp, decoded.kd, decoded.torque),
+            (p, v, kp, kd, t), (25.0, 130.0, 500.0, 5.0, 36.0), (16, 12, 12, 12, 12)):
+        assert abs(got - meant) <= span / ((1 << bits) - 1) + 1e-9
+
+
+def test_float_to_uint_truncates_like_the_firmware():
+    assert float_to_uint(0.0, -12.5, 12.5, 16) == 32767            # 32767.5 truncated
+    assert float_to_uint(-12.5, -12.5, 12.5, 16) == 0
+    assert float_to_uint(12.5, -12.5, 12.5, 16) == 65535
+
+
+def core(peak: float = 2.0) -> DriveCore:
+    return DriveCore(DriveParameters(
+        counts_per_rev=1 << 20, rated_torque=1.0, peak_torque=peak, position_kp=10,
+        velocity_kp=0.1, velocity_ki=1.0, max_velocity=100.0, following_error_limit=0.0,
+        following_error_timeout=0.01, quick_stop_deceleration=100.0, watchdog_timeout=0.0,
+        holding_brake=False))
+
+
+def test_impedance_mode_applies_kp_kd_and_feed_forward_and_saturates():
+    drive = core(peak=2.0)
+    drive.set_mode(Mode.IMPEDANCE)
+    drive.measure(0.10, 0.5)
+    drive.enable()
+    drive.new_setpoint(position=0.30, velocity=1.5, torque=0.05, stiffness=4.0, damping=0.2)
+    # 4 (0.3 - 0.1) + 0.2 (1.5 - 0.5) + 0.05 = 1.05 (position quantised to 2^20 counts)
+    assert drive.update(0.001) == pytest.approx(1.05, abs=1e-4)
+    drive.new_setpoint(position=3.0)
+    assert drive.update(0.001) == pytest.approx(2.0)                # the peak torque
+
+
+class MitBench:
+    """One MitDrive on a python-can virtual bus, and a master bus to talk to it."""
+
+    def __init__(self, node_id: int = 5, options: MitOptions = MitOptions(ranges=CLASSIC,
+                                                                          kp=10.0, kd=0.1)):
+        channel = f"hil-mit-{uuid.uuid4().hex[:8]}"
+        self.drive_bus = can.Bus(interface="virtual", channel=channel)
+        self.master = can.Bus(interface="virtual", channel=channel)
+        self.lock = threading.RLock()
+        self.core = core(peak=options.ranges.t_max)
+        self.drive = MitDrive(node_id, self.core, self.lock, 1.0, 0.1, options)
+        self.drive.on_command = lambda d: d.send_replies()        # real time: answer at once
+        self.network = start_network(self.drive_bus)
+        self.drive.attach(self.network)
+        self.options = options
+
+    def send(self, data: bytes, can_id: int | None = None) -> MitReply | None:
+        self.master.send(can.Message(arbitration_id=self.drive.node_id if can_id is None
+                                     else can_id, data=data, is_extended_id=False))
+        reply = self.master.recv(0.5)
+        return None if reply is None else unpack_reply(bytes(reply.data), self.options.ranges)
+
+    def close(self):
+        self.drive.detach()
+        self.network.notifier.stop(1)
+        self.drive_bus.shutdown()
+        self.master.shutdown()
+
+
+@pytest.fixture
+def mit():
+    bench = MitBench()
+    yield bench
+    bench.close()
+
+
+def test_special_frames_enter_and_exit_motor_mode_and_set_zero(mit):
+    mit.core.measure(1.0, 0.0)
+    reply = mit.send(ENTER_MOTOR_MODE)
+    assert mit.core.power is Power.ENABLED and reply.motor_id == 5
+    assert reply.position == pytest.approx(1.0, abs=25 / 65535)
+    mit.send(SET_ZERO)
+    assert mit.send(pack_command(MitCommand(0, 0, 0, 0, 0), CLASSIC)).position == \
+        pytest.approx(0.0, abs=25 / 65535)
+    mit.send(EXIT_MOTOR_MODE)
+    assert mit.core.power is Power.DISABLED
+
+
+def test_commands_are_ignored_in_rest_mode_but_answered(mit):
+    reply = mit.send(pack_command(MitCommand(3.0, 0, 100, 1, 5.0), CLASSIC))
+    assert reply is not None and mit.core.power is Power.DISABLED
+    assert mit.core.update(0.001) == 0.0
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(min_size=0, max_size=8))
+def test_garbage_and_truncated_frames_never_crash_the_motor(data):
+    bench = MitBench()
+    try:
+        bench.master.send(can.Message(arbitration_id=5, data=data, is_extended_id=False))
+        time.sleep(0.002)
+        reply = bench.send(ENTER_MOTOR_MODE)      # still alive and answering
+        assert reply is not None and reply.motor_id == 5
+        if len(data) != 8:
+            assert bench.drive.malformed >= 1
+    finally:
+        bench.close()
+
+
+def test_options_are_validated_with_the_key_named():
+    with pytest.raises(ValueError, match="'kp'"):
+        MitOptions.from_mapping({"kp": 0})
+    with pytest.raises(ValueError, match="'v_max'"):
+        MitOptions.from_mapping({"v_max": -1, "kp": 1})
+    with pytest.raises(ValueError, match="reply_id"):
+        MitOptions.from_mapping({"reply_id": 4096, "kp": 1})
