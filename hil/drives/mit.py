@@ -78,6 +78,22 @@ def uint_to_float(value: int, low: float, high: float, bits: int) -> float:
     return value * (high - low) / ((1 << bits) - 1) + low
 
 
+def _field(ranges: MitRanges, name: str) -> tuple[float, float, int]:
+    """(low, high, bits) of a packed value."""
+    return {"position": (-ranges.p_max, ranges.p_max, 16),
+            "velocity": (-ranges.v_max, ranges.v_max, 12),
+            "kp": (0.0, ranges.kp_max, 12), "kd": (0.0, ranges.kd_max, 12),
+            "torque": (-ranges.t_max, ranges.t_max, 12)}[name]
+
+
+def _pack(values, ranges: MitRanges, names: tuple[str, ...]) -> list[int]:
+    return [float_to_uint(getattr(values, name), *_field(ranges, name)) for name in names]
+
+
+def _unpack(raw: tuple[int, ...], ranges: MitRanges, names: tuple[str, ...]) -> list[float]:
+    return [uint_to_float(value, *_field(ranges, name)) for value, name in zip(raw, names)]
+
+
 @dataclass(frozen=True)
 class MitCommand:
     position: float
@@ -86,29 +102,20 @@ class MitCommand:
     kd: float
     torque: float
 
+    FIELDS = ("position", "velocity", "kp", "kd", "torque")
+
 
 def pack_command(command: MitCommand, ranges: MitRanges) -> bytes:
-    r = ranges
-    p = float_to_uint(command.position, -r.p_max, r.p_max, 16)
-    v = float_to_uint(command.velocity, -r.v_max, r.v_max, 12)
-    kp = float_to_uint(command.kp, 0.0, r.kp_max, 12)
-    kd = float_to_uint(command.kd, 0.0, r.kd_max, 12)
-    t = float_to_uint(command.torque, -r.t_max, r.t_max, 12)
+    p, v, kp, kd, t = _pack(command, ranges, MitCommand.FIELDS)
     return bytes([p >> 8, p & 0xFF, v >> 4, ((v & 0xF) << 4) | (kp >> 8), kp & 0xFF, kd >> 4,
                   ((kd & 0xF) << 4) | (t >> 8), t & 0xFF])
 
 
 def unpack_command(data: bytes, ranges: MitRanges) -> MitCommand:
-    r = ranges
-    p = (data[0] << 8) | data[1]
-    v = (data[2] << 4) | (data[3] >> 4)
-    kp = ((data[3] & 0xF) << 8) | data[4]
-    kd = (data[5] << 4) | (data[6] >> 4)
-    t = ((data[6] & 0xF) << 8) | data[7]
-    return MitCommand(uint_to_float(p, -r.p_max, r.p_max, 16),
-                      uint_to_float(v, -r.v_max, r.v_max, 12),
-                      uint_to_float(kp, 0.0, r.kp_max, 12), uint_to_float(kd, 0.0, r.kd_max, 12),
-                      uint_to_float(t, -r.t_max, r.t_max, 12))
+    raw = ((data[0] << 8) | data[1], (data[2] << 4) | (data[3] >> 4),
+           ((data[3] & 0xF) << 8) | data[4], (data[5] << 4) | (data[6] >> 4),
+           ((data[6] & 0xF) << 8) | data[7])
+    return MitCommand(*_unpack(raw, ranges, MitCommand.FIELDS))
 
 
 @dataclass(frozen=True)
@@ -118,24 +125,19 @@ class MitReply:
     velocity: float
     torque: float
 
+    FIELDS = ("position", "velocity", "torque")
+
 
 def pack_reply(reply: MitReply, ranges: MitRanges) -> bytes:
-    r = ranges
-    p = float_to_uint(reply.position, -r.p_max, r.p_max, 16)
-    v = float_to_uint(reply.velocity, -r.v_max, r.v_max, 12)
-    t = float_to_uint(reply.torque, -r.t_max, r.t_max, 12)
+    p, v, t = _pack(reply, ranges, MitReply.FIELDS)
     return bytes([reply.motor_id, p >> 8, p & 0xFF, v >> 4, ((v & 0xF) << 4) | (t >> 8),
                   t & 0xFF])
 
 
 def unpack_reply(data: bytes, ranges: MitRanges) -> MitReply:
-    r = ranges
-    p = (data[1] << 8) | data[2]
-    v = (data[3] << 4) | (data[4] >> 4)
-    t = ((data[4] & 0xF) << 8) | data[5]
-    return MitReply(data[0], uint_to_float(p, -r.p_max, r.p_max, 16),
-                    uint_to_float(v, -r.v_max, r.v_max, 12),
-                    uint_to_float(t, -r.t_max, r.t_max, 12))
+    raw = ((data[1] << 8) | data[2], (data[3] << 4) | (data[4] >> 4),
+           ((data[4] & 0xF) << 8) | data[5])
+    return MitReply(data[0], *_unpack(raw, ranges, MitReply.FIELDS))
 
 
 class MitDrive(DriveProfile):
