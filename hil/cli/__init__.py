@@ -9,12 +9,12 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hil.cli import check, common, control, reset, send, sim, up, viz
+from hil.cli import bench, check, common, control, reset, send, sim, up, viz
 from hil.errors import HilError
 
 #: sub-command name -> module with ``add_arguments(parser)`` and ``run(args) -> int``
 COMMANDS = {"check": check, "sim": sim, "control": control, "send": send, "reset": reset,
-            "viz": viz, "up": up}
+            "viz": viz, "up": up, "bench": bench}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,455 @@
+"""``hil bench``: how fast and how faithful the stack is, measured in one run.
+
+Every figure comes from the same process and the same minutes, so ratios
+hold on a noisy machine. The stacks run in-process on python-can's
+``virtual`` bus (SocketCAN vcan where the kernel has it), with the real
+simulator, CAN master, trajectory controller and Zenoh publications on
+loopback.
+
+Figures (each a list of rows; a figure that cannot be measured here says why):
+
+* ``control_cycle``: real-time period statistics per robot and rate, and the
+  sim's real-time factor over the same run;
+* ``socketcan``: the same over vcan, or why not;
+* ``lock_step``: speed-up over real time, full-stack time per cycle;
+* ``overhead``: that time against a bare python-can exchange of the same
+  frames on the same kind of bus, and against the bare MuJoCo steps;
+* ``latency``: from a setpoint leaving the trajectory controller to the
+  joint state it causes arriving on Zenoh;
+* ``tracking``: RMS and max error on a fixed trajectory, against MuJoCo's
+  ideal position servo on the same model following the same reference;
+* ``bus_load``: measured on the bus against the bitrate, with the config's
+  worst-case estimate.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import platform
+import socket
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import can
+import mujoco
+import numpy as np
+
+from hil.bus_config import SystemConfig, load_bus_config
+from hil.can.monitor import BusLoadMeter
+from hil.control_node import ControlNode
+from hil.controllers import TrajectoryGoal, TrajectoryPoint
+from hil.hardware import CanHardwareInterface
+from hil.messaging import types as T
+from hil.messaging.samples import ControlSamples
+from hil.messaging.zenoh_api import RunSubscriber, TrajectoryActionClient, key
+from hil.plant import Plant
+from hil.simulator import Simulator, motor_inertias
+from hil.zenoh_session import ZenohSettings, close_all, session
+
+ROBOTS = ("ur3", "pigot")
+RATES = (250.0, 500.0, 1000.0)
+#: the figures every report has (a row list, or {"unavailable": why})
+FIGURES = ("control_cycle", "socketcan", "lock_step", "overhead", "latency", "tracking",
+           "bus_load")
+
+
+@dataclass(frozen=True)
+class BenchSettings:
+    seconds: float = 10.0          # per real-time run
+    lock_step_cycles: int = 5000
+    bare_cycles: int = 5000
+    config_dir: Path = Path(__file__).resolve().parents[1] / "bus_config"
+
+    @classmethod
+    def quick(cls, config_dir: Path | None = None) -> BenchSettings:
+        return cls(seconds=2.0, lock_step_cycles=600, bare_cycles=1000,
+                   **({"config_dir": config_dir} if config_dir else {}))
+
+
+def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> dict:
+    """Measure every figure; raises RuntimeError if one is missing from the report."""
+    report: dict = {"machine": {"cpus": len(os.sched_getaffinity(0)),
+                                "python": platform.python_version(),
+                                "platform": platform.platform()},
+                    "settings": {"seconds": settings.seconds,
+                                 "lock_step_cycles": settings.lock_step_cycles}}
+    for name in FIGURES:
+        report[name] = []
+    for robot in ROBOTS:
+        config = load_bus_config(settings.config_dir / f"{robot}.yaml")
+        for rate in RATES:
+            say(f"hil bench: {robot} real time at {rate:g} Hz ...")
+            cycle, latency, loads = _real_time(with_rate(config, rate), settings.seconds)
+            report["control_cycle"].append({"robot": robot, "rate_hz": rate,
+                                            "transport": "virtual", **cycle})
+            report["latency"].append({"robot": robot, "rate_hz": rate, **latency})
+            report["bus_load"] += [{"robot": robot, "rate_hz": rate, **load} for load in loads]
+        say(f"hil bench: {robot} lock-step, bare python-can, bare MuJoCo ...")
+        lock_step = _lock_step(config, settings.lock_step_cycles)
+        report["lock_step"].append({"robot": robot, "rate_hz": config.cycle_hz, **lock_step})
+        bare_can = _bare_python_can(config, settings.bare_cycles)
+        bare_mujoco = _bare_mujoco(config, settings.bare_cycles)
+        full = lock_step["cycle_us"]
+        report["overhead"].append({
+            "robot": robot, "full_stack_cycle_us": full, "bare_python_can_cycle_us": bare_can,
+            "bare_mujoco_cycle_us": bare_mujoco, "ratio_to_python_can": full / bare_can,
+            "ratio_to_mujoco": full / bare_mujoco})
+        say(f"hil bench: {robot} tracking against MuJoCo's ideal position servo ...")
+        report["tracking"].append({"robot": robot, **_tracking(config)})
+    missing = _vcan_missing()
+    report["socketcan"] = {"unavailable": missing} if missing else _socketcan(settings)
+    close_all()
+    absent = [name for name in FIGURES if not report.get(name)]
+    if absent:
+        raise RuntimeError(f"figures missing from the report: {', '.join(absent)}")
+    return report
+
+
+def with_rate(config: SystemConfig, rate: float) -> SystemConfig:
+    """The same bench with every bus at ``rate`` Hz."""
+    return replace(config, buses=tuple(replace(bus, cycle_hz=rate) for bus in config.buses))
+
+
+# --- stacks -------------------------------------------------------------------------------
+
+@contextmanager
+def _stack(config: SystemConfig, lock_step: bool, interface: str = "virtual",
+           channels: dict[str, str] | None = None):
+    """Simulator + CAN master + control node in this process; yields (sim, node, session)."""
+    tag = uuid.uuid4().hex[:8]
+    channels = channels or {b.name: f"hil-bench-{tag}-{b.name}" for b in config.buses}
+    opened = []
+
+    def bus(name):
+        opened.append(can.Bus(interface=interface, channel=channels[name]))
+        return opened[-1]
+
+    sim = Simulator(config, {b.name: bus(b.name) for b in config.buses}, lock_step=lock_step)
+    sim.start()
+    sim_thread = threading.Thread(target=sim.run, daemon=True)
+    sim_thread.start()
+    zenoh = session(ZenohSettings(listen=(f"tcp/127.0.0.1:{_free_port()}",)))
+    hardware = CanHardwareInterface(config, {b.name: bus(b.name) for b in config.buses},
+                                    reply_timeout=1.0 if lock_step else None)
+    node = ControlNode(hardware, zenoh, config.cycle_hz, lock_step=lock_step)
+    node_thread = threading.Thread(target=node.run, daemon=True)
+    node_thread.start()
+    try:
+        yield sim, node, zenoh, channels
+    finally:
+        node.stop()
+        node_thread.join(10)
+        sim.stop()
+        sim_thread.join(5)
+        sim.close()
+        for each in opened:
+            each.shutdown()
+
+
+def _wait_running(node: ControlNode, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while node._token is None:
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"the control node did not start: {node.faults}")
+        time.sleep(0.01)
+
+
+def _real_time(config: SystemConfig, seconds: float) -> tuple[dict, dict, list[dict]]:
+    with _stack(config, lock_step=False) as (sim, node, zenoh, channels):
+        _wait_running(node)
+        meters = _listen(config, channels)
+        latency = _LatencyProbe(zenoh, config.robot.name)
+        node.statistics.samples.clear()
+        plant_start, wall_start = sim.plant.time, time.perf_counter()
+        for meter, _ in meters:
+            meter.meter.take(time.time())
+        time.sleep(seconds)
+        plant, wall = sim.plant.time - plant_start, time.perf_counter() - wall_start
+        loads = [(meter.meter.take(time.time()), bus) for meter, bus in meters]
+        periods = np.array(node.statistics.samples)
+        latency.close()
+        for meter, _ in meters:
+            meter.stop()
+    errors = np.abs(periods - 1.0 / config.cycle_hz) * 1e6
+    cycle = {"cycles": int(len(periods)), "period_mean_ms": float(periods.mean() * 1e3),
+             "error_p50_us": float(np.percentile(errors, 50)),
+             "error_p99_us": float(np.percentile(errors, 99)), "error_max_us": float(errors.max()),
+             "missed": int(np.sum(periods > 1.5 / config.cycle_hz)),
+             "sim_real_time_factor": plant / wall, "faults": len(node.faults)}
+    rows = []
+    for measured, bus in loads:
+        estimate = bus.load()
+        for load in measured:
+            if load.bus == bus.name:
+                rows.append({"bus": bus.name, "bitrate": bus.bitrate,
+                             "measured_frames_per_s": load.frames_per_second,
+                             "measured_load": load.nominal,
+                             "measured_load_worst_stuffing": load.worst_case,
+                             "estimated_load_worst": estimate.worst_ratio})
+    return cycle, latency.figures(1.0 / config.cycle_hz), rows
+
+
+class _Listener:
+    """A third bus on a channel, with a load meter behind a Notifier."""
+
+    def __init__(self, channel: str, bus_name: str, bitrate: int):
+        self.bus = can.Bus(interface="virtual", channel=channel)
+        self.meter = BusLoadMeter({channel: (bus_name, bitrate)}, time.time())
+        self.notifier = can.Notifier(self.bus, [self.meter], 0.1)
+
+    def stop(self) -> None:
+        self.notifier.stop(1)
+        self.bus.shutdown()
+
+
+def _listen(config: SystemConfig, channels: dict[str, str]) -> list[tuple[_Listener, object]]:
+    return [(_Listener(channels[bus.name], bus.name, bus.bitrate), bus) for bus in config.buses]
+
+
+class _LatencyProbe:
+    """Setpoint out of the controller (a cycle's sample time) to the joint state measured
+    one cycle later arriving here on Zenoh."""
+
+    def __init__(self, zenoh, robot: str):
+        self.samples: list[ControlSamples] = []
+        self.states: list[tuple[float, float]] = []       # (header stamp, arrival)
+        self._subscriber = RunSubscriber(zenoh, robot, self.samples.append, lambda *_: None,
+                                         lambda *_: None)
+        self._states = zenoh.declare_subscriber(key(robot, "joint_states"), self._on_state)
+
+    def _on_state(self, sample) -> None:
+        arrival = time.time()
+        message = T.decode(sample.payload.to_bytes(), T.JOINT_STATE)
+        self.states.append((T.seconds_of(message.header.stamp), arrival))
+
+    def figures(self, period: float) -> dict:
+        if not self.samples or not self.states:
+            return {"unavailable": "no joint states or samples arrived"}
+        times = np.concatenate([s.wall_time for s in self.samples])
+        latencies = []
+        for stamp, arrival in self.states:
+            cycle = np.searchsorted(times, stamp) - 1      # the cycle that published it
+            if 1 <= cycle < len(times):
+                latencies.append(arrival - times[cycle - 1])   # its state came from cycle-1
+        values = np.array(latencies) * 1e3
+        return {"samples": len(values), "p50_ms": float(np.percentile(values, 50)),
+                "p99_ms": float(np.percentile(values, 99)), "max_ms": float(values.max()),
+                "cycle_ms": period * 1e3}
+
+    def close(self) -> None:
+        self._subscriber.close()
+        self._states.undeclare()
+
+
+def _lock_step(config: SystemConfig, cycles: int) -> dict:
+    with _stack(config, lock_step=True) as (sim, node, zenoh, _):
+        _wait_running(node)
+        start_cycle, plant_start, wall_start = node._cycle, sim.plant.time, time.perf_counter()
+        while node._cycle - start_cycle < cycles:
+            time.sleep(0.01)
+        done = node._cycle - start_cycle
+        wall, plant = time.perf_counter() - wall_start, sim.plant.time - plant_start
+    return {"cycles": done, "speedup_over_real_time": plant / wall,
+            "cycle_us": wall / done * 1e6}
+
+
+def _bare_python_can(config: SystemConfig, cycles: int) -> float:
+    """Per cycle: the master's frames out and the drives' answers back on python-can
+    virtual buses, answered by a bare listener: no protocol, no physics, no control."""
+    tag = uuid.uuid4().hex[:8]
+    pairs = []
+    for bus in config.buses:
+        channel = f"hil-bare-{tag}-{bus.name}"
+        out = [f for d in bus.drives for f in bus.frames(d)
+               if f[2] == bus.cycle_hz and f[0] in _master_ids(bus, d)]
+        answers = [f for d in bus.drives for f in bus.frames(d)
+                   if f[2] == bus.cycle_hz and f[0] not in _master_ids(bus, d)]
+        pairs.append((can.Bus(interface="virtual", channel=channel),
+                      can.Bus(interface="virtual", channel=channel), out, answers,
+                      bus.uses_sync))
+    stop = threading.Event()
+
+    def responder(bus, answers, trigger):
+        frames = [can.Message(arbitration_id=i, data=bytes(n), is_extended_id=False)
+                  for i, n, _ in answers]
+        while not stop.is_set():
+            message = bus.recv(0.1)
+            if message is not None and message.arbitration_id == trigger:
+                for frame in frames:
+                    bus.send(frame)
+
+    threads = []
+    for master, drive, out, answers, sync in pairs:
+        trigger = 0x080 if sync else out[-1][0]
+        threads.append(threading.Thread(target=responder, args=(drive, answers, trigger),
+                                        daemon=True))
+        threads[-1].start()
+    started = time.perf_counter()
+    for _ in range(cycles):
+        for master, drive, out, answers, sync in pairs:
+            for can_id, payload, _ in out:
+                master.send(can.Message(arbitration_id=can_id, data=bytes(payload),
+                                        is_extended_id=False))
+            if sync:
+                master.send(can.Message(arbitration_id=0x080, data=b"", is_extended_id=False))
+        for master, drive, out, answers, sync in pairs:
+            for _ in answers:
+                master.recv(1.0)
+    elapsed = time.perf_counter() - started
+    stop.set()
+    for thread in threads:
+        thread.join(1)
+    for master, drive, *_ in pairs:
+        master.shutdown()
+        drive.shutdown()
+    return elapsed / cycles * 1e6
+
+
+def _master_ids(bus, drive) -> set[int]:
+    """Ids of a drive's cyclic frames that the master sends (CiA 402 RPDO, MIT command,
+    ODrive Set_Input_Pos): the lowest id of the cyclic exchange's first frame."""
+    cyclic = [f for f in bus.frames(drive) if f[2] == bus.cycle_hz]
+    return {cyclic[0][0]}
+
+
+def _bare_mujoco(config: SystemConfig, cycles: int) -> float:
+    plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz)
+    torques = np.zeros(len(plant.actuator_names))
+    started = time.perf_counter()
+    for _ in range(cycles):
+        plant.set_motor_torques(torques)
+        plant.step(config.steps_per_cycle)
+    return (time.perf_counter() - started) / cycles * 1e6
+
+
+# --- tracking -----------------------------------------------------------------------------
+
+def tracking_goal(config: SystemConfig) -> TrajectoryGoal:
+    """The fixed reference: every driven joint out by 0.3 rad (or 40 % of a prismatic
+    range) in 1.5 s, back in 1.5 s, stopping at each end (cubic)."""
+    names, ends = [], []
+    for joint in config.robot.driven_joints:
+        names.append(joint.name)
+        lower, upper = joint.limits.lower, joint.limits.upper
+        span = 0.3 if joint.type.is_rotational else 0.4 * (upper - lower)
+        start = min(max(0.0, lower), upper)
+        ends.append(start + span if start + span <= upper else start - span)
+    zeros = (0.0,) * len(names)
+    starts = tuple(min(max(0.0, j.limits.lower), j.limits.upper)
+                   for j in config.robot.driven_joints)
+    return TrajectoryGoal(tuple(names), (TrajectoryPoint(1.5, tuple(ends), zeros),
+                                         TrajectoryPoint(3.0, starts, zeros)))
+
+
+def _tracking(config: SystemConfig) -> dict:
+    """The full stack (lock-step) follows the goal; MuJoCo's position servo follows the
+    same reference on the same model; both errors are measured at the joints."""
+    goal = tracking_goal(config)
+    with _stack(config, lock_step=True) as (sim, node, zenoh, _):
+        _wait_running(node)
+        samples: list[ControlSamples] = []
+        subscriber = RunSubscriber(zenoh, config.robot.name, samples.append, lambda *_: None,
+                                   lambda *_: None)
+        client = TrajectoryActionClient(zenoh, config.robot.name)
+        # first bring every joint to the start of the reference
+        start = TrajectoryGoal(goal.joint_names, (TrajectoryPoint(
+            2.0, goal.points[-1].positions, (0.0,) * len(goal.joint_names)),))
+        client.wait_result(client.send_goal(start), 120)
+        first = node._cycle
+        goal_id = client.send_goal(goal)
+        result = client.wait_result(goal_id, 120)
+        time.sleep(0.3)
+        subscriber.close()
+        client.close()
+    cycles = np.concatenate([np.arange(s.first_cycle, s.next_cycle) for s in samples])
+    reference = np.concatenate([s.reference for s in samples])[cycles > first]
+    position = np.concatenate([s.position for s in samples])[cycles > first]
+    error = reference - position
+    ideal = _ideal_servo(config, reference)
+    return {"result": result.status.name.lower(), "joints": list(goal.joint_names),
+            "rms": float(np.sqrt(np.mean(error ** 2))), "max": float(np.abs(error).max()),
+            "ideal_servo_rms": float(np.sqrt(np.mean(ideal ** 2))),
+            "ideal_servo_max": float(np.abs(ideal).max()),
+            "rms_per_joint": [float(v) for v in np.sqrt(np.mean(error ** 2, axis=0))]}
+
+
+def _ideal_servo(config: SystemConfig, reference: np.ndarray) -> np.ndarray:
+    """Joint error of MuJoCo position actuators (kp = J w^2, kv = 2 J w at each drive's
+    velocity bandwidth, motor torque limits kept) following ``reference`` (per cycle)."""
+    plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz)
+    model = plant.model
+    inertia = motor_inertias(plant)
+    for drive in config.drives:
+        i = model.actuator(drive.actuator).id
+        omega = 2 * math.pi * drive.velocity_bandwidth_hz
+        kp, kv = inertia[drive.actuator] * omega ** 2, 2 * inertia[drive.actuator] * omega
+        model.actuator_gainprm[i, 0] = kp
+        model.actuator_biastype[i] = mujoco.mjtBias.mjBIAS_AFFINE
+        model.actuator_biasprm[i, :3] = (0.0, -kp, -kv)
+        model.actuator_ctrllimited[i] = 0
+        model.actuator_forcelimited[i] = 1
+        model.actuator_forcerange[i] = (-drive.peak_torque, drive.peak_torque)
+    transmissions = plant.transmissions
+    names = [j.name for j in config.robot.driven_joints]
+    index = {name: i for i, name in enumerate(names)}
+    plant.set_joint_positions(dict(zip(names, reference[0])))
+    measured = [plant.joint_names.index(name) for name in names]
+    errors = []
+    for row in reference:
+        motor = np.zeros(len(plant.actuator_names))
+        for transmission in transmissions:
+            joints = [index[j] for j in transmission.joints]
+            values = transmission.joint_to_actuator_position(row[joints])
+            for actuator, value in zip(transmission.actuators, values):
+                motor[plant.actuator_names.index(actuator)] = value
+        plant.set_motor_torques(motor)       # ctrl = the motor position reference
+        plant.step(config.steps_per_cycle)
+        errors.append(row - plant.joint_positions()[measured])
+    return np.array(errors)
+
+
+# --- SocketCAN ----------------------------------------------------------------------------
+
+def _vcan_missing() -> str | None:
+    if not hasattr(socket, "AF_CAN"):
+        return "this Python has no AF_CAN"
+    try:
+        with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as probe:
+            probe.bind(("vcan0",))
+            probe.close()
+        with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as probe:
+            probe.bind(("vcan1",))
+    except OSError as exc:
+        return (f"no SocketCAN vcan0/vcan1 here ({exc.strerror}): create them with "
+                "tools/vcan-setup.sh, or run the bench inside tools/uml_run.py")
+    return None
+
+
+def _socketcan(settings: BenchSettings) -> list[dict]:
+    rows = []
+    for robot in ROBOTS:
+        config = load_bus_config(settings.config_dir / f"{robot}.yaml")
+        channels = dict(zip((b.name for b in config.buses), ("vcan0", "vcan1")))
+        with _stack(config, False, "socketcan", channels) as (sim, node, zenoh, _):
+            _wait_running(node)
+            node.statistics.samples.clear()
+            time.sleep(settings.seconds)
+            periods = np.array(node.statistics.samples)
+        errors = np.abs(periods - 1.0 / config.cycle_hz) * 1e6
+        rows.append({"robot": robot, "rate_hz": config.cycle_hz, "cycles": len(periods),
+                     "period_mean_ms": float(periods.mean() * 1e3),
+                     "error_p99_us": float(np.percentile(errors, 99)),
+                     "missed": int(np.sum(periods > 1.5 / config.cycle_hz))})
+    return rows
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]

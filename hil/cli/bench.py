@@ -1,0 +1,68 @@
+"""``hil bench``: timing and tracking figures of the whole stack, as a table and JSON."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from hil.bench import BenchSettings, run_bench
+
+HELP = "measure cycle timing, real-time factors, overheads, latency, tracking and bus load"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quick", action="store_true",
+                        help="short runs (about a minute; what CI runs)")
+    parser.add_argument("--json", type=Path, default=Path("bench.json"), metavar="FILE",
+                        help="write the report here (default bench.json)")
+
+
+def run(args: argparse.Namespace) -> int:
+    settings = BenchSettings.quick() if args.quick else BenchSettings()
+    report = run_bench(settings, say=lambda text: print(text, file=sys.stderr, flush=True))
+    args.json.write_text(json.dumps(report, indent=2))
+    print(format_table(report))
+    print(f"\nhil bench: report in {args.json}")
+    return 0
+
+
+def format_table(report: dict) -> str:
+    lines = [f"machine: {report['machine']['cpus']} CPUs, Python {report['machine']['python']}",
+             "", "control cycle, real time (in-process virtual CAN, Zenoh on loopback)",
+             f"  {'robot':<6} {'Hz':>5} {'cycles':>7} {'mean ms':>8} {'p50 us':>8} {'p99 us':>8} "
+             f"{'max us':>8} {'missed':>7} {'sim RTF':>8} {'e2e p50 ms':>11} {'e2e p99 ms':>11}"]
+    for cycle, latency in zip(report["control_cycle"], report["latency"]):
+        lines.append(
+            f"  {cycle['robot']:<6} {cycle['rate_hz']:>5.0f} {cycle['cycles']:>7} "
+            f"{cycle['period_mean_ms']:>8.3f} {cycle['error_p50_us']:>8.0f} "
+            f"{cycle['error_p99_us']:>8.0f} {cycle['error_max_us']:>8.0f} {cycle['missed']:>7} "
+            f"{cycle['sim_real_time_factor']:>8.2f} {latency.get('p50_ms', float('nan')):>11.2f} "
+            f"{latency.get('p99_ms', float('nan')):>11.2f}")
+    socketcan = report["socketcan"]
+    lines += ["", "SocketCAN: " + (socketcan["unavailable"] if isinstance(socketcan, dict) else
+                                   "; ".join(f"{r['robot']} {r['rate_hz']:g} Hz p99 "
+                                             f"{r['error_p99_us']:.0f} us, missed {r['missed']}"
+                                             for r in socketcan))]
+    lines += ["", "lock-step and overhead (per control cycle)",
+              f"  {'robot':<6} {'speed-up':>9} {'stack us':>9} {'python-can us':>14} "
+              f"{'x':>5} {'MuJoCo us':>10} {'x':>6}"]
+    for lock, over in zip(report["lock_step"], report["overhead"]):
+        lines.append(f"  {lock['robot']:<6} {lock['speedup_over_real_time']:>9.2f} "
+                     f"{over['full_stack_cycle_us']:>9.0f} {over['bare_python_can_cycle_us']:>14.0f} "
+                     f"{over['ratio_to_python_can']:>5.1f} {over['bare_mujoco_cycle_us']:>10.1f} "
+                     f"{over['ratio_to_mujoco']:>6.0f}")
+    lines += ["", "tracking a fixed trajectory (rad/m): full stack vs MuJoCo's ideal position servo"]
+    for row in report["tracking"]:
+        lines.append(f"  {row['robot']:<6} {row['result']:<10} rms {row['rms']:.4f} max "
+                     f"{row['max']:.4f}   ideal rms {row['ideal_servo_rms']:.4f} max "
+                     f"{row['ideal_servo_max']:.4f}")
+    lines += ["", "bus load (measured nominal / worst-case stuffing; config estimate worst case)"]
+    for row in report["bus_load"]:
+        lines.append(f"  {row['robot']:<6} {row['rate_hz']:>5.0f} Hz {row['bus']:<6} "
+                     f"{row['measured_frames_per_s']:>7.0f} frames/s  "
+                     f"{100 * row['measured_load']:>5.1f} % / "
+                     f"{100 * row['measured_load_worst_stuffing']:>5.1f} %  "
+                     f"(estimate {100 * row['estimated_load_worst']:.1f} %)")
+    return "\n".join(lines)

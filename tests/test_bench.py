@@ -1,0 +1,39 @@
+"""`hil bench --quick`: every figure present, with plausible values."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+from hil.bench import FIGURES, ROBOTS, RATES
+
+
+def test_quick_bench_reports_every_figure(tmp_path):
+    report_path = tmp_path / "bench.json"
+    result = subprocess.run([sys.executable, "-m", "hil", "bench", "--quick", "--json",
+                             str(report_path)], capture_output=True, text=True, timeout=600,
+                            cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    report = json.loads(report_path.read_text())
+    for name in FIGURES:
+        assert report[name], name
+    assert len(report["control_cycle"]) == len(ROBOTS) * len(RATES)
+    for row in report["control_cycle"]:
+        assert row["cycles"] > 0 and math.isfinite(row["error_p99_us"])
+        assert 0.5 < row["sim_real_time_factor"] < 1.5          # real time is real time
+    for row in report["latency"]:
+        assert row["p50_ms"] > 0 and row["p99_ms"] >= row["p50_ms"]
+    for row in report["overhead"]:
+        assert row["full_stack_cycle_us"] > row["bare_mujoco_cycle_us"] > 0
+        assert row["ratio_to_python_can"] > 1
+    for row in report["tracking"]:
+        assert row["result"] == "succeeded"
+        assert 0 < row["ideal_servo_rms"] and 0 < row["rms"] < 0.05
+    for row in report["bus_load"]:
+        # measured worst-case stuffing never exceeds the config's worst-case estimate
+        assert 0 < row["measured_load_worst_stuffing"] <= row["estimated_load_worst"] * 1.02
+    socketcan = report["socketcan"]
+    assert isinstance(socketcan, list) or "vcan" in socketcan["unavailable"]
+    assert "control cycle, real time" in result.stdout and "tracking" in result.stdout
