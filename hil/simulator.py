@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig
-from hil.drives import PROFILES, DriveCore, DriveParameters, DriveProfile
+from hil.drives import PROFILES, DriveCore, DriveParameters, DriveProfile, Fault
 from hil.drives.profile import start_network
 from hil.plant import Plant
 
@@ -146,6 +146,29 @@ class Simulator:
 
     def stop(self) -> None:
         self._stop.set()
+
+    # --- fault injection ------------------------------------------------------------
+
+    def drive(self, bus: str, node_id: int) -> DriveProfile:
+        for runtime in self._runtimes:
+            for drive in runtime.drives:
+                if runtime.config.name == bus and drive.node_id == node_id:
+                    return drive
+        raise KeyError(f"no drive with node id {node_id} on bus '{bus}'")
+
+    def silence(self, bus: str, node_id: int) -> None:
+        """The drive leaves its bus: no frames in or out (its physics runs on)."""
+        with self.lock:
+            drive = self.drive(bus, node_id)
+            drive.detach()
+            self._waiting.discard(drive)
+
+    def raise_fault(self, bus: str, node_id: int) -> None:
+        """The drive faults as on a following error (it reports it in its protocol)."""
+        with self.lock:
+            drive = self.drive(bus, node_id)
+            drive.core.raise_fault(Fault.FOLLOWING_ERROR)
+            drive.after_update()
 
     # --- time -------------------------------------------------------------------
 

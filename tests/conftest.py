@@ -41,6 +41,7 @@ def coupled(package_path):
 
 import socket
 import threading
+import time
 import uuid
 
 import can
@@ -137,3 +138,64 @@ def bench(transport):
     made = Bench(*transport)
     yield made
     made.close()
+
+
+# --- an in-process controller stack --------------------------------------------
+
+from hil.can.faults import FaultyBus
+from hil.control_node import ControlNode
+from hil.controllers import TrajectoryGoal, TrajectoryPoint
+from hil.hardware import CanHardwareInterface
+from hil.messaging.zenoh_api import TrajectoryActionClient
+from hil.zenoh_session import ZenohSettings, session
+
+
+class ControlledBench:
+    """The ur3 fixture: Simulator and ControlNode in this process, on a python-can virtual
+    bus; the action client on the node's own Zenoh session (loopback)."""
+
+    def __init__(self):
+        self.config = load_bus_config(UR3_VIRTUAL)
+        channel = f"hil-reset-{uuid.uuid4().hex[:8]}"
+        # the sim's side of the bus can lose, delay and corrupt frames (FaultyBus.add)
+        self.sim_bus = FaultyBus(can.Bus(interface="virtual", channel=channel), [])
+        self.master_bus = can.Bus(interface="virtual", channel=channel)
+        self.sim = Simulator(self.config, {"arm": self.sim_bus})
+        self.sim.start()
+        self.sim_thread = threading.Thread(target=self.sim.run, daemon=True)
+        self.sim_thread.start()
+        self.session = session(ZenohSettings(listen=(f"tcp/127.0.0.1:{free_port()}",)))
+        self.hardware = CanHardwareInterface(self.config, {"arm": self.master_bus})
+        self.node = ControlNode(self.hardware, self.session, self.config.cycle_hz)
+        self.node_thread = threading.Thread(target=self.node.run, daemon=True)
+        self.node_thread.start()
+        self.client = TrajectoryActionClient(self.session, "ur3")
+        assert self.client.wait_for_controller(30), "the control node did not come up"
+
+    def fault(self, node_id: int) -> None:
+        self.sim.raise_fault("arm", node_id)         # sends the EMCY, as a real drive would
+        deadline = time.monotonic() + 5
+        while not self.node.faults and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert self.node.faults, "the controller did not notice the fault"
+
+    def move(self, joint: str, to: float, seconds: float = 0.5) -> str:
+        return self.client.send_goal(TrajectoryGoal((joint,), (
+            TrajectoryPoint(seconds, (to,), (0.0,)),)))
+
+    def close(self) -> None:
+        self.client.close()
+        self.node.stop()
+        self.node_thread.join(10)
+        self.sim.stop()
+        self.sim_thread.join(5)
+        self.sim.close()
+        self.master_bus.shutdown()
+        self.sim_bus.shutdown()
+
+
+@pytest.fixture
+def controlled():
+    bench = ControlledBench()
+    yield bench
+    bench.close()

@@ -11,6 +11,11 @@ import time
 from hil.bus_config import load_bus_config, open_buses
 from hil.cli import common
 from hil.simulator import Simulator
+from hil.can.faults import (
+    DriveFault, FrameFault, ProcessFault, parse_fault, with_frame_faults,
+)
+from hil.drives import Power
+from hil.errors import HilError
 from hil.messaging.zenoh_api import SimClockPublisher
 from hil.zenoh_session import close_all, session
 
@@ -28,6 +33,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="stop after S seconds of plant time")
     parser.add_argument("--status-period", type=float, default=2.0, metavar="S",
                         help="print the status every S seconds (0: never; default 2)")
+    parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
+                        help="inject a fault (repeatable): drop:BUS:FRACTION, "
+                             "delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, silence:BUS/NODE@S, "
+                             "fault:BUS/NODE@S")
+    parser.add_argument("--fault-seed", type=int, default=0, metavar="N",
+                        help="seed of the fault injector's random choices (default 0)")
     common.add_can_override(parser)
     common.add_package_path(parser)
     common.add_zenoh(parser, listens=True)
@@ -39,7 +50,14 @@ def run(args: argparse.Namespace) -> int:
         print(warning, file=sys.stderr)
     zenoh = common.zenoh_settings(args)
     interface, channels = common.can_overrides(args)
-    buses = open_buses(config, zenoh, interface, channels)
+    faults = [parse_fault(text) for text in args.fault]
+    if any(isinstance(f, ProcessFault) for f in faults):
+        raise HilError.single("kill faults are for `hil up --fault`",
+                              hint="hil sim takes frame and drive faults")
+    drive_faults = [f for f in faults if isinstance(f, DriveFault)]
+    _check_drive_faults(config, drive_faults)
+    buses = with_frame_faults(open_buses(config, zenoh, interface, channels),
+                              [f for f in faults if isinstance(f, FrameFault)], args.fault_seed)
     simulator = Simulator(config, buses, lock_step=args.lock_step)
     token = session(zenoh).liveliness().declare_token(f"hil/{config.robot.name}/sim")
     stop = threading.Event()
@@ -62,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
               f"cycle {config.cycle_hz:g} Hz", flush=True)
         printer.start()
         clock_thread.start()
+        threading.Thread(target=_inject, args=(simulator, drive_faults, stop),
+                         daemon=True).start()
         simulator.run(args.duration)
     finally:
         stop.set()
@@ -92,3 +112,32 @@ def _publish_clock(simulator: Simulator, clock: SimClockPublisher, stop: threadi
         with simulator.lock:
             sim_time, wall_time = simulator.plant.time, time.time()
         clock.publish(wall_time, sim_time)
+
+
+def _check_drive_faults(config, faults: list[DriveFault]) -> None:
+    known = {(bus.name, drive.node_id) for bus in config.buses for drive in bus.drives}
+    for fault in faults:
+        if (fault.bus, fault.node_id) not in known:
+            raise HilError.single(f"--fault {fault.kind}:{fault.bus}/{fault.node_id}: no such "
+                                  "drive", config.path,
+                                  hint="drives: " + ", ".join(f"{b}/{n}" for b, n in
+                                                              sorted(known)))
+
+
+def _inject(simulator: Simulator, faults: list[DriveFault], stop: threading.Event) -> None:
+    """Each drive fault at its time: wall-clock seconds after every drive was first enabled
+    (the controller has the bench running)."""
+    if not faults:
+        return
+    while not all(d.core.power is Power.ENABLED for d in simulator.drives):
+        if stop.wait(0.01):
+            return
+    started = time.monotonic()
+    for fault in sorted(faults, key=lambda f: f.at):
+        if stop.wait(max(0.0, started + fault.at - time.monotonic())):
+            return
+        if fault.kind == "silence":
+            simulator.silence(fault.bus, fault.node_id)
+        else:
+            simulator.raise_fault(fault.bus, fault.node_id)
+        print(f"hil sim: injected {fault.kind} on {fault.bus}/{fault.node_id}", flush=True)

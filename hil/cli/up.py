@@ -30,6 +30,7 @@ from hil.bus_config import SystemConfig, load_bus_config
 from hil.cli import common
 from hil.controllers import GoalRejected, GoalStatus
 from hil.controllers.demo import demo_goal
+from hil.can.faults import ProcessFault, parse_fault
 from hil.description import project_robots_dir
 from hil.errors import HilError
 from hil.messaging.samples import ControlSamples
@@ -77,6 +78,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--spawn", action="store_true",
                         help="also spawn a rerun viewer (default where a display exists)")
     parser.add_argument("--no-viewer", action="store_true", help="never spawn a viewer")
+    parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
+                        help="inject a fault (repeatable): the sim's (drop:BUS:FRACTION, "
+                             "delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, silence:BUS/NODE@S, "
+                             "fault:BUS/NODE@S), or kill:sim|control|viz@S (seconds after all "
+                             "are up)")
     parser.add_argument("--viewer", metavar="URL", help="also stream to a running rerun viewer")
     common.add_can_override(parser)
     common.add_package_path(parser)
@@ -174,6 +180,10 @@ def run(args: argparse.Namespace) -> int:
         print(warning, file=sys.stderr)
     robot = config.robot.name
     can_options = _can_options(args, config)
+    faults = [parse_fault(text) for text in args.fault]
+    kills = [f for f in faults if isinstance(f, ProcessFault)]
+    sim_faults = [f"--fault={text}" for text, f in zip(args.fault, faults)
+                  if not isinstance(f, ProcessFault)]
     save = args.save
     logs = save.with_name(save.stem + ".logs")
     logs.mkdir(parents=True, exist_ok=True)
@@ -187,7 +197,7 @@ def run(args: argparse.Namespace) -> int:
     viewer = _viewer_options(args)
     children = {
         "sim": Child("sim", ["sim", *shared, *lock_step, "--listen", endpoint,
-                             "--status-period", "0"], logs / "sim.log"),
+                             "--status-period", "0", *sim_faults], logs / "sim.log"),
         "control": Child("control", ["control", *shared, *lock_step, "--connect", endpoint],
                          logs / "control.log"),
         "viz": Child("viz", ["viz", *shared, "--connect", endpoint, "--save", str(save),
@@ -217,6 +227,9 @@ def run(args: argparse.Namespace) -> int:
             if stop.is_set():
                 break
         if not stop.is_set():
+            for kill in kills:
+                threading.Thread(target=_kill_later, args=(children[kill.process], kill.at,
+                                                           stop), daemon=True).start()
             status = _supervise(args, config, supervised, zenoh)
     except ChildFailed as exc:
         print(f"hil up: {exc}", file=sys.stderr, flush=True)
@@ -238,6 +251,13 @@ def run(args: argparse.Namespace) -> int:
         status = 1
     _report_outputs(save, can_log, children["viz"])
     return status
+
+
+def _kill_later(child: Child, delay: float, stop: threading.Event) -> None:
+    """Fault injection: SIGKILL a child; the supervision then reports it as crashed."""
+    if not stop.wait(delay) and child.exited() is None:
+        print(f"hil up: injected kill of {child.name} (pid {child.pid})", flush=True)
+        child.process.kill()
 
 
 def resolve_config(target: list[str]) -> Path:

@@ -1,0 +1,195 @@
+"""Fault injection: a python-can bus that loses, delays and corrupts frames, and the
+fault specifications ``hil sim --fault`` / ``hil up --fault`` take.
+
+Specifications (repeatable options):
+
+=========================  ===========================================================
+``drop:BUS:FRACTION``      lose that fraction of the frames on BUS, both directions
+``delay:BUS:FRACTION:MS``  hold that fraction of the drives' frames on BUS for MS ms
+``corrupt:BUS:FRACTION``   flip one random bit in that fraction of the frames' data
+``silence:BUS/NODE@S``     the drive leaves the bus (no frames in or out)
+``fault:BUS/NODE@S``       the drive faults as on a following error (EMCY, FAULT...)
+``kill:PROCESS@S``         ``hil up`` kills its child PROCESS (sim, control, viz)
+=========================  ===========================================================
+
+S is seconds after every drive was first enabled (drive faults, in ``hil sim``)
+or after every process is up (kills, in ``hil up``). The random choices come
+from one seeded generator, so a run can be repeated.
+"""
+
+from __future__ import annotations
+
+import heapq
+import random
+import re
+import threading
+import time
+from dataclasses import dataclass
+
+import can
+
+from hil.errors import HilError
+
+FRAME_KINDS = ("drop", "delay", "corrupt")
+DRIVE_KINDS = ("silence", "fault")
+PROCESSES = ("sim", "control", "viz")
+
+
+@dataclass(frozen=True)
+class FrameFault:
+    kind: str               # drop | delay | corrupt
+    bus: str
+    fraction: float
+    delay: float = 0.0      # s (delay only)
+
+
+@dataclass(frozen=True)
+class DriveFault:
+    kind: str               # silence | fault
+    bus: str
+    node_id: int
+    at: float               # s after start
+
+
+@dataclass(frozen=True)
+class ProcessFault:
+    process: str
+    at: float
+
+
+def parse_fault(text: str) -> FrameFault | DriveFault | ProcessFault:
+    """One ``--fault`` specification; HilError with the accepted forms otherwise."""
+    hint = ("forms: drop:BUS:FRACTION, delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, "
+            "silence:BUS/NODE@S, fault:BUS/NODE@S, kill:sim|control|viz@S")
+    kind, _, rest = text.partition(":")
+    try:
+        if kind in FRAME_KINDS:
+            parts = rest.split(":")
+            if len(parts) != (3 if kind == "delay" else 2):
+                raise ValueError("wrong number of fields")
+            fraction = float(parts[1])
+            if not 0.0 < fraction <= 1.0:
+                raise ValueError(f"fraction {fraction} is not in (0, 1]")
+            delay = float(parts[2]) / 1000 if kind == "delay" else 0.0
+            if delay < 0:
+                raise ValueError("a delay cannot be negative")
+            return FrameFault(kind, parts[0], fraction, delay)
+        match = re.fullmatch(r"(\w[\w/-]*)/(\d+)@([\d.]+)s?", rest)
+        if kind in DRIVE_KINDS and match:
+            return DriveFault(kind, match.group(1), int(match.group(2)), float(match.group(3)))
+        match = re.fullmatch(r"(\w+)@([\d.]+)s?", rest)
+        if kind == "kill" and match and match.group(1) in PROCESSES:
+            return ProcessFault(match.group(1), float(match.group(2)))
+        raise ValueError("not a known fault")
+    except ValueError as exc:
+        raise HilError.single(f"--fault '{text}': {exc}", hint=hint) from None
+
+
+class FaultyBus(can.BusABC):
+    """Wraps a python-can bus: drops, delays and corrupts frames as its faults say.
+
+    Drops and corruption apply to frames sent and received through this bus;
+    delays to frames sent (a delayed frame keeps its order among delayed frames).
+    """
+
+    def __init__(self, inner: can.BusABC, faults: list[FrameFault], seed: int = 0):
+        self.inner = inner
+        self.faults = list(faults)
+        self.channel_info = f"{inner.channel_info} with faults " + ", ".join(
+            f"{f.kind} {f.fraction:g}" for f in self.faults)
+        self.injected = {kind: 0 for kind in FRAME_KINDS}
+        self._random = random.Random(seed)
+        self._lock = threading.Lock()
+        self._delayed: list[tuple[float, int, can.Message]] = []
+        self._wake = threading.Condition()
+        self._count = 0
+        self._closing = False
+        self._worker = threading.Thread(target=self._send_delayed, daemon=True,
+                                        name=f"delays on {inner.channel_info}")
+        self._worker.start()
+        super().__init__(channel=getattr(inner, "channel", None))
+
+    def add(self, fault: FrameFault) -> None:
+        """Start injecting another fault (e.g. once a stack is up)."""
+        with self._lock:
+            self.faults.append(fault)
+
+    def _chance(self, kind: str) -> FrameFault | None:
+        with self._lock:
+            for fault in self.faults:
+                if fault.kind == kind and self._random.random() < fault.fraction:
+                    self.injected[kind] += 1
+                    return fault
+        return None
+
+    def _corrupted(self, msg: can.Message) -> can.Message:
+        if msg.dlc == 0 or msg.is_remote_frame or self._chance("corrupt") is None:
+            return msg
+        data = bytearray(msg.data)
+        with self._lock:
+            bit = self._random.randrange(8 * len(data))
+        data[bit // 8] ^= 1 << (bit % 8)
+        return can.Message(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id,
+                           is_extended_id=msg.is_extended_id, data=bytes(data),
+                           channel=msg.channel, is_rx=msg.is_rx)
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if self._chance("drop"):
+            return
+        msg = self._corrupted(msg)
+        delay = self._chance("delay")
+        if delay is None:
+            self.inner.send(msg, timeout)
+            return
+        with self._wake:
+            self._count += 1
+            heapq.heappush(self._delayed, (time.monotonic() + delay.delay, self._count, msg))
+            self._wake.notify()
+
+    def _send_delayed(self) -> None:
+        with self._wake:
+            while not self._closing:
+                if not self._delayed:
+                    self._wake.wait()
+                    continue
+                due, _, msg = self._delayed[0]
+                wait = due - time.monotonic()
+                if wait > 0:
+                    self._wake.wait(wait)
+                    continue
+                heapq.heappop(self._delayed)
+                try:
+                    self.inner.send(msg)
+                except can.CanError:
+                    pass
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            msg = self.inner.recv(None if deadline is None
+                                  else max(0.0, deadline - time.monotonic()))
+            if msg is None:
+                return None, False
+            if not self._chance("drop"):
+                return self._corrupted(msg), False
+
+    def shutdown(self) -> None:
+        if self._is_shutdown:
+            return
+        with self._wake:
+            self._closing = True
+            self._wake.notify()
+        self._worker.join(1)
+        super().shutdown()
+        self.inner.shutdown()
+
+
+def with_frame_faults(buses: dict[str, can.BusABC], faults: list[FrameFault],
+                      seed: int = 0) -> dict[str, can.BusABC]:
+    """The buses, those named in ``faults`` wrapped in a FaultyBus."""
+    unknown = {f.bus for f in faults} - set(buses)
+    if unknown:
+        raise HilError.single(f"--fault names unknown bus(es) {', '.join(sorted(unknown))}",
+                              hint=f"buses: {', '.join(buses)}")
+    return {name: FaultyBus(bus, [f for f in faults if f.bus == name], seed)
+            if any(f.bus == name for f in faults) else bus for name, bus in buses.items()}
