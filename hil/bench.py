@@ -19,7 +19,12 @@ Figures (each a list of rows; a figure that cannot be measured here says why):
 * ``tracking``: RMS and max error on a fixed trajectory, against MuJoCo's
   ideal position servo on the same model following the same reference;
 * ``bus_load``: measured on the bus against the bitrate, with the config's
-  worst-case estimate.
+  worst-case estimate;
+* ``fault_detection``: for each injected fault kind, whether and how fast
+  the controller reported it.
+
+``run_soak`` repeats a trajectory for a long time and reports drift, memory
+growth and missed cycles.
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ import mujoco
 import numpy as np
 
 from hil.bus_config import SystemConfig, load_bus_config
+from hil.can.faults import FaultyBus, FrameFault
 from hil.can.monitor import BusLoadMeter
 from hil.control_node import ControlNode
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
@@ -56,7 +62,7 @@ ROBOTS = ("ur3", "pigot")
 RATES = (250.0, 500.0, 1000.0)
 #: the figures every report has (a row list, or {"unavailable": why})
 FIGURES = ("control_cycle", "socketcan", "lock_step", "overhead", "latency", "tracking",
-           "bus_load")
+           "bus_load", "fault_detection")
 
 
 @dataclass(frozen=True)
@@ -102,6 +108,9 @@ def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> di
             "ratio_to_mujoco": full / bare_mujoco})
         say(f"hil bench: {robot} tracking against MuJoCo's ideal position servo ...")
         report["tracking"].append({"robot": robot, **_tracking(config)})
+    say("hil bench: fault detection (ur3, 500 Hz) ...")
+    report["fault_detection"] = _fault_detection(
+        load_bus_config(settings.config_dir / "ur3.yaml"))
     missing = _vcan_missing()
     report["socketcan"] = {"unavailable": missing} if missing else _socketcan(settings)
     close_all()
@@ -120,8 +129,9 @@ def with_rate(config: SystemConfig, rate: float) -> SystemConfig:
 
 @contextmanager
 def _stack(config: SystemConfig, lock_step: bool, interface: str = "virtual",
-           channels: dict[str, str] | None = None):
-    """Simulator + CAN master + control node in this process; yields (sim, node, session)."""
+           channels: dict[str, str] | None = None, sim_buses: dict | None = None):
+    """Simulator + CAN master + control node in this process; yields (sim, node, session,
+    channels). ``sim_buses`` (filled in) receives the sim's buses, as FaultyBus."""
     tag = uuid.uuid4().hex[:8]
     channels = channels or {b.name: f"hil-bench-{tag}-{b.name}" for b in config.buses}
     opened = []
@@ -130,7 +140,10 @@ def _stack(config: SystemConfig, lock_step: bool, interface: str = "virtual",
         opened.append(can.Bus(interface=interface, channel=channels[name]))
         return opened[-1]
 
-    sim = Simulator(config, {b.name: bus(b.name) for b in config.buses}, lock_step=lock_step)
+    faulty = {b.name: FaultyBus(bus(b.name), []) for b in config.buses}
+    if sim_buses is not None:
+        sim_buses.update(faulty)
+    sim = Simulator(config, faulty, lock_step=lock_step)
     sim.start()
     sim_thread = threading.Thread(target=sim.run, daemon=True)
     sim_thread.start()
@@ -148,7 +161,7 @@ def _stack(config: SystemConfig, lock_step: bool, interface: str = "virtual",
         sim.stop()
         sim_thread.join(5)
         sim.close()
-        for each in opened:
+        for each in list(faulty.values()) + opened:
             each.shutdown()
 
 
@@ -412,6 +425,90 @@ def _ideal_servo(config: SystemConfig, reference: np.ndarray) -> np.ndarray:
         plant.step(config.steps_per_cycle)
         errors.append(row - plant.joint_positions()[measured])
     return np.array(errors)
+
+
+# --- faults and soak ---------------------------------------------------------------------
+
+def _fault_detection(config: SystemConfig, timeout: float = 3.0) -> list[dict]:
+    """Inject each fault kind into a running stack; how soon does the controller say so?"""
+    first = config.buses[0]
+    node_id = first.drives[1].node_id
+    kinds = {
+        "drop every frame": lambda sim, buses: buses[first.name].add(
+            FrameFault("drop", first.name, 1.0)),
+        "delay answers 200 ms": lambda sim, buses: buses[first.name].add(
+            FrameFault("delay", first.name, 1.0, 0.2)),
+        "corrupt payload bits": lambda sim, buses: buses[first.name].add(
+            FrameFault("corrupt", first.name, 1.0)),
+        "silence a drive": lambda sim, buses: sim.silence(first.name, node_id),
+        "raise a drive fault": lambda sim, buses: sim.raise_fault(first.name, node_id),
+    }
+    rows = []
+    for kind, inject in kinds.items():
+        buses: dict = {}
+        with _stack(config, lock_step=False, sim_buses=buses) as (sim, node, zenoh, _):
+            _wait_running(node)
+            time.sleep(0.2)
+            reported = len(node.faults)
+            started = time.perf_counter()
+            inject(sim, buses)
+            while len(node.faults) == reported and time.perf_counter() - started < timeout:
+                time.sleep(0.0005)
+            elapsed = time.perf_counter() - started
+            detected = len(node.faults) > reported
+            rows.append({"fault": kind, "detected": detected,
+                         "detection_ms": elapsed * 1e3 if detected else None,
+                         "first_report": node.faults[reported] if detected else None})
+    return rows
+
+
+def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
+             say: Callable[[str], None] = print) -> dict:
+    """Repeat the tracking trajectory for ``seconds`` in real time; report the drift of the
+    final position, memory growth (this process' RSS) and missed cycles."""
+    config = load_bus_config(settings.config_dir / f"{robot}.yaml")
+    goal = tracking_goal(config)
+    repetitions = []
+    with _stack(config, lock_step=False) as (sim, node, zenoh, _):
+        _wait_running(node)
+        client = TrajectoryActionClient(zenoh, config.robot.name)
+        states: list = []
+        subscriber = zenoh.declare_subscriber(key(config.robot.name, "joint_states"),
+                                              states.append)
+        node.statistics.samples.clear()
+        started = time.monotonic()
+        rss_start = _rss_bytes()
+        while time.monotonic() - started < seconds:
+            result = client.wait_result(client.send_goal(goal), 60)
+            time.sleep(0.2)
+            last = T.decode(states[-1].payload.to_bytes(), T.JOINT_STATE)
+            final = dict(zip(last.name, last.position))
+            error = max(abs(final[n] - p) for n, p in zip(goal.joint_names,
+                                                          goal.points[-1].positions))
+            periods = np.array(node.statistics.samples)
+            repetitions.append({"t_s": time.monotonic() - started,
+                                "result": result.status.name.lower(),
+                                "final_error": float(error), "rss_bytes": _rss_bytes(),
+                                "missed_so_far": int(np.sum(periods > 1.5 / config.cycle_hz))})
+            states.clear()
+            say(f"hil bench: soak {repetitions[-1]['t_s']:.0f} s: {result.status.name.lower()}"
+                f", final error {error:.5f}, RSS {repetitions[-1]['rss_bytes'] / 1e6:.1f} MB")
+        subscriber.undeclare()
+        client.close()
+        cycles = len(node.statistics.samples)
+    close_all()
+    errors = [r["final_error"] for r in repetitions]
+    return {"robot": robot, "seconds": seconds, "repetitions": len(repetitions),
+            "failed": sum(r["result"] != "succeeded" for r in repetitions),
+            "final_error_first": errors[0], "final_error_last": errors[-1],
+            "final_error_max": max(errors), "rss_growth_bytes": _rss_bytes() - rss_start,
+            "cycles": cycles, "missed": repetitions[-1]["missed_so_far"],
+            "timeline": repetitions}
+
+
+def _rss_bytes() -> int:
+    with open("/proc/self/statm") as statm:
+        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
 # --- SocketCAN ----------------------------------------------------------------------------

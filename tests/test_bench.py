@@ -34,6 +34,23 @@ def test_quick_bench_reports_every_figure(tmp_path):
     for row in report["bus_load"]:
         # measured worst-case stuffing never exceeds the config's worst-case estimate
         assert 0 < row["measured_load_worst_stuffing"] <= row["estimated_load_worst"] * 1.02
+    assert len(report["fault_detection"]) == 5
+    for row in report["fault_detection"]:
+        assert row["detected"] and 0 < row["detection_ms"] < 1000, row
+        assert "drive node" in row["first_report"]
     socketcan = report["socketcan"]
     assert isinstance(socketcan, list) or "vcan" in socketcan["unavailable"]
     assert "control cycle, real time" in result.stdout and "tracking" in result.stdout
+
+
+def test_soak_repeats_the_trajectory_and_reports_drift_memory_and_missed_cycles(tmp_path):
+    report_path = tmp_path / "soak.json"
+    result = subprocess.run([sys.executable, "-m", "hil", "bench", "--soak", "6s", "--json",
+                             str(report_path)], capture_output=True, text=True, timeout=300,
+                            cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    soak = json.loads(report_path.read_text())["soak"]
+    assert soak["repetitions"] >= 1 and soak["failed"] == 0
+    assert soak["final_error_max"] < 0.02 and soak["cycles"] > 0
+    assert {"rss_growth_bytes", "missed", "timeline"} <= set(soak)
+    assert "memory growth" in result.stdout

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 
-from hil.bench import BenchSettings, run_bench
+from hil.bench import BenchSettings, run_bench, run_soak
+from hil.errors import HilError
 
 HELP = "measure cycle timing, real-time factors, overheads, latency, tracking and bus load"
 
@@ -17,15 +19,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="short runs (about a minute; what CI runs)")
     parser.add_argument("--json", type=Path, default=Path("bench.json"), metavar="FILE",
                         help="write the report here (default bench.json)")
+    parser.add_argument("--soak", metavar="DURATION",
+                        help="instead: repeat a trajectory for DURATION (e.g. 10m, 90s) and "
+                             "report drift, memory growth and missed cycles")
 
 
 def run(args: argparse.Namespace) -> int:
     settings = BenchSettings.quick() if args.quick else BenchSettings()
-    report = run_bench(settings, say=lambda text: print(text, file=sys.stderr, flush=True))
+    say = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
+    if args.soak:
+        soak = run_soak(_seconds(args.soak), settings, say=say)
+        args.json.write_text(json.dumps({"soak": soak}, indent=2))
+        print(f"soak {soak['seconds']:g} s, {soak['robot']}: {soak['repetitions']} repetitions, "
+              f"{soak['failed']} failed; final position error first {soak['final_error_first']:.5f}"
+              f", last {soak['final_error_last']:.5f}, max {soak['final_error_max']:.5f}; "
+              f"memory growth {soak['rss_growth_bytes'] / 1e6:.1f} MB; missed {soak['missed']} "
+              f"of {soak['cycles']} cycles")
+        print(f"hil bench: report in {args.json}")
+        return 0 if soak["failed"] == 0 else 1
+    report = run_bench(settings, say=say)
     args.json.write_text(json.dumps(report, indent=2))
     print(format_table(report))
     print(f"\nhil bench: report in {args.json}")
     return 0
+
+
+def _seconds(text: str) -> float:
+    match = re.fullmatch(r"\s*([0-9.]+)\s*(s|m|h)?\s*", text)
+    if not match:
+        raise HilError.single(f"--soak '{text}' is not a duration", hint="e.g. 10m, 90s, 1h")
+    return float(match.group(1)) * {"s": 1, "m": 60, "h": 3600}[match.group(2) or "s"]
 
 
 def format_table(report: dict) -> str:
@@ -58,6 +81,10 @@ def format_table(report: dict) -> str:
         lines.append(f"  {row['robot']:<6} {row['result']:<10} rms {row['rms']:.4f} max "
                      f"{row['max']:.4f}   ideal rms {row['ideal_servo_rms']:.4f} max "
                      f"{row['ideal_servo_max']:.4f}")
+    lines += ["", "fault detection (ur3, 500 Hz: injected on bus 'arm')"]
+    for row in report["fault_detection"]:
+        when = f"{row['detection_ms']:6.1f} ms" if row["detected"] else "NOT DETECTED"
+        lines.append(f"  {row['fault']:<22} {when}  {row['first_report'] or ''}")
     lines += ["", "bus load (measured nominal / worst-case stuffing; config estimate worst case)"]
     for row in report["bus_load"]:
         lines.append(f"  {row['robot']:<6} {row['rate_hz']:>5.0f} Hz {row['bus']:<6} "
