@@ -48,8 +48,8 @@ import numpy as np
 from hil.bus_config import SystemConfig, load_bus_config
 from hil.can.faults import FaultyBus, FrameFault
 from hil.can.monitor import BusLoadMeter
-from hil.control_node import ControlNode
-from hil.controllers import TrajectoryGoal, TrajectoryPoint
+from hil.control_node import ControlNode, PeriodStatistics
+from hil.controllers import GoalRejected, TrajectoryGoal, TrajectoryPoint
 from hil.hardware import CanHardwareInterface
 from hil.messaging import types as T
 from hil.messaging.samples import ControlSamples
@@ -465,7 +465,9 @@ def _fault_detection(config: SystemConfig, timeout: float = 3.0) -> list[dict]:
 def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
              say: Callable[[str], None] = print) -> dict:
     """Repeat the tracking trajectory for ``seconds`` in real time; report the drift of the
-    final position, memory growth (this process' RSS) and missed cycles."""
+    final position, memory growth (this process' RSS) and missed cycles. A repetition that
+    fails (a fault: the controller refuses or aborts) is counted with its reason, and the
+    faults are reset before the next one."""
     config = load_bus_config(settings.config_dir / f"{robot}.yaml")
     goal = tracking_goal(config)
     repetitions = []
@@ -475,27 +477,33 @@ def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
         states: list = []
         subscriber = zenoh.declare_subscriber(key(config.robot.name, "joint_states"),
                                               states.append)
-        node.statistics.samples.clear()
+        node.statistics = PeriodStatistics(1.0 / config.cycle_hz)
         started = time.monotonic()
         rss_start = _rss_bytes()
         while time.monotonic() - started < seconds:
-            result = client.wait_result(client.send_goal(goal), 60)
+            try:
+                result = client.wait_result(client.send_goal(goal), 60)
+                outcome, reason = result.status.name.lower(), result.error_string
+            except GoalRejected as exc:
+                outcome, reason = "rejected", str(exc)
+            if outcome != "succeeded":
+                say(f"hil bench: soak repetition failed ({reason}); resetting faults")
+                client.reset_faults()
             time.sleep(0.2)
             last = T.decode(states[-1].payload.to_bytes(), T.JOINT_STATE)
             final = dict(zip(last.name, last.position))
             error = max(abs(final[n] - p) for n, p in zip(goal.joint_names,
                                                           goal.points[-1].positions))
-            periods = np.array(node.statistics.samples)
             repetitions.append({"t_s": time.monotonic() - started,
-                                "result": result.status.name.lower(),
+                                "result": outcome, "reason": reason,
                                 "final_error": float(error), "rss_bytes": _rss_bytes(),
-                                "missed_so_far": int(np.sum(periods > 1.5 / config.cycle_hz))})
+                                "missed_so_far": node.statistics.missed})
             states.clear()
-            say(f"hil bench: soak {repetitions[-1]['t_s']:.0f} s: {result.status.name.lower()}"
+            say(f"hil bench: soak {repetitions[-1]['t_s']:.0f} s: {outcome}"
                 f", final error {error:.5f}, RSS {repetitions[-1]['rss_bytes'] / 1e6:.1f} MB")
         subscriber.undeclare()
         client.close()
-        cycles = len(node.statistics.samples)
+        cycles = node.statistics.count
     close_all()
     errors = [r["final_error"] for r in repetitions]
     return {"robot": robot, "seconds": seconds, "repetitions": len(repetitions),

@@ -14,6 +14,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,20 +45,30 @@ class FaultResetRequest:
 
 @dataclass
 class PeriodStatistics:
-    """Measured cycle periods (real-time mode), in seconds."""
+    """Measured cycle periods (real-time mode), in seconds: counts over the whole run, the
+    latest KEEP periods for percentiles (a long run must not grow without bound)."""
+
+    KEEP = 100_000
 
     nominal: float
-    samples: list[float] = field(default_factory=list)
+    samples: deque = field(default_factory=lambda: deque(maxlen=PeriodStatistics.KEEP))
+    count: int = 0
+    missed: int = 0
+
+    def add(self, period: float) -> None:
+        self.samples.append(period)
+        self.count += 1
+        self.missed += period > 1.5 * self.nominal
 
     def summary(self) -> str:
         if not self.samples:
             return "no cycles"
-        errors = np.abs(np.array(self.samples) - self.nominal) * 1e6
-        missed = int(np.sum(np.array(self.samples) > 1.5 * self.nominal))
-        return (f"{len(self.samples)} cycles, period mean {np.mean(self.samples) * 1e3:.3f} ms, "
-                f"|error| p50 {np.percentile(errors, 50):.0f} us, p99 "
-                f"{np.percentile(errors, 99):.0f} us, max {errors.max():.0f} us, "
-                f"missed {missed}")
+        periods = np.array(self.samples)
+        errors = np.abs(periods - self.nominal) * 1e6
+        latest = "" if self.count == len(periods) else f" (the latest {len(periods)})"
+        return (f"{self.count} cycles, missed {self.missed}; period mean{latest} "
+                f"{periods.mean() * 1e3:.3f} ms, |error| p50 {np.percentile(errors, 50):.0f} us, "
+                f"p99 {np.percentile(errors, 99):.0f} us, max {errors.max():.0f} us")
 
 
 class ControlNode:
@@ -139,7 +150,7 @@ class ControlNode:
                 if not self.lock_step:
                     now = time.perf_counter()
                     if last is not None:
-                        self.statistics.samples.append(now - last)
+                        self.statistics.add(now - last)
                     last = now
                     next_cycle += self.period
                     delay = next_cycle - time.perf_counter()

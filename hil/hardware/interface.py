@@ -163,7 +163,8 @@ class CanHardwareInterface(HardwareInterface):
             waiting = [a for a in self.axes if not a.enabled]
             if not waiting:
                 break
-            faults = [a.fault_text() for a in waiting if a.fault_text()]
+            # a silence or fault seen while enabling ends the bring-up with what it was
+            faults = list(self._pending) + [a.fault_text() for a in waiting if a.fault_text()]
             if faults or time.monotonic() > deadline:
                 raise HilError.single(
                     "drives did not enable: " + "; ".join(

@@ -382,9 +382,9 @@ class TrajectoryActionClient:
         """Wait for a goal's result; raise ControllerGone if the controller dies first."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            while on_feedback is not None and not self._feedback.empty():
+            while not self._feedback.empty():        # drained even when nobody looks at it
                 feedback = self._feedback.get_nowait()
-                if T.goal_id_of(feedback.goal_id) == goal_id:
+                if on_feedback is not None and T.goal_id_of(feedback.goal_id) == goal_id:
                     on_feedback(feedback.feedback)
             try:
                 done_id, result = self._results.get(timeout=0.05)
