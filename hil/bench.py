@@ -127,55 +127,84 @@ def with_rate(config: SystemConfig, rate: float) -> SystemConfig:
 
 # --- stacks -------------------------------------------------------------------------------
 
+#: a real-time bring-up on a loaded machine can miss answers and fault: it is tried again
+START_ATTEMPTS = 3
+
+
+class _Stack:
+    """Simulator + CAN master + control node in this process (the sim's buses as FaultyBus)."""
+
+    def __init__(self, config: SystemConfig, lock_step: bool, interface: str,
+                 channels: dict[str, str]):
+        self.opened = [can.Bus(interface=interface, channel=channels[b.name])
+                       for b in config.buses for _ in range(2)]
+        self.sim_buses = {b.name: FaultyBus(self.opened[2 * i], [])
+                          for i, b in enumerate(config.buses)}
+        self.sim = Simulator(config, self.sim_buses, lock_step=lock_step)
+        self.sim.start()
+        self.sim_thread = threading.Thread(target=self.sim.run, daemon=True)
+        self.sim_thread.start()
+        self.zenoh = session(ZenohSettings(listen=(f"tcp/127.0.0.1:{_free_port()}",)))
+        hardware = CanHardwareInterface(
+            config, {b.name: self.opened[2 * i + 1] for i, b in enumerate(config.buses)},
+            reply_timeout=1.0 if lock_step else None)
+        self.node = ControlNode(hardware, self.zenoh, config.cycle_hz, lock_step=lock_step)
+        self.error: Exception | None = None
+        self.node_thread = threading.Thread(target=self._run_node, daemon=True)
+        self.node_thread.start()
+
+    def _run_node(self) -> None:
+        try:
+            self.node.run()
+        except Exception as exc:         # a failed bring-up: reported by running()
+            self.error = exc
+
+    def running(self, timeout: float = 30.0) -> bool:
+        """Wait until the controller runs its cycles (False if its bring-up failed)."""
+        deadline = time.monotonic() + timeout
+        while self.node._token is None:
+            if self.error is not None or time.monotonic() > deadline:
+                return False
+            time.sleep(0.01)
+        return True
+
+    def close(self) -> None:
+        self.node.stop()
+        self.node_thread.join(10)
+        self.sim.stop()
+        self.sim_thread.join(5)
+        self.sim.close()
+        for bus in list(self.sim_buses.values()) + self.opened[1::2]:
+            bus.shutdown()
+
+
 @contextmanager
 def _stack(config: SystemConfig, lock_step: bool, interface: str = "virtual",
            channels: dict[str, str] | None = None, sim_buses: dict | None = None):
-    """Simulator + CAN master + control node in this process; yields (sim, node, session,
-    channels). ``sim_buses`` (filled in) receives the sim's buses, as FaultyBus."""
-    tag = uuid.uuid4().hex[:8]
-    channels = channels or {b.name: f"hil-bench-{tag}-{b.name}" for b in config.buses}
-    opened = []
-
-    def bus(name):
-        opened.append(can.Bus(interface=interface, channel=channels[name]))
-        return opened[-1]
-
-    faulty = {b.name: FaultyBus(bus(b.name), []) for b in config.buses}
+    """A running stack; yields (sim, node, session, channels) once the controller cycles.
+    ``sim_buses`` (filled in) receives the sim's buses, to inject frame faults."""
+    failures = []
+    for _ in range(START_ATTEMPTS):
+        tag = uuid.uuid4().hex[:8]
+        names = channels or {b.name: f"hil-bench-{tag}-{b.name}" for b in config.buses}
+        stack = _Stack(config, lock_step, interface, names)
+        if stack.running():
+            break
+        failures.append(str(stack.error or "no bring-up within 30 s"))
+        stack.close()
+    else:
+        raise RuntimeError(f"the stack did not start in {START_ATTEMPTS} attempts: "
+                           + " | ".join(failures))
     if sim_buses is not None:
-        sim_buses.update(faulty)
-    sim = Simulator(config, faulty, lock_step=lock_step)
-    sim.start()
-    sim_thread = threading.Thread(target=sim.run, daemon=True)
-    sim_thread.start()
-    zenoh = session(ZenohSettings(listen=(f"tcp/127.0.0.1:{_free_port()}",)))
-    hardware = CanHardwareInterface(config, {b.name: bus(b.name) for b in config.buses},
-                                    reply_timeout=1.0 if lock_step else None)
-    node = ControlNode(hardware, zenoh, config.cycle_hz, lock_step=lock_step)
-    node_thread = threading.Thread(target=node.run, daemon=True)
-    node_thread.start()
+        sim_buses.update(stack.sim_buses)
     try:
-        yield sim, node, zenoh, channels
+        yield stack.sim, stack.node, stack.zenoh, names
     finally:
-        node.stop()
-        node_thread.join(10)
-        sim.stop()
-        sim_thread.join(5)
-        sim.close()
-        for each in list(faulty.values()) + opened:
-            each.shutdown()
-
-
-def _wait_running(node: ControlNode, timeout: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout
-    while node._token is None:
-        if time.monotonic() > deadline:
-            raise RuntimeError(f"the control node did not start: {node.faults}")
-        time.sleep(0.01)
+        stack.close()
 
 
 def _real_time(config: SystemConfig, seconds: float) -> tuple[dict, dict, list[dict]]:
     with _stack(config, lock_step=False) as (sim, node, zenoh, channels):
-        _wait_running(node)
         meters = _listen(config, channels)
         latency = _LatencyProbe(zenoh, config.robot.name)
         node.statistics.samples.clear()
@@ -262,7 +291,6 @@ class _LatencyProbe:
 
 def _lock_step(config: SystemConfig, cycles: int) -> dict:
     with _stack(config, lock_step=True) as (sim, node, zenoh, _):
-        _wait_running(node)
         start_cycle, plant_start, wall_start = node._cycle, sim.plant.time, time.perf_counter()
         while node._cycle - start_cycle < cycles:
             time.sleep(0.01)
@@ -365,7 +393,6 @@ def _tracking(config: SystemConfig) -> dict:
     same reference on the same model; both errors are measured at the joints."""
     goal = tracking_goal(config)
     with _stack(config, lock_step=True) as (sim, node, zenoh, _):
-        _wait_running(node)
         samples: list[ControlSamples] = []
         subscriber = RunSubscriber(zenoh, config.robot.name, samples.append, lambda *_: None,
                                    lambda *_: None)
@@ -447,7 +474,6 @@ def _fault_detection(config: SystemConfig, timeout: float = 3.0) -> list[dict]:
     for kind, inject in kinds.items():
         buses: dict = {}
         with _stack(config, lock_step=False, sim_buses=buses) as (sim, node, zenoh, _):
-            _wait_running(node)
             time.sleep(0.2)
             reported = len(node.faults)
             started = time.perf_counter()
@@ -472,7 +498,6 @@ def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
     goal = tracking_goal(config)
     repetitions = []
     with _stack(config, lock_step=False) as (sim, node, zenoh, _):
-        _wait_running(node)
         client = TrajectoryActionClient(zenoh, config.robot.name)
         states: list = []
         subscriber = zenoh.declare_subscriber(key(config.robot.name, "joint_states"),
@@ -542,7 +567,6 @@ def _socketcan(settings: BenchSettings) -> list[dict]:
         config = load_bus_config(settings.config_dir / f"{robot}.yaml")
         channels = dict(zip((b.name for b in config.buses), ("vcan0", "vcan1")))
         with _stack(config, False, "socketcan", channels) as (sim, node, zenoh, _):
-            _wait_running(node)
             node.statistics.samples.clear()
             time.sleep(settings.seconds)
             periods = np.array(node.statistics.samples)
