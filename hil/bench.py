@@ -32,7 +32,6 @@ from __future__ import annotations
 import math
 import os
 import platform
-import socket
 import threading
 import time
 import uuid
@@ -46,6 +45,7 @@ import mujoco
 import numpy as np
 
 from hil.bus_config import SystemConfig, load_bus_config
+from hil.can import socketcan_missing
 from hil.can.faults import FaultyBus, FrameFault
 from hil.can.monitor import BusLoadMeter
 from hil.control_node import ControlNode, PeriodStatistics
@@ -56,7 +56,7 @@ from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import RunSubscriber, TrajectoryActionClient, key
 from hil.plant import Plant
 from hil.simulator import Simulator, motor_inertias
-from hil.zenoh_session import ZenohSettings, close_all, session
+from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
 
 ROBOTS = ("ur3", "pigot")
 RATES = (250.0, 500.0, 1000.0)
@@ -144,7 +144,7 @@ class _Stack:
         self.sim.start()
         self.sim_thread = threading.Thread(target=self.sim.run, daemon=True)
         self.sim_thread.start()
-        self.zenoh = session(ZenohSettings(listen=(f"tcp/127.0.0.1:{_free_port()}",)))
+        self.zenoh = session(ZenohSettings(listen=(f"tcp/127.0.0.1:{free_loopback_port()}",)))
         hardware = CanHardwareInterface(
             config, {b.name: self.opened[2 * i + 1] for i, b in enumerate(config.buses)},
             reply_timeout=1.0 if lock_step else None)
@@ -547,18 +547,9 @@ def _rss_bytes() -> int:
 # --- SocketCAN ----------------------------------------------------------------------------
 
 def _vcan_missing() -> str | None:
-    if not hasattr(socket, "AF_CAN"):
-        return "this Python has no AF_CAN"
-    try:
-        with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as probe:
-            probe.bind(("vcan0",))
-            probe.close()
-        with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as probe:
-            probe.bind(("vcan1",))
-    except OSError as exc:
-        return (f"no SocketCAN vcan0/vcan1 here ({exc.strerror}): create them with "
-                "tools/vcan-setup.sh, or run the bench inside tools/uml_run.py")
-    return None
+    missing = socketcan_missing(("vcan0", "vcan1"))
+    return missing and (f"{missing}: create them with tools/vcan-setup.sh, or run the bench "
+                        "inside tools/uml_run.py")
 
 
 def _socketcan(settings: BenchSettings) -> list[dict]:
@@ -577,8 +568,3 @@ def _socketcan(settings: BenchSettings) -> list[dict]:
                      "missed": int(np.sum(periods > 1.5 / config.cycle_hz))})
     return rows
 
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]

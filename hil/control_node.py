@@ -143,9 +143,10 @@ class ControlNode:
                     self.controller.abort(fault)
                 if self._reset is not None:
                     self._advance_reset(faults)
-                command, velocity = self.controller.update(self.clock(), feedback.positions,
+                now = self.clock()
+                command, velocity = self.controller.update(now, feedback.positions,
                                                            feedback.velocities)
-                self.samples.add(self._cycle, self.clock(), command, velocity, feedback)
+                self.samples.add(self._cycle, now, command, velocity, feedback)
                 self._publish(feedback)
                 if not self.lock_step:
                     now = time.perf_counter()

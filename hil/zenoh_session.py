@@ -9,6 +9,7 @@ For several hosts, give routable endpoints or a Zenoh config file.
 from __future__ import annotations
 
 import json
+import socket
 import threading
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,13 @@ import zenoh
 from hil.errors import HilError
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+
+
+def free_loopback_port() -> int:
+    """A TCP port on 127.0.0.1 that is free right now (for a Zenoh endpoint to listen on)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
 LOOPBACK_ANY_PORT = "tcp/127.0.0.1:0"
 
 

@@ -39,7 +39,6 @@ def coupled(package_path):
 
 # --- CAN benches -------------------------------------------------------------
 
-import socket
 import threading
 import time
 import uuid
@@ -48,7 +47,9 @@ import can
 import canopen
 
 from hil.bus_config import load_bus_config
+from hil.can import socketcan_missing as can_socketcan_missing
 from hil.simulator import Simulator
+from hil.zenoh_session import free_loopback_port
 
 UR3_VIRTUAL = TESTS / "fixtures" / "ur3_virtual.yaml"
 EDS = ROOT / "bus_config" / "cia402_drive.eds"
@@ -59,24 +60,14 @@ def pytest_configure(config):
                                        "User-Mode Linux in CI, see tools/uml_run.py)")
 
 
-def free_port() -> int:
-    """A TCP port on 127.0.0.1 that is free right now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+free_port = free_loopback_port
 
 
 def socketcan_missing() -> str | None:
     """None if vcan0 can be opened, else why not."""
-    if not hasattr(socket, "AF_CAN"):
-        return "this Python has no AF_CAN"
-    try:
-        with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as s:
-            s.bind(("vcan0",))
-    except OSError as exc:
-        return f"no SocketCAN vcan0 here ({exc.strerror}); tools/uml_run.py runs these tests " \
-               "inside User-Mode Linux (test_socketcan_in_uml.py)"
-    return None
+    missing = can_socketcan_missing()
+    return missing and (f"{missing}; tools/uml_run.py runs these tests inside User-Mode Linux "
+                        "(test_socketcan_in_uml.py)")
 
 
 @pytest.fixture(params=["virtual", pytest.param("socketcan", marks=pytest.mark.socketcan)])

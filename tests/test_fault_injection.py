@@ -25,14 +25,6 @@ from hil.can.faults import DriveFault, FrameFault, ProcessFault, parse_fault
 from hil.controllers import HARDWARE_FAULT, GoalStatus
 from hil.drives import Power
 from hil.errors import HilError
-from conftest import ControlledBench
-
-
-@pytest.fixture
-def controlled():
-    bench = ControlledBench()
-    yield bench
-    bench.close()
 
 
 def test_dropping_every_frame_aborts_the_goal_and_the_drives_quick_stop(controlled):

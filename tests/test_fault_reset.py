@@ -2,15 +2,11 @@
 
 from __future__ import annotations
 
-import threading
 import time
-import uuid
 
-import can
 import pytest
 
 from hil.controllers import GoalRejected, GoalStatus
-from conftest import ControlledBench
 
 
 def test_reset_brings_a_faulted_drive_back_and_goals_are_accepted_again(controlled):

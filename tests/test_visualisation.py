@@ -11,7 +11,6 @@ import pytest
 import rerun as rr
 import rerun.chunk
 
-from hil.bus_config import load_bus_config
 from hil.can.monitor import BusLoadMeter
 from hil.controllers.demo import demo_goal
 from hil.description.source import read_robot_source

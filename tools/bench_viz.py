@@ -32,7 +32,9 @@ from hil.bus_config import load_bus_config                          # noqa: E402
 from hil.hardware import JointFeedback                              # noqa: E402
 from hil.messaging.samples import ControlSampleBuffer                # noqa: E402
 from hil.messaging.zenoh_api import ControlSamplesPublisher, ProcessWatch  # noqa: E402
-from hil.zenoh_session import ZenohSettings, close_all, session     # noqa: E402
+from hil.zenoh_session import (                                    # noqa: E402
+    ZenohSettings, close_all, free_loopback_port, session,
+)
 
 
 def cpu_seconds(pid: int) -> float:
@@ -51,8 +53,7 @@ def main() -> int:
     config = load_bus_config(ROOT / "bus_config" / "pigot.yaml")
     joints = [j.name for j in config.robot.driven_joints]
     actuators = [a.name for a in config.robot.actuators]
-    with socket_port() as port:
-        endpoint = f"tcp/127.0.0.1:{port}"
+    endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
     zenoh = session(ZenohSettings(listen=(endpoint,)))
     publisher = ControlSamplesPublisher(zenoh, "pigot")
     watch = ProcessWatch(zenoh, "pigot")
@@ -110,18 +111,6 @@ def main() -> int:
         args.json.write_text(json.dumps(figures, indent=2))
     return 0 if int(logged) == cycles else 1
 
-
-class socket_port:
-    """A free TCP port on 127.0.0.1 (released on exit, for the caller to bind)."""
-
-    def __enter__(self) -> int:
-        import socket
-        self._socket = socket.socket()
-        self._socket.bind(("127.0.0.1", 0))
-        return self._socket.getsockname()[1]
-
-    def __exit__(self, *exc) -> None:
-        self._socket.close()
 
 
 if __name__ == "__main__":

@@ -9,13 +9,27 @@ inside one process.
 from __future__ import annotations
 
 import errno
+import socket
 
 import can
 
 from hil.can.frames import BusLoad, bus_load, frame_bits
 from hil.errors import HilError
 
-__all__ = ["BusLoad", "bus_load", "frame_bits", "open_bus"]
+__all__ = ["BusLoad", "bus_load", "frame_bits", "open_bus", "socketcan_missing"]
+
+
+def socketcan_missing(channels: tuple[str, ...] = ("vcan0",)) -> str | None:
+    """None if every SocketCAN channel can be opened here, else why not."""
+    if not hasattr(socket, "AF_CAN"):
+        return "this Python has no AF_CAN"
+    try:
+        for channel in channels:
+            with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as probe:
+                probe.bind((channel,))
+    except OSError as exc:
+        return f"no SocketCAN {'/'.join(channels)} here ({exc.strerror})"
+    return None
 
 
 def open_bus(interface: str, channel: str, bitrate: int | None = None, **options) -> can.BusABC:

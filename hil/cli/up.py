@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import os
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -37,7 +36,7 @@ from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import (
     ControllerGone, ProcessWatch, RunSubscriber, TrajectoryActionClient,
 )
-from hil.zenoh_session import ZenohSettings, close_all, session
+from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
 
 HELP = "start sim, controller and visualiser together (optionally run a demo), record the run"
 
@@ -188,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
     logs = save.with_name(save.stem + ".logs")
     logs.mkdir(parents=True, exist_ok=True)
     can_log = save.with_name(save.stem + ".can.log")
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
     shared = [str(config_path), *can_options,
               *(f"--package-path={p}" for p in args.package_path)]
     timing = args.timing or ("real-time" if len(os.sched_getaffinity(0)) >= REAL_TIME_CPUS
@@ -300,11 +299,6 @@ def _viewer_options(args: argparse.Namespace) -> list[str]:
         options += ["--viewer", args.viewer]
     return options
 
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 def _wait_alive(run: Run, watch: ProcessWatch, child: Child) -> None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import os
 import signal
-import sys
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path

@@ -327,23 +327,8 @@ class ODriveDrive(DriveProfile):
             self.send(can_id(self.node_id, Cmd.GET_ENCODER_ESTIMATES), reply)
 
     def _payload(self, cmd: Cmd) -> bytes:
-        status = self.core.status()
-        torque = status.torque
-        kt = self.options.torque_constant
-        values = {
-            Cmd.GET_VERSION: (2, 4, 0, 0, *FIRMWARE, 0),
-            Cmd.HEARTBEAT: (int(self.active_errors), int(self.axis_state), 0,
-                            int(status.target_reached)),
-            Cmd.GET_ERROR: (int(self.active_errors), int(self.disarm_reason)),
-            Cmd.GET_ENCODER_ESTIMATES: (status.position / TURN, status.velocity / TURN),
-            Cmd.GET_IQ: (torque / kt, torque / kt),
-            Cmd.GET_TEMPERATURE: (35.0, 40.0),
-            Cmd.GET_BUS_VOLTAGE_CURRENT: (BUS_VOLTAGE, abs(torque * status.velocity)
-                                          / BUS_VOLTAGE),
-            Cmd.GET_TORQUES: (torque, torque),
-            Cmd.GET_POWERS: (abs(torque * status.velocity), torque * status.velocity),
-        }[cmd]
-        return LAYOUT[cmd].pack(*values)
+        """A Get_* message (or the heartbeat) with the axis' values now."""
+        return LAYOUT[cmd].pack(*ANSWERS[cmd](self, self.core.status()))
 
     def after_update(self) -> None:
         events, self.core.events = self.core.events, []
@@ -368,3 +353,24 @@ class ODriveDrive(DriveProfile):
     def state_text(self) -> str:
         errors = f" {self.active_errors!r}" if self.active_errors else ""
         return f"{self.axis_state.name}{errors}"
+
+
+def _power(status) -> float:
+    return status.torque * status.velocity
+
+
+#: what each Get_* message (and the heartbeat) carries: (drive, core status) -> values
+ANSWERS = {
+    Cmd.GET_VERSION: lambda drive, status: (2, 4, 0, 0, *FIRMWARE, 0),
+    Cmd.HEARTBEAT: lambda drive, status: (int(drive.active_errors), int(drive.axis_state), 0,
+                                          int(status.target_reached)),
+    Cmd.GET_ERROR: lambda drive, status: (int(drive.active_errors), int(drive.disarm_reason)),
+    Cmd.GET_ENCODER_ESTIMATES: lambda drive, status: (status.position / TURN,
+                                                      status.velocity / TURN),
+    Cmd.GET_IQ: lambda drive, status: (status.torque / drive.options.torque_constant,) * 2,
+    Cmd.GET_TEMPERATURE: lambda drive, status: (35.0, 40.0),
+    Cmd.GET_BUS_VOLTAGE_CURRENT: lambda drive, status: (BUS_VOLTAGE,
+                                                        abs(_power(status)) / BUS_VOLTAGE),
+    Cmd.GET_TORQUES: lambda drive, status: (status.torque, status.torque),
+    Cmd.GET_POWERS: lambda drive, status: (abs(_power(status)), _power(status)),
+}

@@ -12,6 +12,7 @@ commands as measurements, with no CAN and no physics.
 
 from __future__ import annotations
 
+import itertools
 import threading
 import time
 from abc import ABC, abstractmethod
@@ -275,12 +276,13 @@ class CanHardwareInterface(HardwareInterface):
 
     def stop(self) -> None:
         """Disable every drive (each in its protocol's way), then release the buses."""
-        rounds = max((len(a.disable_rounds()) for a in self.axes), default=0)
-        for number in range(rounds):
-            for axis in self.axes:
-                frames = axis.disable_rounds()
-                for can_id, data, remote in (frames[number] if number < len(frames) else []):
-                    self._send_quietly(axis.bus_name, can_id, data, remote)
+        # each axis' rounds once (MIT's marks the motor as leaving motor mode), sent in step
+        rounds = [[(axis.bus_name, frames) for frames in axis.disable_rounds()]
+                  for axis in self.axes]
+        for step in itertools.zip_longest(*rounds):
+            for bus_name, frames in filter(None, step):
+                for can_id, data, remote in frames:
+                    self._send_quietly(bus_name, can_id, data, remote)
             for name in self._sync_buses:
                 self._send_quietly(name, SYNC_ID, b"", False)
             time.sleep(2.0 / self.config.cycle_hz)
