@@ -7,13 +7,19 @@ import signal
 import struct
 import subprocess
 import sys
+import threading
 import time
+import uuid
 
 import can
 import numpy as np
 import pytest
 
-from conftest import ROOT, Bench, free_port
+from conftest import ROOT, UR3_VIRTUAL, Bench, free_port
+
+from hil.bus_config import load_bus_config
+from hil.hardware import CanHardwareInterface
+from hil.simulator import LOCK_STEP_WATCHDOG, Simulator
 
 REDUCTIONS = (120, 120, 120, 100, 100, 100)
 COUNTS = 131072
@@ -113,3 +119,53 @@ def test_hil_sim_reports_a_bad_config_without_traceback(tmp_path):
     assert result.returncode == 1
     assert "bad.yaml:2: error: 'buses' must be a non-empty list" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+
+@pytest.fixture(params=[False, True], ids=["real-time", "lock-step"])
+def master_and_sim(request):
+    """The ur3 fixture's Simulator and a CanHardwareInterface on one virtual bus, brought up;
+    yields (hardware, lock_step, positions where it came up)."""
+    lock_step = request.param
+    config = load_bus_config(UR3_VIRTUAL)
+    channel = f"hil-stall-{uuid.uuid4().hex[:8]}"
+    sim_bus, master_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
+    sim = Simulator(config, {"arm": sim_bus}, lock_step=lock_step)
+    sim.start()
+    thread = threading.Thread(target=sim.run, daemon=True)
+    thread.start()
+    hardware = CanHardwareInterface(config, {"arm": master_bus},
+                                    reply_timeout=1.0 if lock_step else None)
+    try:
+        yield hardware, lock_step, hardware.start().positions
+    finally:
+        hardware.stop()
+        sim.stop()
+        thread.join(5)
+        sim.close()
+        master_bus.shutdown()
+        sim_bus.shutdown()
+
+
+def test_a_controller_stall_past_the_watchdog_faults_in_real_time_only(master_and_sim):
+    """Under a loaded machine (User-Mode Linux on CI) a process stalls for several 100 ms.
+    In real time the drives quick-stop by their watchdog and the master reports it, even
+    though its next ENABLE re-enables them at once (CiA 402 transition 16); in lock-step
+    nothing moves meanwhile, so neither side may fault for it."""
+    hardware, lock_step, hold = master_and_sim
+    drive = hardware.config.drives[0]
+    stall = 4 * max(drive.watchdog_timeout, 3 * drive.heartbeat_period)
+    assert stall < LOCK_STEP_WATCHDOG
+    for _ in range(10):
+        hardware.cycle(hold, np.zeros_like(hold))
+    time.sleep(stall)                        # the controller stalls
+    faults = []
+    for _ in range(10):
+        hardware.cycle(hold, np.zeros_like(hold))
+        faults += hardware.faults()
+    if lock_step:
+        assert faults == []
+        assert all(axis.enabled for axis in hardware.axes)
+    else:
+        assert "drive node 1 (joint1) on bus 'arm' reported EMCY 0x8250 RPDO timeout " \
+               "(setpoints stopped arriving)" in faults

@@ -324,6 +324,7 @@ class Progress:
         self.positions: np.ndarray | None = None
         self.joint_names: tuple[str, ...] = ()
         self.worst = (0.0, "")
+        self._cycles_shown = 0
 
     def on_samples(self, batch: ControlSamples) -> None:
         errors = np.abs(batch.reference - batch.position).max(axis=0)
@@ -337,6 +338,9 @@ class Progress:
     def line(self) -> str:
         with self.lock:
             worst, self.worst = self.worst, (0.0, "")
+            fresh, self._cycles_shown = self.cycles > self._cycles_shown, self.cycles
+            if not fresh:
+                return f"cycles {self.cycles:>7}   (no new cycles recorded since the last line)"
             return (f"cycles {self.cycles:>7}   largest tracking error {worst[0]:.4f} "
                     f"({worst[1] or '-'})")
 

@@ -118,6 +118,6 @@ class Axis(ABC):
 
     def answered(self) -> None:
         """The cycle's answer is in: record it and wake the master."""
+        self.last_heard = time.monotonic()   # before the cycle mark the master may wake on
         self.feedback.cycle = self._cycle
-        self.last_heard = time.monotonic()
         self._on_feedback()

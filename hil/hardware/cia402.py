@@ -27,6 +27,8 @@ EMCY_TEXT = {0x8611: "following error", 0x8612: "position limit exceeded",
              0x8250: "RPDO timeout (setpoints stopped arriving)",
              0x8210: "PDO length error", 0x8240: "unexpected SYNC length",
              0x8130: "heartbeat/life guard error"}
+#: EMCY codes for a frame the drive ignored: the next cycle's frame replaces it
+FRAME_ERRORS = {0x8210, 0x8240}
 
 SHUTDOWN, SWITCH_ON, ENABLE, QUICK_STOP, DISABLE_VOLTAGE = 0x06, 0x07, 0x0F, 0x02, 0x00
 FAULT_RESET = 0x80
@@ -195,4 +197,9 @@ class Cia402Axis(Axis):
             code = self.last_emcy
             what = f"EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".strip() if code else "fault"
             return f"{self.label} is in FAULT: {what}"
+        if self.last_emcy and self.last_emcy not in FRAME_ERRORS:
+            # e.g. an RPDO timeout quick-stop that this master's next ENABLE undid at once
+            # (transition 16): the drive still acted on its own, and the goal must know
+            code = self.last_emcy
+            return f"{self.label} reported EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".rstrip()
         return None

@@ -133,6 +133,9 @@ class CanHardwareInterface(HardwareInterface):
         self._reported: set[tuple[str, str, str]] = set()
         self._pending: list[str] = []
         self._arrived = threading.Condition()
+        # a drive may legitimately be unheard while its answers are still within the limit of
+        # missed ones: in lock-step (reply timeout 1 s), a stalled sim is slow, not dead
+        self._answer_silence_limit = MISSED_ANSWER_LIMIT * self.reply_timeout
 
     # --- bring-up ---------------------------------------------------------------------
 
@@ -238,7 +241,7 @@ class CanHardwareInterface(HardwareInterface):
             # (what, text): a silence is reported once per axis, not once per silent cycle
             problems = [("fault", axis.fault_text(self._stopping))]
             silence = now - axis.last_heard
-            if silence > axis.silence_limit:
+            if silence > max(axis.silence_limit, self._answer_silence_limit):
                 problems.append(("heartbeat", f"{axis.label} is silent: not heard for "
                                               f"{silence * 1e3:.0f} ms"))
             if self._cycle - axis.feedback.cycle > MISSED_ANSWER_LIMIT:
