@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import random
 import struct
+import threading
 import time
 
 import can
@@ -75,8 +76,11 @@ def test_canopen_master_moves_the_mujoco_joint_in_csp(bench):
     bench.sim.stop()
     bench.thread.join(5)
     time.sleep(0.3)                              # let late replies to earlier SYNCs drain
+    # listening before the SYNC leaves: on vcan the answer can beat a wait_for_reception
+    answered = threading.Event()
+    node.tpdo[1].add_callback(lambda pdo: answered.set())
     bench.network.sync.transmit()
-    assert node.tpdo[1].wait_for_reception(1) is not None
+    assert answered.wait(1), "no TPDO1 answered the SYNC"
     actual_counts = node.tpdo[1]["Position actual value"].raw
     joint = bench.sim.plant.joint_positions()[0]
     # TPDO position converted through the transmission = MuJoCo joint within one count
