@@ -227,3 +227,34 @@ def test_csv_and_cst_modes_move_the_joint(bench):
         node.tpdo[2].wait_for_reception(1)
         measured = node.tpdo[2]["Torque actual value"].raw
     assert measured == torque
+
+
+@pytest.mark.parametrize("mapped", [(0x6061, 0x6064), (0x6060, 0x6064)],
+                         ids=["live objects", "with a stored object"])
+def test_a_tpdo_remapped_by_sdo_carries_its_new_objects_after_nmt_start(bench, mapped):
+    node = bench.node402(1)
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.tpdo.read()
+    node.rpdo.read()
+    tpdo = node.tpdo[2]
+    tpdo.clear()
+    for index in mapped:
+        tpdo.add_variable(index)
+    tpdo.trans_type = 1
+    tpdo.enabled = True
+    tpdo.save()
+    node.sdo[0x6060].raw = 8                         # cyclic synchronous position
+    node.nmt.state = "OPERATIONAL"                   # the new mapping takes effect
+    time.sleep(0.1)
+    answered = threading.Event()
+    tpdo.add_callback(lambda pdo: answered.set())
+    bench.network.sync.transmit()
+    assert answered.wait(1), "no TPDO2 answered the SYNC"
+    assert len(tpdo.data) == sum(variable.length for variable in tpdo.map) // 8
+    position = node.sdo[0x6064].raw
+    values = {variable.index: variable.raw for variable in tpdo.map}
+    assert values[0x6064] == pytest.approx(position, abs=2)     # a braked arm: standing
+    if 0x6061 in values:
+        assert values[0x6061] == 8
+    else:
+        assert values[0x6060] == 8

@@ -8,7 +8,8 @@ from hypothesis import given, strategies as st
 
 from hil.description import load_description
 from hil.transmissions import (
-    DifferentialTransmission, FourBarLinkageTransmission, SimpleTransmission, build_transmissions,
+    DifferentialTransmission, FourBarLinkageTransmission, SimpleTransmission, TransmissionStack,
+    build_transmissions,
 )
 from conftest import COUPLED_URDF
 
@@ -146,3 +147,24 @@ def test_transmissions_built_from_urdf_use_ros1_and_ros2_reductions(package_path
     assert isinstance(differential, DifferentialTransmission)
     assert differential.actuators == ("wrist_left_motor", "wrist_right_motor")
     assert differential.joint_reductions == (1.0, -1.0)
+
+
+@given(ar=ratios, jr=ratios, reduction=ratio, off=pair, x=st.tuples(finite, finite, finite))
+def test_a_stack_in_any_order_maps_like_its_parts(ar, jr, reduction, off, x):
+    differential = DifferentialTransmission(("j1", "j2"), ("m1", "m2"), ar, jr, off)
+    simple = SimpleTransmission("j3", "m3", reduction, 0.25)
+    stack = TransmissionStack((differential, simple), ("j3", "j1", "j2"), ("m2", "m3", "m1"))
+    joints = np.array([x[2], x[0], x[1]])                   # j3, j1, j2
+    for quantity in ("position", "velocity", "effort"):
+        stacked = getattr(stack, f"joint_to_actuator_{quantity}")(joints)
+        first = getattr(differential, f"joint_to_actuator_{quantity}")(joints[1:])
+        second = getattr(simple, f"joint_to_actuator_{quantity}")(joints[:1])
+        assert stacked == pytest.approx([first[1], second[0], first[0]], rel=1e-9, abs=1e-6)
+        back = getattr(stack, f"actuator_to_joint_{quantity}")(stacked)
+        assert back == pytest.approx(joints, rel=1e-6, abs=1e-6)
+
+
+def test_a_stack_refuses_a_joint_in_two_transmissions():
+    with pytest.raises(ValueError, match="exactly one transmission"):
+        TransmissionStack((SimpleTransmission("j", "m1", 2.0), SimpleTransmission("j", "m2", 3.0)),
+                          ("j",), ("m1", "m2"))

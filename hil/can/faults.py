@@ -134,6 +134,9 @@ class FaultyBus(can.BusABC):
                            channel=msg.channel, is_rx=msg.is_rx)
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if not self.faults:                      # the usual case: a plain pass-through
+            self.inner.send(msg, timeout)
+            return
         if self._chance("drop"):
             return
         msg = self._corrupted(msg)
@@ -164,6 +167,8 @@ class FaultyBus(can.BusABC):
                     pass
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        if not self.faults:
+            return self.inner.recv(timeout), False
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
             msg = self.inner.recv(None if deadline is None

@@ -7,6 +7,7 @@ every cycle for every axis and must stay cheap and allocation-light.
 
 from __future__ import annotations
 
+import functools
 import math
 import struct
 import time
@@ -34,6 +35,7 @@ SHUTDOWN, SWITCH_ON, ENABLE, QUICK_STOP, DISABLE_VOLTAGE = 0x06, 0x07, 0x0F, 0x0
 FAULT_RESET = 0x80
 
 
+@functools.lru_cache(maxsize=None)     # asked several times a cycle per axis; 2^16 words at most
 def state_of(statusword: int) -> str:
     """The CiA 402 state name of a statusword (canopen's own mask table)."""
     for name, (mask, value) in State402.SW_MASK.items():

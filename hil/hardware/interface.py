@@ -31,7 +31,7 @@ from hil.hardware.axis import Axis
 from hil.hardware.cia402 import Cia402Axis
 from hil.hardware.mit import MitAxis
 from hil.hardware.odrive import ODriveAxis
-from hil.transmissions import build_transmissions
+from hil.transmissions import TransmissionStack, build_transmissions
 
 BOOT_TIMEOUT = 3.0
 ENABLE_TIMEOUT = 10.0
@@ -122,11 +122,10 @@ class CanHardwareInterface(HardwareInterface):
         self.axes: list[Axis] = [AXES[drive.protocol](drive, bus.name, self._on_feedback)
                                  for bus in config.buses for drive in bus.drives]
         self._sync_buses = sorted({a.bus_name for a in self.axes if a.uses_sync})
-        self._by_actuator = {a.config.actuator: a for a in self.axes}
         self.actuator_names = tuple(a.config.actuator for a in self.axes)
-        self.transmissions = build_transmissions(config.robot)
-        index = {name: i for i, name in enumerate(self.joint_names)}
-        self._joint_slices = [np.array([index[j] for j in t.joints]) for t in self.transmissions]
+        # joints (joint_names order) <-> actuators (axes order) in one map
+        self.transmissions = TransmissionStack(build_transmissions(config.robot),
+                                               self.joint_names, self.actuator_names)
         self._cycle = 0
         self._stopping = False
         self._recovering = False
@@ -181,15 +180,13 @@ class CanHardwareInterface(HardwareInterface):
     def cycle(self, positions, velocities, enabling: bool = False,
               watch: bool = True) -> JointFeedback:
         self._cycle += 1
-        targets = self._actuator_targets(np.asarray(positions, dtype=float),
-                                         np.asarray(velocities, dtype=float))
+        targets = self.transmissions.joint_to_actuator_position(positions).tolist()
+        speeds = self.transmissions.joint_to_actuator_velocity(velocities).tolist()
         hold = enabling or self._recovering
-        for axis in self.axes:
+        for axis, target, speed in zip(self.axes, targets, speeds):
             axis.begin_cycle(self._cycle)
-            target, velocity = targets[axis.config.actuator]
             network = self._networks[axis.bus_name]
-            for can_id, data, remote in axis.cycle_frames(target, velocity, self._stopping,
-                                                          hold):
+            for can_id, data, remote in axis.cycle_frames(target, speed, self._stopping, hold):
                 network.send_message(can_id, data, remote)
         for name in self._sync_buses:
             self._networks[name].send_message(SYNC_ID, b"")
@@ -211,27 +208,14 @@ class CanHardwareInterface(HardwareInterface):
         with self._arrived:
             self._arrived.notify()
 
-    def _actuator_targets(self, joint_positions: np.ndarray, joint_velocities: np.ndarray
-                          ) -> dict[str, tuple[float, float]]:
-        targets = {}
-        for transmission, joints in zip(self.transmissions, self._joint_slices):
-            motor = transmission.joint_to_actuator_position(joint_positions[joints])
-            speed = transmission.joint_to_actuator_velocity(joint_velocities[joints])
-            targets.update(zip(transmission.actuators, zip(motor, speed)))
-        return targets
-
     def _joint_feedback(self) -> JointFeedback:
-        n = len(self.joint_names)
-        positions, velocities, efforts = np.zeros(n), np.zeros(n), np.zeros(n)
-        for transmission, joints in zip(self.transmissions, self._joint_slices):
-            axes = [self._by_actuator[a].feedback for a in transmission.actuators]
-            positions[joints] = transmission.actuator_to_joint_position([f.position for f in axes])
-            velocities[joints] = transmission.actuator_to_joint_velocity(
-                [f.velocity for f in axes])
-            efforts[joints] = transmission.actuator_to_joint_effort([f.torque for f in axes])
-        return JointFeedback(positions, velocities, efforts,
-                             np.array([a.feedback.torque for a in self.axes]),
-                             tuple(a.state for a in self.axes))
+        feedback = [axis.feedback for axis in self.axes]
+        torques = np.array([f.torque for f in feedback])
+        return JointFeedback(
+            self.transmissions.actuator_to_joint_position([f.position for f in feedback]),
+            self.transmissions.actuator_to_joint_velocity([f.velocity for f in feedback]),
+            self.transmissions.actuator_to_joint_effort(torques), torques,
+            tuple(a.state for a in self.axes))
 
     # --- faults -----------------------------------------------------------------------------
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from hil.description import RobotDescription
 from hil.plant.builder import DEFAULT_TIMESTEP, build_spec, compile_model
-from hil.transmissions import Transmission, build_transmissions
+from hil.transmissions import Transmission, TransmissionStack, build_transmissions
 
 
 class Plant:
@@ -44,9 +44,7 @@ class Plant:
         driven = [j for t in self.transmissions for j in t.joints]
         self._driven_qpos = np.array([self.model.joint(n).qposadr[0] for n in driven])
         self._driven_dof = np.array([self.model.joint(n).dofadr[0] for n in driven])
-        # One block-diagonal map for all transmissions: a = P (q_driven - offset).
-        self._position_map = _block_diagonal([t.position_matrix for t in self.transmissions])
-        self._offsets = np.concatenate([t.joint_offsets for t in self.transmissions])
+        self._motors = TransmissionStack(self.transmissions, tuple(driven), self.actuator_names)
         self._actuator_ids = np.array([self.model.actuator(n).id for n in self.actuator_names])
 
     # --- motor side --------------------------------------------------------
@@ -56,11 +54,10 @@ class Plant:
         return np.array([b.torque_limit for b in self.bindings])
 
     def motor_positions(self) -> np.ndarray:
-        q = self.data.qpos[self._driven_qpos]
-        return self._position_map @ (q - self._offsets)
+        return self._motors.joint_to_actuator_position(self.data.qpos[self._driven_qpos])
 
     def motor_velocities(self) -> np.ndarray:
-        return self._position_map @ self.data.qvel[self._driven_dof]
+        return self._motors.joint_to_actuator_velocity(self.data.qvel[self._driven_dof])
 
     def set_motor_torques(self, torques) -> None:
         """Command motor torques; MuJoCo saturates them at :attr:`torque_limits`."""
@@ -138,14 +135,3 @@ def _avoid_slow_clock() -> None:
     source = ctypes.CDLL(None).drand48
     source.restype, source.argtypes = ctypes.c_double, []
     mujoco.set_mjcb_time(source)
-
-
-def _block_diagonal(blocks: list[np.ndarray]) -> np.ndarray:
-    rows = sum(b.shape[0] for b in blocks)
-    cols = sum(b.shape[1] for b in blocks)
-    result = np.zeros((rows, cols))
-    r = c = 0
-    for block in blocks:
-        result[r:r + block.shape[0], c:c + block.shape[1]] = block
-        r, c = r + block.shape[0], c + block.shape[1]
-    return result

@@ -7,14 +7,14 @@ into a map, choosing the class by the URDF type string from one table.
 from __future__ import annotations
 
 from hil.description import TRANSMISSION_TYPES, RobotDescription, TransmissionSpec
-from hil.transmissions.base import Transmission
+from hil.transmissions.base import Transmission, TransmissionStack
 from hil.transmissions.differential import DifferentialTransmission
 from hil.transmissions.four_bar import FourBarLinkageTransmission
 from hil.transmissions.simple import SimpleTransmission
 
 __all__ = [
     "DifferentialTransmission", "FourBarLinkageTransmission", "SimpleTransmission",
-    "Transmission", "build_transmission", "build_transmissions",
+    "Transmission", "TransmissionStack", "build_transmission", "build_transmissions",
 ]
 
 
