@@ -93,7 +93,7 @@ def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> di
             say(f"hil bench: {robot} real time at {rate:g} Hz ...")
             cycle, latency, loads = _real_time(with_rate(config, rate), settings.seconds)
             report["control_cycle"].append({"robot": robot, "rate_hz": rate,
-                                            "transport": "virtual", **cycle})
+                                            "transport": IN_PROCESS, **cycle})
             report["latency"].append({"robot": robot, "rate_hz": rate, **latency})
             report["bus_load"] += [{"robot": robot, "rate_hz": rate, **load} for load in loads]
         say(f"hil bench: {robot} lock-step, bare python-can, bare MuJoCo ...")
@@ -129,6 +129,8 @@ def with_rate(config: SystemConfig, rate: float) -> SystemConfig:
 
 #: a real-time bring-up on a loaded machine can miss answers and fault: it is tried again
 START_ATTEMPTS = 3
+#: the in-process bus of the stacks and of the bare exchange they are compared with
+IN_PROCESS = "hil-virtual"
 
 
 class _Stack:
@@ -179,7 +181,7 @@ class _Stack:
 
 
 @contextmanager
-def _stack(config: SystemConfig, lock_step: bool, interface: str = "virtual",
+def _stack(config: SystemConfig, lock_step: bool, interface: str = IN_PROCESS,
            channels: dict[str, str] | None = None, sim_buses: dict | None = None):
     """A running stack; yields (sim, node, session, channels) once the controller cycles.
     ``sim_buses`` (filled in) receives the sim's buses, to inject frame faults."""
@@ -241,7 +243,7 @@ class _Listener:
     """A third bus on a channel, with a load meter behind a Notifier."""
 
     def __init__(self, channel: str, bus_name: str, bitrate: int):
-        self.bus = can.Bus(interface="virtual", channel=channel)
+        self.bus = can.Bus(interface=IN_PROCESS, channel=channel)
         self.meter = BusLoadMeter({channel: (bus_name, bitrate)}, time.time())
         self.notifier = can.Notifier(self.bus, [self.meter], 0.1)
 
@@ -311,8 +313,8 @@ def _bare_python_can(config: SystemConfig, cycles: int) -> float:
                if f[2] == bus.cycle_hz and f[0] in _master_ids(bus, d)]
         answers = [f for d in bus.drives for f in bus.frames(d)
                    if f[2] == bus.cycle_hz and f[0] not in _master_ids(bus, d)]
-        pairs.append((can.Bus(interface="virtual", channel=channel),
-                      can.Bus(interface="virtual", channel=channel), out, answers,
+        pairs.append((can.Bus(interface=IN_PROCESS, channel=channel),
+                      can.Bus(interface=IN_PROCESS, channel=channel), out, answers,
                       bus.uses_sync))
     stop = threading.Event()
 

@@ -3,7 +3,7 @@
 SocketCAN (``socketcan``, e.g. ``vcan0``) is the first-class target. Where a
 kernel has no CAN, ``zenoh`` (this package's python-can plug-in) carries
 frames across processes over loopback, and python-can's ``virtual`` works
-inside one process.
+inside one process (``hil-virtual``: the same, without a deep copy per frame).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ def socketcan_missing(channels: tuple[str, ...] = ("vcan0",)) -> str | None:
 def open_bus(interface: str, channel: str, bitrate: int | None = None, **options) -> can.BusABC:
     """Open a python-can bus, turning the usual set-up failures into clear errors."""
     kwargs = dict(options)
-    if bitrate and interface not in ("socketcan", "virtual", "zenoh"):
+    if bitrate and interface not in ("socketcan", "virtual", "hil-virtual", "zenoh"):
         kwargs["bitrate"] = bitrate   # virtual/socketcan/zenoh have no bitrate to set
     try:
         return can.Bus(interface=interface, channel=channel, **kwargs)
