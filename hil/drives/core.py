@@ -15,6 +15,7 @@ The core is not thread-safe; its owner serialises access.
 from __future__ import annotations
 
 import enum
+import functools
 import math
 from dataclasses import dataclass
 
@@ -74,7 +75,7 @@ class DriveParameters:
     holding_brake: bool = True
     brake_torque: float | None = None  # N·m; default: rated torque
 
-    @property
+    @functools.cached_property    # read several times per drive and plant step
     def radians_per_count(self) -> float:
         return 2.0 * math.pi / self.counts_per_rev
 

@@ -117,6 +117,9 @@ class Cia402Axis(Axis):
             self.node.tpdo.read()
             self.node.rpdo.read()
             self._check_mapping()
+            for pdo in self.node.tpdo.map.values():   # read() subscribed them; the frames
+                if pdo.enabled:                       # come to this axis' own handlers
+                    self.node.network.unsubscribe(pdo.cob_id, pdo.on_message)
             self.node.sdo[0x6060].raw = 8        # cyclic synchronous position
             self.node.nmt.send_command(0x01)     # start: operational
         except canopen.SdoCommunicationError as exc:
