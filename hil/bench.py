@@ -501,9 +501,9 @@ def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
     repetitions = []
     with _stack(config, lock_step=False) as (sim, node, zenoh, _):
         client = TrajectoryActionClient(zenoh, config.robot.name)
-        states: list = []
+        latest: list = [None]     # only the last joint state: the soak measures the stack
         subscriber = zenoh.declare_subscriber(key(config.robot.name, "joint_states"),
-                                              states.append)
+                                              lambda sample: latest.__setitem__(0, sample))
         node.statistics = PeriodStatistics(1.0 / config.cycle_hz)
         started = time.monotonic()
         rss_start = _rss_bytes()
@@ -517,7 +517,7 @@ def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
                 say(f"hil bench: soak repetition failed ({reason}); resetting faults")
                 client.reset_faults()
             time.sleep(0.2)
-            last = T.decode(states[-1].payload.to_bytes(), T.JOINT_STATE)
+            last = T.decode(latest[0].payload.to_bytes(), T.JOINT_STATE)
             final = dict(zip(last.name, last.position))
             error = max(abs(final[n] - p) for n, p in zip(goal.joint_names,
                                                           goal.points[-1].positions))
@@ -525,7 +525,6 @@ def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
                                 "result": outcome, "reason": reason,
                                 "final_error": float(error), "rss_bytes": _rss_bytes(),
                                 "missed_so_far": node.statistics.missed})
-            states.clear()
             say(f"hil bench: soak {repetitions[-1]['t_s']:.0f} s: {outcome}"
                 f", final error {error:.5f}, RSS {repetitions[-1]['rss_bytes'] / 1e6:.1f} MB")
         subscriber.undeclare()
