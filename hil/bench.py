@@ -1,8 +1,9 @@
 """``hil bench``: how fast and how faithful the stack is, measured in one run.
 
 Every figure comes from the same process and the same minutes, so ratios
-hold on a noisy machine. The stacks run in-process on python-can's
-``virtual`` bus (SocketCAN vcan where the kernel has it), with the real
+hold on a noisy machine. The stacks run in-process on ``hil-virtual``
+(python-can's virtual bus, frames handed over in the sender's thread;
+SocketCAN vcan where the kernel has it), with the real
 simulator, CAN master, trajectory controller and Zenoh publications on
 loopback.
 
@@ -303,55 +304,67 @@ def _lock_step(config: SystemConfig, cycles: int) -> dict:
 
 
 def _bare_python_can(config: SystemConfig, cycles: int) -> float:
-    """Per cycle: the master's frames out and the drives' answers back on python-can
-    virtual buses, answered by a bare listener: no protocol, no physics, no control."""
+    """Per cycle: the master's frames out and the drives' answers back on the stacks'
+    in-process buses, delivered the same way (in the sender's thread), answered by a bare
+    listener: no protocol, no physics, no control."""
     tag = uuid.uuid4().hex[:8]
-    pairs = []
+    opened, exchanges = [], []
     for bus in config.buses:
         channel = f"hil-bare-{tag}-{bus.name}"
-        out = [f for d in bus.drives for f in bus.frames(d)
-               if f[2] == bus.cycle_hz and f[0] in _master_ids(bus, d)]
-        answers = [f for d in bus.drives for f in bus.frames(d)
-                   if f[2] == bus.cycle_hz and f[0] not in _master_ids(bus, d)]
-        pairs.append((can.Bus(interface=IN_PROCESS, channel=channel),
-                      can.Bus(interface=IN_PROCESS, channel=channel), out, answers,
-                      bus.uses_sync))
-    stop = threading.Event()
-
-    def responder(bus, answers, trigger):
-        frames = [can.Message(arbitration_id=i, data=bytes(n), is_extended_id=False)
-                  for i, n, _ in answers]
-        while not stop.is_set():
-            message = bus.recv(0.1)
-            if message is not None and message.arbitration_id == trigger:
-                for frame in frames:
-                    bus.send(frame)
-
-    threads = []
-    for master, drive, out, answers, sync in pairs:
-        trigger = 0x080 if sync else out[-1][0]
-        threads.append(threading.Thread(target=responder, args=(drive, answers, trigger),
-                                        daemon=True))
-        threads[-1].start()
+        master, drive = (can.Bus(interface=IN_PROCESS, channel=channel) for _ in range(2))
+        opened += [master, drive]
+        out = [can.Message(arbitration_id=i, data=bytes(n), is_extended_id=False)
+               for d in bus.drives for i, n, rate in bus.frames(d)
+               if rate == bus.cycle_hz and i in _master_ids(bus, d)]
+        answers = [can.Message(arbitration_id=i, data=bytes(n), is_extended_id=False)
+                   for d in bus.drives for i, n, rate in bus.frames(d)
+                   if rate == bus.cycle_hz and i not in _master_ids(bus, d)]
+        if bus.uses_sync:
+            out.append(can.Message(arbitration_id=0x080, data=b"", is_extended_id=False))
+        drive.deliver_to([_Responder(drive, out[-1].arbitration_id, answers)])
+        exchanges.append((master, out, len(answers)))
+    answered = _AnswerCounter()
+    for master, *_ in exchanges:
+        master.deliver_to([answered])
+    expected = sum(count for *_, count in exchanges)
     started = time.perf_counter()
-    for _ in range(cycles):
-        for master, drive, out, answers, sync in pairs:
-            for can_id, payload, _ in out:
-                master.send(can.Message(arbitration_id=can_id, data=bytes(payload),
-                                        is_extended_id=False))
-            if sync:
-                master.send(can.Message(arbitration_id=0x080, data=b"", is_extended_id=False))
-        for master, drive, out, answers, sync in pairs:
-            for _ in answers:
-                master.recv(1.0)
+    for cycle in range(1, cycles + 1):
+        for master, out, _ in exchanges:
+            for frame in out:
+                master.send(frame)
+        answered.wait_for(cycle * expected)
     elapsed = time.perf_counter() - started
-    stop.set()
-    for thread in threads:
-        thread.join(1)
-    for master, drive, *_ in pairs:
-        master.shutdown()
-        drive.shutdown()
+    for bus in opened:
+        bus.shutdown()
     return elapsed / cycles * 1e6
+
+
+class _Responder(can.Listener):
+    """The bare drives of one bus: every cycle's answers, on the cycle's last frame."""
+
+    def __init__(self, bus: can.BusABC, trigger: int, answers: list[can.Message]):
+        self.bus, self.trigger, self.answers = bus, trigger, answers
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.arbitration_id == self.trigger:
+            for answer in self.answers:
+                self.bus.send(answer)
+
+
+class _AnswerCounter(can.Listener):
+    def __init__(self):
+        self.count = 0
+        self._arrived = threading.Condition()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        with self._arrived:
+            self.count += 1
+            self._arrived.notify()
+
+    def wait_for(self, count: int) -> None:
+        with self._arrived:
+            if not self._arrived.wait_for(lambda: self.count >= count, timeout=1.0):
+                raise RuntimeError(f"bare exchange: {self.count} of {count} answers")
 
 
 def _master_ids(bus, drive) -> set[int]:

@@ -166,6 +166,22 @@ class FaultyBus(can.BusABC):
                 except can.CanError:
                     pass
 
+    def deliver_to(self, listeners, accept=None):
+        """Direct delivery (see hil.can.virtual) where the wrapped bus offers it, after this
+        bus' receive-side faults (then ``accept``); None where it does not (a Notifier then
+        reads ``recv``)."""
+        deliver_to = getattr(self.inner, "deliver_to", None)
+        if deliver_to is None:
+            return None
+
+        def received(msg: can.Message) -> can.Message | None:
+            if self.faults:
+                if self._chance("drop"):
+                    return None
+                msg = self._corrupted(msg)
+            return msg if accept is None else accept(msg)
+        return deliver_to(listeners, received)
+
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         if not self.faults:
             return self.inner.recv(timeout), False

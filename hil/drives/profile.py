@@ -49,10 +49,16 @@ class RemoteFrames(can.Listener):
 
 
 def start_network(bus: can.BusABC, timeout: float = 0.1) -> canopen.Network:
-    """A canopen network on ``bus`` with its Notifier running and RTR frames routed."""
+    """A canopen network on ``bus`` with its frames flowing and RTR frames routed: handed
+    over in the sender's thread where the bus can (``deliver_to``, hil.can.virtual), else by
+    a python-can Notifier (``network.notifier`` either way)."""
     network = canopen.Network(bus)
     network.remote_frames = RemoteFrames()
-    network.notifier = can.Notifier(bus, [*network.listeners, network.remote_frames], timeout)
+    listeners = [*network.listeners, network.remote_frames]
+    deliver_to = getattr(bus, "deliver_to", None)
+    network.notifier = deliver_to(listeners) if deliver_to is not None else None
+    if network.notifier is None:
+        network.notifier = can.Notifier(bus, listeners, timeout)
     return network
 
 

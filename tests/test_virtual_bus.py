@@ -1,0 +1,116 @@
+"""hil-virtual: python-can's in-process bus without deep copies, with direct delivery."""
+
+from __future__ import annotations
+
+import threading
+import uuid
+
+import can
+import pytest
+
+from hil.can.faults import FaultyBus, FrameFault
+
+
+@pytest.fixture
+def channel():
+    return f"hil-virtual-{uuid.uuid4().hex[:8]}"
+
+
+@pytest.fixture
+def pair(channel):
+    sender = can.Bus(interface="hil-virtual", channel=channel)
+    receiver = can.Bus(interface="hil-virtual", channel=channel)
+    yield sender, receiver
+    sender.shutdown()
+    receiver.shutdown()
+
+
+def frame(arbitration_id: int = 0x181, data: bytes = b"\x27\x00\x10\x00\x00\x00"):
+    return can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False)
+
+
+class Recorder(can.Listener):
+    def __init__(self):
+        self.frames: list[tuple[can.Message, int]] = []
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self.frames.append((msg, threading.get_ident()))
+
+
+def test_direct_delivery_hands_the_frame_over_in_the_senders_thread(pair):
+    sender, receiver = pair
+    recorder = Recorder()
+    receiver.deliver_to([recorder])
+    sender.send(frame())
+    (received, thread), = recorder.frames            # already there when send returns
+    assert thread == threading.get_ident()
+    assert (received.arbitration_id, bytes(received.data)) == (0x181, frame().data)
+    assert received.is_rx and received.channel == sender.channel_id
+    assert receiver.recv(0) is None                  # nothing queued besides
+
+
+def test_each_receiver_gets_its_own_copy(pair):
+    sender, receiver = pair
+    sent = frame()
+    sender.send(sent)
+    received = receiver.recv(1)
+    received.data[0] = 0xFF
+    assert sent.data[0] == 0x27
+
+
+def test_a_listener_that_raises_does_not_keep_the_frame_from_the_others(pair):
+    sender, receiver = pair
+
+    class Broken(can.Listener):
+        def on_message_received(self, msg):
+            raise RuntimeError("broken listener")
+
+    recorder = Recorder()
+    receiver.deliver_to([Broken(), recorder])
+    sender.send(frame())
+    assert len(recorder.frames) == 1
+
+
+def test_stopped_delivery_queues_frames_for_recv_again(pair):
+    sender, receiver = pair
+    recorder = Recorder()
+    receiver.deliver_to([recorder]).stop()
+    sender.send(frame())
+    assert recorder.frames == []
+    assert receiver.recv(1).arbitration_id == 0x181
+
+
+def test_python_cans_own_virtual_bus_on_the_channel_hears_and_is_heard(pair, channel):
+    sender, receiver = pair
+    plain = can.Bus(interface="virtual", channel=channel)
+    try:
+        sender.send(frame(0x201))
+        assert plain.recv(1).arbitration_id == 0x201
+        assert receiver.recv(1).arbitration_id == 0x201
+        plain.send(frame(0x202))
+        assert receiver.recv(1).arbitration_id == 0x202
+    finally:
+        plain.shutdown()
+
+
+def test_a_faulty_bus_applies_its_receive_faults_to_direct_delivery(pair):
+    sender, receiver = pair
+    faulty = FaultyBus(receiver, [])
+    recorder = Recorder()
+    try:
+        assert faulty.deliver_to([recorder]) is not None
+        sender.send(frame())
+        faulty.add(FrameFault("drop", "arm", 1.0))
+        sender.send(frame())
+        assert len(recorder.frames) == 1 and faulty.injected["drop"] == 1
+    finally:
+        faulty.shutdown()
+
+
+def test_a_faulty_bus_over_a_bus_without_direct_delivery_offers_none(channel):
+    plain = can.Bus(interface="virtual", channel=channel)
+    faulty = FaultyBus(plain, [])
+    try:
+        assert faulty.deliver_to([Recorder()]) is None
+    finally:
+        faulty.shutdown()
