@@ -30,6 +30,7 @@ growth and missed cycles.
 
 from __future__ import annotations
 
+import gc
 import math
 import os
 import platform
@@ -192,6 +193,8 @@ def _stack(config: SystemConfig, lock_step: bool, interface: str = IN_PROCESS,
         names = channels or {b.name: f"hil-bench-{tag}-{b.name}" for b in config.buses}
         stack = _Stack(config, lock_step, interface, names)
         if stack.running():
+            gc.collect()
+            gc.freeze()   # as `hil sim` and `hil control` do once up
             break
         failures.append(str(stack.error or "no bring-up within 30 s"))
         stack.close()
