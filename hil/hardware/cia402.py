@@ -59,6 +59,7 @@ class Cia402Axis(Axis):
         self.controlword = SHUTDOWN
         self.statusword = 0
         self.last_emcy: int | None = None
+        self._emcy_cycle = 0          # the master's cycle when it arrived
 
     # --- network hooks ----------------------------------------------------------
 
@@ -86,6 +87,7 @@ class Cia402Axis(Axis):
         if len(data) >= 2:
             code = struct.unpack_from("<H", data)[0]
             self.last_emcy = code
+            self._emcy_cycle = self._cycle
 
     def _on_heartbeat(self, can_id, data, timestamp) -> None:
         self.last_heard = time.monotonic()
@@ -202,9 +204,11 @@ class Cia402Axis(Axis):
             code = self.last_emcy
             what = f"EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".strip() if code else "fault"
             return f"{self.label} is in FAULT: {what}"
-        if self.last_emcy and self.last_emcy not in FRAME_ERRORS:
-            # e.g. an RPDO timeout quick-stop that this master's next ENABLE undid at once
-            # (transition 16): the drive still acted on its own, and the goal must know
+        if (self.last_emcy and self.last_emcy not in FRAME_ERRORS
+                and self.feedback.cycle > self._emcy_cycle):
+            # an error EMCY and, in an answer sampled after it, no FAULT: e.g. an RPDO timeout
+            # quick-stop that this master's next ENABLE undid at once (transition 16). The
+            # drive still acted on its own, and the goal must know
             code = self.last_emcy
             return f"{self.label} reported EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".rstrip()
         return None
