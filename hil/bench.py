@@ -52,7 +52,7 @@ from hil.can.faults import FaultyBus, FrameFault
 from hil.can.monitor import BusLoadMeter
 from hil.control_node import ControlNode, PeriodStatistics
 from hil.controllers import GoalRejected, TrajectoryGoal, TrajectoryPoint
-from hil.hardware import CanHardwareInterface
+from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
 from hil.messaging import types as T
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import RunSubscriber, TrajectoryActionClient, key
@@ -151,7 +151,7 @@ class _Stack:
         self.zenoh = session(ZenohSettings(listen=(f"tcp/127.0.0.1:{free_loopback_port()}",)))
         hardware = CanHardwareInterface(
             config, {b.name: self.opened[2 * i + 1] for i, b in enumerate(config.buses)},
-            reply_timeout=1.0 if lock_step else None)
+            reply_timeout=LOCK_STEP_REPLY_TIMEOUT if lock_step else None)
         self.node = ControlNode(hardware, self.zenoh, config.cycle_hz, lock_step=lock_step)
         self.error: Exception | None = None
         self.node_thread = threading.Thread(target=self._run_node, daemon=True)

@@ -18,7 +18,7 @@ import pytest
 from conftest import ROOT, UR3_VIRTUAL, Bench, free_port
 
 from hil.bus_config import load_bus_config
-from hil.hardware import CanHardwareInterface
+from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
 from hil.simulator import LOCK_STEP_WATCHDOG, Simulator
 
 REDUCTIONS = (120, 120, 120, 100, 100, 100)
@@ -135,7 +135,7 @@ def master_and_sim(request):
     thread = threading.Thread(target=sim.run, daemon=True)
     thread.start()
     hardware = CanHardwareInterface(config, {"arm": master_bus},
-                                    reply_timeout=1.0 if lock_step else None)
+                                    reply_timeout=LOCK_STEP_REPLY_TIMEOUT if lock_step else None)
     try:
         yield hardware, lock_step, hardware.start().positions
     finally:

@@ -11,7 +11,7 @@ from hil.bus_config import load_bus_config, open_buses
 from hil.cli import common
 from hil.control_node import ControlNode
 from hil.controllers import Defaults
-from hil.hardware import CanHardwareInterface, FakeHardwareInterface
+from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface
 from hil.zenoh_session import close_all, session
 
 HELP = "run the CAN master, joint state publisher and joint trajectory controller"
@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         interface, channels = common.can_overrides(args)
         buses = open_buses(config, zenoh, interface, channels)
         hardware = CanHardwareInterface(config, buses,
-                                        reply_timeout=1.0 if args.lock_step else None)
+                                        reply_timeout=LOCK_STEP_REPLY_TIMEOUT if args.lock_step else None)
     node = ControlNode(hardware, session(zenoh), config.cycle_hz, lock_step=args.lock_step,
                        joint_state_hz=args.joint_state_rate,
                        defaults=Defaults(goal_position_tolerance=args.goal_tolerance))

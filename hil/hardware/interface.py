@@ -36,6 +36,9 @@ from hil.transmissions import TransmissionStack, build_transmissions
 BOOT_TIMEOUT = 3.0
 ENABLE_TIMEOUT = 10.0
 MISSED_ANSWER_LIMIT = 5
+#: lock-step's wait for a cycle's answers (s): time stands still while nobody answers, so this
+#: only has to tell a slow peer (a loaded machine, User-Mode Linux) from a dead one
+LOCK_STEP_REPLY_TIMEOUT = 2.0
 
 #: protocol name -> master-side axis class (the drive side is hil.drives.PROFILES)
 AXES = {axis.protocol: axis for axis in (Cia402Axis, MitAxis, ODriveAxis)}
@@ -133,7 +136,7 @@ class CanHardwareInterface(HardwareInterface):
         self._pending: list[str] = []
         self._arrived = threading.Condition()
         # a drive may legitimately be unheard while its answers are still within the limit of
-        # missed ones: in lock-step (reply timeout 1 s), a stalled sim is slow, not dead
+        # missed ones: in lock-step (LOCK_STEP_REPLY_TIMEOUT), a stalled sim is slow, not dead
         self._answer_silence_limit = MISSED_ANSWER_LIMIT * self.reply_timeout
 
     # --- bring-up ---------------------------------------------------------------------
