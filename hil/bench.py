@@ -316,12 +316,13 @@ def _bare_python_can(config: SystemConfig, cycles: int) -> float:
         channel = f"hil-bare-{tag}-{bus.name}"
         master, drive = (can.Bus(interface=IN_PROCESS, channel=channel) for _ in range(2))
         opened += [master, drive]
-        out = [can.Message(arbitration_id=i, data=bytes(n), is_extended_id=False)
-               for d in bus.drives for i, n, rate in bus.frames(d)
-               if rate == bus.cycle_hz and i in _master_ids(bus, d)]
-        answers = [can.Message(arbitration_id=i, data=bytes(n), is_extended_id=False)
-                   for d in bus.drives for i, n, rate in bus.frames(d)
-                   if rate == bus.cycle_hz and i not in _master_ids(bus, d)]
+        out, answers = [], []                # the cyclic frames, by who sends them
+        for drive_config in bus.drives:
+            master_ids = _master_ids(bus, drive_config)
+            for i, n, rate in bus.frames(drive_config):
+                if rate == bus.cycle_hz:
+                    (out if i in master_ids else answers).append(
+                        can.Message(arbitration_id=i, data=bytes(n), is_extended_id=False))
         if bus.uses_sync:
             out.append(can.Message(arbitration_id=0x080, data=b"", is_extended_id=False))
         drive.deliver_to([_Responder(drive, out[-1].arbitration_id, answers)])

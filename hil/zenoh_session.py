@@ -19,6 +19,7 @@ import zenoh
 from hil.errors import HilError
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+LOOPBACK_ANY_PORT = "tcp/127.0.0.1:0"
 
 
 def free_loopback_port() -> int:
@@ -26,7 +27,6 @@ def free_loopback_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         probe.bind(("127.0.0.1", 0))
         return probe.getsockname()[1]
-LOOPBACK_ANY_PORT = "tcp/127.0.0.1:0"
 
 
 @dataclass(frozen=True)

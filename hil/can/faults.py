@@ -175,12 +175,15 @@ class FaultyBus(can.BusABC):
             return None
 
         def received(msg: can.Message) -> can.Message | None:
-            if self.faults:
-                if self._chance("drop"):
-                    return None
-                msg = self._corrupted(msg)
-            return msg if accept is None else accept(msg)
+            msg = self._received(msg)
+            return msg if msg is None or accept is None else accept(msg)
         return deliver_to(listeners, received)
+
+    def _received(self, msg: can.Message) -> can.Message | None:
+        """A received frame after this bus' receive faults: dropped (None) or corrupted."""
+        if not self.faults:
+            return msg
+        return None if self._chance("drop") else self._corrupted(msg)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         if not self.faults:
@@ -191,8 +194,9 @@ class FaultyBus(can.BusABC):
                                   else max(0.0, deadline - time.monotonic()))
             if msg is None:
                 return None, False
-            if not self._chance("drop"):
-                return self._corrupted(msg), False
+            msg = self._received(msg)
+            if msg is not None:
+                return msg, False
 
     def shutdown(self) -> None:
         if self._is_shutdown:

@@ -42,8 +42,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         interface, channels = common.can_overrides(args)
         buses = open_buses(config, zenoh, interface, channels)
-        hardware = CanHardwareInterface(config, buses,
-                                        reply_timeout=LOCK_STEP_REPLY_TIMEOUT if args.lock_step else None)
+        hardware = CanHardwareInterface(
+            config, buses, reply_timeout=LOCK_STEP_REPLY_TIMEOUT if args.lock_step else None)
     node = ControlNode(hardware, session(zenoh), config.cycle_hz, lock_step=args.lock_step,
                        joint_state_hz=args.joint_state_rate,
                        defaults=Defaults(goal_position_tolerance=args.goal_tolerance))

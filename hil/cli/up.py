@@ -300,7 +300,6 @@ def _viewer_options(args: argparse.Namespace) -> list[str]:
     return options
 
 
-
 def _wait_alive(run: Run, watch: ProcessWatch, child: Child) -> None:
     deadline = time.monotonic() + START_TIMEOUT
     while not watch.wait_alive(child.name, 0.1):

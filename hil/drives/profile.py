@@ -56,9 +56,8 @@ def start_network(bus: can.BusABC, timeout: float = 0.1) -> canopen.Network:
     network.remote_frames = RemoteFrames()
     listeners = [*network.listeners, network.remote_frames]
     deliver_to = getattr(bus, "deliver_to", None)
-    network.notifier = deliver_to(listeners) if deliver_to is not None else None
-    if network.notifier is None:
-        network.notifier = can.Notifier(bus, listeners, timeout)
+    direct = deliver_to(listeners) if deliver_to is not None else None
+    network.notifier = direct or can.Notifier(bus, listeners, timeout)
     return network
 
 

@@ -31,6 +31,11 @@ EMCY_TEXT = {0x8611: "following error", 0x8612: "position limit exceeded",
 #: EMCY codes for a frame the drive ignored: the next cycle's frame replaces it
 FRAME_ERRORS = {0x8210, 0x8240}
 
+
+def emcy_words(code: int) -> str:
+    """An EMCY error code for messages: ``EMCY 0x8611 following error``."""
+    return f"EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".rstrip()
+
 SHUTDOWN, SWITCH_ON, ENABLE, QUICK_STOP, DISABLE_VOLTAGE = 0x06, 0x07, 0x0F, 0x02, 0x00
 FAULT_RESET = 0x80
 
@@ -196,19 +201,15 @@ class Cia402Axis(Axis):
 
     def fault_text(self, stopping: bool = False) -> str | None:
         """Why this axis cannot be used, or None."""
+        code = self.last_emcy
         if self.state == "QUICK STOP ACTIVE" and not stopping:
-            code = self.last_emcy
-            why = f" after EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".rstrip() if code else ""
+            why = f" after {emcy_words(code)}" if code else ""
             return f"{self.label} quick-stopped on its own{why}"
         if self.state in ("FAULT", "FAULT REACTION ACTIVE"):
-            code = self.last_emcy
-            what = f"EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".strip() if code else "fault"
-            return f"{self.label} is in FAULT: {what}"
-        if (self.last_emcy and self.last_emcy not in FRAME_ERRORS
-                and self.feedback.cycle > self._emcy_cycle):
+            return f"{self.label} is in FAULT: {emcy_words(code) if code else 'fault'}"
+        if code and code not in FRAME_ERRORS and self.feedback.cycle > self._emcy_cycle:
             # an error EMCY and, in an answer sampled after it, no FAULT: e.g. an RPDO timeout
             # quick-stop that this master's next ENABLE undid at once (transition 16). The
             # drive still acted on its own, and the goal must know
-            code = self.last_emcy
-            return f"{self.label} reported EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".rstrip()
+            return f"{self.label} reported {emcy_words(code)}"
         return None
