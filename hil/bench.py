@@ -9,8 +9,11 @@ loopback.
 
 Figures (each a list of rows; a figure that cannot be measured here says why):
 
-* ``control_cycle``: real-time period statistics per robot and rate, and the
-  sim's real-time factor over the same run;
+* ``control_cycle``: real-time period statistics per robot and rate (period
+  from release to release, busy time, the loop's scheduling), and the sim's
+  real-time factor over the same run;
+* ``timing_floor``: the same pacing with nothing to do, at the highest rate:
+  what this machine's scheduler and timers allow any loop;
 * ``socketcan``: the same over vcan, or why not;
 * ``lock_step``: speed-up over real time, full-stack time per cycle;
 * ``overhead``: that time against a bare python-can exchange of the same
@@ -50,20 +53,21 @@ from hil.bus_config import SystemConfig, load_bus_config
 from hil.can import socketcan_missing
 from hil.can.faults import FaultyBus, FrameFault
 from hil.can.monitor import BusLoadMeter
-from hil.control_node import ControlNode, PeriodStatistics
+from hil.control_node import ControlNode
 from hil.controllers import GoalRejected, TrajectoryGoal, TrajectoryPoint
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
 from hil.messaging import types as T
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import RunSubscriber, TrajectoryActionClient, key
 from hil.plant import Plant
+from hil.realtime import CyclePacer, PeriodStatistics
 from hil.simulator import Simulator, motor_inertias
 from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
 
 ROBOTS = ("ur3", "pigot")
 RATES = (250.0, 500.0, 1000.0)
 #: the figures every report has (a row list, or {"unavailable": why})
-FIGURES = ("control_cycle", "socketcan", "lock_step", "overhead", "latency", "tracking",
+FIGURES = ("control_cycle", "timing_floor", "socketcan", "lock_step", "overhead", "latency", "tracking",
            "bus_load", "fault_detection")
 
 
@@ -89,6 +93,8 @@ def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> di
                                  "lock_step_cycles": settings.lock_step_cycles}}
     for name in FIGURES:
         report[name] = []
+    say(f"hil bench: the timing floor (an empty loop at {max(RATES):g} Hz) ...")
+    report["timing_floor"].append(_timing_floor(max(RATES), settings.seconds))
     for robot in ROBOTS:
         config = load_bus_config(settings.config_dir / f"{robot}.yaml")
         for rate in RATES:
@@ -213,23 +219,18 @@ def _real_time(config: SystemConfig, seconds: float) -> tuple[dict, dict, list[d
     with _stack(config, lock_step=False) as (sim, node, zenoh, channels):
         meters = _listen(config, channels)
         latency = _LatencyProbe(zenoh, config.robot.name)
-        node.statistics.samples.clear()
-        plant_start, wall_start = sim.plant.time, time.perf_counter()
+        node.statistics.clear()
+        plant_start, wall_start = sim.now(), time.perf_counter()
         for meter, _ in meters:
             meter.meter.take(time.time())
         time.sleep(seconds)
-        plant, wall = sim.plant.time - plant_start, time.perf_counter() - wall_start
+        plant, wall = sim.now() - plant_start, time.perf_counter() - wall_start
         loads = [(meter.meter.take(time.time()), bus) for meter, bus in meters]
-        periods = np.array(node.statistics.samples)
+        cycle = cycle_figures(node.statistics)
         latency.close()
         for meter, _ in meters:
             meter.stop()
-    errors = np.abs(periods - 1.0 / config.cycle_hz) * 1e6
-    cycle = {"cycles": int(len(periods)), "period_mean_ms": float(periods.mean() * 1e3),
-             "error_p50_us": float(np.percentile(errors, 50)),
-             "error_p99_us": float(np.percentile(errors, 99)), "error_max_us": float(errors.max()),
-             "missed": int(np.sum(periods > 1.5 / config.cycle_hz)),
-             "sim_real_time_factor": plant / wall, "faults": len(node.faults)}
+    cycle.update(sim_real_time_factor=plant / wall, faults=len(node.faults))
     rows = []
     for measured, bus in loads:
         estimate = bus.load()
@@ -243,16 +244,49 @@ def _real_time(config: SystemConfig, seconds: float) -> tuple[dict, dict, list[d
     return cycle, latency.figures(1.0 / config.cycle_hz), rows
 
 
+def cycle_figures(statistics: PeriodStatistics) -> dict:
+    """Period (release to release) against nominal, and busy time, of the cycles so far."""
+    periods = np.array(statistics.samples)
+    errors = np.abs(periods - statistics.nominal) * 1e6
+    busy = np.array(statistics.busy) * 1e6
+    return {"cycles": statistics.count, "period_mean_ms": float(periods.mean() * 1e3),
+            "error_p50_us": float(np.percentile(errors, 50)),
+            "error_p99_us": float(np.percentile(errors, 99)), "error_max_us": float(errors.max()),
+            "missed": statistics.missed, "busy_p50_us": float(np.percentile(busy, 50)),
+            "busy_p99_us": float(np.percentile(busy, 99)), "busy_max_us": float(busy.max()),
+            "scheduling": statistics.scheduling}
+
+
+def _timing_floor(rate: float, seconds: float) -> dict:
+    """The stacks' pacing with no work in the cycle, in a thread of its own."""
+    statistics = PeriodStatistics(1.0 / rate)
+
+    def loop() -> None:
+        pacer = CyclePacer(1.0 / rate, statistics)
+        end = time.perf_counter() + seconds
+        try:
+            while time.perf_counter() < end:
+                pacer.release()
+        finally:
+            pacer.close()
+
+    thread = threading.Thread(target=loop, name="timing floor")
+    thread.start()
+    thread.join()
+    return {"rate_hz": rate, **cycle_figures(statistics)}
+
+
 class _Listener:
-    """A third bus on a channel, with a load meter behind a Notifier."""
+    """A third bus on a channel with a load meter, fed in the sender's thread as the stack's
+    own buses are (a Notifier thread waking for each frame would compete with the loop)."""
 
     def __init__(self, channel: str, bus_name: str, bitrate: int):
         self.bus = can.Bus(interface=IN_PROCESS, channel=channel)
         self.meter = BusLoadMeter({channel: (bus_name, bitrate)}, time.time())
-        self.notifier = can.Notifier(self.bus, [self.meter], 0.1)
+        self.delivery = self.bus.deliver_to([self.meter])
 
     def stop(self) -> None:
-        self.notifier.stop(1)
+        self.delivery.stop()
         self.bus.shutdown()
 
 
@@ -262,26 +296,31 @@ def _listen(config: SystemConfig, channels: dict[str, str]) -> list[tuple[_Liste
 
 class _LatencyProbe:
     """Setpoint out of the controller (a cycle's sample time) to the joint state measured
-    one cycle later arriving here on Zenoh."""
+    one cycle later arriving here on Zenoh.
+
+    It subscribes on the stack's own session, where Zenoh calls it in the publishing
+    thread: the control loop's. So it only keeps what arrived and when; decoding waits for
+    :meth:`figures`, after the run."""
 
     def __init__(self, zenoh, robot: str):
-        self.samples: list[ControlSamples] = []
-        self.states: list[tuple[float, float]] = []       # (header stamp, arrival)
-        self._subscriber = RunSubscriber(zenoh, robot, self.samples.append, lambda *_: None,
-                                         lambda *_: None)
-        self._states = zenoh.declare_subscriber(key(robot, "joint_states"), self._on_state)
-
-    def _on_state(self, sample) -> None:
-        arrival = time.time()
-        message = T.decode(sample.payload.to_bytes(), T.JOINT_STATE)
-        self.states.append((T.seconds_of(message.header.stamp), arrival))
+        self._batches: list[bytes] = []
+        self._states: list[tuple[bytes, float]] = []       # (payload, arrival)
+        self._subscribers = [
+            zenoh.declare_subscriber(key(robot, "control/samples"),
+                                     lambda sample: self._batches.append(
+                                         sample.payload.to_bytes())),
+            zenoh.declare_subscriber(key(robot, "joint_states"),
+                                     lambda sample: self._states.append(
+                                         (sample.payload.to_bytes(), time.time())))]
 
     def figures(self, period: float) -> dict:
-        if not self.samples or not self.states:
+        if not self._batches or not self._states:
             return {"unavailable": "no joint states or samples arrived"}
-        times = np.concatenate([s.wall_time for s in self.samples])
+        times = np.concatenate([ControlSamples.decode(batch).wall_time
+                                for batch in self._batches])
         latencies = []
-        for stamp, arrival in self.states:
+        for payload, arrival in self._states:
+            stamp = T.seconds_of(T.decode(payload, T.JOINT_STATE).header.stamp)
             cycle = np.searchsorted(times, stamp) - 1      # the cycle that published it
             if 1 <= cycle < len(times):
                 latencies.append(arrival - times[cycle - 1])   # its state came from cycle-1
@@ -291,17 +330,17 @@ class _LatencyProbe:
                 "cycle_ms": period * 1e3}
 
     def close(self) -> None:
-        self._subscriber.close()
-        self._states.undeclare()
+        for subscriber in self._subscribers:
+            subscriber.undeclare()
 
 
 def _lock_step(config: SystemConfig, cycles: int) -> dict:
     with _stack(config, lock_step=True) as (sim, node, zenoh, _):
-        start_cycle, plant_start, wall_start = node._cycle, sim.plant.time, time.perf_counter()
+        start_cycle, plant_start, wall_start = node._cycle, sim.now(), time.perf_counter()
         while node._cycle - start_cycle < cycles:
             time.sleep(0.01)
         done = node._cycle - start_cycle
-        wall, plant = time.perf_counter() - wall_start, sim.plant.time - plant_start
+        wall, plant = time.perf_counter() - wall_start, sim.now() - plant_start
     return {"cycles": done, "speedup_over_real_time": plant / wall,
             "cycle_us": wall / done * 1e6}
 
@@ -521,7 +560,7 @@ def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
         latest: list = [None]     # only the last joint state: the soak measures the stack
         subscriber = zenoh.declare_subscriber(key(config.robot.name, "joint_states"),
                                               lambda sample: latest.__setitem__(0, sample))
-        node.statistics = PeriodStatistics(1.0 / config.cycle_hz)
+        node.statistics.clear()
         started = time.monotonic()
         rss_start = _rss_bytes()
         while time.monotonic() - started < seconds:
@@ -576,13 +615,9 @@ def _socketcan(settings: BenchSettings) -> list[dict]:
         config = load_bus_config(settings.config_dir / f"{robot}.yaml")
         channels = dict(zip((b.name for b in config.buses), ("vcan0", "vcan1")))
         with _stack(config, False, "socketcan", channels) as (sim, node, zenoh, _):
-            node.statistics.samples.clear()
+            node.statistics.clear()
             time.sleep(settings.seconds)
-            periods = np.array(node.statistics.samples)
-        errors = np.abs(periods - 1.0 / config.cycle_hz) * 1e6
-        rows.append({"robot": robot, "rate_hz": config.cycle_hz, "cycles": len(periods),
-                     "period_mean_ms": float(periods.mean() * 1e3),
-                     "error_p99_us": float(np.percentile(errors, 99)),
-                     "missed": int(np.sum(periods > 1.5 / config.cycle_hz))})
+            rows.append({"robot": robot, "rate_hz": config.cycle_hz,
+                         **cycle_figures(node.statistics)})
     return rows
 

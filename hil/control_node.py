@@ -4,7 +4,8 @@ Each cycle: exchange with the hardware (setpoints out, feedback in), report
 faults to the trajectory controller (which aborts and holds), run the
 controller, publish joint states, feedback and results, and record the cycle
 (published in batches as ``hil_msgs/ControlSamples``). Real-time mode paces
-the cycle from a monotonic clock and keeps period statistics; lock-step mode
+the cycle (hil.realtime.CyclePacer: SCHED_FIFO where allowed) and keeps
+period statistics; lock-step mode
 runs the next cycle as soon as the hardware answered, with the controller's
 clock advancing one period per cycle.
 """
@@ -14,7 +15,6 @@ from __future__ import annotations
 import queue
 import threading
 import time
-from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,6 +27,7 @@ from hil.messaging.samples import ControlSampleBuffer
 from hil.messaging.zenoh_api import (
     ControlSamplesPublisher, JointStatePublisher, TrajectoryActionServer, key,
 )
+from hil.realtime import REAL_TIME_PRIORITY, CyclePacer, PeriodStatistics
 
 
 #: how long a fault reset may take to bring every drive back (s)
@@ -43,45 +44,19 @@ class FaultResetRequest:
     deadline: float = 0.0
 
 
-@dataclass
-class PeriodStatistics:
-    """Measured cycle periods (real-time mode), in seconds: counts over the whole run, the
-    latest KEEP periods for percentiles (a long run must not grow without bound)."""
-
-    KEEP = 100_000
-
-    nominal: float
-    samples: deque = field(default_factory=lambda: deque(maxlen=PeriodStatistics.KEEP))
-    count: int = 0
-    missed: int = 0
-
-    def add(self, period: float) -> None:
-        self.samples.append(period)
-        self.count += 1
-        self.missed += period > 1.5 * self.nominal
-
-    def summary(self) -> str:
-        if not self.samples:
-            return "no cycles"
-        periods = np.array(self.samples)
-        errors = np.abs(periods - self.nominal) * 1e6
-        latest = "" if self.count == len(periods) else f" (the latest {len(periods)})"
-        return (f"{self.count} cycles, missed {self.missed}; period mean{latest} "
-                f"{periods.mean() * 1e3:.3f} ms, |error| p50 {np.percentile(errors, 50):.0f} us, "
-                f"p99 {np.percentile(errors, 99):.0f} us, max {errors.max():.0f} us")
-
-
 class ControlNode:
     """Runs the control loop until :meth:`stop`."""
 
     def __init__(self, hardware: HardwareInterface, session: zenoh.Session, cycle_hz: float,
                  lock_step: bool = False, joint_state_hz: float = 100.0,
                  feedback_hz: float = 20.0, samples_hz: float = 10.0,
-                 defaults: Defaults = Defaults()):
+                 defaults: Defaults = Defaults(), priority: int = REAL_TIME_PRIORITY):
+        """``priority``: the real-time loop's SCHED_FIFO priority where allowed (0: none)."""
         self.hardware = hardware
         robot = hardware.robot
         self.period = 1.0 / cycle_hz
         self.lock_step = lock_step
+        self.priority = priority
         self.controller = JointTrajectoryController(robot, defaults)
         self.broadcaster = JointStateBroadcaster(robot, hardware.joint_names)
         self._cycle = 0
@@ -95,6 +70,11 @@ class ControlNode:
         self._token = None      # declared once the hardware follows commands
         self._every_states = max(1, round(cycle_hz / joint_state_hz))
         self._every_feedback = max(1, round(cycle_hz / feedback_hz))
+        # publications on different cycles where the rates allow (joint states halfway, the
+        # feedback a third into their periods, sample batches on full buffers): each costs
+        # tens to a hundred microseconds, and stacked on one cycle they would overrun it
+        self._states_phase = self._every_states // 2
+        self._feedback_phase = self._every_feedback // 3
         self.statistics = PeriodStatistics(self.period)
         self.faults: list[str] = []
         self._stop = threading.Event()
@@ -123,6 +103,7 @@ class ControlNode:
 
     def run(self) -> None:
         hardware = self.hardware
+        pacer = None
         try:
             start = hardware.start()
             command = start.positions      # the first setpoint: where the joints are
@@ -130,9 +111,11 @@ class ControlNode:
             self.controller.update(self.clock(), start.positions, start.velocities)
             self._token = self._session.liveliness().declare_token(
                 key(self.hardware.robot.name, "control"))
-            next_cycle = time.perf_counter()
-            last = None
+            pacer = None if self.lock_step else CyclePacer(self.period, self.statistics,
+                                                           self.priority)
             while not self._stop.is_set():
+                if pacer is not None:
+                    pacer.release()
                 if self._reset is None and not self._resets.empty():
                     self._begin_reset()
                 feedback = hardware.cycle(command, velocity)
@@ -148,18 +131,9 @@ class ControlNode:
                                                            feedback.velocities)
                 self.samples.add(self._cycle, now, command, velocity, feedback)
                 self._publish(feedback)
-                if not self.lock_step:
-                    now = time.perf_counter()
-                    if last is not None:
-                        self.statistics.add(now - last)
-                    last = now
-                    next_cycle += self.period
-                    delay = next_cycle - time.perf_counter()
-                    if delay > 0:
-                        time.sleep(delay)
-                    elif delay < -10 * self.period:
-                        next_cycle = time.perf_counter()
         finally:
+            if pacer is not None:
+                pacer.close()      # shutting down is not real-time work
             if self._reset is not None:
                 self._finish_reset(False, "the controller is shutting down")
             while not self._resets.empty():
@@ -198,12 +172,12 @@ class ControlNode:
         request.done.set()
 
     def _publish(self, feedback) -> None:
-        if self._cycle % self._every_states == 0:
+        if self._cycle % self._every_states == self._states_phase:
             positions, velocities, efforts = self.broadcaster.compute(
                 feedback.positions, feedback.velocities, feedback.efforts)
             self.joint_states.publish(time.time(), self.broadcaster.names, positions,
                                       velocities, efforts)
-        if self._cycle % self._every_feedback == 0:
+        if self._cycle % self._every_feedback == self._feedback_phase:
             self.server.publish_feedback()
         self.server.publish_results()
         if self.samples.full:

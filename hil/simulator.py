@@ -2,15 +2,21 @@
 
 Two time modes:
 
-* real-time: the plant steps at its rate, paced by the wall clock; drives
-  answer each cycle's command (SYNC, or a command frame) at once with the
-  latest state, and send their timed messages when due;
+* real-time: plant time follows the wall clock. Whatever touches the plant
+  or a drive (a frame arriving, a status read, the periodic watchdog check)
+  enters :class:`PlantPresent`, which first steps the plant, with the drives'
+  inner loops, up to the present; so a frame acts on and samples the state
+  at its arrival, and no thread has to wake at the plant's rate (in one
+  process such a thread fought the controller's for the GIL). Drives answer
+  each cycle's command (SYNC, or a command frame) at once and send their
+  timed messages when due;
 * lock-step: the plant advances exactly one control period once every drive
   has had its command of the cycle, so a run is reproducible bit for bit and
   may go faster than real time. The replies leave only after the step, so
   the controller cannot start the next cycle early.
 
-Threads: python-can's Notifier calls back per bus; one re-entrant lock
+Threads: python-can's Notifier calls back per bus (or the sender's thread
+delivers, on ``hil-virtual``); one re-entrant lock, inside PlantPresent,
 guards the plant and all drives. The watchdogs run on the wall clock in both
 modes; in lock-step they are stretched to at least LOCK_STEP_WATCHDOG, since
 nothing moves between commands there: a late controller is no hazard, and the
@@ -23,6 +29,7 @@ import logging
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import can
@@ -38,6 +45,8 @@ from hil.plant import Plant
 log = logging.getLogger(__name__)
 
 WATCHDOG_PERIOD = 0.01
+#: real time: a gap longer than this (a stalled process) is skipped, not replayed (s)
+MAX_CATCH_UP = 0.05
 #: lock-step's shortest drive watchdog (s): a loaded machine stalls a process, which must not
 #: fault a lock-step run (User-Mode Linux on a shared 2-core CI host: over 2 s seen)
 LOCK_STEP_WATCHDOG = 10.0
@@ -85,6 +94,35 @@ def motor_inertias(plant: Plant) -> dict[str, float]:
     return inertias
 
 
+class PlantPresent:
+    """The lock that drives hold around everything a frame does to them (``DriveProfile.lock``).
+
+    A re-entrant lock over the plant and every drive. Entering it (outermost entry only)
+    first calls ``advance``: in real time, the simulator's step of the plant up to the
+    present.
+    """
+
+    def __init__(self, advance: Callable[[], None]):
+        self._lock = threading.RLock()
+        self._advance = advance
+        self._depth = 0          # entries by the owning thread (changed only under the lock)
+
+    def __enter__(self) -> PlantPresent:
+        self._lock.acquire()
+        self._depth += 1
+        if self._depth == 1:
+            try:
+                self._advance()
+            except BaseException:
+                self.__exit__()
+                raise
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self._depth -= 1
+        self._lock.release()
+
+
 @dataclass
 class _BusRuntime:
     config: BusConfig
@@ -99,11 +137,15 @@ class Simulator:
     def __init__(self, config: SystemConfig, buses: dict[str, can.BusABC], lock_step: bool = False):
         self.config = config
         self.lock_step = lock_step
-        self.lock = threading.RLock()
+        self.lock = PlantPresent(self._advance)
         self.plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz)
         self.steps_per_cycle = config.steps_per_cycle
         self.cycles = 0
-        self.overruns = 0
+        self.overruns = 0          # real time: gaps skipped (the process stalled)
+        self.wall_clock = time.perf_counter      # what plant time follows in real time
+        # real time, while run() runs: plant steps done since the clock's epoch
+        self._clock: tuple[float, int] | None = None      # (epoch, steps done)
+        self._last_step: int | None = None                # run(duration): no step past it
         inertias = motor_inertias(self.plant)
         actuator_index = {name: i for i, name in enumerate(self.plant.actuator_names)}
         self._runtimes: list[_BusRuntime] = []
@@ -182,31 +224,47 @@ class Simulator:
     # --- time -------------------------------------------------------------------
 
     def run(self, duration: float | None = None) -> None:
-        """Run until :meth:`stop` (or ``duration`` seconds of plant time)."""
-        end = None if duration is None else self.plant.time + duration
-        if self.lock_step:
+        """Run until :meth:`stop` (or ``duration`` seconds of plant time): check the watchdogs
+        and send timed messages every WATCHDOG_PERIOD; in real time, plant time follows the
+        wall clock meanwhile."""
+        dt = self.plant.timestep
+        end = None if duration is None else self.plant.time + duration - dt / 2
+        with self.lock:
+            if end is not None:
+                self._last_step = math.ceil(end / dt)
+            if not self.lock_step:
+                self._clock = (self.wall_clock(), 0)
+        try:
             while not self._stop.wait(WATCHDOG_PERIOD):
                 self._check_watchdogs()
-                if end is not None and self.plant.time >= end:
+                if end is not None and self.now() >= end:
                     return
-            return
-        dt = self.plant.timestep
-        watchdog_steps = max(1, round(WATCHDOG_PERIOD / dt))
-        next_step = time.perf_counter()
-        steps = 0
-        while not self._stop.is_set() and (end is None or self.plant.time < end):
+        finally:
             with self.lock:
-                self._step()
-            steps += 1
-            if steps % watchdog_steps == 0:
-                self._check_watchdogs()
-            next_step += dt
-            delay = next_step - time.perf_counter()
-            if delay > 0:
-                time.sleep(delay)
-            elif delay < -0.05:   # more than 50 steps behind: do not try to catch up
-                self.overruns += 1
-                next_step = time.perf_counter()
+                self._clock = self._last_step = None
+
+    def now(self) -> float:
+        """The plant's time (s); in real time, brought up to the present first."""
+        with self.lock:
+            return self.plant.time
+
+    def _advance(self) -> None:
+        """Real time (lock held): step the plant up to the wall clock. A gap over MAX_CATCH_UP
+        is skipped and counted in :attr:`overruns`: the plant then lags the wall clock."""
+        if self._clock is None:
+            return
+        epoch, done = self._clock
+        dt = self.plant.timestep
+        due = int((self.wall_clock() - epoch) / dt) - done
+        if due > MAX_CATCH_UP / dt:
+            self.overruns += 1
+            epoch += (due - 1) * dt
+            due = 1
+        if self._last_step is not None:
+            due = min(due, self._last_step - round(self.plant.time / dt))
+        for _ in range(due):
+            self._step()
+        self._clock = (epoch, done + max(due, 0))
 
     def _step(self) -> None:
         """One plant step with the drives' inner loops (lock held)."""

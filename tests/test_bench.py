@@ -23,6 +23,12 @@ def test_quick_bench_reports_every_figure(tmp_path):
     for row in report["control_cycle"]:
         assert row["cycles"] > 0 and math.isfinite(row["error_p99_us"])
         assert 0.5 < row["sim_real_time_factor"] < 1.5          # real time is real time
+        assert 0 < row["busy_p50_us"] <= row["busy_p99_us"] <= row["busy_max_us"]
+        assert row["scheduling"].startswith(("SCHED_FIFO", "normal scheduling"))
+    floor = report["timing_floor"][0]
+    assert floor["rate_hz"] == max(RATES) and floor["cycles"] > 0
+    # the empty loop's work is the pacer's own bookkeeping: less than any stack's cycle
+    assert floor["busy_p50_us"] < min(row["busy_p50_us"] for row in report["control_cycle"])
     for row in report["latency"]:
         assert row["p50_ms"] > 0 and row["p99_ms"] >= row["p50_ms"]
     for row in report["overhead"]:

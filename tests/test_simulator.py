@@ -19,7 +19,7 @@ from conftest import ROOT, UR3_VIRTUAL, Bench, free_port
 
 from hil.bus_config import load_bus_config
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
-from hil.simulator import LOCK_STEP_WATCHDOG, Simulator
+from hil.simulator import LOCK_STEP_WATCHDOG, MAX_CATCH_UP, Simulator
 
 REDUCTIONS = (120, 120, 120, 100, 100, 100)
 COUNTS = 131072
@@ -169,3 +169,75 @@ def test_a_controller_stall_past_the_watchdog_faults_in_real_time_only(master_an
     else:
         assert "drive node 1 (joint1) on bus 'arm' reported EMCY 0x8250 RPDO timeout " \
                "(setpoints stopped arriving)" in faults
+
+
+# --- real time: the plant's present ---------------------------------------------------------
+
+@pytest.fixture
+def real_time_sim():
+    """The ur3 fixture's Simulator in real time on a virtual bus, not running yet, with a
+    wall clock the test moves (``sim.wall_clock = fake``)."""
+    channel = f"hil-present-{uuid.uuid4().hex[:8]}"
+    bus = can.Bus(interface="virtual", channel=channel)
+    sim = Simulator(load_bus_config(UR3_VIRTUAL), {"arm": bus})
+    wall = [0.0]
+    sim.wall_clock = lambda: wall[0]
+    try:
+        yield sim, wall
+    finally:
+        sim.stop()
+        sim.close()
+        bus.shutdown()
+
+
+def start_clock(sim: Simulator) -> threading.Thread:
+    """run() in a thread, until it has taken its epoch from the (fake) wall clock."""
+    thread = threading.Thread(target=sim.run, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 5
+    while sim._clock is None:
+        assert time.monotonic() < deadline, "run() did not start"
+        time.sleep(0.001)
+    return thread
+
+
+def test_touching_a_real_time_plant_brings_it_to_the_present(real_time_sim):
+    sim, wall = real_time_sim
+    dt = sim.plant.timestep
+    thread = start_clock(sim)
+    before = sim.plant.time
+    wall[0] += 37.5 * dt                 # the wall clock moves on
+    assert sim.now() == pytest.approx(before + 37 * dt)    # whole steps up to now
+    with sim.lock:
+        with sim.lock:                   # nested: no second advance inside a frame's work
+            wall[0] += 5 * dt
+            assert sim.plant.time == pytest.approx(before + 37 * dt)
+    assert sim.now() == pytest.approx(before + 42 * dt)
+    sim.stop()
+    thread.join(5)
+
+
+def test_a_real_time_plant_skips_a_stall_instead_of_replaying_it(real_time_sim):
+    sim, wall = real_time_sim
+    dt = sim.plant.timestep
+    thread = start_clock(sim)
+    before = sim.plant.time
+    wall[0] += 3 * MAX_CATCH_UP          # the process stalled
+    assert sim.now() == pytest.approx(before + dt)     # one step, and counted
+    assert sim.overruns == 1
+    wall[0] += 2 * dt
+    assert sim.now() == pytest.approx(before + 3 * dt)  # then in step with the wall again
+    sim.stop()
+    thread.join(5)
+
+
+def test_a_real_time_run_for_a_duration_steps_exactly_that_much_plant_time():
+    channel = f"hil-duration-{uuid.uuid4().hex[:8]}"
+    bus = can.Bus(interface="virtual", channel=channel)
+    sim = Simulator(load_bus_config(UR3_VIRTUAL), {"arm": bus})
+    try:
+        sim.run(0.2)
+        assert sim.plant.time == pytest.approx(0.2)
+    finally:
+        sim.close()
+        bus.shutdown()

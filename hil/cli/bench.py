@@ -6,6 +6,7 @@ import argparse
 import json
 import re
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from hil.bench import BenchSettings, run_bench, run_soak
@@ -17,6 +18,8 @@ HELP = "measure cycle timing, real-time factors, overheads, latency, tracking an
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true",
                         help="short runs (about a minute; what CI runs)")
+    parser.add_argument("--seconds", type=float, metavar="S",
+                        help="length of each real-time run (default 10; --quick 2)")
     parser.add_argument("--json", type=Path, default=Path("bench.json"), metavar="FILE",
                         help="write the report here (default bench.json)")
     parser.add_argument("--soak", metavar="DURATION",
@@ -26,6 +29,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     settings = BenchSettings.quick() if args.quick else BenchSettings()
+    if args.seconds is not None:
+        if args.seconds <= 0:
+            raise HilError.single(f"--seconds {args.seconds:g}: a run needs a positive length")
+        settings = replace(settings, seconds=args.seconds)
     say = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
     if args.soak:
         soak = run_soak(_seconds(args.soak), settings, say=say)
@@ -52,17 +59,27 @@ def _seconds(text: str) -> float:
 
 
 def format_table(report: dict) -> str:
+    floor = report["timing_floor"][0]
     lines = [f"machine: {report['machine']['cpus']} CPUs, Python {report['machine']['python']}",
-             "", "control cycle, real time (in-process virtual CAN, Zenoh on loopback)",
-             f"  {'robot':<6} {'Hz':>5} {'cycles':>7} {'mean ms':>8} {'p50 us':>8} {'p99 us':>8} "
-             f"{'max us':>8} {'missed':>7} {'sim RTF':>8} {'e2e p50 ms':>11} {'e2e p99 ms':>11}"]
+             "", "control cycle, real time (in-process virtual CAN, Zenoh on loopback), "
+             f"{report['control_cycle'][0]['scheduling']}",
+             "  period error = |release to release - nominal|; busy = release to end of work",
+             f"  {'robot':<6} {'Hz':>5} {'cycles':>7} {'mean ms':>8} {'p50 us':>7} {'p99 us':>7} "
+             f"{'max us':>7} {'missed':>6} {'busy p50':>9} {'p99 us':>7} {'sim RTF':>8} "
+             f"{'e2e p50 ms':>11} {'e2e p99 ms':>11}"]
     for cycle, latency in zip(report["control_cycle"], report["latency"]):
         lines.append(
             f"  {cycle['robot']:<6} {cycle['rate_hz']:>5.0f} {cycle['cycles']:>7} "
-            f"{cycle['period_mean_ms']:>8.3f} {cycle['error_p50_us']:>8.0f} "
-            f"{cycle['error_p99_us']:>8.0f} {cycle['error_max_us']:>8.0f} {cycle['missed']:>7} "
+            f"{cycle['period_mean_ms']:>8.3f} {cycle['error_p50_us']:>7.0f} "
+            f"{cycle['error_p99_us']:>7.0f} {cycle['error_max_us']:>7.0f} {cycle['missed']:>6} "
+            f"{cycle['busy_p50_us']:>9.0f} {cycle['busy_p99_us']:>7.0f} "
             f"{cycle['sim_real_time_factor']:>8.2f} {latency.get('p50_ms', float('nan')):>11.2f} "
             f"{latency.get('p99_ms', float('nan')):>11.2f}")
+    lines.append(f"  {'empty':<6} {floor['rate_hz']:>5.0f} {floor['cycles']:>7} "
+                 f"{floor['period_mean_ms']:>8.3f} {floor['error_p50_us']:>7.0f} "
+                 f"{floor['error_p99_us']:>7.0f} {floor['error_max_us']:>7.0f} "
+                 f"{floor['missed']:>6} {floor['busy_p50_us']:>9.0f} {floor['busy_p99_us']:>7.0f}"
+                 "   (the timing floor: the same pacing with no work)")
     socketcan = report["socketcan"]
     lines += ["", "SocketCAN: " + (socketcan["unavailable"] if isinstance(socketcan, dict) else
                                    "; ".join(f"{r['robot']} {r['rate_hz']:g} Hz p99 "

@@ -12,6 +12,7 @@ from hil.cli import common
 from hil.control_node import ControlNode
 from hil.controllers import Defaults
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface
+from hil.realtime import REAL_TIME_PRIORITY
 from hil.zenoh_session import close_all, session
 
 HELP = "run the CAN master, joint state publisher and joint trajectory controller"
@@ -26,6 +27,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "--lock-step); the controller clock advances one period per cycle")
     parser.add_argument("--joint-state-rate", type=float, default=100.0, metavar="HZ",
                         help="joint state publication rate (default 100)")
+    parser.add_argument("--priority", type=int, default=REAL_TIME_PRIORITY, metavar="N",
+                        help="real time: run the control loop under SCHED_FIFO priority N "
+                             f"where the OS allows it (default {REAL_TIME_PRIORITY}; 0: the "
+                             "normal scheduler)")
     parser.add_argument("--goal-tolerance", type=float, default=Defaults.goal_position_tolerance,
                         metavar="RAD", help="default goal position tolerance")
     common.add_can_override(parser)
@@ -46,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
             config, buses, reply_timeout=LOCK_STEP_REPLY_TIMEOUT if args.lock_step else None)
     node = ControlNode(hardware, session(zenoh), config.cycle_hz, lock_step=args.lock_step,
                        joint_state_hz=args.joint_state_rate,
-                       defaults=Defaults(goal_position_tolerance=args.goal_tolerance))
+                       defaults=Defaults(goal_position_tolerance=args.goal_tolerance),
+                       priority=args.priority)
     previous = {s: signal.signal(s, lambda *_: node.stop()) for s in (signal.SIGINT,
                                                                       signal.SIGTERM)}
     mode = "fake hardware" if args.fake else f"{len(config.drives)} drive(s)"

@@ -22,15 +22,15 @@ import enum
 import logging
 import math
 import struct
-import threading
 import time
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import canopen
 from canopen.sdo import SdoAbortedError
 
-from hil.drives.core import DriveCore, Fault, Mode, Power
+from hil.drives.core import DriveCore, DriveStatus, Fault, Mode, Power
 from hil.drives.profile import DriveProfile
 
 log = logging.getLogger(__name__)
@@ -130,9 +130,8 @@ class Cia402StateMachine:
         self._disabled_state = state
 
 
-def statusword(state: State, core: DriveCore) -> int:
+def statusword(state: State, status: DriveStatus) -> int:
     """0x6041 for a state and the core's flags."""
-    status = core.status()
     word = state.value | 0x0200                                   # bit 9: remote
     if state in (State.READY_TO_SWITCH_ON, State.SWITCHED_ON, State.OPERATION_ENABLED,
                  State.QUICK_STOP_ACTIVE):
@@ -178,7 +177,7 @@ class Cia402Drive(DriveProfile):
     protocol = "cia402"
     uses_sync = True
 
-    def __init__(self, node_id: int, core: DriveCore, lock: threading.RLock,
+    def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager,
                  rated_torque: float, heartbeat_period: float = 0.1, options=None,
                  eds: Path = EDS_PATH):
         super().__init__(node_id, core, lock)
@@ -190,10 +189,12 @@ class Cia402Drive(DriveProfile):
         self._latched: dict[int, bytes] = {}
         self._fault_reported = False
         self._pending: list[tuple[int, bytes]] = []
-        # from the PDO maps at each (re)configuration: RPDO number -> layout, and the
-        # synchronous TPDOs with theirs (None: packed by canopen, see PdoLayout.of)
+        # from the PDO maps at each (re)configuration: RPDO number -> layout, the
+        # synchronous TPDOs with theirs (None: packed by canopen, see PdoLayout.of, or one
+        # maps a stored object), and the live objects those layouts carry
         self._rpdo_layouts: dict[int, PdoLayout | None] = {}
         self._sync_tpdos: list[tuple[object, PdoLayout | None]] = []
+        self._sync_live: tuple[int, ...] = ()
         self._counts_per_rad = core.parameters.counts_per_rev / (2 * math.pi)
         self._store_configuration()
         self.node.add_read_callback(self._on_read)
@@ -275,9 +276,14 @@ class Cia402Drive(DriveProfile):
             pdo.callbacks = [lambda pdo, n=number: self._on_rpdo(n, pdo)]
         self._rpdo_layouts = {number: PdoLayout.of(pdo)
                               for number, pdo in self.node.rpdo.map.items()}
-        self._sync_tpdos = [(pdo, PdoLayout.of(pdo)) for pdo in self.node.tpdo.map.values()
-                            if pdo.enabled and pdo.trans_type is not None
-                            and 1 <= pdo.trans_type <= 240]
+        self._sync_tpdos = []
+        for pdo in self.node.tpdo.map.values():
+            if pdo.enabled and pdo.trans_type is not None and 1 <= pdo.trans_type <= 240:
+                layout = PdoLayout.of(pdo)
+                live = layout is not None and _LIVE_OBJECTS.keys() >= set(layout.indices)
+                self._sync_tpdos.append((pdo, layout if live else None))
+        self._sync_live = tuple({index for _, layout in self._sync_tpdos if layout is not None
+                                 for index in layout.indices})
 
     # --- cyclic exchange --------------------------------------------------------
 
@@ -317,9 +323,9 @@ class Cia402Drive(DriveProfile):
         self._pending = []
         if self.node.nmt.state != OPERATIONAL:
             return
-        values = self._live_values()
+        values = self._live_values(self._sync_live)
         for pdo, layout in self._sync_tpdos:
-            if layout is not None and all(index in values for index in layout.indices):
+            if layout is not None:
                 self._pending.append((pdo.cob_id, layout.codec.pack(
                     *[values[index] for index in layout.indices])))
                 continue
@@ -364,24 +370,15 @@ class Cia402Drive(DriveProfile):
 
     # --- object dictionary ---------------------------------------------------------
 
-    def _live_values(self) -> dict[int, int]:
-        status = self.core.status()
-        state = self.machine.state
-        return {
-            0x6041: statusword(state, self.core),
-            0x6061: CODE_OF_MODE[status.mode],
-            0x6064: _int32(status.position * self._counts_per_rad),
-            0x606C: _int32(status.velocity * self._counts_per_rad),
-            0x6077: _int16(status.torque / self.rated_torque * 1000),
-            0x60F4: _int32(status.following_error * self._counts_per_rad),
-            0x603F: status.fault.code if status.fault else 0,
-            0x1001: _ERROR_REGISTER[status.fault] if status.fault else 0,
-        }
+    def _live_values(self, indices: tuple[int, ...]) -> dict[int, int]:
+        """The objects ``indices`` (all in _LIVE_OBJECTS) from the drive's state now."""
+        status, state = self.core.status(), self.machine.state
+        return {index: _LIVE_OBJECTS[index](self, state, status) for index in indices}
 
     def _on_read(self, index: int, subindex: int, od) -> int | None:
         if index in _LIVE_OBJECTS:
             with self.lock:
-                return self._live_values()[index]
+                return self._live_values((index,))[index]
         return None
 
     def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
@@ -432,7 +429,18 @@ class Cia402Drive(DriveProfile):
             put(0x607D, 2, _int32(p.position_limits[1] * cpr))
 
 
-_LIVE_OBJECTS = frozenset({0x6041, 0x6061, 0x6064, 0x606C, 0x6077, 0x60F4, 0x603F, 0x1001})
+#: objects read from the drive's state, not stored: index -> value of (drive, state, status)
+_LIVE_OBJECTS = {
+    0x6041: lambda drive, state, status: statusword(state, status),
+    0x6061: lambda drive, state, status: CODE_OF_MODE[status.mode],
+    0x6064: lambda drive, state, status: _int32(status.position * drive._counts_per_rad),
+    0x606C: lambda drive, state, status: _int32(status.velocity * drive._counts_per_rad),
+    0x6077: lambda drive, state, status: _int16(status.torque / drive.rated_torque * 1000),
+    0x60F4: lambda drive, state, status: _int32(status.following_error
+                                                * drive._counts_per_rad),
+    0x603F: lambda drive, state, status: status.fault.code if status.fault else 0,
+    0x1001: lambda drive, state, status: _ERROR_REGISTER[status.fault] if status.fault else 0,
+}
 
 
 def _gains(p, subindex, value, cpr):

@@ -16,8 +16,8 @@ nibbles with per-motor ranges.
 
 from __future__ import annotations
 
-import threading
 import time
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 
 from hil.drives.core import DriveCore, Fault, Mode, Power
@@ -147,7 +147,7 @@ class MitDrive(DriveProfile):
     Options = MitOptions
     has_following_error = False
 
-    def __init__(self, node_id: int, core: DriveCore, lock: threading.RLock,
+    def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager,
                  rated_torque: float, heartbeat_period: float = 0.1,
                  options: MitOptions | None = None):
         super().__init__(node_id, core, lock)

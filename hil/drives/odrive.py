@@ -18,8 +18,8 @@ from __future__ import annotations
 import enum
 import math
 import struct
-import threading
 import time
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, replace
 
 from hil.drives.core import DriveCore, Fault, Mode, Power
@@ -165,7 +165,7 @@ class ODriveDrive(DriveProfile):
     node_ids = range(0, 64)
     has_following_error = False
 
-    def __init__(self, node_id: int, core: DriveCore, lock: threading.RLock,
+    def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager,
                  rated_torque: float, heartbeat_period: float = 0.1,
                  options: ODriveOptions | None = None):
         super().__init__(node_id, core, lock)

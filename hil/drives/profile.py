@@ -20,9 +20,9 @@ command.
 
 from __future__ import annotations
 
-import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from typing import ClassVar
 
 import can
@@ -76,7 +76,10 @@ class DriveProfile(ABC):
     #: whether the drive faults on a following error (MIT and ODrive firmware do not)
     has_following_error: ClassVar[bool] = True
 
-    def __init__(self, node_id: int, core: DriveCore, lock: threading.RLock):
+    def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager):
+        """``lock`` is held around everything a frame does to the drive; its owner holds it
+        while stepping the physics (the simulator's also brings the plant up to the present
+        on entry: hil.simulator.PlantPresent)."""
         self.node_id = node_id
         self.core = core
         self.lock = lock

@@ -8,6 +8,7 @@ and :meth:`Plant.step`; everything else reads joint states.
 from __future__ import annotations
 
 import ctypes
+import functools
 import time
 from collections.abc import Mapping
 
@@ -69,7 +70,7 @@ class Plant:
 
     # --- time --------------------------------------------------------------
 
-    @property
+    @functools.cached_property    # read every step; the model's timestep is fixed once built
     def timestep(self) -> float:
         return float(self.model.opt.timestep)
 

@@ -1,0 +1,147 @@
+"""Real-time loops on a stock kernel: pacing, scheduling, and what they achieved.
+
+:class:`CyclePacer` releases a loop on absolute deadlines; :class:`PeriodStatistics`
+records each cycle's period and busy time for reports and benchmarks.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: SCHED_FIFO priority a real-time loop asks for (ros2_control's controller manager asks for
+#: the same); 0 keeps the normal scheduler
+REAL_TIME_PRIORITY = 50
+#: prctl(2) option: the calling thread's timer slack in ns
+PR_SET_TIMERSLACK = 29
+
+
+@dataclass
+class PeriodStatistics:
+    """Real-time mode, in seconds: each cycle's period (from its release, when its frames
+    start out, to the next release) and busy time (release to the end of its work). Counts
+    over the whole run; the latest KEEP cycles for percentiles (a long run must not grow
+    without bound). A cycle is missed when its period is over 1.5 nominal ones."""
+
+    KEEP = 100_000
+
+    nominal: float
+    samples: deque = field(default_factory=lambda: deque(maxlen=PeriodStatistics.KEEP))
+    busy: deque = field(default_factory=lambda: deque(maxlen=PeriodStatistics.KEEP))
+    count: int = 0
+    missed: int = 0
+    scheduling: str = "not started"    # what the loop's thread runs under (CyclePacer)
+
+    def add(self, period: float, busy: float) -> None:
+        self.samples.append(period)
+        self.busy.append(busy)
+        self.count += 1
+        self.missed += period > 1.5 * self.nominal
+
+    def clear(self) -> None:
+        """Forget the cycles so far (a measurement starts here)."""
+        self.samples.clear()
+        self.busy.clear()
+        self.count = self.missed = 0
+
+    def summary(self) -> str:
+        if not self.samples:
+            return f"{self.scheduling}; no cycles"
+        periods = np.array(self.samples)
+        errors = np.abs(periods - self.nominal) * 1e6
+        busy = np.array(self.busy) * 1e6
+        latest = "" if self.count == len(periods) else f" (the latest {len(periods)})"
+        return (f"{self.scheduling}; {self.count} cycles, missed {self.missed}; period mean{latest} "
+                f"{periods.mean() * 1e3:.3f} ms, |error| p50 {np.percentile(errors, 50):.0f} us, "
+                f"p99 {np.percentile(errors, 99):.0f} us, max {errors.max():.0f} us; busy p50 "
+                f"{np.percentile(busy, 50):.0f} us, p99 {np.percentile(busy, 99):.0f} us")
+
+
+class CyclePacer:
+    """Releases a real-time loop every ``period`` seconds, on absolute deadlines (no drift),
+    and records each cycle in ``statistics``. Create it in the loop's thread, call
+    :meth:`release` at the top of each cycle and :meth:`close` when the loop ends.
+
+    What real-time loops on a stock Linux kernel do, each measured here:
+
+    * the thread runs under SCHED_FIFO ``priority`` where the OS allows it (root,
+      CAP_SYS_NICE or an rtprio limit), as ros2_control's controller manager asks for: under
+      the normal scheduler, any other runnable thread may delay a wake-up by milliseconds;
+      :attr:`PeriodStatistics.scheduling` says what it got;
+    * it sleeps until SPIN before the deadline and busy-waits the rest: a sleeping thread
+      wakes tens of microseconds late, and that lateness would be the period error. The spin
+      costs up to SPIN of CPU per cycle (10 % of a core at 1 kHz);
+    * the timer slack is 1 ns (under the normal scheduler the kernel may otherwise wake a
+      sleeper 50 us late to batch wake-ups).
+    """
+
+    #: a loop this many periods behind starts afresh instead of running its cycles back to back
+    RESYNC = 10
+    #: the last part of each wait, busy (s); at most half a period
+    SPIN = 100e-6
+
+    def __init__(self, period: float, statistics: PeriodStatistics,
+                 priority: int = REAL_TIME_PRIORITY,
+                 clock: Callable[[], float] = time.perf_counter,
+                 sleep: Callable[[float], None] = time.sleep):
+        self.period = period
+        self.statistics = statistics
+        self._clock, self._sleep = clock, sleep
+        self._spin = min(self.SPIN, period / 2)
+        self._deadline: float | None = None
+        self._released: float | None = None
+        self._fifo = False
+        _tighten_timer_slack()
+        statistics.scheduling = self._schedule(priority)
+
+    def _schedule(self, priority: int) -> str:
+        if priority <= 0:
+            return "normal scheduling"
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        except (OSError, AttributeError) as exc:
+            why = getattr(exc, "strerror", None) or str(exc)
+            return (f"normal scheduling (SCHED_FIFO {priority} refused: {why}; it needs root, "
+                    "CAP_SYS_NICE or an rtprio limit)")
+        self._fifo = True
+        return f"SCHED_FIFO {priority}"
+
+    def close(self) -> None:
+        """Back to the normal scheduler (the thread goes on to non-real-time work)."""
+        if self._fifo:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+            self._fifo = False
+
+    def release(self) -> None:
+        """Wait for this cycle's deadline (the first call returns at once)."""
+        now = self._clock()
+        if self._deadline is None:
+            self._deadline = now
+        else:
+            self._deadline += self.period
+            delay = self._deadline - now
+            if delay > self._spin:
+                self._sleep(delay - self._spin)
+            elif delay < -self.RESYNC * self.period:
+                self._deadline = now
+        released = self._clock()
+        while released < self._deadline:
+            released = self._clock()
+        if self._released is not None:
+            self.statistics.add(released - self._released, now - self._released)
+        self._released = released
+
+
+def _tighten_timer_slack() -> None:
+    """PR_SET_TIMERSLACK to 1 ns for the calling thread (Linux; elsewhere nothing)."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_TIMERSLACK, ctypes.c_ulong(1), 0, 0, 0)
+    except (OSError, AttributeError):
+        pass

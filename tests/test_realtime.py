@@ -1,0 +1,116 @@
+"""CyclePacer: absolute deadlines, what it records, and the scheduling it reports."""
+
+import os
+
+import pytest
+
+from hil.realtime import CyclePacer, PeriodStatistics
+
+PERIOD = 0.001
+
+
+class FakeTime:
+    """A clock that moves only when the loop sleeps or works (and a hair per reading, as the
+    pacer's spin reads it until the deadline)."""
+
+    def __init__(self):
+        self.now = 100.0
+        self.sleeps: list[float] = []
+
+    def clock(self) -> float:
+        self.now += 1e-7
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.sleeps.append(seconds)
+        self.now += seconds
+
+    def work(self, seconds: float) -> None:
+        self.now += seconds
+
+
+@pytest.fixture
+def fake():
+    return FakeTime()
+
+
+def pacer_for(fake: FakeTime, statistics: PeriodStatistics) -> CyclePacer:
+    return CyclePacer(PERIOD, statistics, priority=0, clock=fake.clock, sleep=fake.sleep)
+
+
+def test_pacer_releases_on_absolute_deadlines_and_records_period_and_busy(fake):
+    statistics = PeriodStatistics(PERIOD)
+    pacer = pacer_for(fake, statistics)
+    releases = []
+    for _ in range(50):
+        pacer.release()
+        releases.append(fake.now)
+        fake.work(0.3 * PERIOD)
+    gaps = [b - a for a, b in zip(releases, releases[1:])]
+    assert gaps == pytest.approx([PERIOD] * 49, abs=1e-6)
+    assert releases[-1] - releases[0] == pytest.approx(49 * PERIOD, abs=1e-6)   # no drift
+    assert statistics.count == 49 and statistics.missed == 0
+    assert list(statistics.busy) == pytest.approx([0.3 * PERIOD] * 49, abs=1e-6)
+    # it sleeps to SPIN before the deadline and spins the rest
+    assert fake.sleeps and max(fake.sleeps) <= 0.7 * PERIOD - CyclePacer.SPIN + 1e-6
+
+
+def test_pacer_counts_an_overrun_as_missed_and_catches_up_on_the_old_schedule(fake):
+    statistics = PeriodStatistics(PERIOD)
+    pacer = pacer_for(fake, statistics)
+    pacer.release()
+    start = fake.now
+    fake.work(2.5 * PERIOD)                      # one cycle runs long
+    pacer.release()
+    fake.work(0.1 * PERIOD)
+    pacer.release()
+    fake.work(0.1 * PERIOD)
+    pacer.release()
+    assert statistics.missed == 1
+    assert statistics.samples[0] == pytest.approx(2.5 * PERIOD, abs=1e-6)
+    assert fake.now - start == pytest.approx(3 * PERIOD, abs=1e-6)   # back on its deadlines
+
+
+def test_pacer_starts_afresh_after_a_stall_longer_than_resync_periods(fake):
+    statistics = PeriodStatistics(PERIOD)
+    pacer = pacer_for(fake, statistics)
+    pacer.release()
+    fake.work((CyclePacer.RESYNC + 5) * PERIOD)
+    pacer.release()
+    stalled = fake.now
+    pacer.release()
+    assert fake.now - stalled == pytest.approx(PERIOD, abs=1e-6)   # not a burst of cycles
+
+
+def test_pacer_says_when_real_time_scheduling_is_refused(monkeypatch):
+    def refuse(pid, policy, param):
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(os, "sched_setscheduler", refuse)
+    statistics = PeriodStatistics(PERIOD)
+    CyclePacer(PERIOD, statistics, priority=50).close()
+    assert statistics.scheduling.startswith("normal scheduling (SCHED_FIFO 50 refused: "
+                                            "Operation not permitted")
+    assert "CAP_SYS_NICE" in statistics.scheduling
+    assert statistics.summary().startswith(statistics.scheduling)   # `hil control` prints it
+
+
+def test_pacer_takes_sched_fifo_and_gives_it_back_on_close(monkeypatch):
+    calls = []
+    monkeypatch.setattr(os, "sched_setscheduler",
+                        lambda pid, policy, param: calls.append((pid, policy,
+                                                                 param.sched_priority)))
+    statistics = PeriodStatistics(PERIOD)
+    pacer = CyclePacer(PERIOD, statistics, priority=50)
+    assert statistics.scheduling == "SCHED_FIFO 50"
+    pacer.close()
+    pacer.close()                                # once only
+    assert calls == [(0, os.SCHED_FIFO, 50), (0, os.SCHED_OTHER, 0)]
+
+
+def test_pacer_priority_zero_keeps_the_normal_scheduler(monkeypatch):
+    monkeypatch.setattr(os, "sched_setscheduler",
+                        lambda *args: pytest.fail("asked for real-time scheduling"))
+    statistics = PeriodStatistics(PERIOD)
+    CyclePacer(PERIOD, statistics, priority=0).close()
+    assert statistics.scheduling == "normal scheduling"
