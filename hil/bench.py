@@ -67,8 +67,8 @@ from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, sess
 ROBOTS = ("ur3", "pigot")
 RATES = (250.0, 500.0, 1000.0)
 #: the figures every report has (a row list, or {"unavailable": why})
-FIGURES = ("control_cycle", "timing_floor", "socketcan", "lock_step", "overhead", "latency", "tracking",
-           "bus_load", "fault_detection")
+FIGURES = ("control_cycle", "timing_floor", "socketcan", "lock_step", "overhead", "latency",
+           "tracking", "bus_load", "fault_detection")
 
 
 @dataclass(frozen=True)
@@ -226,7 +226,7 @@ def _real_time(config: SystemConfig, seconds: float) -> tuple[dict, dict, list[d
         time.sleep(seconds)
         plant, wall = sim.now() - plant_start, time.perf_counter() - wall_start
         loads = [(meter.meter.take(time.time()), bus) for meter, bus in meters]
-        cycle = cycle_figures(node.statistics)
+        cycle = node.statistics.figures()
         latency.close()
         for meter, _ in meters:
             meter.stop()
@@ -242,19 +242,6 @@ def _real_time(config: SystemConfig, seconds: float) -> tuple[dict, dict, list[d
                              "measured_load_worst_stuffing": load.worst_case,
                              "estimated_load_worst": estimate.worst_ratio})
     return cycle, latency.figures(1.0 / config.cycle_hz), rows
-
-
-def cycle_figures(statistics: PeriodStatistics) -> dict:
-    """Period (release to release) against nominal, and busy time, of the cycles so far."""
-    periods = np.array(statistics.samples)
-    errors = np.abs(periods - statistics.nominal) * 1e6
-    busy = np.array(statistics.busy) * 1e6
-    return {"cycles": statistics.count, "period_mean_ms": float(periods.mean() * 1e3),
-            "error_p50_us": float(np.percentile(errors, 50)),
-            "error_p99_us": float(np.percentile(errors, 99)), "error_max_us": float(errors.max()),
-            "missed": statistics.missed, "busy_p50_us": float(np.percentile(busy, 50)),
-            "busy_p99_us": float(np.percentile(busy, 99)), "busy_max_us": float(busy.max()),
-            "scheduling": statistics.scheduling}
 
 
 def _timing_floor(rate: float, seconds: float) -> dict:
@@ -273,7 +260,7 @@ def _timing_floor(rate: float, seconds: float) -> dict:
     thread = threading.Thread(target=loop, name="timing floor")
     thread.start()
     thread.join()
-    return {"rate_hz": rate, **cycle_figures(statistics)}
+    return {"rate_hz": rate, **statistics.figures()}
 
 
 class _Listener:
@@ -618,6 +605,6 @@ def _socketcan(settings: BenchSettings) -> list[dict]:
             node.statistics.clear()
             time.sleep(settings.seconds)
             rows.append({"robot": robot, "rate_hz": config.cycle_hz,
-                         **cycle_figures(node.statistics)})
+                         **node.statistics.figures()})
     return rows
 

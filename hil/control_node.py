@@ -4,10 +4,9 @@ Each cycle: exchange with the hardware (setpoints out, feedback in), report
 faults to the trajectory controller (which aborts and holds), run the
 controller, publish joint states, feedback and results, and record the cycle
 (published in batches as ``hil_msgs/ControlSamples``). Real-time mode paces
-the cycle (hil.realtime.CyclePacer: SCHED_FIFO where allowed) and keeps
-period statistics; lock-step mode
-runs the next cycle as soon as the hardware answered, with the controller's
-clock advancing one period per cycle.
+the cycle (hil.realtime.CyclePacer: SCHED_FIFO where allowed) and keeps period
+statistics; lock-step mode runs the next cycle as soon as the hardware
+answered, with the controller's clock advancing one period per cycle.
 """
 
 from __future__ import annotations

@@ -50,17 +50,29 @@ class PeriodStatistics:
         self.busy.clear()
         self.count = self.missed = 0
 
-    def summary(self) -> str:
-        if not self.samples:
-            return f"{self.scheduling}; no cycles"
+    def figures(self) -> dict:
+        """The cycles kept: period mean, |period - nominal| and busy percentiles (us), with
+        the counts over the whole run and the scheduling. Needs at least one cycle."""
         periods = np.array(self.samples)
         errors = np.abs(periods - self.nominal) * 1e6
         busy = np.array(self.busy) * 1e6
-        latest = "" if self.count == len(periods) else f" (the latest {len(periods)})"
-        return (f"{self.scheduling}; {self.count} cycles, missed {self.missed}; period mean{latest} "
-                f"{periods.mean() * 1e3:.3f} ms, |error| p50 {np.percentile(errors, 50):.0f} us, "
-                f"p99 {np.percentile(errors, 99):.0f} us, max {errors.max():.0f} us; busy p50 "
-                f"{np.percentile(busy, 50):.0f} us, p99 {np.percentile(busy, 99):.0f} us")
+        return {"cycles": self.count, "period_mean_ms": float(periods.mean() * 1e3),
+                "error_p50_us": float(np.percentile(errors, 50)),
+                "error_p99_us": float(np.percentile(errors, 99)),
+                "error_max_us": float(errors.max()), "missed": self.missed,
+                "busy_p50_us": float(np.percentile(busy, 50)),
+                "busy_p99_us": float(np.percentile(busy, 99)), "busy_max_us": float(busy.max()),
+                "scheduling": self.scheduling}
+
+    def summary(self) -> str:
+        if not self.samples:
+            return f"{self.scheduling}; no cycles"
+        f = self.figures()
+        latest = "" if self.count == len(self.samples) else f" (the latest {len(self.samples)})"
+        return (f"{self.scheduling}; {self.count} cycles, missed {self.missed}; period "
+                f"mean{latest} {f['period_mean_ms']:.3f} ms, |error| p50 {f['error_p50_us']:.0f} "
+                f"us, p99 {f['error_p99_us']:.0f} us, max {f['error_max_us']:.0f} us; busy p50 "
+                f"{f['busy_p50_us']:.0f} us, p99 {f['busy_p99_us']:.0f} us")
 
 
 class CyclePacer:

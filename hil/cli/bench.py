@@ -58,6 +58,14 @@ def _seconds(text: str) -> float:
     return float(match.group(1)) * {"s": 1, "m": 60, "h": 3600}[match.group(2) or "s"]
 
 
+def _cycle_columns(name: str, row: dict) -> str:
+    """A control-cycle row's period and busy columns, under format_table's header."""
+    return (f"{name:<6} {row['rate_hz']:>5.0f} {row['cycles']:>7} {row['period_mean_ms']:>8.3f} "
+            f"{row['error_p50_us']:>7.0f} {row['error_p99_us']:>7.0f} "
+            f"{row['error_max_us']:>7.0f} {row['missed']:>6} {row['busy_p50_us']:>9.0f} "
+            f"{row['busy_p99_us']:>7.0f}")
+
+
 def format_table(report: dict) -> str:
     floor = report["timing_floor"][0]
     lines = [f"machine: {report['machine']['cpus']} CPUs, Python {report['machine']['python']}",
@@ -69,17 +77,11 @@ def format_table(report: dict) -> str:
              f"{'e2e p50 ms':>11} {'e2e p99 ms':>11}"]
     for cycle, latency in zip(report["control_cycle"], report["latency"]):
         lines.append(
-            f"  {cycle['robot']:<6} {cycle['rate_hz']:>5.0f} {cycle['cycles']:>7} "
-            f"{cycle['period_mean_ms']:>8.3f} {cycle['error_p50_us']:>7.0f} "
-            f"{cycle['error_p99_us']:>7.0f} {cycle['error_max_us']:>7.0f} {cycle['missed']:>6} "
-            f"{cycle['busy_p50_us']:>9.0f} {cycle['busy_p99_us']:>7.0f} "
-            f"{cycle['sim_real_time_factor']:>8.2f} {latency.get('p50_ms', float('nan')):>11.2f} "
+            f"  {_cycle_columns(cycle['robot'], cycle)} {cycle['sim_real_time_factor']:>8.2f} "
+            f"{latency.get('p50_ms', float('nan')):>11.2f} "
             f"{latency.get('p99_ms', float('nan')):>11.2f}")
-    lines.append(f"  {'empty':<6} {floor['rate_hz']:>5.0f} {floor['cycles']:>7} "
-                 f"{floor['period_mean_ms']:>8.3f} {floor['error_p50_us']:>7.0f} "
-                 f"{floor['error_p99_us']:>7.0f} {floor['error_max_us']:>7.0f} "
-                 f"{floor['missed']:>6} {floor['busy_p50_us']:>9.0f} {floor['busy_p99_us']:>7.0f}"
-                 "   (the timing floor: the same pacing with no work)")
+    lines.append(f"  {_cycle_columns('empty', floor)}   (the timing floor: the same pacing "
+                 "with no work)")
     socketcan = report["socketcan"]
     lines += ["", "SocketCAN: " + (socketcan["unavailable"] if isinstance(socketcan, dict) else
                                    "; ".join(f"{r['robot']} {r['rate_hz']:g} Hz p99 "
