@@ -33,13 +33,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import can
-import canopen
 import mujoco
 import numpy as np
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig
 from hil.drives import PROFILES, DriveCore, DriveParameters, DriveProfile, Fault
-from hil.drives.profile import start_network
+from hil.drives.profile import DriveNetwork, start_network
 from hil.plant import Plant
 
 log = logging.getLogger(__name__)
@@ -128,7 +127,7 @@ class _BusRuntime:
     config: BusConfig
     bus: can.BusABC
     drives: list
-    network: canopen.Network | None = None      # started by Simulator.start
+    network: DriveNetwork | None = None         # started by Simulator.start
 
 
 class Simulator:
@@ -178,7 +177,7 @@ class Simulator:
     def start(self) -> None:
         """Connect every drive to its bus: boot-up messages, heartbeats, SYNC handling."""
         for runtime in self._runtimes:
-            runtime.network = start_network(runtime.bus, 0.2)
+            runtime.network = start_network(runtime.bus, 0.2, DriveNetwork)
             for drive in runtime.drives:
                 drive.attach(runtime.network)
 
@@ -317,6 +316,9 @@ class Simulator:
                      f"{'lock-step' if self.lock_step else 'real-time'}"]
             joints = dict(zip(self.plant.joint_names, self.plant.joint_positions()))
             for runtime in self._runtimes:
+                if runtime.network is not None and runtime.network.lost_frames:
+                    lines.append(f"  {runtime.config.name:>8} lost {runtime.network.lost_frames}"
+                                 " frame(s) the bus would not send")
                 for drive in runtime.drives:
                     status = drive.core.status()
                     config = next(d for d in runtime.config.drives if d.node_id == drive.node_id)

@@ -18,6 +18,7 @@ import pytest
 from conftest import ROOT, UR3_VIRTUAL, Bench, free_port
 
 from hil.bus_config import load_bus_config
+from hil.drives import Fault
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
 from hil.simulator import LOCK_STEP_WATCHDOG, MAX_CATCH_UP, Simulator
 
@@ -241,3 +242,28 @@ def test_a_real_time_run_for_a_duration_steps_exactly_that_much_plant_time():
     finally:
         sim.close()
         bus.shutdown()
+
+
+def test_a_frame_the_bus_will_not_send_is_lost_and_counted_and_the_plant_runs_on(real_time_sim):
+    sim, wall = real_time_sim
+    dt = sim.plant.timestep
+    sim.start()
+    runtime, = sim._runtimes
+    send = runtime.bus.send
+
+    def full_transmit_queue(msg, timeout=None):      # refuses node 1's EMCY only
+        if msg.arbitration_id == 0x081:
+            raise can.CanOperationError("Transmit buffer full")
+        send(msg, timeout)
+
+    runtime.bus.send = full_transmit_queue
+    thread = start_clock(sim)
+    before = sim.plant.time
+    sim.raise_fault("arm", 1)                        # its EMCY cannot go out
+    wall[0] += 10 * dt
+    assert sim.now() == pytest.approx(before + 10 * dt)
+    assert runtime.network.lost_frames == 1
+    assert sim.drive("arm", 1).core.fault is Fault.FOLLOWING_ERROR
+    assert any("lost 1 frame(s)" in line for line in sim.status_lines())
+    sim.stop()
+    thread.join(5)

@@ -58,6 +58,23 @@ def test_each_receiver_gets_its_own_copy(pair):
     assert sent.data[0] == 0x27
 
 
+def test_a_received_copy_has_every_field_of_the_frame_it_copies(pair):
+    """The copy is built slot by slot: a field python-can adds to can.Message must not be
+    left unset."""
+    sender, receiver = pair
+    sent = can.Message(arbitration_id=0x1ABCDE, data=b"\x01\x02\x03", is_extended_id=True,
+                       is_fd=True, bitrate_switch=True, error_state_indicator=True, dlc=3)
+    sender.send(sent)
+    received = receiver.recv(1)
+    fields = [name for name in can.Message.__slots__ if name != "__weakref__"]
+    for name in fields:
+        getattr(received, name)                      # set, or AttributeError
+    same = set(fields) - {"timestamp", "channel", "is_rx"}      # what receiving changes
+    assert {name: getattr(received, name) for name in same} == \
+        {name: getattr(sent, name) for name in same}
+    assert received.is_rx and received.channel == sender.channel_id
+
+
 def test_a_listener_that_raises_does_not_keep_the_frame_from_the_others(pair):
     sender, receiver = pair
 

@@ -19,10 +19,12 @@ is done.
 from __future__ import annotations
 
 import enum
+import functools
 import logging
 import math
 import struct
 import time
+from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -189,12 +191,12 @@ class Cia402Drive(DriveProfile):
         self._latched: dict[int, bytes] = {}
         self._fault_reported = False
         self._pending: list[tuple[int, bytes]] = []
-        # from the PDO maps at each (re)configuration: RPDO number -> layout, the
-        # synchronous TPDOs with theirs (None: packed by canopen, see PdoLayout.of, or one
-        # maps a stored object), and the live objects those layouts carry
+        # from the PDO maps at each (re)configuration: RPDO number -> layout, and the
+        # synchronous TPDOs, each with its struct and the _LIVE_OBJECTS it carries (None
+        # and (): packed by canopen, see PdoLayout.of, or it maps a stored object)
         self._rpdo_layouts: dict[int, PdoLayout | None] = {}
-        self._sync_tpdos: list[tuple[object, PdoLayout | None]] = []
-        self._sync_live: tuple[int, ...] = ()
+        self._rpdo_handlers: list[tuple[int, Callable]] = []     # (COB-ID, subscribed)
+        self._sync_tpdos: list[tuple[object, struct.Struct | None, tuple[Callable, ...]]] = []
         self._counts_per_rad = core.parameters.counts_per_rev / (2 * math.pi)
         self._store_configuration()
         self.node.add_read_callback(self._on_read)
@@ -228,9 +230,7 @@ class Cia402Drive(DriveProfile):
         network = self.network
         self.node.nmt.stop_heartbeat()
         super().detach()
-        for pdo in self.node.rpdo.map.values():
-            if pdo.enabled and pdo.on_message in network.subscribers.get(pdo.cob_id, []):
-                network.unsubscribe(pdo.cob_id, pdo.on_message)
+        self._unsubscribe_rpdos(network)
         self.node.remove_network()
 
     @property
@@ -267,36 +267,49 @@ class Cia402Drive(DriveProfile):
         self._boot()
 
     def _configure_pdos(self) -> None:
-        for pdo in self.node.rpdo.map.values():
-            if pdo.enabled and pdo.cob_id in self.node.network.subscribers:
-                self.node.network.unsubscribe(pdo.cob_id, pdo.on_message)
+        network = self.node.network
+        self._unsubscribe_rpdos(network)
         self.node.tpdo.read()
         self.node.rpdo.read()
+        # read() subscribed canopen's PdoMap.on_message, which takes a Condition and
+        # notifies its waiters on every frame (a drive has none): RPDOs come straight here
         for number, pdo in self.node.rpdo.map.items():
-            pdo.callbacks = [lambda pdo, n=number: self._on_rpdo(n, pdo)]
+            if pdo.enabled:
+                network.unsubscribe(pdo.cob_id, pdo.on_message)
+                handler = functools.partial(self._on_rpdo, number)
+                network.subscribe(pdo.cob_id, handler)
+                self._rpdo_handlers.append((pdo.cob_id, handler))
         self._rpdo_layouts = {number: PdoLayout.of(pdo)
                               for number, pdo in self.node.rpdo.map.items()}
         self._sync_tpdos = []
         for pdo in self.node.tpdo.map.values():
             if pdo.enabled and pdo.trans_type is not None and 1 <= pdo.trans_type <= 240:
                 layout = PdoLayout.of(pdo)
-                live = layout is not None and _LIVE_OBJECTS.keys() >= set(layout.indices)
-                self._sync_tpdos.append((pdo, layout if live else None))
-        self._sync_live = tuple({index for _, layout in self._sync_tpdos if layout is not None
-                                 for index in layout.indices})
+                if layout is not None and _LIVE_OBJECTS.keys() >= set(layout.indices):
+                    self._sync_tpdos.append(
+                        (pdo, layout.codec, tuple(_LIVE_OBJECTS[i] for i in layout.indices)))
+                else:
+                    self._sync_tpdos.append((pdo, None, ()))
 
     # --- cyclic exchange --------------------------------------------------------
 
-    def _on_rpdo(self, number: int, pdo) -> None:
+    def _unsubscribe_rpdos(self, network: canopen.Network) -> None:
+        for cob_id, handler in self._rpdo_handlers:
+            if handler in network.subscribers.get(cob_id, []):
+                network.unsubscribe(cob_id, handler)
+        self._rpdo_handlers = []
+
+    def _on_rpdo(self, number: int, can_id: int, data: bytes, timestamp: float) -> None:
+        pdo = self.node.rpdo.map[number]
         expected = math.ceil(pdo.length / 8)
-        if len(pdo.data) != expected:
+        if len(data) != expected:
             self.node.emcy.send(EMCY_PDO_LENGTH, 0x11,
-                                struct.pack("<HB", len(pdo.data), expected) + b"\0\0")
+                                struct.pack("<HB", len(data), expected) + b"\0\0")
             return
         if self.node.nmt.state != OPERATIONAL:
             return
         with self.lock:
-            self._latched[number] = bytes(pdo.data)
+            self._latched[number] = bytes(data)
             self.core.new_setpoint(now=time.monotonic())
             if pdo.trans_type is not None and pdo.trans_type >= 254:
                 self._apply(number)
@@ -323,11 +336,11 @@ class Cia402Drive(DriveProfile):
         self._pending = []
         if self.node.nmt.state != OPERATIONAL:
             return
-        values = self._live_values(self._sync_live)
-        for pdo, layout in self._sync_tpdos:
-            if layout is not None:
-                self._pending.append((pdo.cob_id, layout.codec.pack(
-                    *[values[index] for index in layout.indices])))
+        status, state = self.core.status(), self.machine.state
+        for pdo, codec, live_objects in self._sync_tpdos:
+            if codec is not None:
+                self._pending.append((pdo.cob_id, codec.pack(
+                    *[value(self, state, status) for value in live_objects])))
                 continue
             for variable in pdo.map:     # through the object dictionary, live or stored
                 variable.set_data(self.node.get_data(variable.index, variable.subindex))
@@ -370,15 +383,10 @@ class Cia402Drive(DriveProfile):
 
     # --- object dictionary ---------------------------------------------------------
 
-    def _live_values(self, indices: tuple[int, ...]) -> dict[int, int]:
-        """The objects ``indices`` (all in _LIVE_OBJECTS) from the drive's state now."""
-        status, state = self.core.status(), self.machine.state
-        return {index: _LIVE_OBJECTS[index](self, state, status) for index in indices}
-
     def _on_read(self, index: int, subindex: int, od) -> int | None:
         if index in _LIVE_OBJECTS:
             with self.lock:
-                return self._live_values((index,))[index]
+                return _LIVE_OBJECTS[index](self, self.machine.state, self.core.status())
         return None
 
     def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:

@@ -20,6 +20,7 @@ command.
 
 from __future__ import annotations
 
+import logging
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from contextlib import AbstractContextManager
@@ -29,6 +30,8 @@ import can
 import canopen
 
 from hil.drives.core import DriveCore
+
+log = logging.getLogger(__name__)
 
 
 class RemoteFrames(can.Listener):
@@ -48,11 +51,35 @@ class RemoteFrames(can.Listener):
                 handler(msg.arbitration_id)
 
 
-def start_network(bus: can.BusABC, timeout: float = 0.1) -> canopen.Network:
-    """A canopen network on ``bus`` with its frames flowing and RTR frames routed: handed
-    over in the sender's thread where the bus can (``deliver_to``, hil.can.virtual), else by
-    a python-can Notifier (``network.notifier`` either way)."""
-    network = canopen.Network(bus)
+class DriveNetwork(canopen.Network):
+    """The drives' side of a bus. A frame the bus refuses (its transmit queue full, the bus
+    gone) is lost and counted in :attr:`lost_frames`, as a drive's CAN controller loses it,
+    and the drive runs on: a send error must not stop the plant mid-step. (A master's
+    ``canopen.Network`` raises instead: the controller must know.)"""
+
+    #: first lost frame, then every this many, logged
+    LOG_EVERY = 1000
+
+    def __init__(self, bus: can.BusABC | None = None):
+        super().__init__(bus)
+        self.lost_frames = 0
+
+    def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+        try:
+            super().send_message(can_id, data, remote)
+        except can.CanError as exc:
+            self.lost_frames += 1
+            if self.lost_frames % self.LOG_EVERY == 1:
+                log.warning("a drive's frame 0x%03X was lost (%d so far): %s", can_id,
+                            self.lost_frames, exc)
+
+
+def start_network(bus: can.BusABC, timeout: float = 0.1,
+                  network_class: type[canopen.Network] = canopen.Network) -> canopen.Network:
+    """A canopen network (of ``network_class``) on ``bus`` with its frames flowing and RTR
+    frames routed: handed over in the sender's thread where the bus can (``deliver_to``,
+    hil.can.virtual), else by a python-can Notifier (``network.notifier`` either way)."""
+    network = network_class(bus)
     network.remote_frames = RemoteFrames()
     listeners = [*network.listeners, network.remote_frames]
     deliver_to = getattr(bus, "deliver_to", None)

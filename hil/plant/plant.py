@@ -54,11 +54,12 @@ class Plant:
     def torque_limits(self) -> np.ndarray:
         return np.array([b.torque_limit for b in self.bindings])
 
+    # take(): the same gather as fancy indexing, in half its time (read every plant step)
     def motor_positions(self) -> np.ndarray:
-        return self._motors.joint_to_actuator_position(self.data.qpos[self._driven_qpos])
+        return self._motors.joint_to_actuator_position(self.data.qpos.take(self._driven_qpos))
 
     def motor_velocities(self) -> np.ndarray:
-        return self._motors.joint_to_actuator_velocity(self.data.qvel[self._driven_dof])
+        return self._motors.joint_to_actuator_velocity(self.data.qvel.take(self._driven_dof))
 
     def set_motor_torques(self, torques) -> None:
         """Command motor torques; MuJoCo saturates them at :attr:`torque_limits`."""
