@@ -579,6 +579,10 @@ def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
             "failed": sum(r["result"] != "succeeded" for r in repetitions),
             "final_error_first": errors[0], "final_error_last": errors[-1],
             "final_error_max": max(errors), "rss_growth_bytes": _rss_bytes() - rss_start,
+            # the first repetition warms up (first goal, first publications): growth after it
+            # is what a long run would keep adding
+            "rss_growth_after_first_bytes": (repetitions[-1]["rss_bytes"]
+                                             - repetitions[0]["rss_bytes"]),
             "cycles": cycles, "missed": repetitions[-1]["missed_so_far"],
             "timeline": repetitions}
 

@@ -9,9 +9,7 @@ from __future__ import annotations
 import ctypes
 import os
 import time
-from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -22,40 +20,58 @@ REAL_TIME_PRIORITY = 50
 PR_SET_TIMERSLACK = 29
 
 
-@dataclass
 class PeriodStatistics:
     """Real-time mode, in seconds: each cycle's period (from its release, when its frames
     start out, to the next release) and busy time (release to the end of its work). Counts
-    over the whole run; the latest KEEP cycles for percentiles (a long run must not grow
-    without bound). A cycle is missed when its period is over 1.5 nominal ones."""
+    over the whole run; the latest ``keep`` cycles for percentiles, in two ring buffers
+    allocated and written once at the start, so that a long run neither grows nor shows
+    growth in its memory figures (``hil bench --soak``). A cycle is missed when its period
+    is over 1.5 nominal ones."""
 
     KEEP = 100_000
 
-    nominal: float
-    samples: deque = field(default_factory=lambda: deque(maxlen=PeriodStatistics.KEEP))
-    busy: deque = field(default_factory=lambda: deque(maxlen=PeriodStatistics.KEEP))
-    count: int = 0
-    missed: int = 0
-    scheduling: str = "not started"    # what the loop's thread runs under (CyclePacer)
+    def __init__(self, nominal: float, keep: int = KEEP):
+        self.nominal = nominal
+        # np.full writes every page now: the memory is taken here, not cycle by cycle
+        self._periods = np.full(keep, np.nan)
+        self._busy = np.full(keep, np.nan)
+        self.count = 0
+        self.missed = 0
+        self.scheduling = "not started"    # what the loop's thread runs under (CyclePacer)
 
     def add(self, period: float, busy: float) -> None:
-        self.samples.append(period)
-        self.busy.append(busy)
+        slot = self.count % len(self._periods)
+        self._periods[slot] = period
+        self._busy[slot] = busy
         self.count += 1
         self.missed += period > 1.5 * self.nominal
 
     def clear(self) -> None:
         """Forget the cycles so far (a measurement starts here)."""
-        self.samples.clear()
-        self.busy.clear()
         self.count = self.missed = 0
+
+    @property
+    def samples(self) -> np.ndarray:
+        """The periods kept, oldest first."""
+        return self._kept(self._periods)
+
+    @property
+    def busy(self) -> np.ndarray:
+        """The busy times kept, oldest first."""
+        return self._kept(self._busy)
+
+    def _kept(self, ring: np.ndarray) -> np.ndarray:
+        if self.count <= len(ring):
+            return ring[:self.count].copy()
+        oldest = self.count % len(ring)
+        return np.concatenate((ring[oldest:], ring[:oldest]))
 
     def figures(self) -> dict:
         """The cycles kept: period mean, |period - nominal| and busy percentiles (us), with
         the counts over the whole run and the scheduling. Needs at least one cycle."""
-        periods = np.array(self.samples)
+        periods = self.samples
         errors = np.abs(periods - self.nominal) * 1e6
-        busy = np.array(self.busy) * 1e6
+        busy = self.busy * 1e6
         return {"cycles": self.count, "period_mean_ms": float(periods.mean() * 1e3),
                 "error_p50_us": float(np.percentile(errors, 50)),
                 "error_p99_us": float(np.percentile(errors, 99)),
@@ -65,10 +81,11 @@ class PeriodStatistics:
                 "scheduling": self.scheduling}
 
     def summary(self) -> str:
-        if not self.samples:
+        if not self.count:
             return f"{self.scheduling}; no cycles"
         f = self.figures()
-        latest = "" if self.count == len(self.samples) else f" (the latest {len(self.samples)})"
+        kept = len(self._periods)
+        latest = "" if self.count <= kept else f" (the latest {kept})"
         return (f"{self.scheduling}; {self.count} cycles, missed {self.missed}; period "
                 f"mean{latest} {f['period_mean_ms']:.3f} ms, |error| p50 {f['error_p50_us']:.0f} "
                 f"us, p99 {f['error_p99_us']:.0f} us, max {f['error_max_us']:.0f} us; busy p50 "

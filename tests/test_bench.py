@@ -62,5 +62,5 @@ def test_soak_repeats_the_trajectory_and_reports_drift_memory_and_missed_cycles(
     assert soak["failed"] == sum(r["result"] != "succeeded" for r in timeline)
     assert all(r["reason"] for r in timeline if r["result"] != "succeeded")
     assert all(r["final_error"] < 0.02 for r in timeline if r["result"] == "succeeded")
-    assert {"rss_growth_bytes", "missed", "timeline"} <= set(soak)
+    assert {"rss_growth_bytes", "rss_growth_after_first_bytes", "missed", "timeline"} <= set(soak)
     assert "memory growth" in result.stdout

@@ -114,3 +114,17 @@ def test_pacer_priority_zero_keeps_the_normal_scheduler(monkeypatch):
     statistics = PeriodStatistics(PERIOD)
     CyclePacer(PERIOD, statistics, priority=0).close()
     assert statistics.scheduling == "normal scheduling"
+
+
+def test_statistics_keep_the_latest_cycles_in_order_and_count_them_all():
+    statistics = PeriodStatistics(PERIOD, keep=4)
+    for n in range(1, 7):                        # periods 1..6 ms, busy a tenth of each
+        statistics.add(n * PERIOD, n * PERIOD / 10)
+    assert statistics.samples == pytest.approx([0.003, 0.004, 0.005, 0.006])
+    assert statistics.busy == pytest.approx([0.0003, 0.0004, 0.0005, 0.0006])
+    assert (statistics.count, statistics.missed) == (6, 5)       # over 1.5 ms: cycles 2-6
+    assert statistics.figures()["error_max_us"] == pytest.approx(5000)
+    assert "(the latest 4)" in statistics.summary()
+    statistics.clear()
+    statistics.add(PERIOD, 0.0)
+    assert list(statistics.samples) == [PERIOD] and statistics.count == 1

@@ -40,7 +40,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"soak {soak['seconds']:g} s, {soak['robot']}: {soak['repetitions']} repetitions, "
               f"{soak['failed']} failed; final position error first {soak['final_error_first']:.5f}"
               f", last {soak['final_error_last']:.5f}, max {soak['final_error_max']:.5f}; "
-              f"memory growth {soak['rss_growth_bytes'] / 1e6:.1f} MB; missed {soak['missed']} "
+              f"memory growth {soak['rss_growth_bytes'] / 1e6:.1f} MB, after the first repetition"
+              f" {soak['rss_growth_after_first_bytes'] / 1e6:.2f} MB; missed {soak['missed']} "
               f"of {soak['cycles']} cycles")
         print(f"hil bench: report in {args.json}")
         return 0
