@@ -36,6 +36,7 @@ def emcy_words(code: int) -> str:
     """An EMCY error code for messages: ``EMCY 0x8611 following error``."""
     return f"EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".rstrip()
 
+
 SHUTDOWN, SWITCH_ON, ENABLE, QUICK_STOP, DISABLE_VOLTAGE = 0x06, 0x07, 0x0F, 0x02, 0x00
 FAULT_RESET = 0x80
 
