@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import threading
 import time
 
 import pytest
 
+from hil.can.faults import FrameFault
 from hil.controllers import GoalRejected, GoalStatus
 
 
@@ -21,6 +23,35 @@ def test_reset_brings_a_faulted_drive_back_and_goals_are_accepted_again(controll
     goal_id = controlled.move("joint2", 0.1)
     result = controlled.client.wait_result(goal_id, 30)
     assert result.status is GoalStatus.SUCCEEDED, result
+
+
+def test_a_reset_whose_first_answers_come_late_still_brings_the_drives_back(controlled):
+    # answers a cycle late (over the reply timeout) are sampled before the reset's commands
+    # reached the drives: the FAULT and QUICK STOP they show are what the reset walks out of
+    controlled.fault(2)
+    controlled.sim_bus.add(FrameFault("delay", "arm", 1.0, 1.5 / controlled.config.cycle_hz))
+    succeeded, message = controlled.client.reset_faults()
+    assert succeeded, message
+    assert controlled.sim_bus.injected["delay"] > 0
+
+
+def test_reset_fails_naming_the_drive_while_its_fault_persists(controlled):
+    controlled.fault(2)
+    done = threading.Event()
+
+    def fault_again():                  # the drive faults again whenever it is reset
+        while not done.wait(0.005):
+            controlled.sim.raise_fault("arm", 2)
+
+    refaulting = threading.Thread(target=fault_again)
+    refaulting.start()
+    try:
+        succeeded, message = controlled.client.reset_faults()
+    finally:
+        done.set()
+        refaulting.join()
+    assert not succeeded
+    assert "drive node 2 (joint2)" in message and "FAULT" in message, message
 
 
 def test_reset_fails_naming_the_drive_while_it_stays_silent(controlled):

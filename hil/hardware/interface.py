@@ -132,6 +132,7 @@ class CanHardwareInterface(HardwareInterface):
         self._cycle = 0
         self._stopping = False
         self._recovering = False
+        self._reset_cycle = 0          # the cycle reset_faults() was called in
         self._reported: set[tuple[str, str, str]] = set()
         self._pending: list[str] = []
         self._arrived = threading.Condition()
@@ -224,9 +225,13 @@ class CanHardwareInterface(HardwareInterface):
 
     def _watch(self) -> None:
         now = time.monotonic()
+        # a reset's first answers may be late ones, sampled before its commands reached the
+        # drives: the states it walks the drives out of (FAULT, QUICK STOP) count once an
+        # answer that late would be silence anyway
+        settling = self._recovering and self._cycle - self._reset_cycle <= MISSED_ANSWER_LIMIT
         for axis in self.axes:
             # (what, text): a silence is reported once per axis, not once per silent cycle
-            problems = [("fault", axis.fault_text(self._stopping))]
+            problems = [] if settling else [("fault", axis.fault_text(self._stopping))]
             silence = now - axis.last_heard
             if silence > max(axis.silence_limit, self._answer_silence_limit):
                 problems.append(("heartbeat", f"{axis.label} is silent: not heard for "
@@ -254,6 +259,7 @@ class CanHardwareInterface(HardwareInterface):
         standstill. A fault that persists (a silent drive, a fault still present) is reported
         again by the next cycles."""
         self._recovering = True
+        self._reset_cycle = self._cycle
         self._stopping = False
         self._reported.clear()
         self._pending.clear()
