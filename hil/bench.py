@@ -142,14 +142,15 @@ IN_PROCESS = "hil-virtual"
 
 
 class _Stack:
-    """Simulator + CAN master + control node in this process (the sim's buses as FaultyBus)."""
+    """Simulator + CAN master + control node in this process; the sim's buses wrapped in
+    FaultyBus where faults are to be injected (only then: `hil sim` has no such layer)."""
 
     def __init__(self, config: SystemConfig, lock_step: bool, interface: str,
-                 channels: dict[str, str]):
+                 channels: dict[str, str], injectable: bool = False):
         self.opened = [can.Bus(interface=interface, channel=channels[b.name])
                        for b in config.buses for _ in range(2)]
-        self.sim_buses = {b.name: FaultyBus(self.opened[2 * i], [])
-                          for i, b in enumerate(config.buses)}
+        self.sim_buses = {b.name: FaultyBus(self.opened[2 * i], []) if injectable
+                          else self.opened[2 * i] for i, b in enumerate(config.buses)}
         self.sim = Simulator(config, self.sim_buses, lock_step=lock_step)
         self.sim.start()
         self.sim_thread = threading.Thread(target=self.sim.run, daemon=True)
@@ -197,7 +198,7 @@ def _stack(config: SystemConfig, lock_step: bool, interface: str = IN_PROCESS,
     for _ in range(START_ATTEMPTS):
         tag = uuid.uuid4().hex[:8]
         names = channels or {b.name: f"hil-bench-{tag}-{b.name}" for b in config.buses}
-        stack = _Stack(config, lock_step, interface, names)
+        stack = _Stack(config, lock_step, interface, names, injectable=sim_buses is not None)
         if stack.running():
             gc.collect()
             gc.freeze()   # as `hil sim` and `hil control` do once up
