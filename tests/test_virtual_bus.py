@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import threading
 import uuid
 
@@ -9,6 +10,7 @@ import can
 import pytest
 
 from hil.can.faults import FaultyBus, FrameFault
+from hil.drives.profile import start_network
 
 
 @pytest.fixture
@@ -131,3 +133,25 @@ def test_a_faulty_bus_over_a_bus_without_direct_delivery_offers_none(channel):
         assert faulty.deliver_to([Recorder()]) is None
     finally:
         faulty.shutdown()
+
+
+def test_a_networks_listener_feeds_subscribers_routes_rtr_and_survives_a_failing_one(
+        pair, caplog):
+    sender, receiver = pair
+    network = start_network(receiver)
+    heard, asked = [], []
+
+    def broken(can_id, data, timestamp):
+        raise RuntimeError("broken subscriber")
+
+    network.subscribe(0x181, broken)
+    network.subscribe(0x182, lambda can_id, data, timestamp: heard.append((can_id, bytes(data))))
+    network.frame_listener.remote_handlers[0x209] = asked.append
+    with caplog.at_level(logging.ERROR):
+        sender.send(frame(0x181))
+        sender.send(frame(0x182, b"\x01"))
+        sender.send(can.Message(arbitration_id=0x209, is_remote_frame=True, dlc=8,
+                                is_extended_id=False))
+    assert heard == [(0x182, b"\x01")] and asked == [0x209]
+    assert "0x181" in caplog.text and "broken subscriber" in caplog.text
+    network.notifier.stop()

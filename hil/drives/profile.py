@@ -34,21 +34,30 @@ from hil.drives.core import DriveCore
 log = logging.getLogger(__name__)
 
 
-class RemoteFrames(can.Listener):
-    """Routes remote (RTR) frames by id: python canopen's network drops them.
+class NetworkListener(can.Listener):
+    """A canopen network's frames in, in one call per frame: what canopen's own
+    MessageListener does (every data frame to ``network.notify``, a failing subscriber
+    logged, never raised into the bus), plus remote (RTR) frames routed by id, which
+    canopen drops.
 
-    Whoever starts a network's Notifier adds one of these as ``network.remote_frames``
-    (see :func:`start_network`).
+    :func:`start_network` puts one in place of canopen's, as ``network.frame_listener``.
     """
 
-    def __init__(self):
-        self.handlers: dict[int, Callable[[int], None]] = {}
+    def __init__(self, network: canopen.Network):
+        self.notify = network.notify
+        #: RTR id -> handler (called with the id)
+        self.remote_handlers: dict[int, Callable[[int], None]] = {}
 
     def on_message_received(self, msg: can.Message) -> None:
         if msg.is_remote_frame:
-            handler = self.handlers.get(msg.arbitration_id)
+            handler = self.remote_handlers.get(msg.arbitration_id)
             if handler is not None:
                 handler(msg.arbitration_id)
+        elif not msg.is_error_frame:
+            try:
+                self.notify(msg.arbitration_id, msg.data, msg.timestamp)
+            except Exception:
+                log.exception("a subscriber of frame 0x%03X failed", msg.arbitration_id)
 
 
 class DriveNetwork(canopen.Network):
@@ -80,11 +89,11 @@ def start_network(bus: can.BusABC, timeout: float = 0.1,
     frames routed: handed over in the sender's thread where the bus can (``deliver_to``,
     hil.can.virtual), else by a python-can Notifier (``network.notifier`` either way)."""
     network = network_class(bus)
-    network.remote_frames = RemoteFrames()
-    listeners = [*network.listeners, network.remote_frames]
+    network.frame_listener = NetworkListener(network)
+    network.listeners = [network.frame_listener]     # canopen's MessageListener replaced
     deliver_to = getattr(bus, "deliver_to", None)
-    direct = deliver_to(listeners) if deliver_to is not None else None
-    network.notifier = direct or can.Notifier(bus, listeners, timeout)
+    direct = deliver_to(network.listeners) if deliver_to is not None else None
+    network.notifier = direct or can.Notifier(bus, network.listeners, timeout)
     return network
 
 
@@ -154,7 +163,7 @@ class DriveProfile(ABC):
         self.network = network
         for can_id, handler in self.subscriptions().items():
             network.subscribe(can_id, handler)
-        network.remote_frames.handlers.update(self.remote_subscriptions())
+        network.frame_listener.remote_handlers.update(self.remote_subscriptions())
 
     def detach(self) -> None:
         """Leave the bus: from now on the drive sends and hears nothing (idempotent)."""
@@ -164,7 +173,7 @@ class DriveProfile(ABC):
             if handler in self.network.subscribers.get(can_id, []):
                 self.network.unsubscribe(can_id, handler)
         for can_id in self.remote_subscriptions():
-            self.network.remote_frames.handlers.pop(can_id, None)
+            self.network.frame_listener.remote_handlers.pop(can_id, None)
         self.network = None
 
     def send(self, can_id: int, data: bytes, remote: bool = False) -> None:
