@@ -49,10 +49,12 @@ import can
 import mujoco
 import numpy as np
 
+import hil.drives.core as core_module
 from hil.bus_config import SystemConfig, load_bus_config
 from hil.can import socketcan_missing
 from hil.can.faults import FaultyBus, FrameFault
 from hil.can.monitor import BusLoadMeter
+from hil.compiled import is_compiled
 from hil.control_node import ControlNode
 from hil.controllers import GoalRejected, TrajectoryGoal, TrajectoryPoint
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
@@ -88,7 +90,10 @@ def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> di
     """Measure every figure; raises RuntimeError if one is missing from the report."""
     report: dict = {"machine": {"cpus": len(os.sched_getaffinity(0)),
                                 "python": platform.python_version(),
-                                "platform": platform.platform()},
+                                "platform": platform.platform(),
+                                # setup.py compiles it where it can: the figures depend on it
+                                "drive_core": "compiled" if is_compiled(core_module)
+                                              else "interpreted"},
                     "settings": {"seconds": settings.seconds,
                                  "lock_step_cycles": settings.lock_step_cycles}}
     for name in FIGURES:

@@ -47,6 +47,7 @@ def test_quick_bench_reports_every_figure(tmp_path):
     socketcan = report["socketcan"]
     assert isinstance(socketcan, list) or "vcan" in socketcan["unavailable"]
     assert "control cycle, real time" in result.stdout and "tracking" in result.stdout
+    assert report["machine"]["drive_core"] in ("compiled", "interpreted")   # read figures by it
 
 
 def test_soak_repeats_the_trajectory_and_reports_drift_memory_and_missed_cycles(tmp_path):

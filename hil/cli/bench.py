@@ -69,7 +69,9 @@ def _cycle_columns(name: str, row: dict) -> str:
 
 def format_table(report: dict) -> str:
     floor = report["timing_floor"][0]
-    lines = [f"machine: {report['machine']['cpus']} CPUs, Python {report['machine']['python']}",
+    machine = report["machine"]
+    lines = [f"machine: {machine['cpus']} CPUs, Python {machine['python']}, drive core "
+             f"{machine['drive_core']}",
              "", "control cycle, real time (in-process virtual CAN, Zenoh on loopback), "
              f"{report['control_cycle'][0]['scheduling']}",
              "  period error = |release to release - nominal|; busy = release to end of work",

@@ -4,6 +4,11 @@
 config, the way python-can picks an interface.
 """
 
+from hil.compiled import import_fresh
+
+# compiled by the install where it could be (setup.py)
+import_fresh("hil.drives.core", "hil.drives.cia402_state")
+
 from hil.drives.cia402 import Cia402Drive
 from hil.drives.mit import MitDrive
 from hil.drives.odrive import ODriveDrive

@@ -4,7 +4,8 @@
 the SDO server, NMT slave with boot-up and heartbeat, the EMCY producer and
 PDO maps. It does not answer SYNC with TPDOs, does not tie PDO contents to
 the object dictionary, and implements no 402 device (canopen issues #555,
-#558, #166): those parts are written here.
+#558, #166): those parts are written here, the ones that need no CAN (power
+state machine, statusword, live objects) in :mod:`hil.drives.cia402_state`.
 
 Threading: canopen calls back from python-can's Notifier thread. Every
 callback takes the ``lock`` the owner passes in, the same lock the owner
@@ -18,7 +19,6 @@ is done.
 
 from __future__ import annotations
 
-import enum
 import functools
 import logging
 import math
@@ -32,7 +32,10 @@ from pathlib import Path
 import canopen
 from canopen.sdo import SdoAbortedError
 
-from hil.drives.core import DriveCore, DriveStatus, Fault, Mode, Power
+from hil.drives.cia402_state import (ERROR_REGISTER, LIVE_OBJECTS, MODE_CODES,
+                                     Cia402StateMachine, int32, live_value, live_values,
+                                     uint32)
+from hil.drives.core import DriveCore, Power
 from hil.drives.profile import DriveProfile
 
 log = logging.getLogger(__name__)
@@ -43,110 +46,10 @@ SYNC_ID = 0x080
 NMT_ID = 0x000
 OPERATIONAL = "OPERATIONAL"
 
-#: CiA 402 modes of operation (0x6060/0x6061) this drive supports.
-MODE_CODES = {8: Mode.POSITION, 9: Mode.VELOCITY, 10: Mode.TORQUE}
-CODE_OF_MODE = {mode: code for code, mode in MODE_CODES.items()}
-
 #: EMCY codes that are not drive faults (CiA 301).
 EMCY_PDO_LENGTH = 0x8210
 EMCY_SYNC_LENGTH = 0x8240
 EMCY_NO_ERROR = 0x0000
-_ERROR_REGISTER = {Fault.FOLLOWING_ERROR: 0x21, Fault.POSITION_LIMIT: 0x21,
-                   Fault.CONTROLLER_SILENT: 0x11, Fault.EMERGENCY_STOP: 0x81}
-
-
-class State(enum.Enum):
-    """The CiA 402 power states, with their statusword value (mask 0x6F)."""
-
-    NOT_READY_TO_SWITCH_ON = 0x00
-    SWITCH_ON_DISABLED = 0x40
-    READY_TO_SWITCH_ON = 0x21
-    SWITCHED_ON = 0x23
-    OPERATION_ENABLED = 0x27
-    QUICK_STOP_ACTIVE = 0x07
-    FAULT_REACTION_ACTIVE = 0x0F
-    FAULT = 0x08
-
-
-class Cia402StateMachine:
-    """The 402 power state machine driven by controlword 0x6040.
-
-    The drive core owns whether power is on; this class holds the disabled
-    sub-states (switch on disabled / ready to switch on / switched on) and
-    translates controlword commands into core calls.
-    """
-
-    def __init__(self, core: DriveCore, quick_stop_option: int = 6):
-        self.core = core
-        self.quick_stop_option = quick_stop_option
-        self._disabled_state = State.SWITCH_ON_DISABLED
-        self._last_controlword = 0
-
-    @property
-    def state(self) -> State:
-        power = self.core.power
-        if power is Power.FAULT:
-            return State.FAULT
-        if power is Power.QUICK_STOP:
-            return State.QUICK_STOP_ACTIVE
-        if power is Power.ENABLED:
-            return State.OPERATION_ENABLED
-        return self._disabled_state
-
-    def controlword(self, word: int) -> None:
-        """Apply one controlword (CiA 402 transitions 2-12, 15, 16)."""
-        rising_reset = bool(word & 0x80) and not self._last_controlword & 0x80
-        self._last_controlword = word
-        state = self.state
-        if state is State.FAULT:
-            if rising_reset:
-                self.core.reset_fault()
-                self._disabled_state = State.SWITCH_ON_DISABLED
-            return
-        if word & 0x82 == 0x00:                                   # disable voltage
-            self._to_disabled(State.SWITCH_ON_DISABLED)
-        elif word & 0x86 == 0x02:                                 # quick stop
-            if state is State.OPERATION_ENABLED:
-                self.core.quick_stop()
-            elif state is not State.QUICK_STOP_ACTIVE:
-                self._to_disabled(State.SWITCH_ON_DISABLED)
-        elif word & 0x87 == 0x06:                                 # shutdown
-            if state is not State.QUICK_STOP_ACTIVE:
-                self._to_disabled(State.READY_TO_SWITCH_ON)
-        elif word & 0x8F == 0x07:                                 # switch on / disable op.
-            if state in (State.READY_TO_SWITCH_ON, State.OPERATION_ENABLED):
-                self._to_disabled(State.SWITCHED_ON)
-        elif word & 0x8F == 0x0F:                                 # enable operation
-            if state in (State.READY_TO_SWITCH_ON, State.SWITCHED_ON) or (
-                    state is State.QUICK_STOP_ACTIVE and self.quick_stop_option >= 5):
-                self.core.enable()
-
-    def after_update(self) -> None:
-        """Quick stop option 1-4: once stopped, fall to switch on disabled."""
-        if (self.core.power is Power.QUICK_STOP and self.quick_stop_option < 5
-                and self.core.status().stopped):
-            self._to_disabled(State.SWITCH_ON_DISABLED)
-
-    def _to_disabled(self, state: State) -> None:
-        self.core.disable()
-        self._disabled_state = state
-
-
-def statusword(state: State, status: DriveStatus) -> int:
-    """0x6041 for a state and the core's flags."""
-    word = state.value | 0x0200                                   # bit 9: remote
-    if state in (State.READY_TO_SWITCH_ON, State.SWITCHED_ON, State.OPERATION_ENABLED,
-                 State.QUICK_STOP_ACTIVE):
-        word |= 0x0010                                            # bit 4: voltage enabled
-    if status.target_reached:
-        word |= 0x0400
-    if status.internal_limit:
-        word |= 0x0800
-    if state is State.OPERATION_ENABLED and status.mode is not Mode.TORQUE:
-        word |= 0x1000                                            # bit 12: following targets
-    if status.following_error_exceeded and status.mode is Mode.POSITION:
-        word |= 0x2000
-    return word
 
 
 @dataclass(frozen=True)
@@ -192,11 +95,11 @@ class Cia402Drive(DriveProfile):
         self._fault_reported = False
         self._pending: list[tuple[int, bytes]] = []
         # from the PDO maps at each (re)configuration: RPDO number -> layout, and the
-        # synchronous TPDOs, each with its struct and the _LIVE_OBJECTS it carries (None
+        # synchronous TPDOs, each with its struct and the LIVE_OBJECTS it carries (None
         # and (): packed by canopen, see PdoLayout.of, or it maps a stored object)
         self._rpdo_layouts: dict[int, PdoLayout | None] = {}
         self._rpdo_handlers: list[tuple[int, Callable]] = []     # (COB-ID, subscribed)
-        self._sync_tpdos: list[tuple[object, struct.Struct | None, tuple[Callable, ...]]] = []
+        self._sync_tpdos: list[tuple[object, struct.Struct | None, tuple[int, ...]]] = []
         self._counts_per_rad = core.parameters.counts_per_rev / (2 * math.pi)
         self._store_configuration()
         self.node.add_read_callback(self._on_read)
@@ -285,9 +188,8 @@ class Cia402Drive(DriveProfile):
         for pdo in self.node.tpdo.map.values():
             if pdo.enabled and pdo.trans_type is not None and 1 <= pdo.trans_type <= 240:
                 layout = PdoLayout.of(pdo)
-                if layout is not None and _LIVE_OBJECTS.keys() >= set(layout.indices):
-                    self._sync_tpdos.append(
-                        (pdo, layout.codec, tuple(_LIVE_OBJECTS[i] for i in layout.indices)))
+                if layout is not None and LIVE_OBJECTS >= set(layout.indices):
+                    self._sync_tpdos.append((pdo, layout.codec, layout.indices))
                 else:
                     self._sync_tpdos.append((pdo, None, ()))
 
@@ -337,10 +239,10 @@ class Cia402Drive(DriveProfile):
         if self.node.nmt.state != OPERATIONAL:
             return
         status, state = self.core.status(), self.machine.state
-        for pdo, codec, live_objects in self._sync_tpdos:
+        for pdo, codec, indices in self._sync_tpdos:
             if codec is not None:
-                self._pending.append((pdo.cob_id, codec.pack(
-                    *[value(self, state, status) for value in live_objects])))
+                self._pending.append((pdo.cob_id, codec.pack(*live_values(
+                    indices, state, status, self._counts_per_rad, self.rated_torque))))
                 continue
             for variable in pdo.map:     # through the object dictionary, live or stored
                 variable.set_data(self.node.get_data(variable.index, variable.subindex))
@@ -376,7 +278,7 @@ class Cia402Drive(DriveProfile):
         if not self.attached:
             return
         for fault in events:
-            self.node.emcy.send(fault.code, _ERROR_REGISTER[fault])
+            self.node.emcy.send(fault.code, ERROR_REGISTER[fault])
         if self._fault_reported and self.core.fault is None:
             self.node.emcy.send(EMCY_NO_ERROR, 0)       # error reset
         self._fault_reported = self.core.fault is not None
@@ -384,9 +286,10 @@ class Cia402Drive(DriveProfile):
     # --- object dictionary ---------------------------------------------------------
 
     def _on_read(self, index: int, subindex: int, od) -> int | None:
-        if index in _LIVE_OBJECTS:
+        if index in LIVE_OBJECTS:
             with self.lock:
-                return _LIVE_OBJECTS[index](self, self.machine.state, self.core.status())
+                return live_value(index, self.machine.state, self.core.status(),
+                                  self._counts_per_rad, self.rated_torque)
         return None
 
     def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
@@ -424,31 +327,17 @@ class Cia402Drive(DriveProfile):
         put(0x6076, None, round(self.rated_torque * 1000))
         put(0x6072, None, round(p.peak_torque / self.rated_torque * 1000))
         put(0x608F, 1, p.counts_per_rev)
-        put(0x607F, None, _uint32(p.max_velocity * cpr))
-        put(0x6085, None, _uint32(p.quick_stop_deceleration * cpr))
-        put(0x6065, None, _uint32(p.following_error_limit * cpr))
+        put(0x607F, None, uint32(p.max_velocity * cpr))
+        put(0x6085, None, uint32(p.quick_stop_deceleration * cpr))
+        put(0x6065, None, uint32(p.following_error_limit * cpr))
         put(0x6066, None, round(p.following_error_timeout * 1000))
         put(0x2010, None, round(p.watchdog_timeout * 1000))
         put(0x2000, 1, p.position_kp)
         put(0x2000, 2, p.velocity_kp)
         put(0x2000, 3, p.velocity_ki)
         if p.position_limits is not None:
-            put(0x607D, 1, _int32(p.position_limits[0] * cpr))
-            put(0x607D, 2, _int32(p.position_limits[1] * cpr))
-
-
-#: objects read from the drive's state, not stored: index -> value of (drive, state, status)
-_LIVE_OBJECTS = {
-    0x6041: lambda drive, state, status: statusword(state, status),
-    0x6061: lambda drive, state, status: CODE_OF_MODE[status.mode],
-    0x6064: lambda drive, state, status: _int32(status.position * drive._counts_per_rad),
-    0x606C: lambda drive, state, status: _int32(status.velocity * drive._counts_per_rad),
-    0x6077: lambda drive, state, status: _int16(status.torque / drive.rated_torque * 1000),
-    0x60F4: lambda drive, state, status: _int32(status.following_error
-                                                * drive._counts_per_rad),
-    0x603F: lambda drive, state, status: status.fault.code if status.fault else 0,
-    0x1001: lambda drive, state, status: _ERROR_REGISTER[status.fault] if status.fault else 0,
-}
+            put(0x607D, 1, int32(p.position_limits[0] * cpr))
+            put(0x607D, 2, int32(p.position_limits[1] * cpr))
 
 
 def _gains(p, subindex, value, cpr):
@@ -474,15 +363,3 @@ _PARAMETER_WRITERS = {
     0x6085: lambda p, s, v, c: replace(p, quick_stop_deceleration=v / c),
     0x607D: _limits,
 }
-
-
-def _int32(value: float) -> int:
-    return max(-2**31, min(2**31 - 1, round(value)))
-
-
-def _uint32(value: float) -> int:
-    return max(0, min(2**32 - 1, round(value)))
-
-
-def _int16(value: float) -> int:
-    return max(-2**15, min(2**15 - 1, round(value)))

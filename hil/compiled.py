@@ -1,0 +1,77 @@
+"""Modules that the install compiles with mypyc (``setup.py``), and which form of them runs.
+
+A compiled module sits beside its Python source and Python's import prefers it. After an
+edit to the source (an editable install is not rebuilt on edits) the compiled module would
+silently run the old code: :func:`import_fresh` then imports the sources instead and warns.
+The build writes the SHA-256 of each source it compiled beside it (``<module>.sha256``);
+file times would not do (a build that finds its output up to date keeps the old times).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.machinery
+import importlib.util
+import sys
+import warnings
+from pathlib import Path
+from types import ModuleType
+
+
+def import_fresh(*names: str) -> None:
+    """Import modules compiled together, in order: all compiled where every compiled form is
+    at least as new as its source, else all from their sources, with a warning (compiled
+    modules of one build call each other's classes directly, so they cannot be mixed)."""
+    specs = []
+    for name in names:
+        if name in sys.modules:
+            continue
+        spec = importlib.util.find_spec(name)
+        if spec is None or spec.origin is None:
+            raise ModuleNotFoundError(f"no module named '{name}'", name=name)
+        specs.append(spec)
+    files = [_source_and_compiled(spec) for spec in specs]
+    edited = [source for source, compiled in files
+              if compiled is not None and not _compiled_from(source)]
+    if edited:
+        warnings.warn(f"{', '.join(map(str, edited))} changed since compiled: "
+                      f"{', '.join(names)} run interpreted (slower) until `pip install -e .` "
+                      f"compiles them again", stacklevel=2)
+        specs = [importlib.util.spec_from_file_location(spec.name, source)
+                 for spec, (source, _) in zip(specs, files)]
+    for spec in specs:
+        _load(spec)
+
+
+def is_compiled(module: ModuleType) -> bool:
+    """Whether ``module`` runs as a compiled extension (not from Python source)."""
+    return isinstance(module.__spec__.loader, importlib.machinery.ExtensionFileLoader)
+
+
+def _source_and_compiled(spec) -> tuple[Path, Path | None]:
+    """The module's Python source, and its compiled form where that is what would load."""
+    origin = Path(spec.origin)
+    source = origin.with_name(spec.name.rpartition(".")[2] + ".py")
+    if isinstance(spec.loader, importlib.machinery.ExtensionFileLoader) and source.exists():
+        return source, origin
+    return origin, None
+
+
+def _compiled_from(source: Path) -> bool:
+    """Whether the build recorded ``source``, as it is now, as what it compiled."""
+    record = source.with_suffix(".sha256")
+    return record.exists() and record.read_text().strip() == \
+        hashlib.sha256(source.read_bytes()).hexdigest()
+
+
+def _load(spec) -> None:
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[spec.name]
+        raise
+    parent, _, child = spec.name.rpartition(".")
+    if parent:
+        setattr(sys.modules[parent], child, module)
