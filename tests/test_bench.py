@@ -31,6 +31,9 @@ def test_quick_bench_reports_every_figure(tmp_path):
     assert floor["busy_p50_us"] < min(row["busy_p50_us"] for row in report["control_cycle"])
     for row in report["latency"]:
         assert row["p50_ms"] > 0 and row["p99_ms"] >= row["p50_ms"]
+    for row in report["lock_step"]:
+        assert row["windows"] > 0
+        assert row["speedup_quiet_quartile"] >= row["speedup_over_real_time"] * 0.9
     for row in report["overhead"]:
         assert row["full_stack_cycle_us"] > row["bare_mujoco_cycle_us"] > 0
         assert row["ratio_to_python_can"] > 1
