@@ -34,7 +34,10 @@ class BuildExt(build_ext):
 
 def optional_extensions():
     # their imports are checked by the tests, not here: the build environment has only mypy
-    extensions = mypycify(["--follow-imports=skip", *COMPILED], opt_level="3")
+    # one shared library for the group, inside the package (by default it is a top-level
+    # module named by a hash of the modules' names)
+    extensions = mypycify(["--follow-imports=skip", *COMPILED], opt_level="3",
+                          group_name="hil.drives.compiled")
     for extension in extensions:
         extension.optional = True        # a failed compile leaves the modules interpreted
     return extensions
