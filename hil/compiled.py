@@ -19,8 +19,8 @@ from types import ModuleType
 
 
 def import_fresh(*names: str) -> None:
-    """Import modules compiled together, in order: all compiled where every compiled form is
-    at least as new as its source, else all from their sources, with a warning (compiled
+    """Import modules compiled together, in order: all compiled where the build's record of
+    every source still matches it, else all from their sources, with a warning (compiled
     modules of one build call each other's classes directly, so they cannot be mixed)."""
     specs = []
     for name in names:

@@ -149,6 +149,8 @@ def live_values(indices: tuple[int, ...], state: State, status: DriveStatus,
             for index in indices]
 
 
+# saturating conversions to the objects' integer types (a value out of range is clamped, as
+# a drive's firmware would, never wrapped)
 def int32(value: float) -> int:
     return max(-2**31, min(2**31 - 1, round(value)))
 
