@@ -53,6 +53,13 @@ from hil.zenoh_session import free_loopback_port
 
 UR3_VIRTUAL = TESTS / "fixtures" / "ur3_virtual.yaml"
 EDS = ROOT / "bus_config" / "cia402_drive.eds"
+#: DriveParameters fields for the 1e-3 kg m^2 test motor: velocity loop ~200 rad/s,
+#: position loop 40/s
+TEST_MOTOR_DRIVE = dict(counts_per_rev=4096, rated_torque=1.0, peak_torque=2.0,
+                        position_kp=40.0, velocity_kp=0.2, velocity_ki=10.0,
+                        max_velocity=100.0, following_error_limit=0.5,
+                        following_error_timeout=0.005, quick_stop_deceleration=500.0,
+                        watchdog_timeout=0.1, position_limits=(-50.0, 50.0))
 
 
 def pytest_configure(config):

@@ -13,6 +13,7 @@ import pytest
 
 import hil.drives.core
 from hil.compiled import import_fresh, is_compiled
+from conftest import TEST_MOTOR_DRIVE
 
 SUFFIX = importlib.machinery.EXTENSION_SUFFIXES[0]
 
@@ -60,11 +61,7 @@ def test_compiled_modules_of_unchanged_sources_are_the_ones_imported(package):
 def _torques(core_module, velocity_mode: bool) -> list[tuple]:
     """One drive core's torques and status through enable, moves, a quick stop and a fault
     (position mode: a following error), on a bare motor shaft (J = 1e-3 kg m^2)."""
-    core = core_module.DriveCore(core_module.DriveParameters(
-        counts_per_rev=4096, rated_torque=1.0, peak_torque=2.0, position_kp=40.0,
-        velocity_kp=0.2, velocity_ki=10.0, max_velocity=100.0, following_error_limit=0.5,
-        following_error_timeout=0.005, quick_stop_deceleration=500.0, watchdog_timeout=0.1,
-        position_limits=(-50.0, 50.0)))
+    core = core_module.DriveCore(core_module.DriveParameters(**TEST_MOTOR_DRIVE))
     core.set_cycle(0.01)
     core.enable()
     if velocity_mode:

@@ -8,19 +8,13 @@ import pytest
 
 from hil.drives.cia402_state import Cia402StateMachine, State, statusword
 from hil.drives.core import DriveCore, DriveParameters, Fault, Mode, Power
+from conftest import TEST_MOTOR_DRIVE
 
 DT = 0.001
 
 
 def parameters(**changes) -> DriveParameters:
-    # gains for the 1e-3 kg m^2 test motor: velocity loop ~200 rad/s, position loop 40/s
-    base = dict(counts_per_rev=4096, rated_torque=1.0, peak_torque=2.0, position_kp=40.0,
-                velocity_kp=0.2, velocity_ki=10.0, max_velocity=100.0,
-                following_error_limit=0.5, following_error_timeout=0.005,
-                quick_stop_deceleration=500.0, watchdog_timeout=0.1,
-                position_limits=(-50.0, 50.0))
-    base.update(changes)
-    return DriveParameters(**base)
+    return DriveParameters(**{**TEST_MOTOR_DRIVE, **changes})
 
 
 class Motor:
