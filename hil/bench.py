@@ -64,7 +64,7 @@ from hil.messaging.zenoh_api import RunSubscriber, TrajectoryActionClient, key
 from hil.plant import Plant
 from hil.realtime import CyclePacer, PeriodStatistics
 from hil.simulator import Simulator, motor_inertias
-from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
+from hil.zenoh_session import ZenohSettings, close, close_all, free_loopback_port, session
 
 ROBOTS = ("ur3", "pigot")
 RATES = (250.0, 500.0, 1000.0)
@@ -160,7 +160,8 @@ class _Stack:
         self.sim.start()
         self.sim_thread = threading.Thread(target=self.sim.run, daemon=True)
         self.sim_thread.start()
-        self.zenoh = session(ZenohSettings(listen=(f"tcp/127.0.0.1:{free_loopback_port()}",)))
+        self.zenoh_settings = ZenohSettings(listen=(f"tcp/127.0.0.1:{free_loopback_port()}",))
+        self.zenoh = session(self.zenoh_settings)
         hardware = CanHardwareInterface(
             config, {b.name: self.opened[2 * i + 1] for i, b in enumerate(config.buses)},
             reply_timeout=LOCK_STEP_REPLY_TIMEOUT if lock_step else None)
@@ -192,6 +193,7 @@ class _Stack:
         self.sim.close()
         for bus in list(self.sim_buses.values()) + self.opened[1::2]:
             bus.shutdown()
+        close(self.zenoh_settings)      # its listener and threads would outlive the stack
 
 
 @contextmanager

@@ -76,6 +76,14 @@ def session(settings: ZenohSettings) -> zenoh.Session:
         return _sessions[settings]
 
 
+def close(settings: ZenohSettings) -> None:
+    """Close the process' session for these settings, if one is open."""
+    with _lock:
+        opened = _sessions.pop(settings, None)
+    if opened is not None:
+        opened.close()
+
+
 def close_all() -> None:
     """Close every session this process opened."""
     with _lock:

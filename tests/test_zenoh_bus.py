@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+import threading
 import time
 
 import can
@@ -12,7 +13,7 @@ import canopen
 import pytest
 
 from hil.can.zenoh_bus import decode_frame, encode_frame
-from hil.zenoh_session import ZenohSettings, session
+from hil.zenoh_session import ZenohSettings, close, session
 from conftest import EDS, ROOT, free_port
 
 
@@ -41,6 +42,52 @@ def test_frames_arrive_in_order_and_not_at_the_sender(bus_pair):
     received = [b.recv(2) for _ in range(200)]
     assert [int.from_bytes(m.data, "little") for m in received] == list(range(200))
     assert a.recv(0.2) is None
+
+
+class ThreadRecorder(can.Listener):
+    """Each frame's first data byte and the thread that delivered it."""
+
+    def __init__(self, expected: int):
+        self.frames: list[tuple[int, int]] = []
+        self._expected = expected
+        self.all_in = threading.Event()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self.frames.append((msg.data[0], threading.get_ident()))
+        if len(self.frames) == self._expected:
+            self.all_in.set()
+
+
+def test_direct_delivery_calls_listeners_in_order_in_zenohs_thread_then_queues_after_stop(
+        bus_pair):
+    a, b = bus_pair
+    recorder = ThreadRecorder(expected=50)
+    delivery = b.deliver_to([recorder])
+    for i in range(50):
+        a.send(can.Message(arbitration_id=0x181, data=bytes([i]), is_extended_id=False))
+    assert recorder.all_in.wait(5), f"{len(recorder.frames)} of 50 frames delivered"
+    assert [value for value, _ in recorder.frames] == list(range(50))
+    threads = {thread for _, thread in recorder.frames}
+    assert len(threads) == 1 and threading.get_ident() not in threads
+    assert b.recv(0.2) is None                       # nothing was queued besides
+    delivery.stop()
+    a.send(can.Message(arbitration_id=0x181, data=b"\x63", is_extended_id=False))
+    queued = b.recv(2)
+    assert queued is not None and bytes(queued.data) == b"\x63"
+    assert len(recorder.frames) == 50
+
+
+def test_closing_one_session_leaves_the_others_open(endpoint):
+    first = ZenohSettings(listen=(endpoint,))
+    second = ZenohSettings(listen=(f"tcp/127.0.0.1:{free_port()}",))
+    opened = session(first)
+    kept = session(second)
+    close(first)
+    close(first)                                     # a second close does nothing
+    assert opened.is_closed() and not kept.is_closed()
+    assert session(first) is not opened              # the next call opens afresh
+    close(first)
+    close(second)
 
 
 def test_frame_codec_round_trips_extended_and_remote_frames():

@@ -6,8 +6,9 @@ measured in ``hil bench``:
 * ``send`` builds each receiver's copy of a frame field by field; python-can's goes
   through ``copy.deepcopy``, which was half of the controller's time per cycle;
 * :meth:`VirtualBus.deliver_to` hands a receiver's frames to its listeners in the
-  sending thread, where a Notifier thread would take them from a queue: a lock-step
-  cycle becomes one chain of calls instead of a thread switch per burst of frames.
+  sending thread (:mod:`hil.can.delivery`), where a Notifier thread would take them from
+  a queue: a lock-step cycle becomes one chain of calls instead of a thread switch per
+  burst of frames.
 
 Channels are python-can's own, so ``hil-virtual`` and ``virtual`` buses on one channel
 hear each other; a bus without direct delivery queues its frames for ``recv`` as usual.
@@ -16,7 +17,6 @@ Picked by ``interface="hil-virtual"``.
 
 from __future__ import annotations
 
-import logging
 import queue
 import threading
 import time
@@ -25,56 +25,11 @@ from collections.abc import Callable, Iterable
 import can
 from can.interfaces import virtual
 
-log = logging.getLogger(__name__)
+from hil.can.delivery import DirectDelivery
 
 #: a receiving bus' queue -> who takes its frames directly (read without a lock in send)
 _DIRECT: dict[queue.Queue, DirectDelivery] = {}
 _DIRECT_LOCK = threading.Lock()
-
-
-class DirectDelivery:
-    """A receiver's listeners, called in the sender's thread; what a ``can.Notifier`` is
-    to a queued bus (``stop``, ``add_listener``), without its thread.
-
-    One sender at a time per receiver, as a Notifier thread would have it; the lock is
-    re-entrant so that a listener may send frames that come back to this bus. A listener
-    that raises is logged and the others still get the frame.
-    """
-
-    #: as ``can.Notifier.exception`` (canopen checks it after each send): listener errors
-    #: are logged here, never kept
-    exception: Exception | None = None
-
-    def __init__(self, receive_queue: queue.Queue, listeners: Iterable[can.Listener],
-                 accept: Callable[[can.Message], can.Message | None] | None = None):
-        self.listeners = list(listeners)
-        self._queue = receive_queue
-        self._accept = accept
-        self._lock = threading.RLock()
-        with _DIRECT_LOCK:
-            _DIRECT[receive_queue] = self
-
-    def deliver(self, msg: can.Message) -> None:
-        if self._accept is not None:
-            msg = self._accept(msg)
-            if msg is None:
-                return
-        with self._lock:
-            for listener in self.listeners:
-                try:
-                    listener(msg)
-                except Exception:          # as python-can's Notifier: one bad listener
-                    log.exception("listener %r failed on %s", listener, msg)
-
-    def add_listener(self, listener: can.Listener) -> None:
-        with self._lock:
-            self.listeners.append(listener)
-
-    def stop(self, timeout: float | None = None) -> None:
-        """Stop delivering (the frames queue again); ``timeout`` as for a Notifier."""
-        with _DIRECT_LOCK:
-            if _DIRECT.get(self._queue) is self:
-                del _DIRECT[self._queue]
 
 
 class VirtualBus(virtual.VirtualBus):
@@ -85,7 +40,15 @@ class VirtualBus(virtual.VirtualBus):
                    ) -> DirectDelivery:
         """From now on give this bus' received frames to ``listeners`` in the sending
         thread (after ``accept``, which may change a frame or return None to drop it)."""
-        return DirectDelivery(self.queue, listeners, accept)
+        delivery = DirectDelivery(listeners, accept, self._stop_delivery)
+        with _DIRECT_LOCK:
+            _DIRECT[self.queue] = delivery
+        return delivery
+
+    def _stop_delivery(self, delivery: DirectDelivery) -> None:
+        with _DIRECT_LOCK:
+            if _DIRECT.get(self.queue) is delivery:
+                del _DIRECT[self.queue]
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self._check_if_open()

@@ -86,8 +86,9 @@ class DriveNetwork(canopen.Network):
 def start_network(bus: can.BusABC, timeout: float = 0.1,
                   network_class: type[canopen.Network] = canopen.Network) -> canopen.Network:
     """A canopen network (of ``network_class``) on ``bus`` with its frames flowing and RTR
-    frames routed: handed over in the sender's thread where the bus can (``deliver_to``,
-    hil.can.virtual), else by a python-can Notifier (``network.notifier`` either way)."""
+    frames routed: handed over in the thread that brings them where the bus can
+    (``deliver_to``: hil-virtual, zenoh; see hil.can.delivery), else by a python-can
+    Notifier (``network.notifier`` either way)."""
     network = network_class(bus)
     network.frame_listener = NetworkListener(network)
     network.listeners = [network.frame_listener]     # canopen's MessageListener replaced
