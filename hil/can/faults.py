@@ -167,7 +167,7 @@ class FaultyBus(can.BusABC):
                     pass
 
     def deliver_to(self, listeners, accept=None):
-        """Direct delivery (see hil.can.virtual) where the wrapped bus offers it, after this
+        """Direct delivery (see hil.can.delivery) where the wrapped bus offers it, after this
         bus' receive-side faults (then ``accept``); None where it does not (a Notifier then
         reads ``recv``)."""
         deliver_to = getattr(self.inner, "deliver_to", None)
