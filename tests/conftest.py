@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
+import can
 import pytest
 
 from hil.description import PackagePath, load_description
@@ -14,6 +16,24 @@ UR3_XACRO = ROOT / "robots" / "ur3_description" / "urdf" / "ur3.xacro"
 PIGOT_XACRO = ROOT / "robots" / "pigot_description" / "urdf" / "pigot.xacro"
 CORPUS = TESTS / "corpus"
 COUPLED_URDF = TESTS / "fixtures" / "coupled_transmissions.urdf"
+
+
+class FrameRecorder(can.Listener):
+    """A bus listener keeping each frame with the thread that delivered it."""
+
+    def __init__(self):
+        self.frames: list[tuple[can.Message, int]] = []
+        self._arrived = threading.Condition()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        with self._arrived:
+            self.frames.append((msg, threading.get_ident()))
+            self._arrived.notify_all()
+
+    def wait_for(self, count: int, timeout: float) -> bool:
+        """Whether ``count`` frames are in within ``timeout`` seconds."""
+        with self._arrived:
+            return self._arrived.wait_for(lambda: len(self.frames) >= count, timeout)
 
 
 @pytest.fixture(scope="session")

@@ -11,6 +11,7 @@ import pytest
 
 from hil.can.faults import FaultyBus, FrameFault
 from hil.drives.profile import start_network
+from conftest import FrameRecorder
 
 
 @pytest.fixture
@@ -31,17 +32,9 @@ def frame(arbitration_id: int = 0x181, data: bytes = b"\x27\x00\x10\x00\x00\x00"
     return can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False)
 
 
-class Recorder(can.Listener):
-    def __init__(self):
-        self.frames: list[tuple[can.Message, int]] = []
-
-    def on_message_received(self, msg: can.Message) -> None:
-        self.frames.append((msg, threading.get_ident()))
-
-
 def test_direct_delivery_hands_the_frame_over_in_the_senders_thread(pair):
     sender, receiver = pair
-    recorder = Recorder()
+    recorder = FrameRecorder()
     receiver.deliver_to([recorder])
     sender.send(frame())
     (received, thread), = recorder.frames            # already there when send returns
@@ -84,7 +77,7 @@ def test_a_listener_that_raises_does_not_keep_the_frame_from_the_others(pair):
         def on_message_received(self, msg):
             raise RuntimeError("broken listener")
 
-    recorder = Recorder()
+    recorder = FrameRecorder()
     receiver.deliver_to([Broken(), recorder])
     sender.send(frame())
     assert len(recorder.frames) == 1
@@ -92,7 +85,7 @@ def test_a_listener_that_raises_does_not_keep_the_frame_from_the_others(pair):
 
 def test_stopped_delivery_queues_frames_for_recv_again(pair):
     sender, receiver = pair
-    recorder = Recorder()
+    recorder = FrameRecorder()
     receiver.deliver_to([recorder]).stop()
     sender.send(frame())
     assert recorder.frames == []
@@ -115,7 +108,7 @@ def test_python_cans_own_virtual_bus_on_the_channel_hears_and_is_heard(pair, cha
 def test_a_faulty_bus_applies_its_receive_faults_to_direct_delivery(pair):
     sender, receiver = pair
     faulty = FaultyBus(receiver, [])
-    recorder = Recorder()
+    recorder = FrameRecorder()
     try:
         assert faulty.deliver_to([recorder]) is not None
         sender.send(frame())
@@ -130,7 +123,7 @@ def test_a_faulty_bus_over_a_bus_without_direct_delivery_offers_none(channel):
     plain = can.Bus(interface="virtual", channel=channel)
     faulty = FaultyBus(plain, [])
     try:
-        assert faulty.deliver_to([Recorder()]) is None
+        assert faulty.deliver_to([FrameRecorder()]) is None
     finally:
         faulty.shutdown()
 

@@ -14,7 +14,7 @@ import pytest
 
 from hil.can.zenoh_bus import decode_frame, encode_frame
 from hil.zenoh_session import ZenohSettings, close, session
-from conftest import EDS, ROOT, free_port
+from conftest import EDS, ROOT, FrameRecorder, free_port
 
 
 @pytest.fixture
@@ -44,29 +44,15 @@ def test_frames_arrive_in_order_and_not_at_the_sender(bus_pair):
     assert a.recv(0.2) is None
 
 
-class ThreadRecorder(can.Listener):
-    """Each frame's first data byte and the thread that delivered it."""
-
-    def __init__(self, expected: int):
-        self.frames: list[tuple[int, int]] = []
-        self._expected = expected
-        self.all_in = threading.Event()
-
-    def on_message_received(self, msg: can.Message) -> None:
-        self.frames.append((msg.data[0], threading.get_ident()))
-        if len(self.frames) == self._expected:
-            self.all_in.set()
-
-
 def test_direct_delivery_calls_listeners_in_order_in_zenohs_thread_then_queues_after_stop(
         bus_pair):
     a, b = bus_pair
-    recorder = ThreadRecorder(expected=50)
+    recorder = FrameRecorder()
     delivery = b.deliver_to([recorder])
     for i in range(50):
         a.send(can.Message(arbitration_id=0x181, data=bytes([i]), is_extended_id=False))
-    assert recorder.all_in.wait(5), f"{len(recorder.frames)} of 50 frames delivered"
-    assert [value for value, _ in recorder.frames] == list(range(50))
+    assert recorder.wait_for(50, 5), f"{len(recorder.frames)} of 50 frames delivered"
+    assert [msg.data[0] for msg, _ in recorder.frames] == list(range(50))
     threads = {thread for _, thread in recorder.frames}
     assert len(threads) == 1 and threading.get_ident() not in threads
     assert b.recv(0.2) is None                       # nothing was queued besides
