@@ -10,6 +10,7 @@ import can
 import pytest
 
 from hil.can.faults import FaultyBus, FrameFault
+from hil.can.messages import data_frame
 from hil.drives.profile import start_network
 from conftest import FrameRecorder
 
@@ -51,6 +52,19 @@ def test_each_receiver_gets_its_own_copy(pair):
     received = receiver.recv(1)
     received.data[0] = 0xFF
     assert sent.data[0] == 0x27
+
+
+@pytest.mark.parametrize("arbitration_id, data, remote", [
+    (0x201, b"\x0f\x00\x10\x27\x00\x00", False), (0x1ABCDE, bytearray(b"\x01"), False),
+    (0x080, b"", False), (0x701, b"", True), (0x581, [1, 2, 3], False)])
+def test_data_frame_builds_what_the_message_constructor_builds(arbitration_id, data, remote):
+    expected = can.Message(arbitration_id=arbitration_id, data=data, is_remote_frame=remote,
+                           is_extended_id=arbitration_id > 0x7FF)
+    built = data_frame(arbitration_id, data, remote)
+    fields = [name for name in can.Message.__slots__ if name != "__weakref__"]
+    assert {name: getattr(built, name) for name in fields} == \
+        {name: getattr(expected, name) for name in fields}
+    assert (built.data is data) == (expected.data is data)     # a bytearray is not copied
 
 
 def test_a_received_copy_has_every_field_of_the_frame_it_copies(pair):
@@ -137,14 +151,18 @@ def test_a_networks_listener_feeds_subscribers_routes_rtr_and_survives_a_failing
     def broken(can_id, data, timestamp):
         raise RuntimeError("broken subscriber")
 
+    def hear(can_id, data, timestamp):
+        heard.append((can_id, bytes(data)))
+
     network.subscribe(0x181, broken)
-    network.subscribe(0x182, lambda can_id, data, timestamp: heard.append((can_id, bytes(data))))
+    network.subscribe(0x181, hear)        # after the failing one, on the same id
+    network.subscribe(0x182, hear)
     network.frame_listener.remote_handlers[0x209] = asked.append
     with caplog.at_level(logging.ERROR):
         sender.send(frame(0x181))
         sender.send(frame(0x182, b"\x01"))
         sender.send(can.Message(arbitration_id=0x209, is_remote_frame=True, dlc=8,
                                 is_extended_id=False))
-    assert heard == [(0x182, b"\x01")] and asked == [0x209]
+    assert heard == [(0x181, frame().data), (0x182, b"\x01")] and asked == [0x209]
     assert "0x181" in caplog.text and "broken subscriber" in caplog.text
     network.notifier.stop()

@@ -37,6 +37,9 @@ class DirectDelivery:
                  accept: Callable[[can.Message], can.Message | None] | None,
                  on_stop: Callable[[DirectDelivery], None]):
         self.listeners = list(listeners)
+        # each listener's own method, called straight (can.Listener.__call__ is one more
+        # Python call per frame and listener; plain callables are listeners too)
+        self._receivers = [_receiver(listener) for listener in self.listeners]
         self._accept = accept
         self._on_stop = on_stop
         self._lock = threading.RLock()
@@ -47,17 +50,23 @@ class DirectDelivery:
             if msg is None:
                 return
         with self._lock:
-            for listener in self.listeners:
+            for receive in self._receivers:
                 try:
-                    listener(msg)
+                    receive(msg)
                 except Exception:          # as python-can's Notifier: one bad listener
-                    log.exception("listener %r failed on %s", listener, msg)
+                    log.exception("listener %r failed on %s", receive, msg)
 
     def add_listener(self, listener: can.Listener) -> None:
         with self._lock:
             self.listeners.append(listener)
+            self._receivers.append(_receiver(listener))
 
     def stop(self, timeout: float | None = None) -> None:
         """Stop delivering (the bus queues its frames again); ``timeout`` as for a
         Notifier."""
         self._on_stop(self)
+
+
+def _receiver(listener: can.Listener | Callable[[can.Message], None]
+              ) -> Callable[[can.Message], None]:
+    return getattr(listener, "on_message_received", listener)

@@ -3,8 +3,9 @@
 Two differences from python-can's :class:`~can.interfaces.virtual.VirtualBus`, both
 measured in ``hil bench``:
 
-* ``send`` builds each receiver's copy of a frame field by field; python-can's goes
-  through ``copy.deepcopy``, which was half of the controller's time per cycle;
+* ``send`` builds each receiver's copy of a frame field by field
+  (:func:`hil.can.messages.received_copy`); python-can's goes through ``copy.deepcopy``,
+  which was half of the controller's time per cycle;
 * :meth:`VirtualBus.deliver_to` hands a receiver's frames to its listeners in the
   sending thread (:mod:`hil.can.delivery`), where a Notifier thread would take them from
   a queue: a lock-step cycle becomes one chain of calls instead of a thread switch per
@@ -26,6 +27,7 @@ import can
 from can.interfaces import virtual
 
 from hil.can.delivery import DirectDelivery
+from hil.can.messages import received_copy
 
 #: a receiving bus' queue -> who takes its frames directly (read without a lock in send)
 _DIRECT: dict[queue.Queue, DirectDelivery] = {}
@@ -57,7 +59,7 @@ class VirtualBus(virtual.VirtualBus):
         for bus_queue in self.channel:
             if bus_queue is self.queue and not self.receive_own_messages:
                 continue
-            copy = _received_copy(msg, timestamp, self.channel_id, bus_queue is not self.queue)
+            copy = received_copy(msg, timestamp, self.channel_id, bus_queue is not self.queue)
             direct = _DIRECT.get(bus_queue)
             if direct is not None:
                 direct.deliver(copy)
@@ -73,26 +75,3 @@ class VirtualBus(virtual.VirtualBus):
         with _DIRECT_LOCK:
             _DIRECT.pop(self.queue, None)
         super().shutdown()
-
-
-def _received_copy(msg: can.Message, timestamp: float, channel, is_rx: bool) -> can.Message:
-    """A receiver's own copy of ``msg``, slot by slot: what ``can.Message(...)`` with every
-    field as a keyword builds, in a third of its time (its keyword handling is most of it,
-    and this runs once per frame and receiver)."""
-    copy = _new_message(can.Message)
-    copy.timestamp = timestamp
-    copy.arbitration_id = msg.arbitration_id
-    copy.is_extended_id = msg.is_extended_id
-    copy.is_remote_frame = msg.is_remote_frame
-    copy.is_error_frame = msg.is_error_frame
-    copy.channel = channel
-    copy.dlc = msg.dlc
-    copy.data = bytearray(msg.data)
-    copy.is_fd = msg.is_fd
-    copy.is_rx = is_rx
-    copy.bitrate_switch = msg.bitrate_switch
-    copy.error_state_indicator = msg.error_state_indicator
-    return copy
-
-
-_new_message = can.Message.__new__
