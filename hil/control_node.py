@@ -1,7 +1,7 @@
 """The controller process: hardware interface + controllers + Zenoh, one loop.
 
 Each cycle: exchange with the hardware (setpoints out, feedback in), report
-faults to the trajectory controller (which aborts and holds), run the
+faults to the trajectory controller (which aborts and holds) and as diagnostics, run the
 controller, publish joint states, feedback and results, and record the cycle
 (published in batches as ``hil_msgs/ControlSamples``). Real-time mode paces
 the cycle (hil.realtime.CyclePacer: SCHED_FIFO where allowed) and keeps period
@@ -22,9 +22,11 @@ import zenoh
 from hil.controllers import Defaults, JointTrajectoryController
 from hil.controllers.joint_state import JointStateBroadcaster
 from hil.hardware import HardwareInterface
+from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.samples import ControlSampleBuffer
 from hil.messaging.zenoh_api import (
-    ControlSamplesPublisher, JointStatePublisher, TrajectoryActionServer, key,
+    ControlSamplesPublisher, DiagnosticsPublisher, JointStatePublisher, TrajectoryActionServer,
+    key,
 )
 from hil.realtime import REAL_TIME_PRIORITY, CyclePacer, PeriodStatistics
 
@@ -65,6 +67,7 @@ class ControlNode:
         self.samples = ControlSampleBuffer(hardware.joint_names, hardware.actuator_names,
                                            self.period, max(1, round(cycle_hz / samples_hz)))
         self.sample_publisher = ControlSamplesPublisher(session, robot.name)
+        self.diagnostics = DiagnosticsPublisher(session, robot.name)
         self._session = session
         self._token = None      # declared once the hardware follows commands
         self._every_states = max(1, round(cycle_hz / joint_state_hz))
@@ -123,6 +126,7 @@ class ControlNode:
                 for fault in faults:
                     self.faults.append(fault)
                     self.controller.abort(fault)
+                    self._diagnose("ERROR", fault)
                 if self._reset is not None:
                     self._advance_reset(faults)
                 now = self.clock()
@@ -144,6 +148,7 @@ class ControlNode:
             self.server.close()
             self.joint_states.close()
             self.sample_publisher.close()
+            self.diagnostics.close()
             if self._token is not None:
                 self._token.undeclare()
 
@@ -162,8 +167,15 @@ class ControlNode:
         elif self.hardware.ready:
             self.controller.clear_fault()
             self._finish_reset(True, "every drive follows commands again; holding position")
+            self._diagnose("OK", "fault reset: every drive follows commands again")
         elif time.monotonic() > self._reset.deadline:
             self._finish_reset(False, f"drives not back within {RESET_TIMEOUT:g} s")
+            self._diagnose("ERROR", f"fault reset failed: drives not back within "
+                                    f"{RESET_TIMEOUT:g} s")
+
+    def _diagnose(self, level: str, message: str) -> None:
+        self.diagnostics.publish(Diagnostic(level, message, time.time(), self.clock(),
+                                            hardware_id=self.hardware.robot.name))
 
     def _finish_reset(self, succeeded: bool, message: str) -> None:
         request, self._reset = self._reset, None

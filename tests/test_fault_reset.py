@@ -9,6 +9,7 @@ import pytest
 
 from hil.can.faults import FrameFault
 from hil.controllers import GoalRejected, GoalStatus
+from hil.messaging.zenoh_api import RunSubscriber
 
 
 def test_reset_brings_a_faulted_drive_back_and_goals_are_accepted_again(controlled):
@@ -71,3 +72,31 @@ def test_reset_without_a_fault_leaves_the_active_goal_running(controlled):
     assert controlled.client.reset_faults() == (True, "no fault to reset")
     result = controlled.client.wait_result(goal_id, 30)
     assert result.status is GoalStatus.SUCCEEDED, result
+
+
+def test_a_fault_and_its_reset_are_published_as_diagnostics_on_the_controllers_clock(
+        controlled):
+    heard, arrived = [], threading.Condition()
+
+    def hear(diagnostic):
+        with arrived:
+            heard.append(diagnostic)
+            arrived.notify_all()
+
+    subscriber = RunSubscriber(controlled.session, "ur3", lambda batch: None,
+                               lambda wall, sim: None, pytest.fail, hear)
+    try:
+        before = controlled.node.clock()
+        controlled.fault(2)
+        succeeded, message = controlled.client.reset_faults()
+        assert succeeded, message
+        with arrived:
+            assert arrived.wait_for(lambda: len(heard) >= 2, timeout=10), heard
+    finally:
+        subscriber.close()
+    fault, reset = heard
+    assert (fault.level, fault.message) == ("ERROR", controlled.node.faults[0])
+    assert "drive node 2 (joint2)" in fault.message and fault.hardware_id == "ur3"
+    assert before <= fault.control_time <= reset.control_time <= controlled.node.clock()
+    assert reset.level == "OK" and "every drive follows commands again" in reset.message
+

@@ -16,7 +16,7 @@ import pytest
 import rerun.chunk
 
 from hil.messaging.zenoh_api import RunSubscriber
-from hil.zenoh_session import ZenohSettings, session
+from hil.zenoh_session import ZenohSettings, close, session
 from conftest import ROOT, free_port
 
 PIGOT_CONFIG = str(ROOT / "bus_config" / "pigot.yaml")
@@ -169,6 +169,39 @@ def test_killed_up_takes_its_children_with_it(tmp_path, processes):
     for name, pid in pids.items():
         assert gone(pid), f"{name} (pid {pid}) outlived hil up"
     assert "stopped; drives disabled" in (tmp_path / "run.logs" / "control.log").read_text()
+
+
+def test_up_prints_a_fault_nobody_injected_as_it_happens_and_ends_nonzero(tmp_path, processes):
+    """Someone else on the bus stops drive 2 (NMT stop): its answers end, the controller
+    reports it silent, ``hil up`` says so and fails, and the recording has the report."""
+    up = hil("up", "pigot", "--lock-step", "--no-viewer", "--duration", "20", "--save",
+             str(tmp_path / "run.rrd"), cwd=tmp_path)
+    processes.append(up)
+    first = up.stdout.readline()
+    endpoint = re.search(r"Zenoh (tcp/\S+);", first)
+    assert endpoint, first + up.stderr.read()
+    for line in up.stdout:
+        if "control ready" in line:
+            break
+    connect = (endpoint.group(1),)
+    bus = can.Bus(interface="zenoh", channel="pigot/arm", connect=connect)
+    try:
+        for _ in range(3):          # idempotent; sent a few times so that none is left in
+            bus.send(can.Message(arbitration_id=0x000, data=[0x02, 2], is_extended_id=False))
+            time.sleep(0.2)         # Zenoh's batch when the session closes
+    finally:
+        bus.shutdown()
+        close(ZenohSettings(connect=connect))
+    out, err = up.communicate(timeout=120)
+    assert up.returncode == 1, out + err
+    assert re.search(r"hil up: control: ERROR: drive node 2 \(arm_rot_2\) on bus 'arm' is "
+                     r"silent", err), err
+    assert "the controller reported 1 fault(s)" in err
+    rows, _ = read_rrd(tmp_path / "run.rrd")
+    assert rows["/diagnostics"] == 1
+    # the others ran on at speed once drive 2 was known silent (each cycle would otherwise
+    # wait the whole 2 s lock-step reply timeout for it)
+    assert rows["/axes/arm_rot_1/position"] > 1000
 
 
 def test_up_with_a_bad_config_says_so_and_starts_nothing(tmp_path):

@@ -15,6 +15,8 @@ from hil.can.monitor import BusLoadMeter
 from hil.controllers.demo import demo_goal
 from hil.description.source import read_robot_source
 from hil.hardware import JointFeedback
+from hil.messaging import types as T
+from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.samples import ControlSampleBuffer, ControlSamples
 from hil.visualisation import RunRecorder, SimTimeMap
 from conftest import PIGOT_XACRO, ROOT, UR3_XACRO
@@ -65,6 +67,30 @@ def test_malformed_control_samples_are_refused_with_the_field_named():
     short = ControlSamples(**{**batch.__dict__, "position": batch.position[:2]})
     with pytest.raises(ValueError, match="'position' has 4 values, 3 cycles x 2 expected"):
         ControlSamples.decode(short.encode())
+
+
+def test_diagnostics_survive_encoding_and_malformed_ones_are_refused_naming_what():
+    fault = Diagnostic("ERROR", "drive node 2 (joint2) on bus 'arm' is in FAULT", 1.7e9 + 0.25,
+                       12.5, hardware_id="ur3")
+    assert Diagnostic.decode(fault.encode()) == [fault]
+    foreign = Diagnostic("WARN", "from a ROS node", 1.7e9, None, name="other")
+    assert Diagnostic.decode(foreign.encode()) == [foreign]      # no controller clock
+    with pytest.raises(ValueError, match="malformed diagnostic_msgs"):
+        Diagnostic.decode(fault.encode()[:-5])
+
+    def status(level: int, control_time: str):
+        return T.msg(T.DIAGNOSTIC_STATUS, level=level, name="hil control", message="m",
+                     hardware_id="", values=[T.msg("diagnostic_msgs/msg/KeyValue",
+                                                   key="control_time", value=control_time)])
+
+    def array(*statuses):
+        return T.encode(T.msg(T.DIAGNOSTIC_ARRAY, header=T.header(0.0), status=list(statuses)))
+
+    with pytest.raises(ValueError, match="level 7 of 'hil control'"):
+        Diagnostic.decode(array(status(7, "1.0")))
+    for bad in ("soon", "nan"):
+        with pytest.raises(ValueError, match=f"control_time '{bad}' of 'hil control' is not"):
+            Diagnostic.decode(array(status(2, "1.0"), status(2, bad)))
 
 
 def test_sample_buffer_reuses_its_arrays_and_starts_each_batch_at_its_first_cycle():
@@ -129,6 +155,10 @@ def recorded(tmp_path, pigot, package_path):
     for index, batch in enumerate(batches):
         if index != 2:                       # batch 2 never arrives
             recorder.log_samples(batch)
+    fault_at = batches[1].wall_time[5], batches[1].control_time[5]
+    recorder.log_diagnostic(Diagnostic("ERROR", "drive node 2 (arm_rot_2) is in FAULT",
+                                       *fault_at))
+    recorder.log_diagnostic(Diagnostic("OK", "fault reset", fault_at[0] + 1, None))
     recording.flush()
     recording.disconnect()
     rows = collections.Counter()
@@ -165,6 +195,20 @@ def test_recorder_logs_drive_states_only_when_they_change(recorded):
               for s in b.column(b.schema.names[-1]).to_pylist()]
     assert [s[0] if isinstance(s, list) else s for s in states] == [
         "SWITCHED ON", "OPERATION ENABLED"]
+
+
+def test_recorder_puts_diagnostics_on_the_timelines_with_their_level(recorded):
+    _, _, rows, values, _ = recorded
+    assert rows["/diagnostics"] == 2
+    batches = values["/diagnostics"]
+    logged = [(b.column("TextLog:text").to_pylist(), b.column("TextLog:level").to_pylist())
+              for b in batches]
+    assert logged == [([["drive node 2 (arm_rot_2) is in FAULT"]], [["ERROR"]]),
+                      ([["fault reset"]], [["INFO"]])]
+    control_time = batches[0].column("control_time").to_pylist()[0]
+    assert control_time.total_seconds() == pytest.approx(31 * 0.002)     # cycle 31
+    assert "control_time" not in batches[1].schema.names    # the reset did not say its time
+    assert all({"wall_time", "sim_time"} <= set(b.schema.names) for b in batches)
 
 
 def test_recorder_poses_the_3d_robot_including_its_mimic_joint(recorded):

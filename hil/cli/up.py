@@ -6,7 +6,8 @@ Zenoh liveliness token. ``hil up`` then optionally runs a demo goal, shows
 progress, and stops everything in a known order: controller first (goal
 aborted, drives disabled), then the visualiser (recording flushed), then the
 sim. A child that dies early ends the run with status 1 and its last log
-lines. Children run in their own session, so Ctrl-C reaches ``hil up`` only,
+lines. The controller's faults (its diagnostics) are printed as they happen and, unless
+``--fault`` injected them, end the run with status 1 too. Children run in their own session, so Ctrl-C reaches ``hil up`` only,
 and they stop themselves if ``hil up`` is killed.
 """
 
@@ -32,6 +33,7 @@ from hil.controllers.demo import demo_goal
 from hil.can.faults import ProcessFault, parse_fault
 from hil.description import project_robots_dir
 from hil.errors import HilError
+from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import (
     ControllerGone, ProcessWatch, RunSubscriber, TrajectoryActionClient,
@@ -212,7 +214,8 @@ def run(args: argparse.Namespace) -> int:
           f"process logs in {logs}/", flush=True)
     zenoh = ZenohSettings(connect=(endpoint,))
     status = 0
-    watch = None
+    watch = subscriber = None
+    progress = Progress()
     try:
         # the visualiser starts before the controller: its start-up (rerun, the robot model)
         # is CPU-heavy, and must not starve the first real-time cycles
@@ -222,6 +225,9 @@ def run(args: argparse.Namespace) -> int:
             supervised.children.append(child)
             if watch is None:          # the sim listens on the endpoint: now it can be reached
                 watch = ProcessWatch(session(zenoh), robot)
+                subscriber = RunSubscriber(session(zenoh), robot, progress.on_samples,
+                                           lambda wall, sim: None, progress.problems.append,
+                                           progress.on_diagnostic)
             _wait_alive(supervised, watch, child)
             if stop.is_set():
                 break
@@ -229,7 +235,7 @@ def run(args: argparse.Namespace) -> int:
             for kill in kills:
                 threading.Thread(target=_kill_later, args=(children[kill.process], kill.at,
                                                            stop), daemon=True).start()
-            status = _supervise(args, config, supervised, zenoh)
+            status = _supervise(args, config, supervised, zenoh, progress)
     except ChildFailed as exc:
         print(f"hil up: {exc}", file=sys.stderr, flush=True)
         status = 1
@@ -241,12 +247,19 @@ def run(args: argparse.Namespace) -> int:
         problems = supervised.shut_down()
         if watch is not None:
             watch.close()
+        if subscriber is not None:
+            subscriber.close()
         close_all()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-    for problem in problems:
+    for problem in progress.problems[:5] + problems:
         print(f"hil up: {problem}", file=sys.stderr)
     if problems and status == 0:
+        status = 1
+    reported = progress.faults()
+    if reported and status == 0 and not args.fault:
+        print(f"hil up: the controller reported {reported} fault(s), above; the drives were "
+              f"stopped (the whole story: {logs / 'control.log'})", file=sys.stderr)
         status = 1
     _report_outputs(save, can_log, children["viz"])
     return status
@@ -314,10 +327,14 @@ def _wait_alive(run: Run, watch: ProcessWatch, child: Child) -> None:
 
 
 class Progress:
-    """Follows the recorded cycles: how many, and the largest tracking error."""
+    """Follows the run: the recorded cycles (how many, the largest tracking error) and the
+    controller's diagnostics, printed as they come."""
 
     def __init__(self):
         self.lock = threading.Lock()
+        self.diagnostics: list[Diagnostic] = []
+        #: malformed payloads, as RunSubscriber words them
+        self.problems: list[str] = []
         self.cycles = 0
         self.control_time = 0.0
         self.positions: np.ndarray | None = None
@@ -334,6 +351,17 @@ class Progress:
             if len(errors) and errors.max() > self.worst[0]:
                 self.worst = (float(errors.max()), batch.joint_names[int(errors.argmax())])
 
+    def on_diagnostic(self, diagnostic: Diagnostic) -> None:
+        with self.lock:
+            self.diagnostics.append(diagnostic)
+        print(f"hil up: control: {diagnostic.level}: {diagnostic.message}", file=sys.stderr,
+              flush=True)
+
+    def faults(self) -> int:
+        """How many faults (ERROR diagnostics) the controller reported."""
+        with self.lock:
+            return sum(d.level == "ERROR" for d in self.diagnostics)
+
     def line(self) -> str:
         with self.lock:
             worst, self.worst = self.worst, (0.0, "")
@@ -344,29 +372,21 @@ class Progress:
                     f"({worst[1] or '-'})")
 
 
-def _supervise(args, config: SystemConfig, run: Run, zenoh: ZenohSettings) -> int:
-    progress = Progress()
-    problems: list[str] = []
-    samples = RunSubscriber(session(zenoh), config.robot.name, progress.on_samples,
-                            lambda wall, sim: None, problems.append)
-    try:
-        if not args.demo:
-            limit = args.duration if args.duration is not None else float("inf")
-            started = time.monotonic()
-            while not run.stop.is_set() and time.monotonic() - started < limit:
-                run.wait(min(1.0, limit - (time.monotonic() - started)))
-                print(f"  [{time.monotonic() - started:6.1f} s]  {progress.line()}", flush=True)
-            return 0
-        status = _demo(config, run, zenoh, progress)
-        if args.keep_running and status == 0:
-            print("hil up: demo done; running until Ctrl-C", flush=True)
-            while not run.stop.is_set():
-                run.wait(1.0)
-        return status
-    finally:
-        samples.close()
-        for problem in problems[:5]:
-            print(f"hil up: {problem}", file=sys.stderr)
+def _supervise(args, config: SystemConfig, run: Run, zenoh: ZenohSettings,
+               progress: Progress) -> int:
+    if not args.demo:
+        limit = args.duration if args.duration is not None else float("inf")
+        started = time.monotonic()
+        while not run.stop.is_set() and time.monotonic() - started < limit:
+            run.wait(min(1.0, limit - (time.monotonic() - started)))
+            print(f"  [{time.monotonic() - started:6.1f} s]  {progress.line()}", flush=True)
+        return 0
+    status = _demo(config, run, zenoh, progress)
+    if args.keep_running and status == 0:
+        print("hil up: demo done; running until Ctrl-C", flush=True)
+        while not run.stop.is_set():
+            run.wait(1.0)
+    return status
 
 
 def _demo(config: SystemConfig, run: Run, zenoh: ZenohSettings, progress: Progress) -> int:

@@ -194,18 +194,26 @@ class CanHardwareInterface(HardwareInterface):
                 network.send_message(can_id, data, remote)
         for name in self._sync_buses:
             self._networks[name].send_message(SYNC_ID, b"")
-        self._await_feedback()
+        self._await_feedback(skip_silent=watch)
         if watch:
             self._watch()
         if self._recovering and not self._stopping and all(a.enabled for a in self.axes):
             self._recovering = False
         return self._joint_feedback()
 
-    def _await_feedback(self) -> None:
-        """Wait (up to the reply timeout) until every axis' answer of this cycle is in."""
+    def _await_feedback(self, skip_silent: bool) -> None:
+        """Wait (up to the reply timeout) until every axis' answer of this cycle is in.
+
+        With ``skip_silent``, axes already past the missed-answer limit (reported silent) are
+        not waited for while any other axis answers: in lock-step a dead drive would hold every
+        cycle of the others for the whole timeout (2 s), and their stop with it."""
+        awaited = self.axes
+        if skip_silent:
+            awaited = [a for a in self.axes
+                       if self._cycle - 1 - a.feedback.cycle <= MISSED_ANSWER_LIMIT] or self.axes
         with self._arrived:
             self._arrived.wait_for(
-                lambda: all(a.feedback.cycle == self._cycle for a in self.axes),
+                lambda: all(a.feedback.cycle == self._cycle for a in awaited),
                 timeout=self.reply_timeout)
 
     def _on_feedback(self) -> None:

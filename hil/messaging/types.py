@@ -87,6 +87,8 @@ GOAL_RESULT = "hil_msgs/msg/GoalResult"
 CONTROL_SAMPLES = "hil_msgs/msg/ControlSamples"
 TRIGGER_RESPONSE = "std_srvs/srv/msg/Trigger_Response"
 SIM_CLOCK = "hil_msgs/msg/SimClock"
+DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
+DIAGNOSTIC_STATUS = "diagnostic_msgs/msg/DiagnosticStatus"
 
 
 def msg(typename: str, **fields):

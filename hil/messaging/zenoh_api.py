@@ -13,6 +13,9 @@ Keys, all under ``hil/<robot>/``:
 ``control/samples``                                    publication, hil_msgs/ControlSamples: every
                                                        control cycle, in batches (10 Hz)
 ``sim/clock``                                          publication, hil_msgs/SimClock (20 Hz)
+``diagnostics``                                        publication, diagnostic_msgs/DiagnosticArray:
+                                                       the controller's faults (ERROR) and
+                                                       fault resets (OK), as they happen
 ``reset_faults``                                       query (no payload) -> std_srvs/Trigger response:
                                                        reset drive faults, hold, accept goals again
 ``control``, ``sim``, ``viz``                          liveliness tokens of the processes
@@ -29,6 +32,7 @@ import threading
 import time
 import uuid
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import zenoh
@@ -37,6 +41,7 @@ from hil.controllers import (
     GoalRejected, GoalResult, GoalStatus, JointTrajectoryController, TrajectoryGoal,
 )
 from hil.messaging import types as T
+from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.samples import ControlSamples
 
 ACTION = "follow_joint_trajectory/_action"
@@ -199,40 +204,55 @@ class SimClockPublisher:
         self._publisher.undeclare()
 
 
+class DiagnosticsPublisher:
+    """Publishes diagnostic_msgs/DiagnosticArray on ``hil/<robot>/diagnostics``."""
+
+    def __init__(self, session: zenoh.Session, robot: str):
+        # BLOCK: a fault report must not be dropped under load
+        self._publisher = session.declare_publisher(
+            key(robot, "diagnostics"), congestion_control=zenoh.CongestionControl.BLOCK)
+
+    def publish(self, diagnostic: Diagnostic) -> None:
+        self._publisher.put(diagnostic.encode())
+
+    def close(self) -> None:
+        self._publisher.undeclare()
+
+
 class RunSubscriber:
-    """Receives a robot's recorded cycles and sim clock; malformed payloads are counted
-    and reported (key and reason) through ``on_error``, never passed on."""
+    """Receives a robot's recorded cycles, sim clock and (given ``on_diagnostic``) the
+    controller's diagnostics; malformed payloads are counted and reported (key and reason)
+    through ``on_error``, never passed on."""
 
     def __init__(self, session: zenoh.Session, robot: str,
                  on_samples: Callable[[ControlSamples], None],
                  on_clock: Callable[[float, float], None],
-                 on_error: Callable[[str], None]):
+                 on_error: Callable[[str], None],
+                 on_diagnostic: Callable[[Diagnostic], None] | None = None):
         self.malformed = 0
-        self._on_samples, self._on_clock, self._on_error = on_samples, on_clock, on_error
-        self._subscribers = [
-            session.declare_subscriber(key(robot, "control/samples"), self._samples),
-            session.declare_subscriber(key(robot, "sim/clock"), self._clock),
-        ]
+        self._on_error = on_error
+        self._subscribers: list[zenoh.Subscriber] = []
+        self._subscribe(session, key(robot, "control/samples"), ControlSamples.decode,
+                        on_samples)
+        self._subscribe(session, key(robot, "sim/clock"),
+                        lambda data: T.decode(data, T.SIM_CLOCK),
+                        lambda clock: on_clock(clock.wall_time, clock.sim_time))
+        if on_diagnostic is not None:
+            self._subscribe(session, key(robot, "diagnostics"), Diagnostic.decode,
+                            lambda diagnostics: [on_diagnostic(d) for d in diagnostics])
 
-    def _samples(self, sample: zenoh.Sample) -> None:
-        try:
-            batch = ControlSamples.decode(sample.payload.to_bytes())
-        except ValueError as exc:
-            self._malformed(sample, exc)
-            return
-        self._on_samples(batch)
+    def _subscribe(self, session: zenoh.Session, key_expr: str,
+                   decode: Callable[[bytes], Any], deliver: Callable[[Any], Any]) -> None:
+        def on_sample(sample: zenoh.Sample) -> None:
+            try:
+                decoded = decode(sample.payload.to_bytes())
+            except ValueError as exc:
+                self.malformed += 1
+                self._on_error(f"{sample.key_expr}: dropped a malformed payload: {exc}")
+                return
+            deliver(decoded)
 
-    def _clock(self, sample: zenoh.Sample) -> None:
-        try:
-            clock = T.decode(sample.payload.to_bytes(), T.SIM_CLOCK)
-        except ValueError as exc:
-            self._malformed(sample, exc)
-            return
-        self._on_clock(clock.wall_time, clock.sim_time)
-
-    def _malformed(self, sample: zenoh.Sample, exc: ValueError) -> None:
-        self.malformed += 1
-        self._on_error(f"{sample.key_expr}: dropped a malformed payload: {exc}")
+        self._subscribers.append(session.declare_subscriber(key_expr, on_sample))
 
     def close(self) -> None:
         for subscriber in self._subscribers:

@@ -16,13 +16,15 @@ import numpy as np
 import zenoh
 
 from hil.can.monitor import BusMonitor
+from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import RunSubscriber, key
 from hil.visualisation.recorder import RunRecorder
 
 
 class VizNode:
-    """Logs a robot's run (control samples, sim clock, bus load) until :meth:`stop`."""
+    """Logs a robot's run (control samples, sim clock, diagnostics, bus load) until
+    :meth:`stop`."""
 
     def __init__(self, recorder: RunRecorder, session: zenoh.Session, robot: str,
                  monitor: BusMonitor | None = None, bus_load_hz: float = 10.0):
@@ -38,7 +40,7 @@ class VizNode:
         self._errors = 0
         self.subscriber = RunSubscriber(session, robot, self._queue.put,
                                         lambda wall, sim: self._queue.put((wall, sim)),
-                                        self._report)
+                                        self._report, self._queue.put)
 
     def _report(self, text: str) -> None:
         self._errors += 1
@@ -78,6 +80,8 @@ class VizNode:
             self.processing.append(time.perf_counter() - started)
             self.lags.append(time.time() - item.wall_time[-1])
             self.batches += 1
+        elif isinstance(item, Diagnostic):
+            self.recorder.log_diagnostic(item)
         else:
             self.recorder.log_clock(*item)
 

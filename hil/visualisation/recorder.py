@@ -13,6 +13,7 @@ for all of them 1-3 ms per batch):
 ``drives/<actuator>/torque``            motor torque as the drive reports it
 ``drives/<actuator>/state``             the drive's state (StateChange, on change)
 ``bus/<bus>/load``                      measured bus load, % of the bitrate
+``diagnostics``                         the controller's faults and resets (TextLog)
 ``robot/...``, ``joints/<joint>``       the URDF (rerun's loader) and joint transforms
 ======================================  ==============================================
 
@@ -34,11 +35,15 @@ from rerun.urdf import UrdfTree
 
 from hil.can.monitor import MeasuredLoad
 from hil.description import RobotDescription
+from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.samples import ControlSamples
 from hil.visualisation.blueprint import run_blueprint
 
 #: the 3D robot is posed at most this often (Hz): the eye needs no more
 POSE_RATE = 30.0
+#: diagnostic levels as rerun's text log levels
+_TEXT_LOG_LEVELS = {"OK": rr.TextLogLevel.INFO, "WARN": rr.TextLogLevel.WARN,
+                    "ERROR": rr.TextLogLevel.ERROR, "STALE": rr.TextLogLevel.WARN}
 
 
 class SimTimeMap:
@@ -145,6 +150,15 @@ class RunRecorder:
         for k, actuator in enumerate(batch.actuator_names):
             self._log_state_changes(actuator, batch, k, times)
         self._log_pose(batch, times)
+
+    def log_diagnostic(self, diagnostic: Diagnostic) -> None:
+        """A fault (ERROR) or reset (OK) on the timelines, at the time the controller saw it."""
+        control = None if diagnostic.control_time is None else np.array([diagnostic.control_time])
+        times = self._times(np.array([diagnostic.wall_time]), control)
+        self.recording.send_columns(
+            "diagnostics", indexes=times.columns(),
+            columns=rr.TextLog.columns(text=[diagnostic.message],
+                                       level=[_TEXT_LOG_LEVELS[diagnostic.level]]))
 
     def log_bus_load(self, wall_time: float, loads: list[MeasuredLoad]) -> None:
         table = _ScalarTable(self._times(np.array([wall_time])))

@@ -1,0 +1,70 @@
+"""What the controller reports about the drives, as ROS 2 diagnostics.
+
+A fault the control loop sees (a silent drive, a drive in FAULT, a quick stop of its own)
+aborts the active goal with the reason; with no goal active it would reach only the
+controller's log. Each one is also published on ``hil/<robot>/diagnostics`` as a
+diagnostic_msgs/DiagnosticArray (level ERROR), and a fault reset that brings every drive
+back as level OK, so that ``hil up`` prints them as they happen and ``hil viz`` puts them
+on the recording's timelines.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from hil.messaging import types as T
+
+#: DiagnosticStatus.level, by value
+LEVELS = ("OK", "WARN", "ERROR", "STALE")
+#: the KeyValue that carries the controller's clock (lock-step runs faster than the wall)
+CONTROL_TIME = "control_time"
+
+
+@dataclass(frozen=True)
+class Diagnostic:
+    """One report: ``level`` one of :data:`LEVELS`; ``control_time`` the controller's clock
+    (None from a publisher that does not say)."""
+
+    level: str
+    message: str
+    wall_time: float                 # s since the epoch
+    control_time: float | None
+    name: str = "hil control"
+    hardware_id: str = ""            # the robot
+
+    def encode(self) -> bytes:
+        values = [] if self.control_time is None else [
+            T.msg("diagnostic_msgs/msg/KeyValue", key=CONTROL_TIME, value=repr(self.control_time))]
+        status = T.msg(T.DIAGNOSTIC_STATUS, level=LEVELS.index(self.level), name=self.name,
+                       message=self.message, hardware_id=self.hardware_id, values=values)
+        return T.encode(T.msg(T.DIAGNOSTIC_ARRAY, header=T.header(self.wall_time),
+                              status=[status]))
+
+    @classmethod
+    def decode(cls, data: bytes) -> list[Diagnostic]:
+        """Every status of a DiagnosticArray; raise ValueError naming what is wrong."""
+        message = T.decode(data, T.DIAGNOSTIC_ARRAY)
+        wall_time = T.seconds_of(message.header.stamp)
+        found = []
+        for status in message.status:
+            if not 0 <= status.level < len(LEVELS):
+                raise ValueError(f"malformed {T.DIAGNOSTIC_ARRAY}: level {status.level} of "
+                                 f"'{status.name}' (0-{len(LEVELS) - 1} exist)")
+            found.append(cls(LEVELS[status.level], status.message, wall_time,
+                             _control_time(status), status.name, status.hardware_id))
+        return found
+
+
+def _control_time(status) -> float | None:
+    for pair in status.values:
+        if pair.key == CONTROL_TIME:
+            try:
+                value = float(pair.value)
+            except ValueError:
+                value = math.nan
+            if not math.isfinite(value):
+                raise ValueError(f"malformed {T.DIAGNOSTIC_ARRAY}: {CONTROL_TIME} "
+                                 f"'{pair.value}' of '{status.name}' is not a finite number")
+            return value
+    return None
