@@ -6,9 +6,10 @@ Zenoh liveliness token. ``hil up`` then optionally runs a demo goal, shows
 progress, and stops everything in a known order: controller first (goal
 aborted, drives disabled), then the visualiser (recording flushed), then the
 sim. A child that dies early ends the run with status 1 and its last log
-lines. The controller's faults (its diagnostics) are printed as they happen and, unless
-``--fault`` injected them, end the run with status 1 too. Children run in their own session, so Ctrl-C reaches ``hil up`` only,
-and they stop themselves if ``hil up`` is killed.
+lines. The controller's faults (its diagnostics) are printed as they happen
+and, unless ``--fault`` injected them, end the run with status 1 too.
+Children run in their own session, so Ctrl-C reaches ``hil up`` only, and
+they stop themselves if ``hil up`` is killed.
 """
 
 from __future__ import annotations
