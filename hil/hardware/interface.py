@@ -208,9 +208,9 @@ class CanHardwareInterface(HardwareInterface):
         not waited for while any other axis answers: in lock-step a dead drive would hold every
         cycle of the others for the whole timeout (2 s), and their stop with it."""
         awaited = self.axes
-        if skip_silent:
-            awaited = [a for a in self.axes
-                       if self._cycle - 1 - a.feedback.cycle <= MISSED_ANSWER_LIMIT] or self.axes
+        if skip_silent:      # silent as of the last cycle's watch
+            awaited = [a for a in self.axes if not _missed_too_many(a, self._cycle - 1)] \
+                or self.axes
         with self._arrived:
             self._arrived.wait_for(
                 lambda: all(a.feedback.cycle == self._cycle for a in awaited),
@@ -244,7 +244,7 @@ class CanHardwareInterface(HardwareInterface):
             if silence > max(axis.silence_limit, self._answer_silence_limit):
                 problems.append(("heartbeat", f"{axis.label} is silent: not heard for "
                                               f"{silence * 1e3:.0f} ms"))
-            if self._cycle - axis.feedback.cycle > MISSED_ANSWER_LIMIT:
+            if _missed_too_many(axis, self._cycle):
                 problems.append(("answer", f"{axis.label} is silent: no answer for "
                                            f"{self._cycle - axis.feedback.cycle} cycles"))
             for what, problem in problems:
@@ -298,3 +298,9 @@ class CanHardwareInterface(HardwareInterface):
             self._networks[bus].send_message(can_id, data, remote)
         except can.CanError:
             pass
+
+
+def _missed_too_many(axis: Axis, cycle: int) -> bool:
+    """Whether ``axis`` has missed more than MISSED_ANSWER_LIMIT answers by ``cycle``: the
+    watch reports it silent, and the cycles after that do not wait for it."""
+    return cycle - axis.feedback.cycle > MISSED_ANSWER_LIMIT

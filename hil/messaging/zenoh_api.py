@@ -238,8 +238,11 @@ class RunSubscriber:
                         lambda data: T.decode(data, T.SIM_CLOCK),
                         lambda clock: on_clock(clock.wall_time, clock.sim_time))
         if on_diagnostic is not None:
-            self._subscribe(session, key(robot, "diagnostics"), Diagnostic.decode,
-                            lambda diagnostics: [on_diagnostic(d) for d in diagnostics])
+            def each(diagnostics: list[Diagnostic]) -> None:
+                for diagnostic in diagnostics:
+                    on_diagnostic(diagnostic)
+
+            self._subscribe(session, key(robot, "diagnostics"), Diagnostic.decode, each)
 
     def _subscribe(self, session: zenoh.Session, key_expr: str,
                    decode: Callable[[bytes], Any], deliver: Callable[[Any], Any]) -> None:
