@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 from hil.bench import FIGURES, ROBOTS, RATES
+from hil.realtime import CyclePacer
 
 
 def test_quick_bench_reports_every_figure(tmp_path):
@@ -41,8 +42,13 @@ def test_quick_bench_reports_every_figure(tmp_path):
         assert row["result"] == "succeeded"
         assert 0 < row["ideal_servo_rms"] and 0 < row["rms"] < 0.05
     for row in report["bus_load"]:
-        # measured worst-case stuffing never exceeds the config's worst-case estimate
-        assert 0 < row["measured_load_worst_stuffing"] <= row["estimated_load_worst"] * 1.02
+        # measured worst-case stuffing never exceeds the config's worst-case estimate, but
+        # for the cycles a master late at the window's start runs back to back inside it (up
+        # to CyclePacer.RESYNC, then one at the edge): those frames are on the bus then
+        window_cycles = row["rate_hz"] * report["settings"]["seconds"]
+        catch_up = 1 + (CyclePacer.RESYNC + 1) / window_cycles
+        assert 0 < row["measured_load_worst_stuffing"] <= \
+            row["estimated_load_worst"] * catch_up, row
     assert len(report["fault_detection"]) == 5
     for row in report["fault_detection"]:
         assert row["detected"] and 0 < row["detection_ms"] < 1000, row
