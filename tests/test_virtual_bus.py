@@ -84,6 +84,33 @@ def test_a_received_copy_has_every_field_of_the_frame_it_copies(pair):
     assert received.is_rx and received.channel == sender.channel_id
 
 
+def test_stopping_direct_delivery_waits_for_a_frame_in_progress_and_delivers_no_more(pair):
+    sender, receiver = pair
+    inside, release = threading.Event(), threading.Event()
+    heard = []
+
+    class Slow(can.Listener):
+        def on_message_received(self, msg):
+            heard.append(msg.data[0])
+            inside.set()
+            release.wait(5)
+
+    delivery = receiver.deliver_to([Slow()])
+    sending = threading.Thread(target=sender.send, args=(frame(data=b"\x01"),))
+    sending.start()
+    assert inside.wait(5)
+    stopping = threading.Thread(target=delivery.stop)
+    stopping.start()
+    stopping.join(0.3)
+    assert stopping.is_alive()              # still waiting for the frame being delivered
+    release.set()
+    stopping.join(5)
+    sending.join(5)
+    assert not stopping.is_alive()
+    delivery.deliver(frame(data=b"\x02"))   # a frame that slipped past the bus' check
+    assert heard == [1]
+
+
 def test_a_listener_that_raises_does_not_keep_the_frame_from_the_others(pair):
     sender, receiver = pair
 

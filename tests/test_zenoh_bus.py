@@ -44,6 +44,39 @@ def test_frames_arrive_in_order_and_not_at_the_sender(bus_pair):
     assert a.recv(0.2) is None
 
 
+def test_shutting_down_while_another_thread_sends_refuses_its_later_frames_cleanly(endpoint):
+    """zenoh refuses to undeclare a publisher another thread is putting on ("Already
+    borrowed"): shutdown waits for the put, and a send after it is a CanOperationError."""
+    bus = can.Bus(interface="zenoh", channel=f"test/{time.monotonic_ns()}", listen=[endpoint])
+    errors: list[BaseException] = []
+    started = threading.Event()
+
+    def send_until_refused():
+        frame = can.Message(arbitration_id=0x701, data=b"\x05", is_extended_id=False)
+        deadline = time.monotonic() + 10
+        try:
+            while time.monotonic() < deadline:
+                bus.send(frame)
+                started.set()
+            errors.append(AssertionError("sends after shutdown were not refused"))
+        except can.CanOperationError:
+            return
+        except BaseException as exc:       # anything else is the bug
+            errors.append(exc)
+        started.set()
+
+    sender = threading.Thread(target=send_until_refused)
+    sender.start()
+    try:
+        assert started.wait(5)
+        bus.shutdown()
+    finally:
+        sender.join(15)
+    assert not sender.is_alive() and errors == []
+    with pytest.raises(can.CanOperationError, match="shut down"):
+        bus.send(can.Message(arbitration_id=0x701, data=b"\x05", is_extended_id=False))
+
+
 def test_direct_delivery_calls_listeners_in_order_in_zenohs_thread_then_queues_after_stop(
         bus_pair):
     a, b = bus_pair

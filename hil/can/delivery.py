@@ -26,7 +26,8 @@ class DirectDelivery:
     One frame at a time, as a Notifier thread would have it; the lock is re-entrant so that
     a listener may send frames that come back to this bus. A listener that raises is logged
     and the others still get the frame. ``on_stop`` is the bus' own: from then on it queues
-    its frames for ``recv`` again.
+    its frames for ``recv`` again. Once :meth:`stop` returns no listener runs any more, as
+    once a Notifier's thread is joined.
     """
 
     #: as ``can.Notifier.exception`` (canopen checks it after each send): listener errors
@@ -43,6 +44,7 @@ class DirectDelivery:
         self._accept = accept
         self._on_stop = on_stop
         self._lock = threading.RLock()
+        self._stopped = False
 
     def deliver(self, msg: can.Message) -> None:
         if self._accept is not None:
@@ -50,6 +52,8 @@ class DirectDelivery:
             if msg is None:
                 return
         with self._lock:
+            if self._stopped:           # it came in while stop() waited for the lock
+                return
             for receive in self._receivers:
                 try:
                     receive(msg)
@@ -61,10 +65,14 @@ class DirectDelivery:
             self.listeners.append(listener)
             self._receivers.append(_receiver(listener))
 
-    def stop(self, timeout: float | None = None) -> None:
-        """Stop delivering (the bus queues its frames again); ``timeout`` as for a
-        Notifier."""
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stop delivering (the bus queues its frames again), after a delivery in progress
+        in another thread; ``timeout`` (s) as for a Notifier: how long to wait for it."""
         self._on_stop(self)
+        acquired = self._lock.acquire(timeout=timeout)
+        self._stopped = True
+        if acquired:
+            self._lock.release()
 
 
 def _receiver(listener: can.Listener | Callable[[can.Message], None]

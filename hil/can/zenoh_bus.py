@@ -28,6 +28,7 @@ import os
 import queue
 import random
 import struct
+import threading
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -84,6 +85,7 @@ class ZenohBus(can.BusABC):
         self._sender = random.getrandbits(63) ^ os.getpid()
         self._queue: queue.SimpleQueue[can.Message] = queue.SimpleQueue()
         self._direct: DirectDelivery | None = None
+        self._send_lock = threading.Lock()
         self._malformed = 0
         settings = ZenohSettings(tuple(listen), tuple(connect),
                                  Path(zenoh_config) if zenoh_config else None)
@@ -128,7 +130,10 @@ class ZenohBus(can.BusABC):
             self._direct = None
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        self._publisher.put(encode_frame(self._sender, msg))
+        with self._send_lock:
+            if self._is_shutdown:
+                raise can.CanOperationError(f"{self.channel_info}: the bus is shut down")
+            self._publisher.put(encode_frame(self._sender, msg))
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         try:
@@ -139,6 +144,9 @@ class ZenohBus(can.BusABC):
     def shutdown(self) -> None:
         if self._is_shutdown:
             return
-        super().shutdown()
-        self._subscriber.undeclare()
-        self._publisher.undeclare()
+        super().shutdown()        # stops the periodic tasks (they send through send())
+        # a put still running in another thread (a listener's answer, a heartbeat) ends
+        # first: zenoh refuses to undeclare a publisher in use ("Already borrowed")
+        with self._send_lock:
+            self._subscriber.undeclare()
+            self._publisher.undeclare()
