@@ -74,7 +74,11 @@ def drive_parameters(drive: DriveConfig, motor_inertia: float) -> DriveParameter
         following_error_timeout=drive.following_error_timeout,
         quick_stop_deceleration=drive.quick_stop_deceleration,
         watchdog_timeout=drive.watchdog_timeout, position_limits=drive.position_limits,
-        holding_brake=drive.holding_brake)
+        holding_brake=drive.holding_brake,
+        # profile moves (CiA 402 profile modes) until a master sets its own
+        profile_velocity=drive.max_velocity / 4,
+        profile_acceleration=drive.quick_stop_deceleration / 4,
+        profile_deceleration=drive.quick_stop_deceleration / 4)
 
 
 def motor_inertias(plant: Plant) -> dict[str, float]:

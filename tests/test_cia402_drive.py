@@ -18,6 +18,7 @@ import pytest
 
 from conftest import EDS
 
+from hil.drives.cia402_state import SUPPORTED_MODES
 from hil.drives.core import Fault
 
 CYCLE = 0.01          # the fixture config's 100 Hz SYNC
@@ -92,10 +93,11 @@ def test_statusword_and_mode_over_sdo_match_the_pdo(bench):
     node = enable_csp(bench)
     assert node.sdo[0x6041].raw & 0x6F == 0x27
     assert node.sdo[0x6061].raw == 8
-    assert node.sdo[0x6502].raw == 0x380
+    assert node.sdo[0x6502].raw == SUPPORTED_MODES == 0x3A5     # PP, PV, HM, CSP, CSV, CST
     assert node.sdo[0x608F][1].raw == COUNTS
-    with pytest.raises(Exception):               # unsupported mode: SDO abort
-        node.sdo[0x6060].raw = 1
+    with pytest.raises(canopen.SdoAbortedError) as refused:     # interpolated position
+        node.sdo[0x6060].raw = 7
+    assert refused.value.code == 0x06090030
 
 
 def test_silent_controller_trips_the_watchdog_into_quick_stop_with_emcy(bench):

@@ -141,7 +141,7 @@ def test_fault_reset_needs_a_rising_edge():
     (State.SWITCHED_ON, 0x23), (State.OPERATION_ENABLED, 0x27),
     (State.QUICK_STOP_ACTIVE, 0x07), (State.FAULT, 0x08)])
 def test_statusword_matches_cia402_masks(state, value):
-    word = statusword(state, DriveCore(parameters()).status())
+    word = statusword(state, DriveCore(parameters()).status(), 0)
     mask = 0x4F if state in (State.SWITCH_ON_DISABLED, State.FAULT) else 0x6F
     assert word & mask == value
     assert word & 0x0200                         # remote

@@ -2,14 +2,27 @@
 
 ``canopen`` gives the object dictionary (from ``bus_config/cia402_drive.eds``),
 the SDO server, NMT slave with boot-up and heartbeat, the EMCY producer and
-PDO maps. It does not answer SYNC with TPDOs, does not tie PDO contents to
-the object dictionary, and implements no 402 device (canopen issues #555,
-#558, #166): those parts are written here, the ones that need no CAN (power
-state machine, statusword, live objects) in :mod:`hil.drives.cia402_state`.
+PDO maps; :mod:`hil.drives.cia301` makes that node refuse what a real CiA 301
+slave refuses. canopen does not answer SYNC with TPDOs, does not tie PDO
+contents to the object dictionary, and implements no 402 device (canopen issues
+#555, #558, #166): those parts are written here, the ones that need no CAN
+(power state machine, operation modes' controlword bits, statusword, live
+objects) in :mod:`hil.drives.cia402_state`.
 
-Threading: canopen calls back from python-can's Notifier thread. Every
-callback takes the ``lock`` the owner passes in, the same lock the owner
-holds while stepping the physics, so a drive never sees a half-done step.
+PDOs: RPDOs are processed in OPERATIONAL only; a synchronous one (transmission type
+0-240) is latched and applied at the next SYNC, an event-driven one (254, 255) at once.
+One shorter than its mapping is dropped with EMCY 0x8210, a longer one applied with EMCY
+0x8220 (CiA 301). TPDOs of type 1-240 go out at every n-th SYNC, type 0 at a SYNC after
+a mapped value changed, types 254/255 on a change (not sooner than the inhibit time) and
+at least every event-timer period, checked every ``hil.simulator.WATCHDOG_PERIOD``.
+
+The master's silence (the setpoint watchdog, a lost heartbeat of a producer in 0x1016, the
+network leaving OPERATIONAL) gets the reaction 0x6007 selects (0 none, 1 fault, 2 disable
+voltage, 3 quick stop).
+
+Threading: canopen calls back from python-can's Notifier thread (or the bus' own
+delivering thread). Every callback takes the ``lock`` the owner passes in, the same lock
+the owner holds while stepping the physics, so a drive never sees a half-done step.
 At every SYNC the drive takes its latched setpoints, samples the state its
 TPDOs will carry and reports the cycle's command (:class:`DriveProfile`'s
 contract); the owner sends the TPDOs at once, or in lock-step after the
@@ -26,16 +39,18 @@ import struct
 import time
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import canopen
 from canopen.sdo import SdoAbortedError
+from canopen.sdo.constants import ABORT_INVALID_VALUE, ABORT_VALUE_TOO_LOW
 
-from hil.drives.cia402_state import (ERROR_REGISTER, LIVE_OBJECTS, MODE_CODES,
+from hil.drives.cia301 import DriveNode
+from hil.drives.cia402_state import (ERROR_REGISTER, HOMING_METHODS, LIVE_OBJECTS, MODE_CODES,
                                      Cia402StateMachine, int32, live_value, live_values,
                                      uint32)
-from hil.drives.core import DriveCore, Power
+from hil.drives.core import DriveCore, Fault, SilenceReaction
 from hil.drives.profile import DriveProfile
 
 log = logging.getLogger(__name__)
@@ -47,9 +62,14 @@ NMT_ID = 0x000
 OPERATIONAL = "OPERATIONAL"
 
 #: EMCY codes that are not drive faults (CiA 301).
-EMCY_PDO_LENGTH = 0x8210
+EMCY_PDO_LENGTH = 0x8210            # PDO not processed: shorter than its mapping
+EMCY_PDO_LENGTH_EXCEEDED = 0x8220   # PDO longer than its mapping (processed)
 EMCY_SYNC_LENGTH = 0x8240
 EMCY_NO_ERROR = 0x0000
+#: error register of the communication EMCYs: generic + communication
+COMMUNICATION_ERROR = 0x11
+#: a refused frame is logged the first time, then every this many
+LOG_REFUSED_EVERY = 1000
 
 
 @dataclass(frozen=True)
@@ -76,6 +96,25 @@ class PdoLayout:
                    struct.Struct("<" + "".join(formats)))
 
 
+@dataclass
+class TpdoSchedule:
+    """When one TPDO goes out: its transmission type, event timer and inhibit time."""
+
+    pdo: object                            # canopen PdoMap
+    codec: struct.Struct | None            # None: packed by canopen (PdoLayout.of)
+    indices: tuple[int, ...]               # the LIVE_OBJECTS it carries (codec only)
+    transmission_type: int
+    event_timer: float = 0.0               # s; 0: none
+    inhibit: float = 0.0                   # s
+    syncs: int = 0                         # SYNCs since it last went out (types 1-240)
+    last_data: bytes | None = None         # what it last sent (types 0, 254, 255)
+    last_sent: float = field(default=-math.inf)
+
+    @property
+    def event_driven(self) -> bool:
+        return self.transmission_type >= 254
+
+
 class Cia402Drive(DriveProfile):
     """A CiA 402 servo drive on a CANopen network, around a :class:`DriveCore`."""
 
@@ -89,21 +128,21 @@ class Cia402Drive(DriveProfile):
         self.rated_torque = rated_torque
         heartbeat_ms = round(heartbeat_period * 1000)
         self.machine = Cia402StateMachine(core)
-        self.node = canopen.LocalNode(node_id, str(eds))
+        self.node = DriveNode(node_id, eds, self._refused)
         self._heartbeat_ms = heartbeat_ms
         self._latched: dict[int, bytes] = {}
         self._fault_reported = False
         self._pending: list[tuple[int, bytes]] = []
         # from the PDO maps at each (re)configuration: RPDO number -> layout, and the
-        # synchronous TPDOs, each with its struct and the LIVE_OBJECTS it carries (None
-        # and (): packed by canopen, see PdoLayout.of, or it maps a stored object)
+        # TPDOs with their schedules
         self._rpdo_layouts: dict[int, PdoLayout | None] = {}
         self._rpdo_handlers: list[tuple[int, Callable]] = []     # (COB-ID, subscribed)
-        self._sync_tpdos: list[tuple[object, struct.Struct | None, tuple[int, ...]]] = []
+        self._tpdos: list[TpdoSchedule] = []
         self._counts_per_rad = core.parameters.counts_per_rev / (2 * math.pi)
         self._store_configuration()
         self.node.add_read_callback(self._on_read)
         self.node.add_write_callback(self._on_write)
+        self.node.on_stored(self._after_store)
 
     # --- network life cycle ---------------------------------------------------
 
@@ -140,6 +179,12 @@ class Cia402Drive(DriveProfile):
     def state_text(self) -> str:
         return f"{self.node.nmt.state} {self.machine.state.name}"
 
+    def _refused(self, can_id: int, why: str) -> None:
+        self.malformed += 1
+        if self.malformed % LOG_REFUSED_EVERY == 1:
+            log.warning("node %d refused frame 0x%03X: %s (%d refused so far)", self.node_id,
+                        can_id, why, self.malformed)
+
     def _boot(self) -> None:
         """Boot-up message, pre-operational, heartbeat (CiA 301 initialisation)."""
         self.node.nmt.send_command(0x81)   # reset node: state 0, sends the boot-up frame
@@ -155,16 +200,23 @@ class Cia402Drive(DriveProfile):
                 self._reset(communication_only=data[0] == 0x82)
             elif state == OPERATIONAL and data[0] == 0x01:
                 self._configure_pdos()     # mappings written by SDO take effect on start
-            elif state != OPERATIONAL and self.core.power is Power.ENABLED:
-                # leaving OPERATIONAL while enabled: abort connection option 3 (quick stop)
-                self.core.quick_stop()
+            elif state != OPERATIONAL:
+                self._latched.clear()
+                self.core.lose_connection()     # 0x6007 says what leaving OPERATIONAL does
+                self.machine.after_update()
 
     def _reset(self, communication_only: bool) -> None:
         if not communication_only:
             self.machine.controlword(0x0000)
             self.core.reset_fault()
+            self.machine.reset_homing()
             self.node.data_store.clear()
             self._store_configuration()
+        else:    # the communication area (0x1000-0x1FFF) takes its defaults again
+            for index in [i for i in self.node.data_store if 0x1000 <= i < 0x2000]:
+                del self.node.data_store[index]
+            self._store_communication()
+        self.node.configure_heartbeat_consumers()
         self._configure_pdos()
         self._latched.clear()
         self._boot()
@@ -184,14 +236,17 @@ class Cia402Drive(DriveProfile):
                 self._rpdo_handlers.append((pdo.cob_id, handler))
         self._rpdo_layouts = {number: PdoLayout.of(pdo)
                               for number, pdo in self.node.rpdo.map.items()}
-        self._sync_tpdos = []
-        for pdo in self.node.tpdo.map.values():
-            if pdo.enabled and pdo.trans_type is not None and 1 <= pdo.trans_type <= 240:
-                layout = PdoLayout.of(pdo)
-                if layout is not None and LIVE_OBJECTS >= set(layout.indices):
-                    self._sync_tpdos.append((pdo, layout.codec, layout.indices))
-                else:
-                    self._sync_tpdos.append((pdo, None, ()))
+        self._tpdos = []
+        for number, pdo in self.node.tpdo.map.items():
+            if not pdo.enabled or pdo.trans_type is None:
+                continue
+            layout = PdoLayout.of(pdo)
+            live = layout is not None and LIVE_OBJECTS >= set(layout.indices)
+            communication = 0x1800 + number - 1
+            self._tpdos.append(TpdoSchedule(
+                pdo, layout.codec if live else None, layout.indices if live else (),
+                pdo.trans_type, self.node.value(communication, 5) / 1000.0,
+                self.node.value(communication, 3) / 10000.0))
 
     # --- cyclic exchange --------------------------------------------------------
 
@@ -202,14 +257,18 @@ class Cia402Drive(DriveProfile):
         self._rpdo_handlers = []
 
     def _on_rpdo(self, number: int, can_id: int, data: bytes, timestamp: float) -> None:
+        if self.node.nmt.state != OPERATIONAL:
+            return                            # PDOs are off outside OPERATIONAL (CiA 301)
         pdo = self.node.rpdo.map[number]
         expected = math.ceil(pdo.length / 8)
-        if len(data) != expected:
-            self.node.emcy.send(EMCY_PDO_LENGTH, 0x11,
+        if len(data) < expected:
+            self.node.emcy.send(EMCY_PDO_LENGTH, COMMUNICATION_ERROR,
                                 struct.pack("<HB", len(data), expected) + b"\0\0")
             return
-        if self.node.nmt.state != OPERATIONAL:
-            return
+        if len(data) > expected:
+            self.node.emcy.send(EMCY_PDO_LENGTH_EXCEEDED, COMMUNICATION_ERROR,
+                                struct.pack("<HB", len(data), expected) + b"\0\0")
+            data = data[:expected]
         with self.lock:
             self._latched[number] = bytes(data)
             self.core.new_setpoint(now=time.monotonic())
@@ -224,35 +283,72 @@ class Cia402Drive(DriveProfile):
 
     def sync_receive(self, data: bytes) -> None:
         """SYNC: take the latched setpoints (caller holds the lock)."""
+        state = self.node.nmt.state
         if len(data) > 1:
-            self.node.emcy.send(EMCY_SYNC_LENGTH, 0x11)
+            self.node.emcy.send(EMCY_SYNC_LENGTH, COMMUNICATION_ERROR)    # not in STOPPED
             return
-        if self.node.nmt.state != OPERATIONAL:
+        if state != OPERATIONAL:
             return
         for number in sorted(self._latched):
             self._apply(number)
         self._latched.clear()
 
     def prepare_tpdos(self) -> None:
-        """SYNC: pack the synchronous TPDOs with the current state (caller holds the lock)."""
+        """SYNC: pack the synchronous TPDOs due at this SYNC with the current state (caller
+        holds the lock): every n-th SYNC for types 1-240, on a change for type 0."""
         self._pending = []
         if self.node.nmt.state != OPERATIONAL:
             return
-        status, state = self.core.status(), self.machine.state
-        for pdo, codec, indices in self._sync_tpdos:
-            if codec is not None:
-                self._pending.append((pdo.cob_id, codec.pack(*live_values(
-                    indices, state, status, self._counts_per_rad, self.rated_torque))))
+        status = self.core.status()
+        for schedule in self._tpdos:
+            kind = schedule.transmission_type
+            if kind > 240:
                 continue
-            for variable in pdo.map:     # through the object dictionary, live or stored
-                variable.set_data(self.node.get_data(variable.index, variable.subindex))
-            self._pending.append((pdo.cob_id, bytes(pdo.data)))
+            if kind > 0:
+                schedule.syncs += 1
+                if schedule.syncs < kind:
+                    continue
+                schedule.syncs = 0
+            data = self._pack(schedule, status)
+            if kind == 0:
+                if data == schedule.last_data:
+                    continue
+                schedule.last_data = data
+            self._pending.append((schedule.pdo.cob_id, data))
+
+    def _pack(self, schedule: TpdoSchedule, status) -> bytes:
+        if schedule.codec is not None:
+            return schedule.codec.pack(*live_values(
+                schedule.indices, self.machine, status, self._counts_per_rad,
+                self.rated_torque))
+        pdo = schedule.pdo
+        for variable in pdo.map:     # through the object dictionary, live or stored
+            variable.set_data(self.node.get_data(variable.index, variable.subindex))
+        return bytes(pdo.data)
 
     def send_replies(self) -> None:
         """Send the TPDOs :meth:`prepare_tpdos` packed."""
         pending, self._pending = self._pending, []
         for cob_id, data in pending:
             self.send(cob_id, data)
+
+    def tick(self, now: float) -> None:
+        """Event-driven TPDOs (254, 255) and the heartbeat consumer (caller holds the lock)."""
+        for producer in self.node.lost_heartbeats(now):
+            log.warning("node %d: the heartbeat of node %d stopped", self.node_id, producer)
+            self.core.lose_connection(Fault.HEARTBEAT_LOST)
+        if self.node.nmt.state != OPERATIONAL:
+            return
+        status = None
+        for schedule in self._tpdos:
+            if not schedule.event_driven or now - schedule.last_sent < schedule.inhibit:
+                continue
+            status = status or self.core.status()
+            data = self._pack(schedule, status)
+            timer = schedule.event_timer
+            if data != schedule.last_data or (timer > 0 and now - schedule.last_sent >= timer):
+                schedule.last_data, schedule.last_sent = data, now
+                self.send(schedule.pdo.cob_id, data)
 
     def _apply(self, number: int) -> None:
         pdo = self.node.rpdo.map[number]
@@ -262,14 +358,19 @@ class Cia402Drive(DriveProfile):
             fields = dict(zip(layout.indices, layout.codec.unpack(pdo.data)))
         else:
             fields = {variable.index: variable.raw for variable in pdo.map}
-        if 0x6040 in fields:
-            self.machine.controlword(fields[0x6040])
         if 0x6060 in fields:
             self._set_mode(fields[0x6060])
+        for index, value in fields.items():
+            if index in _PROFILE_PARAMETERS:
+                self._set_profile_parameter(index, value)
+        if 0x607A in fields:
+            self.machine.target_position = fields[0x607A] / self._counts_per_rad
         self.core.new_setpoint(
-            position=fields[0x607A] / self._counts_per_rad if 0x607A in fields else None,
+            position=self.machine.target_position if 0x607A in fields else None,
             velocity=fields[0x60FF] / self._counts_per_rad if 0x60FF in fields else None,
             torque=fields[0x6071] * self.rated_torque / 1000 if 0x6071 in fields else None)
+        if 0x6040 in fields:
+            self.machine.controlword(fields[0x6040])
 
     def after_update(self) -> None:
         """After the inner loops ran: state machine follow-ups and EMCY for new faults."""
@@ -288,12 +389,13 @@ class Cia402Drive(DriveProfile):
     def _on_read(self, index: int, subindex: int, od) -> int | None:
         if index in LIVE_OBJECTS:
             with self.lock:
-                return live_value(index, self.machine.state, self.core.status(),
+                return live_value(index, self.machine, self.core.status(),
                                   self._counts_per_rad, self.rated_torque)
         return None
 
     def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
         value = od.decode_raw(data)
+        cpr = self._counts_per_rad
         with self.lock:
             if index == 0x6040:
                 self.machine.controlword(value)
@@ -301,43 +403,110 @@ class Cia402Drive(DriveProfile):
                 self._set_mode(value)
             elif index == 0x605A:
                 if value not in (1, 2, 5, 6):
-                    raise SdoAbortedError(0x06090030)
+                    raise SdoAbortedError(ABORT_INVALID_VALUE)
                 self.machine.quick_stop_option = value
+            elif index == 0x6007:
+                if value not in _SILENCE_REACTIONS:
+                    raise SdoAbortedError(ABORT_INVALID_VALUE)
+                self.core.silence_reaction = _SILENCE_REACTIONS[value]
+            elif index == 0x607A:
+                self.machine.target_position = value / cpr
+                self.core.new_setpoint(position=value / cpr)
+            elif index == 0x60FF:
+                self.core.new_setpoint(velocity=value / cpr)
+            elif index == 0x6071:
+                self.core.new_setpoint(torque=value * self.rated_torque / 1000)
+            elif index == 0x607C:
+                self.machine.home_offset = value / cpr
+            elif index == 0x6098:
+                if value not in HOMING_METHODS:
+                    raise SdoAbortedError(ABORT_INVALID_VALUE)
+                self.machine.homing_method = value
+            elif index == 0x60C2:
+                self._set_interpolation_period(subindex, value)
+            elif index in _PROFILE_PARAMETERS:
+                self._set_profile_parameter(index, value)
             elif index in _PARAMETER_WRITERS:
                 self.core.parameters = _PARAMETER_WRITERS[index](
-                    self.core.parameters, subindex, value, self._counts_per_rad)
+                    self.core.parameters, subindex, value, cpr)
+
+    def _after_store(self, index: int, subindex: int) -> None:
+        """A PDO's communication parameters, once stored, take effect: a PDO made valid
+        starts with its (checked) mapping, one made not valid stops."""
+        if 0x1400 <= index < 0x1600 or 0x1800 <= index < 0x1A00:
+            with self.lock:
+                self._configure_pdos()
 
     def _set_mode(self, code: int) -> None:
         if code not in MODE_CODES:
-            raise SdoAbortedError(0x06090030)   # value range of parameter exceeded
+            raise SdoAbortedError(ABORT_INVALID_VALUE)   # value range of parameter exceeded
         self.core.set_mode(MODE_CODES[code])
+
+    def _set_profile_parameter(self, index: int, value: int) -> None:
+        if index != 0x6081 and value <= 0:
+            raise SdoAbortedError(ABORT_VALUE_TOO_LOW)   # a move needs an acceleration
+        self.core.parameters = replace(self.core.parameters, **{
+            _PROFILE_PARAMETERS[index]: value / self._counts_per_rad})
+
+    def _set_interpolation_period(self, subindex: int, value: int) -> None:
+        """0x60C2: the CSP interpolation period is value x 10^index s."""
+        period = self.node.value(0x60C2, 1)
+        exponent = self.node.value(0x60C2, 2)
+        if subindex == 1:
+            period = value
+        elif subindex == 2:
+            exponent = value
+        if not -6 <= exponent <= 0:
+            raise SdoAbortedError(ABORT_INVALID_VALUE)
+        if period <= 0:
+            raise SdoAbortedError(ABORT_VALUE_TOO_LOW)
+        self.core.set_cycle(period * 10.0 ** exponent)
 
     def _store_configuration(self) -> None:
         """Write the drive's configured values into its object dictionary."""
         p = self.core.parameters
         cpr = self._counts_per_rad
-        store = self.node.data_store
-        od = self.node.object_dictionary
-
-        def put(index, subindex, value):
-            entry = od[index] if subindex is None else od[index][subindex]
-            store.setdefault(index, {})[subindex or 0] = entry.encode_raw(value)
-
-        put(0x1017, None, self._heartbeat_ms)
+        put = self._put
+        self._store_communication()
         put(0x6076, None, round(self.rated_torque * 1000))
         put(0x6072, None, round(p.peak_torque / self.rated_torque * 1000))
         put(0x608F, 1, p.counts_per_rev)
         put(0x607F, None, uint32(p.max_velocity * cpr))
+        put(0x6081, None, uint32(p.profile_velocity * cpr))
+        put(0x6083, None, uint32(p.profile_acceleration * cpr))
+        put(0x6084, None, uint32(p.profile_deceleration * cpr))
         put(0x6085, None, uint32(p.quick_stop_deceleration * cpr))
         put(0x6065, None, uint32(p.following_error_limit * cpr))
         put(0x6066, None, round(p.following_error_timeout * 1000))
+        put(0x6007, None, self.core.silence_reaction.value)
         put(0x2010, None, round(p.watchdog_timeout * 1000))
         put(0x2000, 1, p.position_kp)
         put(0x2000, 2, p.velocity_kp)
         put(0x2000, 3, p.velocity_ki)
+        value, exponent = interpolation_period(self.core.cycle)
+        put(0x60C2, 1, value)
+        put(0x60C2, 2, exponent)
         if p.position_limits is not None:
             put(0x607D, 1, int32(p.position_limits[0] * cpr))
             put(0x607D, 2, int32(p.position_limits[1] * cpr))
+
+    def _store_communication(self) -> None:
+        self._put(0x1017, None, self._heartbeat_ms)
+
+    def _put(self, index: int, subindex: int | None, value) -> None:
+        od = self.node.object_dictionary
+        entry = od[index] if subindex is None else od[index][subindex]
+        self.node.data_store.setdefault(index, {})[subindex or 0] = entry.encode_raw(value)
+
+
+def interpolation_period(cycle: float) -> tuple[int, int]:
+    """0x60C2's (value, index) for a period in s: the coarsest exponent that represents it
+    in a byte, to the microsecond."""
+    for exponent in (-3, -4, -5, -6):
+        value = cycle / 10.0 ** exponent
+        if abs(value - round(value)) < 1e-6 * value and 1 <= round(value) <= 255:
+            return round(value), exponent
+    return max(1, min(255, round(cycle * 1e4))), -4
 
 
 def _gains(p, subindex, value, cpr):
@@ -363,3 +532,8 @@ _PARAMETER_WRITERS = {
     0x6085: lambda p, s, v, c: replace(p, quick_stop_deceleration=v / c),
     0x607D: _limits,
 }
+#: profile-mode objects (increments/s, /s^2) -> DriveParameters field (rad/s, /s^2)
+_PROFILE_PARAMETERS = {0x6081: "profile_velocity", 0x6083: "profile_acceleration",
+                       0x6084: "profile_deceleration"}
+#: 0x6007 values this drive takes (manufacturer-specific negative ones it has none of)
+_SILENCE_REACTIONS = {reaction.value: reaction for reaction in SilenceReaction}

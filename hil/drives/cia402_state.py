@@ -12,14 +12,26 @@ import enum
 
 from hil.drives.core import DriveCore, DriveStatus, Fault, Mode, Power
 
-#: CiA 402 modes of operation (0x6060/0x6061) this drive supports.
-MODE_CODES = {8: Mode.POSITION, 9: Mode.VELOCITY, 10: Mode.TORQUE}
+#: CiA 402 modes of operation (0x6060/0x6061) this drive supports: profile position (1),
+#: profile velocity (3), homing (6), cyclic synchronous position/velocity/torque (8, 9, 10)
+MODE_CODES = {1: Mode.PROFILE_POSITION, 3: Mode.PROFILE_VELOCITY, 6: Mode.HOMING,
+              8: Mode.POSITION, 9: Mode.VELOCITY, 10: Mode.TORQUE}
 CODE_OF_MODE = {mode: code for code, mode in MODE_CODES.items()}
+#: 0x6502, supported drive modes: bit (code - 1) of each mode above
+SUPPORTED_MODES = sum(1 << (code - 1) for code in MODE_CODES)
+#: homing methods (0x6098) this drive runs: 35 and 37 (its newer number), "current position
+#: is the home position" (the simulated encoder is absolute: nothing to search)
+HOMING_METHODS = (35, 37)
 
 #: error register (0x1001) of each fault; bits (CiA 301): 0x01 generic, 0x10 communication,
 #: 0x20 device profile, 0x80 manufacturer
 ERROR_REGISTER = {Fault.FOLLOWING_ERROR: 0x21, Fault.POSITION_LIMIT: 0x21,
-                  Fault.CONTROLLER_SILENT: 0x11, Fault.EMERGENCY_STOP: 0x81}
+                  Fault.CONTROLLER_SILENT: 0x11, Fault.HEARTBEAT_LOST: 0x11,
+                  Fault.EMERGENCY_STOP: 0x81}
+
+# controlword bits of the operation modes (CiA 402): profile position's new set-point,
+# change set immediately and relative target; homing's start (the same bit 4); halt
+NEW_SETPOINT, CHANGE_IMMEDIATELY, RELATIVE, HALT = 0x0010, 0x0020, 0x0040, 0x0100
 
 #: objects read from the drive's state, not stored in its object dictionary
 LIVE_OBJECTS = frozenset({0x6041, 0x6061, 0x6064, 0x606C, 0x6077, 0x60F4, 0x603F, 0x1001})
@@ -51,6 +63,17 @@ class Cia402StateMachine:
         self.quick_stop_option = quick_stop_option
         self._disabled_state = State.SWITCH_ON_DISABLED
         self._last_controlword = 0
+        #: profile position: target position 0x607A (rad, motor), read at each new set-point
+        self.target_position = 0.0
+        #: homing: home offset 0x607C (rad, motor): the position where homing leaves the axis
+        self.home_offset = 0.0
+        self.homing_method = 35
+        self.setpoint_acknowledged = False
+        self._buffered: float | None = None     # profile position: the next set-point
+        self._last_target = 0.0                 # profile position: the latest set-point taken
+        self.homing_attained = False
+        self.homing_error = False
+        self._last_power = core.power           # as of the last command or update
 
     @property
     def state(self) -> State:
@@ -64,8 +87,10 @@ class Cia402StateMachine:
         return self._disabled_state
 
     def controlword(self, word: int) -> None:
-        """Apply one controlword (CiA 402 transitions 2-12, 15, 16)."""
-        rising_reset = bool(word & 0x80) and not self._last_controlword & 0x80
+        """Apply one controlword (CiA 402 transitions 2-12, 15, 16, then the operation mode's
+        bits: new set-point, change immediately, relative, homing start, halt)."""
+        previous = self._last_controlword
+        rising_reset = bool(word & 0x80) and not previous & 0x80
         self._last_controlword = word
         state = self.state
         if state is State.FAULT:
@@ -73,6 +98,11 @@ class Cia402StateMachine:
                 self.core.reset_fault()
                 self._disabled_state = State.SWITCH_ON_DISABLED
             return
+        self._power_transition(word, state)
+        self._operation(word, previous)
+        self._last_power = self.core.power
+
+    def _power_transition(self, word: int, state: State) -> None:
         if word & 0x82 == 0x00:                                   # disable voltage
             self._to_disabled(State.SWITCH_ON_DISABLED)
         elif word & 0x86 == 0x02:                                 # quick stop
@@ -91,20 +121,92 @@ class Cia402StateMachine:
                     state is State.QUICK_STOP_ACTIVE and self.quick_stop_option >= 5):
                 self.core.enable()
 
+    def _operation(self, word: int, previous: int) -> None:
+        """The operation mode's controlword bits, while operation is enabled."""
+        core = self.core
+        if core.power is not Power.ENABLED:
+            self.setpoint_acknowledged = False
+            self._buffered = None
+            return
+        mode = core.mode
+        rising = bool(word & NEW_SETPOINT) and not previous & NEW_SETPOINT
+        if mode is Mode.PROFILE_POSITION or mode is Mode.PROFILE_VELOCITY:
+            core.halt(bool(word & HALT))
+        if mode is Mode.PROFILE_POSITION:
+            if rising and not self.setpoint_acknowledged:
+                target = self.target_position
+                if word & RELATIVE:
+                    target += self._last_target
+                self._last_target = target
+                if word & CHANGE_IMMEDIATELY or core.move_done:
+                    core.move_to(target)
+                else:
+                    self._buffered = target          # taken when the move in progress ends
+                self.setpoint_acknowledged = True
+            elif not word & NEW_SETPOINT and self._buffered is None:
+                self.setpoint_acknowledged = False
+        elif mode is Mode.HOMING and rising:
+            self._home()
+
+    def _home(self) -> None:
+        """Homing start: the methods this drive runs finish at once, where the axis is."""
+        if self.homing_method in HOMING_METHODS:
+            self.core.rebase(self.home_offset - self.core.status().position)
+            self.core.hold_position()            # the home position is where it stands
+            self.homing_attained, self.homing_error = True, False
+        else:
+            self.homing_attained, self.homing_error = False, True
+
+    def mode_bits(self, status: DriveStatus) -> int:
+        """Statusword bits 12 and 13 of the operation mode in force."""
+        mode = status.mode
+        if mode is Mode.PROFILE_POSITION:
+            return ((0x1000 if self.setpoint_acknowledged else 0)
+                    | (0x2000 if status.following_error_exceeded else 0))
+        if mode is Mode.PROFILE_VELOCITY:
+            still = abs(status.velocity) < 0.01 * self.core.parameters.max_velocity
+            return 0x1000 if still else 0                    # bit 12: speed is 0
+        if mode is Mode.HOMING:
+            return ((0x1000 if self.homing_attained else 0)
+                    | (0x2000 if self.homing_error else 0))
+        if self.state is not State.OPERATION_ENABLED:
+            return 0
+        bits = 0x1000 if mode is not Mode.TORQUE else 0      # bit 12: following targets
+        if status.following_error_exceeded and mode is Mode.POSITION:
+            bits |= 0x2000
+        return bits
+
     def after_update(self) -> None:
-        """Quick stop option 1-4: once stopped, fall to switch on disabled."""
-        if (self.core.power is Power.QUICK_STOP and self.quick_stop_option < 5
+        """Quick stop option 1-4: once stopped, fall to switch on disabled. A drive that
+        disabled itself (a silence reaction, 0x6007 = 2) is in switch on disabled too.
+        Profile position: a buffered set-point starts once the move in progress has ended."""
+        power = self.core.power
+        if power is Power.DISABLED and self._last_power in (Power.ENABLED, Power.QUICK_STOP):
+            self._disabled_state = State.SWITCH_ON_DISABLED
+        self._last_power = power
+        if (power is Power.QUICK_STOP and self.quick_stop_option < 5
                 and self.core.status().stopped):
             self._to_disabled(State.SWITCH_ON_DISABLED)
+        if self._buffered is not None and self.core.move_done:
+            self.core.move_to(self._buffered)
+            self._buffered = None
+            if not self._last_controlword & NEW_SETPOINT:
+                self.setpoint_acknowledged = False
+
+    def reset_homing(self) -> None:
+        """A node reset: the drive forgets its home (its position scale is the encoder's)."""
+        self.core.rebase(-self.core.offset)
+        self.homing_attained = self.homing_error = False
 
     def _to_disabled(self, state: State) -> None:
         self.core.disable()
         self._disabled_state = state
+        self._last_power = self.core.power
 
 
-def statusword(state: State, status: DriveStatus) -> int:
-    """0x6041 for a state and the core's flags."""
-    word = state.value | 0x0200                                   # bit 9: remote
+def statusword(state: State, status: DriveStatus, mode_bits: int) -> int:
+    """0x6041 for a state, the core's flags and the operation mode's bits 12-13."""
+    word = state.value | 0x0200 | mode_bits                       # bit 9: remote
     if state in (State.READY_TO_SWITCH_ON, State.SWITCHED_ON, State.OPERATION_ENABLED,
                  State.QUICK_STOP_ACTIVE):
         word |= 0x0010                                            # bit 4: voltage enabled
@@ -112,18 +214,14 @@ def statusword(state: State, status: DriveStatus) -> int:
         word |= 0x0400
     if status.internal_limit:
         word |= 0x0800
-    if state is State.OPERATION_ENABLED and status.mode is not Mode.TORQUE:
-        word |= 0x1000                                            # bit 12: following targets
-    if status.following_error_exceeded and status.mode is Mode.POSITION:
-        word |= 0x2000
     return word
 
 
-def live_value(index: int, state: State, status: DriveStatus, counts_per_rad: float,
-               rated_torque: float) -> int:
+def live_value(index: int, machine: Cia402StateMachine, status: DriveStatus,
+               counts_per_rad: float, rated_torque: float) -> int:
     """The value of live object ``index`` (one of :data:`LIVE_OBJECTS`)."""
     if index == 0x6041:
-        return statusword(state, status)
+        return statusword(machine.state, status, machine.mode_bits(status))
     if index == 0x6064:
         return int32(status.position * counts_per_rad)
     if index == 0x606C:
@@ -142,10 +240,10 @@ def live_value(index: int, state: State, status: DriveStatus, counts_per_rad: fl
     raise KeyError(f"0x{index:04X} is not a live object")
 
 
-def live_values(indices: tuple[int, ...], state: State, status: DriveStatus,
+def live_values(indices: tuple[int, ...], machine: Cia402StateMachine, status: DriveStatus,
                 counts_per_rad: float, rated_torque: float) -> list[int]:
     """The values of a PDO's live objects, in its mapping's order."""
-    return [live_value(index, state, status, counts_per_rad, rated_torque)
+    return [live_value(index, machine, status, counts_per_rad, rated_torque)
             for index in indices]
 
 

@@ -3,9 +3,10 @@
 Everything a servo drive does between its CAN frames and its motor lives
 here: the power stage (disabled with holding brake, enabled, quick stop,
 fault), the position -> velocity -> torque cascade with feed-forward and
-anti-windup, setpoint interpolation, torque and velocity saturation,
+anti-windup, setpoint interpolation, the drive's own trapezoidal moves and
+velocity ramps (profile modes), torque and velocity saturation,
 following-error and position-limit faults, and the controller-silence
-watchdog. A drive profile (CiA 402, ...) only turns frames into calls on
+watchdog with its configured reaction. A drive profile (CiA 402, ...) only turns frames into calls on
 this class and its state into frames.
 
 All quantities are on the motor side in SI units: rad, rad/s, N·m.
@@ -17,7 +18,7 @@ from __future__ import annotations
 import enum
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 
 class Power(enum.Enum):
@@ -30,13 +31,31 @@ class Power(enum.Enum):
 
 
 class Mode(enum.Enum):
-    """Cyclic synchronous modes: the setpoint arrives every control cycle."""
+    """What the enabled drive follows."""
 
+    #: cyclic synchronous modes: a setpoint arrives every control cycle
     POSITION = "position"
     VELOCITY = "velocity"
     TORQUE = "torque"
     #: torque = kp (p - p_actual) + kd (v - v_actual) + torque feed-forward (MIT motors)
     IMPEDANCE = "impedance"
+    #: the drive plans a trapezoidal move to each target (profile velocity, acceleration,
+    #: deceleration) and follows it
+    PROFILE_POSITION = "profile position"
+    #: the target velocity, reached on a ramp of the profile acceleration/deceleration
+    PROFILE_VELOCITY = "profile velocity"
+    #: holding position while the profile sets its zero (homing on the current position)
+    HOMING = "homing"
+
+
+class SilenceReaction(enum.Enum):
+    """What the drive does when its master goes silent or leaves it (CiA 402 0x6007,
+    "abort connection option code")."""
+
+    NONE = 0           # report it, carry on with the last setpoint
+    FAULT = 1          # fault (brake on) until a fault reset
+    DISABLE = 2        # disable voltage (brake on)
+    QUICK_STOP = 3     # ramp to standstill, hold
 
 
 class Fault(enum.Enum):
@@ -45,6 +64,7 @@ class Fault(enum.Enum):
     FOLLOWING_ERROR = (0x8611, "following error")
     POSITION_LIMIT = (0x8612, "position limit exceeded")
     CONTROLLER_SILENT = (0x8250, "setpoints stopped arriving (RPDO timeout)")
+    HEARTBEAT_LOST = (0x8130, "the master's heartbeat stopped (heartbeat consumer)")
     EMERGENCY_STOP = (0x9000, "emergency stop requested")
 
     @property
@@ -74,6 +94,10 @@ class DriveParameters:
     position_limits: tuple[float, float] | None = None
     holding_brake: bool = True
     brake_torque: float | None = None  # N·m; default: rated torque
+    # profile modes (0: a profile move does not start)
+    profile_velocity: float = 0.0      # rad/s
+    profile_acceleration: float = 0.0  # rad/s^2
+    profile_deceleration: float = 0.0  # rad/s^2
 
     @functools.cached_property    # read several times per drive and plant step
     def radians_per_count(self) -> float:
@@ -109,6 +133,8 @@ class DriveCore:
         self.mode = Mode.POSITION
         self.fault: Fault | None = None
         self.events: list[Fault] = []   # faults raised since the owner last drained them
+        self.silence_reaction = SilenceReaction.QUICK_STOP
+        self._silence_reported = False  # the watchdog fired; cleared by the next setpoint
         self._position = 0.0
         self._velocity = 0.0
         self._torque = 0.0
@@ -129,14 +155,25 @@ class DriveCore:
         self._following_error = 0.0
         self._internal_limit = False
         self._last_setpoint: float | None = None
+        # profile modes: the drive's own reference (position, velocity) and where it goes
+        self._reference = 0.0
+        self._reference_velocity = 0.0
+        self._move_target = 0.0
+        self._halted = False
+        self._offset = 0.0              # the drive's position scale against the encoder's
+        self._measured = False          # no position measured yet
 
     # --- commands from the profile ------------------------------------------
 
     def measure(self, position: float, velocity: float) -> None:
         """Latest motor position/velocity (quantised to encoder counts)."""
         step = self.parameters.radians_per_count
-        self._position = round(position / step) * step
+        self._position = round((position + self._offset) / step) * step
         self._velocity = velocity
+        if not self._measured:            # powered up: the brake holds where the axis is
+            self._measured = True
+            self._hold = self._position
+            self._hold_reference()
 
     def enable(self) -> None:
         if self.power is Power.FAULT:
@@ -147,34 +184,91 @@ class DriveCore:
             self._segment_elapsed = self._cycle
             self._target_velocity = self._target_torque = 0.0
             self._velocity_ff = self._torque_ff = self._stiffness = self._damping = 0.0
+            self._hold_reference()
         self.power = Power.ENABLED
 
     def disable(self) -> None:
-        if self.power is not Power.FAULT:
+        """Power off, brake on. The brake is anchored where it engaged: a repeated disable
+        command does not move the anchor (re-anchoring at every command would let a
+        loaded axis creep by the brake's sag each time)."""
+        if self.power in (Power.ENABLED, Power.QUICK_STOP):
             self._engage_brake()
             self.power = Power.DISABLED
 
     def quick_stop(self) -> None:
+        """Ramp to standstill at the quick-stop deceleration, then hold where it stopped."""
         if self.power is Power.ENABLED:
             self._stop_velocity = self._velocity
+            self._hold = self._position       # a standing axis holds where it stands
             self._integral_from_torque()
             self.power = Power.QUICK_STOP
 
     def reset_fault(self) -> None:
+        """FAULT -> DISABLED; the brake stays anchored where the fault engaged it."""
         if self.power is Power.FAULT:
             self.fault = None
-            self._engage_brake()
             self.power = Power.DISABLED
 
     def set_mode(self, mode: Mode) -> None:
         if mode is not self.mode:
             self.mode = mode
             self._segment_start = self._segment_end = self._position
+            self._hold_reference()
             self._integral_from_torque()
+
+    def hold_position(self) -> None:
+        """Hold where the axis is now (profile modes: the reference starts here, at rest)."""
+        self._segment_start = self._segment_end = self._position
+        self._hold_reference()
+
+    def move_to(self, position: float) -> None:
+        """Profile position mode: a new target; the move to it starts from where the drive's
+        reference is now (a move in progress blends into it)."""
+        self._move_target = self._clamp_to_limits(position)
+        self._halted = False
+
+    def halt(self, halted: bool) -> None:
+        """Profile modes: decelerate to standstill (and hold) while ``halted``; a halted
+        move does not resume by itself."""
+        if halted and not self._halted:
+            self._move_target = math.nan      # the halted move is abandoned
+        self._halted = halted
+
+    @property
+    def move_done(self) -> bool:
+        """Profile position mode: the reference has reached the target (or halted) and rests."""
+        return self._reference_velocity == 0.0 and (
+            self._halted or math.isnan(self._move_target) or self._reference == self._move_target)
+
+    @property
+    def offset(self) -> float:
+        """How far the drive's position scale is shifted from the encoder's (rad; homing)."""
+        return self._offset
+
+    def rebase(self, offset: float) -> None:
+        """Shift the drive's own position scale by ``offset`` (homing): every stored position
+        (limits, targets, references) moves with it, so nothing moves physically."""
+        self._offset += offset
+        self._position += offset
+        self._hold += offset
+        self._segment_start += offset
+        self._segment_end += offset
+        self._reference += offset
+        if not math.isnan(self._move_target):
+            self._move_target += offset
+        limits = self.parameters.position_limits
+        if limits is not None:
+            self.parameters = replace(self.parameters,
+                                      position_limits=(limits[0] + offset, limits[1] + offset))
 
     def set_cycle(self, cycle: float) -> None:
         """The control cycle (SYNC period) over which position targets are interpolated."""
         self._cycle = cycle
+
+    @property
+    def cycle(self) -> float:
+        """The interpolation period (s)."""
+        return self._cycle
 
     def new_setpoint(self, position: float | None = None, velocity: float | None = None,
                      torque: float | None = None, now: float | None = None, *,
@@ -203,14 +297,34 @@ class DriveCore:
             self._target_torque = max(-peak, min(peak, torque))
         if now is not None:
             self._last_setpoint = now
+            self._silence_reported = False
 
     def check_watchdog(self, now: float) -> None:
-        """Quick-stop when setpoints stop arriving while enabled (wall-clock time)."""
+        """Setpoints stopped arriving while enabled (wall-clock time): report it once and
+        react as :attr:`silence_reaction` says."""
         timeout = self.parameters.watchdog_timeout
         if (timeout > 0 and self.power is Power.ENABLED and self._last_setpoint is not None
-                and now - self._last_setpoint > timeout):
-            self.events.append(Fault.CONTROLLER_SILENT)
+                and now - self._last_setpoint > timeout and not self._silence_reported):
+            self._silence_reported = True
+            self.lose_connection(Fault.CONTROLLER_SILENT)
+
+    def lose_connection(self, cause: Fault | None = None) -> None:
+        """The master is gone (silent, its heartbeat lost, or the network stopped): report
+        ``cause`` (if any) and react as :attr:`silence_reaction` says."""
+        reaction = self.silence_reaction
+        if self.power is not Power.ENABLED:          # nothing follows the master now
+            if cause is not None:
+                self.events.append(cause)
+            return
+        if reaction is SilenceReaction.FAULT:
+            self.raise_fault(cause if cause is not None else Fault.CONTROLLER_SILENT)
+            return
+        if cause is not None:
+            self.events.append(cause)
+        if reaction is SilenceReaction.QUICK_STOP:
             self.quick_stop()
+        elif reaction is SilenceReaction.DISABLE:
+            self.disable()
 
     def raise_fault(self, fault: Fault) -> None:
         if self.power is not Power.FAULT:
@@ -250,6 +364,16 @@ class DriveCore:
             return (self._stiffness * self._following_error
                     + self._damping * (self._target_velocity - self._velocity)
                     + self._target_torque)
+        if self.mode is Mode.PROFILE_VELOCITY:
+            self._following_error = 0.0
+            self._ramp_velocity(0.0 if self._halted else self._target_velocity, dt)
+            return self._velocity_loop(self._reference_velocity, dt) + self._torque_ff
+        if self.mode is Mode.PROFILE_POSITION or self.mode is Mode.HOMING:
+            self._profile_step(dt)
+            self._following_error = self._reference - self._position
+            self._check_following_error(dt)
+            velocity = self._reference_velocity + p.position_kp * self._following_error
+            return self._velocity_loop(velocity, dt)
         self._segment_elapsed = min(self._segment_elapsed + dt, self._cycle)
         target = self._interpolated_target()
         feed_forward = ((self._segment_end - self._segment_start) / self._cycle
@@ -268,6 +392,46 @@ class DriveCore:
             return self._velocity_loop(self._stop_velocity, dt)
         self._stop_velocity = 0.0
         return self._velocity_loop(p.position_kp * (self._hold - self._position), dt)
+
+    def _profile_step(self, dt: float) -> None:
+        """Advance the reference of a trapezoidal move by ``dt``: toward the target at up to
+        the profile velocity, accelerating and decelerating at the profile's rates, slowing
+        so as to stop on the target (a halt or an abandoned move stops where it can)."""
+        p = self.parameters
+        remaining = self._move_target - self._reference
+        if self._halted or math.isnan(remaining):
+            desired = 0.0
+        else:
+            top = min(p.profile_velocity, p.max_velocity)
+            stopping = math.sqrt(2.0 * max(p.profile_deceleration, 0.0) * abs(remaining))
+            desired = math.copysign(min(top, stopping), remaining)
+        self._ramp_velocity(desired, dt)
+        step = self._reference_velocity * dt
+        if not math.isnan(remaining) and not self._halted and (
+                remaining == 0.0 or (remaining - step) * remaining <= 0.0):
+            self._reference = self._move_target         # arrives (a step would overshoot)
+            self._reference_velocity = 0.0
+        else:
+            self._reference += step
+
+    def _ramp_velocity(self, desired: float, dt: float) -> None:
+        """Bring the reference velocity toward ``desired`` at the profile acceleration
+        (speeding up) or deceleration (slowing down or reversing)."""
+        p = self.parameters
+        desired = max(-p.max_velocity, min(p.max_velocity, desired))
+        velocity = self._reference_velocity
+        speeding_up = desired * velocity >= 0.0 and abs(desired) > abs(velocity)
+        step = (p.profile_acceleration if speeding_up else p.profile_deceleration) * dt
+        if velocity < desired:
+            self._reference_velocity = min(desired, velocity + step)
+        else:
+            self._reference_velocity = max(desired, velocity - step)
+
+    def _hold_reference(self) -> None:
+        """Profile modes start from rest where the axis is."""
+        self._reference = self._move_target = self._position
+        self._reference_velocity = 0.0
+        self._halted = False
 
     def _brake_torque(self, dt: float) -> float:
         """A holding brake: a stiff position hold that slips above its torque."""
@@ -338,8 +502,13 @@ class DriveCore:
 
     def status(self) -> DriveStatus:
         p = self.parameters
-        if self.mode is Mode.VELOCITY:
-            reached = abs(self._velocity - self._target_velocity) < 0.01 * p.max_velocity
+        if self.mode is Mode.VELOCITY or self.mode is Mode.PROFILE_VELOCITY:
+            target = 0.0 if self._halted and self.mode is Mode.PROFILE_VELOCITY \
+                else self._target_velocity
+            reached = abs(self._velocity - target) < 0.01 * p.max_velocity
+        elif self.mode is Mode.PROFILE_POSITION or self.mode is Mode.HOMING:
+            reached = self.move_done and (self._halted or math.isnan(self._move_target) or abs(
+                self._move_target - self._position) <= 10 * p.radians_per_count)
         else:
             reached = abs(self._segment_end - self._position) <= 10 * p.radians_per_count
         return DriveStatus(

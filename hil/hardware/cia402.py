@@ -26,10 +26,10 @@ _TPDO2 = struct.Struct("<ih")       # velocity actual, torque actual
 #: EMCY codes a CiA 402 drive may send, for messages
 EMCY_TEXT = {0x8611: "following error", 0x8612: "position limit exceeded",
              0x8250: "RPDO timeout (setpoints stopped arriving)",
-             0x8210: "PDO length error", 0x8240: "unexpected SYNC length",
-             0x8130: "heartbeat/life guard error"}
+             0x8210: "PDO too short (not processed)", 0x8220: "PDO longer than its mapping",
+             0x8240: "unexpected SYNC length", 0x8130: "heartbeat/life guard error"}
 #: EMCY codes for a frame the drive ignored: the next cycle's frame replaces it
-FRAME_ERRORS = {0x8210, 0x8240}
+FRAME_ERRORS = {0x8210, 0x8220, 0x8240}
 
 
 def emcy_words(code: int) -> str:

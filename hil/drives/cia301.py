@@ -1,0 +1,335 @@
+"""The CiA 301 slave of hil's CANopen drives: what a real node refuses, and when.
+
+python ``canopen``'s LocalNode gives the object dictionary, the SDO server, the NMT slave
+(boot-up, heartbeat), the EMCY producer and the PDO maps. It does not check what a master
+writes into the PDO parameters (a mapping of a missing object is stored, and the drive
+fails at the next NMT start), answers SDO in STOPPED, unpacks frames of any length (a short
+NMT or SDO frame is a Python exception), follows no segmented-transfer state, and has no
+heartbeat consumer. :class:`DriveNode` adds these as CiA 301 (and lely-core, the CANopen
+stack under ros2_canopen) has them:
+
+* NMT: only 2-byte commands; in STOPPED no SDO, EMCY or PDO (the profile drops PDOs);
+* SDO: only 8-byte requests; a segment without a transfer in progress is aborted
+  (0x05040001);
+* PDO communication (0x1400.., 0x1800..) and mapping (0x1600.., 0x1A00..) parameters:
+  the CiA 301 order of a remapping (make the PDO not valid, mapping count 0, entries,
+  count, valid again) is enforced, and every entry is checked when the count is written:
+  object missing (0x06020000), sub-index missing (0x06090011), not mappable or the wrong
+  direction (0x06040041), a length other than the object's (0x06040043), over 64 bits
+  (0x06040042), more entries than the mapping has (0x06090031); a changed CAN-ID of a valid
+  PDO, an 11-bit COB-ID over 0x7FF, a reserved or unsupported transmission type, an
+  inhibit time or SYNC start value changed while valid: 0x06090030;
+* heartbeat consumer (0x1016): monitors each producer configured there from its first
+  heartbeat; :meth:`DriveNode.lost_heartbeats` names those overdue.
+
+A frame refused for its form is counted in :attr:`DriveNode.refused` and reported through
+``on_refused``, never raised.
+"""
+
+from __future__ import annotations
+
+import logging
+import struct
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import canopen
+from canopen.emcy import EmcyProducer
+from canopen.sdo import SdoAbortedError, SdoServer
+from canopen.sdo.constants import (
+    ABORT_INVALID_COMMAND_SPECIFIER, ABORT_INVALID_VALUE, ABORT_NO_SUBINDEX, ABORT_NOT_IN_OD,
+    ABORT_PARAMETER_INCOMPATIBLE, ABORT_PDO_CANNOT_MAP, ABORT_PDO_LENGTH_EXCEEDED,
+    ABORT_VALUE_TOO_HIGH, NO_MORE_DATA, REQUEST_ABORTED, REQUEST_BLOCK_DOWNLOAD,
+    REQUEST_BLOCK_UPLOAD, REQUEST_DOWNLOAD, REQUEST_SEGMENT_DOWNLOAD, REQUEST_SEGMENT_UPLOAD,
+    REQUEST_UPLOAD, RESPONSE_ABORTED,
+)
+
+log = logging.getLogger(__name__)
+
+STOPPED = "STOPPED"
+#: COB-ID bits (CiA 301): 31 PDO not valid, 29 29-bit frame
+NOT_VALID, EXTENDED_FRAME = 0x80000000, 0x20000000
+#: transmission types a PDO of this drive may have: synchronous (acyclic 0, every n-th SYNC
+#: 1-240) and event-driven (254, 255); 241-251 are reserved, 252-253 (RTR only) unsupported
+TRANSMISSION_TYPES = frozenset(range(241)) | {254, 255}
+#: bits of the dummy entries (data types 0x0002-0x0007) an RPDO may map
+DUMMY_BITS = {0x0002: 8, 0x0003: 16, 0x0004: 32, 0x0005: 8, 0x0006: 16, 0x0007: 32}
+#: consumer heartbeat time (0x1016) entries: node id in bits 16-23, time (ms) in bits 0-15
+CONSUMER_HEARTBEAT = 0x1016
+
+
+class PdoParameter:
+    """Where an index falls among the PDO parameters, if it does."""
+
+    def __init__(self, index: int):
+        self.receive = 0x1400 <= index < 0x1800
+        base = index & 0xFE00          # 0x1400, 0x1600, 0x1800, 0x1A00
+        self.mapping = base in (0x1600, 0x1A00)
+        self.number = index - base
+        self.communication_index = (0x1400 if self.receive else 0x1800) + self.number
+        self.mapping_index = (0x1600 if self.receive else 0x1A00) + self.number
+
+    @staticmethod
+    def of(index: int) -> PdoParameter | None:
+        return PdoParameter(index) if 0x1400 <= index < 0x1C00 else None
+
+
+class DriveSdoServer(SdoServer):
+    """canopen's SDO server, with the checks of a real one: 8-byte requests only, silent in
+    STOPPED, segments only within a segmented transfer (canopen keeps no such state)."""
+
+    def __init__(self, rx_cobid: int, tx_cobid: int, node: DriveNode):
+        super().__init__(rx_cobid, tx_cobid, node)
+        self._segmented: int | None = None     # REQUEST_SEGMENT_UPLOAD/_DOWNLOAD in progress
+
+    def on_request(self, can_id: int, data: bytes, timestamp: float) -> None:
+        node = self._node
+        if len(data) != 8:
+            node.refuse(can_id, f"an SDO request of {len(data)} bytes (CiA 301: 8)")
+            return
+        if node.nmt.state == STOPPED:
+            return
+        specifier = data[0] & 0xE0
+        if specifier in (REQUEST_SEGMENT_UPLOAD, REQUEST_SEGMENT_DOWNLOAD):
+            if specifier != self._segmented:
+                self.abort(ABORT_INVALID_COMMAND_SPECIFIER)
+                return
+        elif specifier in (REQUEST_UPLOAD, REQUEST_DOWNLOAD, REQUEST_BLOCK_UPLOAD,
+                           REQUEST_BLOCK_DOWNLOAD, REQUEST_ABORTED):
+            self._segmented = None            # a new request ends any transfer in progress
+        buffer = self._buffer
+        super().on_request(can_id, data, timestamp)
+        if self._buffer is not buffer and specifier in (REQUEST_UPLOAD, REQUEST_DOWNLOAD):
+            # canopen started a segmented transfer (it made a new buffer)
+            self._segmented = (REQUEST_SEGMENT_UPLOAD if specifier == REQUEST_UPLOAD
+                               else REQUEST_SEGMENT_DOWNLOAD)
+        elif specifier == REQUEST_SEGMENT_UPLOAD and not self._buffer:
+            self._segmented = None            # the last segment went out
+        elif specifier == REQUEST_SEGMENT_DOWNLOAD and data[0] & NO_MORE_DATA:
+            self._segmented = None
+
+    def abort(self, abort_code: int = 0x08000000) -> None:
+        self._segmented = None
+        # canopen's abort, but a segment request carries no index: it names the transfer's
+        # (0 before any), where canopen's would fail to pack None
+        data = struct.pack("<BHBL", RESPONSE_ABORTED, self._index or 0, self._subindex or 0,
+                           abort_code)
+        self.send_response(data)
+
+
+class DriveEmcyProducer(EmcyProducer):
+    """canopen's EMCY producer, silent while its node is STOPPED (CiA 301)."""
+
+    def __init__(self, cob_id: int, node: canopen.LocalNode):
+        super().__init__(cob_id)
+        self._node = node
+
+    def send(self, code: int, register: int = 0, data: bytes = b"") -> None:
+        if self._node.nmt.state != STOPPED:
+            super().send(code, register, data)
+
+
+class DriveNode(canopen.LocalNode):
+    """A canopen LocalNode that refuses what a real CiA 301 slave refuses (module doc)."""
+
+    def __init__(self, node_id: int, eds: Path,
+                 on_refused: Callable[[int, str], None] = lambda can_id, why: None):
+        super().__init__(node_id, str(eds))
+        self.sdo = DriveSdoServer(0x600 + self.id, 0x580 + self.id, self)
+        self.emcy = DriveEmcyProducer(0x80 + self.id, self)
+        #: frames refused for their form (a wrong length)
+        self.refused = 0
+        self._on_refused = on_refused
+        self._stored: list[Callable[[int, int], None]] = []
+        # heartbeat consumer: producer node id -> (timeout s, last heard or None, reported)
+        self._consumers: dict[int, list] = {}
+        self._heartbeat_handlers: dict[int, Callable] = {}
+        self.add_write_callback(self._check_write)
+
+    # --- network -----------------------------------------------------------------------
+
+    def associate_network(self, network: canopen.Network) -> None:
+        # canopen's, with the NMT handler checking the frame's length first
+        if self.has_network():
+            raise RuntimeError("Node is already associated with a network")
+        for service in (self, self.sdo, self.tpdo, self.rpdo, self.nmt, self.emcy):
+            service.network = network
+        network.subscribe(self.sdo.rx_cobid, self.sdo.on_request)
+        network.subscribe(0, self._on_nmt)
+        self.configure_heartbeat_consumers()
+
+    def remove_network(self) -> None:
+        if not self.has_network():
+            return
+        network = self.network
+        network.unsubscribe(self.sdo.rx_cobid, self.sdo.on_request)
+        network.unsubscribe(0, self._on_nmt)
+        for can_id, handler in self._heartbeat_handlers.items():
+            network.unsubscribe(can_id, handler)
+        self._heartbeat_handlers = {}
+        unset = canopen.network._UNINITIALIZED_NETWORK
+        for service in (self, self.sdo, self.tpdo, self.rpdo, self.nmt, self.emcy):
+            service.network = unset
+
+    def _on_nmt(self, can_id: int, data: bytes, timestamp: float) -> None:
+        if len(data) != 2:
+            self.refuse(can_id, f"an NMT command of {len(data)} bytes (CiA 301: 2)")
+            return
+        self.nmt.on_command(can_id, data, timestamp)
+
+    def refuse(self, can_id: int, why: str) -> None:
+        """A frame refused for its form: counted and reported, never raised."""
+        self.refused += 1
+        self._on_refused(can_id, why)
+
+    # --- object dictionary -----------------------------------------------------------
+
+    def on_stored(self, callback: Callable[[int, int], None]) -> None:
+        """Call ``callback(index, subindex)`` after each write is stored (the write callbacks
+        run before: they may refuse it)."""
+        self._stored.append(callback)
+
+    def get_data(self, index: int, subindex: int, check_readable: bool = False) -> bytes:
+        self._check_exists(index, subindex)
+        return super().get_data(index, subindex, check_readable)
+
+    def set_data(self, index: int, subindex: int, data: bytes,
+                 check_writable: bool = False) -> None:
+        self._check_exists(index, subindex)
+        super().set_data(index, subindex, data, check_writable)
+        if index == CONSUMER_HEARTBEAT:
+            self.configure_heartbeat_consumers()
+        for callback in self._stored:
+            callback(index, subindex)
+
+    def _check_exists(self, index: int, subindex: int) -> None:
+        """canopen makes up any sub-index of an ARRAY on demand: the EDS's are the ones."""
+        entry = self.object_dictionary.get(index)
+        if isinstance(entry, canopen.objectdictionary.ODArray) and \
+                subindex not in entry.subindices:
+            raise SdoAbortedError(ABORT_NO_SUBINDEX)
+
+    def value(self, index: int, subindex: int = 0) -> int:
+        """The object's value as stored (or its default)."""
+        entry = self.object_dictionary[index]
+        if not isinstance(entry, canopen.objectdictionary.ODVariable):
+            entry = entry[subindex]
+        return entry.decode_raw(self.get_data(index, subindex))
+
+    def pdo_valid(self, communication_index: int) -> bool:
+        return not self.value(communication_index, 1) & NOT_VALID
+
+    def _check_write(self, index: int, subindex: int, od, data: bytes, **_) -> None:
+        parameter = PdoParameter.of(index)
+        if parameter is not None:
+            value = od.decode_raw(data)
+            if parameter.mapping:
+                self._check_mapping(parameter, subindex, value)
+            else:
+                self._check_communication(parameter, subindex, value)
+        elif index == CONSUMER_HEARTBEAT and subindex > 0:
+            self._check_consumer(subindex, od.decode_raw(data))
+
+    def _check_communication(self, parameter: PdoParameter, subindex: int, value: int) -> None:
+        valid = self.pdo_valid(parameter.communication_index)
+        if subindex == 1:
+            old = self.value(parameter.communication_index, 1)
+            if valid and not value & NOT_VALID and (value ^ old) & 0x1FFFFFFF:
+                raise SdoAbortedError(ABORT_INVALID_VALUE)   # make it not valid first
+            if not value & EXTENDED_FRAME and value & 0x1FFFF800:
+                raise SdoAbortedError(ABORT_INVALID_VALUE)   # an 11-bit CAN-ID over 0x7FF
+        elif subindex == 2 and value not in TRANSMISSION_TYPES:
+            raise SdoAbortedError(ABORT_INVALID_VALUE)
+        elif subindex in (3, 6) and valid and value != self.value(
+                parameter.communication_index, subindex):
+            raise SdoAbortedError(ABORT_INVALID_VALUE)       # inhibit time, SYNC start value
+
+    def _check_mapping(self, parameter: PdoParameter, subindex: int, value: int) -> None:
+        if self.pdo_valid(parameter.communication_index):
+            raise SdoAbortedError(ABORT_INVALID_VALUE)       # make the PDO not valid first
+        mapping = parameter.mapping_index
+        if subindex == 0:
+            entries = [sub for sub in self.object_dictionary[mapping].subindices if sub > 0]
+            if value > len(entries):
+                raise SdoAbortedError(ABORT_VALUE_TOO_HIGH)
+            bits = sum(self._mapped_bits(self.value(mapping, sub), parameter.receive)
+                       for sub in range(1, value + 1) if self.value(mapping, sub))
+            if bits > 64:
+                raise SdoAbortedError(ABORT_PDO_LENGTH_EXCEEDED)
+        else:
+            if self.value(mapping, 0) != 0:
+                raise SdoAbortedError(ABORT_INVALID_VALUE)   # set the count to 0 first
+            if value:
+                self._mapped_bits(value, parameter.receive)
+
+    def _mapped_bits(self, entry: int, receive: bool) -> int:
+        """The length of a mapping entry, after checking it names an object a PDO of this
+        direction may carry, with the object's own length."""
+        index, subindex, bits = entry >> 16, (entry >> 8) & 0xFF, entry & 0xFF
+        if index in DUMMY_BITS:          # a dummy entry fills a gap in an RPDO
+            if not receive or subindex != 0:
+                raise SdoAbortedError(ABORT_PDO_CANNOT_MAP)
+            if bits != DUMMY_BITS[index]:
+                raise SdoAbortedError(ABORT_PARAMETER_INCOMPATIBLE)
+            return bits
+        if index not in self.object_dictionary:
+            raise SdoAbortedError(ABORT_NOT_IN_OD)
+        obj = self.object_dictionary[index]
+        if isinstance(obj, canopen.objectdictionary.ODVariable):
+            if subindex != 0:
+                raise SdoAbortedError(ABORT_NO_SUBINDEX)
+        elif subindex not in obj:
+            raise SdoAbortedError(ABORT_NO_SUBINDEX)
+        else:
+            obj = obj[subindex]
+        if not obj.pdo_mappable or not (obj.writable if receive else obj.readable):
+            raise SdoAbortedError(ABORT_PDO_CANNOT_MAP)
+        if bits != len(obj):
+            raise SdoAbortedError(ABORT_PARAMETER_INCOMPATIBLE)
+        return bits
+
+    # --- heartbeat consumer ------------------------------------------------------------
+
+    def _check_consumer(self, subindex: int, value: int) -> None:
+        producer, period = (value >> 16) & 0xFF, value & 0xFFFF
+        if not producer or not period:
+            return
+        for sub in self.object_dictionary[CONSUMER_HEARTBEAT].subindices:
+            other = self.value(CONSUMER_HEARTBEAT, sub) if sub not in (0, subindex) else 0
+            if (other >> 16) & 0xFF == producer and other & 0xFFFF:
+                raise SdoAbortedError(ABORT_PARAMETER_INCOMPATIBLE)   # one entry per node
+
+    def configure_heartbeat_consumers(self) -> None:
+        """(Re)start monitoring the producers 0x1016 names; each from its first heartbeat."""
+        if not self.has_network():
+            return
+        network = self.network
+        for can_id, handler in self._heartbeat_handlers.items():
+            network.unsubscribe(can_id, handler)
+        self._heartbeat_handlers, self._consumers = {}, {}
+        for sub in self.object_dictionary[CONSUMER_HEARTBEAT].subindices:
+            value = self.value(CONSUMER_HEARTBEAT, sub) if sub else 0
+            producer, period = (value >> 16) & 0xFF, value & 0xFFFF
+            if producer and period:
+                self._consumers[producer] = [period / 1000.0, None, False]
+                handler = self._heartbeat_from(producer)
+                self._heartbeat_handlers[0x700 + producer] = handler
+                network.subscribe(0x700 + producer, handler)
+
+    def _heartbeat_from(self, producer: int) -> Callable[[int, bytes, float], None]:
+        def heard(can_id: int, data: bytes, timestamp: float) -> None:
+            consumer = self._consumers.get(producer)
+            if consumer is not None and len(data) == 1:
+                consumer[1], consumer[2] = time.monotonic(), False
+        return heard
+
+    def lost_heartbeats(self, now: float) -> list[int]:
+        """Producers whose heartbeat is overdue, each named once until heard again."""
+        lost = []
+        for producer, consumer in self._consumers.items():
+            timeout, heard, reported = consumer
+            if heard is not None and not reported and now - heard > timeout:
+                consumer[2] = True
+                lost.append(producer)
+        return lost

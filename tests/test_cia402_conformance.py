@@ -1,0 +1,526 @@
+"""CiA 301/402 behaviour a third-party master relies on, checked from the outside.
+
+The master is python canopen's RemoteNode/BaseNode402 (not hil's own), over python-can's
+in-process ``virtual`` bus here and over SocketCAN vcan0 inside User-Mode Linux (the
+``socketcan`` variant): NMT states and what each allows, SDO abort codes, PDO remapping in
+the CiA 301 order with aborts for invalid mappings, transmission types, heartbeat producer
+and consumer, EMCY codes, the abort connection option 0x6007, the interpolation period
+0x60C2, and the modes a generic master uses besides CSP: profile position, profile
+velocity and homing. Safety: a quick stop holds where the axis stands; repeated disable
+commands do not let a braked axis creep.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import struct
+import threading
+import time
+
+import can
+import canopen
+import pytest
+from canopen.profiles.p402 import State402
+
+from test_cia402_drive import CYCLE, COUNTS, REDUCTION, emcy_logged_after, enable_csp
+
+JOINT_COUNTS = COUNTS * REDUCTION / (2 * math.pi)      # counts per joint radian (ur3 joint1)
+
+
+class FrameTap(can.Listener):
+    """Every frame the master's bus receives, by arbitration id, with its arrival time."""
+
+    def __init__(self, bench):
+        self._notifier = bench.network.notifier
+        self.frames: list[tuple[float, can.Message]] = []
+        self._lock = threading.Lock()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        with self._lock:
+            self.frames.append((time.monotonic(), msg))
+
+    def __enter__(self) -> FrameTap:
+        self._notifier.add_listener(self)
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self._notifier.remove_listener(self)
+
+    def of(self, can_id: int) -> list[can.Message]:
+        with self._lock:
+            return [msg for _, msg in self.frames if msg.arbitration_id == can_id]
+
+    def times(self, can_id: int) -> list[float]:
+        with self._lock:
+            return [t for t, msg in self.frames if msg.arbitration_id == can_id]
+
+    def clear(self) -> None:
+        with self._lock:
+            self.frames.clear()
+
+
+def raw(bench, can_id: int, data: bytes) -> None:
+    bench.master_bus.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False))
+
+
+def abort_code(action) -> int | None:
+    """The SDO abort code ``action`` ends with, or None if it succeeds."""
+    try:
+        action()
+    except canopen.SdoAbortedError as aborted:
+        return aborted.code
+    return None
+
+
+def syncs(bench, count: int, period: float = CYCLE) -> None:
+    for _ in range(count):
+        bench.network.sync.transmit()
+        time.sleep(period)
+
+
+def state_of(statusword: int) -> str:
+    """The 402 state of a statusword, by canopen's own table."""
+    return next(name for name, (mask, value) in State402.SW_MASK.items()
+                if statusword & mask == value)
+
+
+def wait_until(condition, timeout: float = 3.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.01)
+    return condition()
+
+
+def pre_operational(bench, node_id: int = 1) -> canopen.BaseNode402:
+    node = bench.node402(node_id)
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.tpdo.read()
+    node.rpdo.read()
+    return node
+
+
+# --- NMT states ---------------------------------------------------------------------------
+
+def test_a_stopped_node_answers_only_nmt_and_heartbeat(bench):
+    node = pre_operational(bench)
+    node.nmt.state = "OPERATIONAL"
+    node.nmt.state = "STOPPED"
+    node.nmt.wait_for_heartbeat(timeout=1)
+    node.nmt.wait_for_heartbeat(timeout=1)
+    assert node.nmt.state == "STOPPED"
+    node.sdo.RESPONSE_TIMEOUT, node.sdo.MAX_RETRIES = 0.3, 1     # one request, no retry
+    with pytest.raises(canopen.SdoCommunicationError):
+        node.sdo[0x1000].raw
+    with FrameTap(bench) as tap:
+        syncs(bench, 5)
+        raw(bench, 0x080, b"\x01\x02\x03")                  # a SYNC of the wrong length
+        time.sleep(0.3)
+    assert not tap.of(0x181) and not tap.of(0x281), "TPDOs in STOPPED"
+    assert not tap.of(0x081), "EMCY in STOPPED"
+    node.nmt.state = "PRE-OPERATIONAL"                   # SDO comes back
+    node.sdo.MAX_RETRIES = 3
+    assert node.sdo[0x1000].raw == 0x00020192
+
+
+def test_a_pre_operational_node_ignores_pdos_without_emcy(bench):
+    node = pre_operational(bench)
+    with FrameTap(bench) as tap:
+        raw(bench, 0x201, b"\x0f\x00\x01")                  # too short for RPDO1
+        raw(bench, 0x201, struct.pack("<Hi", 0x06, 0))      # a shutdown command by RPDO
+        syncs(bench, 5)
+        time.sleep(0.2)
+    assert not tap.of(0x081), "an EMCY for a PDO in PRE-OPERATIONAL"
+    assert not tap.of(0x181), "a TPDO in PRE-OPERATIONAL"
+    assert node.sdo[0x6041].raw & 0x4F == 0x40              # still SWITCH ON DISABLED
+
+
+def test_reset_communication_restores_the_communication_parameters(bench):
+    node = pre_operational(bench)
+    node.sdo[0x1017].raw = 40
+    node.sdo[0x6065].raw = 1234                         # an application parameter
+    with FrameTap(bench) as tap:
+        node.nmt.send_command(0x82)                     # reset communication
+        assert wait_until(lambda: any(bytes(m.data) == b"\0" for m in tap.of(0x701)), 2)
+    assert node.sdo[0x1017].raw == 100                  # the bus config's heartbeat period
+    assert node.sdo[0x6065].raw == 1234                 # kept: not a communication object
+
+
+# --- SDO -----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("what, code", [
+    ("an object the drive does not have", 0x06020000),
+    ("a sub-index the object does not have", 0x06090011),
+    ("a write to a read-only object", 0x06010002),
+    ("a write of the wrong length", 0x06070010),
+    ("a mode of operation the drive does not support", 0x06090030),
+    ("an abort connection option it does not have", 0x06090030),
+    ("a homing method it does not run", 0x06090030),
+    ("a profile acceleration of zero", 0x06090032),
+])
+def test_sdo_requests_are_refused_with_the_cia301_abort_code(bench, what, code):
+    node = pre_operational(bench)
+    actions = {
+        "an object the drive does not have": lambda: node.sdo.upload(0x5FFF, 0),
+        "a sub-index the object does not have": lambda: node.sdo.upload(0x608F, 9),
+        "a write to a read-only object": lambda: node.sdo.download(0x6041, 0, b"\x06\x00"),
+        "a write of the wrong length": lambda: node.sdo.download(0x6040, 0, b"\x06\x00\x00\x00"),
+        "a mode of operation the drive does not support":
+            lambda: node.sdo.download(0x6060, 0, b"\x07"),
+        "an abort connection option it does not have":
+            lambda: node.sdo.download(0x6007, 0, struct.pack("<h", -1)),
+        "a homing method it does not run": lambda: node.sdo.download(0x6098, 0, b"\x11"),
+        "a profile acceleration of zero": lambda: node.sdo.download(0x6083, 0, bytes(4)),
+    }
+    assert abort_code(actions[what]) == code
+
+
+def test_an_sdo_segment_without_a_transfer_is_aborted(bench):
+    pre_operational(bench)
+    with FrameTap(bench) as tap:
+        raw(bench, 0x601, bytes([0x00]) + bytes(7))          # a download segment, out of the blue
+        raw(bench, 0x601, bytes([0x60]) + bytes(7))          # an upload segment, out of the blue
+        assert wait_until(lambda: len(tap.of(0x581)) == 2, 2)
+    for answer in tap.of(0x581):
+        command, _, _, code = struct.unpack("<BHBL", answer.data)
+        assert (command, code) == (0x80, 0x05040001)
+
+
+def test_sdo_requests_of_the_wrong_length_are_not_answered(bench):
+    node = pre_operational(bench)
+    with FrameTap(bench) as tap:
+        raw(bench, 0x601, bytes([0x40, 0x00, 0x10, 0x00]))   # an upload request, 4 bytes
+        raw(bench, 0x000, b"\x01")                           # an NMT command, 1 byte
+        time.sleep(0.3)
+    assert not tap.of(0x581)
+    assert node.sdo[0x1000].raw == 0x00020192               # and the node works on
+    assert bench.sim.drive("arm", 1).malformed >= 2
+
+
+# --- PDO mapping and communication parameters -------------------------------------------
+
+def test_canopen_pdo_save_remaps_a_tpdo_with_three_objects_in_cia301_order(bench):
+    node = pre_operational(bench)
+    tpdo = node.tpdo[3]
+    tpdo.clear()
+    for index in (0x6041, 0x6064, 0x6061):
+        tpdo.add_variable(index)
+    tpdo.cob_id, tpdo.trans_type, tpdo.enabled = 0x381, 1, True
+    tpdo.save()                 # disable, count 0, entries, count, enable (canopen's order)
+    node.sdo[0x6060].raw = 8
+    node.nmt.state = "OPERATIONAL"
+    with FrameTap(bench) as tap:
+        syncs(bench, 3)
+        assert wait_until(lambda: tap.of(0x381), 2), "no TPDO3 after the remap"
+    data = bytes(tap.of(0x381)[-1].data)
+    statusword, position, mode = struct.unpack("<HiB", data)
+    assert len(data) == 7 and mode == 8
+    assert statusword & 0x4F == 0x40
+    assert position == pytest.approx(node.sdo[0x6064].raw, abs=50)
+
+
+@pytest.mark.parametrize("what, code", [
+    ("the mapping of a valid PDO", 0x06090030),
+    ("an entry while the count is not 0", 0x06090030),
+    ("an object that cannot be mapped", 0x06040041),
+    ("an object that does not exist", 0x06020000),
+    ("a 64-bit entry for a 32-bit object", 0x06040043),
+    ("a read-only object into an RPDO", 0x06040041),
+    ("a count beyond the mapping's entries", 0x06090031),
+    ("entries longer than 64 bits", 0x06040042),
+    ("a new CAN-ID for a valid PDO", 0x06090030),
+    ("a reserved transmission type", 0x06090030),
+    ("an 11-bit COB-ID above 0x7FF", 0x06090030),
+])
+def test_invalid_pdo_parameters_are_refused_with_the_cia301_abort_code(bench, what, code):
+    node = pre_operational(bench)
+    sdo = node.sdo
+    disabled = 0x80000000 | 0x381
+
+    def invalid_tpdo3(*entries):
+        sdo[0x1802][1].raw = disabled
+        sdo[0x1A02][0].raw = 0
+        for sub, entry in enumerate(entries, 1):
+            sdo[0x1A02][sub].raw = entry
+
+    actions = {
+        "the mapping of a valid PDO": lambda: sdo.download(0x1A00, 0, b"\x01"),
+        "an entry while the count is not 0": lambda: (
+            invalid_tpdo3(0x60410010), sdo.download(0x1A02, 0, b"\x01"),
+            sdo.download(0x1A02, 2, struct.pack("<L", 0x60610008))),
+        "an object that cannot be mapped": lambda: invalid_tpdo3(0x10000020),
+        "an object that does not exist": lambda: invalid_tpdo3(0x50000020),
+        "a 64-bit entry for a 32-bit object": lambda: invalid_tpdo3(0x60640040),
+        "a read-only object into an RPDO": lambda: (
+            sdo.download(0x1403, 0x1, struct.pack("<L", 0x80000501)),
+            sdo.download(0x1603, 1, struct.pack("<L", 0x60410010))),
+        "a count beyond the mapping's entries": lambda: (
+            invalid_tpdo3(), sdo.download(0x1A02, 0, b"\x09")),
+        "entries longer than 64 bits": lambda: (
+            invalid_tpdo3(0x60640020, 0x606C0020, 0x60410010),
+            sdo.download(0x1A02, 0, b"\x03")),
+        "a new CAN-ID for a valid PDO": lambda: sdo.download(0x1800, 1, struct.pack("<L", 0x191)),
+        "a reserved transmission type": lambda: sdo.download(0x1800, 2, bytes([245])),
+        "an 11-bit COB-ID above 0x7FF": lambda: sdo.download(
+            0x1802, 1, struct.pack("<L", 0x80000900)),
+    }
+    assert abort_code(actions[what]) == code
+    # nothing half-written survives: the node still starts and its default PDOs still work
+    node.nmt.state = "OPERATIONAL"
+    with FrameTap(bench) as tap:
+        syncs(bench, 3)
+        assert wait_until(lambda: tap.of(0x181), 2), "TPDO1 stopped after a refused write"
+    assert bench.sim.drive("arm", 1).node.pdo_valid(0x1800)
+
+
+# --- transmission types -------------------------------------------------------------------
+
+def _retype_tpdo(node, number: int, trans_type: int, entries=None, event_timer: int = 0):
+    tpdo = node.tpdo[number]
+    if entries is not None:
+        tpdo.clear()
+        for index in entries:
+            tpdo.add_variable(index)
+    tpdo.trans_type, tpdo.event_timer, tpdo.enabled = trans_type, event_timer, True
+    tpdo.cob_id = tpdo.cob_id & 0x7FF or 0x180 + 0x100 * (number - 1) + node.id
+    tpdo.save()
+
+
+def test_a_tpdo_of_transmission_type_n_goes_out_at_every_nth_sync(bench):
+    node = pre_operational(bench)
+    _retype_tpdo(node, 2, 3)
+    node.nmt.state = "OPERATIONAL"
+    time.sleep(0.1)
+    with FrameTap(bench) as tap:
+        syncs(bench, 12, period=0.03)
+        time.sleep(0.2)
+    assert len(tap.of(0x181)) == 12
+    assert len(tap.of(0x281)) == 4
+
+
+def test_a_tpdo_of_transmission_type_0_goes_out_at_a_sync_after_a_change(bench):
+    node = pre_operational(bench)
+    _retype_tpdo(node, 3, 0, entries=(0x6041, 0x6061))
+    node.nmt.state = "OPERATIONAL"
+    with FrameTap(bench) as tap:
+        syncs(bench, 6, period=0.03)
+        time.sleep(0.1)
+        first = len(tap.of(0x381))
+        node.sdo[0x6060].raw = 9                         # the mode display changes
+        syncs(bench, 6, period=0.03)
+        time.sleep(0.2)
+    assert first == 1                                   # once, then nothing changed
+    assert len(tap.of(0x381)) == 2
+    assert struct.unpack("<Hb", tap.of(0x381)[-1].data)[1] == 9
+
+
+def test_an_event_driven_tpdo_goes_out_on_its_event_timer_without_sync(bench):
+    node = pre_operational(bench)
+    _retype_tpdo(node, 3, 254, entries=(0x6041,), event_timer=50)
+    node.nmt.state = "OPERATIONAL"
+    with FrameTap(bench) as tap:
+        time.sleep(1.0)
+    assert not tap.of(0x080)
+    count = len(tap.of(0x381))
+    assert 10 <= count <= 25, f"{count} TPDO3 in 1 s with a 50 ms event timer"
+
+
+def test_an_event_driven_rpdo_applies_at_once_without_sync(bench):
+    node = pre_operational(bench)
+    node.sdo[0x1400][1].raw = 0x80000201
+    node.sdo[0x1400][2].raw = 255
+    node.sdo[0x1400][1].raw = 0x201
+    node.nmt.state = "OPERATIONAL"
+    raw(bench, 0x201, struct.pack("<Hi", 0x06, 0))      # shutdown, and no SYNC
+    assert wait_until(lambda: node.sdo[0x6041].raw & 0x6F == 0x21, 2)
+
+
+# --- heartbeat, EMCY, 0x6007, 0x60C2 ------------------------------------------------------
+
+def test_the_heartbeat_producer_follows_0x1017(bench):
+    node = pre_operational(bench)
+    node.sdo[0x1017].raw = 50
+    with FrameTap(bench) as tap:
+        time.sleep(1.2)
+    times = tap.times(0x701)
+    intervals = [b - a for a, b in zip(times, times[1:])]
+    assert len(intervals) >= 10
+    assert 0.03 <= statistics.median(intervals) <= 0.08
+
+
+def test_the_heartbeat_consumer_quick_stops_when_the_masters_heartbeat_stops(bench):
+    node = enable_csp(bench)
+    node.sdo[0x2010].raw = 0                            # the setpoint watchdog off: the
+    heartbeat = bench.network.send_periodic(0x77F, [0x05], 0.05)   # heartbeat alone tells
+    try:
+        node.sdo[0x1016][1].raw = (0x7F << 16) | 300     # master node 0x7F, 300 ms
+        time.sleep(0.6)
+        node.tpdo[1].wait_for_reception(1)
+        assert node.state == "OPERATION ENABLED"        # heard: monitoring, no reaction
+    finally:
+        node.rpdo[1].stop()                             # the master dies: no heartbeat,
+        heartbeat.stop()                                # no setpoints
+    assert node.emcy.wait(0x8130, timeout=2) is not None, "no heartbeat-lost EMCY"
+    assert wait_until(lambda: (node.tpdo[1].wait_for_reception(1), node.state)[1]
+                      == "QUICK STOP ACTIVE", 2)
+    assert 0x8250 not in [e.code for e in node.emcy.log]
+
+
+def test_one_heartbeat_consumer_entry_per_producer(bench):
+    node = pre_operational(bench)
+    node.sdo[0x1016][1].raw = (0x7F << 16) | 300
+    assert abort_code(lambda: node.sdo.download(
+        0x1016, 2, struct.pack("<L", (0x7F << 16) | 500))) == 0x06040043
+
+
+@pytest.mark.parametrize("option, state", [(0, "OPERATION ENABLED"), (1, "FAULT"),
+                                           (2, "SWITCH ON DISABLED"),
+                                           (3, "QUICK STOP ACTIVE")])
+def test_the_abort_connection_option_0x6007_chooses_the_reaction(bench, option, state):
+    node = enable_csp(bench)
+    node.sdo[0x6007].raw = option
+    node.nmt.state = "PRE-OPERATIONAL"                  # the master leaves the drive
+    time.sleep(0.3)
+    word = node.sdo[0x6041].raw                          # no TPDOs in PRE-OPERATIONAL
+    assert state_of(word) == state, hex(word)
+
+
+def test_an_rpdo_longer_than_its_mapping_gives_emcy_0x8220_and_is_applied(bench):
+    node = enable_csp(bench)
+    node.rpdo[1].stop()
+    bench.stop_sync()
+    here = node.tpdo[1]["Position actual value"].raw
+    raw(bench, 0x201, struct.pack("<Hi", 0x02, here) + b"\xaa")   # quick stop, 7 bytes
+    bench.network.sync.transmit()
+    assert emcy_logged_after(node, 0x8220)
+    assert wait_until(lambda: node.sdo[0x6041].raw & 0x6F == 0x07, 2)   # applied
+
+
+def test_the_interpolation_period_0x60c2_is_the_csp_interpolation_period(bench):
+    node = pre_operational(bench)
+    core = bench.sim.drive("arm", 1).core
+    assert (node.sdo[0x60C2][1].raw, node.sdo[0x60C2][2].raw) == (10, -3)   # 100 Hz SYNC
+    node.sdo[0x60C2][1].raw = 4
+    assert core.cycle == pytest.approx(0.004)
+    node.sdo[0x60C2][2].raw = -4
+    assert core.cycle == pytest.approx(0.0004)
+    assert abort_code(lambda: node.sdo.download(0x60C2, 2, bytes([0xF0]))) == 0x06090030
+    assert abort_code(lambda: node.sdo.download(0x60C2, 1, b"\x00")) == 0x06090032
+
+
+# --- modes a generic master uses ---------------------------------------------------------
+
+def _enable_in(bench, mode: str) -> canopen.BaseNode402:
+    node = bench.node402(1)
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.setup_402_state_machine(read_pdos=True)
+    node.sdo[0x2010].raw = 2000                         # setpoint watchdog: 2 s
+    node.nmt.state = "OPERATIONAL"
+    bench.start_sync(CYCLE)
+    node.rpdo[1].start(CYCLE)
+    node.op_mode = mode
+    assert node.op_mode == mode
+    node.rpdo[1]["Target position"].raw = node.tpdo[1]["Position actual value"].raw
+    node.state = "OPERATION ENABLED"
+    return node
+
+
+def test_profile_position_moves_to_a_target_with_a_set_point_handshake(bench):
+    node = _enable_in(bench, "PROFILED POSITION")
+    velocity = round(20 / (2 * math.pi) * COUNTS)       # 20 rad/s at the motor
+    node.sdo[0x6081].raw = velocity
+    node.sdo[0x6083].raw = node.sdo[0x6084].raw = 10 * velocity
+    start = node.tpdo[1]["Position actual value"].raw
+    target = start + round(0.1 * JOINT_COUNTS)
+    node.rpdo[1]["Target position"].raw = target
+    node.rpdo[1]["Controlword"].raw = 0x3F               # new set-point, immediately
+    assert wait_until(lambda: node.tpdo[1]["Statusword"].raw & 0x1000), "no set-point ack"
+    node.rpdo[1]["Controlword"].raw = 0x2F
+    assert wait_until(lambda: not node.tpdo[1]["Statusword"].raw & 0x1000)
+    assert wait_until(lambda: node.tpdo[1]["Statusword"].raw & 0x0400, 5), "target not reached"
+    assert node.tpdo[1]["Position actual value"].raw == pytest.approx(target, abs=20)
+    relative = round(-0.05 * JOINT_COUNTS)                # relative to the last target
+    node.rpdo[1]["Target position"].raw = relative
+    node.rpdo[1]["Controlword"].raw = 0x7F
+    assert wait_until(lambda: node.tpdo[1]["Statusword"].raw & 0x1000)
+    node.rpdo[1]["Controlword"].raw = 0x6F
+    time.sleep(0.1)
+    assert wait_until(lambda: node.tpdo[1]["Statusword"].raw & 0x0400, 5)
+    assert node.tpdo[1]["Position actual value"].raw == pytest.approx(target + relative, abs=20)
+    assert bench.sim.plant.joint_positions()[0] == pytest.approx(0.05, abs=2e-3)
+
+
+def test_profile_velocity_reaches_the_target_velocity_and_halts(bench):
+    node = _enable_in(bench, "PROFILED VELOCITY")
+    velocity = round(0.2 * JOINT_COUNTS)                 # 0.2 rad/s at the joint
+    node.sdo[0x6083].raw = node.sdo[0x6084].raw = 5 * velocity
+    node.sdo[0x60FF].raw = velocity
+    assert wait_until(lambda: abs(node.tpdo[2]["Velocity actual value"].raw - velocity)
+                      < 0.05 * velocity, 5), "target velocity not reached"
+    assert node.tpdo[1]["Statusword"].raw & 0x0400          # target reached
+    node.rpdo[1]["Controlword"].raw = 0x010F                 # halt
+    assert wait_until(lambda: abs(node.tpdo[2]["Velocity actual value"].raw)
+                      < 0.02 * velocity, 5), "halt did not stop the axis"
+    assert node.tpdo[1]["Statusword"].raw & 0x1000           # speed is 0
+
+
+def test_homing_on_the_current_position_sets_the_home_offset(bench):
+    node = _enable_in(bench, "CYCLIC SYNCHRONOUS POSITION")
+    node.sdo[0x6098].raw = 35
+    node.sdo[0x607C].raw = 123456
+    assert node.homing(timeout=5)
+    # homing attained, and target reached once the axis has settled where it stands
+    assert wait_until(lambda: node.tpdo[1]["Statusword"].raw & 0x3400 == 0x1400, 2)
+    assert node.tpdo[1]["Position actual value"].raw == pytest.approx(123456, abs=100)
+    assert bench.sim.plant.joint_positions()[0] == pytest.approx(0.0, abs=1e-3)   # no move
+
+
+# --- safety ---------------------------------------------------------------------------------
+
+def _csp_to(node, joint: float, node_counts_per_joint_rad: float = JOINT_COUNTS) -> int:
+    start = node.tpdo[1]["Position actual value"].raw
+    goal = start + round(joint * node_counts_per_joint_rad)
+    for i in range(1, 51):
+        node.rpdo[1]["Target position"].raw = start + (goal - start) * i // 50
+        node.tpdo[1].wait_for_reception(1)
+    assert wait_until(lambda: abs(node.tpdo[1]["Position actual value"].raw - goal) < 100, 3)
+    return goal
+
+
+@pytest.mark.parametrize("how", ["controlword", "watchdog"])
+def test_a_quick_stop_at_standstill_holds_where_the_axis_stands(bench, how):
+    node = enable_csp(bench, 3)
+    goal = _csp_to(node, 0.1)
+    time.sleep(0.2)                                          # standing still at +0.1 rad
+    if how == "controlword":
+        node.rpdo[1]["Controlword"].raw = 0x02
+    else:
+        node.rpdo[1].stop()                                  # the watchdog quick-stops
+    assert wait_until(lambda: node.tpdo[1]["Statusword"].raw & 0x6F == 0x07, 3)
+    time.sleep(0.5)
+    node.tpdo[1].wait_for_reception(1)
+    assert node.tpdo[1]["Position actual value"].raw == pytest.approx(goal, abs=200)
+    assert bench.sim.plant.joint_positions()[2] == pytest.approx(0.1, abs=1e-3)
+
+
+@pytest.mark.parametrize("how", ["rpdo", "sdo"])
+def test_repeated_disable_commands_do_not_let_a_braked_axis_creep(bench, how):
+    node = pre_operational(bench, 2)                        # the shoulder: gravity pulls it
+    node.nmt.state = "OPERATIONAL"
+    bench.start_sync(CYCLE)
+    time.sleep(0.5)                                         # the brake has taken the load
+    before = bench.sim.plant.joint_positions()[1]
+    if how == "rpdo":
+        node.rpdo[1]["Controlword"].raw = 0x06
+        node.rpdo[1]["Target position"].raw = 0
+        node.rpdo[1].start(CYCLE)
+        time.sleep(2.0)
+        node.rpdo[1].stop()
+    else:
+        for _ in range(200):
+            node.sdo[0x6040].raw = 0x06
+            node.sdo[0x6040].raw = 0x00
+    after = bench.sim.plant.joint_positions()[1]
+    assert after == pytest.approx(before, abs=1e-3)
