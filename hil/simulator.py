@@ -314,6 +314,16 @@ class Simulator:
 
     # --- status -------------------------------------------------------------------
 
+    def frame_report(self) -> list[str]:
+        """What the drives refused (malformed frames) and could not send, per bus."""
+        lines = []
+        for runtime in self._runtimes:
+            refused = sum(drive.malformed for drive in runtime.drives)
+            lost = runtime.network.lost_frames if runtime.network is not None else 0
+            lines.append(f"bus {runtime.config.name}: the drives refused {refused} malformed "
+                         f"frame(s) and could not send {lost}")
+        return lines
+
     def status_lines(self) -> list[str]:
         with self.lock:
             lines = [f"t = {self.plant.time:8.3f} s   cycles {self.cycles}   "

@@ -20,6 +20,17 @@ from hil.errors import HilError
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 LOOPBACK_ANY_PORT = "tcp/127.0.0.1:0"
+#: how long a droppable put (a CAN frame) may wait for room in a congested link before it
+#: is dropped (us; Zenoh's default is 1000): about one CAN frame's time at 1 Mbit/s, so a
+#: drive answering under congestion holds its simulator's lock no longer than a CAN
+#: controller would wait for the bus
+DROP_WAIT_US = 150
+#: TCP socket buffers of every link (bytes; Linux grows them to several MB by itself): what a
+#: link holds in flight, about 2000 CAN frames each way. A sender faster than its receiver
+#: then sees congestion and drops, as on a CAN bus, instead of queueing seconds of frames in
+#: the kernel for the receiver to work through long after (measured: a 20 s flood of
+#: 10,000 frames/s was still being answered 10 s after it ended)
+SOCKET_BUFFER = 65536
 
 
 def free_loopback_port() -> int:
@@ -44,6 +55,11 @@ class ZenohSettings:
             if self.config_file is None:
                 config.insert_json5("mode", '"peer"')
                 config.insert_json5("scouting/multicast/enabled", "false")
+                config.insert_json5(
+                    "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
+                    str(DROP_WAIT_US))
+                config.insert_json5("transport/link/tcp/so_sndbuf", str(SOCKET_BUFFER))
+                config.insert_json5("transport/link/tcp/so_rcvbuf", str(SOCKET_BUFFER))
             # Zenoh's own default listener is tcp/[::]:0, every interface and IPv6 only
             # where IPv6 exists; a process that only connects listens on loopback instead.
             listen = self.listen or (() if self.config_file else (LOOPBACK_ANY_PORT,))

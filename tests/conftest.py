@@ -82,11 +82,6 @@ TEST_MOTOR_DRIVE = dict(counts_per_rev=4096, rated_torque=1.0, peak_torque=2.0,
                         watchdog_timeout=0.1, position_limits=(-50.0, 50.0))
 
 
-def pytest_configure(config):
-    config.addinivalue_line("markers", "socketcan: needs a SocketCAN vcan0 (runs inside "
-                                       "User-Mode Linux in CI, see tools/uml_run.py)")
-
-
 free_port = free_loopback_port
 
 
@@ -174,7 +169,7 @@ class ControlledBench:
 
     def __init__(self):
         self.config = load_bus_config(UR3_VIRTUAL)
-        channel = f"hil-reset-{uuid.uuid4().hex[:8]}"
+        channel = self.channel = f"hil-reset-{uuid.uuid4().hex[:8]}"
         # the sim's side of the bus can lose, delay and corrupt frames (FaultyBus.add)
         self.sim_bus = FaultyBus(can.Bus(interface="virtual", channel=channel), [])
         self.master_bus = can.Bus(interface="virtual", channel=channel)

@@ -10,8 +10,9 @@ import pytest
 from hil.controllers import (
     GOAL_TOLERANCE_VIOLATED, INVALID_GOAL, INVALID_JOINTS, PATH_TOLERANCE_VIOLATED,
     GoalRejected, GoalStatus, JointTolerance, JointTrajectoryController, TrajectoryGoal,
-    TrajectoryPoint,
+    TrajectoryPoint, TrajectoryPoints,
 )
+from hil.controllers.trajectory import MAX_POINTS
 
 DT = 0.002
 
@@ -150,7 +151,7 @@ def test_goal_tolerance_violation_after_goal_time(ur3_jtc):
     (goal(["joint1"], (1.0, [0.1]), (1.0, [0.2])), INVALID_GOAL,
      "point 1 time_from_start 1.0 is not after"),
     (goal(["joint1"], (1.0, [math.nan])), INVALID_GOAL, "point 0 joint 'joint1' position is nan"),
-    (goal(["joint1"], (1.0, [0.1], [math.inf])), INVALID_GOAL, "velocitie is inf"),
+    (goal(["joint1"], (1.0, [0.1], [math.inf])), INVALID_GOAL, "velocity is inf"),
     (goal(["joint1"], (1.0, [0.1], [2.0])), INVALID_GOAL, "velocity 2 exceeds its limit 1"),
     (goal(["joint1"], (1.0, [0.1]), (1.1, [0.5])), INVALID_GOAL,
      "point 1 joint 'joint1' needs 4 on average"),
@@ -200,3 +201,85 @@ def test_continuous_joint_takes_the_short_way_round(tmp_path, package_path):
 def test_goals_wait_for_the_first_joint_state(ur3_jtc):
     with pytest.raises(GoalRejected, match="no joint state yet"):
         ur3_jtc.submit("early", goal(["joint1"], (1.0, [0.1])))
+
+
+def _long_goal(points: int, arrays: bool):
+    """A 6-joint goal of ``points`` points, 2 ms apart, a slow sine wave from 0."""
+    times = 0.5 + 0.002 * np.arange(points)
+    positions = 0.2 * np.sin(np.outer(np.arange(points) * 5e-4, np.ones(6)) + np.arange(6)) - \
+        0.2 * np.sin(np.arange(6))
+    names = tuple(f"joint{j}" for j in range(1, 7))
+    if arrays:
+        return TrajectoryGoal(names, TrajectoryPoints(times, positions))
+    return TrajectoryGoal(names, tuple(TrajectoryPoint(t, tuple(p))
+                                       for t, p in zip(times.tolist(), positions.tolist())))
+
+
+@pytest.mark.parametrize("arrays", [False, True], ids=["points", "arrays"])
+def test_a_10000_point_goal_is_followed_to_its_last_point(ur3_jtc, arrays):
+    follower = Follower(ur3_jtc)
+    follower.run(0.01)
+    big = _long_goal(10_000, arrays)
+    ur3_jtc.submit("long", big)
+    desired = []
+    for _ in range(5):                                    # samples along the way
+        follower.run(4.0)
+        desired.append(follower.q.copy())
+    results = follower.run(1.0)
+    assert results[0][1].status is GoalStatus.SUCCEEDED
+    last = np.array(big.points[-1].positions)
+    assert follower.q == pytest.approx(last, abs=1e-9)
+    # on the way it follows the points (linear between them): at t = 0.5 + 0.002 k + 0.01
+    k = round((4.0 + 0.01 - 0.5) / 0.002)
+    assert desired[0] == pytest.approx(np.array(big.points[k].positions), abs=1e-3)
+
+
+def test_a_goal_is_checked_and_planned_without_the_controllers_lock(ur3_jtc, monkeypatch):
+    """The control cycle must not wait for a large goal's checks and planning (on one goal
+    of 10,000 points that held the real-time loop for 130 ms)."""
+    follower = Follower(ur3_jtc)
+    follower.run(0.01)
+    held_while_planning = []
+    plan = ur3_jtc._plan
+
+    def watched(goal):
+        held_while_planning.append(ur3_jtc._lock.locked())
+        return plan(goal)
+
+    monkeypatch.setattr(ur3_jtc, "_plan", watched)
+    ur3_jtc.submit("long", _long_goal(10_000, arrays=False))
+    assert held_while_planning == [False]
+    assert ur3_jtc.active_goal == "long"
+
+
+def test_a_goal_over_the_point_limit_is_refused_naming_the_limit(ur3_jtc):
+    Follower(ur3_jtc).run(0.01)
+    with pytest.raises(GoalRejected, match=f"at most {MAX_POINTS}"):
+        ur3_jtc.submit("huge", _long_goal(MAX_POINTS + 1, arrays=True))
+
+
+@pytest.mark.parametrize("bad", [
+    dict(goal_tolerance=(JointTolerance("joint1", math.nan),)),
+    dict(path_tolerance=(JointTolerance("joint1", 0.1, math.inf),)),
+    dict(goal_time_tolerance=math.nan),
+    dict(goal_time_tolerance=-1.0),
+], ids=["nan goal tolerance", "inf path velocity tolerance", "nan goal time tolerance",
+        "negative goal time tolerance"])
+def test_non_finite_tolerances_are_refused_before_any_motion(ur3_jtc, bad):
+    follower = Follower(ur3_jtc)
+    follower.run(0.01)
+    with pytest.raises(GoalRejected, match="tolerance"):
+        ur3_jtc.submit("bad", goal(["joint1"], (1.0, [0.1]), **bad))
+    follower.run(0.2)
+    assert follower.q == pytest.approx(0.0) and ur3_jtc.active_goal is None
+
+
+def test_a_decoded_goal_keeps_its_points_as_arrays():
+    from hil.messaging import types as T
+    sent = _long_goal(50, arrays=False)
+    decoded = T.goal_from_msg(T.decode(T.encode(T.goal_msg(sent)),
+                                       "control_msgs/action/FollowJointTrajectory_Goal"), None)
+    assert isinstance(decoded.points, TrajectoryPoints)
+    assert [p.positions for p in decoded.points] == [p.positions for p in sent.points]
+    assert [p.time_from_start for p in decoded.points] == pytest.approx(   # whole nanoseconds
+        [p.time_from_start for p in sent.points], abs=1e-9)

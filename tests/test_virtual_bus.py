@@ -185,11 +185,13 @@ def test_a_networks_listener_feeds_subscribers_routes_rtr_and_survives_a_failing
     network.subscribe(0x181, hear)        # after the failing one, on the same id
     network.subscribe(0x182, hear)
     network.frame_listener.remote_handlers[0x209] = asked.append
-    with caplog.at_level(logging.ERROR):
+    with caplog.at_level(logging.WARNING):
         sender.send(frame(0x181))
         sender.send(frame(0x182, b"\x01"))
         sender.send(can.Message(arbitration_id=0x209, is_remote_frame=True, dlc=8,
                                 is_extended_id=False))
     assert heard == [(0x181, frame().data), (0x182, b"\x01")] and asked == [0x209]
     assert "0x181" in caplog.text and "broken subscriber" in caplog.text
+    assert "Traceback" not in caplog.text             # one line, counted
+    assert network.frame_listener.refused == 1
     network.notifier.stop()

@@ -13,12 +13,19 @@ Why: SocketCAN ``vcan`` needs a Linux kernel with CAN; python-can's
 network. Zenoh over loopback TCP is cross-process, loopback-only by default,
 and also lets a bench put drives and controller on different hosts.
 
-Received frames go to a queue for ``recv`` (and a Notifier), or, after
-``deliver_to`` (:mod:`hil.can.delivery`), straight to the listeners in Zenoh's
-callback thread: one thread switch less per frame.
+Back-pressure, as a CAN controller has it: a send never blocks its thread (a drive answers
+from inside a delivery, holding the simulator's lock): under congestion Zenoh drops the
+frame (``CongestionControl.DROP``, after at most ``hil.zenoh_session.DROP_WAIT_US``). Frames arrive in Zenoh's
+own thread (``indirect=False``: no Python channel between Zenoh and this bus, so a frame
+this bus sends is never stuck behind a channel only the sending thread drains). Received
+frames go to a bounded FIFO for ``recv`` (a full one drops and counts them: an overrun),
+or, after ``deliver_to`` (:mod:`hil.can.delivery`), straight to the listeners. Every frame
+carries its sender's sequence number, so a receiver counts what was lost on the way
+(:class:`FrameCounters`).
 
-Wire format of one frame (little-endian): sender id u64, arbitration id u32,
-flags u8 (1 extended, 2 remote, 4 error), DLC u8, then the data bytes.
+Wire format of one frame (little-endian): sender id u64, sequence number u32 (per
+sender, wrapping), arbitration id u32, flags u8 (1 extended, 2 remote, 4 error), DLC u8,
+then the data bytes.
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ import struct
 import threading
 import time
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 import can
@@ -42,21 +50,28 @@ from hil.zenoh_session import ZenohSettings, session
 log = logging.getLogger(__name__)
 
 KEY_PREFIX = "hil/can/"
-_HEADER = struct.Struct("<QIBB")
+_HEADER = struct.Struct("<QIIBB")
+_SENDER = struct.Struct("<Q")
 _EXTENDED, _REMOTE, _ERROR = 1, 2, 4
+#: frames a bus holds for ``recv`` before it drops new ones (a CAN controller's RX FIFO)
+RECEIVE_FIFO = 8192
+#: a malformed payload is logged the first time, then every this many
+LOG_EVERY = 1000
 
 
-def encode_frame(sender: int, msg: can.Message) -> bytes:
+def encode_frame(sender: int, msg: can.Message, sequence: int = 0) -> bytes:
     flags = ((_EXTENDED if msg.is_extended_id else 0) | (_REMOTE if msg.is_remote_frame else 0)
              | (_ERROR if msg.is_error_frame else 0))
-    return _HEADER.pack(sender, msg.arbitration_id, flags, msg.dlc) + bytes(msg.data or b"")
+    return _HEADER.pack(sender, sequence & 0xFFFFFFFF, msg.arbitration_id, flags,
+                        msg.dlc) + bytes(msg.data or b"")
 
 
-def decode_frame(payload: bytes, channel: str) -> tuple[int, can.Message]:
-    """Raise ValueError for anything that is not a well-formed frame."""
+def decode_frame(payload: bytes, channel: str) -> tuple[int, int, can.Message]:
+    """(sender, sequence number, frame); raise ValueError for anything that is not a
+    well-formed frame."""
     if len(payload) < _HEADER.size:
         raise ValueError(f"{len(payload)} bytes is shorter than a frame header")
-    sender, arbitration_id, flags, dlc = _HEADER.unpack_from(payload)
+    sender, sequence, arbitration_id, flags, dlc = _HEADER.unpack_from(payload)
     data = payload[_HEADER.size:]
     remote = bool(flags & _REMOTE)
     if dlc > 8 or (not remote and len(data) != dlc) or (remote and data):
@@ -64,10 +79,28 @@ def decode_frame(payload: bytes, channel: str) -> tuple[int, can.Message]:
     limit = 0x1FFFFFFF if flags & _EXTENDED else 0x7FF
     if arbitration_id > limit:
         raise ValueError(f"identifier 0x{arbitration_id:X} out of range")
-    return sender, can.Message(timestamp=time.time(), arbitration_id=arbitration_id,
-                               is_extended_id=bool(flags & _EXTENDED), is_remote_frame=remote,
-                               is_error_frame=bool(flags & _ERROR), dlc=dlc, data=data,
-                               channel=channel, is_rx=True)
+    return sender, sequence, can.Message(
+        timestamp=time.time(), arbitration_id=arbitration_id,
+        is_extended_id=bool(flags & _EXTENDED), is_remote_frame=remote,
+        is_error_frame=bool(flags & _ERROR), dlc=dlc, data=data, channel=channel, is_rx=True)
+
+
+@dataclass
+class FrameCounters:
+    """What a bus sent and received, and what it lost."""
+
+    sent: int = 0
+    received: int = 0
+    #: frames other buses sent that never arrived here (gaps in their sequence numbers)
+    lost: int = 0
+    #: frames dropped because the receive FIFO was full (nobody read them in time)
+    overrun: int = 0
+    #: payloads on the channel that were not frames
+    malformed: int = 0
+
+    def __str__(self) -> str:
+        return (f"sent {self.sent}, received {self.received}, lost on the way {self.lost}, "
+                f"overrun {self.overrun}, malformed {self.malformed}")
 
 
 class ZenohBus(can.BusABC):
@@ -83,10 +116,14 @@ class ZenohBus(can.BusABC):
         self._channel = str(channel)
         self._receive_own = receive_own_messages
         self._sender = random.getrandbits(63) ^ os.getpid()
-        self._queue: queue.SimpleQueue[can.Message] = queue.SimpleQueue()
+        self._sender_bytes = _SENDER.pack(self._sender)
+        self._sequence = 0
+        self._heard: dict[int, int] = {}      # sender -> its last sequence number seen
+        self.counters = FrameCounters()
+        self._count_lock = threading.Lock()   # Zenoh delivers from a thread per link
+        self._queue: queue.Queue[can.Message] = queue.Queue(RECEIVE_FIFO)
         self._direct: DirectDelivery | None = None
         self._send_lock = threading.Lock()
-        self._malformed = 0
         settings = ZenohSettings(tuple(listen), tuple(connect),
                                  Path(zenoh_config) if zenoh_config else None)
         self._session = session(settings)
@@ -94,27 +131,51 @@ class ZenohBus(can.BusABC):
         # not express: Zenoh batches what a burst puts before its TX task sends it. Measured on
         # loopback (8 frames answered by 12, as a cycle of the ur3): round trip p50 340 us
         # against 860 us express, 4 us a put against 30-40 us; a lone frame's round trip is
-        # the same either way (300-375 us), Zenoh's batch time limit does not hold it back
+        # the same either way (300-375 us), Zenoh's batch time limit does not hold it back.
+        # DROP: a put never blocks (module doc); the receivers count what it cost
         self._publisher = self._session.declare_publisher(
-            key, congestion_control=zenoh.CongestionControl.BLOCK, express=False)
-        self._subscriber = self._session.declare_subscriber(key, self._on_sample)
+            key, congestion_control=zenoh.CongestionControl.DROP, express=False)
+        self._subscriber = self._session.declare_subscriber(
+            key, zenoh.handlers.Callback(self._on_sample, indirect=False))
         super().__init__(channel=channel, **kwargs)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
+        payload = sample.payload.to_bytes()
+        if payload[:8] == self._sender_bytes and not self._receive_own:
+            return                  # its own frame, which Zenoh delivers to local subscribers
         try:
-            sender, msg = decode_frame(sample.payload.to_bytes(), self._channel)
+            sender, sequence, msg = decode_frame(payload, self._channel)
         except ValueError as exc:
-            self._malformed += 1
-            if self._malformed == 1 or self._malformed % 1000 == 0:
+            with self._count_lock:
+                self.counters.malformed += 1
+                malformed = self.counters.malformed
+            if malformed % LOG_EVERY == 1:
                 log.warning("%s: dropped %d malformed frame(s) from Zenoh: %s",
-                            self.channel_info, self._malformed, exc)
+                            self.channel_info, malformed, exc)
             return
-        if sender != self._sender or self._receive_own:
-            direct = self._direct
-            if direct is not None:
-                direct.deliver(msg)
-            else:
-                self._queue.put(msg)
+        self._count_arrival(sender, sequence)
+        direct = self._direct
+        if direct is not None:
+            direct.deliver(msg)
+            return
+        try:
+            self._queue.put_nowait(msg)
+        except queue.Full:
+            with self._count_lock:
+                self.counters.overrun += 1
+
+    def _count_arrival(self, sender: int, sequence: int) -> None:
+        counters = self.counters
+        with self._count_lock:
+            counters.received += 1
+            last = self._heard.get(sender)
+            if last is not None:
+                # frames that never came: the gap since the sender's previous one (a late
+                # one of an earlier sequence, which Zenoh does not produce, counts nothing)
+                gap = (sequence - last - 1) & 0xFFFFFFFF
+                if gap < 0x80000000:
+                    counters.lost += gap
+            self._heard[sender] = sequence
 
     def deliver_to(self, listeners: Iterable[can.Listener],
                    accept: Callable[[can.Message], can.Message | None] | None = None
@@ -133,7 +194,9 @@ class ZenohBus(can.BusABC):
         with self._send_lock:
             if self._is_shutdown:
                 raise can.CanOperationError(f"{self.channel_info}: the bus is shut down")
-            self._publisher.put(encode_frame(self._sender, msg))
+            self._sequence += 1
+            self.counters.sent += 1
+            self._publisher.put(encode_frame(self._sender, msg, self._sequence))
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         try:
@@ -144,9 +207,10 @@ class ZenohBus(can.BusABC):
     def shutdown(self) -> None:
         if self._is_shutdown:
             return
-        super().shutdown()        # stops the periodic tasks (they send through send())
-        # a put still running in another thread (a listener's answer, a heartbeat) ends
-        # first: zenoh refuses to undeclare a publisher in use ("Already borrowed")
+        super().shutdown()        # stops the periodic tasks; later sends are refused
+        # not under the send lock: a delivery in progress may still be answering
+        self._subscriber.undeclare()
+        # a put still running in another thread ends first: zenoh refuses to undeclare a
+        # publisher in use ("Already borrowed")
         with self._send_lock:
-            self._subscriber.undeclare()
             self._publisher.undeclare()

@@ -67,6 +67,16 @@ def can_overrides(args: argparse.Namespace) -> tuple[str | None, dict[str, str]]
     return args.interface, channels
 
 
+def bus_report(buses: dict) -> list[str]:
+    """One line per bus with its frame counters (where its interface keeps them: zenoh)."""
+    lines = []
+    for name, bus in buses.items():
+        counters = getattr(getattr(bus, "inner", bus), "counters", None)
+        if counters is not None:
+            lines.append(f"bus {name}: {counters}")
+    return lines
+
+
 def display_available() -> bool:
     """Whether a rerun viewer could open a window here."""
     has_display = sys.platform == "darwin" or bool(os.environ.get("DISPLAY")

@@ -73,5 +73,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"hil control: fault: {fault}", file=sys.stderr)
     if not args.lock_step:
         print(f"hil control: {node.statistics.summary()}")
+    for line in common.bus_report(buses):
+        print(f"hil control: {line}")
     print("hil control: stopped; drives disabled", flush=True)
     return 0

@@ -98,6 +98,8 @@ def run(args: argparse.Namespace) -> int:
         close_all()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
+    for line in common.bus_report(buses) + simulator.frame_report():
+        print(f"hil sim: {line}")
     print("hil sim: stopped; all drives disabled", flush=True)
     return 0
 

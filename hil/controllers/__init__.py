@@ -3,12 +3,12 @@
 from hil.controllers.trajectory import (
     GOAL_TOLERANCE_VIOLATED, HARDWARE_FAULT, INVALID_GOAL, INVALID_JOINTS,
     PATH_TOLERANCE_VIOLATED, SUCCESSFUL, ControllerState, Defaults, GoalRejected, GoalResult,
-    GoalStatus, JointTolerance, JointTrajectoryController, TrajectoryGoal, TrajectoryPoint,
+    GoalStatus, JointTolerance, JointTrajectoryController, TrajectoryGoal, TrajectoryPoint, TrajectoryPoints,
 )
 
 __all__ = [
     "ControllerState", "Defaults", "GOAL_TOLERANCE_VIOLATED", "GoalRejected", "GoalResult",
     "GoalStatus", "HARDWARE_FAULT", "INVALID_GOAL", "INVALID_JOINTS", "JointTolerance",
     "JointTrajectoryController", "PATH_TOLERANCE_VIOLATED", "SUCCESSFUL", "TrajectoryGoal",
-    "TrajectoryPoint",
+    "TrajectoryPoint", "TrajectoryPoints",
 ]

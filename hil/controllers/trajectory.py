@@ -22,10 +22,12 @@ from __future__ import annotations
 import enum
 import math
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from hil.controllers.spline import Spline
 from hil.description import JointType, RobotDescription
 
 # control_msgs/FollowJointTrajectory result error codes, and hil's one extension.
@@ -35,6 +37,10 @@ INVALID_JOINTS = -2
 PATH_TOLERANCE_VIOLATED = -4
 GOAL_TOLERANCE_VIOLATED = -5
 HARDWARE_FAULT = -100        # hil: a drive faulted or went silent (not in control_msgs)
+
+#: the most points a goal may have: planned, a point takes 6 coefficients per joint and
+#: segment (100,000 points of 6 joints: 29 MB)
+MAX_POINTS = 100_000
 
 
 class GoalStatus(enum.Enum):
@@ -54,6 +60,33 @@ class TrajectoryPoint:
     accelerations: tuple[float, ...] = ()
 
 
+class TrajectoryPoints(Sequence[TrajectoryPoint]):
+    """A goal's points held as arrays, as a decoded message gives them: ``times`` (points,),
+    ``positions`` (points x joints), ``velocities`` and ``accelerations`` the same or None.
+
+    A sequence of :class:`TrajectoryPoint` to whoever reads it point by point; the controller
+    takes the arrays as they are. Why: a 10,000-point goal as objects is about 100,000 Python
+    objects, and freeing them in one go held the control loop's thread for 5 ms (measured).
+    """
+
+    def __init__(self, times: np.ndarray, positions: np.ndarray,
+                 velocities: np.ndarray | None = None, accelerations: np.ndarray | None = None):
+        self.times = np.asarray(times, dtype=float)
+        self.positions = np.asarray(positions, dtype=float)
+        self.velocities = velocities
+        self.accelerations = accelerations
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        optional = lambda values: () if values is None else tuple(values[index].tolist())  # noqa: E731
+        return TrajectoryPoint(float(self.times[index]), tuple(self.positions[index].tolist()),
+                               optional(self.velocities), optional(self.accelerations))
+
+
 @dataclass(frozen=True)
 class JointTolerance:
     name: str
@@ -66,7 +99,7 @@ class TrajectoryGoal:
     """A FollowJointTrajectory goal. ``start_time`` is on the controller's clock; None = now."""
 
     joint_names: tuple[str, ...]
-    points: tuple[TrajectoryPoint, ...]
+    points: Sequence[TrajectoryPoint]       # a tuple, or TrajectoryPoints
     start_time: float | None = None
     path_tolerance: tuple[JointTolerance, ...] = ()
     goal_tolerance: tuple[JointTolerance, ...] = ()
@@ -98,46 +131,10 @@ class GoalRejected(ValueError):
 
 
 @dataclass
-class _Segment:
-    """Polynomial p(t) = sum c_k (t - t0)^k per joint on [t0, t1]."""
-
-    t0: float
-    t1: float
-    coefficients: np.ndarray      # (6, joints)
-
-    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        tau = min(max(t - self.t0, 0.0), self.t1 - self.t0)
-        c = self.coefficients
-        powers = tau ** np.arange(6)
-        position = powers @ c
-        velocity = (np.arange(1, 6) * powers[:5]) @ c[1:]
-        acceleration = (np.array([2, 6, 12, 20]) * powers[:4]) @ c[2:]
-        return position, velocity, acceleration
-
-
-def _segment(t0, t1, p0, v0, a0, p1, v1, a1, order: int) -> _Segment:
-    """Linear (order 1), cubic (3) or quintic (5) segment between two states."""
-    T = t1 - t0
-    c = np.zeros((6, len(p0)))
-    if order == 1:
-        c[0], c[1] = p0, (p1 - p0) / T
-    elif order == 3:
-        c[0], c[1] = p0, v0
-        c[2] = (3 * (p1 - p0) - (2 * v0 + v1) * T) / T ** 2
-        c[3] = (2 * (p0 - p1) + (v0 + v1) * T) / T ** 3
-    else:
-        c[0], c[1], c[2] = p0, v0, a0 / 2
-        c[3] = (20 * (p1 - p0) - (8 * v1 + 12 * v0) * T - (3 * a0 - a1) * T ** 2) / (2 * T ** 3)
-        c[4] = (30 * (p0 - p1) + (14 * v1 + 16 * v0) * T + (3 * a0 - 2 * a1) * T ** 2) / (2 * T ** 4)
-        c[5] = (12 * (p1 - p0) - (6 * v1 + 6 * v0) * T - (a0 - a1) * T ** 2) / (2 * T ** 5)
-    return _Segment(t0, t1, c)
-
-
-@dataclass
 class _ActiveGoal:
     goal_id: str
     indices: np.ndarray            # controller joint index of each goal joint
-    segments: list[_Segment]
+    spline: Spline                 # on the goal's clock: 0 = start
     start: float
     end: float
     path_position: np.ndarray
@@ -147,6 +144,18 @@ class _ActiveGoal:
     goal_time_tolerance: float
     final: np.ndarray
     result: GoalResult | None = None
+
+
+@dataclass
+class _Plan:
+    """A goal checked and planned between its points, before it meets the controller's
+    state (made without the lock)."""
+
+    indices: np.ndarray
+    spline: Spline
+    path: tuple[np.ndarray, np.ndarray]
+    tolerance: tuple[np.ndarray, np.ndarray]
+    goal_time_tolerance: float
 
 
 @dataclass
@@ -201,20 +210,29 @@ class JointTrajectoryController:
     # --- goals ------------------------------------------------------------------
 
     def submit(self, goal_id: str, goal: TrajectoryGoal) -> None:
-        """Validate and start a goal, preempting the active one; raises GoalRejected."""
+        """Validate and start a goal, preempting the active one; raises GoalRejected.
+
+        The goal is checked and planned without the controller's lock (a 10,000-point goal
+        takes milliseconds): the control cycle waits only for the first segment, planned
+        from its state under the lock."""
         with self._lock:
-            if self._fault is not None:
-                raise GoalRejected(f"the hardware is faulted: {self._fault}", HARDWARE_FAULT)
-            if not self._initialised:
-                raise GoalRejected("the controller has no joint state yet (hardware starting)",
-                                   HARDWARE_FAULT)
-            indices = self._validate(goal)
-            active = self._plan(goal_id, goal, indices)
+            self._check_accepting()
+        plan = self._plan(goal)
+        with self._lock:
+            self._check_accepting()
+            active = self._start(goal_id, goal, plan)
             if self._active is not None and self._active.result is None:
                 self._finish(self._active, GoalResult(
                     GoalStatus.ABORTED, INVALID_GOAL,
                     f"preempted by goal {goal_id}"))
             self._active = active
+
+    def _check_accepting(self) -> None:
+        if self._fault is not None:
+            raise GoalRejected(f"the hardware is faulted: {self._fault}", HARDWARE_FAULT)
+        if not self._initialised:
+            raise GoalRejected("the controller has no joint state yet (hardware starting)",
+                               HARDWARE_FAULT)
 
     def cancel(self, goal_id: str) -> bool:
         """Cancel a goal: the joints hold where they are. False if it is not active."""
@@ -285,8 +303,7 @@ class JointTrajectoryController:
     def _follow(self, goal: _ActiveGoal, now: float) -> None:
         idx = goal.indices
         if now >= goal.start:
-            segment = next((s for s in goal.segments if now <= s.t1), goal.segments[-1])
-            p, v, a = segment.sample(now)
+            p, v, a = goal.spline.sample(now - goal.start)
             self._desired[idx], self._desired_velocity[idx] = p, v
             self._desired_acceleration[idx] = a
         error = self._wrap(self._desired[idx] - self._actual[idx], idx)
@@ -340,7 +357,53 @@ class JointTrajectoryController:
         wrapped = (difference + np.pi) % (2 * np.pi) - np.pi
         return np.where(self._continuous[indices], wrapped, difference)
 
-    def _validate(self, goal: TrajectoryGoal) -> np.ndarray:
+    def _plan(self, goal: TrajectoryGoal) -> _Plan:
+        """Check a goal and plan its segments between points (no lock held: it reads only the
+        controller's fixed limits)."""
+        indices = self._check_joints(goal)
+        if not goal.points:
+            raise GoalRejected("the trajectory has no points")
+        if len(goal.points) > MAX_POINTS:
+            raise GoalRejected(f"the trajectory has {len(goal.points)} points; this controller "
+                               f"takes at most {MAX_POINTS} (split it into several goals, or "
+                               "sample it more coarsely)")
+        times, positions, velocities, accelerations, order = self._arrays(goal)
+        lower, upper = self._lower[indices], self._upper[indices]
+        limit, continuous = self._velocity_limit[indices], self._continuous[indices]
+        outside = ~continuous & ((positions < lower) | (positions > upper))
+        if outside.any():
+            p, k = _first(outside)
+            raise GoalRejected(f"point {p} joint '{goal.joint_names[k]}' position "
+                               f"{positions[p, k]:g} is outside its limits [{lower[k]:g}, "
+                               f"{upper[k]:g}]")
+        too_fast = np.abs(velocities) > limit
+        if too_fast.any():
+            p, k = _first(too_fast)
+            raise GoalRejected(f"point {p} joint '{goal.joint_names[k]}' velocity "
+                               f"{velocities[p, k]:g} exceeds its limit {limit[k]:g}")
+        # continuous joints: each point on the turn nearest the point before (the first is
+        # put on the turn nearest the joint's state when the goal starts)
+        positions[:, continuous] = np.unwrap(positions[:, continuous], axis=0)
+        if len(times) > 1:
+            implied = np.diff(positions, axis=0) / np.diff(times)[:, None]
+            too_fast = np.abs(implied) > limit * (1 + 1e-9)
+            if too_fast.any():
+                p, k = _first(too_fast)
+                raise GoalRejected(
+                    f"point {p + 1} joint '{goal.joint_names[k]}' needs {abs(implied[p, k]):.4g}"
+                    f" on average from point {p}, above its velocity limit {limit[k]:g}")
+        self._check_tolerances(goal)
+        path = self._tolerances(goal.path_tolerance, goal.joint_names,
+                                self.defaults.path_position_tolerance, 0.0)
+        tolerance = self._tolerances(goal.goal_tolerance, goal.joint_names,
+                                     self.defaults.goal_position_tolerance,
+                                     self.defaults.goal_velocity_tolerance)
+        goal_time = (goal.goal_time_tolerance if goal.goal_time_tolerance > 0 else
+                     self.defaults.goal_time_tolerance)
+        return _Plan(indices, Spline.between(times, positions, velocities, accelerations, order),
+                     path, tolerance, goal_time)
+
+    def _check_joints(self, goal: TrajectoryGoal) -> np.ndarray:
         names = goal.joint_names
         if not names:
             raise GoalRejected("the goal names no joints", INVALID_JOINTS)
@@ -353,106 +416,127 @@ class JointTrajectoryController:
                                    f"{', '.join(self.joint_names)}", INVALID_JOINTS)
         if len(set(names)) != len(names):
             raise GoalRejected("a joint is named twice in the goal", INVALID_JOINTS)
-        if not goal.points:
-            raise GoalRejected("the trajectory has no points")
-        indices = np.array([self.joint_names.index(n) for n in names])
-        previous_time = -math.inf
-        for p, point in enumerate(goal.points):
-            where = f"point {p}"
-            if len(point.positions) != len(names):
-                raise GoalRejected(f"{where} has {len(point.positions)} positions for "
-                                   f"{len(names)} joints")
-            for field_name in ("velocities", "accelerations"):
-                values = getattr(point, field_name)
-                if values and len(values) != len(names):
-                    raise GoalRejected(f"{where} has {len(values)} {field_name} for "
-                                       f"{len(names)} joints")
-            for field_name in ("positions", "velocities", "accelerations"):
-                for k, value in enumerate(getattr(point, field_name)):
-                    if not math.isfinite(value):
-                        raise GoalRejected(f"{where} joint '{names[k]}' {field_name[:-1]} is "
-                                           f"{value}")
-            if not math.isfinite(point.time_from_start) or point.time_from_start <= previous_time \
-                    or point.time_from_start < 0:
-                raise GoalRejected(f"{where} time_from_start {point.time_from_start} is not "
-                                   "after the previous point's (times must increase, from >= 0)")
-            previous_time = point.time_from_start
-            for k, i in enumerate(indices):
-                q = point.positions[k]
-                if not self._continuous[i] and not self._lower[i] <= q <= self._upper[i]:
-                    raise GoalRejected(f"{where} joint '{names[k]}' position {q:g} is outside "
-                                       f"its limits [{self._lower[i]:g}, {self._upper[i]:g}]")
-                if point.velocities and abs(point.velocities[k]) > self._velocity_limit[i]:
-                    raise GoalRejected(f"{where} joint '{names[k]}' velocity "
-                                       f"{point.velocities[k]:g} exceeds its limit "
-                                       f"{self._velocity_limit[i]:g}")
-        for p in range(1, len(goal.points)):
-            a, b = goal.points[p - 1], goal.points[p]
-            implied = (np.array(b.positions) - np.array(a.positions)) / (b.time_from_start
-                                                                           - a.time_from_start)
-            too_fast = np.abs(implied) > self._velocity_limit[indices] * (1 + 1e-9)
-            if too_fast.any():
-                k = int(np.argmax(too_fast))
-                raise GoalRejected(
-                    f"point {p} joint '{names[k]}' needs {abs(implied[k]):.4g} on average from "
-                    f"point {p - 1}, above its velocity limit {self._velocity_limit[indices[k]]:g}")
+        return np.array([self.joint_names.index(n) for n in names])
+
+    @staticmethod
+    def _check_tolerances(goal: TrajectoryGoal) -> None:
         for tolerance in (*goal.path_tolerance, *goal.goal_tolerance):
-            if tolerance.name not in names:
+            if tolerance.name not in goal.joint_names:
                 raise GoalRejected(f"tolerance for joint '{tolerance.name}', which the goal does "
                                    "not command", INVALID_JOINTS)
-        return indices
+            for what, value in (("position", tolerance.position),
+                                ("velocity", tolerance.velocity)):
+                if not math.isfinite(value):
+                    raise GoalRejected(f"the {what} tolerance of joint '{tolerance.name}' is "
+                                       f"{value} (0: the default, < 0: not checked)")
+        if not math.isfinite(goal.goal_time_tolerance) or goal.goal_time_tolerance < 0:
+            raise GoalRejected(f"goal_time_tolerance {goal.goal_time_tolerance} is not a "
+                               "duration (0: the default)")
+        if goal.start_time is not None and not math.isfinite(goal.start_time):
+            raise GoalRejected(f"the start time {goal.start_time} is not a time")
 
-    def _plan(self, goal_id: str, goal: TrajectoryGoal, indices: np.ndarray) -> _ActiveGoal:
+    @staticmethod
+    def _arrays(goal: TrajectoryGoal):
+        """The points as arrays (times; positions, velocities, accelerations: points x
+        joints, zeros where the order does not use them) and the interpolation order, after
+        checking their shapes, values and times."""
+        names, points = goal.joint_names, goal.points
+        n = len(names)
+        if isinstance(points, TrajectoryPoints):
+            return JointTrajectoryController._arrays_given(names, points)
+        for p, point in enumerate(points):
+            if len(point.positions) != n:
+                raise GoalRejected(f"point {p} has {len(point.positions)} positions for "
+                                   f"{n} joints")
+            for what in ("velocities", "accelerations"):
+                values = getattr(point, what)
+                if values and len(values) != n:
+                    raise GoalRejected(f"point {p} has {len(values)} {what} for {n} joints")
+        order = (5 if all(p.accelerations for p in points) else
+                 3 if all(p.velocities for p in points) else 1)
+        arrays = []
+        for what in ("positions", "velocities", "accelerations"):
+            values = np.zeros((len(points), n))
+            for p, point in enumerate(points):
+                given = getattr(point, what)
+                if given:
+                    values[p] = given
+            arrays.append(values)
+        times = np.array([point.time_from_start for point in points], dtype=float)
+        return JointTrajectoryController._checked(names, times, *arrays, order)
+
+    @staticmethod
+    def _arrays_given(names: tuple[str, ...], points: TrajectoryPoints):
+        """:meth:`_arrays` of points that are arrays already."""
+        n = len(names)
+        shaped = lambda values: values is not None and values.shape == (len(points), n)  # noqa: E731
+        for what, values in (("positions", points.positions), ("velocities", points.velocities),
+                             ("accelerations", points.accelerations)):
+            if values is not None and not shaped(values):
+                raise GoalRejected(f"the goal's {what} are {' x '.join(map(str, values.shape))}"
+                                   f" for {len(points)} points of {n} joints")
+        order = (5 if shaped(points.accelerations) else 3 if shaped(points.velocities) else 1)
+        zeros = np.zeros((len(points), n))
+        return JointTrajectoryController._checked(
+            names, points.times.copy(), points.positions.copy(),
+            points.velocities.copy() if order >= 3 else zeros,
+            points.accelerations.copy() if order == 5 else zeros.copy(), order)
+
+    @staticmethod
+    def _checked(names, times, positions, velocities, accelerations, order):
+        """The arrays after checking their values and times; velocities and accelerations
+        zeroed where the order does not use them."""
+        for values, singular in ((positions, "position"), (velocities, "velocity"),
+                                 (accelerations, "acceleration")):
+            bad = ~np.isfinite(values)
+            if bad.any():
+                p, k = _first(bad)
+                raise GoalRejected(f"point {p} joint '{names[k]}' {singular} is "
+                                   f"{values[p, k]}")
+        if order < 3:
+            velocities[:] = 0.0            # linear: velocities given on some points only
+        if order < 5:
+            accelerations[:] = 0.0
+        previous = np.concatenate(([-math.inf], times[:-1]))
+        bad = ~np.isfinite(times) | (times <= previous) | (times < 0)
+        if bad.any():
+            p = int(np.argmax(bad))
+            raise GoalRejected(f"point {p} time_from_start {times[p]} is not after the "
+                               "previous point's (times must increase, from >= 0)")
+        return times, positions, velocities, accelerations, order
+
+    def _start(self, goal_id: str, goal: TrajectoryGoal, plan: _Plan) -> _ActiveGoal:
+        """The planned goal from the controller's state now (lock held): continuous joints on
+        the turn nearest where they are, the first point reachable at the velocity limits,
+        the first segment from the desired state."""
+        indices, spline = plan.indices, plan.spline
         start = self._now if goal.start_time is None else max(goal.start_time, self._now)
-        p0 = self._desired[indices].copy()
-        v0 = self._desired_velocity[indices].copy()
-        a0 = self._desired_acceleration[indices].copy()
-        order = (5 if all(p.accelerations for p in goal.points) else
-                 3 if all(p.velocities for p in goal.points) else 1)
-        if order == 1:
-            v0 = np.zeros_like(v0)
-        self._check_reachable(goal, indices, p0)
-        segments, t0, previous = [], start, p0
-        for point in goal.points:
-            p1 = self._unwrap(np.array(point.positions, dtype=float), previous, indices)
-            v1 = np.array(point.velocities or np.zeros(len(indices)), dtype=float)
-            a1 = np.array(point.accelerations or np.zeros(len(indices)), dtype=float)
-            t1 = start + point.time_from_start
-            if t1 > t0:
-                segments.append(_segment(t0, t1, p0, v0, a0, p1, v1, a1, order))
-            else:      # a first point at time 0 where the joints already are
-                segments.append(_segment(t0, t0 + 1e-9, p1, v1, a1, p1, v1, a1, 1))
-            t0, p0, v0, a0, previous = t1, p1, v1, a1, p1
-        path_p, path_v = self._tolerances(goal.path_tolerance, goal.joint_names,
-                                          self.defaults.path_position_tolerance, 0.0)
-        goal_p, goal_v = self._tolerances(goal.goal_tolerance, goal.joint_names,
-                                          self.defaults.goal_position_tolerance,
-                                          self.defaults.goal_velocity_tolerance)
-        goal_time = (goal.goal_time_tolerance if goal.goal_time_tolerance > 0 else
-                     self.defaults.goal_time_tolerance)
-        return _ActiveGoal(goal_id, indices, segments, start, t0, path_p, path_v, goal_p,
-                           goal_v, goal_time, p0)
+        here = self._desired[indices].copy()
+        turns = np.round((spline.points[0] - here) / (2 * np.pi))
+        spline.shift(np.where(self._continuous[indices], -turns * 2 * np.pi, 0.0))
+        self._check_reachable(goal, indices, here, spline.points[0])
+        spline.start_from(here, self._desired_velocity[indices].copy(),
+                          self._desired_acceleration[indices].copy())
+        return _ActiveGoal(goal_id, indices, spline, start, start + spline.end, *plan.path,
+                           *plan.tolerance, plan.goal_time_tolerance, spline.points[-1].copy())
 
-    def _check_reachable(self, goal: TrajectoryGoal, indices: np.ndarray, here: np.ndarray) -> None:
+    def _check_reachable(self, goal: TrajectoryGoal, indices: np.ndarray, here: np.ndarray,
+                         first: np.ndarray) -> None:
         """The move from where the joints are to the first point must respect the limits."""
-        first = goal.points[0]
-        distance = np.abs(self._wrap(np.array(first.positions) - here, indices))
+        distance = np.abs(first - here)
+        first_time = goal.points[0].time_from_start
         for k, i in enumerate(indices):
             name = self.joint_names[i]
-            if first.time_from_start == 0:
+            if first_time == 0:
                 if distance[k] > self.defaults.goal_position_tolerance:
                     raise GoalRejected(
                         f"point 0 joint '{name}' is {distance[k]:.4g} from the current position "
                         "at time_from_start 0: give the first point a time to get there")
-            elif distance[k] / first.time_from_start > self._velocity_limit[i] * (1 + 1e-9):
+            elif distance[k] / first_time > self._velocity_limit[i] * (1 + 1e-9):
                 raise GoalRejected(
-                    f"point 0 joint '{name}' needs {distance[k] / first.time_from_start:.4g} on "
+                    f"point 0 joint '{name}' needs {distance[k] / first_time:.4g} on "
                     f"average from the current position, above its velocity limit "
                     f"{self._velocity_limit[i]:g}")
-
-    def _unwrap(self, positions: np.ndarray, reference: np.ndarray, indices: np.ndarray):
-        turns = np.round((positions - reference) / (2 * np.pi))
-        return np.where(self._continuous[indices], positions - turns * 2 * np.pi, positions)
 
     @staticmethod
     def _tolerances(given: tuple[JointTolerance, ...], names: tuple[str, ...],
@@ -466,3 +550,9 @@ class JointTrajectoryController:
             if tolerance.velocity != 0:
                 velocity[k] = tolerance.velocity
         return position, velocity
+
+
+def _first(mask: np.ndarray) -> tuple[int, int]:
+    """(point, joint) of the first True in a points x joints mask."""
+    point, joint = np.argwhere(mask)[0]
+    return int(point), int(joint)

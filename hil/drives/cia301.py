@@ -95,8 +95,13 @@ class DriveSdoServer(SdoServer):
             if specifier != self._segmented:
                 self.abort(ABORT_INVALID_COMMAND_SPECIFIER)
                 return
+        elif specifier == REQUEST_BLOCK_DOWNLOAD:
+            # not supported, as canopen's (whose refusal logs an error for a valid request)
+            _, self._index, self._subindex = struct.unpack_from("<BHB", data)
+            self.abort(ABORT_INVALID_COMMAND_SPECIFIER)
+            return
         elif specifier in (REQUEST_UPLOAD, REQUEST_DOWNLOAD, REQUEST_BLOCK_UPLOAD,
-                           REQUEST_BLOCK_DOWNLOAD, REQUEST_ABORTED):
+                           REQUEST_ABORTED):
             self._segmented = None            # a new request ends any transfer in progress
         buffer = self._buffer
         super().on_request(can_id, data, timestamp)

@@ -41,16 +41,26 @@ class NetworkListener(can.Listener):
     of its id; a failing subscriber logged, never raised into the bus), plus remote (RTR)
     frames routed by id, which canopen drops.
 
+    A subscriber that fails on a frame (canopen's unpack a frame of the wrong length and
+    raise) is counted in :attr:`refused` and logged in one line with the frame, the first
+    time per id and then every LOG_EVERY: garbage on a bus is an event to report, not a
+    traceback (the traceback is logged at DEBUG level).
+
     It calls the subscribers itself: ``notify`` would also feed canopen's NodeScanner (node
     discovery, which hil does not use) on every frame; skipping it and ``notify`` took 4 % off
     the ur3's lock-step cycle.
     :func:`start_network` puts one in place of canopen's, as ``network.frame_listener``.
     """
 
+    LOG_EVERY = 1000
+
     def __init__(self, network: canopen.Network):
         self.subscribers = network.subscribers
         #: RTR id -> handler (called with the id)
         self.remote_handlers: dict[int, Callable[[int], None]] = {}
+        #: frames a subscriber could not take
+        self.refused = 0
+        self._refused_by_id: dict[int, int] = {}
 
     def on_message_received(self, msg: can.Message) -> None:
         if msg.is_remote_frame:
@@ -61,8 +71,19 @@ class NetworkListener(can.Listener):
             for callback in self.subscribers.get(msg.arbitration_id, ()):
                 try:
                     callback(msg.arbitration_id, msg.data, msg.timestamp)
-                except Exception:
-                    log.exception("a subscriber of frame 0x%03X failed", msg.arbitration_id)
+                except Exception as exc:
+                    self._refuse(msg, callback, exc)
+
+    def _refuse(self, msg: can.Message, callback, exc: Exception) -> None:
+        self.refused += 1
+        count = self._refused_by_id.get(msg.arbitration_id, 0) + 1
+        self._refused_by_id[msg.arbitration_id] = count
+        if count % self.LOG_EVERY == 1:
+            log.warning("frame 0x%03X [%s] refused by %s: %s: %s (%d from this id so far)",
+                        msg.arbitration_id, bytes(msg.data).hex(" "),
+                        getattr(callback, "__qualname__", callback), type(exc).__name__, exc,
+                        count)
+        log.debug("frame 0x%03X refused", msg.arbitration_id, exc_info=exc)
 
 
 class CanopenNetwork(canopen.Network):

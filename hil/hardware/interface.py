@@ -39,6 +39,12 @@ MISSED_ANSWER_LIMIT = 5
 #: lock-step's wait for a cycle's answers (s): time stands still while nobody answers, so this
 #: only has to tell a slow peer (a loaded machine, User-Mode Linux) from a dead one
 LOCK_STEP_REPLY_TIMEOUT = 2.0
+#: measured joint positions beyond the limits by more than this part of the joint's range
+#: (plus REACH_SLACK, rad or m) cannot be real: a joint overshoots its limit a little at most
+REACH_MARGIN = 0.1
+REACH_SLACK = 0.01
+#: measured joint speeds beyond this many times the velocity limit (plus 1) cannot be real
+SPEED_MARGIN = 10.0
 
 #: protocol name -> master-side axis class (the drive side is hil.drives.PROFILES)
 AXES = {axis.protocol: axis for axis in (Cia402Axis, MitAxis, ODriveAxis)}
@@ -139,6 +145,8 @@ class CanHardwareInterface(HardwareInterface):
         # a drive may legitimately be unheard while its answers are still within the limit of
         # missed ones: in lock-step (LOCK_STEP_REPLY_TIMEOUT), a stalled sim is slow, not dead
         self._answer_silence_limit = MISSED_ANSWER_LIMIT * self.reply_timeout
+        self._reach, self._speed_limit = _reach(config.robot, self.joint_names)
+        self._plausible: JointFeedback | None = None     # the last feedback that was
 
     # --- bring-up ---------------------------------------------------------------------
 
@@ -199,7 +207,7 @@ class CanHardwareInterface(HardwareInterface):
             self._watch()
         if self._recovering and not self._stopping and all(a.enabled for a in self.axes):
             self._recovering = False
-        return self._joint_feedback()
+        return self._checked(self._joint_feedback())
 
     def _await_feedback(self, skip_silent: bool) -> None:
         """Wait (up to the reply timeout) until every axis' answer of this cycle is in.
@@ -228,6 +236,35 @@ class CanHardwareInterface(HardwareInterface):
             self.transmissions.actuator_to_joint_velocity([f.velocity for f in feedback]),
             self.transmissions.actuator_to_joint_effort(torques), torques,
             tuple(a.state for a in self.axes))
+
+    def _checked(self, feedback: JointFeedback) -> JointFeedback:
+        """Feedback no joint can produce (beyond its reach, or impossibly fast) is a fault,
+        never a joint state: such joints keep their last plausible values."""
+        low, high = self._reach
+        bad = ((feedback.positions < low) | (feedback.positions > high)
+               | (np.abs(feedback.velocities) > self._speed_limit))
+        if not bad.any():
+            self._plausible = feedback
+            return feedback
+        for k in np.nonzero(bad)[0]:
+            name = self.joint_names[k]
+            axes = [a.label for a in self.axes if name in a.config.joints] or ["its drive"]
+            problem = (f"implausible feedback from {'; '.join(axes)}: joint '{name}' measured at "
+                       f"{feedback.positions[k]:+.4g} moving {feedback.velocities[k]:+.4g}/s, "
+                       f"beyond what it can reach ([{low[k]:.4g}, {high[k]:.4g}], speed "
+                       f"{self._speed_limit[k]:.4g}): a frame the drive did not send, or "
+                       "the encoder or transmission settings of the bus config are wrong")
+            key = (name, "implausible", "")
+            if key not in self._reported:
+                self._reported.add(key)
+                self._pending.append(problem)
+                self._stopping = True
+        last = self._plausible
+        positions, velocities = feedback.positions.copy(), feedback.velocities.copy()
+        positions[bad] = last.positions[bad] if last else np.clip(positions, low, high)[bad]
+        velocities[bad] = last.velocities[bad] if last else 0.0
+        return JointFeedback(positions, velocities, feedback.efforts, feedback.motor_torques,
+                             feedback.drive_states)
 
     # --- faults -----------------------------------------------------------------------------
 
@@ -298,6 +335,24 @@ class CanHardwareInterface(HardwareInterface):
             self._networks[bus].send_message(can_id, data, remote)
         except can.CanError:
             pass
+
+
+def _reach(robot: RobotDescription, names: tuple[str, ...]
+           ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """((lowest, highest) position, top speed) a joint's measurement can plausibly show."""
+    low, high, speed = [], [], []
+    for name in names:
+        limits = robot.joint(name).limits
+        if limits is None or limits.lower is None or limits.upper is None:
+            low.append(-np.inf)
+            high.append(np.inf)
+        else:
+            margin = REACH_MARGIN * (limits.upper - limits.lower) + REACH_SLACK
+            low.append(limits.lower - margin)
+            high.append(limits.upper + margin)
+        speed.append(SPEED_MARGIN * limits.velocity + 1.0 if limits and limits.velocity > 0
+                     else np.inf)
+    return (np.array(low), np.array(high)), np.array(speed)
 
 
 def _missed_too_many(axis: Axis, cycle: int) -> bool:

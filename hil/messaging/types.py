@@ -11,11 +11,13 @@ plotting) and ``hil_msgs/SimClock`` (the plant's time against the wall clock).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from hil.controllers import (
-    GoalResult, GoalStatus, JointTolerance, TrajectoryGoal, TrajectoryPoint,
+    GoalResult, GoalStatus, JointTolerance, TrajectoryGoal, TrajectoryPoint, TrajectoryPoints,
 )
 
 _DEFINITIONS = {
@@ -110,14 +112,24 @@ def decode(data: bytes, typename: str):
 # --- small builders -----------------------------------------------------------
 
 def time_msg(seconds: float):
-    sec = int(seconds // 1)
-    return msg("builtin_interfaces/msg/Time", sec=sec, nanosec=int(round((seconds - sec) * 1e9)))
+    sec, nanosec = _seconds_and_nanoseconds(seconds)
+    return msg("builtin_interfaces/msg/Time", sec=sec, nanosec=nanosec)
 
 
 def duration_msg(seconds: float):
+    sec, nanosec = _seconds_and_nanoseconds(seconds)
+    return msg("builtin_interfaces/msg/Duration", sec=sec, nanosec=nanosec)
+
+
+def _seconds_and_nanoseconds(seconds: float) -> tuple[int, int]:
+    """builtin_interfaces' (int32 sec, uint32 nanosec); ValueError for what they cannot hold."""
+    if not math.isfinite(seconds) or not -2**31 <= seconds < 2**31:
+        raise ValueError(f"{seconds} s is not a time ROS 2 can carry (finite, |t| < 2^31 s)")
     sec = int(seconds // 1)
-    return msg("builtin_interfaces/msg/Duration", sec=sec,
-               nanosec=int(round((seconds - sec) * 1e9)))
+    nanosec = int(round((seconds - sec) * 1e9))
+    if nanosec == 1_000_000_000:
+        sec, nanosec = sec + 1, 0
+    return sec, nanosec
 
 
 def seconds_of(stamp) -> float:
@@ -176,16 +188,31 @@ def goal_from_msg(goal, start_time: float | None) -> TrajectoryGoal:
     trajectory = goal.trajectory
     if len(goal.multi_dof_trajectory.joint_names):
         raise ValueError("multi-DOF trajectories are not supported")
-    points = tuple(TrajectoryPoint(seconds_of(p.time_from_start),
-                                   tuple(float(x) for x in p.positions),
-                                   tuple(float(x) for x in p.velocities),
-                                   tuple(float(x) for x in p.accelerations))
-                   for p in trajectory.points)
+    points = _points_from_msgs(trajectory.points, len(trajectory.joint_names))
     tolerance = lambda items: tuple(JointTolerance(t.name, t.position, t.velocity)  # noqa: E731
                                     for t in items)
     return TrajectoryGoal(tuple(trajectory.joint_names), points, start_time,
                           tolerance(goal.path_tolerance), tolerance(goal.goal_tolerance),
                           seconds_of(goal.goal_time_tolerance))
+
+
+def _points_from_msgs(points, joints: int):
+    """JointTrajectoryPoint messages as TrajectoryPoints (arrays) where every point has the
+    same fields; otherwise point by point, so the controller names the odd one."""
+    times = np.array([seconds_of(p.time_from_start) for p in points], dtype=float)
+    arrays = []
+    for what in ("positions", "velocities", "accelerations"):
+        lengths = {len(getattr(p, what)) for p in points}
+        if lengths == {0} and what != "positions":
+            arrays.append(None)
+        elif lengths == {joints}:
+            arrays.append(np.array([getattr(p, what) for p in points], dtype=float))
+        else:
+            return tuple(TrajectoryPoint(float(t), tuple(p.positions.tolist()),
+                                         tuple(p.velocities.tolist()),
+                                         tuple(p.accelerations.tolist()))
+                         for t, p in zip(times, points))
+    return TrajectoryPoints(times, *arrays)
 
 
 def result_msg(goal_id: str, result: GoalResult):

@@ -43,8 +43,12 @@ from hil.controllers import (
 from hil.messaging import types as T
 from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.samples import ControlSamples
+from hil.realtime import paused_collection, release_gradually
 
 ACTION = "follow_joint_trajectory/_action"
+#: the largest goal request taken (CDR bytes): 16 MiB, over 200,000 points of 6 joints
+#: (the controller takes at most MAX_POINTS of them)
+MAX_GOAL_BYTES = 16 * 2 ** 20
 
 
 def key(robot: str, name: str) -> str:
@@ -96,17 +100,26 @@ class TrajectoryActionServer:
         return T.msg(T.FEEDBACK_MESSAGE, goal_id=T.uuid_msg(goal_id), feedback=feedback)
 
     def _on_send_goal(self, query: zenoh.Query) -> None:
-        try:
-            request = T.decode(_payload(query), T.SEND_GOAL_REQUEST)
-            goal_id = T.goal_id_of(request.goal_id)
-            stamp = T.seconds_of(request.goal.trajectory.header.stamp)
-            start = None if stamp == 0 else self.clock() + (stamp - time.time())
-            goal = T.goal_from_msg(request.goal, start)
-            self.controller.submit(goal_id, goal)
-        except (ValueError, GoalRejected) as exc:
-            code = getattr(exc, "error_code", -1)
-            query.reply_err(f"rejected ({code}): {exc}")
-            return
+        # a large goal is a burst of Python objects in this thread: decoded with the
+        # collector paused and freed a chunk at a time, it never holds the control loop's
+        # thread for long (hil.realtime)
+        with paused_collection():
+            try:
+                payload = _payload(query)
+                if len(payload) > MAX_GOAL_BYTES:
+                    raise GoalRejected(f"the goal is {len(payload)} bytes; this controller takes "
+                                       f"at most {MAX_GOAL_BYTES} (split it into several goals)")
+                request = T.decode(payload, T.SEND_GOAL_REQUEST)
+                goal_id = T.goal_id_of(request.goal_id)
+                stamp = T.seconds_of(request.goal.trajectory.header.stamp)
+                start = None if stamp == 0 else self.clock() + (stamp - time.time())
+                goal = T.goal_from_msg(request.goal, start)
+                release_gradually(request.goal.trajectory.points)
+                self.controller.submit(goal_id, goal)
+            except (ValueError, GoalRejected) as exc:
+                code = getattr(exc, "error_code", -1)
+                query.reply_err(f"rejected ({code}): {exc}")
+                return
         query.reply(query.key_expr, T.encode(T.msg(T.SEND_GOAL_RESPONSE, accepted=True,
                                                      stamp=T.time_msg(time.time()))))
 
@@ -315,7 +328,8 @@ class ControllerGone(RuntimeError):
 
 
 class TrajectoryActionClient:
-    """Sends FollowJointTrajectory goals to a hil controller over Zenoh."""
+    """Sends FollowJointTrajectory goals to a hil controller over Zenoh. A context manager:
+    ``with TrajectoryActionClient(session, "ur3") as client: ...`` closes it."""
 
     def __init__(self, session: zenoh.Session, robot: str):
         self.session, self.robot = session, robot
@@ -323,14 +337,17 @@ class TrajectoryActionClient:
         self._prefix = prefix
         self._results: "queue.Queue[tuple[str, GoalResult]]" = queue.Queue()
         self._feedback: "queue.Queue" = queue.Queue()
+        # callbacks in Zenoh's own threads (not indirect): an indirect callback runs in a
+        # Python thread of its own that is not a daemon, and a script that ended without
+        # close() waited for those threads at exit (60 s, measured)
         self._subscribers = [
-            session.declare_subscriber(f"{prefix}/result", self._on_result),
-            session.declare_subscriber(f"{prefix}/feedback", self._on_feedback),
+            session.declare_subscriber(f"{prefix}/result", _direct(self._on_result)),
+            session.declare_subscriber(f"{prefix}/feedback", _direct(self._on_feedback)),
         ]
         self._alive = threading.Event()
         self._gone = threading.Event()
         self._liveliness = session.liveliness().declare_subscriber(
-            key(robot, "control"), self._on_liveliness, history=True)
+            key(robot, "control"), _direct(self._on_liveliness), history=True)
 
     def _on_liveliness(self, sample: zenoh.Sample) -> None:
         if sample.kind == zenoh.SampleKind.PUT:
@@ -424,6 +441,17 @@ class TrajectoryActionClient:
         for subscriber in self._subscribers:
             subscriber.undeclare()
         self._liveliness.undeclare()
+
+    def __enter__(self) -> TrajectoryActionClient:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+
+def _direct(callback: Callable[[zenoh.Sample], None]) -> zenoh.handlers.Callback:
+    """A Zenoh callback run in Zenoh's receiving thread (for short callbacks only)."""
+    return zenoh.handlers.Callback(callback, indirect=False)
 
 
 __all__ = ["ControlSamplesPublisher", "ControllerGone", "GoalStatus", "JointStatePublisher",
