@@ -16,7 +16,6 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-import numpy as np
 import zenoh
 
 from hil.controllers import Defaults, JointTrajectoryController
@@ -84,6 +83,25 @@ class ControlNode:
         self._reset: FaultResetRequest | None = None
         self.server.on_reset = self.reset_faults
 
+    def figures(self) -> dict:
+        """The run so far: period statistics (real time), the hardware's round trips (SYNC
+        out to the last answer in, where it measures them), and the faults reported."""
+        figures = self.statistics.figures() if self.statistics.count else {"cycles": 0}
+        round_trips = getattr(self.hardware, "round_trips", None)
+        if round_trips is not None:
+            figures.update(round_trips.percentiles_us("round_trip"))
+        figures["faults"] = list(self.faults)
+        return figures
+
+    def summary(self) -> str:
+        """One line of :meth:`figures`."""
+        line = self.statistics.summary() if not self.lock_step else f"{self._cycle} cycles"
+        round_trips = getattr(self.hardware, "round_trips", None)
+        if round_trips is not None and round_trips.count:
+            trips = round_trips.percentiles_us("rt")
+            line += f"; round trip p50 {trips['rt_p50_us']:.0f} us, p99 {trips['rt_p99_us']:.0f} us"
+        return line
+
     def clock(self) -> float:
         """The controller's time: cycles x period in lock-step, monotonic otherwise."""
         return self._cycle * self.period if self.lock_step else time.monotonic() - self._start
@@ -108,8 +126,6 @@ class ControlNode:
         pacer = None
         try:
             start = hardware.start()
-            command = start.positions      # the first setpoint: where the joints are
-            velocity = np.zeros(len(hardware.joint_names))
             self.controller.update(self.clock(), start.positions, start.velocities)
             self._token = self._session.liveliness().declare_token(
                 key(self.hardware.robot.name, "control"))
@@ -120,7 +136,7 @@ class ControlNode:
                     pacer.release()
                 if self._reset is None and not self._resets.empty():
                     self._begin_reset()
-                feedback = hardware.cycle(command, velocity)
+                feedback = hardware.read()
                 self._cycle += 1
                 faults = hardware.faults()
                 for fault in faults:
@@ -132,6 +148,7 @@ class ControlNode:
                 now = self.clock()
                 command, velocity = self.controller.update(now, feedback.positions,
                                                            feedback.velocities)
+                hardware.write(command, velocity)
                 self.samples.add(self._cycle, now, command, velocity, feedback)
                 self._publish(feedback)
         finally:

@@ -20,6 +20,9 @@ import numpy as np
 #: SCHED_FIFO priority a real-time loop asks for (ros2_control's controller manager asks for
 #: the same); 0 keeps the normal scheduler
 REAL_TIME_PRIORITY = 50
+#: SCHED_FIFO priority of a real-time process' other threads (its Zenoh and frame-handling
+#: threads, all of a simulator's), just below its loop's (:func:`enter_real_time`)
+IO_PRIORITY = REAL_TIME_PRIORITY - 1
 #: prctl(2) option: the calling thread's timer slack in ns
 PR_SET_TIMERSLACK = 29
 #: the interpreter's thread switch interval while a real-time loop runs (s; Python's default
@@ -28,51 +31,85 @@ PR_SET_TIMERSLACK = 29
 REAL_TIME_SWITCH_INTERVAL = 200e-6
 
 
+class Ring:
+    """The latest ``keep`` values of a series, in a buffer allocated and written once at the
+    start (a long run neither grows nor shows growth in its memory figures), with the count
+    over the whole run."""
+
+    def __init__(self, keep: int):
+        # np.full writes every page now: the memory is taken here, not value by value
+        self._values = np.full(keep, np.nan)
+        self.count = 0
+
+    @property
+    def keep(self) -> int:
+        return len(self._values)
+
+    def add(self, value: float) -> None:
+        self._values[self.count % len(self._values)] = value
+        self.count += 1
+
+    def clear(self) -> None:
+        self.count = 0
+
+    @property
+    def values(self) -> np.ndarray:
+        """The values kept, oldest first."""
+        ring = self._values
+        if self.count <= len(ring):
+            return ring[:self.count].copy()
+        oldest = self.count % len(ring)
+        return np.concatenate((ring[oldest:], ring[:oldest]))
+
+    def percentiles_us(self, name: str) -> dict:
+        """p50, p99 and max of the values kept (s), in us, named ``<name>_p50_us`` etc."""
+        values = self.values * 1e6
+        if not len(values):
+            return {}
+        return {f"{name}_p50_us": float(np.percentile(values, 50)),
+                f"{name}_p99_us": float(np.percentile(values, 99)),
+                f"{name}_max_us": float(values.max())}
+
+
 class PeriodStatistics:
     """Real-time mode, in seconds: each cycle's period (from its release, when its frames
     start out, to the next release) and busy time (release to the end of its work). Counts
-    over the whole run; the latest ``keep`` cycles for percentiles, in two ring buffers
-    allocated and written once at the start, so that a long run neither grows nor shows
-    growth in its memory figures (``hil bench --soak``). A cycle is missed when its period
-    is over 1.5 nominal ones."""
+    over the whole run; the latest ``keep`` cycles for percentiles (:class:`Ring`). A cycle
+    is missed when its period is over 1.5 nominal ones."""
 
     KEEP = 100_000
 
     def __init__(self, nominal: float, keep: int = KEEP):
         self.nominal = nominal
-        # np.full writes every page now: the memory is taken here, not cycle by cycle
-        self._periods = np.full(keep, np.nan)
-        self._busy = np.full(keep, np.nan)
-        self.count = 0
+        self._periods = Ring(keep)
+        self._busy = Ring(keep)
         self.missed = 0
         self.scheduling = "not started"    # what the loop's thread runs under (CyclePacer)
 
+    @property
+    def count(self) -> int:
+        return self._periods.count
+
     def add(self, period: float, busy: float) -> None:
-        slot = self.count % len(self._periods)
-        self._periods[slot] = period
-        self._busy[slot] = busy
-        self.count += 1
+        self._periods.add(period)
+        self._busy.add(busy)
         self.missed += period > 1.5 * self.nominal
 
     def clear(self) -> None:
         """Forget the cycles so far (a measurement starts here)."""
-        self.count = self.missed = 0
+        self._periods.clear()
+        self._busy.clear()
+        self.missed = 0
 
     @property
     def samples(self) -> np.ndarray:
         """The periods kept, oldest first."""
-        return self._kept(self._periods)
+        return self._periods.values
 
     @property
     def busy(self) -> np.ndarray:
         """The busy times kept, oldest first."""
-        return self._kept(self._busy)
-
-    def _kept(self, ring: np.ndarray) -> np.ndarray:
-        if self.count <= len(ring):
-            return ring[:self.count].copy()
-        oldest = self.count % len(ring)
-        return np.concatenate((ring[oldest:], ring[:oldest]))
+        return self._busy.values
 
     def figures(self) -> dict:
         """The cycles kept: period mean, |period - nominal| and busy percentiles (us), with
@@ -92,7 +129,7 @@ class PeriodStatistics:
         if not self.count:
             return f"{self.scheduling}; no cycles"
         f = self.figures()
-        kept = len(self._periods)
+        kept = self._periods.keep
         latest = "" if self.count <= kept else f" (the latest {kept})"
         return (f"{self.scheduling}; {self.count} cycles, missed {self.missed}; period "
                 f"mean{latest} {f['period_mean_ms']:.3f} ms, |error| p50 {f['error_p50_us']:.0f} "
@@ -143,16 +180,8 @@ class CyclePacer:
         statistics.scheduling = self._schedule(priority)
 
     def _schedule(self, priority: int) -> str:
-        if priority <= 0:
-            return "normal scheduling"
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-        except (OSError, AttributeError) as exc:
-            why = getattr(exc, "strerror", None) or str(exc)
-            return (f"normal scheduling (SCHED_FIFO {priority} refused: {why}; it needs root, "
-                    "CAP_SYS_NICE or an rtprio limit)")
-        self._fifo = True
-        return f"SCHED_FIFO {priority}"
+        self._fifo, words = use_fifo(priority)
+        return words
 
     def close(self) -> None:
         """Back to the normal scheduler (the thread goes on to non-real-time work)."""
@@ -213,6 +242,42 @@ def release_gradually(items: list, chunk: int = 200) -> None:
     between chunks other threads get their turn."""
     while items:
         del items[-chunk:]
+
+
+def use_fifo(priority: int) -> tuple[bool, str]:
+    """The calling thread (and the threads it starts from now on) under SCHED_FIFO
+    ``priority`` where the OS allows it; (whether it did, what it runs under, in words)."""
+    if priority <= 0:
+        return False, "normal scheduling"
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (OSError, AttributeError) as exc:
+        why = getattr(exc, "strerror", None) or str(exc)
+        return False, (f"normal scheduling (SCHED_FIFO {priority} refused: {why}; it needs "
+                       "root, CAP_SYS_NICE or an rtprio limit)")
+    return True, f"SCHED_FIFO {priority}"
+
+
+def enter_real_time(priority: int = IO_PRIORITY) -> str:
+    """A real-time process, from its start: the calling thread under SCHED_FIFO
+    ``priority``, and with it every thread started afterwards (Zenoh's, python-can's,
+    canopen's), and a short thread switch interval. Call it before opening Zenoh sessions
+    or buses. Under the normal scheduler a process' frame handling waited behind any other
+    runnable thread of the machine (the visualiser's, a neighbour's). Returns the
+    scheduling, in words."""
+    sys.setswitchinterval(min(sys.getswitchinterval(), REAL_TIME_SWITCH_INTERVAL))
+    return use_fifo(priority)[1]
+
+
+def enter_background() -> str:
+    """A process that must never take time from the real-time ones (the visualiser, a
+    supervisor): the calling thread, and every thread it starts afterwards, under
+    SCHED_IDLE (it runs when nothing else wants the CPU); returns that, in words."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+    except (OSError, AttributeError) as exc:
+        return f"normal scheduling (SCHED_IDLE refused: {exc})"
+    return "SCHED_IDLE"
 
 
 def _tighten_timer_slack() -> None:

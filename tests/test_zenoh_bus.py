@@ -129,7 +129,8 @@ def test_malformed_payloads_are_rejected(payload):
 
 def test_malformed_payloads_on_the_network_are_dropped(bus_pair, endpoint):
     a, b = bus_pair
-    intruder = session(ZenohSettings(connect=(endpoint,)))
+    intruder = session(ZenohSettings(connect=(endpoint,),     # a session of its own:
+                                     listen=(f"tcp/127.0.0.1:{free_port()}",)))   # a remote
     key = b.channel_info.split(" ", 1)[1]
     for junk in (b"", b"garbage", b"\xff" * 40):
         intruder.put(key, junk)
@@ -217,7 +218,8 @@ def test_a_bus_that_answers_from_inside_its_delivery_survives_a_flood(bus_pair):
 def test_frames_lost_on_the_way_are_counted_from_the_senders_sequence_numbers(bus_pair,
                                                                               endpoint):
     _, b = bus_pair
-    intruder = session(ZenohSettings(connect=(endpoint,)))
+    intruder = session(ZenohSettings(connect=(endpoint,),     # a session of its own:
+                                     listen=(f"tcp/127.0.0.1:{free_port()}",)))   # a remote
     key = b.channel_info.split(" ", 1)[1]
     frame = can.Message(arbitration_id=0x181, data=b"\x01", is_extended_id=False)
     for sequence in (1, 2, 5, 6, 10):                # 3, 4, 7, 8, 9 never came
@@ -237,3 +239,20 @@ def test_a_full_receive_fifo_drops_and_counts_new_frames(bus_pair, monkeypatch):
         time.sleep(0.01)
     assert (b.counters.received, b.counters.overrun) == (25, 15)
     assert [b.recv(1).data[0] for _ in range(10)] == list(range(10))   # the oldest kept
+
+
+def test_buses_of_one_process_sharing_a_session_hear_each_other_once(endpoint):
+    """Zenoh carries frames to other processes only; buses sharing a session in one process
+    hand each other theirs (as python-can's virtual bus does), each frame exactly once."""
+    channel = f"test/{time.monotonic_ns()}"
+    a, b = (can.Bus(interface="zenoh", channel=channel, listen=[endpoint]) for _ in range(2))
+    try:
+        for i in range(20):
+            a.send(can.Message(arbitration_id=0x100, data=bytes([i]), is_extended_id=False))
+        received = [b.recv(1) for _ in range(20)]
+        assert [m.data[0] for m in received] == list(range(20))
+        assert b.recv(0.3) is None and a.recv(0.1) is None
+        assert b.counters.lost == 0
+    finally:
+        a.shutdown()
+        b.shutdown()

@@ -18,6 +18,7 @@ from hil.can.faults import (
 from hil.drives import Power
 from hil.errors import HilError
 from hil.messaging.zenoh_api import SimClockPublisher
+from hil.realtime import IO_PRIORITY, enter_real_time
 from hil.zenoh_session import close_all, session
 
 CLOCK_PERIOD = 0.05
@@ -40,6 +41,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "fault:BUS/NODE@S")
     parser.add_argument("--fault-seed", type=int, default=0, metavar="N",
                         help="seed of the fault injector's random choices (default 0)")
+    parser.add_argument("--priority", type=int, default=IO_PRIORITY, metavar="N",
+                        help="real time: run every thread under SCHED_FIFO priority N where "
+                             f"the OS allows it (default {IO_PRIORITY}; 0: the normal "
+                             "scheduler)")
     common.add_can_override(parser)
     common.add_package_path(parser)
     common.add_zenoh(parser, listens=True)
@@ -57,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
                               hint="hil sim takes frame and drive faults")
     drive_faults = [f for f in faults if isinstance(f, DriveFault)]
     _check_drive_faults(config, drive_faults)
+    scheduling = "lock-step" if args.lock_step else enter_real_time(args.priority)
     buses = with_frame_faults(open_buses(config, zenoh, interface, channels),
                               [f for f in faults if isinstance(f, FrameFault)], args.fault_seed)
     simulator = Simulator(config, buses, lock_step=args.lock_step)
@@ -80,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"hil sim: {config.robot.name}, {len(config.drives)} drive(s) on "
               f"{', '.join(f'{b.name} ({buses[b.name].channel_info})' for b in config.buses)}, "
               f"{'lock-step' if args.lock_step else 'real-time'}, plant {config.plant_rate_hz:g} Hz, "
-              f"cycle {config.cycle_hz:g} Hz", flush=True)
+              f"cycle {config.cycle_hz:g} Hz; {scheduling}", flush=True)
         printer.start()
         clock_thread.start()
         threading.Thread(target=_inject, args=(simulator, drive_faults, stop),

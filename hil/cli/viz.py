@@ -16,6 +16,7 @@ from hil.can.monitor import BusMonitor
 from hil.cli import common
 from hil.description.source import read_robot_source
 from hil.errors import HilError
+from hil.realtime import enter_background
 from hil.visualisation import RunRecorder
 from hil.visualisation.node import VizNode
 from hil.zenoh_session import ZenohSettings, close_all, session
@@ -50,6 +51,7 @@ def run(args: argparse.Namespace) -> int:
     if args.no_can and args.can_log:
         raise HilError.single("--can-log needs the CAN buses, but --no-can was given")
     zenoh = common.zenoh_settings(args)
+    enter_background()          # never the real-time processes' time (its threads inherit it)
     recording = rr.RecordingStream("hil", recording_id=f"{config.robot.name}-{os.getpid()}")
     described = _open_sinks(recording, args)
     with tempfile.TemporaryDirectory(prefix="hil-viz-") as folder:

@@ -28,6 +28,7 @@ from hil.drives.cia402 import SYNC_ID   # CiA 301's SYNC COB-ID
 from hil.drives.profile import start_network
 from hil.errors import HilError
 from hil.hardware.axis import Axis
+from hil.realtime import PeriodStatistics, Ring
 from hil.hardware.cia402 import Cia402Axis
 from hil.hardware.mit import MitAxis
 from hil.hardware.odrive import ODriveAxis
@@ -75,8 +76,18 @@ class HardwareInterface(ABC):
         """Bring the hardware up until it follows position commands; return where it is."""
 
     @abstractmethod
+    def read(self) -> JointFeedback:
+        """The joint state the hardware reported for the last :meth:`write` (the start of a
+        control cycle, as ros2_control's read)."""
+
+    @abstractmethod
+    def write(self, positions: np.ndarray, velocities: np.ndarray) -> None:
+        """Send this cycle's commands (the end of a control cycle)."""
+
     def cycle(self, positions: np.ndarray, velocities: np.ndarray) -> JointFeedback:
-        """Send one cycle's commands; return the joint state measured in this cycle."""
+        """:meth:`write`, then :meth:`read` what it brought (for scripts and tests)."""
+        self.write(positions, velocities)
+        return self.read()
 
     def faults(self) -> list[str]:
         """Faults found since the last call (each names the drive and joint)."""
@@ -109,23 +120,29 @@ class FakeHardwareInterface(HardwareInterface):
     def start(self) -> JointFeedback:
         return self._state
 
-    def cycle(self, positions, velocities) -> JointFeedback:
-        feedback = self._state
+    def read(self) -> JointFeedback:
+        return self._state
+
+    def write(self, positions, velocities) -> None:
         self._state = JointFeedback(np.array(positions, dtype=float),
                                     np.array(velocities, dtype=float), np.zeros(len(positions)),
                                     self._torques, self._states)
-        return feedback
 
 
 class CanHardwareInterface(HardwareInterface):
-    """CAN master for every drive of a bus config, each spoken to in its own protocol."""
+    """CAN master for every drive of a bus config, each spoken to in its own protocol.
+
+    A cycle is :meth:`read` (the answers to the last SYNC), the controllers, then
+    :meth:`write` (setpoints and SYNC): the answers travel while the loop sleeps, and a
+    cycle's work does not wait for them. The answers to a SYNC are due before the next one,
+    ``reply_timeout`` after it (one period in real time); read waits for what is still
+    missing until then."""
 
     def __init__(self, config: SystemConfig, buses: dict[str, can.BusABC],
                  reply_timeout: float | None = None):
         super().__init__(config.robot)
         self.config = config
-        self.reply_timeout = reply_timeout if reply_timeout is not None else 0.8 * (
-            1.0 / config.cycle_hz)
+        self.reply_timeout = reply_timeout if reply_timeout is not None else 1.0 / config.cycle_hz
         self._buses = buses
         self._networks: dict[str, canopen.Network] = {}
         self.axes: list[Axis] = [AXES[drive.protocol](drive, bus.name, self._on_feedback)
@@ -147,6 +164,10 @@ class CanHardwareInterface(HardwareInterface):
         self._answer_silence_limit = MISSED_ANSWER_LIMIT * self.reply_timeout
         self._reach, self._speed_limit = _reach(config.robot, self.joint_names)
         self._plausible: JointFeedback | None = None     # the last feedback that was
+        #: each cycle's round trip (s): its SYNC (last frame) sent to its last answer in
+        self.round_trips = Ring(PeriodStatistics.KEEP)
+        self._last_answer = 0.0
+        self._sync_sent: float | None = None     # perf_counter of the last write's SYNC
 
     # --- bring-up ---------------------------------------------------------------------
 
@@ -161,7 +182,8 @@ class CanHardwareInterface(HardwareInterface):
         deadline = time.monotonic() + BOOT_TIMEOUT
         # cycles run meanwhile (unwatched): some protocols are heard only in answers
         while not all(axis.booted.is_set() for axis in self.axes):
-            hold = self.cycle(hold, np.zeros_like(hold), enabling=True, watch=False).positions
+            self.write(hold, np.zeros_like(hold), enabling=True)
+            hold = self.read(watch=False).positions
             if time.monotonic() > deadline:
                 silent = [a.label for a in self.axes if not a.booted.is_set()]
                 raise HilError.single(
@@ -173,7 +195,8 @@ class CanHardwareInterface(HardwareInterface):
             axis.feedback.cycle = self._cycle    # missed answers count from here on
         deadline = time.monotonic() + ENABLE_TIMEOUT
         while True:
-            feedback = self.cycle(hold, np.zeros_like(hold), enabling=True)
+            self.write(hold, np.zeros_like(hold), enabling=True)
+            feedback = self.read()
             hold = feedback.positions
             waiting = [a for a in self.axes if not a.enabled]
             if not waiting:
@@ -189,8 +212,22 @@ class CanHardwareInterface(HardwareInterface):
 
     # --- cyclic ------------------------------------------------------------------------------
 
-    def cycle(self, positions, velocities, enabling: bool = False,
-              watch: bool = True) -> JointFeedback:
+    def read(self, watch: bool = True) -> JointFeedback:
+        """The answers to the last SYNC: waited for until ``reply_timeout`` after it; with
+        ``watch``, missing answers, faults and silences are reported (:meth:`faults`)."""
+        if self._sync_sent is not None:
+            deadline = self._sync_sent + self.reply_timeout
+            if self._await_feedback(skip_silent=watch, deadline=deadline):
+                self.round_trips.add(self._last_answer - self._sync_sent)
+        if watch:
+            self._watch()
+        if self._recovering and not self._stopping and all(a.enabled for a in self.axes):
+            self._recovering = False
+        return self._checked(self._joint_feedback())
+
+    def write(self, positions, velocities, enabling: bool = False) -> None:
+        """This cycle's frames of every axis (walking it toward following ``positions``, or
+        holding where it is while ``enabling`` or recovering), then SYNC on every bus."""
         self._cycle += 1
         targets = self.transmissions.joint_to_actuator_position(positions).tolist()
         speeds = self.transmissions.joint_to_actuator_velocity(velocities).tolist()
@@ -202,15 +239,11 @@ class CanHardwareInterface(HardwareInterface):
                 network.send_message(can_id, data, remote)
         for name in self._sync_buses:
             self._networks[name].send_message(SYNC_ID, b"")
-        self._await_feedback(skip_silent=watch)
-        if watch:
-            self._watch()
-        if self._recovering and not self._stopping and all(a.enabled for a in self.axes):
-            self._recovering = False
-        return self._checked(self._joint_feedback())
+        self._sync_sent = time.perf_counter()
 
-    def _await_feedback(self, skip_silent: bool) -> None:
-        """Wait (up to the reply timeout) until every axis' answer of this cycle is in.
+    def _await_feedback(self, skip_silent: bool, deadline: float) -> bool:
+        """Wait (up to ``deadline``, perf_counter) until every axis' answer of this cycle is
+        in; whether they all came.
 
         With ``skip_silent``, axes already past the missed-answer limit (reported silent) are
         not waited for while any other axis answers: in lock-step a dead drive would hold every
@@ -220,11 +253,12 @@ class CanHardwareInterface(HardwareInterface):
             awaited = [a for a in self.axes if not _missed_too_many(a, self._cycle - 1)] \
                 or self.axes
         with self._arrived:
-            self._arrived.wait_for(
+            return self._arrived.wait_for(
                 lambda: all(a.feedback.cycle == self._cycle for a in awaited),
-                timeout=self.reply_timeout)
+                timeout=max(0.0, deadline - time.perf_counter()))
 
     def _on_feedback(self) -> None:
+        self._last_answer = time.perf_counter()
         with self._arrived:
             self._arrived.notify()
 

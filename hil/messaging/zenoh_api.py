@@ -189,18 +189,41 @@ class JointStatePublisher:
 
 
 class ControlSamplesPublisher:
-    """Publishes hil_msgs/ControlSamples batches on ``hil/<robot>/control/samples``."""
+    """Publishes hil_msgs/ControlSamples batches on ``hil/<robot>/control/samples``.
+
+    :meth:`publish` only queues the batch: a thread of its own encodes and puts it with
+    congestion control BLOCK (a recording must not lose cycles to a momentarily slow
+    subscriber), so a slow visualiser never holds the control loop (it did: BLOCK in the
+    loop's thread). The thread keeps the process' scheduling: under a lower one it would be
+    preempted while holding the GIL, and the loop would wait for it (24 ms, measured). A
+    visualiser that falls behind by more than BACKLOG batches loses the newest ones, counted
+    in :attr:`dropped` (and its recording shows the gap)."""
+
+    BACKLOG = 600            # 60 s of batches at 10 Hz
 
     def __init__(self, session: zenoh.Session, robot: str):
-        # BLOCK: a recording must not lose cycles to a momentarily slow subscriber
         self._publisher = session.declare_publisher(
             key(robot, "control/samples"), congestion_control=zenoh.CongestionControl.BLOCK)
         ControlSamples.empty().encode()    # rosbags builds its codec on first use: not in a cycle
+        self.dropped = 0
+        self._queue: queue.Queue[ControlSamples | None] = queue.Queue(self.BACKLOG)
+        self._thread = threading.Thread(target=self._send, name="control samples", daemon=True)
+        self._thread.start()
 
     def publish(self, samples: ControlSamples) -> None:
-        self._publisher.put(samples.encode())
+        try:
+            self._queue.put_nowait(samples)
+        except queue.Full:
+            self.dropped += 1
 
-    def close(self) -> None:
+    def _send(self) -> None:
+        while (samples := self._queue.get()) is not None:
+            self._publisher.put(samples.encode())
+
+    def close(self, timeout: float = 10.0) -> None:
+        """Publish what is queued (for up to ``timeout`` s), then stop."""
+        self._queue.put(None)
+        self._thread.join(timeout)
         self._publisher.undeclare()
 
 
