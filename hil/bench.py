@@ -25,7 +25,10 @@ Figures (each a list of rows; a figure that cannot be measured here says why):
 * ``bus_load``: measured on the bus against the bitrate, with the config's
   worst-case estimate;
 * ``fault_detection``: for each injected fault kind, whether and how fast
-  the controller reported it.
+  the controller reported it;
+* ``across_processes``: ``hil sim`` and ``hil control`` (and ``hil viz``) as separate
+  processes over the Zenoh CAN transport, beside the floor of that transport measured in
+  the same run (:mod:`hil.bench_processes`).
 
 ``run_soak`` repeats a trajectory for a long time and reports drift, memory
 growth and missed cycles.
@@ -37,6 +40,7 @@ import gc
 import math
 import os
 import platform
+import tempfile
 import threading
 import time
 import uuid
@@ -50,6 +54,7 @@ import mujoco
 import numpy as np
 
 import hil.drives.core as core_module
+from hil.bench_processes import config_at, floor_across_processes, stack_across_processes
 from hil.bus_config import SystemConfig, load_bus_config
 from hil.can import socketcan_missing
 from hil.can.faults import FaultyBus, FrameFault
@@ -70,7 +75,10 @@ ROBOTS = ("ur3", "pigot")
 RATES = (250.0, 500.0, 1000.0)
 #: the figures every report has (a row list, or {"unavailable": why})
 FIGURES = ("control_cycle", "timing_floor", "socketcan", "lock_step", "overhead", "latency",
-           "tracking", "bus_load", "fault_detection")
+           "tracking", "bus_load", "fault_detection", "across_processes")
+#: across processes: (robot, rate) pairs, each with and without the visualiser
+ACROSS_PROCESSES = tuple((robot, rate) for robot in ROBOTS for rate in (500.0, 1000.0))
+ACROSS_PROCESSES_QUICK = (("ur3", 500.0),)
 
 
 @dataclass(frozen=True)
@@ -79,10 +87,12 @@ class BenchSettings:
     lock_step_cycles: int = 20000
     bare_cycles: int = 5000
     config_dir: Path = Path(__file__).resolve().parents[1] / "bus_config"
+    across_processes: tuple[tuple[str, float], ...] = ACROSS_PROCESSES
 
     @classmethod
     def quick(cls, config_dir: Path | None = None) -> BenchSettings:
         return cls(seconds=2.0, lock_step_cycles=600, bare_cycles=1000,
+                   across_processes=ACROSS_PROCESSES_QUICK,
                    **({"config_dir": config_dir} if config_dir else {}))
 
 
@@ -127,10 +137,29 @@ def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> di
     missing = _vcan_missing()
     report["socketcan"] = {"unavailable": missing} if missing else _socketcan(settings)
     close_all()
+    report["across_processes"] = _across_processes(settings, say)
     absent = [name for name in FIGURES if not report.get(name)]
     if absent:
         raise RuntimeError(f"figures missing from the report: {', '.join(absent)}")
     return report
+
+
+def _across_processes(settings: BenchSettings, say: Callable[[str], None]) -> list[dict]:
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="hil-bench-configs-") as folder:
+        for robot, rate in settings.across_processes:
+            path = config_at(settings.config_dir / f"{robot}.yaml", rate, Path(folder))
+            say(f"hil bench: {robot} at {rate:g} Hz across processes: the floor ...")
+            floor = floor_across_processes(load_bus_config(path), settings.seconds)
+            for viz in (False, True):
+                say(f"hil bench: {robot} at {rate:g} Hz across processes"
+                    f"{', with the visualiser recording' if viz else ''} ...")
+                stack = stack_across_processes(path, settings.seconds, viz)
+                rows.append({"robot": robot, "rate_hz": rate, "viz": viz, **stack,
+                             "floor": floor, "round_trip_p99_over_floor":
+                             stack.get("round_trip_p99_us", math.nan)
+                             / floor.get("round_trip_p99_us", math.nan)})
+    return rows
 
 
 def with_rate(config: SystemConfig, rate: float) -> SystemConfig:

@@ -11,6 +11,7 @@ answered, with the controller's clock advancing one period per cycle.
 
 from __future__ import annotations
 
+import math
 import queue
 import threading
 import time
@@ -149,7 +150,9 @@ class ControlNode:
                 command, velocity = self.controller.update(now, feedback.positions,
                                                            feedback.velocities)
                 hardware.write(command, velocity)
-                self.samples.add(self._cycle, now, command, velocity, feedback)
+                self.samples.add(self._cycle, now, command, velocity, feedback,
+                                 pacer.last_period if pacer is not None else math.nan,
+                                 getattr(hardware, "last_round_trip", math.nan))
                 self._publish(feedback)
         finally:
             if pacer is not None:

@@ -7,7 +7,7 @@ import math
 import subprocess
 import sys
 
-from hil.bench import FIGURES, ROBOTS, RATES
+from hil.bench import ACROSS_PROCESSES_QUICK, FIGURES, RATES, ROBOTS
 from hil.realtime import CyclePacer
 
 
@@ -55,7 +55,20 @@ def test_quick_bench_reports_every_figure(tmp_path):
         assert "drive node" in row["first_report"]
     socketcan = report["socketcan"]
     assert isinstance(socketcan, list) or "vcan" in socketcan["unavailable"]
+    across = report["across_processes"]
+    assert [(r["robot"], r["rate_hz"], r["viz"]) for r in across] == [
+        (robot, rate, viz) for robot, rate in ACROSS_PROCESSES_QUICK for viz in (False, True)]
+    for row in across:
+        assert row["cycles"] > 0 and math.isfinite(row["error_p99_us"]), row
+        assert 0 < row["round_trip_p50_us"] <= row["round_trip_p99_us"], row
+        floor = row["floor"]
+        assert floor["cycles"] > 0 and 0 < floor["round_trip_p50_us"] <= floor["round_trip_p99_us"]
+        assert row["round_trip_p99_over_floor"] > 0
+        assert set(row["cpu"]) == ({"sim", "control", "viz"} if row["viz"] else {"sim", "control"})
+        if row["viz"]:
+            assert " 0 lost" in row["recorded"], row["recorded"]
     assert "control cycle, real time" in result.stdout and "tracking" in result.stdout
+    assert "across processes" in result.stdout
     assert report["machine"]["drive_core"] in ("compiled", "interpreted")   # read figures by it
 
 

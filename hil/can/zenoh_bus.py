@@ -20,10 +20,12 @@ Frames reach other processes only (``Locality.REMOTE``); buses of one process th
 Zenoh session hand each other their frames in the sender's thread, as ``hil-virtual``
 does. So a bus' own frames never enter the channel of its Zenoh callback, which only the
 thread that answers inside that callback drains (a drive answering into its own full
-channel locked `hil sim` up for good under 20,000 SDO requests/s). The callback runs in a
-Python thread of its own fed by that channel (``indirect``): run in Zenoh's receiving
-thread instead, every frame took the GIL there, and a cycle's round trip between two
-processes doubled (630 -> 1140 us p50, measured). Received frames go to a bounded FIFO for
+channel locked `hil sim` up for good under 20,000 SDO requests/s). One subscriber per
+session takes the frames of every channel (``hil/can/**``) and hands them to the buses on
+it: one Python thread for all of a process' buses (with a thread per bus, a simulator's two
+buses fought for the GIL at every SYNC). That thread is fed by a channel (``indirect``): run
+in Zenoh's receiving thread instead, every frame took the GIL there, and a cycle's round
+trip between two processes doubled (630 -> 1140 us p50, measured). Received frames go to a bounded FIFO for
 ``recv`` (a full one drops and counts them: an overrun), or, after ``deliver_to``
 (:mod:`hil.can.delivery`), straight to the listeners. Every frame carries its sender's
 sequence number, so a receiver counts what was lost on the way (:class:`FrameCounters`).
@@ -63,9 +65,48 @@ _EXTENDED, _REMOTE, _ERROR = 1, 2, 4
 RECEIVE_FIFO = 8192
 #: a malformed payload is logged the first time, then every this many
 LOG_EVERY = 1000
-#: (session, key) -> the buses of this process on it: they hand each other their frames
-_LOCAL: dict[tuple[int, str], list[ZenohBus]] = {}
-_LOCAL_LOCK = threading.Lock()
+
+
+class _Channels:
+    """A session's CAN channels: the buses of this process on each key, fed by the one
+    subscriber of the session (and by each other)."""
+
+    _of_session: dict[int, _Channels] = {}
+    _lock = threading.Lock()
+
+    def __init__(self, session: zenoh.Session):
+        self.buses: dict[str, list[ZenohBus]] = {}
+        self._subscriber = session.declare_subscriber(
+            KEY_PREFIX + "**", self._on_sample, allowed_origin=zenoh.Locality.REMOTE)
+
+    @classmethod
+    def join(cls, session: zenoh.Session, key: str, bus: ZenohBus) -> list[ZenohBus]:
+        """Add ``bus`` on ``key``; returns the buses of this process on it (kept current)."""
+        with cls._lock:
+            channels = cls._of_session.get(id(session))
+            if channels is None:
+                channels = cls._of_session[id(session)] = _Channels(session)
+            on_key = channels.buses.setdefault(key, [])
+            on_key.append(bus)
+            return on_key
+
+    @classmethod
+    def leave(cls, session: zenoh.Session, key: str, bus: ZenohBus) -> None:
+        with cls._lock:
+            channels = cls._of_session[id(session)]
+            channels.buses[key].remove(bus)
+            if not channels.buses[key]:
+                del channels.buses[key]
+            if not channels.buses:
+                del cls._of_session[id(session)]
+                channels._subscriber.undeclare()
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        buses = self.buses.get(str(sample.key_expr))
+        if buses:
+            payload = sample.payload.to_bytes()
+            for bus in tuple(buses):
+                bus._on_payload(payload)
 
 
 def encode_frame(sender: int, msg: can.Message, sequence: int = 0) -> bytes:
@@ -145,17 +186,13 @@ class ZenohBus(can.BusABC):
         self._publisher = self._session.declare_publisher(
             key, congestion_control=zenoh.CongestionControl.DROP, express=False,
             allowed_destination=zenoh.Locality.REMOTE)
-        self._subscriber = self._session.declare_subscriber(
-            key, self._on_sample, allowed_origin=zenoh.Locality.REMOTE)
-        self._local_key = (id(self._session), key)
-        with _LOCAL_LOCK:
-            self._neighbours = _LOCAL.setdefault(self._local_key, [])
-            self._neighbours.append(self)
+        self._key = key
+        self._neighbours = _Channels.join(self._session, key, self)
         super().__init__(channel=channel, **kwargs)
 
-    def _on_sample(self, sample: zenoh.Sample) -> None:
+    def _on_payload(self, payload: bytes) -> None:
         try:
-            sender, sequence, msg = decode_frame(sample.payload.to_bytes(), self._channel)
+            sender, sequence, msg = decode_frame(payload, self._channel)
         except ValueError as exc:
             with self._count_lock:
                 self.counters.malformed += 1
@@ -228,12 +265,8 @@ class ZenohBus(can.BusABC):
         if self._is_shutdown:
             return
         super().shutdown()        # stops the periodic tasks; later sends are refused
-        with _LOCAL_LOCK:
-            self._neighbours.remove(self)
-            if not self._neighbours:
-                del _LOCAL[self._local_key]
         # not under the send lock: a delivery in progress may still be answering
-        self._subscriber.undeclare()
+        _Channels.leave(self._session, self._key, self)
         # a put still running in another thread ends first: zenoh refuses to undeclare a
         # publisher in use ("Already borrowed")
         with self._send_lock:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 import sys
 from dataclasses import replace
@@ -110,6 +111,26 @@ def format_table(report: dict) -> str:
     for row in report["fault_detection"]:
         when = f"{row['detection_ms']:6.1f} ms" if row["detected"] else "NOT DETECTED"
         lines.append(f"  {row['fault']:<22} {when}  {row['first_report'] or ''}")
+    lines += ["", "across processes (hil sim, hil control and with viz hil viz recording, over "
+              "Zenoh on loopback);", "  floor: the same frames between two bare python-can "
+              "processes on the same transport, this run",
+              f"  {'robot':<6} {'Hz':>5} {'viz':>4} {'cycles':>7} {'p50 us':>7} {'p99 us':>7} "
+              f"{'max us':>7} {'missed':>7} {'busy p50':>9} {'p99':>5} {'rt p50':>7} "
+              f"{'p99':>5} {'floor p50':>10} {'p99':>5} {'x p99':>6} {'faults':>6}  CPU"]
+    for row in report["across_processes"]:
+        floor = row["floor"]
+        cpu = " ".join(f"{name} {share:.0%}" for name, share in row["cpu"].items())
+        missed = f"{row['missed']} {100 * row['missed'] / max(row['cycles'], 1):.2f}%"
+        lines.append(
+            f"  {row['robot']:<6} {row['rate_hz']:>5.0f} {'yes' if row['viz'] else 'no':>4} "
+            f"{row['cycles']:>7} {row.get('error_p50_us', math.nan):>7.0f} "
+            f"{row.get('error_p99_us', math.nan):>7.0f} {row.get('error_max_us', math.nan):>7.0f}"
+            f" {missed:>7} {row.get('busy_p50_us', math.nan):>9.0f} "
+            f"{row.get('busy_p99_us', math.nan):>5.0f} {row.get('round_trip_p50_us', math.nan):>7.0f}"
+            f" {row.get('round_trip_p99_us', math.nan):>5.0f} "
+            f"{floor.get('round_trip_p50_us', math.nan):>10.0f} "
+            f"{floor.get('round_trip_p99_us', math.nan):>5.0f} "
+            f"{row['round_trip_p99_over_floor']:>6.2f} {row['faults']:>6}  {cpu}")
     lines += ["", "bus load (measured nominal / worst-case stuffing; config estimate worst case)"]
     for row in report["bus_load"]:
         lines.append(f"  {row['robot']:<6} {row['rate_hz']:>5.0f} Hz {row['bus']:<6} "

@@ -77,6 +77,28 @@ def bus_report(buses: dict) -> list[str]:
     return lines
 
 
+def add_cpus(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--cpus", metavar="LIST",
+                        help="real time: run on these CPUs only, e.g. 1 or 2,3 (default: any; "
+                             "hil up gives sim and controller a CPU each)")
+
+
+def cpus(args: argparse.Namespace) -> set[int] | None:
+    """The CPUs of --cpus, or None."""
+    if not args.cpus:
+        return None
+    try:
+        chosen = {int(part) for part in args.cpus.split(",")}
+    except ValueError:
+        raise HilError.single(f"--cpus '{args.cpus}' is not a list of CPU numbers",
+                              hint="e.g. --cpus 1 or --cpus 2,3") from None
+    usable = os.sched_getaffinity(0)
+    if not chosen <= usable:
+        raise HilError.single(f"--cpus {args.cpus}: this process may use CPUs "
+                              f"{','.join(map(str, sorted(usable)))} only")
+    return chosen
+
+
 def display_available() -> bool:
     """Whether a rerun viewer could open a window here."""
     has_display = sys.platform == "darwin" or bool(os.environ.get("DISPLAY")

@@ -39,6 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--report", type=Path, metavar="FILE.json",
                         help="at exit, write the run's figures (periods, busy times, round "
                              "trips, faults, frame counts) as JSON")
+    common.add_cpus(parser)
     common.add_can_override(parser)
     common.add_package_path(parser)
     common.add_zenoh(parser, listens=False)
@@ -48,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     config = load_bus_config(args.config, common.package_path(args))
     zenoh = common.zenoh_settings(args)
     if not args.lock_step:         # the frame handling just below the loop (its own priority)
-        enter_real_time(max(0, args.priority - 1))
+        enter_real_time(max(0, args.priority - 1), common.cpus(args))
     buses = {}
     if args.fake:
         hardware = FakeHardwareInterface(config.robot)

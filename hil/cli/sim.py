@@ -45,6 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="real time: run every thread under SCHED_FIFO priority N where "
                              f"the OS allows it (default {IO_PRIORITY}; 0: the normal "
                              "scheduler)")
+    common.add_cpus(parser)
     common.add_can_override(parser)
     common.add_package_path(parser)
     common.add_zenoh(parser, listens=True)
@@ -62,7 +63,8 @@ def run(args: argparse.Namespace) -> int:
                               hint="hil sim takes frame and drive faults")
     drive_faults = [f for f in faults if isinstance(f, DriveFault)]
     _check_drive_faults(config, drive_faults)
-    scheduling = "lock-step" if args.lock_step else enter_real_time(args.priority)
+    scheduling = ("lock-step" if args.lock_step
+                  else enter_real_time(args.priority, common.cpus(args)))
     buses = with_frame_faults(open_buses(config, zenoh, interface, channels),
                               [f for f in faults if isinstance(f, FrameFault)], args.fault_seed)
     simulator = Simulator(config, buses, lock_step=args.lock_step)

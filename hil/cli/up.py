@@ -39,6 +39,7 @@ from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import (
     ControllerGone, ProcessWatch, RunSubscriber, TrajectoryActionClient,
 )
+from hil.realtime import real_time_cpus
 from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
 
 HELP = "start sim, controller and visualiser together (optionally run a demo), record the run"
@@ -48,8 +49,6 @@ START_TIMEOUT = 60.0
 #: how long each child may take to stop after SIGTERM before it is killed (s)
 STOP_TIMEOUT = 15.0
 LAST_LINES = 15
-#: fewer usable CPUs than this: lock-step unless --real-time is asked for
-REAL_TIME_CPUS = 4
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -71,9 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     timing.add_argument("--lock-step", dest="timing", action="store_const", const="lock-step",
                         help="sim and controller in lock-step (reproducible, as fast as they go)")
     timing.add_argument("--real-time", dest="timing", action="store_const", const="real-time",
-                        help="sim and controller on the wall clock (default with at least "
-                             f"{REAL_TIME_CPUS} CPUs; with fewer, three real-time processes "
-                             "and a visualiser starve each other and lock-step is the default)")
+                        help="sim and controller on the wall clock (the default)")
     parser.add_argument("--can", action="append", default=[], metavar="CHANNEL",
                         help="use SocketCAN: one channel per bus of the config, in its order "
                              "(e.g. --can vcan0 --can vcan1)")
@@ -193,25 +190,24 @@ def run(args: argparse.Namespace) -> int:
     endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
     shared = [str(config_path), *can_options,
               *(f"--package-path={p}" for p in args.package_path)]
-    timing = args.timing or ("real-time" if len(os.sched_getaffinity(0)) >= REAL_TIME_CPUS
-                             else "lock-step")
+    timing = args.timing or "real-time"
     lock_step = ["--lock-step"] if timing == "lock-step" else []
+    placed = {name: [f"--cpus={','.join(map(str, sorted(cpus)))}"] if cpus and not lock_step
+              else [] for name, cpus in zip(("sim", "control", "viz"), real_time_cpus())}
     viewer = _viewer_options(args)
     children = {
-        "sim": Child("sim", ["sim", *shared, *lock_step, "--listen", endpoint,
+        "sim": Child("sim", ["sim", *shared, *lock_step, *placed["sim"], "--listen", endpoint,
                              "--status-period", "0", *sim_faults], logs / "sim.log"),
-        "control": Child("control", ["control", *shared, *lock_step, "--connect", endpoint],
-                         logs / "control.log"),
-        "viz": Child("viz", ["viz", *shared, "--connect", endpoint, "--save", str(save),
-                             "--can-log", str(can_log), *viewer], logs / "viz.log"),
+        "control": Child("control", ["control", *shared, *lock_step, *placed["control"],
+                                     "--connect", endpoint], logs / "control.log"),
+        "viz": Child("viz", ["viz", *shared, *placed["viz"], "--connect", endpoint, "--save",
+                             str(save), "--can-log", str(can_log), *viewer], logs / "viz.log"),
     }
     stop = threading.Event()
     supervised = Run([], stop)
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT,
                                                                       signal.SIGTERM)}
-    chosen = "" if args.timing else (f" (chosen: {len(os.sched_getaffinity(0))} CPUs; "
-                                     "--real-time or --lock-step to choose)")
-    print(f"hil up: {robot} from {config_path}; Zenoh {endpoint}; {timing}{chosen}; "
+    print(f"hil up: {robot} from {config_path}; Zenoh {endpoint}; {timing}; "
           f"process logs in {logs}/", flush=True)
     zenoh = ZenohSettings(connect=(endpoint,))
     status = 0
@@ -328,8 +324,9 @@ def _wait_alive(run: Run, watch: ProcessWatch, child: Child) -> None:
 
 
 class Progress:
-    """Follows the run: the recorded cycles (how many, the largest tracking error) and the
-    controller's diagnostics, printed as they come."""
+    """Follows the run: the recorded cycles (how many, the largest tracking error, in real
+    time the control loop's missed cycles and round trips) and the controller's
+    diagnostics, printed as they come."""
 
     def __init__(self):
         self.lock = threading.Lock()
@@ -342,10 +339,14 @@ class Progress:
         self.joint_names: tuple[str, ...] = ()
         self.worst = (0.0, "")
         self._cycles_shown = 0
+        self.missed = 0                 # cycles whose period was over 1.5 nominal ones
+        self._round_trips: list[np.ndarray] = []      # since the last line
 
     def on_samples(self, batch: ControlSamples) -> None:
         errors = np.abs(batch.reference - batch.position).max(axis=0)
         with self.lock:
+            self.missed += int(np.sum(batch.cycle_period > 1.5 * batch.period))
+            self._round_trips.append(batch.round_trip)
             self.cycles += len(batch)
             self.control_time = float(batch.control_time[-1])
             self.positions, self.joint_names = batch.position[-1], batch.joint_names
@@ -367,10 +368,18 @@ class Progress:
         with self.lock:
             worst, self.worst = self.worst, (0.0, "")
             fresh, self._cycles_shown = self.cycles > self._cycles_shown, self.cycles
+            trips, self._round_trips = self._round_trips, []
             if not fresh:
                 return f"cycles {self.cycles:>7}   (no new cycles recorded since the last line)"
-            return (f"cycles {self.cycles:>7}   largest tracking error {worst[0]:.4f} "
+            line = (f"cycles {self.cycles:>7}   largest tracking error {worst[0]:.4f} "
                     f"({worst[1] or '-'})")
+            trips = np.concatenate(trips) * 1e3 if trips else np.zeros(0)
+            if np.isfinite(trips).any():        # real time: the loop's own figures
+                late = np.count_nonzero(np.isnan(trips))
+                line += (f"   missed {self.missed}   round trip p50 "
+                         f"{np.nanpercentile(trips, 50):.2f} ms, max {np.nanmax(trips):.2f} ms"
+                         + (f", {late} late" if late else ""))
+            return line
 
 
 def _supervise(args, config: SystemConfig, run: Run, zenoh: ZenohSettings,

@@ -41,6 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-can", action="store_true",
                         help="do not open the CAN buses (no bus load, no CAN log): for a host "
                              "that cannot reach them")
+    common.add_cpus(parser)
     common.add_can_override(parser)
     common.add_package_path(parser)
     common.add_zenoh(parser, listens=False)
@@ -52,6 +53,8 @@ def run(args: argparse.Namespace) -> int:
         raise HilError.single("--can-log needs the CAN buses, but --no-can was given")
     zenoh = common.zenoh_settings(args)
     enter_background()          # never the real-time processes' time (its threads inherit it)
+    if common.cpus(args):
+        os.sched_setaffinity(0, common.cpus(args))
     recording = rr.RecordingStream("hil", recording_id=f"{config.robot.name}-{os.getpid()}")
     described = _open_sinks(recording, args)
     with tempfile.TemporaryDirectory(prefix="hil-viz-") as folder:

@@ -13,6 +13,7 @@ commands as measurements, with no CAN and no physics.
 from __future__ import annotations
 
 import itertools
+import math
 import threading
 import time
 from abc import ABC, abstractmethod
@@ -168,6 +169,8 @@ class CanHardwareInterface(HardwareInterface):
         self.round_trips = Ring(PeriodStatistics.KEEP)
         self._last_answer = 0.0
         self._sync_sent: float | None = None     # perf_counter of the last write's SYNC
+        #: the round trip of the cycle :meth:`read` last took (s; NaN: not every answer came)
+        self.last_round_trip = math.nan
 
     # --- bring-up ---------------------------------------------------------------------
 
@@ -215,10 +218,12 @@ class CanHardwareInterface(HardwareInterface):
     def read(self, watch: bool = True) -> JointFeedback:
         """The answers to the last SYNC: waited for until ``reply_timeout`` after it; with
         ``watch``, missing answers, faults and silences are reported (:meth:`faults`)."""
+        self.last_round_trip = math.nan
         if self._sync_sent is not None:
             deadline = self._sync_sent + self.reply_timeout
             if self._await_feedback(skip_silent=watch, deadline=deadline):
-                self.round_trips.add(self._last_answer - self._sync_sent)
+                self.last_round_trip = self._last_answer - self._sync_sent
+                self.round_trips.add(self.last_round_trip)
         if watch:
             self._watch()
         if self._recovering and not self._stopping and all(a.enabled for a in self.axes):

@@ -36,6 +36,11 @@ class ControlSamples:
     motor_torque: np.ndarray         # N·m on the motor shaft, as the drive reports it
     drive_state: np.ndarray          # uint8 index into state_names
     state_names: tuple[str, ...]
+    #: s, the control loop's own timing per cycle (NaN where not measured: lock-step, fake
+    #: hardware, an answer that did not come): release to release, and SYNC out to the last
+    #: answer in
+    cycle_period: np.ndarray
+    round_trip: np.ndarray
 
     def __len__(self) -> int:
         return len(self.wall_time)
@@ -45,7 +50,7 @@ class ControlSamples:
         """A batch of no cycles (encoding one builds the codec ahead of time)."""
         none, table = np.zeros(0), np.zeros((0, 0))
         return cls(0, 0.0, none, none, (), table, table, table, table, table, (), table,
-                   np.zeros((0, 0), dtype=np.uint8), ())
+                   np.zeros((0, 0), dtype=np.uint8), (), none, none)
 
     @property
     def next_cycle(self) -> int:
@@ -59,7 +64,8 @@ class ControlSamples:
             reference_velocity=self.reference_velocity.ravel(), position=self.position.ravel(),
             velocity=self.velocity.ravel(), effort=self.effort.ravel(),
             actuator_names=list(self.actuator_names), motor_torque=self.motor_torque.ravel(),
-            drive_state=self.drive_state.ravel(), state_names=list(self.state_names)))
+            drive_state=self.drive_state.ravel(), state_names=list(self.state_names),
+            cycle_period=self.cycle_period, round_trip=self.round_trip))
 
     @classmethod
     def decode(cls, data: bytes) -> ControlSamples:
@@ -75,9 +81,10 @@ class ControlSamples:
                                  f"values, {cycles} cycles x {width} expected")
             return values.reshape(cycles, width)
 
-        if len(message.control_time) != cycles:
-            raise ValueError(f"malformed {T.CONTROL_SAMPLES}: {len(message.control_time)} "
-                             f"control times for {cycles} wall times")
+        for name in ("control_time", "cycle_period", "round_trip"):
+            if len(getattr(message, name)) != cycles:
+                raise ValueError(f"malformed {T.CONTROL_SAMPLES}: {len(getattr(message, name))}"
+                                 f" values of '{name}' for {cycles} wall times")
         states = table("drive_state", actuators)
         if states.size and states.max() >= len(message.state_names):
             raise ValueError(f"malformed {T.CONTROL_SAMPLES}: drive state {states.max()} "
@@ -87,7 +94,8 @@ class ControlSamples:
                    table("reference", joints), table("reference_velocity", joints),
                    table("position", joints), table("velocity", joints),
                    table("effort", joints), tuple(message.actuator_names),
-                   table("motor_torque", actuators), states, tuple(message.state_names))
+                   table("motor_torque", actuators), states, tuple(message.state_names),
+                   np.asarray(message.cycle_period), np.asarray(message.round_trip))
 
 
 class ControlSampleBuffer:
@@ -98,6 +106,7 @@ class ControlSampleBuffer:
         self.period, self.capacity = period, capacity
         joints, actuators = len(self.joint_names), len(self.actuator_names)
         self._wall, self._time = np.zeros(capacity), np.zeros(capacity)
+        self._period, self._round_trip = np.zeros(capacity), np.zeros(capacity)
         self._joint_tables = [np.zeros((capacity, joints)) for _ in range(5)]
         self._torque = np.zeros((capacity, actuators))
         self._state = np.zeros((capacity, actuators), dtype=np.uint8)
@@ -110,14 +119,17 @@ class ControlSampleBuffer:
         return self._rows == self.capacity
 
     def add(self, cycle: int, control_time: float, reference: np.ndarray,
-            reference_velocity: np.ndarray, feedback: JointFeedback) -> None:
-        """Record cycle ``cycle`` (consecutive cycles make one batch). Ignored when full."""
+            reference_velocity: np.ndarray, feedback: JointFeedback,
+            period: float = np.nan, round_trip: float = np.nan) -> None:
+        """Record cycle ``cycle`` (consecutive cycles make one batch), with the loop's period
+        and round trip where measured. Ignored when full."""
         row = self._rows
         if row == self.capacity:
             return
         if row == 0:
             self._first_cycle = cycle
         self._wall[row], self._time[row] = time.time(), control_time
+        self._period[row], self._round_trip[row] = period, round_trip
         for table, values in zip(self._joint_tables, (reference, reference_velocity,
                                                       feedback.positions, feedback.velocities,
                                                       feedback.efforts)):
@@ -140,4 +152,4 @@ class ControlSampleBuffer:
             self._first_cycle, self.period, self._wall[:rows].copy(), self._time[:rows].copy(),
             self.joint_names, reference, reference_velocity, position, velocity, effort,
             self.actuator_names, self._torque[:rows].copy(), self._state[:rows].copy(),
-            tuple(self._state_index))
+            tuple(self._state_index), self._period[:rows].copy(), self._round_trip[:rows].copy())

@@ -68,7 +68,7 @@ _DEFINITIONS = {
         "string[] joint_names\nfloat64[] reference\nfloat64[] reference_velocity\n"
         "float64[] position\nfloat64[] velocity\nfloat64[] effort\n"
         "string[] actuator_names\nfloat64[] motor_torque\nuint8[] drive_state\n"
-        "string[] state_names",
+        "string[] state_names\nfloat64[] cycle_period\nfloat64[] round_trip",
     "hil_msgs/msg/SimClock": "float64 wall_time\nfloat64 sim_time",
     "std_srvs/srv/Trigger_Response": "bool success\nstring message",
 }

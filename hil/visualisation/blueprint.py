@@ -1,6 +1,6 @@
-"""The rerun layout of a run: the 3D robot, drive states and bus load beside one
-time-series view per axis (position, velocity, effort tabs), so that six axes
-read at a glance."""
+"""The rerun layout of a run: the 3D robot, drive states, bus load and the control loop's
+timing beside one time-series view per axis (position, velocity, effort tabs), so that
+six axes read at a glance."""
 
 from __future__ import annotations
 
@@ -29,7 +29,9 @@ def run_blueprint(robot: RobotDescription, actuator_joints: dict[str, tuple[str,
         rrb.StateTimelineView(name="drive states", origin="/drives"),
         rrb.TimeSeriesView(name="bus load [%]", origin="/bus",
                            contents=[f"/bus/{b}/load" for b in buses]),
-        row_shares=[3, 1, 1],
+        rrb.TimeSeriesView(name="control loop [ms]: period, round trip", origin="/loop",
+                           contents=["/loop/period_ms", "/loop/round_trip_ms"]),
+        row_shares=[3, 1, 1, 1],
     )
     return rrb.Blueprint(rrb.Horizontal(side, axes, column_shares=[2, 3]),
                          rrb.SelectionPanel(state="collapsed"))

@@ -146,6 +146,9 @@ class RunRecorder:
             table.add(f"/axes/{joint}/effort", batch.effort[:, i])
         for k, actuator in enumerate(batch.actuator_names):
             table.add(f"/drives/{actuator}/torque", batch.motor_torque[:, k])
+        if not np.isnan(batch.cycle_period).all():       # real time: the loop's own timing
+            table.add("/loop/period_ms", 1e3 * batch.cycle_period)
+            table.add("/loop/round_trip_ms", 1e3 * batch.round_trip)
         table.send(self.recording)
         for k, actuator in enumerate(batch.actuator_names):
             self._log_state_changes(actuator, batch, k, times)
