@@ -1,8 +1,8 @@
 """``hil bench``, across processes: the stack as users run it, and the floor under it.
 
 Each run starts ``hil sim`` and ``hil control`` (and, in the runs "with viz", ``hil viz``
-recording a file and the CAN log, as ``hil up`` does) as separate processes on the Zenoh CAN
-transport over loopback, in real time, for a while, stops them with SIGINT and reads the
+recording a file and the CAN log) as separate processes on the Zenoh CAN transport over
+loopback, in real time, placed on the CPUs as ``hil up`` places them, for a while, stops them with SIGINT and reads the
 controller's own report (``hil control --report``): period error, missed cycles, busy time,
 the round trip from each cycle's SYNC to its last answer, faults; and each process' CPU
 share from /proc.
@@ -10,7 +10,8 @@ share from /proc.
 The floor, measured in the same bench run: the same frames per cycle (every drive's
 cyclic frames and SYNC out, their answers back, per bus) exchanged between two processes
 over the same transport, python-can on both ends and no hil code on the answering side,
-paced like the controller. The ratio stack / floor says what hil adds to the transport.
+paced like the controller, each end on the CPU of the process it stands for. The ratio
+stack / floor says what hil adds to the transport.
 
 Rates above a config's own are run on buses of proportionally higher bitrate (the load
 stays what the config has at its rate; the transport has no bitrate of its own).
@@ -32,7 +33,7 @@ import can
 import yaml
 
 from hil.bus_config import SystemConfig
-from hil.realtime import CyclePacer, PeriodStatistics, Ring, enter_real_time
+from hil.realtime import CyclePacer, PeriodStatistics, Ring, enter_real_time, real_time_cpus
 from hil.zenoh_session import free_loopback_port
 
 #: how long a process may take to come up (s); a loaded 2-CPU machine needs some of it
@@ -127,8 +128,13 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def _cpus_option(cpus: set[int] | None) -> list[str]:
+    return [f"--cpus={','.join(map(str, sorted(cpus)))}"] if cpus else []
+
+
 def stack_across_processes(config_path: Path, seconds: float, with_viz: bool) -> dict:
     """One real-time run of ``hil sim`` + ``hil control`` (+ ``hil viz``) on the config."""
+    sim_cpus, control_cpus, viz_cpus = real_time_cpus()
     with tempfile.TemporaryDirectory(prefix="hil-bench-") as folder:
         folder = Path(folder)
         endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
@@ -136,13 +142,16 @@ def stack_across_processes(config_path: Path, seconds: float, with_viz: bool) ->
         processes = _Processes(folder)
         try:
             processes.start("sim", ["sim", str(config_path), "--listen", endpoint,
-                                    "--status-period", "0"], "hil sim:")
+                                    "--status-period", "0", *_cpus_option(sim_cpus)],
+                            "hil sim:")
             if with_viz:
                 processes.start("viz", ["viz", str(config_path), "--connect", endpoint,
                                         "--save", str(folder / "run.rrd"), "--can-log",
-                                        str(folder / "run.can.log")], "hil viz:")
+                                        str(folder / "run.can.log"), *_cpus_option(viz_cpus)],
+                                "hil viz:")
             processes.start("control", ["control", str(config_path), "--connect", endpoint,
-                                        "--report", str(report)], "hil control:")
+                                        "--report", str(report), *_cpus_option(control_cpus)],
+                            "hil control:")
             time.sleep(SETTLE)
             processes.mark_cpu()
             time.sleep(seconds)
@@ -172,7 +181,9 @@ def floor_across_processes(config: SystemConfig, seconds: float) -> dict:
     bare answering process, over Zenoh on loopback: round trip SYNC -> last answer."""
     endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
     channels = {bus.name: f"bench-floor/{os.getpid()}/{bus.name}" for bus in config.buses}
-    spec = json.dumps({"endpoint": endpoint, "seconds": seconds + 30, "buses": [
+    sim_cpus, control_cpus, _ = real_time_cpus()
+    spec = json.dumps({"endpoint": endpoint, "seconds": seconds + 30,
+                       "cpus": sorted(sim_cpus or ()), "buses": [
         {"channel": channels[name], "trigger": out[-1].arbitration_id,
          "answers": [[a.arbitration_id, len(a.data)] for a in answers]}
         for name, out, answers in cyclic_frames(config)]})
@@ -181,14 +192,14 @@ def floor_across_processes(config: SystemConfig, seconds: float) -> dict:
     try:
         if "ready" not in (responder.stdout.readline() or ""):
             raise RuntimeError("the floor's answering process did not start")
-        return _run_floor_master(config, channels, endpoint, seconds)
+        return _run_floor_master(config, channels, endpoint, seconds, control_cpus)
     finally:
         responder.terminate()
         responder.wait(10)
 
 
 def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: str,
-                      seconds: float) -> dict:
+                      seconds: float, cpus: set[int] | None) -> dict:
     buses = {name: can.Bus(interface="zenoh", channel=channel, connect=[endpoint])
              for name, channel in channels.items()}
     result: dict = {}
@@ -201,7 +212,7 @@ def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: 
             bus.deliver_to([counter])
         time.sleep(1.0)                               # the sessions find each other
         thread = threading.Thread(target=_floor_loop, args=(
-            exchanges, expected, counter, 1.0 / config.cycle_hz, seconds, result))
+            exchanges, expected, counter, 1.0 / config.cycle_hz, seconds, result, cpus))
         thread.start()
         thread.join()
     finally:
@@ -211,10 +222,10 @@ def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: 
 
 
 def _floor_loop(exchanges, expected: int, counter: _Counter, period: float, seconds: float,
-                result: dict) -> None:
+                result: dict, cpus: set[int] | None) -> None:
     """In a thread of its own, as the controller's loop: write the cycle, then the answers
-    to it are due before the next one (read at the next release)."""
-    enter_real_time()
+    to it are due before the next one."""
+    enter_real_time(cpus=cpus)
     statistics = PeriodStatistics(period)
     trips, late = Ring(PeriodStatistics.KEEP), 0
     pacer = CyclePacer(period, statistics)
@@ -267,7 +278,7 @@ class _Counter(can.Listener):
 
 def _respond(spec: dict) -> None:
     """The floor's answering process: on each bus, the answers on the trigger frame."""
-    enter_real_time()
+    enter_real_time(cpus=set(spec["cpus"]) or None)
     buses = []
     for bus_spec in spec["buses"]:
         bus = can.Bus(interface="zenoh", channel=bus_spec["channel"], listen=[spec["endpoint"]])
