@@ -1,7 +1,7 @@
 """Build hook: the drive core compiled by mypyc where the machine has a C compiler.
 
 The drive core's inner loops (``hil/drives/core.py``) and the CiA 402 state machine
-(``hil/drives/cia402_state.py``) run for every drive on every plant step and cycle.
+(``hil/protocols/cia402/state.py``) run for every drive on every plant step and cycle.
 Compiled, the same typed Python takes about 30 % off a lock-step cycle (README,
 "Performance"). The Python files stay the only source: without a compiler the install goes
 on and they run interpreted (``hil.compiled`` tells which form runs).
@@ -15,7 +15,7 @@ from setuptools import setup
 from setuptools.command.build_ext import build_ext
 
 #: the modules mypyc compiles, together (each must type-check with mypy)
-COMPILED = ["hil/drives/core.py", "hil/drives/cia402_state.py"]
+COMPILED = ["hil/drives/core.py", "hil/protocols/cia402/state.py"]
 
 
 class BuildExt(build_ext):

@@ -21,8 +21,8 @@ import yaml
 
 from hil.can import BusLoad, bus_load, open_bus
 from hil.description import JointType, PackagePath, RobotDescription, load_description
-from hil.drives import PROFILES
-from hil.drives.cia402 import EDS_PATH as DEFAULT_EDS   # the CiA 402 drives' device description
+from hil.protocols import names as protocol_names
+from hil.protocols import protocol
 from hil.errors import Diagnostic, HilError, Severity, error, warning
 from hil.transmissions import SimpleTransmission, Transmission, build_transmissions
 from hil.zenoh_session import ZenohSettings
@@ -85,11 +85,11 @@ class BusConfig:
 
     @property
     def uses_sync(self) -> bool:
-        return any(PROFILES[d.protocol].uses_sync for d in self.drives)
+        return any(protocol(d.protocol).uses_sync for d in self.drives)
 
     def frames(self, drive: DriveConfig) -> list[tuple[int, int, float]]:
         """(id, payload bytes, frames/s) of one drive's traffic, as its profile says."""
-        return PROFILES[drive.protocol].bus_frames(drive.node_id, self.cycle_hz,
+        return protocol(drive.protocol).bus_frames(drive.node_id, self.cycle_hz,
                                                    drive.heartbeat_period, drive.options)
 
     def load(self) -> BusLoad:
@@ -294,19 +294,19 @@ def _read_drive(reader: _Reader, raw, bus: str, robot: RobotDescription,
     merged.line, merged.key_lines = own.line, {**defaults.key_lines, **own.key_lines}
     node_id = reader.number(merged, "node_id", f"{bus} drive", 0, integer=True, positive=False)
     what = f"{bus} node {node_id}"
-    protocol = reader.text(merged, "protocol", what, "cia402")
-    if protocol not in PROFILES:
-        reader.fail(f"{what}: unknown protocol '{protocol}'",
+    name = reader.text(merged, "protocol", what, "cia402")
+    if name not in protocol_names():
+        reader.fail(f"{what}: unknown protocol '{name}'",
                     merged.key_lines.get("protocol", merged.line),
-                    hint=f"use one of: {', '.join(PROFILES)}")
+                    hint=f"use one of: {', '.join(protocol_names())}")
         return None
-    profile = PROFILES[protocol]
-    if node_id not in profile.node_ids:
-        ids = profile.node_ids
+    spec = protocol(name)
+    if node_id not in spec.node_ids:
+        ids = spec.node_ids
         reader.fail(f"{what}: node id {node_id} is outside {ids.start}..{ids.stop - 1}",
                     merged.key_lines.get("node_id", merged.line),
-                    hint=f"{protocol} node ids are {ids.start}..{ids.stop - 1}")
-    options = _read_options(reader, merged, what, profile)
+                    hint=f"{name} node ids are {ids.start}..{ids.stop - 1}")
+    options = _read_options(reader, merged, what, spec)
     found = _find_actuator(reader, merged, what, robot, transmissions)
     if found is None:
         return None
@@ -336,7 +336,7 @@ def _read_drive(reader: _Reader, raw, bus: str, robot: RobotDescription,
                     merged.key_lines.get("holding_brake", merged.line))
     return DriveConfig(
         node_id=node_id, actuator=transmission.actuators[k], joints=transmission.joints,
-        protocol=protocol,
+        protocol=name,
         encoder_counts_per_rev=int(reader.number(merged, "encoder_counts_per_rev", what, 131072,
                                                  integer=True)),
         rated_torque=float(rated), peak_torque=float(peak), max_velocity=float(max_velocity),
@@ -355,28 +355,28 @@ def _read_drive(reader: _Reader, raw, bus: str, robot: RobotDescription,
         options=options, line=own.line)
 
 
-def _read_options(reader: _Reader, drive: _Mapping, what: str, profile) -> object | None:
-    """The protocol's own settings (``options:``), validated by its profile."""
+def _read_options(reader: _Reader, drive: _Mapping, what: str, spec) -> object | None:
+    """The protocol's own settings (``options:``), validated by its ``Options``."""
     raw = drive.get("options", _Mapping())
     line = drive.key_lines.get("options", drive.line)
-    if profile.Options is None:
+    if spec.Options is None:
         if raw:
-            reader.fail(f"{what}: protocol '{profile.protocol}' takes no 'options'", line)
+            reader.fail(f"{what}: protocol '{spec.name}' takes no 'options'", line)
         return None
     if not isinstance(raw, dict):
         reader.fail(f"{what}: 'options' must be a mapping", line)
         return None
-    unknown = sorted(set(raw) - set(profile.Options.KEYS))
+    unknown = sorted(set(raw) - set(spec.Options.KEYS))
     if unknown:
         reader.fail(f"{what}: unknown option(s) {', '.join(unknown)} for protocol "
-                    f"'{profile.protocol}'", line,
-                    hint=f"{profile.protocol} options: {', '.join(profile.Options.KEYS)}")
+                    f"'{spec.name}'", line,
+                    hint=f"{spec.name} options: {', '.join(spec.Options.KEYS)}")
         return None
     try:
-        return profile.Options.from_mapping(dict(raw))
+        return spec.Options.from_mapping(dict(raw))
     except (ValueError, TypeError) as exc:
         reader.fail(f"{what}: options: {exc}", line,
-                    hint=f"{profile.protocol} options: {', '.join(profile.Options.KEYS)}")
+                    hint=f"{spec.name} options: {', '.join(spec.Options.KEYS)}")
         return None
 
 
@@ -469,10 +469,10 @@ def _check_ids(reader: _Reader, bus: BusConfig) -> None:
         owners.update({0x000: "CANopen NMT", 0x080: "CANopen SYNC"})
     shared: dict[int, str] = {}
     for drive in bus.drives:
-        profile = PROFILES[drive.protocol]
+        spec = protocol(drive.protocol)
         label = f"{drive.label} ({drive.protocol})"
         for can_id in sorted({frame[0] for frame in bus.frames(drive)}):
-            if can_id in profile.shared_ids(drive.options) and shared.get(can_id) == drive.protocol:
+            if can_id in spec.shared_ids(drive.options) and shared.get(can_id) == drive.protocol:
                 continue
             if can_id in owners:
                 reader.fail(f"bus '{bus.name}': CAN id 0x{can_id:03X} is used by {owners[can_id]} "
@@ -481,12 +481,12 @@ def _check_ids(reader: _Reader, bus: BusConfig) -> None:
                                  "put the drives on separate buses")
                 continue
             owners[can_id] = label
-            if can_id in profile.shared_ids(drive.options):
+            if can_id in spec.shared_ids(drive.options):
                 shared[can_id] = drive.protocol
 
 
 def _check_load(reader: _Reader, bus: BusConfig) -> None:
-    if not bus.drives or any(d.protocol not in PROFILES for d in bus.drives):
+    if not bus.drives or any(d.protocol not in protocol_names() for d in bus.drives):
         return
     load = bus.load()
     summary = (f"bus '{bus.name}': {len(bus.drives)} drive(s) at {bus.cycle_hz:g} Hz need "

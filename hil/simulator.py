@@ -37,9 +37,11 @@ import mujoco
 import numpy as np
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig
-from hil.drives import PROFILES, DriveCore, DriveParameters, DriveProfile, Fault
-from hil.drives.profile import DriveNetwork, start_network
+from hil.drives import DriveCore, DriveParameters, DriveProfile, Fault
+from hil.can.network import start_network
+from hil.drives.profile import DriveNetwork
 from hil.plant import Plant
+from hil.protocols import protocol
 
 log = logging.getLogger(__name__)
 
@@ -70,7 +72,7 @@ def drive_parameters(drive: DriveConfig, motor_inertia: float) -> DriveParameter
         peak_torque=drive.peak_torque, position_kp=position_kp, velocity_kp=velocity_kp,
         velocity_ki=velocity_ki, max_velocity=drive.max_velocity,
         following_error_limit=(drive.following_error_limit
-                               if PROFILES[drive.protocol].has_following_error else 0.0),
+                               if protocol(drive.protocol).has_following_error else 0.0),
         following_error_timeout=drive.following_error_timeout,
         quick_stop_deceleration=drive.quick_stop_deceleration,
         watchdog_timeout=drive.watchdog_timeout, position_limits=drive.position_limits,
@@ -163,7 +165,7 @@ class Simulator:
                         parameters.watchdog_timeout, LOCK_STEP_WATCHDOG))
                 core = DriveCore(parameters)
                 core.set_cycle(bus_config.cycle)
-                drive = PROFILES[drive_config.protocol](
+                drive = protocol(drive_config.protocol).drive_class()(
                     drive_config.node_id, core, self.lock, drive_config.rated_torque,
                     drive_config.heartbeat_period, drive_config.options)
                 drive.on_command = self._on_command
@@ -339,6 +341,6 @@ class Simulator:
                     positions = " ".join(f"{j}={joints[j]:+.4f}" for j in config.joints)
                     fault = f"  FAULT {status.fault.text}" if status.fault else ""
                     lines.append(f"  {runtime.config.name:>8} node {drive.node_id:>3} "
-                                 f"{drive.protocol:<7} {drive.state_text:<34} "
+                                 f"{drive.protocol.name:<7} {drive.state_text:<34} "
                                  f"{positions}  torque {status.torque:+.4f} N·m{fault}")
             return lines

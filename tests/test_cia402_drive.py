@@ -18,7 +18,7 @@ import pytest
 
 from conftest import EDS
 
-from hil.drives.cia402_state import SUPPORTED_MODES
+from hil.protocols.cia402.state import SUPPORTED_MODES
 from hil.drives.core import Fault
 
 CYCLE = 0.01          # the fixture config's 100 Hz SYNC

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from hil.drives.cia402_state import Cia402StateMachine, State, statusword
+from hil.protocols.cia402.state import Cia402StateMachine, State, statusword
 from hil.drives.core import DriveCore, DriveParameters, Fault, Mode, Power
 from conftest import TEST_MOTOR_DRIVE
 

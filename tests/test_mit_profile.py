@@ -13,11 +13,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hil.drives import DriveCore, DriveParameters, Mode, Power
-from hil.drives.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitDrive, MitOptions, MitRanges,
-    MitReply, float_to_uint, pack_command, pack_reply, unpack_command, unpack_reply,
+from hil.can.network import start_network
+from hil.protocols.mit import (
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitOptions, MitRanges, MitReply,
+    float_to_uint, pack_command, pack_reply, unpack_command, unpack_reply,
 )
-from hil.drives.profile import start_network
+from hil.protocols.mit.drive import MitDrive
 
 CLASSIC = MitRanges(p_max=12.5, v_max=65.0, kp_max=500.0, kd_max=5.0, t_max=18.0)
 

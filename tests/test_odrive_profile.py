@@ -17,9 +17,10 @@ from hypothesis import strategies as st
 
 from hil.bus_config import DriveConfig
 from hil.drives import DriveCore, DriveParameters, Power
-from hil.drives.odrive import TURN, AxisState, Cmd, ODriveDrive, ODriveError, ODriveOptions
-from hil.drives.profile import start_network
-from hil.hardware.odrive import ODriveAxis
+from hil.can.network import start_network
+from hil.protocols.odrive import TURN, AxisState, Cmd, ODriveError, ODriveOptions
+from hil.protocols.odrive.axis import ODriveAxis
+from hil.protocols.odrive.drive import ODriveDrive
 
 DBC = cantools.database.load_file(
     str(importlib.resources.files("odrive_can") / "dbc" / "odrive-cansimple-0.6.10.dbc"))

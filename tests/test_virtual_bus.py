@@ -11,7 +11,7 @@ import pytest
 
 from hil.can.faults import FaultyBus, FrameFault
 from hil.can.messages import data_frame
-from hil.drives.profile import start_network
+from hil.can.network import start_network
 from conftest import FrameRecorder
 
 

@@ -1,22 +1,17 @@
-"""Virtual servo drives: a protocol-free core behind a drive profile.
+"""Simulated servo drives: the protocol-free core and the seam to a protocol.
 
-:data:`PROFILES` picks the profile class by the ``protocol`` string of a bus
-config, the way python-can picks an interface.
+The drives of each protocol live with it (``hil.protocols.<name>.drive``), found through
+:func:`hil.protocols.protocol`.
 """
 
 from hil.compiled import import_fresh
 
-# compiled by the install where it could be (setup.py)
-import_fresh("hil.drives.core", "hil.drives.cia402_state")
+# compiled by the install where it could be (setup.py): the core and the CiA 402 device,
+# one build (compiled modules of one build call each other directly: both or neither)
+import_fresh("hil.drives.core", "hil.protocols.cia402.state")
 
-from hil.drives.cia402 import Cia402Drive
-from hil.drives.mit import MitDrive
-from hil.drives.odrive import ODriveDrive
-from hil.drives.core import DriveCore, DriveParameters, DriveStatus, Fault, Mode, Power
-from hil.drives.profile import DriveProfile
+from hil.drives.core import DriveCore, DriveParameters, DriveStatus, Fault, Mode, Power  # noqa: E402
+from hil.drives.profile import DriveProfile  # noqa: E402
 
-#: protocol name -> drive class
-PROFILES = {profile.protocol: profile for profile in (Cia402Drive, MitDrive, ODriveDrive)}
-
-__all__ = ["Cia402Drive", "DriveCore", "DriveParameters", "DriveProfile", "DriveStatus",
-           "Fault", "MitDrive", "Mode", "ODriveDrive", "PROFILES", "Power"]
+__all__ = ["DriveCore", "DriveParameters", "DriveProfile", "DriveStatus", "Fault", "Mode",
+           "Power"]

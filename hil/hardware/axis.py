@@ -3,8 +3,9 @@
 :class:`CanHardwareInterface` drives every axis the same way: reset, wait
 until it is heard, configure, then each cycle send :meth:`Axis.cycle_frames`
 and wait for :attr:`Axis.feedback` of that cycle; :meth:`Axis.fault_text`
-says what is wrong. The concrete axes (``AXES[protocol]``) only turn these
-into their protocol's frames and back, in motor units (rad, rad/s, N·m).
+says what is wrong. The concrete axes (found through their protocol,
+:func:`hil.protocols.protocol`) only turn these into their protocol's frames and
+back, in motor units (rad, rad/s, N·m).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import ClassVar
 import canopen
 
 from hil.bus_config import DriveConfig
+from hil.protocols.base import Protocol
 
 #: fraction of the max velocity below which an axis counts as still (enable only then)
 STANDSTILL = 0.01
@@ -38,10 +40,8 @@ Frame = tuple[int, bytes, bool]
 class Axis(ABC):
     """One drive as the master sees it."""
 
-    #: the ``protocol`` string of bus configs
-    protocol: ClassVar[str]
-    #: whether the bus needs a CANopen SYNC after every cycle's frames
-    uses_sync = False
+    #: the protocol it speaks
+    protocol: ClassVar[type[Protocol]]
 
     def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
         self.config = config

@@ -25,14 +25,11 @@ import numpy as np
 
 from hil.bus_config import SystemConfig
 from hil.description import RobotDescription
-from hil.drives.cia402 import SYNC_ID   # CiA 301's SYNC COB-ID
-from hil.drives.profile import start_network
+from hil.can.network import start_network
 from hil.errors import HilError
 from hil.hardware.axis import Axis
 from hil.realtime import PeriodStatistics, Ring
-from hil.hardware.cia402 import Cia402Axis
-from hil.hardware.mit import MitAxis
-from hil.hardware.odrive import ODriveAxis
+from hil.protocols import protocol
 from hil.transmissions import TransmissionStack, build_transmissions
 
 BOOT_TIMEOUT = 3.0
@@ -48,8 +45,8 @@ REACH_SLACK = 0.01
 #: measured joint speeds beyond this many times the velocity limit (plus 1) cannot be real
 SPEED_MARGIN = 10.0
 
-#: protocol name -> master-side axis class (the drive side is hil.drives.PROFILES)
-AXES = {axis.protocol: axis for axis in (Cia402Axis, MitAxis, ODriveAxis)}
+#: CiA 301's SYNC COB-ID, sent on every bus with a protocol that uses it
+SYNC_ID = 0x080
 
 
 @dataclass
@@ -146,9 +143,10 @@ class CanHardwareInterface(HardwareInterface):
         self.reply_timeout = reply_timeout if reply_timeout is not None else 1.0 / config.cycle_hz
         self._buses = buses
         self._networks: dict[str, canopen.Network] = {}
-        self.axes: list[Axis] = [AXES[drive.protocol](drive, bus.name, self._on_feedback)
+        self.axes: list[Axis] = [protocol(drive.protocol).axis_class()(drive, bus.name,
+                                                                       self._on_feedback)
                                  for bus in config.buses for drive in bus.drives]
-        self._sync_buses = sorted({a.bus_name for a in self.axes if a.uses_sync})
+        self._sync_buses = sorted({a.bus_name for a in self.axes if a.protocol.uses_sync})
         self.actuator_names = tuple(a.config.actuator for a in self.axes)
         # joints (joint_names order) <-> actuators (axes order) in one map
         self.transmissions = TransmissionStack(build_transmissions(config.robot),

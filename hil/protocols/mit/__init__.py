@@ -16,12 +16,9 @@ nibbles with per-motor ranges.
 
 from __future__ import annotations
 
-import time
-from contextlib import AbstractContextManager
 from dataclasses import dataclass
 
-from hil.drives.core import DriveCore, Fault, Mode, Power
-from hil.drives.profile import DriveProfile
+from hil.protocols.base import Protocol
 
 ENTER_MOTOR_MODE = bytes([0xFF] * 7 + [0xFC])
 EXIT_MOTOR_MODE = bytes([0xFF] * 7 + [0xFD])
@@ -140,22 +137,14 @@ def unpack_reply(data: bytes, ranges: MitRanges) -> MitReply:
     return MitReply(data[0], *_unpack(raw, ranges, MitReply.FIELDS))
 
 
-class MitDrive(DriveProfile):
-    """A quasi-direct-drive motor speaking the MIT protocol, around a DriveCore."""
+class Mit(Protocol):
+    """MIT-protocol motors: one command and one reply per motor per cycle."""
 
-    protocol = "mit"
+    name = "mit"
     Options = MitOptions
     has_following_error = False
-
-    def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager,
-                 rated_torque: float, heartbeat_period: float = 0.1,
-                 options: MitOptions | None = None):
-        super().__init__(node_id, core, lock)
-        self.options = options or MitOptions()
-        self.ranges = self.options.ranges
-        self._zero = 0.0             # motor position at "set zero"
-        self._reply = b""
-        core.set_mode(Mode.IMPEDANCE)
+    drive = "hil.protocols.mit.drive:MitDrive"
+    axis = "hil.protocols.mit.axis:MitAxis"
 
     @classmethod
     def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float,
@@ -167,48 +156,3 @@ class MitDrive(DriveProfile):
     def shared_ids(cls, options: MitOptions | None = None) -> set[int]:
         """Every motor replies to the master's one id (telling itself by the first byte)."""
         return {(options or MitOptions()).reply_id}
-
-    def subscriptions(self):
-        return {self.node_id: self._on_frame}
-
-    def _on_frame(self, can_id: int, data: bytes, timestamp: float) -> None:
-        if len(data) != 8:
-            self.malformed += 1          # the firmware ignores frames that are not 8 bytes
-            return
-        with self.lock:
-            data = bytes(data)
-            if data == ENTER_MOTOR_MODE:
-                self.core.enable()          # with zero gains until the first command
-                self.core.new_setpoint(position=self.core.status().position, velocity=0.0,
-                                       torque=0.0, stiffness=0.0, damping=0.0)
-            elif data == EXIT_MOTOR_MODE:
-                self.core.disable()
-            elif data == SET_ZERO:
-                self._zero = self.core.status().position
-            elif self.core.power is Power.ENABLED:
-                command = unpack_command(data, self.ranges)
-                self.core.new_setpoint(position=command.position + self._zero,
-                                       velocity=command.velocity, torque=command.torque,
-                                       stiffness=command.kp, damping=command.kd,
-                                       now=time.monotonic())
-            status = self.core.status()
-            self._reply = pack_reply(MitReply(self.node_id, status.position - self._zero,
-                                              status.velocity, status.torque), self.ranges)
-            self.on_command(self)
-
-    def send_replies(self) -> None:
-        reply, self._reply = self._reply, b""
-        if reply:
-            self.send(self.options.reply_id, reply)
-
-    def after_update(self) -> None:
-        events, self.core.events = self.core.events, []
-        if Fault.CONTROLLER_SILENT in events:
-            # the firmware's CAN timeout: leave motor mode (no torque), nothing is reported
-            self.core.disable()
-
-    @property
-    def state_text(self) -> str:
-        if self.core.power is Power.FAULT:
-            return f"FAULT ({self.core.fault.text})"
-        return "MOTOR MODE" if self.core.power is Power.ENABLED else "REST MODE"

@@ -1,7 +1,7 @@
 """The CiA 402 device side without CAN: power state machine, statusword, live objects.
 
 What a 402 drive computes from its :class:`DriveCore` at every controlword and SYNC; the
-profile (:mod:`hil.drives.cia402`) carries it over canopen. Typed Python that the install
+drive (:mod:`hil.protocols.cia402.drive`) carries it over canopen. Typed Python that the install
 compiles with mypyc together with the core (``setup.py``): it runs for every drive on every
 cycle.
 """

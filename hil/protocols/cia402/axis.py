@@ -15,30 +15,21 @@ import time
 import canopen
 from canopen.profiles.p402 import State402
 
-from hil.bus_config import DEFAULT_EDS, DriveConfig
+from hil.bus_config import DriveConfig
 from hil.errors import HilError
 from hil.hardware.axis import Axis, Frame
+from hil.protocols.cia402 import FRAME_ERRORS, Cia402, emcy_words
+from hil.resources import eds_path
 
 _RPDO1 = struct.Struct("<Hi")       # controlword, target position
 _TPDO1 = struct.Struct("<Hi")       # statusword, position actual
 _TPDO2 = struct.Struct("<ih")       # velocity actual, torque actual
 
-#: EMCY codes a CiA 402 drive may send, for messages
-EMCY_TEXT = {0x8611: "following error", 0x8612: "position limit exceeded",
-             0x8250: "RPDO timeout (setpoints stopped arriving)",
-             0x8210: "PDO too short (not processed)", 0x8220: "PDO longer than its mapping",
-             0x8240: "unexpected SYNC length", 0x8130: "heartbeat/life guard error"}
-#: EMCY codes for a frame the drive ignored: the next cycle's frame replaces it
-FRAME_ERRORS = {0x8210, 0x8220, 0x8240}
-
-
-def emcy_words(code: int) -> str:
-    """An EMCY error code for messages: ``EMCY 0x8611 following error``."""
-    return f"EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".rstrip()
-
-
-SHUTDOWN, SWITCH_ON, ENABLE, QUICK_STOP, DISABLE_VOLTAGE = 0x06, 0x07, 0x0F, 0x02, 0x00
-FAULT_RESET = 0x80
+# the controlwords, by canopen's names
+SHUTDOWN, SWITCH_ON, ENABLE = State402.CW_SHUTDOWN, State402.CW_SWITCH_ON, \
+    State402.CW_OPERATION_ENABLED
+QUICK_STOP, DISABLE_VOLTAGE = State402.CW_QUICK_STOP, State402.CW_DISABLE_VOLTAGE
+FAULT_RESET = State402.CW_SWITCH_ON_DISABLED          # bit 7: fault reset (its rising edge)
 
 
 @functools.lru_cache(maxsize=None)     # asked several times a cycle per axis; 2^16 words at most
@@ -53,13 +44,11 @@ def state_of(statusword: int) -> str:
 class Cia402Axis(Axis):
     """One CiA 402 drive as the master sees it."""
 
-    protocol = "cia402"
-    #: the bus needs SYNC after the RPDOs of every cycle
-    uses_sync = True
+    protocol = Cia402
 
     def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
         super().__init__(config, bus_name, on_feedback)
-        self.node = canopen.RemoteNode(config.node_id, str(DEFAULT_EDS))
+        self.node = canopen.RemoteNode(config.node_id, str(eds_path()))
         self.counts_per_rad = config.encoder_counts_per_rev / (2 * math.pi)
         self.rated_torque = config.rated_torque
         self.controlword = SHUTDOWN

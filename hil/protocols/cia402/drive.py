@@ -1,13 +1,11 @@
-"""CANopen CiA 402 drive profile on top of python ``canopen``'s LocalNode.
+"""A simulated CiA 402 servo drive on top of python ``canopen``'s LocalNode.
 
-``canopen`` gives the object dictionary (from ``bus_config/cia402_drive.eds``),
-the SDO server, NMT slave with boot-up and heartbeat, the EMCY producer and
-PDO maps; :mod:`hil.drives.cia301` makes that node refuse what a real CiA 301
-slave refuses. canopen does not answer SYNC with TPDOs, does not tie PDO
-contents to the object dictionary, and implements no 402 device (canopen issues
-#555, #558, #166): those parts are written here, the ones that need no CAN
-(power state machine, operation modes' controlword bits, statusword, live
-objects) in :mod:`hil.drives.cia402_state`.
+``canopen`` gives the object dictionary (from the EDS hil ships), the SDO server, NMT slave
+with boot-up and heartbeat, the EMCY producer and PDO maps; :mod:`.node` makes that node
+refuse what a real CiA 301 slave refuses. canopen does not answer SYNC with TPDOs, does not
+tie PDO contents to the object dictionary, and implements no 402 device (canopen issues
+#555, #558, #166): those parts are written here, the ones that need no CAN (power state
+machine, operation modes' controlword bits, statusword, live objects) in :mod:`.state`.
 
 PDOs: RPDOs are processed in OPERATIONAL only; a synchronous one (transmission type
 0-240) is latched and applied at the next SYNC, an event-driven one (254, 255) at once.
@@ -46,19 +44,17 @@ import canopen
 from canopen.sdo import SdoAbortedError
 from canopen.sdo.constants import ABORT_INVALID_VALUE, ABORT_VALUE_TOO_LOW
 
-from hil.drives.cia301 import DriveNode
-from hil.drives.cia402_state import (ERROR_REGISTER, HOMING_METHODS, LIVE_OBJECTS, MODE_CODES,
-                                     Cia402StateMachine, int32, live_value, live_values,
-                                     uint32)
 from hil.drives.core import DriveCore, Fault, SilenceReaction
 from hil.drives.profile import DriveProfile
+from hil.protocols.cia402 import NMT_ID, SYNC_ID, Cia402
+from hil.protocols.cia402.node import DriveNode
+from hil.protocols.cia402.state import (ERROR_REGISTER, HOMING_METHODS, LIVE_OBJECTS,
+                                        MODE_CODES, Cia402StateMachine, int32, live_value,
+                                        live_values, uint32)
+from hil.resources import eds_path
 
 log = logging.getLogger(__name__)
 
-EDS_PATH = Path(__file__).resolve().parents[2] / "bus_config" / "cia402_drive.eds"
-
-SYNC_ID = 0x080
-NMT_ID = 0x000
 OPERATIONAL = "OPERATIONAL"
 
 #: EMCY codes that are not drive faults (CiA 301).
@@ -118,17 +114,16 @@ class TpdoSchedule:
 class Cia402Drive(DriveProfile):
     """A CiA 402 servo drive on a CANopen network, around a :class:`DriveCore`."""
 
-    protocol = "cia402"
-    uses_sync = True
+    protocol = Cia402
 
     def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager,
                  rated_torque: float, heartbeat_period: float = 0.1, options=None,
-                 eds: Path = EDS_PATH):
+                 eds: Path | None = None):
         super().__init__(node_id, core, lock)
         self.rated_torque = rated_torque
         heartbeat_ms = round(heartbeat_period * 1000)
         self.machine = Cia402StateMachine(core)
-        self.node = DriveNode(node_id, eds, self._refused)
+        self.node = DriveNode(node_id, eds or eds_path(), self._refused)
         self._heartbeat_ms = heartbeat_ms
         self._latched: dict[int, bytes] = {}
         self._fault_reported = False
@@ -145,16 +140,6 @@ class Cia402Drive(DriveProfile):
         self.node.on_stored(self._after_store)
 
     # --- network life cycle ---------------------------------------------------
-
-    @classmethod
-    def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float, options=None
-                   ) -> list[tuple[int, int, float]]:
-        """(arbitration id, payload bytes, frames/s) of the default mapping's exchange:
-        RPDO1 (controlword, target), TPDO1, TPDO2 per SYNC; heartbeat; EMCY and SDO
-        only on events (their ids are reserved)."""
-        return [(0x200 + node_id, 6, cycle_hz), (0x180 + node_id, 6, cycle_hz),
-                (0x280 + node_id, 6, cycle_hz), (0x700 + node_id, 1, 1.0 / heartbeat_period),
-                (0x080 + node_id, 8, 0.0), (0x580 + node_id, 8, 0.0), (0x600 + node_id, 8, 0.0)]
 
     def subscriptions(self):
         return {NMT_ID: self._after_nmt, SYNC_ID: self._on_sync}

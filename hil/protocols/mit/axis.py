@@ -1,4 +1,4 @@
-"""The master's side of a MIT-protocol motor (see :mod:`hil.drives.mit` for the protocol).
+"""The master's side of a MIT-protocol motor (the protocol: :mod:`hil.protocols.mit`).
 
 Exactly one frame per motor per cycle, always answered: the enter/exit
 motor-mode special frames when the mode changes, otherwise a command. In
@@ -11,14 +11,14 @@ and a motor that stops answering is found silent.
 from __future__ import annotations
 
 from hil.bus_config import DriveConfig
-from hil.drives.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, MitCommand, MitOptions, pack_command, unpack_reply,
-)
 from hil.hardware.axis import Axis, Frame
+from hil.protocols.mit import (
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitCommand, MitOptions, pack_command, unpack_reply,
+)
 
 
 class MitAxis(Axis):
-    protocol = "mit"
+    protocol = Mit
 
     def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
         super().__init__(config, bus_name, on_feedback)

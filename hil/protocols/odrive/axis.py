@@ -1,4 +1,4 @@
-"""The master's side of an ODrive axis on CANSimple (see :mod:`hil.drives.odrive`).
+"""The master's side of an ODrive axis on CANSimple (the protocol: :mod:`hil.protocols.odrive`).
 
 Bring-up: Clear_Errors, a heartbeat requested by RTR (the axis is heard),
 Set_Controller_Mode (position, passthrough) and Set_Limits, then
@@ -14,10 +14,10 @@ from __future__ import annotations
 import time
 
 from hil.bus_config import DriveConfig
-from hil.drives.odrive import (
-    LAYOUT, TURN, AxisState, Cmd, ControlMode, ODriveError, ODriveOptions, can_id,
-)
 from hil.hardware.axis import Axis, Frame
+from hil.protocols.odrive import (
+    LAYOUT, TURN, AxisState, Cmd, ControlMode, ODrive, ODriveError, ODriveOptions, can_id,
+)
 
 PASSTHROUGH = 1
 #: Set_Input_Pos carries feed-forwards as int16 in units of 0.001
@@ -25,7 +25,7 @@ FF_SCALE = 1000
 
 
 class ODriveAxis(Axis):
-    protocol = "odrive"
+    protocol = ODrive
 
     def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
         super().__init__(config, bus_name, on_feedback)

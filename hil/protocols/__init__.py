@@ -1,0 +1,46 @@
+"""Drive protocols, one folder each: codec and description (``__init__``), simulated drive
+(``drive``), master-side axis (``axis``).
+
+:func:`protocol` finds one by the ``protocol`` name of a bus config: hil's own in
+:data:`BUILTIN`, and any an installed package registers under the entry-point group
+``hil.protocols`` (as python-can finds third-party interfaces under ``can.interface``)::
+
+    [project.entry-points."hil.protocols"]
+    mydrive = "mypackage.mydrive:MyDrive"      # a hil.protocols.base.Protocol
+"""
+
+from __future__ import annotations
+
+import functools
+from importlib.metadata import entry_points
+
+from hil.protocols.base import Protocol, load
+
+#: hil's own protocols: name -> "module:Class" of their Protocol
+BUILTIN = {"cia402": "hil.protocols.cia402:Cia402", "odrive": "hil.protocols.odrive:ODrive",
+           "mit": "hil.protocols.mit:Mit"}
+ENTRY_POINT_GROUP = "hil.protocols"
+
+
+@functools.cache
+def _registered() -> dict[str, str]:
+    found = {point.name: point.value for point in entry_points(group=ENTRY_POINT_GROUP)}
+    return {**found, **BUILTIN}            # an installed package cannot replace hil's own
+
+
+def names() -> list[str]:
+    """Every protocol a bus config may name."""
+    return sorted(_registered())
+
+
+@functools.cache
+def protocol(name: str) -> type[Protocol]:
+    """The protocol of that name; KeyError if none is registered."""
+    found = load(_registered()[name])
+    if not (isinstance(found, type) and issubclass(found, Protocol)):
+        raise TypeError(f"protocol '{name}' ({_registered()[name]}) is not a "
+                        "hil.protocols.base.Protocol")
+    return found
+
+
+__all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "Protocol", "names", "protocol"]

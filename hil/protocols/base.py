@@ -1,0 +1,63 @@
+"""The seam between hil and one drive protocol: what both sides of the bus know of it.
+
+Like python-can's ``BusABC``: one narrow abstract class (:meth:`Protocol.bus_frames` is all
+a protocol must say), the shared behaviour here, concrete protocols picked by a string
+(:func:`hil.protocols.protocol`). A protocol's simulated drive (a
+:class:`hil.drives.profile.DriveProfile`) and its master-side axis (a
+:class:`hil.hardware.axis.Axis`) are named here as ``"module:Class"`` and imported on first
+use: the controller process loads no simulated drive, the simulator no master.
+"""
+
+from __future__ import annotations
+
+import importlib
+from abc import ABC, abstractmethod
+from typing import ClassVar
+
+
+class Protocol(ABC):
+    """One drive protocol: its name in bus configs, its frames, its options."""
+
+    #: the ``protocol`` string of bus configs
+    name: ClassVar[str]
+    #: whether the bus needs a CANopen SYNC after every cycle's frames
+    uses_sync: ClassVar[bool] = False
+    #: the node ids the protocol can address
+    node_ids: ClassVar[range] = range(1, 128)
+    #: whether its drives fault on a following error (MIT and ODrive firmware do not)
+    has_following_error: ClassVar[bool] = True
+    #: the protocol's own settings in a bus config: a frozen dataclass with ``KEYS`` and
+    #: ``from_mapping(values)`` raising ValueError; None if it has none
+    Options: ClassVar[type | None] = None
+    #: "module:Class" of the simulated drive and of the master-side axis
+    drive: ClassVar[str]
+    axis: ClassVar[str]
+
+    @classmethod
+    @abstractmethod
+    def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float, options=None
+                   ) -> list[tuple[int, int, float]]:
+        """Every (arbitration id, payload bytes, frames per second) a drive of this protocol
+        and its master use on the bus; rate 0 for ids used only on events. For bus load and
+        for id collisions between drives."""
+
+    @classmethod
+    def shared_ids(cls, options=None) -> set[int]:
+        """Ids that several drives of this protocol on one bus may use at once."""
+        return set()
+
+    @classmethod
+    def drive_class(cls) -> type:
+        """The simulated drive (imported now)."""
+        return load(cls.drive)
+
+    @classmethod
+    def axis_class(cls) -> type:
+        """The master's side of a drive (imported now)."""
+        return load(cls.axis)
+
+
+def load(reference: str):
+    """The object a ``"module:attribute"`` reference names (importing the module)."""
+    module, _, attribute = reference.partition(":")
+    return getattr(importlib.import_module(module), attribute)

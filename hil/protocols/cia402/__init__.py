@@ -1,0 +1,46 @@
+"""CANopen CiA 402 (CiA 301 communication): what drive and master share.
+
+The simulated drive is :mod:`.drive` (over :mod:`.node`, the CiA 301 slave, and
+:mod:`.state`, the 402 device without CAN); the master's side is :mod:`.axis`. Both read
+their object dictionary from the EDS hil ships (:func:`hil.resources.eds_path`).
+"""
+
+from __future__ import annotations
+
+from hil.protocols.base import Protocol
+
+SYNC_ID = 0x080          # CiA 301's SYNC COB-ID
+NMT_ID = 0x000
+
+#: EMCY error codes a hil CiA 402 drive sends (CiA 301 / 402), for messages
+EMCY_TEXT = {0x8611: "following error", 0x8612: "position limit exceeded",
+             0x8250: "RPDO timeout (setpoints stopped arriving)",
+             0x8210: "PDO too short (not processed)", 0x8220: "PDO longer than its mapping",
+             0x8240: "unexpected SYNC length", 0x8130: "heartbeat/life guard error",
+             0x9000: "emergency stop requested", 0x0000: "error reset"}
+#: EMCY codes for a frame the drive ignored: the next cycle's frame replaces it
+FRAME_ERRORS = frozenset({0x8210, 0x8220, 0x8240})
+
+
+def emcy_words(code: int) -> str:
+    """An EMCY error code for messages: ``EMCY 0x8611 following error``."""
+    return f"EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".rstrip()
+
+
+class Cia402(Protocol):
+    """CiA 402 drives with the EDS's default PDOs, synchronised by SYNC."""
+
+    name = "cia402"
+    uses_sync = True
+    drive = "hil.protocols.cia402.drive:Cia402Drive"
+    axis = "hil.protocols.cia402.axis:Cia402Axis"
+
+    @classmethod
+    def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float, options=None
+                   ) -> list[tuple[int, int, float]]:
+        """(arbitration id, payload bytes, frames/s) of the default mapping's exchange:
+        RPDO1 (controlword, target), TPDO1, TPDO2 per SYNC; heartbeat; EMCY and SDO
+        only on events (their ids are reserved)."""
+        return [(0x200 + node_id, 6, cycle_hz), (0x180 + node_id, 6, cycle_hz),
+                (0x280 + node_id, 6, cycle_hz), (0x700 + node_id, 1, 1.0 / heartbeat_period),
+                (0x080 + node_id, 8, 0.0), (0x580 + node_id, 8, 0.0), (0x600 + node_id, 8, 0.0)]

@@ -1,0 +1,167 @@
+"""ODrive CANSimple (firmware 0.6, ODrive Pro / S1 / Micro): frames, codec, options.
+
+Frames: 11-bit id ``node_id << 5 | cmd_id``, little-endian payloads, IEEE-754
+floats, positions in turns (rev) and velocities in rev/s of the motor, torques
+in N·m. ``Get_*`` messages are sent on request (an RTR frame with the same id)
+and, where configured, cyclically (heartbeat always). The layouts are
+``odrive-cansimple-0.6.10.dbc`` (ODrive's own DBC, shipped in the PyPI package
+``odrive-can``); the tests check both directions against it with cantools.
+They are packed here with ``struct`` because they run every cycle.
+
+Errors as an ODrive reports them: a violated limit, an expired watchdog or an
+estop disarms the axis (IDLE) with the error in ``active_errors`` and as the
+``disarm_reason``, in every heartbeat, until ``Clear_Errors``.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import struct
+from dataclasses import dataclass
+
+from hil.protocols.base import Protocol
+
+TURN = 2 * math.pi
+
+
+class Cmd(enum.IntEnum):
+    """CANSimple command ids (the low 5 bits of the arbitration id)."""
+
+    GET_VERSION = 0x00
+    HEARTBEAT = 0x01
+    ESTOP = 0x02
+    GET_ERROR = 0x03
+    SET_AXIS_STATE = 0x07
+    GET_ENCODER_ESTIMATES = 0x09
+    SET_CONTROLLER_MODE = 0x0B
+    SET_INPUT_POS = 0x0C
+    SET_INPUT_VEL = 0x0D
+    SET_INPUT_TORQUE = 0x0E
+    SET_LIMITS = 0x0F
+    GET_IQ = 0x14
+    GET_TEMPERATURE = 0x15
+    REBOOT = 0x16
+    GET_BUS_VOLTAGE_CURRENT = 0x17
+    CLEAR_ERRORS = 0x18
+    GET_TORQUES = 0x1C
+    GET_POWERS = 0x1D
+
+
+#: payload layouts (struct formats, padded to the DBC's length)
+LAYOUT = {
+    Cmd.GET_VERSION: struct.Struct("<BBBBBBBB"),
+    Cmd.HEARTBEAT: struct.Struct("<IBBBx"),        # axis error, state, procedure, traj done
+    Cmd.GET_ERROR: struct.Struct("<II"),           # active errors, disarm reason
+    Cmd.SET_AXIS_STATE: struct.Struct("<I4x"),
+    Cmd.GET_ENCODER_ESTIMATES: struct.Struct("<ff"),   # pos (rev), vel (rev/s)
+    Cmd.SET_CONTROLLER_MODE: struct.Struct("<II"),     # control mode, input mode
+    Cmd.SET_INPUT_POS: struct.Struct("<fhh"),      # pos (rev), vel ff, torque ff (x 0.001)
+    Cmd.SET_INPUT_VEL: struct.Struct("<ff"),       # vel (rev/s), torque ff (N·m)
+    Cmd.SET_INPUT_TORQUE: struct.Struct("<f4x"),
+    Cmd.SET_LIMITS: struct.Struct("<ff"),          # velocity limit (rev/s), current limit (A)
+    Cmd.GET_IQ: struct.Struct("<ff"),              # setpoint, measured (A)
+    Cmd.GET_TEMPERATURE: struct.Struct("<ff"),     # FET, motor (deg C)
+    Cmd.REBOOT: struct.Struct("<B"),
+    Cmd.GET_BUS_VOLTAGE_CURRENT: struct.Struct("<ff"),
+    Cmd.CLEAR_ERRORS: struct.Struct("<B"),
+    Cmd.GET_TORQUES: struct.Struct("<ff"),         # target, estimate (N·m)
+    Cmd.GET_POWERS: struct.Struct("<ff"),          # electrical, mechanical (W)
+}
+
+
+class AxisState(enum.IntEnum):
+    UNDEFINED = 0
+    IDLE = 1
+    STARTUP_SEQUENCE = 2
+    FULL_CALIBRATION_SEQUENCE = 3
+    MOTOR_CALIBRATION = 4
+    ENCODER_INDEX_SEARCH = 6
+    ENCODER_OFFSET_CALIBRATION = 7
+    CLOSED_LOOP_CONTROL = 8
+
+
+class ControlMode(enum.IntEnum):
+    VOLTAGE_CONTROL = 0
+    TORQUE_CONTROL = 1
+    VELOCITY_CONTROL = 2
+    POSITION_CONTROL = 3
+
+
+class ODriveError(enum.IntFlag):
+    """ODrive 0.6 axis errors (the subset a simulated axis can raise)."""
+
+    NONE = 0
+    MISSING_INPUT = 0x40
+    CURRENT_LIMIT_VIOLATION = 0x1000
+    VELOCITY_LIMIT_VIOLATION = 0x8000
+    POSITION_LIMIT_VIOLATION = 0x10000
+    WATCHDOG_TIMER_EXPIRED = 0x1000000
+    ESTOP_REQUESTED = 0x2000000
+
+
+def can_id(node_id: int, cmd: int) -> int:
+    return (node_id << 5) | cmd
+
+
+@dataclass(frozen=True)
+class ODriveOptions:
+    """An ODrive axis' CAN settings (``axis.config.can.*``) in a bus config; rates in
+    ms, 0 = only on request (RTR)."""
+
+    encoder_msg_rate_ms: int = 0
+    torques_msg_rate_ms: int = 0
+    error_msg_rate_ms: int = 0
+    iq_msg_rate_ms: int = 0
+    torque_constant: float = 0.0827   # N·m/A (8.27 / KV, KV 100)
+
+    KEYS = ("encoder_msg_rate_ms", "torques_msg_rate_ms", "error_msg_rate_ms",
+            "iq_msg_rate_ms", "torque_constant")
+
+    @classmethod
+    def from_mapping(cls, values: dict) -> ODriveOptions:
+        options = cls(**{k: (float(v) if k == "torque_constant" else int(v))
+                         for k, v in values.items()})
+        if options.torque_constant <= 0:
+            raise ValueError("'torque_constant' must be > 0")
+        rates = [getattr(options, k) for k in cls.KEYS[:4]]
+        if any(r < 0 for r in rates):
+            raise ValueError("message rates must be >= 0 ms")
+        return options
+
+    def rates(self) -> dict[Cmd, float]:
+        """Cyclic messages (besides the heartbeat) and their periods in s."""
+        return {cmd: ms / 1000 for cmd, ms in (
+            (Cmd.GET_ENCODER_ESTIMATES, self.encoder_msg_rate_ms),
+            (Cmd.GET_TORQUES, self.torques_msg_rate_ms), (Cmd.GET_ERROR, self.error_msg_rate_ms),
+            (Cmd.GET_IQ, self.iq_msg_rate_ms)) if ms > 0}
+
+
+class ODrive(Protocol):
+    """ODrive axes on CANSimple: node ids 0-63, no SYNC."""
+
+    name = "odrive"
+    Options = ODriveOptions
+    node_ids = range(0, 64)
+    has_following_error = False
+    drive = "hil.protocols.odrive.drive:ODriveDrive"
+    axis = "hil.protocols.odrive.axis:ODriveAxis"
+
+    @classmethod
+    def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float,
+                   options: ODriveOptions | None = None) -> list[tuple[int, int, float]]:
+        """A cyclic master's exchange: Set_Input_Pos, RTR + answer for Get_Torques and
+        Get_Encoder_Estimates per cycle; the heartbeat and configured cyclic messages;
+        every other command id is reserved for events."""
+        options = options or ODriveOptions()
+        frames = {cmd: (can_id(node_id, cmd), 0, 0.0) for cmd in Cmd}
+        frames[Cmd.SET_INPUT_POS] = (can_id(node_id, Cmd.SET_INPUT_POS), 8, cycle_hz)
+        frames[Cmd.HEARTBEAT] = (can_id(node_id, Cmd.HEARTBEAT), 8, 1.0 / heartbeat_period)
+        cyclic = [(cmd, 8, cycle_hz) for cmd in (Cmd.GET_TORQUES, Cmd.GET_ENCODER_ESTIMATES)]
+        cyclic += [(cmd, 8, 1.0 / period) for cmd, period in options.rates().items()]
+        result = list(frames.values())
+        for cmd, payload, rate in cyclic:
+            result.append((can_id(node_id, cmd), payload, rate))
+            if cmd in (Cmd.GET_TORQUES, Cmd.GET_ENCODER_ESTIMATES):
+                result.append((can_id(node_id, cmd), 0, rate))      # the master's RTR
+        return result
