@@ -8,11 +8,13 @@ on and they run interpreted (``hil.compiled`` tells which form runs).
 """
 
 import hashlib
+import shutil
 from pathlib import Path
 
 from mypyc.build import mypycify
 from setuptools import setup
 from setuptools.command.build_ext import build_ext
+from setuptools.command.build_py import build_py
 
 #: the modules mypyc compiles, together (each must type-check with mypy)
 COMPILED = ["hil/drives/core.py", "hil/protocols/cia402/state.py"]
@@ -32,6 +34,22 @@ class BuildExt(build_ext):
                 compiled.with_name(source.stem + ".sha256").write_text(digest + "\n")
 
 
+class BuildPy(build_py):
+    """Also copies the repository's data folders into the package of a built wheel
+    (``hil/data/robots``, ``hil/data/bus_config``): hil.resources finds them there after a
+    ``pip install``, and in the checkout itself for an editable install."""
+
+    DATA = ("robots", "bus_config")
+
+    def run(self):
+        super().run()
+        if getattr(self, "editable_mode", False):
+            return
+        for name in self.DATA:
+            shutil.copytree(name, Path(self.build_lib) / "hil" / "data" / name,
+                            dirs_exist_ok=True, ignore=shutil.ignore_patterns("__pycache__"))
+
+
 def optional_extensions():
     # their imports are checked by the tests, not here: the build environment has only mypy
     # one shared library for the group, inside the package (by default it is a top-level
@@ -43,4 +61,4 @@ def optional_extensions():
     return extensions
 
 
-setup(ext_modules=optional_extensions(), cmdclass={"build_ext": BuildExt})
+setup(ext_modules=optional_extensions(), cmdclass={"build_ext": BuildExt, "build_py": BuildPy})

@@ -46,7 +46,7 @@ import time
 import uuid
 from collections.abc import Callable
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import can
@@ -68,6 +68,7 @@ from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import RunSubscriber, TrajectoryActionClient, key
 from hil.plant import Plant
 from hil.realtime import CyclePacer, PeriodStatistics
+from hil.resources import BUS_CONFIGS, data_dir
 from hil.simulator import Simulator, motor_inertias
 from hil.zenoh_session import ZenohSettings, close, close_all, free_loopback_port, session
 
@@ -86,7 +87,7 @@ class BenchSettings:
     seconds: float = 10.0          # per real-time run
     lock_step_cycles: int = 20000
     bare_cycles: int = 5000
-    config_dir: Path = Path(__file__).resolve().parents[1] / "bus_config"
+    config_dir: Path = field(default_factory=lambda: data_dir(BUS_CONFIGS))
     across_processes: tuple[tuple[str, float], ...] = ACROSS_PROCESSES
 
     @classmethod

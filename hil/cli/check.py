@@ -17,7 +17,8 @@ HELP = "validate a robot (.xacro/.urdf) or a bus config (.yaml) and print a summ
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("path", type=Path,
-                        help="robot description (.xacro, .urdf) or bus config (.yaml)")
+                        help="robot description (.xacro, .urdf), bus config (.yaml), or the "
+                             "name of a robot with a bus config (ur3, pigot)")
     common.add_package_path(parser)
     parser.add_argument("--strict", action="store_true",
                         help="treat warnings (missing meshes, odd colours, ...) as errors")
@@ -25,6 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     package_path = common.package_path(args)
+    if not args.path.suffix and not args.path.exists():     # a robot's name
+        args.path = common.config_path(str(args.path))
     if args.path.suffix in (".yaml", ".yml"):
         config = load_bus_config(args.path, package_path)
         if args.strict and config.warnings:

@@ -22,7 +22,8 @@ HELP = "run the CAN master, joint state publisher and joint trajectory controlle
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml")
+    parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
+                                       "name (ur3, pigot)")
     parser.add_argument("--fake", action="store_true",
                         help="no CAN, no physics: echo the commands as the measured state")
     parser.add_argument("--lock-step", action="store_true",
@@ -46,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    config = load_bus_config(args.config, common.package_path(args))
+    config = load_bus_config(common.config_path(args.config), common.package_path(args))
     zenoh = common.zenoh_settings(args)
     if not args.lock_step:         # the frame handling just below the loop (its own priority)
         enter_real_time(max(0, args.priority - 1), common.cpus(args))

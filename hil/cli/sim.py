@@ -27,7 +27,8 @@ HELP = "run the plant and all virtual drives of a bus config"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml")
+    parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
+                                       "name (ur3, pigot)")
     parser.add_argument("--lock-step", action="store_true",
                         help="advance the plant one control period per SYNC (reproducible, "
                              "as fast as the controller) instead of following the wall clock")
@@ -52,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    config = load_bus_config(args.config, common.package_path(args))
+    config = load_bus_config(common.config_path(args.config), common.package_path(args))
     for warning in config.warnings:
         print(warning, file=sys.stderr)
     zenoh = common.zenoh_settings(args)

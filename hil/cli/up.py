@@ -32,7 +32,6 @@ from hil.cli import common
 from hil.controllers import GoalRejected, GoalStatus
 from hil.controllers.demo import demo_goal
 from hil.can.faults import ProcessFault, parse_fault
-from hil.description import project_robots_dir
 from hil.errors import HilError
 from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.samples import ControlSamples
@@ -173,7 +172,10 @@ class Run:
 
 
 def run(args: argparse.Namespace) -> int:
-    config_path = resolve_config(args.target)
+    if len(args.target) > 1:
+        raise HilError.single(f"too many arguments: {' '.join(args.target[1:])}",
+                              hint="hil up [ROBOT|CONFIG] [options]")
+    config_path = common.config_path(args.target[0] if args.target else "pigot")
     config = load_bus_config(config_path, common.package_path(args))
     for warning in config.warnings:
         print(warning, file=sys.stderr)
@@ -267,23 +269,6 @@ def _kill_later(child: Child, delay: float, stop: threading.Event) -> None:
     if not stop.wait(delay) and child.exited() is None:
         print(f"hil up: injected kill of {child.name} (pid {child.pid})", flush=True)
         child.process.kill()
-
-
-def resolve_config(target: list[str]) -> Path:
-    """A bus config path, from a path or a robot name (bus_config/<name>.yaml)."""
-    if len(target) > 1:
-        raise HilError.single(f"too many arguments: {' '.join(target[1:])}",
-                              hint="hil up [ROBOT|CONFIG] [options]")
-    name = target[0] if target else "pigot"
-    path = Path(name)
-    if path.suffix in (".yaml", ".yml") or path.exists():
-        return path
-    for folder in (Path("bus_config"), project_robots_dir().parent / "bus_config"):
-        candidate = folder / f"{name}.yaml"
-        if candidate.is_file():
-            return candidate
-    raise HilError.single(f"no bus config for robot '{name}'",
-                          hint="give a bus config path, or a robot with bus_config/<robot>.yaml")
 
 
 def _can_options(args: argparse.Namespace, config: SystemConfig) -> list[str]:

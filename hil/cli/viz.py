@@ -25,7 +25,8 @@ HELP = "show and record every axis of a running robot in rerun"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml")
+    parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
+                                       "name (ur3, pigot)")
     sinks = parser.add_argument_group(
         "rerun", "where the recording goes (several may be given); default: a spawned viewer "
                  "where a display exists, else --save run.rrd")
@@ -48,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    config = load_bus_config(args.config, common.package_path(args))
+    config = load_bus_config(common.config_path(args.config), common.package_path(args))
     if args.no_can and args.can_log:
         raise HilError.single("--can-log needs the CAN buses, but --no-can was given")
     zenoh = common.zenoh_settings(args)

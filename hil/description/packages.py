@@ -30,6 +30,8 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
+from hil.resources import ROBOTS, data_dir
+
 PACKAGE_PATH_ENV = "HIL_PACKAGE_PATH"
 _MAX_DEPTH = 3
 _RESOURCE_DIR = Path("share") / "ament_index" / "resource_index" / "packages"
@@ -37,7 +39,7 @@ _RESOURCE_DIR = Path("share") / "ament_index" / "resource_index" / "packages"
 
 def project_robots_dir() -> Path:
     """The ``robots/`` folder shipped with hil."""
-    return Path(__file__).resolve().parents[2] / "robots"
+    return data_dir(ROBOTS)
 
 
 @dataclass(frozen=True)
