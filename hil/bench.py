@@ -36,7 +36,6 @@ growth and missed cycles.
 
 from __future__ import annotations
 
-import gc
 import math
 import os
 import platform
@@ -45,7 +44,6 @@ import threading
 import time
 import uuid
 from collections.abc import Callable
-from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -57,20 +55,19 @@ import hil.drives.core as core_module
 from hil.bench_processes import config_at, floor_across_processes, stack_across_processes
 from hil.bus_config import SystemConfig, load_bus_config
 from hil.can import socketcan_missing
-from hil.can.faults import FaultyBus, FrameFault
+from hil.can.faults import FrameFault
 from hil.can.monitor import BusLoadMeter
 from hil.compiled import is_compiled
-from hil.control_node import ControlNode
 from hil.controllers import GoalRejected, TrajectoryGoal, TrajectoryPoint
-from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
 from hil.messaging import types as T
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import RunSubscriber, TrajectoryActionClient, key
 from hil.plant import Plant
 from hil.realtime import CyclePacer, PeriodStatistics
 from hil.resources import BUS_CONFIGS, data_dir
-from hil.simulator import Simulator, motor_inertias
-from hil.zenoh_session import ZenohSettings, close, close_all, free_loopback_port, session
+from hil.simulator import motor_inertias
+from hil.stack import IN_PROCESS, running_stack
+from hil.zenoh_session import close_all
 
 ROBOTS = ("ur3", "pigot")
 RATES = (250.0, 500.0, 1000.0)
@@ -168,107 +165,25 @@ def with_rate(config: SystemConfig, rate: float) -> SystemConfig:
     return replace(config, buses=tuple(replace(bus, cycle_hz=rate) for bus in config.buses))
 
 
-# --- stacks -------------------------------------------------------------------------------
-
-#: a real-time bring-up on a loaded machine can miss answers and fault: it is tried again
-START_ATTEMPTS = 3
-#: the in-process bus of the stacks and of the bare exchange they are compared with
-IN_PROCESS = "hil-virtual"
-
-
-class _Stack:
-    """Simulator + CAN master + control node in this process; the sim's buses wrapped in
-    FaultyBus where faults are to be injected (only then: `hil sim` has no such layer)."""
-
-    def __init__(self, config: SystemConfig, lock_step: bool, interface: str,
-                 channels: dict[str, str], injectable: bool = False):
-        self.opened = [can.Bus(interface=interface, channel=channels[b.name])
-                       for b in config.buses for _ in range(2)]
-        self.sim_buses = {b.name: FaultyBus(self.opened[2 * i], []) if injectable
-                          else self.opened[2 * i] for i, b in enumerate(config.buses)}
-        self.sim = Simulator(config, self.sim_buses, lock_step=lock_step)
-        self.sim.start()
-        self.sim_thread = threading.Thread(target=self.sim.run, daemon=True)
-        self.sim_thread.start()
-        self.zenoh_settings = ZenohSettings(listen=(f"tcp/127.0.0.1:{free_loopback_port()}",))
-        self.zenoh = session(self.zenoh_settings)
-        hardware = CanHardwareInterface(
-            config, {b.name: self.opened[2 * i + 1] for i, b in enumerate(config.buses)},
-            reply_timeout=LOCK_STEP_REPLY_TIMEOUT if lock_step else None)
-        self.node = ControlNode(hardware, self.zenoh, config.cycle_hz, lock_step=lock_step)
-        self.error: Exception | None = None
-        self.node_thread = threading.Thread(target=self._run_node, daemon=True)
-        self.node_thread.start()
-
-    def _run_node(self) -> None:
-        try:
-            self.node.run()
-        except Exception as exc:         # a failed bring-up: reported by running()
-            self.error = exc
-
-    def running(self, timeout: float = 30.0) -> bool:
-        """Wait until the controller runs its cycles (False if its bring-up failed)."""
-        deadline = time.monotonic() + timeout
-        while self.node._token is None:
-            if self.error is not None or time.monotonic() > deadline:
-                return False
-            time.sleep(0.01)
-        return True
-
-    def close(self) -> None:
-        self.node.stop()
-        self.node_thread.join(10)
-        self.sim.stop()
-        self.sim_thread.join(5)
-        self.sim.close()
-        for bus in list(self.sim_buses.values()) + self.opened[1::2]:
-            bus.shutdown()
-        close(self.zenoh_settings)      # its listener and threads would outlive the stack
-
-
-@contextmanager
-def _stack(config: SystemConfig, lock_step: bool, interface: str = IN_PROCESS,
-           channels: dict[str, str] | None = None, sim_buses: dict | None = None):
-    """A running stack; yields (sim, node, session, channels) once the controller cycles.
-    ``sim_buses`` (filled in) receives the sim's buses, to inject frame faults."""
-    failures = []
-    for _ in range(START_ATTEMPTS):
-        tag = uuid.uuid4().hex[:8]
-        names = channels or {b.name: f"hil-bench-{tag}-{b.name}" for b in config.buses}
-        stack = _Stack(config, lock_step, interface, names, injectable=sim_buses is not None)
-        if stack.running():
-            gc.collect()
-            gc.freeze()   # as `hil sim` and `hil control` do once up
-            break
-        failures.append(str(stack.error or "no bring-up within 30 s"))
-        stack.close()
-    else:
-        raise RuntimeError(f"the stack did not start in {START_ATTEMPTS} attempts: "
-                           + " | ".join(failures))
-    if sim_buses is not None:
-        sim_buses.update(stack.sim_buses)
-    try:
-        yield stack.sim, stack.node, stack.zenoh, names
-    finally:
-        stack.close()
+# --- stacks (hil.stack) -------------------------------------------------------------------
 
 
 def _real_time(config: SystemConfig, seconds: float) -> tuple[dict, dict, list[dict]]:
-    with _stack(config, lock_step=False) as (sim, node, zenoh, channels):
-        meters = _listen(config, channels)
-        latency = _LatencyProbe(zenoh, config.robot.name)
-        node.statistics.clear()
-        plant_start, wall_start = sim.now(), time.perf_counter()
+    with running_stack(config, lock_step=False) as stack:
+        meters = _listen(config, stack.channels)
+        latency = _LatencyProbe(stack.zenoh, config.robot.name)
+        stack.node.statistics.clear()
+        plant_start, wall_start = stack.sim.now(), time.perf_counter()
         for meter, _ in meters:
             meter.meter.take(time.time())
         time.sleep(seconds)
-        plant, wall = sim.now() - plant_start, time.perf_counter() - wall_start
+        plant, wall = stack.sim.now() - plant_start, time.perf_counter() - wall_start
         loads = [(meter.meter.take(time.time()), bus) for meter, bus in meters]
-        cycle = node.statistics.figures()
+        cycle = stack.node.statistics.figures()
         latency.close()
         for meter, _ in meters:
             meter.stop()
-    cycle.update(sim_real_time_factor=plant / wall, faults=len(node.faults))
+    cycle.update(sim_real_time_factor=plant / wall, faults=len(stack.node.faults))
     rows = []
     for measured, bus in loads:
         estimate = bus.load()
@@ -368,16 +283,17 @@ def _lock_step(config: SystemConfig, cycles: int) -> dict:
     quarter of LOCK_STEP_WINDOW windows: on a shared machine a busy neighbour slows every
     cycle for hundreds of ms at a time, and the quiet quartile is what the code does alone."""
     windows = []                    # (cycles, wall seconds) per window
-    with _stack(config, lock_step=True) as (sim, node, zenoh, _):
-        start_cycle, plant_start, wall_start = node._cycle, sim.now(), time.perf_counter()
+    with running_stack(config, lock_step=True) as stack:
+        start_cycle, plant_start = stack.node.cycles, stack.sim.now()
+        wall_start = time.perf_counter()
         last_cycle, last_wall = start_cycle, wall_start
         while last_cycle - start_cycle < cycles:
             time.sleep(LOCK_STEP_WINDOW)
-            cycle, now = node._cycle, time.perf_counter()
+            cycle, now = stack.node.cycles, time.perf_counter()
             windows.append((cycle - last_cycle, now - last_wall))
             last_cycle, last_wall = cycle, now
-        done = node._cycle - start_cycle
-        wall, plant = time.perf_counter() - wall_start, sim.now() - plant_start
+        done = stack.node.cycles - start_cycle
+        wall, plant = time.perf_counter() - wall_start, stack.sim.now() - plant_start
     per_cycle = sorted(seconds / count for count, seconds in windows if count)
     quiet = float(np.mean(per_cycle[:max(1, len(per_cycle) // 4)]))
     return {"cycles": done, "speedup_over_real_time": plant / wall,
@@ -491,16 +407,16 @@ def _tracking(config: SystemConfig) -> dict:
     """The full stack (lock-step) follows the goal; MuJoCo's position servo follows the
     same reference on the same model; both errors are measured at the joints."""
     goal = tracking_goal(config)
-    with _stack(config, lock_step=True) as (sim, node, zenoh, _):
+    with running_stack(config, lock_step=True) as stack:
         samples: list[ControlSamples] = []
-        subscriber = RunSubscriber(zenoh, config.robot.name, samples.append, lambda *_: None,
+        subscriber = RunSubscriber(stack.zenoh, config.robot.name, samples.append, lambda *_: None,
                                    lambda *_: None)
-        client = TrajectoryActionClient(zenoh, config.robot.name)
+        client = TrajectoryActionClient(stack.zenoh, config.robot.name)
         # first bring every joint to the start of the reference
         start = TrajectoryGoal(goal.joint_names, (TrajectoryPoint(
             2.0, goal.points[-1].positions, (0.0,) * len(goal.joint_names)),))
         client.wait_result(client.send_goal(start), 120)
-        first = node._cycle
+        first = stack.node.cycles
         goal_id = client.send_goal(goal)
         result = client.wait_result(goal_id, 120)
         time.sleep(0.3)
@@ -571,19 +487,18 @@ def _fault_detection(config: SystemConfig, timeout: float = 3.0) -> list[dict]:
     }
     rows = []
     for kind, inject in kinds.items():
-        buses: dict = {}
-        with _stack(config, lock_step=False, sim_buses=buses) as (sim, node, zenoh, _):
+        with running_stack(config, lock_step=False, injectable=True) as stack:
             time.sleep(0.2)
-            reported = len(node.faults)
+            reported = len(stack.node.faults)
             started = time.perf_counter()
-            inject(sim, buses)
-            while len(node.faults) == reported and time.perf_counter() - started < timeout:
+            inject(stack.sim, stack.sim_buses)
+            while len(stack.node.faults) == reported and time.perf_counter() - started < timeout:
                 time.sleep(0.0005)
             elapsed = time.perf_counter() - started
-            detected = len(node.faults) > reported
+            detected = len(stack.node.faults) > reported
             rows.append({"fault": kind, "detected": detected,
                          "detection_ms": elapsed * 1e3 if detected else None,
-                         "first_report": node.faults[reported] if detected else None})
+                         "first_report": stack.node.faults[reported] if detected else None})
     return rows
 
 
@@ -596,12 +511,12 @@ def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
     config = load_bus_config(settings.config_dir / f"{robot}.yaml")
     goal = tracking_goal(config)
     repetitions = []
-    with _stack(config, lock_step=False) as (sim, node, zenoh, _):
-        client = TrajectoryActionClient(zenoh, config.robot.name)
+    with running_stack(config, lock_step=False) as stack:
+        client = TrajectoryActionClient(stack.zenoh, config.robot.name)
         latest: list = [None]     # only the last joint state: the soak measures the stack
-        subscriber = zenoh.declare_subscriber(key(config.robot.name, "joint_states"),
+        subscriber = stack.zenoh.declare_subscriber(key(config.robot.name, "joint_states"),
                                               lambda sample: latest.__setitem__(0, sample))
-        node.statistics.clear()
+        stack.node.statistics.clear()
         started = time.monotonic()
         rss_start = _rss_bytes()
         while time.monotonic() - started < seconds:
@@ -621,12 +536,12 @@ def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
             repetitions.append({"t_s": time.monotonic() - started,
                                 "result": outcome, "reason": reason,
                                 "final_error": float(error), "rss_bytes": _rss_bytes(),
-                                "missed_so_far": node.statistics.missed})
+                                "missed_so_far": stack.node.statistics.missed})
             say(f"hil bench: soak {repetitions[-1]['t_s']:.0f} s: {outcome}"
                 f", final error {error:.5f}, RSS {repetitions[-1]['rss_bytes'] / 1e6:.1f} MB")
         subscriber.undeclare()
         client.close()
-        cycles = node.statistics.count
+        cycles = stack.node.statistics.count
     close_all()
     errors = [r["final_error"] for r in repetitions]
     return {"robot": robot, "seconds": seconds, "repetitions": len(repetitions),
@@ -659,10 +574,10 @@ def _socketcan(settings: BenchSettings) -> list[dict]:
     for robot in ROBOTS:
         config = load_bus_config(settings.config_dir / f"{robot}.yaml")
         channels = dict(zip((b.name for b in config.buses), ("vcan0", "vcan1")))
-        with _stack(config, False, "socketcan", channels) as (sim, node, zenoh, _):
-            node.statistics.clear()
+        with running_stack(config, False, "socketcan", channels) as stack:
+            stack.node.statistics.clear()
             time.sleep(settings.seconds)
             rows.append({"robot": robot, "rate_hz": config.cycle_hz,
-                         **node.statistics.figures()})
+                         **stack.node.statistics.figures()})
     return rows
 

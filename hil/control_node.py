@@ -103,6 +103,16 @@ class ControlNode:
             line += f"; round trip p50 {trips['rt_p50_us']:.0f} us, p99 {trips['rt_p99_us']:.0f} us"
         return line
 
+    @property
+    def cycling(self) -> bool:
+        """Whether the bring-up is done and the loop runs its cycles."""
+        return self._token is not None
+
+    @property
+    def cycles(self) -> int:
+        """Cycles run so far."""
+        return self._cycle
+
     def clock(self) -> float:
         """The controller's time: cycles x period in lock-step, monotonic otherwise."""
         return self._cycle * self.period if self.lock_step else time.monotonic() - self._start

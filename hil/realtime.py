@@ -24,6 +24,11 @@ REAL_TIME_PRIORITY = 50
 #: SCHED_FIFO priority of a real-time process' other threads (its Zenoh and frame-handling
 #: threads, all of a simulator's), just below its loop's (:func:`enter_real_time`)
 IO_PRIORITY = REAL_TIME_PRIORITY - 1
+#: SCHED_FIFO priority of a real-time process' side work (goals decoded, recordings encoded):
+#: below its frame handling, which must preempt it (threads of one SCHED_FIFO priority do
+#: not share a CPU: a first recording encoded on the controller's CPU held its frames
+#: 10-14 ms, measured), above every normal process (its GIL must not wait behind them)
+SIDE_PRIORITY = 40
 #: prctl(2) option: the calling thread's timer slack in ns
 PR_SET_TIMERSLACK = 29
 #: the interpreter's thread switch interval while a real-time loop runs (s; Python's default
@@ -292,6 +297,24 @@ def real_time_cpus(cpus: set[int] | None = None) -> tuple[set[int] | None, set[i
         return None, None, None
     rest = set(usable[:-2]) or None
     return {usable[-2]}, {usable[-1]}, rest
+
+
+_side = threading.local()
+
+
+def enter_side_work() -> None:
+    """The calling thread, if it runs under SCHED_FIFO above SIDE_PRIORITY, down to
+    SIDE_PRIORITY (once per thread: later calls cost nothing). For the threads a real-time
+    process starts for other work than its loop and its frames."""
+    if getattr(_side, "entered", False):
+        return
+    _side.entered = True
+    try:
+        if (os.sched_getscheduler(0) == os.SCHED_FIFO
+                and os.sched_getparam(0).sched_priority > SIDE_PRIORITY):
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(SIDE_PRIORITY))
+    except (OSError, AttributeError):
+        pass
 
 
 def enter_background() -> str:

@@ -59,7 +59,6 @@ def coupled(package_path):
 
 # --- CAN benches -------------------------------------------------------------
 
-import threading
 import time
 import uuid
 
@@ -155,34 +154,22 @@ def bench(transport):
 
 # --- an in-process controller stack --------------------------------------------
 
-from hil.can.faults import FaultyBus
-from hil.control_node import ControlNode
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
-from hil.hardware import CanHardwareInterface
 from hil.messaging.zenoh_api import TrajectoryActionClient
-from hil.zenoh_session import ZenohSettings, session
+from hil.stack import Stack
 
 
-class ControlledBench:
-    """The ur3 fixture: Simulator and ControlNode in this process, on a python-can virtual
-    bus; the action client on the node's own Zenoh session (loopback)."""
+class ControlledBench(Stack):
+    """The ur3 fixture as a hil.stack.Stack on a python-can virtual bus, the sim's end able
+    to lose, delay and corrupt frames (``sim_bus.add``); an action client on the node's own
+    Zenoh session (loopback)."""
 
     def __init__(self):
-        self.config = load_bus_config(UR3_VIRTUAL)
-        channel = self.channel = f"hil-reset-{uuid.uuid4().hex[:8]}"
-        # the sim's side of the bus can lose, delay and corrupt frames (FaultyBus.add)
-        self.sim_bus = FaultyBus(can.Bus(interface="virtual", channel=channel), [])
-        self.master_bus = can.Bus(interface="virtual", channel=channel)
-        self.sim = Simulator(self.config, {"arm": self.sim_bus})
-        self.sim.start()
-        self.sim_thread = threading.Thread(target=self.sim.run, daemon=True)
-        self.sim_thread.start()
-        self.session = session(ZenohSettings(listen=(f"tcp/127.0.0.1:{free_port()}",)))
-        self.hardware = CanHardwareInterface(self.config, {"arm": self.master_bus})
-        self.node = ControlNode(self.hardware, self.session, self.config.cycle_hz)
-        self.node_thread = threading.Thread(target=self.node.run, daemon=True)
-        self.node_thread.start()
-        self.client = TrajectoryActionClient(self.session, "ur3")
+        super().__init__(load_bus_config(UR3_VIRTUAL), interface="virtual", injectable=True)
+        self.channel = self.channels["arm"]
+        self.sim_bus = self.sim_buses["arm"]
+        self.hardware = self.node.hardware
+        self.client = TrajectoryActionClient(self.zenoh, "ur3")
         assert self.client.wait_for_controller(30), "the control node did not come up"
 
     def fault(self, node_id: int) -> None:
@@ -198,13 +185,7 @@ class ControlledBench:
 
     def close(self) -> None:
         self.client.close()
-        self.node.stop()
-        self.node_thread.join(10)
-        self.sim.stop()
-        self.sim_thread.join(5)
-        self.sim.close()
-        self.master_bus.shutdown()
-        self.sim_bus.shutdown()
+        super().close()
 
 
 @pytest.fixture

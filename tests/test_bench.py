@@ -7,10 +7,13 @@ import math
 import subprocess
 import sys
 
+import pytest
+
 from hil.bench import ACROSS_PROCESSES_QUICK, FIGURES, RATES, ROBOTS
 from hil.realtime import CyclePacer
 
 
+@pytest.mark.slow
 def test_quick_bench_reports_every_figure(tmp_path):
     report_path = tmp_path / "bench.json"
     result = subprocess.run([sys.executable, "-m", "hil", "bench", "--quick", "--json",
@@ -72,6 +75,7 @@ def test_quick_bench_reports_every_figure(tmp_path):
     assert report["machine"]["drive_core"] in ("compiled", "interpreted")   # read figures by it
 
 
+@pytest.mark.slow
 def test_soak_repeats_the_trajectory_and_reports_drift_memory_and_missed_cycles(tmp_path):
     report_path = tmp_path / "soak.json"
     result = subprocess.run([sys.executable, "-m", "hil", "bench", "--soak", "6s", "--json",

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-import zenoh
 
 from hil.controllers import GoalRejected, GoalStatus, TrajectoryGoal, TrajectoryPoint
 from hil.messaging import types as T
@@ -24,7 +23,7 @@ from conftest import ROOT, free_port, socketcan_missing
 ROBOT_OF = {"pigot_mixed": "pigot"}
 
 
-class Stack:
+class ProcessStack:
     """`hil sim` and `hil control` (or `hil control --fake`) on one loopback port, for
     bus_config/<name>.yaml (or ``config``); real time unless ``lock_step``."""
 
@@ -103,7 +102,7 @@ def stack(request):
     # lock-step: two real-time processes on a shared 2-core machine (or under User-Mode
     # Linux) now and then miss answers and rightly fault, which is not what this pins; real
     # time across processes is ur3_stack's, and the in-process stacks'
-    made = Stack(robot, can=can, lock_step=True)
+    made = ProcessStack(robot, can=can, lock_step=True)
     yield made
     made.close()
 
@@ -121,14 +120,14 @@ def ur3_stack(tmp_path):
         bus["cycle_hz"] = 100
     path = tmp_path / "ur3_100hz.yaml"
     path.write_text(yaml.safe_dump(config))
-    made = Stack("ur3", config=path)
+    made = ProcessStack("ur3", config=path)
     yield made
     made.close()
 
 
 @pytest.fixture
 def fake_stack():
-    made = Stack("ur3", fake=True)
+    made = ProcessStack("ur3", fake=True)
     yield made
     made.close()
 

@@ -69,7 +69,7 @@ def test_flipped_bits_are_caught_as_faults_and_nothing_crashes(controlled):
     while not controlled.node.faults and time.monotonic() < deadline:
         time.sleep(0.01)
     assert any("drive node" in fault for fault in controlled.node.faults), controlled.node.faults
-    assert controlled.sim_thread.is_alive() and controlled.node_thread.is_alive()
+    assert controlled.alive()
     assert controlled.sim_bus.injected["corrupt"] > 0
 
 

@@ -83,7 +83,7 @@ def test_a_fault_and_its_reset_are_published_as_diagnostics_on_the_controllers_c
             heard.append(diagnostic)
             arrived.notify_all()
 
-    subscriber = RunSubscriber(controlled.session, "ur3", lambda batch: None,
+    subscriber = RunSubscriber(controlled.zenoh, "ur3", lambda batch: None,
                                lambda wall, sim: None, pytest.fail, hear)
     try:
         before = controlled.node.clock()

@@ -145,6 +145,7 @@ def test_commands_are_ignored_in_rest_mode_but_answered(mit):
     assert mit.core.update(0.001) == 0.0
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(st.binary(min_size=0, max_size=8))
 def test_garbage_and_truncated_frames_never_crash_the_motor(data):

@@ -214,6 +214,7 @@ def test_overspeed_disarms_with_velocity_limit_violation(odrive):
     assert odrive.request("Heartbeat")["Axis_Error"] == ODriveError.VELOCITY_LIMIT_VIOLATION
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(st.integers(0, 0x1F), st.binary(max_size=8))
 def test_garbage_and_truncated_frames_never_crash_the_axis(cmd, data):

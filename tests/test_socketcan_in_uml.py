@@ -18,6 +18,7 @@ sys.path.insert(0, str(ROOT / "tools"))
 import uml_run  # noqa: E402
 
 
+@pytest.mark.slow      # boots a kernel and runs the socketcan tests there: minutes
 def test_socketcan_suite_passes_inside_user_mode_linux():
     if socketcan_missing() is None:
         pytest.skip("this kernel has vcan0: the socketcan tests ran directly")

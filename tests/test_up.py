@@ -90,6 +90,7 @@ def test_viz_records_every_published_cycle_of_the_controller(tmp_path, processes
         assert rows[f"/axes/{joint}/effort"] == logged
 
 
+@pytest.mark.slow
 def test_up_runs_the_demo_and_records_axes_robot_and_can_traffic(tmp_path):
     save = tmp_path / "out" / "run.rrd"
     result = subprocess.run([sys.executable, "-m", "hil", "up", "pigot", "--demo", "--lock-step",
@@ -171,6 +172,7 @@ def test_killed_up_takes_its_children_with_it(tmp_path, processes):
     assert "stopped; drives disabled" in (tmp_path / "run.logs" / "control.log").read_text()
 
 
+@pytest.mark.slow
 def test_up_prints_a_fault_nobody_injected_as_it_happens_and_ends_nonzero(tmp_path, processes):
     """Someone else on the bus stops drive 2 (NMT stop): its answers end, the controller
     reports it silent, ``hil up`` says so and fails, and the recording has the report."""

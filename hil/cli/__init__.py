@@ -1,4 +1,5 @@
-"""The ``hil`` command: one sub-command per module in this package.
+"""The ``hil`` command: one sub-command per module in this package, imported only when it
+runs (``hil control`` loads the master's modules and none of the simulator's).
 
 User errors (:class:`~hil.errors.HilError`) are printed as diagnostics and
 exit with status 1; no traceback is shown for them.
@@ -7,29 +8,52 @@ exit with status 1; no traceback is shown for them.
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
+from types import ModuleType
 
-from hil.cli import bench, check, common, control, reset, send, sim, up, viz
+from hil import __version__
+from hil.cli import common
 from hil.errors import HilError
 
-#: sub-command name -> module with ``add_arguments(parser)`` and ``run(args) -> int``
-COMMANDS = {"check": check, "sim": sim, "control": control, "send": send, "reset": reset,
-            "viz": viz, "up": up, "bench": bench}
+#: sub-command name (and module hil.cli.<name>, with ``add_arguments(parser)`` and
+#: ``run(args) -> int``) -> its one-line help
+COMMANDS = {
+    "check": "validate a robot (.xacro/.urdf) or a bus config (.yaml) and print a summary",
+    "sim": "run the plant and all virtual drives of a bus config",
+    "control": "run the CAN master, joint state publisher and joint trajectory controller",
+    "send": "send a joint trajectory to a running hil control and wait for the result",
+    "reset": "reset drive faults (after a fault aborted a goal) and hold position",
+    "viz": "show and record every axis of a running robot in rerun",
+    "up": "start sim, controller and visualiser together (optionally run a demo), record the run",
+    "bench": "measure cycle timing, real-time factors, overheads, latency, tracking and bus load",
+}
 
 
-def build_parser() -> argparse.ArgumentParser:
+def command_module(name: str) -> ModuleType:
+    """The module of sub-command ``name``."""
+    return importlib.import_module(f"hil.cli.{name}")
+
+
+def build_parser(argv: list[str]) -> argparse.ArgumentParser:
+    """The parser, with the options of the one sub-command named in ``argv`` (the others
+    show their help line only, and their modules stay unimported)."""
     parser = argparse.ArgumentParser(
         prog="hil", description="Hardware-in-the-loop controller stack for robot arms.")
+    parser.add_argument("--version", action="version", version=f"hil {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name, module in COMMANDS.items():
-        sub = commands.add_parser(name, help=module.HELP, description=module.HELP)
-        module.add_arguments(sub)
+    chosen = next((word for word in argv if word in COMMANDS), None)
+    for name, text in COMMANDS.items():
+        sub = commands.add_parser(name, help=text, description=text)
+        if name == chosen:
+            command_module(name).add_arguments(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     common.end_with_parent_if_asked()
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser(argv)
     args, extras = parser.parse_known_args(argv)
     # argparse cannot match positionals given after options (`hil send ur3 --connect EP
     # FILE`); commands with a variable `target` list take such leftovers
@@ -38,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     elif extras:
         parser.error(f"unrecognized arguments: {' '.join(extras)}")
     try:
-        return COMMANDS[args.command].run(args)
+        return command_module(args.command).run(args)
     except HilError as exc:
         print(exc, file=sys.stderr)
         return 1

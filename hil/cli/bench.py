@@ -13,8 +13,6 @@ from pathlib import Path
 from hil.bench import LOCK_STEP_WINDOW, BenchSettings, run_bench, run_soak
 from hil.errors import HilError
 
-HELP = "measure cycle timing, real-time factors, overheads, latency, tracking and bus load"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true",

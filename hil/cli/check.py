@@ -12,8 +12,6 @@ from hil.description import RobotDescription, load_description
 from hil.errors import HilError, Severity
 from hil.plant import Plant
 
-HELP = "validate a robot (.xacro/.urdf) or a bus config (.yaml) and print a summary"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("path", type=Path,

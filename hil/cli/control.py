@@ -18,8 +18,6 @@ from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHard
 from hil.realtime import REAL_TIME_PRIORITY, enter_real_time
 from hil.zenoh_session import close_all, session
 
-HELP = "run the CAN master, joint state publisher and joint trajectory controller"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "

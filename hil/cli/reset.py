@@ -10,8 +10,6 @@ from hil.errors import HilError
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient
 from hil.zenoh_session import close_all, session
 
-HELP = "reset drive faults (after a fault aborted a goal) and hold position"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("robot", help="robot name, e.g. ur3")

@@ -19,7 +19,6 @@ from hil.errors import HilError
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient
 from hil.zenoh_session import close_all, session
 
-HELP = "send a joint trajectory to a running hil control and wait for the result"
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 

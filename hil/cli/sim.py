@@ -23,8 +23,6 @@ from hil.zenoh_session import close_all, session
 
 CLOCK_PERIOD = 0.05
 
-HELP = "run the plant and all virtual drives of a bus config"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "

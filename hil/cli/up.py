@@ -41,8 +41,6 @@ from hil.messaging.zenoh_api import (
 from hil.realtime import real_time_cpus
 from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
 
-HELP = "start sim, controller and visualiser together (optionally run a demo), record the run"
-
 #: how long each child may take to come up (s); the first run compiles MuJoCo models
 START_TIMEOUT = 60.0
 #: how long each child may take to stop after SIGTERM before it is killed (s)
@@ -202,8 +200,9 @@ def run(args: argparse.Namespace) -> int:
                              "--status-period", "0", *sim_faults], logs / "sim.log"),
         "control": Child("control", ["control", *shared, *lock_step, *placed["control"],
                                      "--connect", endpoint], logs / "control.log"),
-        "viz": Child("viz", ["viz", *shared, *placed["viz"], "--connect", endpoint, "--save",
-                             str(save), "--can-log", str(can_log), *viewer], logs / "viz.log"),
+        "viz": Child("viz", ["viz", *shared, *lock_step, *placed["viz"], "--connect", endpoint,
+                             "--save", str(save), "--can-log", str(can_log), *viewer],
+                     logs / "viz.log"),
     }
     stop = threading.Event()
     supervised = Run([], stop)

@@ -21,8 +21,6 @@ from hil.visualisation import RunRecorder
 from hil.visualisation.node import VizNode
 from hil.zenoh_session import ZenohSettings, close_all, session
 
-HELP = "show and record every axis of a running robot in rerun"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
@@ -42,6 +40,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-can", action="store_true",
                         help="do not open the CAN buses (no bus load, no CAN log): for a host "
                              "that cannot reach them")
+    parser.add_argument("--lock-step", action="store_true",
+                        help="following a lock-step run: schedule normally (in real time the "
+                             "visualiser runs under SCHED_IDLE, never taking the drives' or "
+                             "the controller's time; in lock-step nothing has a deadline, and "
+                             "starved it would lose CAN frames from its sockets' buffers)")
     common.add_cpus(parser)
     common.add_can_override(parser)
     common.add_package_path(parser)
@@ -53,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
     if args.no_can and args.can_log:
         raise HilError.single("--can-log needs the CAN buses, but --no-can was given")
     zenoh = common.zenoh_settings(args)
-    enter_background()          # never the real-time processes' time (its threads inherit it)
+    if not args.lock_step:
+        enter_background()      # never the real-time processes' time (its threads inherit it)
     if common.cpus(args):
         os.sched_setaffinity(0, common.cpus(args))
     recording = rr.RecordingStream("hil", recording_id=f"{config.robot.name}-{os.getpid()}")

@@ -43,7 +43,7 @@ from hil.controllers import (
 from hil.messaging import types as T
 from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.samples import ControlSamples
-from hil.realtime import paused_collection, release_gradually
+from hil.realtime import enter_side_work, paused_collection, release_gradually
 
 ACTION = "follow_joint_trajectory/_action"
 #: the largest goal request taken (CDR bytes): 16 MiB, over 200,000 points of 6 joints
@@ -100,9 +100,10 @@ class TrajectoryActionServer:
         return T.msg(T.FEEDBACK_MESSAGE, goal_id=T.uuid_msg(goal_id), feedback=feedback)
 
     def _on_send_goal(self, query: zenoh.Query) -> None:
-        # a large goal is a burst of Python objects in this thread: decoded with the
-        # collector paused and freed a chunk at a time, it never holds the control loop's
-        # thread for long (hil.realtime)
+        # a large goal is a burst of Python objects in this thread: decoded below the frame
+        # handling's priority, with the collector paused and freed a chunk at a time, it
+        # never holds the control loop or the frames for long (hil.realtime)
+        enter_side_work()
         with paused_collection():
             try:
                 payload = _payload(query)
@@ -124,6 +125,7 @@ class TrajectoryActionServer:
                                                      stamp=T.time_msg(time.time()))))
 
     def _on_cancel(self, query: zenoh.Query) -> None:
+        enter_side_work()
         request = _decode_or_reply_error(query, T.CANCEL_REQUEST)
         if request is None:
             return
@@ -135,6 +137,7 @@ class TrajectoryActionServer:
             goals_canceling=[request.goal_info] if canceled else [])))
 
     def _on_get_result(self, query: zenoh.Query) -> None:
+        enter_side_work()
         request = _decode_or_reply_error(query, T.GET_RESULT_REQUEST)
         if request is None:
             return
@@ -146,6 +149,7 @@ class TrajectoryActionServer:
         query.reply(query.key_expr, T.encode(T.result_msg(T.goal_id_of(request.goal_id), result)))
 
     def _on_reset(self, query: zenoh.Query) -> None:
+        enter_side_work()
         if self.on_reset is None:
             query.reply_err("this controller cannot reset faults")
             return
@@ -194,8 +198,10 @@ class ControlSamplesPublisher:
     :meth:`publish` only queues the batch: a thread of its own encodes and puts it with
     congestion control BLOCK (a recording must not lose cycles to a momentarily slow
     subscriber), so a slow visualiser never holds the control loop (it did: BLOCK in the
-    loop's thread). The thread keeps the process' scheduling: under a lower one it would be
-    preempted while holding the GIL, and the loop would wait for it (24 ms, measured). A
+    loop's thread). The thread runs at the process' side-work priority
+    (:func:`hil.realtime.enter_side_work`): below its frame handling, above normal
+    processes (under the normal scheduler it was preempted holding the GIL, and the loop
+    waited for it: 24 ms, measured). A
     visualiser that falls behind by more than BACKLOG batches loses the newest ones, counted
     in :attr:`dropped` (and its recording shows the gap)."""
 
@@ -217,6 +223,7 @@ class ControlSamplesPublisher:
             self.dropped += 1
 
     def _send(self) -> None:
+        enter_side_work()
         while (samples := self._queue.get()) is not None:
             self._publisher.put(samples.encode())
 

@@ -134,7 +134,6 @@ class RunRecorder:
             self.cycles_lost += batch.first_cycle - self._next_cycle
         self._next_cycle = batch.next_cycle
         self.cycles_logged += len(batch)
-        rec = self.recording
         times = self._times(batch.wall_time, batch.control_time)
         table = _ScalarTable(times)
         for i, joint in enumerate(batch.joint_names):

@@ -1,0 +1,103 @@
+"""hil as a package: what the controller process loads, and protocols from other packages."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+
+from conftest import ROOT
+
+#: a drive protocol from outside hil: a module and its .dist-info (entry point group
+#: hil.protocols), exactly as pip leaves an installed package
+TOY_PACKAGE = ROOT / "tests" / "fixtures" / "toy_protocol"
+
+#: modules of the simulated side, which the controller process must never load
+DRIVE_SIDE = ("hil.drives", "hil.simulator", "hil.plant", "hil.protocols.cia402.node",
+              "hil.protocols.cia402.state", "mujoco")
+
+
+def python(script: str, *, env: dict | None = None, timeout: float = 120
+           ) -> tuple[subprocess.CompletedProcess, set[str]]:
+    """Run ``script`` under ``python -X importtime``; the run, and every module it imported:
+    those importtime reported (``import`` statements) and those in sys.modules at the end
+    (importtime does not see importlib.import_module, which hil uses for protocols)."""
+    script = textwrap.dedent(script) + "\nimport sys\nprint(*sys.modules, file=sys.stderr)\n"
+    done = subprocess.run([sys.executable, "-X", "importtime", "-c", script],
+                          capture_output=True, text=True, timeout=timeout, cwd=ROOT,
+                          env={**os.environ, **(env or {})})
+    lines = done.stderr.splitlines()
+    modules = {line.rsplit("|", 1)[1].strip() for line in lines
+               if line.startswith("import time:") and "|" in line}
+    if done.returncode == 0:
+        modules |= set(lines[-1].split())
+    return done, modules - {"imported package"}
+
+
+def test_the_controller_process_loads_no_simulated_drive_module():
+    # the controller's command module, and at run time every protocol's master-side axis
+    # for every shipped bus config (CanHardwareInterface imports them on construction)
+    done, modules = python("""
+        import can
+        import hil.cli.control
+        from hil.bus_config import load_bus_config
+        from hil.hardware import CanHardwareInterface
+        for name in ("ur3", "pigot", "pigot_mixed"):
+            config = load_bus_config(f"bus_config/{name}.yaml")
+            buses = {b.name: can.Bus(interface="virtual", channel=f"package-{name}-{b.name}")
+                     for b in config.buses}
+            CanHardwareInterface(config, buses)
+            for bus in buses.values():
+                bus.shutdown()
+        """)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert {"hil.protocols.cia402.axis", "hil.protocols.odrive.axis",
+            "hil.protocols.mit.axis"} <= modules           # the check saw every protocol
+    drive_side = sorted(m for m in modules
+                        if m.startswith(DRIVE_SIDE) or m.endswith(".drive"))
+    assert drive_side == []
+    # canopen.node.local is the one exception: canopen's own __init__ imports LocalNode,
+    # so any use of canopen (the master's RemoteNode and Network) loads the module; hil's
+    # controller never makes a LocalNode
+
+
+def test_a_protocol_from_an_installed_package_drives_a_joint(tmp_path):
+    config = tmp_path / "ur3_toy.yaml"
+    config.write_text(textwrap.dedent(f"""\
+        robot: {ROOT / 'robots' / 'ur3_description' / 'urdf' / 'ur3.xacro'}
+        plant_rate_hz: 1000
+        defaults: {{protocol: toy, watchdog_timeout: 0.2}}
+        buses:
+          - name: arm
+            interface: virtual
+            channel: hil-package-toy
+            bitrate: 1000000
+            cycle_hz: 100
+            drives: [{{node_id: 1, joint: joint1}}, {{node_id: 2, joint: joint2}},
+                     {{node_id: 3, joint: joint3}}, {{node_id: 4, joint: joint4}},
+                     {{node_id: 5, joint: joint5}}, {{node_id: 6, joint: joint6}}]
+        """))
+    unregistered = subprocess.run([sys.executable, "-m", "hil", "check", str(config)],
+                                  capture_output=True, text=True, timeout=60)
+    assert unregistered.returncode == 1 and "toy" in unregistered.stderr
+    assert "Traceback" not in unregistered.stderr
+    done, modules = python(f"""
+        from hil.bus_config import load_bus_config
+        from hil.controllers import TrajectoryGoal, TrajectoryPoint
+        from hil.messaging.zenoh_api import TrajectoryActionClient
+        from hil.stack import running_stack
+
+        config = load_bus_config({str(config)!r})
+        with running_stack(config) as stack:
+            client = TrajectoryActionClient(stack.zenoh, config.robot.name)
+            goal = TrajectoryGoal(("joint2",), (TrajectoryPoint(1.0, (0.3,), (0.0,)),))
+            result = client.wait_result(client.send_goal(goal), timeout=10)
+            print(result.error_code, stack.sim.plant.joint_positions()[1], flush=True)
+            client.close()
+        """, env={"PYTHONPATH": str(TOY_PACKAGE)})
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "hil_toy_protocol.drive" in modules
+    error_code, joint2 = done.stdout.split()
+    assert int(error_code) == 0
+    assert abs(float(joint2) - 0.3) < 0.01
