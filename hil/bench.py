@@ -498,7 +498,7 @@ def _fault_detection(config: SystemConfig, timeout: float = 3.0) -> list[dict]:
             detected = len(stack.node.faults) > reported
             rows.append({"fault": kind, "detected": detected,
                          "detection_ms": elapsed * 1e3 if detected else None,
-                         "first_report": stack.node.faults[reported] if detected else None})
+                         "first_report": str(stack.node.faults[reported]) if detected else None})
     return rows
 
 

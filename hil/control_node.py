@@ -21,8 +21,8 @@ import zenoh
 
 from hil.controllers import Defaults, JointTrajectoryController
 from hil.controllers.joint_state import JointStateBroadcaster
-from hil.hardware import HardwareInterface
-from hil.messaging.diagnostics import Diagnostic
+from hil.hardware import AxisFault, HardwareInterface
+from hil.messaging.diagnostics import Diagnostic, fault_values
 from hil.messaging.samples import ControlSampleBuffer
 from hil.messaging.zenoh_api import (
     ControlSamplesPublisher, DiagnosticsPublisher, JointStatePublisher, TrajectoryActionServer,
@@ -78,7 +78,7 @@ class ControlNode:
         self._states_phase = self._every_states // 2
         self._feedback_phase = self._every_feedback // 3
         self.statistics = PeriodStatistics(self.period)
-        self.faults: list[str] = []
+        self.faults: list[AxisFault] = []
         self._stop = threading.Event()
         self._resets: queue.SimpleQueue[FaultResetRequest] = queue.SimpleQueue()
         self._reset: FaultResetRequest | None = None
@@ -91,7 +91,7 @@ class ControlNode:
         round_trips = getattr(self.hardware, "round_trips", None)
         if round_trips is not None:
             figures.update(round_trips.percentiles_us("round_trip"))
-        figures["faults"] = list(self.faults)
+        figures["faults"] = [str(fault) for fault in self.faults]
         return figures
 
     def summary(self) -> str:
@@ -152,8 +152,8 @@ class ControlNode:
                 faults = hardware.faults()
                 for fault in faults:
                     self.faults.append(fault)
-                    self.controller.abort(fault)
-                    self._diagnose("ERROR", fault)
+                    self.controller.abort(str(fault))
+                    self._diagnose("ERROR", str(fault), fault_values(fault))
                 if self._reset is not None:
                     self._advance_reset(faults)
                 now = self.clock()
@@ -190,10 +190,10 @@ class ControlNode:
         self._reset.deadline = time.monotonic() + RESET_TIMEOUT
         self.hardware.reset_faults()
 
-    def _advance_reset(self, faults: list[str]) -> None:
+    def _advance_reset(self, faults: list[AxisFault]) -> None:
         """Called each cycle of a reset: done when the hardware is ready, failed on a fault."""
         if faults:
-            self._finish_reset(False, "; ".join(faults))
+            self._finish_reset(False, "; ".join(map(str, faults)))
         elif self.hardware.ready:
             self.controller.clear_fault()
             self._finish_reset(True, "every drive follows commands again; holding position")
@@ -203,9 +203,10 @@ class ControlNode:
             self._diagnose("ERROR", f"fault reset failed: drives not back within "
                                     f"{RESET_TIMEOUT:g} s")
 
-    def _diagnose(self, level: str, message: str) -> None:
+    def _diagnose(self, level: str, message: str,
+                  values: tuple[tuple[str, str], ...] = ()) -> None:
         self.diagnostics.publish(Diagnostic(level, message, time.time(), self.clock(),
-                                            hardware_id=self.hardware.robot.name))
+                                            hardware_id=self.hardware.robot.name, values=values))
 
     def _finish_reset(self, succeeded: bool, message: str) -> None:
         request, self._reset = self._reset, None

@@ -9,13 +9,16 @@ import pytest
 
 from hil.can.faults import FrameFault
 from hil.controllers import GoalRejected, GoalStatus
+from hil.hardware import FaultKind
 from hil.messaging.zenoh_api import RunSubscriber
 
 
 def test_reset_brings_a_faulted_drive_back_and_goals_are_accepted_again(controlled):
     controlled.fault(2)
-    assert "drive node 2 (joint2)" in controlled.node.faults[0]
-    assert "FAULT" in controlled.node.faults[0]
+    fault = controlled.node.faults[0]
+    assert (fault.kind, fault.bus, fault.node_id, fault.joints) == (
+        FaultKind.FAULT, "arm", 2, ("joint2",))
+    assert fault.code == 0x8611 and "drive node 2 (joint2)" in str(fault)
     with pytest.raises(GoalRejected, match="hardware is faulted"):
         controlled.move("joint2", 0.1)
     succeeded, message = controlled.client.reset_faults()
@@ -95,8 +98,10 @@ def test_a_fault_and_its_reset_are_published_as_diagnostics_on_the_controllers_c
     finally:
         subscriber.close()
     fault, reset = heard
-    assert (fault.level, fault.message) == ("ERROR", controlled.node.faults[0])
-    assert "drive node 2 (joint2)" in fault.message and fault.hardware_id == "ur3"
+    assert (fault.level, fault.message) == ("ERROR", str(controlled.node.faults[0]))
+    assert dict(fault.values) == {"kind": "fault", "bus": "arm", "node_id": "2",
+                                  "joints": "joint2", "code": "0x8611"}
+    assert fault.hardware_id == "ur3"
     assert before <= fault.control_time <= reset.control_time <= controlled.node.clock()
     assert reset.level == "OK" and "every drive follows commands again" in reset.message
 

@@ -16,6 +16,8 @@ import can
 import canopen
 import pytest
 
+from hil.hardware import FaultKind
+
 from conftest import EDS, ROOT, free_port
 
 sys.path.insert(0, str(ROOT / "tools"))
@@ -74,7 +76,7 @@ def test_feedback_no_joint_can_produce_is_a_fault_not_a_joint_state(controlled):
             time.sleep(0.001)
     finally:
         intruder.shutdown()
-    assert any("implausible feedback" in f and "joint3" in f and "node 3" in f
+    assert any((f.kind, f.node_id, f.joints) == (FaultKind.IMPLAUSIBLE, 3, ("joint3",))
                for f in controlled.node.faults), controlled.node.faults
     state = controlled.node.controller.state()
     assert abs(state.desired_positions[2]) < 3.2 and abs(state.actual_positions[2]) < 3.2

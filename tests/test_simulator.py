@@ -19,7 +19,7 @@ from conftest import ROOT, UR3_VIRTUAL, Bench, free_port
 
 from hil.bus_config import load_bus_config
 from hil.drives import Fault
-from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
+from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FaultKind
 from hil.simulator import LOCK_STEP_WATCHDOG, MAX_CATCH_UP, Simulator
 
 REDUCTIONS = (120, 120, 120, 100, 100, 100)
@@ -168,8 +168,10 @@ def test_a_controller_stall_past_the_watchdog_faults_in_real_time_only(master_an
         assert faults == []
         assert all(axis.enabled for axis in hardware.axes)
     else:
-        assert "drive node 1 (joint1) on bus 'arm' reported EMCY 0x8250 RPDO timeout " \
-               "(setpoints stopped arriving)" in faults
+        first = next(f for f in faults if f.node_id == 1)
+        assert (first.kind, first.code) == (FaultKind.REPORTED, 0x8250)
+        assert str(first) == ("drive node 1 (joint1) on bus 'arm' reported EMCY 0x8250 "
+                              "RPDO timeout (setpoints stopped arriving)")
 
 
 # --- real time: the plant's present ---------------------------------------------------------

@@ -12,7 +12,7 @@ from hil.controllers import (
     GoalRejected, GoalStatus, JointTolerance, JointTrajectoryController, TrajectoryGoal,
     TrajectoryPoint, TrajectoryPoints,
 )
-from hil.controllers.trajectory import MAX_POINTS
+from hil.controllers.goal import MAX_POINTS
 
 DT = 0.002
 

@@ -15,14 +15,10 @@ they stop themselves if ``hil up`` is killed.
 from __future__ import annotations
 
 import argparse
-import os
 import signal
-import subprocess
 import sys
 import threading
 import time
-from collections import deque
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -38,15 +34,9 @@ from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import (
     ControllerGone, ProcessWatch, RunSubscriber, TrajectoryActionClient,
 )
+from hil.cli.supervisor import Child, ChildFailed, Run, kill_later, wait_alive
 from hil.realtime import real_time_cpus
 from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
-
-#: how long each child may take to come up (s); the first run compiles MuJoCo models
-START_TIMEOUT = 60.0
-#: how long each child may take to stop after SIGTERM before it is killed (s)
-STOP_TIMEOUT = 15.0
-LAST_LINES = 15
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("target", nargs="*", metavar="ROBOT|CONFIG",
@@ -82,91 +72,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--viewer", metavar="URL", help="also stream to a running rerun viewer")
     common.add_can_override(parser)
     common.add_package_path(parser)
-
-
-@dataclass
-class Child:
-    """One ``hil`` sub-process, its log file and what it must be stopped with."""
-
-    name: str
-    argv: list[str]
-    log_path: Path
-    process: subprocess.Popen | None = None
-    expected_exit: bool = False
-
-    def start(self) -> None:
-        env = dict(os.environ, PYTHONUNBUFFERED="1", **{common.PARENT_PID_VARIABLE: str(os.getpid())})
-        with open(self.log_path, "wb") as log:
-            self.process = subprocess.Popen(
-                [sys.executable, "-m", "hil", *self.argv], stdout=log, stderr=subprocess.STDOUT,
-                stdin=subprocess.DEVNULL, env=env, start_new_session=True)
-
-    @property
-    def pid(self) -> int:
-        return self.process.pid
-
-    def exited(self) -> int | None:
-        return None if self.process is None else self.process.poll()
-
-    def last_lines(self) -> str:
-        try:
-            with open(self.log_path, errors="replace") as log:
-                lines = deque(log, maxlen=LAST_LINES)
-        except OSError:
-            return "    (no log)"
-        return "".join(f"    {line}" for line in lines).rstrip() or "    (its log is empty)"
-
-    def stop(self) -> str | None:
-        """SIGTERM, wait, SIGKILL if needed; return a problem in words, or None."""
-        if self.process is None or self.process.poll() is not None:
-            return None
-        self.expected_exit = True
-        self.process.send_signal(signal.SIGTERM)
-        try:
-            status = self.process.wait(STOP_TIMEOUT)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait()
-            return f"{self.name} did not stop within {STOP_TIMEOUT:g} s and was killed"
-        return None if status == 0 else f"{self.name} stopped with status {status}"
-
-
-class ChildFailed(Exception):
-    """A child exited (or failed to come up) while it should have been running."""
-
-
-class Run:
-    """The three children of one ``hil up`` and their supervision."""
-
-    def __init__(self, children: list[Child], stop: threading.Event):
-        self.children = children
-        self.stop = stop
-
-    def check(self) -> None:
-        """Raise ChildFailed naming a child that has died unexpectedly."""
-        for child in self.children:
-            status = child.exited()
-            if status is not None and not child.expected_exit:
-                raise ChildFailed(f"{child.name} (pid {child.pid}) exited with status {status}; "
-                                  f"its last lines ({child.log_path}):\n{child.last_lines()}")
-
-    def wait(self, seconds: float) -> None:
-        """Sleep up to ``seconds``, checking the children; return early when stopped."""
-        deadline = time.monotonic() + seconds
-        while not self.stop.is_set() and time.monotonic() < deadline:
-            self.check()
-            self.stop.wait(min(0.1, max(0.0, deadline - time.monotonic())))
-
-    def shut_down(self) -> list[str]:
-        """Stop the running children: controller, visualiser, sim; return problems."""
-        order = {"control": 0, "viz": 1, "sim": 2}
-        problems = []
-        for child in sorted(self.children, key=lambda c: order[c.name]):
-            child.expected_exit = True
-            problem = child.stop()
-            if problem:
-                problems.append(problem)
-        return problems
 
 
 def run(args: argparse.Namespace) -> int:
@@ -226,12 +131,12 @@ def run(args: argparse.Namespace) -> int:
                 subscriber = RunSubscriber(session(zenoh), robot, progress.on_samples,
                                            lambda wall, sim: None, progress.problems.append,
                                            progress.on_diagnostic)
-            _wait_alive(supervised, watch, child)
+            wait_alive(supervised, watch, child)
             if stop.is_set():
                 break
         if not stop.is_set():
             for kill in kills:
-                threading.Thread(target=_kill_later, args=(children[kill.process], kill.at,
+                threading.Thread(target=kill_later, args=(children[kill.process], kill.at,
                                                            stop), daemon=True).start()
             status = _supervise(args, config, supervised, zenoh, progress)
     except ChildFailed as exc:
@@ -263,13 +168,6 @@ def run(args: argparse.Namespace) -> int:
     return status
 
 
-def _kill_later(child: Child, delay: float, stop: threading.Event) -> None:
-    """Fault injection: SIGKILL a child; the supervision then reports it as crashed."""
-    if not stop.wait(delay) and child.exited() is None:
-        print(f"hil up: injected kill of {child.name} (pid {child.pid})", flush=True)
-        child.process.kill()
-
-
 def _can_options(args: argparse.Namespace, config: SystemConfig) -> list[str]:
     options = [f"--channel={c}" for c in args.channel]
     if args.interface:
@@ -292,19 +190,6 @@ def _viewer_options(args: argparse.Namespace) -> list[str]:
     if args.viewer:
         options += ["--viewer", args.viewer]
     return options
-
-
-def _wait_alive(run: Run, watch: ProcessWatch, child: Child) -> None:
-    deadline = time.monotonic() + START_TIMEOUT
-    while not watch.wait_alive(child.name, 0.1):
-        run.check()
-        if run.stop.is_set():
-            return
-        if time.monotonic() > deadline:
-            raise ChildFailed(f"{child.name} (pid {child.pid}) did not come up within "
-                              f"{START_TIMEOUT:g} s; its last lines ({child.log_path}):\n"
-                              f"{child.last_lines()}")
-    print(f"hil up: {child.name} ready (pid {child.pid})", flush=True)
 
 
 class Progress:

@@ -1,10 +1,11 @@
 """Controllers: they see named joint states and commands only, never drives or frames."""
 
-from hil.controllers.trajectory import (
+from hil.controllers.goal import (
     GOAL_TOLERANCE_VIOLATED, HARDWARE_FAULT, INVALID_GOAL, INVALID_JOINTS,
-    PATH_TOLERANCE_VIOLATED, SUCCESSFUL, ControllerState, Defaults, GoalRejected, GoalResult,
-    GoalStatus, JointTolerance, JointTrajectoryController, TrajectoryGoal, TrajectoryPoint, TrajectoryPoints,
+    PATH_TOLERANCE_VIOLATED, SUCCESSFUL, Defaults, GoalRejected, GoalResult, GoalStatus,
+    JointTolerance, TrajectoryGoal, TrajectoryPoint, TrajectoryPoints,
 )
+from hil.controllers.trajectory import ControllerState, JointTrajectoryController
 
 __all__ = [
     "ControllerState", "Defaults", "GOAL_TOLERANCE_VIOLATED", "GoalRejected", "GoalResult",

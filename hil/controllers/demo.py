@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hil.controllers.trajectory import TrajectoryGoal, TrajectoryPoint
+from hil.controllers.goal import TrajectoryGoal, TrajectoryPoint
 from hil.description import JointType, RobotDescription
 
 #: revolute swing: at most this far (rad) and this fraction of the range each side

@@ -1,9 +1,10 @@
 """Hardware interfaces: the CAN master for real (or virtual) drives, and a fake."""
 
+from hil.hardware.axis import AxisFault, FaultKind
 from hil.hardware.interface import (
     LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface, HardwareInterface,
     JointFeedback,
 )
 
-__all__ = ["CanHardwareInterface", "FakeHardwareInterface", "HardwareInterface",
+__all__ = ["AxisFault", "CanHardwareInterface", "FaultKind", "FakeHardwareInterface", "HardwareInterface",
            "JointFeedback", "LOCK_STEP_REPLY_TIMEOUT"]

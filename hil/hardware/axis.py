@@ -2,14 +2,15 @@
 
 :class:`CanHardwareInterface` drives every axis the same way: reset, wait
 until it is heard, configure, then each cycle send :meth:`Axis.cycle_frames`
-and wait for :attr:`Axis.feedback` of that cycle; :meth:`Axis.fault_text`
-says what is wrong. The concrete axes (found through their protocol,
+and wait for :attr:`Axis.feedback` of that cycle; :meth:`Axis.fault` says
+what is wrong, as an :class:`AxisFault`. The concrete axes (found through their protocol,
 :func:`hil.protocols.protocol`) only turn these into their protocol's frames and
 back, in motor units (rad, rad/s, N·m).
 """
 
 from __future__ import annotations
 
+import enum
 import threading
 import time
 from abc import ABC, abstractmethod
@@ -23,6 +24,34 @@ from hil.protocols.base import Protocol
 
 #: fraction of the max velocity below which an axis counts as still (enable only then)
 STANDSTILL = 0.01
+
+
+class FaultKind(enum.Enum):
+    """What the master found wrong with a drive."""
+
+    SILENT = "silent"                     # no answer for too many cycles, or not heard
+    FAULT = "fault"                       # the drive is in its fault state
+    QUICK_STOP = "quick stop"             # the drive quick-stopped on its own
+    REPORTED = "reported"                 # an error the drive reported (EMCY), acted on alone
+    DISARMED = "disarmed"                 # the drive disarmed itself with an error (ODrive)
+    IMPLAUSIBLE = "implausible feedback"  # feedback no joint can produce
+
+
+@dataclass(frozen=True)
+class AxisFault:
+    """A fault the master found: which drive (bus, node, joints), what kind, the drive's own
+    error code where it sent one (CiA 301 EMCY code, ODrive axis error). ``str()`` is the
+    sentence for people, naming the drive and joints."""
+
+    kind: FaultKind
+    bus: str
+    node_id: int
+    joints: tuple[str, ...]
+    message: str
+    code: int | None = None
+
+    def __str__(self) -> str:
+        return self.message
 
 
 @dataclass
@@ -96,9 +125,15 @@ class Axis(ABC):
         """Frames that leave the drive disabled, in rounds sent a cycle or two apart."""
         return []
 
-    def fault_text(self, stopping: bool = False) -> str | None:
-        """Why this axis cannot be used, or None."""
+    def fault(self, stopping: bool = False) -> AxisFault | None:
+        """Why this axis cannot be used (a quick stop counts only when not ``stopping``), or
+        None."""
         return None
+
+    def found(self, kind: FaultKind, what: str, code: int | None = None) -> AxisFault:
+        """A fault of this axis: ``what`` follows its label in the message."""
+        return AxisFault(kind, self.bus_name, self.node_id, self.config.joints,
+                         f"{self.label} {what}", code)
 
     def forget_faults(self) -> None:
         """Before a fault reset: forget what the drive reported."""

@@ -27,7 +27,7 @@ from hil.bus_config import SystemConfig
 from hil.description import RobotDescription
 from hil.can.network import start_network
 from hil.errors import HilError
-from hil.hardware.axis import Axis
+from hil.hardware.axis import Axis, AxisFault, FaultKind
 from hil.realtime import PeriodStatistics, Ring
 from hil.protocols import protocol
 from hil.transmissions import TransmissionStack, build_transmissions
@@ -87,8 +87,8 @@ class HardwareInterface(ABC):
         self.write(positions, velocities)
         return self.read()
 
-    def faults(self) -> list[str]:
-        """Faults found since the last call (each names the drive and joint)."""
+    def faults(self) -> list[AxisFault]:
+        """Faults found since the last call."""
         return []
 
     def reset_faults(self) -> None:
@@ -155,8 +155,8 @@ class CanHardwareInterface(HardwareInterface):
         self._stopping = False
         self._recovering = False
         self._reset_cycle = 0          # the cycle reset_faults() was called in
-        self._reported: set[tuple[str, str, str]] = set()
-        self._pending: list[str] = []
+        self._reported: set[tuple[str, str]] = set()
+        self._pending: list[AxisFault] = []
         self._arrived = threading.Condition()
         # a drive may legitimately be unheard while its answers are still within the limit of
         # missed ones: in lock-step (LOCK_STEP_REPLY_TIMEOUT), a stalled sim is slow, not dead
@@ -203,11 +203,11 @@ class CanHardwareInterface(HardwareInterface):
             if not waiting:
                 break
             # a silence or fault seen while enabling ends the bring-up with what it was
-            faults = list(self._pending) + [a.fault_text() for a in waiting if a.fault_text()]
+            faults = list(self._pending) + [f for f in map(Axis.fault, waiting) if f]
             if faults or time.monotonic() > deadline:
                 raise HilError.single(
                     "drives did not enable: " + "; ".join(
-                        faults or [f"{a.label} is {a.state}" for a in waiting]))
+                        map(str, faults) or [f"{a.label} is {a.state}" for a in waiting]))
         self._pending.clear()
         return feedback
 
@@ -285,17 +285,14 @@ class CanHardwareInterface(HardwareInterface):
             return feedback
         for k in np.nonzero(bad)[0]:
             name = self.joint_names[k]
-            axes = [a.label for a in self.axes if name in a.config.joints] or ["its drive"]
-            problem = (f"implausible feedback from {'; '.join(axes)}: joint '{name}' measured at "
-                       f"{feedback.positions[k]:+.4g} moving {feedback.velocities[k]:+.4g}/s, "
-                       f"beyond what it can reach ([{low[k]:.4g}, {high[k]:.4g}], speed "
-                       f"{self._speed_limit[k]:.4g}): a frame the drive did not send, or "
-                       "the encoder or transmission settings of the bus config are wrong")
-            key = (name, "implausible", "")
-            if key not in self._reported:
-                self._reported.add(key)
-                self._pending.append(problem)
-                self._stopping = True
+            for axis in [a for a in self.axes if name in a.config.joints][:1]:
+                self._report(name, "implausible", axis.found(
+                    FaultKind.IMPLAUSIBLE,
+                    f"sent implausible feedback: joint '{name}' measured at "
+                    f"{feedback.positions[k]:+.4g} moving {feedback.velocities[k]:+.4g}/s, "
+                    f"beyond what it can reach ([{low[k]:.4g}, {high[k]:.4g}], speed "
+                    f"{self._speed_limit[k]:.4g}): a frame the drive did not send, or the "
+                    "encoder or transmission settings of the bus config are wrong"))
         last = self._plausible
         positions, velocities = feedback.positions.copy(), feedback.velocities.copy()
         positions[bad] = last.positions[bad] if last else np.clip(positions, low, high)[bad]
@@ -312,23 +309,28 @@ class CanHardwareInterface(HardwareInterface):
         # answer that late would be silence anyway
         settling = self._recovering and self._cycle - self._reset_cycle <= MISSED_ANSWER_LIMIT
         for axis in self.axes:
-            # (what, text): a silence is reported once per axis, not once per silent cycle
-            problems = [] if settling else [("fault", axis.fault_text(self._stopping))]
+            # a silence is reported once per axis, not once per silent cycle; a drive's own
+            # fault once per distinct message
+            fault = None if settling else axis.fault(self._stopping)
+            if fault is not None:
+                self._report(axis.label, fault.message, fault)
             silence = now - axis.last_heard
             if silence > max(axis.silence_limit, self._answer_silence_limit):
-                problems.append(("heartbeat", f"{axis.label} is silent: not heard for "
-                                              f"{silence * 1e3:.0f} ms"))
+                self._report(axis.label, "heartbeat", axis.found(
+                    FaultKind.SILENT, f"is silent: not heard for {silence * 1e3:.0f} ms"))
             if _missed_too_many(axis, self._cycle):
-                problems.append(("answer", f"{axis.label} is silent: no answer for "
-                                           f"{self._cycle - axis.feedback.cycle} cycles"))
-            for what, problem in problems:
-                key = (axis.label, what, problem if what == "fault" else "")
-                if problem and key not in self._reported:
-                    self._reported.add(key)
-                    self._pending.append(problem)
-                    self._stopping = True
+                self._report(axis.label, "answer", axis.found(
+                    FaultKind.SILENT,
+                    f"is silent: no answer for {self._cycle - axis.feedback.cycle} cycles"))
 
-    def faults(self) -> list[str]:
+    def _report(self, subject: str, what: str, fault: AxisFault) -> None:
+        """Queue a fault for :meth:`faults` (once per subject and what) and stop every axis."""
+        if (subject, what) not in self._reported:
+            self._reported.add((subject, what))
+            self._pending.append(fault)
+            self._stopping = True
+
+    def faults(self) -> list[AxisFault]:
         found, self._pending = self._pending, []
         return found
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from hil.hardware import AxisFault
 from hil.messaging import types as T
 
 #: DiagnosticStatus.level, by value
@@ -32,10 +33,14 @@ class Diagnostic:
     control_time: float | None
     name: str = "hil control"
     hardware_id: str = ""            # the robot
+    #: what the report is about, as diagnostic_msgs KeyValues (a fault: kind, bus, node_id,
+    #: joints, code)
+    values: tuple[tuple[str, str], ...] = ()
 
     def encode(self) -> bytes:
-        values = [] if self.control_time is None else [
-            T.msg("diagnostic_msgs/msg/KeyValue", key=CONTROL_TIME, value=repr(self.control_time))]
+        pairs = list(self.values) if self.control_time is None else [
+            (CONTROL_TIME, repr(self.control_time)), *self.values]
+        values = [T.msg("diagnostic_msgs/msg/KeyValue", key=k, value=v) for k, v in pairs]
         status = T.msg(T.DIAGNOSTIC_STATUS, level=LEVELS.index(self.level), name=self.name,
                        message=self.message, hardware_id=self.hardware_id, values=values)
         return T.encode(T.msg(T.DIAGNOSTIC_ARRAY, header=T.header(self.wall_time),
@@ -52,8 +57,18 @@ class Diagnostic:
                 raise ValueError(f"malformed {T.DIAGNOSTIC_ARRAY}: level {status.level} of "
                                  f"'{status.name}' (0-{len(LEVELS) - 1} exist)")
             found.append(cls(LEVELS[status.level], status.message, wall_time,
-                             _control_time(status), status.name, status.hardware_id))
+                             _control_time(status), status.name, status.hardware_id,
+                             tuple((p.key, p.value) for p in status.values
+                                   if p.key != CONTROL_TIME)))
         return found
+
+
+def fault_values(fault: AxisFault) -> tuple[tuple[str, str], ...]:
+    """A fault's data as KeyValues: kind, bus, node_id, joints (comma-separated), and code
+    (hex) where the drive sent one."""
+    code = () if fault.code is None else (("code", f"0x{fault.code:04X}"),)
+    return (("kind", fault.kind.value), ("bus", fault.bus), ("node_id", str(fault.node_id)),
+            ("joints", ",".join(fault.joints)), *code)
 
 
 def _control_time(status) -> float | None:

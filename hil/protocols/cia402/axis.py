@@ -17,7 +17,7 @@ from canopen.profiles.p402 import State402
 
 from hil.bus_config import DriveConfig
 from hil.errors import HilError
-from hil.hardware.axis import Axis, Frame
+from hil.hardware.axis import Axis, AxisFault, FaultKind, Frame
 from hil.protocols.cia402 import FRAME_ERRORS, Cia402, emcy_words
 from hil.resources import eds_path
 
@@ -189,17 +189,17 @@ class Cia402Axis(Axis):
         counts = max(-2**31, min(2**31 - 1, round(target * self.counts_per_rad)))
         return _RPDO1.pack(controlword, counts)
 
-    def fault_text(self, stopping: bool = False) -> str | None:
-        """Why this axis cannot be used, or None."""
-        code = self.last_emcy
+    def fault(self, stopping: bool = False) -> AxisFault | None:
+        code = self.last_emcy or None
         if self.state == "QUICK STOP ACTIVE" and not stopping:
             why = f" after {emcy_words(code)}" if code else ""
-            return f"{self.label} quick-stopped on its own{why}"
+            return self.found(FaultKind.QUICK_STOP, f"quick-stopped on its own{why}", code)
         if self.state in ("FAULT", "FAULT REACTION ACTIVE"):
-            return f"{self.label} is in FAULT: {emcy_words(code) if code else 'fault'}"
+            return self.found(FaultKind.FAULT,
+                              f"is in FAULT: {emcy_words(code) if code else 'fault'}", code)
         if code and code not in FRAME_ERRORS and self.feedback.cycle > self._emcy_cycle:
             # an error EMCY and, in an answer sampled after it, no FAULT: e.g. an RPDO timeout
             # quick-stop that this master's next ENABLE undid at once (transition 16). The
             # drive still acted on its own, and the goal must know
-            return f"{self.label} reported {emcy_words(code)}"
+            return self.found(FaultKind.REPORTED, f"reported {emcy_words(code)}", code)
         return None

@@ -14,7 +14,7 @@ from __future__ import annotations
 import time
 
 from hil.bus_config import DriveConfig
-from hil.hardware.axis import Axis, Frame
+from hil.hardware.axis import Axis, AxisFault, FaultKind, Frame
 from hil.protocols.odrive import (
     LAYOUT, TURN, AxisState, Cmd, ControlMode, ODrive, ODriveError, ODriveOptions, can_id,
 )
@@ -132,12 +132,13 @@ class ODriveAxis(Axis):
         return [[(self._id(Cmd.SET_AXIS_STATE), LAYOUT[Cmd.SET_AXIS_STATE].pack(AxisState.IDLE),
                   False)]]
 
-    def fault_text(self, stopping: bool = False) -> str | None:
+    def fault(self, stopping: bool = False) -> AxisFault | None:
         if not self.axis_error:
             return None
         reason = (f", disarm reason {self.disarm_reason!r}"
                   if self.disarm_reason != ODriveError.NONE else "")
-        return f"{self.label} disarmed: {self.axis_error!r}{reason}"
+        return self.found(FaultKind.DISARMED, f"disarmed: {self.axis_error!r}{reason}",
+                          int(self.axis_error))
 
     def forget_faults(self) -> None:
         self.axis_error = self.disarm_reason = ODriveError.NONE   # the next heartbeat tells

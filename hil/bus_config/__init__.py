@@ -1,0 +1,23 @@
+"""Bus configs (``bus_config/*.yaml``): parsed once into typed objects.
+
+A bus config names a robot description, the plant rate, and one or more CAN
+buses, each with its python-can interface/channel, bitrate, cycle rate and
+drives. Every problem is reported with the config file and line and what to
+do, and the whole config is checked against the robot (joints, actuators,
+node ids) and against the physics of the bus (worst-case load).
+
+Drive quantities are motor side, SI units (rad, rad/s, N·m), as the drive
+itself sees them.
+
+The package: :mod:`~hil.bus_config.types` (the typed config), :mod:`~hil.bus_config.parse`
+(YAML to types, every key checked with its line), :mod:`~hil.bus_config.checks` (the
+config against its robot and the bus' physics), :mod:`~hil.bus_config.buses` (opening the
+buses it names).
+"""
+
+from hil.bus_config.buses import open_buses
+from hil.bus_config.parse import load_bus_config
+from hil.bus_config.types import LOAD_WARNING, BusConfig, DriveConfig, Gains, SystemConfig
+
+__all__ = ["BusConfig", "DriveConfig", "Gains", "LOAD_WARNING", "SystemConfig",
+           "load_bus_config", "open_buses"]

@@ -1,0 +1,37 @@
+"""Opening the CAN buses a bus config names (python-can), with command-line overrides."""
+
+from __future__ import annotations
+
+import can
+
+from hil.bus_config.types import SystemConfig
+from hil.can import open_bus
+from hil.errors import HilError
+from hil.zenoh_session import ZenohSettings
+
+
+def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None = None,
+               channels: dict[str, str] | None = None) -> dict[str, can.BusABC]:
+    """Open every bus of a config, with optional interface/channel overrides.
+
+    Zenoh buses join the process' Zenoh session given by ``zenoh``.
+    """
+    channels = channels or {}
+    unknown = set(channels) - {bus.name for bus in config.buses}
+    if unknown:
+        raise HilError.single(f"--channel names unknown bus(es) {', '.join(sorted(unknown))}",
+                              config.path,
+                              hint=f"buses: {', '.join(bus.name for bus in config.buses)}")
+    opened: dict[str, can.BusABC] = {}
+    try:
+        for bus in config.buses:
+            name = interface or bus.interface
+            options = ({"listen": zenoh.listen, "connect": zenoh.connect,
+                        "zenoh_config": zenoh.config_file} if name == "zenoh" else {})
+            opened[bus.name] = open_bus(name, channels.get(bus.name, bus.channel), bus.bitrate,
+                                        **options)
+    except HilError:
+        for bus in opened.values():
+            bus.shutdown()
+        raise
+    return opened

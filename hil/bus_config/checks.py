@@ -1,0 +1,98 @@
+"""A parsed bus config against its robot (every actuator driven once, joints exist) and
+against the physics of its buses (node and CAN id collisions, worst-case load)."""
+
+from __future__ import annotations
+
+from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD, BusConfig, DriveConfig, SystemConfig
+from hil.bus_config.yaml_reader import LineMapping, Reader
+from hil.can import bus_load
+from hil.protocols import names as protocol_names
+from hil.protocols import protocol
+
+
+def check_system(reader: Reader, config: SystemConfig, transmissions, top: LineMapping) -> None:
+    """Every check of a parsed config, into ``reader``'s diagnostics."""
+    names = [bus.name for bus in config.buses]
+    for bus in config.buses:
+        if names.count(bus.name) > 1:
+            reader.fail(f"bus name '{bus.name}' is used twice", bus.line)
+        seen: dict[tuple[str, int], DriveConfig] = {}     # node ids are per protocol
+        for drive in bus.drives:
+            key = (drive.protocol, drive.node_id)
+            if key in seen:
+                reader.fail(f"bus '{bus.name}': node id {drive.node_id} is used by "
+                            f"{seen[key].label} (line {seen[key].line}) and "
+                            f"{drive.label}", drive.line, hint="give every drive on a bus its own node id")
+            seen[key] = drive
+        _check_ids(reader, bus)
+        ratio = config.plant_rate_hz / bus.cycle_hz
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            reader.fail(f"bus '{bus.name}': cycle_hz {bus.cycle_hz:g} does not divide "
+                        f"plant_rate_hz {config.plant_rate_hz:g}", bus.line,
+                        hint="the plant steps a whole number of times per control cycle")
+        _check_load(reader, bus)
+    rates = {bus.cycle_hz for bus in config.buses}
+    if len(rates) > 1:
+        reader.fail(f"buses have different cycle rates ({', '.join(f'{r:g}' for r in sorted(rates))}"
+                    " Hz)", top.key_lines.get("buses"),
+                    hint="one controller cycle drives all buses: give them one cycle_hz")
+    by_actuator: dict[str, list[DriveConfig]] = {}
+    for drive in config.drives:
+        by_actuator.setdefault(drive.actuator, []).append(drive)
+    for actuator, drives in by_actuator.items():
+        if len(drives) > 1:
+            reader.fail(f"actuator '{actuator}' has {len(drives)} drives "
+                        f"({'; '.join(d.label for d in drives)})", drives[1].line)
+    for transmission in transmissions:
+        for actuator in transmission.actuators:
+            if actuator not in by_actuator:
+                reader.fail(f"actuator '{actuator}' (joint {', '.join(transmission.joints)}) "
+                            "has no drive", top.key_lines.get("buses"),
+                            hint="add a drive for it to one of the buses")
+
+
+def _check_ids(reader: Reader, bus: BusConfig) -> None:
+    """Two drives (of any protocols) must not use the same CAN id on one bus."""
+    owners: dict[int, str] = {}
+    if bus.uses_sync:
+        owners.update({0x000: "CANopen NMT", 0x080: "CANopen SYNC"})
+    shared: dict[int, str] = {}
+    for drive in bus.drives:
+        spec = protocol(drive.protocol)
+        label = f"{drive.label} ({drive.protocol})"
+        for can_id in sorted({frame[0] for frame in bus.frames(drive)}):
+            if can_id in spec.shared_ids(drive.options) and shared.get(can_id) == drive.protocol:
+                continue
+            if can_id in owners:
+                reader.fail(f"bus '{bus.name}': CAN id 0x{can_id:03X} is used by {owners[can_id]} "
+                            f"and by {label}", drive.line,
+                            hint="change a node id (or a protocol option such as reply_id), or "
+                                 "put the drives on separate buses")
+                continue
+            owners[can_id] = label
+            if can_id in spec.shared_ids(drive.options):
+                shared[can_id] = drive.protocol
+
+
+def _check_load(reader: Reader, bus: BusConfig) -> None:
+    if not bus.drives or any(d.protocol not in protocol_names() for d in bus.drives):
+        return
+    load = bus.load()
+    summary = (f"bus '{bus.name}': {len(bus.drives)} drive(s) at {bus.cycle_hz:g} Hz need "
+               f"{load.worst_bits_per_second / 1e3:,.0f} kbit/s worst case "
+               f"({load.nominal_bits_per_second / 1e3:,.0f} nominal, "
+               f"{load.frames_per_second:,.0f} frames/s) on a {bus.bitrate / 1e3:,.0f} kbit/s bus: "
+               f"{load.worst_ratio:.0%}")
+    sync_bits = bus_load(bus.bitrate, [(SYNC_PAYLOAD, bus.cycle_hz)]).worst_bits_per_second
+    per_drive = (load.worst_bits_per_second - sync_bits) / len(bus.drives)
+    budget = LOAD_WARNING * bus.bitrate
+    fitting_drives = max(int((budget - sync_bits) // per_drive), 1)
+    fitting_rate = budget / (load.worst_bits_per_second / bus.cycle_hz)
+    hint = (f"split the drives over buses of at most {fitting_drives} drive(s) each, or lower "
+            f"cycle_hz to {fitting_rate:,.0f} Hz or less (either keeps the load under "
+            f"{LOAD_WARNING:.0%})")
+    if load.worst_ratio > 1.0:
+        reader.fail(f"{summary}: infeasible", bus.line, hint=hint)
+    elif load.worst_ratio > LOAD_WARNING:
+        reader.warn(f"{summary}: above {LOAD_WARNING:.0%}, no room for SDO, EMCY and retries",
+                    bus.line, hint=hint)

@@ -1,0 +1,233 @@
+"""Parsing a bus config file into :class:`~hil.bus_config.types.SystemConfig`: every key
+read once, typed, with defaults derived from the robot's limits."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from hil.bus_config.checks import check_system
+from hil.bus_config.types import BusConfig, DriveConfig, Gains, SystemConfig
+from hil.bus_config.yaml_reader import LineLoader, LineMapping, Reader
+from hil.description import JointType, PackagePath, RobotDescription, load_description
+from hil.errors import HilError, Severity
+from hil.protocols import names as protocol_names
+from hil.protocols import protocol
+from hil.transmissions import SimpleTransmission, Transmission, build_transmissions
+
+_TOP_KEYS = {"robot", "plant_rate_hz", "defaults", "buses"}
+_BUS_KEYS = {"name", "interface", "channel", "bitrate", "cycle_hz", "drives"}
+_DRIVE_KEYS = {"node_id", "joint", "actuator", "protocol", "encoder_counts_per_rev",
+               "rated_torque", "peak_torque", "max_velocity", "following_error_limit",
+               "following_error_timeout", "quick_stop_deceleration", "watchdog_timeout",
+               "heartbeat_period", "holding_brake", "gains", "velocity_bandwidth_hz",
+               "options"}
+_GAIN_KEYS = {"position_kp", "velocity_kp", "velocity_ki"}
+
+
+def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -> SystemConfig:
+    """Parse and validate a bus config and the robot it names.
+
+    Raises :class:`HilError` with every error found (warnings travel along).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise HilError.single(f"cannot read bus config '{path}': {exc.strerror}",
+                              hint="give the path of a bus_config/*.yaml file") from None
+    try:
+        document = yaml.load(text, Loader=LineLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        raise HilError.single(f"YAML syntax: {getattr(exc, 'problem', exc)}", path,
+                              mark.line + 1 if mark else None,
+                              hint="fix the YAML at that line (indentation, ':' and '-')") from None
+    reader = Reader(path)
+    top = reader.mapping(document, "the bus config", 1)
+    reader.unknown_keys(top, _TOP_KEYS, "the bus config")
+    robot_path = path.parent / reader.text(top, "robot", "the bus config", "")
+    if not robot_path.is_file():
+        reader.fail(f"robot description '{robot_path}' does not exist",
+                    top.key_lines.get("robot", 1),
+                    hint="'robot' is a .xacro/.urdf path relative to the config file")
+        raise HilError(reader.diagnostics)
+    robot = load_description(robot_path, package_path)
+    transmissions = build_transmissions(robot)
+    plant_rate = reader.number(top, "plant_rate_hz", "the bus config", 1000.0)
+    defaults = reader.mapping(top.get("defaults", LineMapping()), "'defaults'",
+                              top.key_lines.get("defaults"))
+    reader.unknown_keys(defaults, _DRIVE_KEYS - {"node_id", "joint", "actuator"}, "'defaults'")
+    raw_buses = top.get("buses")
+    if not isinstance(raw_buses, list) or not raw_buses:
+        reader.fail("'buses' must be a non-empty list of buses", top.key_lines.get("buses", 1))
+        raise HilError(reader.diagnostics)
+    buses = tuple(_read_bus(reader, raw, index, robot, transmissions, defaults)
+                  for index, raw in enumerate(raw_buses))
+    config = SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses)
+    check_system(reader, config, transmissions, top)
+    errors = [d for d in reader.diagnostics if d.severity is Severity.ERROR]
+    warnings = tuple(d for d in reader.diagnostics if d.severity is Severity.WARNING)
+    if errors:
+        raise HilError(errors + list(warnings))
+    return SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses,
+                        warnings=robot.warnings + warnings)
+
+
+def _read_bus(reader: Reader, raw, index: int, robot: RobotDescription,
+              transmissions: tuple[Transmission, ...], defaults: LineMapping) -> BusConfig:
+    bus = reader.mapping(raw, f"bus {index + 1}", None)
+    reader.unknown_keys(bus, _BUS_KEYS, f"bus {index + 1}")
+    name = reader.text(bus, "name", f"bus {index + 1}", f"bus{index + 1}")
+    what = f"bus '{name}'"
+    raw_drives = bus.get("drives")
+    if not isinstance(raw_drives, list) or not raw_drives:
+        reader.fail(f"{what}: 'drives' must be a non-empty list", bus.key_lines.get("drives",
+                                                                                    bus.line))
+        raw_drives = []
+    drives = tuple(d for d in (_read_drive(reader, raw_drive, what, robot, transmissions,
+                                           defaults) for raw_drive in raw_drives) if d)
+    return BusConfig(
+        name=name,
+        interface=reader.text(bus, "interface", what, "zenoh"),
+        channel=reader.text(bus, "channel", what, f"{robot.name}/{name}"),
+        bitrate=int(reader.number(bus, "bitrate", what, 1_000_000, integer=True)),
+        cycle_hz=float(reader.number(bus, "cycle_hz", what)),
+        drives=drives, line=bus.line)
+
+
+def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
+                transmissions: tuple[Transmission, ...], defaults: LineMapping) -> DriveConfig | None:
+    own = reader.mapping(raw, f"{bus}: drive", None)
+    reader.unknown_keys(own, _DRIVE_KEYS, f"{bus} drive")
+    merged = LineMapping({**defaults, **own})
+    merged.line, merged.key_lines = own.line, {**defaults.key_lines, **own.key_lines}
+    node_id = reader.number(merged, "node_id", f"{bus} drive", 0, integer=True, positive=False)
+    what = f"{bus} node {node_id}"
+    name = reader.text(merged, "protocol", what, "cia402")
+    if name not in protocol_names():
+        reader.fail(f"{what}: unknown protocol '{name}'",
+                    merged.key_lines.get("protocol", merged.line),
+                    hint=f"use one of: {', '.join(protocol_names())}")
+        return None
+    spec = protocol(name)
+    if node_id not in spec.node_ids:
+        ids = spec.node_ids
+        reader.fail(f"{what}: node id {node_id} is outside {ids.start}..{ids.stop - 1}",
+                    merged.key_lines.get("node_id", merged.line),
+                    hint=f"{name} node ids are {ids.start}..{ids.stop - 1}")
+    options = _read_options(reader, merged, what, spec)
+    found = _find_actuator(reader, merged, what, robot, transmissions)
+    if found is None:
+        return None
+    transmission, k = found
+    joint_limits = [robot.joint(j).limits for j in transmission.joints]
+    motor_torque = transmission.actuator_effort_limits([lim.effort for lim in joint_limits])[k]
+    motor_speed = abs(transmission.position_matrix[k]) @ [lim.velocity for lim in joint_limits]
+    peak = reader.number(merged, "peak_torque", what, float(motor_torque))
+    rated = reader.number(merged, "rated_torque", what, peak / 2)
+    if peak < rated:
+        reader.fail(f"{what}: peak_torque {peak} is below rated_torque {rated}",
+                    merged.key_lines.get("peak_torque", merged.line))
+    max_velocity = reader.number(merged, "max_velocity", what, float(motor_speed))
+    # default following-error window: 0.1 rad (revolute) or 5 mm (prismatic) at the joint
+    joint_window = [0.005 if robot.joint(j).type is JointType.PRISMATIC else 0.1
+                    for j in transmission.joints]
+    window = float(abs(transmission.position_matrix[k]) @ joint_window)
+    gains = None
+    if "gains" in merged:
+        g = reader.mapping(merged["gains"], f"{what} gains", merged.key_lines.get("gains"))
+        reader.unknown_keys(g, _GAIN_KEYS, f"{what} gains")
+        gains = Gains(*(reader.number(g, key, f"{what} gains", 1.0) for key in
+                        ("position_kp", "velocity_kp", "velocity_ki")))
+    brake = merged.get("holding_brake", True)
+    if not isinstance(brake, bool):
+        reader.fail(f"{what}: holding_brake must be true or false",
+                    merged.key_lines.get("holding_brake", merged.line))
+    return DriveConfig(
+        node_id=node_id, actuator=transmission.actuators[k], joints=transmission.joints,
+        protocol=name,
+        encoder_counts_per_rev=int(reader.number(merged, "encoder_counts_per_rev", what, 131072,
+                                                 integer=True)),
+        rated_torque=float(rated), peak_torque=float(peak), max_velocity=float(max_velocity),
+        following_error_limit=float(reader.number(merged, "following_error_limit", what,
+                                                  window)),
+        following_error_timeout=float(reader.number(merged, "following_error_timeout", what,
+                                                    0.01)),
+        quick_stop_deceleration=float(reader.number(merged, "quick_stop_deceleration", what,
+                                                    max_velocity / 0.1)),
+        watchdog_timeout=float(reader.number(merged, "watchdog_timeout", what, 0.1)),
+        heartbeat_period=float(reader.number(merged, "heartbeat_period", what, 0.1)),
+        holding_brake=bool(brake),
+        position_limits=_motor_limits(robot, transmission),
+        gains=gains,
+        velocity_bandwidth_hz=float(reader.number(merged, "velocity_bandwidth_hz", what, 40.0)),
+        options=options, line=own.line)
+
+
+def _read_options(reader: Reader, drive: LineMapping, what: str, spec) -> object | None:
+    """The protocol's own settings (``options:``), validated by its ``Options``."""
+    raw = drive.get("options", LineMapping())
+    line = drive.key_lines.get("options", drive.line)
+    if spec.Options is None:
+        if raw:
+            reader.fail(f"{what}: protocol '{spec.name}' takes no 'options'", line)
+        return None
+    if not isinstance(raw, dict):
+        reader.fail(f"{what}: 'options' must be a mapping", line)
+        return None
+    unknown = sorted(set(raw) - set(spec.Options.KEYS))
+    if unknown:
+        reader.fail(f"{what}: unknown option(s) {', '.join(unknown)} for protocol "
+                    f"'{spec.name}'", line,
+                    hint=f"{spec.name} options: {', '.join(spec.Options.KEYS)}")
+        return None
+    try:
+        return spec.Options.from_mapping(dict(raw))
+    except (ValueError, TypeError) as exc:
+        reader.fail(f"{what}: options: {exc}", line,
+                    hint=f"{spec.name} options: {', '.join(spec.Options.KEYS)}")
+        return None
+
+
+def _find_actuator(reader: Reader, drive: LineMapping, what: str, robot: RobotDescription,
+                   transmissions: tuple[Transmission, ...]) -> tuple[Transmission, int] | None:
+    line = drive.key_lines.get("joint", drive.key_lines.get("actuator", drive.line))
+    if "actuator" in drive:
+        for transmission in transmissions:
+            if drive["actuator"] in transmission.actuators:
+                return transmission, transmission.actuators.index(drive["actuator"])
+        reader.fail(f"{what}: actuator '{drive['actuator']}' is not in robot '{robot.name}'",
+                    line, hint=f"actuators: {', '.join(a.name for a in robot.actuators)}")
+        return None
+    joint = drive.get("joint")
+    if joint is None:
+        reader.fail(f"{what}: give the 'joint' (or 'actuator') this drive moves", drive.line)
+        return None
+    for transmission in transmissions:
+        if joint in transmission.joints:
+            if len(transmission.actuators) > 1:
+                reader.fail(f"{what}: joint '{joint}' is driven by several actuators "
+                            f"({', '.join(transmission.actuators)})", line,
+                            hint="name the 'actuator' instead of the joint")
+                return None
+            return transmission, 0
+    driven = ", ".join(j.name for j in robot.driven_joints)
+    known = joint in {j.name for j in robot.joints}
+    reader.fail(f"{what}: joint '{joint}' " + ("has no transmission in" if known else
+                                               "does not exist in") + f" robot '{robot.name}'",
+                line, hint=f"driven joints: {driven}")
+    return None
+
+
+def _motor_limits(robot: RobotDescription, transmission: Transmission) -> tuple[float, float] | None:
+    """Software position limits on the motor, from the joint limits (simple transmissions)."""
+    if not isinstance(transmission, SimpleTransmission):
+        return None
+    joint = robot.joint(transmission.joints[0])
+    if joint.type is JointType.CONTINUOUS or joint.limits is None or joint.limits.lower is None:
+        return None
+    ends = sorted(float(transmission.joint_to_actuator_position([q])[0])
+                  for q in (joint.limits.lower, joint.limits.upper))
+    return ends[0], ends[1]

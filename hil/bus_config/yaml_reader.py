@@ -1,0 +1,91 @@
+"""YAML with line numbers, and typed reads from it that collect diagnostics (file, line,
+what to do) instead of raising at the first problem.
+
+PyYAML's nodes know their lines but its loaded mappings do not: :class:`LineLoader` keeps
+them on each mapping."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import yaml
+
+from hil.errors import Diagnostic, error, warning
+
+
+class LineMapping(dict):
+    """A YAML mapping that remembers the line of the mapping and of each key."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.line: int | None = None
+        self.key_lines: dict[str, int] = {}
+
+
+class LineLoader(yaml.SafeLoader):
+    def construct_mapping(self, node, deep=False):
+        mapping = LineMapping(super().construct_mapping(node, deep=True))
+        mapping.line = node.start_mark.line + 1
+        mapping.key_lines = {k.value: k.start_mark.line + 1 for k, _ in node.value
+                             if isinstance(k, yaml.ScalarNode)}
+        return mapping
+
+
+LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
+                        LineLoader.construct_mapping)
+
+
+class Reader:
+    """Typed access to YAML mappings, collecting diagnostics with lines."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.diagnostics: list[Diagnostic] = []
+
+    def fail(self, message: str, line: int | None, hint: str | None = None) -> None:
+        self.diagnostics.append(error(message, self.path, line, hint))
+
+    def warn(self, message: str, line: int | None, hint: str | None = None) -> None:
+        self.diagnostics.append(warning(message, self.path, line, hint))
+
+    def mapping(self, value, what: str, line: int | None) -> LineMapping:
+        if isinstance(value, LineMapping):
+            return value
+        self.fail(f"{what} must be a mapping (key: value), not {type(value).__name__}", line)
+        return LineMapping()
+
+    def unknown_keys(self, mapping: LineMapping, known: set[str], what: str) -> None:
+        for key in mapping:
+            if key not in known:
+                self.fail(f"unknown key '{key}' in {what}",
+                          mapping.key_lines.get(key, mapping.line),
+                          hint=f"known keys: {', '.join(sorted(known))}")
+
+    def number(self, mapping: LineMapping, key: str, what: str, default=None, *,
+               positive: bool = True, integer: bool = False):
+        line = mapping.key_lines.get(key, mapping.line)
+        if key not in mapping:
+            if default is None:
+                self.fail(f"{what}: '{key}' is missing", mapping.line)
+                return 1        # placeholder: the error above fails the load
+            return default
+        value = mapping[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or (
+                integer and not isinstance(value, int)):
+            kind = "a whole number" if integer else "a number"
+            self.fail(f"{what}: '{key}' must be {kind}, not {value!r}", line)
+            return default
+        if not math.isfinite(value) or (positive and value <= 0):
+            self.fail(f"{what}: '{key}' must be {'> 0' if positive else 'finite'}, not {value}",
+                      line)
+            return default
+        return value
+
+    def text(self, mapping: LineMapping, key: str, what: str, default: str | None = None) -> str:
+        value = mapping.get(key, default)
+        if not isinstance(value, str) or not value:
+            self.fail(f"{what}: '{key}' must be a non-empty string",
+                      mapping.key_lines.get(key, mapping.line))
+            return default or ""
+        return value

@@ -1,0 +1,134 @@
+"""Supervising ``hil`` child processes: start each with its log, notice one that dies,
+stop them in a known order (SIGTERM, then SIGKILL past a timeout).
+
+Children run in their own session, so Ctrl-C reaches the supervisor only, and they stop
+themselves if it is killed (:func:`hil.cli.common.end_with_parent_if_asked`).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+from hil.cli import common
+from hil.messaging.zenoh_api import ProcessWatch
+
+#: how long each child may take to come up (s); the first run compiles MuJoCo models
+START_TIMEOUT = 60.0
+#: how long each child may take to stop after SIGTERM before it is killed (s)
+STOP_TIMEOUT = 15.0
+LAST_LINES = 15
+
+
+@dataclass
+class Child:
+    """One ``hil`` sub-process, its log file and what it must be stopped with."""
+
+    name: str
+    argv: list[str]
+    log_path: Path
+    process: subprocess.Popen | None = None
+    expected_exit: bool = False
+
+    def start(self) -> None:
+        env = dict(os.environ, PYTHONUNBUFFERED="1", **{common.PARENT_PID_VARIABLE: str(os.getpid())})
+        with open(self.log_path, "wb") as log:
+            self.process = subprocess.Popen(
+                [sys.executable, "-m", "hil", *self.argv], stdout=log, stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL, env=env, start_new_session=True)
+
+    @property
+    def pid(self) -> int:
+        return self.process.pid
+
+    def exited(self) -> int | None:
+        return None if self.process is None else self.process.poll()
+
+    def last_lines(self) -> str:
+        try:
+            with open(self.log_path, errors="replace") as log:
+                lines = deque(log, maxlen=LAST_LINES)
+        except OSError:
+            return "    (no log)"
+        return "".join(f"    {line}" for line in lines).rstrip() or "    (its log is empty)"
+
+    def stop(self) -> str | None:
+        """SIGTERM, wait, SIGKILL if needed; return a problem in words, or None."""
+        if self.process is None or self.process.poll() is not None:
+            return None
+        self.expected_exit = True
+        self.process.send_signal(signal.SIGTERM)
+        try:
+            status = self.process.wait(STOP_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+            return f"{self.name} did not stop within {STOP_TIMEOUT:g} s and was killed"
+        return None if status == 0 else f"{self.name} stopped with status {status}"
+
+
+class ChildFailed(Exception):
+    """A child exited (or failed to come up) while it should have been running."""
+
+
+class Run:
+    """The three children of one ``hil up`` and their supervision."""
+
+    def __init__(self, children: list[Child], stop: threading.Event):
+        self.children = children
+        self.stop = stop
+
+    def check(self) -> None:
+        """Raise ChildFailed naming a child that has died unexpectedly."""
+        for child in self.children:
+            status = child.exited()
+            if status is not None and not child.expected_exit:
+                raise ChildFailed(f"{child.name} (pid {child.pid}) exited with status {status}; "
+                                  f"its last lines ({child.log_path}):\n{child.last_lines()}")
+
+    def wait(self, seconds: float) -> None:
+        """Sleep up to ``seconds``, checking the children; return early when stopped."""
+        deadline = time.monotonic() + seconds
+        while not self.stop.is_set() and time.monotonic() < deadline:
+            self.check()
+            self.stop.wait(min(0.1, max(0.0, deadline - time.monotonic())))
+
+    def shut_down(self) -> list[str]:
+        """Stop the running children: controller, visualiser, sim; return problems."""
+        order = {"control": 0, "viz": 1, "sim": 2}
+        problems = []
+        for child in sorted(self.children, key=lambda c: order[c.name]):
+            child.expected_exit = True
+            problem = child.stop()
+            if problem:
+                problems.append(problem)
+        return problems
+
+
+def kill_later(child: Child, delay: float, stop: threading.Event) -> None:
+    """Fault injection: SIGKILL a child; the supervision then reports it as crashed."""
+    if not stop.wait(delay) and child.exited() is None:
+        print(f"hil up: injected kill of {child.name} (pid {child.pid})", flush=True)
+        child.process.kill()
+
+
+def wait_alive(run: Run, watch: ProcessWatch, child: Child) -> None:
+    """Wait until ``child`` is alive on Zenoh (its liveliness token); raise ChildFailed if
+    it dies or does not come up within START_TIMEOUT."""
+    deadline = time.monotonic() + START_TIMEOUT
+    while not watch.wait_alive(child.name, 0.1):
+        run.check()
+        if run.stop.is_set():
+            return
+        if time.monotonic() > deadline:
+            raise ChildFailed(f"{child.name} (pid {child.pid}) did not come up within "
+                              f"{START_TIMEOUT:g} s; its last lines ({child.log_path}):\n"
+                              f"{child.last_lines()}")
+    print(f"hil up: {child.name} ready (pid {child.pid})", flush=True)

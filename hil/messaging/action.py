@@ -1,0 +1,298 @@
+"""The FollowJointTrajectory action on Zenoh (keys: :mod:`hil.messaging.keys`): the
+server around a JointTrajectoryController, and the client ``hil send`` and scripts use.
+Payloads are ROS 2 CDR of the action's messages."""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+import uuid
+from collections.abc import Callable
+
+import numpy as np
+import zenoh
+
+from hil.controllers import (
+    GoalRejected, GoalResult, GoalStatus, JointTrajectoryController, TrajectoryGoal,
+)
+from hil.messaging import types as T
+from hil.messaging.keys import ACTION, direct, key
+from hil.realtime import enter_side_work, paused_collection, release_gradually
+
+#: the largest goal request taken (CDR bytes): 16 MiB, over 200,000 points of 6 joints
+#: (the controller takes at most MAX_POINTS of them)
+MAX_GOAL_BYTES = 16 * 2 ** 20
+
+
+class TrajectoryActionServer:
+    """Serves a JointTrajectoryController's FollowJointTrajectory action on Zenoh."""
+
+    def __init__(self, session: zenoh.Session, robot: str, controller: JointTrajectoryController,
+                 clock: Callable[[], float]):
+        self.session, self.robot, self.controller, self.clock = session, robot, controller, clock
+        self._results: dict[str, GoalResult] = {}
+        self._lock = threading.Lock()
+        #: answers a fault reset: () -> (succeeded, message); set by the control loop
+        self.on_reset: Callable[[], tuple[bool, str]] | None = None
+        prefix = key(robot, ACTION)
+        self._feedback = session.declare_publisher(f"{prefix}/feedback")
+        self._result = session.declare_publisher(f"{prefix}/result")
+        self._warm_up()
+        self._queryables = [
+            session.declare_queryable(f"{prefix}/send_goal", self._on_send_goal),
+            session.declare_queryable(f"{prefix}/cancel_goal", self._on_cancel),
+            session.declare_queryable(f"{prefix}/get_result", self._on_get_result),
+            session.declare_queryable(key(robot, "reset_faults"), self._on_reset),
+        ]
+
+    def _warm_up(self) -> None:
+        """Encode each message type once: rosbags builds its codecs on first use, which
+        would otherwise stall the first control cycles that publish."""
+        names = list(self.controller.joint_names)
+        zeros = [0.0] * len(names)
+        T.encode(T.joint_state_msg(0.0, names, zeros, zeros, zeros))
+        T.encode(T.result_msg("00" * 16, GoalResult(GoalStatus.SUCCEEDED, 0)))
+        T.encode(self._feedback_message("00" * 16, names, zeros, zeros, zeros, zeros))
+
+    def _feedback_message(self, goal_id, names, desired, desired_velocity, actual,
+                          actual_velocity):
+        desired, actual = np.asarray(desired), np.asarray(actual)
+        desired_velocity, actual_velocity = np.asarray(desired_velocity), np.asarray(
+            actual_velocity)
+        feedback = T.msg(
+            "control_msgs/action/FollowJointTrajectory_Feedback", header=T.header(time.time()),
+            joint_names=list(names), desired=T.point_msg(desired, desired_velocity),
+            actual=T.point_msg(actual, actual_velocity),
+            error=T.point_msg(desired - actual, desired_velocity - actual_velocity),
+            multi_dof_joint_names=[], multi_dof_desired=_empty_multi_dof(),
+            multi_dof_actual=_empty_multi_dof(), multi_dof_error=_empty_multi_dof())
+        return T.msg(T.FEEDBACK_MESSAGE, goal_id=T.uuid_msg(goal_id), feedback=feedback)
+
+    def _on_send_goal(self, query: zenoh.Query) -> None:
+        # a large goal is a burst of Python objects in this thread: decoded below the frame
+        # handling's priority, with the collector paused and freed a chunk at a time, it
+        # never holds the control loop or the frames for long (hil.realtime)
+        enter_side_work()
+        with paused_collection():
+            try:
+                payload = _payload(query)
+                if len(payload) > MAX_GOAL_BYTES:
+                    raise GoalRejected(f"the goal is {len(payload)} bytes; this controller takes "
+                                       f"at most {MAX_GOAL_BYTES} (split it into several goals)")
+                request = T.decode(payload, T.SEND_GOAL_REQUEST)
+                goal_id = T.goal_id_of(request.goal_id)
+                stamp = T.seconds_of(request.goal.trajectory.header.stamp)
+                start = None if stamp == 0 else self.clock() + (stamp - time.time())
+                goal = T.goal_from_msg(request.goal, start)
+                release_gradually(request.goal.trajectory.points)
+                self.controller.submit(goal_id, goal)
+            except (ValueError, GoalRejected) as exc:
+                code = getattr(exc, "error_code", -1)
+                query.reply_err(f"rejected ({code}): {exc}")
+                return
+        query.reply(query.key_expr, T.encode(T.msg(T.SEND_GOAL_RESPONSE, accepted=True,
+                                                     stamp=T.time_msg(time.time()))))
+
+    def _on_cancel(self, query: zenoh.Query) -> None:
+        enter_side_work()
+        request = _decode_or_reply_error(query, T.CANCEL_REQUEST)
+        if request is None:
+            return
+        goal_id = T.goal_id_of(request.goal_info.goal_id)
+        canceled = self.controller.cancel(goal_id)
+        self.publish_results()
+        query.reply(query.key_expr, T.encode(T.msg(
+            T.CANCEL_RESPONSE, return_code=0 if canceled else 2,   # 2: ERROR_UNKNOWN_GOAL_ID
+            goals_canceling=[request.goal_info] if canceled else [])))
+
+    def _on_get_result(self, query: zenoh.Query) -> None:
+        enter_side_work()
+        request = _decode_or_reply_error(query, T.GET_RESULT_REQUEST)
+        if request is None:
+            return
+        with self._lock:
+            result = self._results.get(T.goal_id_of(request.goal_id))
+        if result is None:
+            query.reply_err("no result (yet) for that goal")
+            return
+        query.reply(query.key_expr, T.encode(T.result_msg(T.goal_id_of(request.goal_id), result)))
+
+    def _on_reset(self, query: zenoh.Query) -> None:
+        enter_side_work()
+        if self.on_reset is None:
+            query.reply_err("this controller cannot reset faults")
+            return
+        succeeded, message = self.on_reset()
+        query.reply(query.key_expr, T.encode(T.msg(T.TRIGGER_RESPONSE, success=succeeded,
+                                                     message=message)))
+
+    def publish_feedback(self) -> None:
+        state = self.controller.state()
+        if state.goal_id is None:
+            return
+        self._feedback.put(T.encode(self._feedback_message(
+            state.goal_id, state.joint_names, state.desired_positions, state.desired_velocities,
+            state.actual_positions, state.actual_velocities)))
+
+    def publish_results(self) -> None:
+        for goal_id, result in self.controller.finished():
+            with self._lock:
+                self._results[goal_id] = result
+            self._result.put(T.encode(T.result_msg(goal_id, result)))
+
+    def close(self) -> None:
+        for queryable in self._queryables:
+            queryable.undeclare()
+        self._feedback.undeclare()
+        self._result.undeclare()
+
+
+def _decode_or_reply_error(query: zenoh.Query, typename: str):
+    """The query's request, or None after answering a malformed one with an error."""
+    try:
+        return T.decode(_payload(query), typename)
+    except ValueError as exc:
+        query.reply_err(str(exc))
+        return None
+
+
+def _payload(query: zenoh.Query) -> bytes:
+    if query.payload is None:
+        raise ValueError("the query carries no payload")
+    return query.payload.to_bytes()
+
+
+def _empty_multi_dof():
+    return T.msg("trajectory_msgs/msg/MultiDOFJointTrajectoryPoint", transforms=[],
+                 velocities=[], accelerations=[], time_from_start=T.duration_msg(0.0))
+
+
+class ControllerGone(RuntimeError):
+    """The controller process disappeared (its liveliness token went away)."""
+
+
+class TrajectoryActionClient:
+    """Sends FollowJointTrajectory goals to a hil controller over Zenoh. A context manager:
+    ``with TrajectoryActionClient(session, "ur3") as client: ...`` closes it."""
+
+    def __init__(self, session: zenoh.Session, robot: str):
+        self.session, self.robot = session, robot
+        prefix = key(robot, ACTION)
+        self._prefix = prefix
+        self._results: "queue.Queue[tuple[str, GoalResult]]" = queue.Queue()
+        self._feedback: "queue.Queue" = queue.Queue()
+        # callbacks in Zenoh's own threads (not indirect): an indirect callback runs in a
+        # Python thread of its own that is not a daemon, and a script that ended without
+        # close() waited for those threads at exit (60 s, measured)
+        self._subscribers = [
+            session.declare_subscriber(f"{prefix}/result", direct(self._on_result)),
+            session.declare_subscriber(f"{prefix}/feedback", direct(self._on_feedback)),
+        ]
+        self._alive = threading.Event()
+        self._gone = threading.Event()
+        self._liveliness = session.liveliness().declare_subscriber(
+            key(robot, "control"), direct(self._on_liveliness), history=True)
+
+    def _on_liveliness(self, sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            self._alive.set()
+            self._gone.clear()
+        else:
+            self._alive.clear()
+            self._gone.set()
+
+    def _on_result(self, sample: zenoh.Sample) -> None:
+        try:
+            message = T.decode(sample.payload.to_bytes(), T.GOAL_RESULT)
+        except ValueError:
+            return
+        self._results.put((T.goal_id_of(message.goal_id), T.result_from_msg(message)))
+
+    def _on_feedback(self, sample: zenoh.Sample) -> None:
+        try:
+            self._feedback.put(T.decode(sample.payload.to_bytes(), T.FEEDBACK_MESSAGE))
+        except ValueError:
+            pass
+
+    def wait_for_controller(self, timeout: float) -> bool:
+        return self._alive.wait(timeout)
+
+    def send_goal(self, goal: TrajectoryGoal, start_stamp: float = 0.0,
+                  timeout: float = 5.0) -> str:
+        """Send a goal; return its id, or raise GoalRejected with the controller's reason."""
+        goal_id = uuid.uuid4().hex
+        request = T.encode(T.msg(T.SEND_GOAL_REQUEST, goal_id=T.uuid_msg(goal_id),
+                                 goal=T.goal_msg(goal, start_stamp)))
+        return self._query("send_goal", request, timeout, goal_id)
+
+    def send_raw(self, payload: bytes, timeout: float = 5.0) -> str:
+        """Send arbitrary bytes as a goal request (for testing the server's defences)."""
+        return self._query("send_goal", payload, timeout, "")
+
+    def _query(self, name: str, payload: bytes, timeout: float, goal_id: str) -> str:
+        replies = list(self.session.get(f"{self._prefix}/{name}", payload=payload,
+                                        timeout=timeout))
+        if not replies:
+            raise ControllerGone(f"no controller answered on {self._prefix}/{name} within "
+                                 f"{timeout:g} s")
+        reply = replies[0]
+        if reply.err is not None:
+            text = reply.err.payload.to_bytes().decode(errors="replace")
+            raise GoalRejected(text)
+        return goal_id
+
+    def cancel(self, goal_id: str, timeout: float = 5.0) -> bool:
+        info = T.msg("action_msgs/msg/GoalInfo", goal_id=T.uuid_msg(goal_id),
+                     stamp=T.time_msg(0.0))
+        replies = list(self.session.get(f"{self._prefix}/cancel_goal",
+                                        payload=T.encode(T.msg(T.CANCEL_REQUEST, goal_info=info)),
+                                        timeout=timeout))
+        if not replies or replies[0].err is not None:
+            return False
+        return T.decode(replies[0].ok.payload.to_bytes(), T.CANCEL_RESPONSE).return_code == 0
+
+    def reset_faults(self, timeout: float = 15.0) -> tuple[bool, str]:
+        """Ask the controller to reset drive faults; (succeeded, what happened)."""
+        replies = list(self.session.get(key(self.robot, "reset_faults"), timeout=timeout))
+        if not replies:
+            raise ControllerGone(f"no controller answered on {key(self.robot, 'reset_faults')}")
+        if replies[0].err is not None:
+            return False, replies[0].err.payload.to_bytes().decode(errors="replace")
+        response = T.decode(replies[0].ok.payload.to_bytes(), T.TRIGGER_RESPONSE)
+        return response.success, response.message
+
+    def wait_result(self, goal_id: str, timeout: float,
+                    on_feedback: Callable | None = None) -> GoalResult:
+        """Wait for a goal's result; raise ControllerGone if the controller dies first."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            while not self._feedback.empty():        # drained even when nobody looks at it
+                feedback = self._feedback.get_nowait()
+                if on_feedback is not None and T.goal_id_of(feedback.goal_id) == goal_id:
+                    on_feedback(feedback.feedback)
+            try:
+                done_id, result = self._results.get(timeout=0.05)
+            except queue.Empty:
+                if self._gone.is_set():
+                    raise ControllerGone(f"the controller for '{self.robot}' went away "
+                                         f"(liveliness lost) before goal {goal_id[:8]} ended")
+                continue
+            if done_id == goal_id:
+                return result
+        raise TimeoutError(f"no result for goal {goal_id[:8]} within {timeout:g} s")
+
+    def close(self) -> None:
+        for subscriber in self._subscribers:
+            subscriber.undeclare()
+        self._liveliness.undeclare()
+
+    def __enter__(self) -> TrajectoryActionClient:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+
+__all__ = ["ControllerGone", "MAX_GOAL_BYTES", "TrajectoryActionClient",
+           "TrajectoryActionServer"]
