@@ -19,6 +19,7 @@ import uml_run  # noqa: E402
 
 
 @pytest.mark.slow      # boots a kernel and runs the socketcan tests there: minutes
+@pytest.mark.timeout(1000)            # beyond the run's own limit below (960 s)
 def test_socketcan_suite_passes_inside_user_mode_linux():
     if socketcan_missing() is None:
         pytest.skip("this kernel has vcan0: the socketcan tests ran directly")

@@ -285,14 +285,14 @@ class CanHardwareInterface(HardwareInterface):
             return feedback
         for k in np.nonzero(bad)[0]:
             name = self.joint_names[k]
-            for axis in [a for a in self.axes if name in a.config.joints][:1]:
-                self._report(name, "implausible", axis.found(
-                    FaultKind.IMPLAUSIBLE,
-                    f"sent implausible feedback: joint '{name}' measured at "
-                    f"{feedback.positions[k]:+.4g} moving {feedback.velocities[k]:+.4g}/s, "
-                    f"beyond what it can reach ([{low[k]:.4g}, {high[k]:.4g}], speed "
-                    f"{self._speed_limit[k]:.4g}): a frame the drive did not send, or the "
-                    "encoder or transmission settings of the bus config are wrong"))
+            axis = next(a for a in self.axes if name in a.config.joints)   # its first drive
+            self._report(name, "implausible", axis.found(
+                FaultKind.IMPLAUSIBLE,
+                f"sent implausible feedback: joint '{name}' measured at "
+                f"{feedback.positions[k]:+.4g} moving {feedback.velocities[k]:+.4g}/s, "
+                f"beyond what it can reach ([{low[k]:.4g}, {high[k]:.4g}], speed "
+                f"{self._speed_limit[k]:.4g}): a frame the drive did not send, or the "
+                "encoder or transmission settings of the bus config are wrong"))
         last = self._plausible
         positions, velocities = feedback.positions.copy(), feedback.velocities.copy()
         positions[bad] = last.positions[bad] if last else np.clip(positions, low, high)[bad]
