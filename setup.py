@@ -2,9 +2,9 @@
 
 The drive core's inner loops (``hil/drives/core.py``) and the CiA 402 state machine
 (``hil/protocols/cia402/state.py``) run for every drive on every plant step and cycle.
-Compiled, the same typed Python takes about 30 % off a lock-step cycle (README,
-"Performance"). The Python files stay the only source: without a compiler the install goes
-on and they run interpreted (``hil.compiled`` tells which form runs).
+Compiled, the same typed Python takes about 30 % off a lock-step cycle
+(docs/performance.md). The Python files stay the only source: without a compiler the
+install goes on and they run interpreted (``hil.compiled`` tells which form runs).
 """
 
 import hashlib
