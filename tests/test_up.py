@@ -112,6 +112,16 @@ def test_up_runs_the_demo_and_records_axes_robot_and_can_traffic(tmp_path):
     for node in range(1, 8):                 # every drive's TPDO1 and every RPDO
         bus = "pigot/arm" if node <= 3 else "pigot/wrist"
         assert frames[(bus, 0x180 + node)] > 1000 and frames[(bus, 0x200 + node)] > 1000
+    # the CAN log says what it missed: the frames the monitor received are in it, less the
+    # ones its FIFO could not hold and those still arriving as it closed (the controller is
+    # stopped by then: a few heartbeats), and the frames lost on the way are counted
+    for bus in ("arm", "wrist"):
+        found = re.search(rf"hil up: CAN log, bus {bus}: sent 0, received (\d+), lost on the way "
+                          r"(\d+), overrun (\d+)", result.stdout)
+        assert found, result.stdout
+        received, _, overrun = map(int, found.groups())
+        logged = sum(n for (channel, _), n in frames.items() if channel == f"pigot/{bus}")
+        assert 0 <= received - overrun - logged <= 50, (bus, received, overrun, logged)
     logs = save.with_name("run.logs")
     assert {p.name for p in logs.iterdir()} == {"sim.log", "control.log", "viz.log"}
 

@@ -315,9 +315,13 @@ def _report_outputs(save: Path, can_log: Path, viz: Child) -> None:
         if path.is_file():
             print(f"hil up: {what}: {path} ({path.stat().st_size / 1e6:.1f} MB)")
     if viz.process is not None:
-        summary = [line for line in viz.last_lines().splitlines() if "cycles in" in line]
+        lines = [line.strip().removeprefix("hil viz: ") for line in viz.last_lines().splitlines()]
+        for line in lines:
+            if line.startswith("CAN monitor, "):
+                print(f"hil up: CAN log, {line.removeprefix('CAN monitor, ')}")
+        summary = [line for line in lines if "cycles in" in line]
         if summary:
-            print(f"hil up: recorded {summary[-1].strip().removeprefix('hil viz: ')}")
+            print(f"hil up: recorded {summary[-1]}")
     if save.is_file():
         beside = Path(sys.executable).with_name("rerun")      # the venv's viewer, if any
         print(f"hil up: review with: {beside if beside.exists() else 'rerun'} {save}")

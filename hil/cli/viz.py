@@ -75,15 +75,21 @@ def run(args: argparse.Namespace) -> int:
                     for s in (signal.SIGINT, signal.SIGTERM)}
         print(f"hil viz: {config.robot.name}; {described}"
               + (f"; CAN log {args.can_log}" if args.can_log else ""), flush=True)
+        buses = []
         try:
             node.run()
         finally:
             if monitor is not None:
                 monitor.close()
+                # what the CAN log and the bus-load plot missed: a visualiser that falls
+                # behind loses frames (the transport drops them rather than stall a sender)
+                buses = common.bus_report(monitor.buses)
             recording.flush()
             close_all()
             for signum, handler in previous.items():
                 signal.signal(signum, handler)
+    for line in buses:
+        print(f"hil viz: CAN monitor, {line}", flush=True)
     print(f"hil viz: {node.summary()}", flush=True)
     return 0
 
