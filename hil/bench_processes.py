@@ -2,10 +2,10 @@
 
 Each run starts ``hil sim`` and ``hil control`` (and, in the runs "with viz", ``hil viz``
 recording a file and the CAN log) as separate processes on the Zenoh CAN transport over
-loopback, in real time, placed on the CPUs as ``hil up`` places them, for a while, stops them with SIGINT and reads the
-controller's own report (``hil control --report``): period error, missed cycles, busy time,
-the round trip from each cycle's SYNC to its last answer, faults; and each process' CPU
-share from /proc.
+loopback, in real time, placed on the CPUs as ``hil up`` places them, for a while, stops
+them with SIGINT and reads the controller's own report (``hil control --report``): period
+error, missed cycles, busy time, the round trip from each cycle's SYNC to its last answer,
+faults; and each process' CPU share from /proc.
 
 The floor, measured in the same bench run: the same frames per cycle (every drive's
 cyclic frames and SYNC out, their answers back, per bus) exchanged between two processes
@@ -33,6 +33,7 @@ import can
 import yaml
 
 from hil.bus_config import SystemConfig
+from hil.cli.common import cpus_option
 from hil.realtime import CyclePacer, PeriodStatistics, Ring, enter_real_time, real_time_cpus
 from hil.zenoh_session import free_loopback_port
 
@@ -128,10 +129,6 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _cpus_option(cpus: set[int] | None) -> list[str]:
-    return [f"--cpus={','.join(map(str, sorted(cpus)))}"] if cpus else []
-
-
 def stack_across_processes(config_path: Path, seconds: float, with_viz: bool) -> dict:
     """One real-time run of ``hil sim`` + ``hil control`` (+ ``hil viz``) on the config."""
     sim_cpus, control_cpus, viz_cpus = real_time_cpus()
@@ -142,15 +139,15 @@ def stack_across_processes(config_path: Path, seconds: float, with_viz: bool) ->
         processes = _Processes(folder)
         try:
             processes.start("sim", ["sim", str(config_path), "--listen", endpoint,
-                                    "--status-period", "0", *_cpus_option(sim_cpus)],
+                                    "--status-period", "0", *cpus_option(sim_cpus)],
                             "hil sim:")
             if with_viz:
                 processes.start("viz", ["viz", str(config_path), "--connect", endpoint,
                                         "--save", str(folder / "run.rrd"), "--can-log",
-                                        str(folder / "run.can.log"), *_cpus_option(viz_cpus)],
+                                        str(folder / "run.can.log"), *cpus_option(viz_cpus)],
                                 "hil viz:")
             processes.start("control", ["control", str(config_path), "--connect", endpoint,
-                                        "--report", str(report), *_cpus_option(control_cpus)],
+                                        "--report", str(report), *cpus_option(control_cpus)],
                             "hil control:")
             time.sleep(SETTLE)
             processes.mark_cpu()

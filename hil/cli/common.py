@@ -115,6 +115,11 @@ def cpus(args: argparse.Namespace) -> set[int] | None:
     return chosen
 
 
+def cpus_option(chosen: set[int] | None) -> list[str]:
+    """``--cpus`` for a child process (as :func:`cpus` reads it); none for None."""
+    return [f"--cpus={','.join(map(str, sorted(chosen)))}"] if chosen else []
+
+
 def display_available() -> bool:
     """Whether a rerun viewer could open a window here."""
     has_display = sys.platform == "darwin" or bool(os.environ.get("DISPLAY")

@@ -97,8 +97,8 @@ def run(args: argparse.Namespace) -> int:
               *(f"--package-path={p}" for p in args.package_path)]
     timing = args.timing or "real-time"
     lock_step = ["--lock-step"] if timing == "lock-step" else []
-    placed = {name: [f"--cpus={','.join(map(str, sorted(cpus)))}"] if cpus and not lock_step
-              else [] for name, cpus in zip(("sim", "control", "viz"), real_time_cpus())}
+    placed = {name: [] if lock_step else common.cpus_option(cpus)
+              for name, cpus in zip(("sim", "control", "viz"), real_time_cpus())}
     viewer = _viewer_options(args)
     children = {
         "sim": Child("sim", ["sim", *shared, *lock_step, *placed["sim"], "--listen", endpoint,
