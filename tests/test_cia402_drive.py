@@ -19,7 +19,7 @@ import pytest
 from conftest import EDS
 
 from hil.protocols.cia402.state import SUPPORTED_MODES
-from hil.drives.core import Fault
+from hil.drives.definitions import Fault
 
 CYCLE = 0.01          # the fixture config's 100 Hz SYNC
 COUNTS = 131072       # encoder counts per motor revolution (fixture default)

@@ -88,7 +88,7 @@ def _torques(core_module, velocity_mode: bool) -> list[tuple]:
 
 @pytest.mark.skipif(not is_compiled(hil.drives.core),
                     reason="the drive core is not compiled in this install (setup.py found no "
-                           "C compiler, or hil/drives/core.py or hil/protocols/cia402/state.py changed since "
+                           "C compiler, or a module it compiles (setup.py COMPILED) changed since "
                            "`pip install -e .`)")
 @pytest.mark.parametrize("velocity_mode", [False, True])
 def test_the_compiled_drive_core_computes_what_its_source_does(velocity_mode):

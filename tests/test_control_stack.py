@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from hil.controllers import GoalRejected, GoalStatus, TrajectoryGoal, TrajectoryPoint
-from hil.messaging import types as T
+from hil.messaging import cdr
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient, key
 from hil.zenoh_session import ZenohSettings, session
 from conftest import ROOT, free_port, socketcan_missing
@@ -52,7 +52,7 @@ class ProcessStack:
         self.states: list = []
         self._subscriber = self.session.declare_subscriber(
             key(robot, "joint_states"),
-            lambda s: self.states.append(T.decode(s.payload.to_bytes(), T.JOINT_STATE)))
+            lambda s: self.states.append(cdr.decode(s.payload.to_bytes(), cdr.JOINT_STATE)))
 
     @staticmethod
     def _spawn(args, banner):

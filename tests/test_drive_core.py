@@ -7,7 +7,8 @@ import math
 import pytest
 
 from hil.protocols.cia402.state import Cia402StateMachine, State, statusword
-from hil.drives.core import DriveCore, DriveParameters, Fault, Mode, Power
+from hil.drives.core import DriveCore
+from hil.drives.definitions import DriveParameters, Fault, Mode, Power
 from conftest import TEST_MOTOR_DRIVE
 
 DT = 0.001

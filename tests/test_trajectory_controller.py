@@ -275,10 +275,10 @@ def test_non_finite_tolerances_are_refused_before_any_motion(ur3_jtc, bad):
 
 
 def test_a_decoded_goal_keeps_its_points_as_arrays():
-    from hil.messaging import types as T
+    from hil.messaging import cdr
     sent = _long_goal(50, arrays=False)
-    decoded = T.goal_from_msg(T.decode(T.encode(T.goal_msg(sent)),
-                                       "control_msgs/action/FollowJointTrajectory_Goal"), None)
+    decoded = cdr.goal_from_msg(cdr.decode(cdr.encode(cdr.goal_msg(sent)),
+                                           "control_msgs/action/FollowJointTrajectory_Goal"), None)
     assert isinstance(decoded.points, TrajectoryPoints)
     assert [p.positions for p in decoded.points] == [p.positions for p in sent.points]
     assert [p.time_from_start for p in decoded.points] == pytest.approx(   # whole nanoseconds

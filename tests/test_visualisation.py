@@ -15,7 +15,7 @@ from hil.can.monitor import BusLoadMeter
 from hil.controllers.demo import demo_goal
 from hil.description.source import read_robot_source
 from hil.hardware import JointFeedback
-from hil.messaging import types as T
+from hil.messaging import cdr
 from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.samples import ControlSampleBuffer, ControlSamples
 from hil.visualisation import RunRecorder, SimTimeMap
@@ -79,12 +79,12 @@ def test_diagnostics_survive_encoding_and_malformed_ones_are_refused_naming_what
         Diagnostic.decode(fault.encode()[:-5])
 
     def status(level: int, control_time: str):
-        return T.msg(T.DIAGNOSTIC_STATUS, level=level, name="hil control", message="m",
-                     hardware_id="", values=[T.msg("diagnostic_msgs/msg/KeyValue",
-                                                   key="control_time", value=control_time)])
+        return cdr.msg(cdr.DIAGNOSTIC_STATUS, level=level, name="hil control", message="m",
+                       hardware_id="", values=[cdr.msg("diagnostic_msgs/msg/KeyValue",
+                                                       key="control_time", value=control_time)])
 
     def array(*statuses):
-        return T.encode(T.msg(T.DIAGNOSTIC_ARRAY, header=T.header(0.0), status=list(statuses)))
+        return cdr.encode(cdr.msg(cdr.DIAGNOSTIC_ARRAY, header=cdr.header(0.0), status=list(statuses)))
 
     with pytest.raises(ValueError, match="level 7 of 'hil control'"):
         Diagnostic.decode(array(status(7, "1.0")))

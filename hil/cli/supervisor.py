@@ -14,6 +14,7 @@ import sys
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -79,11 +80,12 @@ class ChildFailed(Exception):
 
 
 class Run:
-    """The three children of one ``hil up`` and their supervision."""
+    """The children of one run (``hil up``, a bench run) and their supervision; ``stop``
+    set (Ctrl-C, SIGTERM) ends every wait early."""
 
-    def __init__(self, children: list[Child], stop: threading.Event):
+    def __init__(self, children: list[Child], stop: threading.Event | None = None):
         self.children = children
-        self.stop = stop
+        self.stop = stop or threading.Event()
 
     def check(self) -> None:
         """Raise ChildFailed naming a child that has died unexpectedly."""
@@ -99,6 +101,29 @@ class Run:
         while not self.stop.is_set() and time.monotonic() < deadline:
             self.check()
             self.stop.wait(min(0.1, max(0.0, deadline - time.monotonic())))
+
+    def wait_until(self, child: Child, ready: Callable[[float], bool], what: str) -> None:
+        """Call ``ready(timeout)`` until it says yes, checking the children between calls;
+        raise ChildFailed if one dies or ``child`` is not ``what`` within START_TIMEOUT."""
+        deadline = time.monotonic() + START_TIMEOUT
+        while not ready(0.1):
+            self.check()
+            if self.stop.is_set():
+                return
+            if time.monotonic() > deadline:
+                raise ChildFailed(f"{child.name} (pid {child.pid}) was not {what} within "
+                                  f"{START_TIMEOUT:g} s; its last lines ({child.log_path}):\n"
+                                  f"{child.last_lines()}")
+
+    def wait_for_line(self, child: Child, text: str) -> None:
+        """Wait until ``child``'s log holds ``text`` (its banner), as :meth:`wait_until`."""
+        def logged(timeout: float) -> bool:
+            if text in child.log_path.read_text(errors="replace"):
+                return True
+            time.sleep(timeout)
+            return False
+
+        self.wait_until(child, logged, f"up (no {text!r} in its log)")
 
     def shut_down(self) -> list[str]:
         """Stop the running children: controller, visualiser, sim; return problems."""
@@ -120,15 +145,14 @@ def kill_later(child: Child, delay: float, stop: threading.Event) -> None:
 
 
 def wait_alive(run: Run, watch: ProcessWatch, child: Child) -> None:
-    """Wait until ``child`` is alive on Zenoh (its liveliness token); raise ChildFailed if
-    it dies or does not come up within START_TIMEOUT."""
-    deadline = time.monotonic() + START_TIMEOUT
-    while not watch.wait_alive(child.name, 0.1):
-        run.check()
-        if run.stop.is_set():
-            return
-        if time.monotonic() > deadline:
-            raise ChildFailed(f"{child.name} (pid {child.pid}) did not come up within "
-                              f"{START_TIMEOUT:g} s; its last lines ({child.log_path}):\n"
-                              f"{child.last_lines()}")
-    print(f"hil up: {child.name} ready (pid {child.pid})", flush=True)
+    """Wait until ``child`` is alive on Zenoh (its liveliness token), as
+    :meth:`Run.wait_until`."""
+    run.wait_until(child, lambda timeout: watch.wait_alive(child.name, timeout), "alive on Zenoh")
+    if not run.stop.is_set():
+        print(f"hil up: {child.name} ready (pid {child.pid})", flush=True)
+
+
+def viz_summary(viz: Child) -> str | None:
+    """The visualiser's closing summary ("N cycles in M batches, ..."), if it printed one."""
+    lines = [line for line in viz.last_lines().splitlines() if "cycles in" in line]
+    return lines[-1].strip().removeprefix("hil viz: ") if lines else None

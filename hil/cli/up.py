@@ -34,7 +34,7 @@ from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import (
     ControllerGone, ProcessWatch, RunSubscriber, TrajectoryActionClient,
 )
-from hil.cli.supervisor import Child, ChildFailed, Run, kill_later, wait_alive
+from hil.cli.supervisor import Child, ChildFailed, Run, kill_later, viz_summary, wait_alive
 from hil.realtime import real_time_cpus
 from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
 
@@ -319,9 +319,9 @@ def _report_outputs(save: Path, can_log: Path, viz: Child) -> None:
         for line in lines:
             if line.startswith("CAN monitor, "):
                 print(f"hil up: CAN log, {line.removeprefix('CAN monitor, ')}")
-        summary = [line for line in lines if "cycles in" in line]
+        summary = viz_summary(viz)
         if summary:
-            print(f"hil up: recorded {summary[-1]}")
+            print(f"hil up: recorded {summary}")
     if save.is_file():
         beside = Path(sys.executable).with_name("rerun")      # the venv's viewer, if any
         print(f"hil up: review with: {beside if beside.exists() else 'rerun'} {save}")

@@ -11,7 +11,8 @@ from hil.description.model import (
 )
 from hil.description.packages import PackagePath, project_robots_dir
 from hil.description.source import read_robot_source
-from hil.description.urdf import TRANSMISSION_TYPES, parse_urdf
+from hil.description.urdf import parse_urdf
+from hil.description.urdf_transmissions import TRANSMISSION_TYPES
 from hil.errors import HilError, Severity
 
 __all__ = [

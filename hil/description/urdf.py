@@ -1,111 +1,23 @@
 """URDF element tree -> :class:`RobotDescription`, with every problem found
-reported at once, each naming its file and line.
-
-Transmissions are read in both dialects: ROS 1 ``<transmission>`` at the top
-level (``<type>``, ``<mechanicalReduction>``, ``<role>`` elements) and ROS 2
-``<ros2_control>`` blocks (``<plugin>``, ``<mechanical_reduction>``, ``role``
-attributes).
-"""
+reported at once, each naming its file and line (transmissions:
+:mod:`hil.description.urdf_transmissions`)."""
 
 from __future__ import annotations
 
 import math
-import re
 import xml.etree.ElementTree as ET
 from collections import Counter, defaultdict
 from pathlib import Path
 
 from hil.description.model import (
     Geometry, GeometryKind, Inertial, Joint, JointDynamics, JointLimits, JointType, Link,
-    Mimic, Pose, RobotDescription, TransmissionActuator, TransmissionJoint, TransmissionSpec,
-    Visual,
+    Mimic, RobotDescription, Visual,
 )
 from hil.description.packages import PackagePath
+from hil.description.reader import ElementReader, start_tag
 from hil.description.source import RobotSource
-from hil.errors import Diagnostic, HilError, Severity, error, warning
-
-#: Transmission types hil can model, by the names ROS 1 and ROS 2 use for them.
-TRANSMISSION_TYPES = {
-    "transmission_interface/SimpleTransmission": "simple",
-    "transmission_interface/DifferentialTransmission": "differential",
-    "transmission_interface/FourBarLinkageTransmission": "four_bar",
-}
-_ARITY = {"simple": 1, "differential": 2, "four_bar": 2}
-
-
-def start_tag(tag: str, name: str) -> re.Pattern:
-    """The start tag ``<tag ... name="name"``, across lines and other attributes."""
-    return re.compile(rf"<{re.escape(tag)}\b[^>]*?\bname\s*=\s*[\"']{re.escape(name)}[\"']",
-                      re.DOTALL)
-
-
-class SourceIndex:
-    """Finds the file and line where a named element is written.
-
-    The expanded URDF has no line numbers (xacro builds it in memory), so an
-    element is found by searching the source files for its start tag with
-    the same ``name``. Names built by macros (``${prefix}joint``) are not
-    found; the diagnostic then names the top-level file only.
-    """
-
-    def __init__(self, files: tuple[Path, ...]):
-        self.files = files
-        self._texts = {f: f.read_text(errors="replace") for f in files if f.is_file()}
-
-    def locate(self, tag: str, name: str) -> tuple[Path, int | None]:
-        pattern = start_tag(tag, name)
-        for file, text in self._texts.items():
-            match = pattern.search(text)
-            if match:
-                return file, text.count("\n", 0, match.start()) + 1
-        return self.files[0], None
-
-
-class _Reader:
-    """One pass over a URDF tree, collecting diagnostics instead of stopping."""
-
-    def __init__(self, source: RobotSource, package_path: PackagePath):
-        self.source = source
-        self.package_path = package_path
-        self.index = SourceIndex(source.files)
-        self.diagnostics: list[Diagnostic] = []
-
-    def report(self, make, message: str, tag: str, name: str, hint: str | None = None) -> None:
-        file, line = self.index.locate(tag, name)
-        self.diagnostics.append(make(message, file, line, hint))
-
-    def number(self, text: str | None, what: str, tag: str, name: str,
-               default: float | None = None) -> float | None:
-        if text is None or text.strip() == "":
-            return default
-        try:
-            value = float(text)
-        except ValueError:
-            self.report(error, f"{what} '{text}' is not a number", tag, name,
-                        hint="write a plain decimal number (xacro expressions need ${...})")
-            return default
-        if not math.isfinite(value):
-            self.report(error, f"{what} is {value}", tag, name, hint="use a finite number")
-            return default
-        return value
-
-    def vector(self, text: str | None, size: int, what: str, tag: str, name: str,
-               default: tuple[float, ...]) -> tuple[float, ...]:
-        if text is None:
-            return default
-        parts = text.split()
-        values = [self.number(p, what, tag, name) for p in parts]
-        if len(parts) != size or any(v is None for v in values):
-            if len(parts) != size:
-                self.report(error, f"{what} '{text}' needs {size} numbers", tag, name)
-            return default
-        return tuple(values)
-
-    def pose(self, element: ET.Element | None, tag: str, name: str) -> Pose:
-        if element is None:
-            return Pose()
-        return Pose(self.vector(element.get("xyz"), 3, "origin xyz", tag, name, (0.0,) * 3),
-                    self.vector(element.get("rpy"), 3, "origin rpy", tag, name, (0.0,) * 3))
+from hil.description.urdf_transmissions import check_transmissions, read_transmission
+from hil.errors import HilError, Severity, error, warning
 
 
 def parse_urdf(source: RobotSource, package_path: PackagePath) -> RobotDescription:
@@ -114,18 +26,18 @@ def parse_urdf(source: RobotSource, package_path: PackagePath) -> RobotDescripti
     if root.tag != "robot":
         raise HilError.single(f"the root element is <{root.tag}>, not <robot>", source.path,
                               hint="a URDF file starts with <robot name=\"...\">")
-    reader = _Reader(source, package_path)
+    reader = ElementReader(source, package_path)
     links = tuple(_read_link(reader, e) for e in root.findall("link"))
     joints = tuple(_read_joint(reader, e) for e in root.findall("joint"))
-    specs = [_read_transmission(reader, e) for e in root.findall("transmission")]
+    specs = [read_transmission(reader, e) for e in root.findall("transmission")]
     for block in root.findall("ros2_control"):
-        specs += [_read_transmission(reader, e) for e in block.findall("transmission")]
+        specs += [read_transmission(reader, e) for e in block.findall("transmission")]
     transmissions = tuple(s for s in specs if s is not None)
 
     _check_links(reader, links)
     _check_tree(reader, links, joints)
     _check_mimic(reader, joints)
-    _check_transmissions(reader, joints, transmissions)
+    check_transmissions(reader, joints, transmissions)
     _check_visuals(reader, links, joints)
 
     errors = [d for d in reader.diagnostics if d.severity is Severity.ERROR]
@@ -139,7 +51,7 @@ def parse_urdf(source: RobotSource, package_path: PackagePath) -> RobotDescripti
 
 # --- links -----------------------------------------------------------------
 
-def _read_link(reader: _Reader, element: ET.Element) -> Link:
+def _read_link(reader: ElementReader, element: ET.Element) -> Link:
     name = element.get("name", "")
     inertial = None
     found = element.find("inertial")
@@ -158,7 +70,7 @@ def _read_link(reader: _Reader, element: ET.Element) -> Link:
     return Link(name=name, inertial=inertial, visuals=visuals)
 
 
-def _read_visual(reader: _Reader, link: str, element: ET.Element) -> Visual | None:
+def _read_visual(reader: ElementReader, link: str, element: ET.Element) -> Visual | None:
     geometry_element = element.find("geometry")
     shape = geometry_element[0] if geometry_element is not None and len(geometry_element) else None
     if shape is None:
@@ -181,7 +93,7 @@ def _read_visual(reader: _Reader, link: str, element: ET.Element) -> Visual | No
                   rgba=rgba)
 
 
-def _read_geometry(reader: _Reader, link: str, shape: ET.Element) -> Geometry:
+def _read_geometry(reader: ElementReader, link: str, shape: ET.Element) -> Geometry:
     what = f"link '{link}' {shape.tag}"
     if shape.tag == "box":
         return Geometry(GeometryKind.BOX,
@@ -221,7 +133,7 @@ def resolve_uri(uri: str, relative_to: Path, package_path: PackagePath) -> Path 
     return relative_to.parent / uri
 
 
-def _check_links(reader: _Reader, links: tuple[Link, ...]) -> None:
+def _check_links(reader: ElementReader, links: tuple[Link, ...]) -> None:
     for name, count in Counter(link.name for link in links).items():
         if count > 1:
             reader.report(error, f"link name '{name}' is used {count} times", "link", name,
@@ -247,7 +159,7 @@ def _check_links(reader: _Reader, links: tuple[Link, ...]) -> None:
 
 # --- joints ----------------------------------------------------------------
 
-def _read_joint(reader: _Reader, element: ET.Element) -> Joint:
+def _read_joint(reader: ElementReader, element: ET.Element) -> Joint:
     name = element.get("name", "")
     type_text = element.get("type", "")
     try:
@@ -276,7 +188,7 @@ def _read_joint(reader: _Reader, element: ET.Element) -> Joint:
         mimic=_read_mimic(reader, name, element.find("mimic")))
 
 
-def _read_limits(reader: _Reader, joint: str, joint_type: JointType,
+def _read_limits(reader: ElementReader, joint: str, joint_type: JointType,
                  element: ET.Element | None) -> JointLimits | None:
     if joint_type not in (JointType.REVOLUTE, JointType.PRISMATIC, JointType.CONTINUOUS):
         return None
@@ -314,7 +226,7 @@ def _read_limits(reader: _Reader, joint: str, joint_type: JointType,
                        velocity=velocity or 0.0)
 
 
-def _read_dynamics(reader: _Reader, joint: str, element: ET.Element | None) -> JointDynamics:
+def _read_dynamics(reader: ElementReader, joint: str, element: ET.Element | None) -> JointDynamics:
     if element is None:
         return JointDynamics()
     damping = reader.number(element.get("damping"), f"joint '{joint}' damping", "joint", joint,
@@ -327,7 +239,7 @@ def _read_dynamics(reader: _Reader, joint: str, element: ET.Element | None) -> J
     return JointDynamics(damping=max(damping, 0.0), friction=max(friction, 0.0))
 
 
-def _read_mimic(reader: _Reader, joint: str, element: ET.Element | None) -> Mimic | None:
+def _read_mimic(reader: ElementReader, joint: str, element: ET.Element | None) -> Mimic | None:
     if element is None:
         return None
     return Mimic(
@@ -338,7 +250,7 @@ def _read_mimic(reader: _Reader, joint: str, element: ET.Element | None) -> Mimi
                              joint, 0.0))
 
 
-def _check_tree(reader: _Reader, links: tuple[Link, ...], joints: tuple[Joint, ...]) -> None:
+def _check_tree(reader: ElementReader, links: tuple[Link, ...], joints: tuple[Joint, ...]) -> None:
     link_names = {link.name for link in links}
     for name, count in Counter(j.name for j in joints).items():
         if count > 1:
@@ -370,7 +282,7 @@ def _check_tree(reader: _Reader, links: tuple[Link, ...], joints: tuple[Joint, .
             reader.source.path, hint="connect every link to one tree with joints"))
 
 
-def _missing_link_hint(reader: _Reader, link: str) -> str:
+def _missing_link_hint(reader: ElementReader, link: str) -> str:
     """Name the file that defines ``link`` if it lies on the package path unincluded."""
     pattern = start_tag("link", link)
     loaded = set(reader.source.files)
@@ -395,7 +307,7 @@ def _find_form(file: Path, package_path: PackagePath) -> str:
     return str(file)
 
 
-def _check_mimic(reader: _Reader, joints: tuple[Joint, ...]) -> None:
+def _check_mimic(reader: ElementReader, joints: tuple[Joint, ...]) -> None:
     by_name = {j.name: j for j in joints}
     for joint in joints:
         if joint.mimic is None:
@@ -411,127 +323,9 @@ def _check_mimic(reader: _Reader, joints: tuple[Joint, ...]) -> None:
                           hint="mimic an actuated joint directly")
 
 
-# --- transmissions ---------------------------------------------------------
-
-def _read_transmission(reader: _Reader, element: ET.Element) -> TransmissionSpec | None:
-    name = element.get("name", "")
-    type_text = (element.findtext("type") or element.findtext("plugin") or "").strip()
-
-    def reduction(part: ET.Element, what: str) -> float:
-        text = part.findtext("mechanicalReduction") or part.findtext("mechanical_reduction")
-        value = reader.number(text, f"transmission '{name}' {what} reduction", "transmission",
-                              name, 1.0)
-        if value == 0:
-            reader.report(error, f"transmission '{name}' {what} has mechanical reduction 0",
-                          "transmission", name,
-                          hint="a reduction is motor turns per joint turn, e.g. 100")
-        return value
-
-    def role(part: ET.Element) -> str | None:
-        return part.get("role") or (part.findtext("role") or "").strip() or None
-
-    joints = tuple(
-        TransmissionJoint(name=j.get("name", ""), role=role(j),
-                          reduction=reduction(j, f"joint '{j.get('name')}'"),
-                          offset=reader.number(j.findtext("offset"),
-                                               f"transmission '{name}' offset", "transmission",
-                                               name, 0.0))
-        for j in element.findall("joint"))
-    actuators = tuple(
-        TransmissionActuator(
-            name=a.get("name", ""), role=role(a),
-            reduction=reduction(a, f"actuator '{a.get('name')}'"),
-            rotor_inertia=reader.number(a.findtext("rotorInertia") or a.findtext("rotor_inertia"),
-                                        f"transmission '{name}' rotor inertia", "transmission",
-                                        name, 0.0))
-        for a in element.findall("actuator"))
-    return TransmissionSpec(name=name, type=type_text, joints=_by_role(joints, "joint"),
-                            actuators=_by_role(actuators, "actuator"))
-
-
-def _by_role(parts: tuple, prefix: str) -> tuple:
-    """Order joints/actuators by role (joint1, joint2) when roles are given."""
-    if all(p.role and p.role.startswith(prefix) for p in parts):
-        return tuple(sorted(parts, key=lambda p: p.role))
-    return parts
-
-
-def _check_transmissions(reader: _Reader, joints: tuple[Joint, ...],
-                         transmissions: tuple[TransmissionSpec, ...]) -> None:
-    by_name = {j.name: j for j in joints}
-    _check_unique(reader, "transmission", [(t.name, t) for t in transmissions],
-                  hint="give each transmission its own name, e.g. in a macro "
-                       "name=\"${joint_name}_trans\"")
-    _check_unique(reader, "actuator", [(a.name, t) for t in transmissions for a in t.actuators],
-                  hint="each actuator drives through one transmission: give each its own "
-                       "name, e.g. name=\"${joint_name}_motor\"")
-    _check_unique(reader, "joint", [(j.name, t) for t in transmissions for j in t.joints],
-                  hint="a joint can be driven through one transmission only")
-    for spec in transmissions:
-        kind = TRANSMISSION_TYPES.get(spec.type)
-        if kind is None:
-            reader.report(error, f"transmission '{spec.name}' has unknown type '{spec.type}'",
-                          "transmission", spec.name,
-                          hint=f"use one of: {', '.join(TRANSMISSION_TYPES)}")
-            continue
-        if kind == "simple":
-            _check_simple_reduction(reader, spec)
-        arity = _ARITY[kind]
-        if len(spec.joints) != arity or len(spec.actuators) != arity:
-            reader.report(error, f"transmission '{spec.name}' ({kind}) has "
-                          f"{len(spec.joints)} joint(s) and {len(spec.actuators)} actuator(s); "
-                          f"it needs {arity} of each", "transmission", spec.name)
-        for tj in spec.joints:
-            joint = by_name.get(tj.name)
-            if joint is None:
-                reader.report(error, f"transmission '{spec.name}' names joint '{tj.name}', "
-                              "which does not exist", "transmission", spec.name,
-                              hint=f"name one of: {', '.join(j.name for j in joints if j.is_movable)}")
-            elif not joint.is_movable:
-                reader.report(error, f"transmission '{spec.name}' drives {joint.type.value} "
-                              f"joint '{tj.name}', which cannot move", "transmission", spec.name)
-            elif joint.mimic is not None:
-                reader.report(error, f"transmission '{spec.name}' drives mimic joint "
-                              f"'{tj.name}'; a mimic joint follows its leader and has no "
-                              "actuator", "transmission", spec.name,
-                              hint="remove the transmission or the <mimic>")
-        for actuator in spec.actuators:
-            if actuator.rotor_inertia < 0:
-                reader.report(error, f"actuator '{actuator.name}' has negative rotor inertia",
-                              "transmission", spec.name)
-    driven = {tj.name for t in transmissions for tj in t.joints}
-    for joint in joints:
-        if joint.is_movable and joint.mimic is None and joint.name not in driven:
-            reader.report(warning, f"joint '{joint.name}' has no transmission: it is passive "
-                          "(no actuator moves it)", "joint", joint.name,
-                          hint="add a <transmission> if a motor drives this joint")
-
-
-def _check_simple_reduction(reader: _Reader, spec: TransmissionSpec) -> None:
-    # Coupled transmissions use signs for their direction conventions (as in
-    # ros2_control); a simple one has the joint axis for that.
-    for part in (*spec.joints, *spec.actuators):
-        if part.reduction < 0:
-            reader.report(error, f"transmission '{spec.name}' has mechanical reduction "
-                          f"{part.reduction} on '{part.name}'; it must be > 0", "transmission",
-                          spec.name, hint="to reverse the direction, flip the joint's <axis>")
-
-
-def _check_unique(reader: _Reader, what: str, named: list[tuple[str, TransmissionSpec]],
-                  hint: str) -> None:
-    users: dict[str, list[str]] = defaultdict(list)
-    for name, spec in named:
-        users[name].append(", ".join(j.name for j in spec.joints))
-    for name, joint_lists in users.items():
-        if len(joint_lists) > 1:
-            reader.report(error, f"{what} name '{name}' is used by {len(joint_lists)} "
-                          f"transmissions (joints {'; '.join(joint_lists)})", what, name,
-                          hint=hint)
-
-
 # --- visuals ---------------------------------------------------------------
 
-def _check_visuals(reader: _Reader, links: tuple[Link, ...], joints: tuple[Joint, ...]) -> None:
+def _check_visuals(reader: ElementReader, links: tuple[Link, ...], joints: tuple[Joint, ...]) -> None:
     """Warn about visuals far outside the robot (unit or export errors)."""
     extent = sum(j.origin.distance for j in joints)
     limit = max(1.0, 2.0 * extent)

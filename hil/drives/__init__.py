@@ -8,9 +8,10 @@ from hil.compiled import import_fresh
 
 # compiled by the install where it could be (setup.py): the core and the CiA 402 device,
 # one build (compiled modules of one build call each other directly: both or neither)
-import_fresh("hil.drives.core", "hil.protocols.cia402.state")
+import_fresh("hil.drives.definitions", "hil.drives.core", "hil.protocols.cia402.state")
 
-from hil.drives.core import DriveCore, DriveParameters, DriveStatus, Fault, Mode, Power  # noqa: E402
+from hil.drives.core import DriveCore  # noqa: E402
+from hil.drives.definitions import DriveParameters, DriveStatus, Fault, Mode, Power  # noqa: E402
 from hil.drives.profile import DriveProfile  # noqa: E402
 
 __all__ = ["DriveCore", "DriveParameters", "DriveProfile", "DriveStatus", "Fault", "Mode",

@@ -16,7 +16,7 @@ import zenoh
 from hil.controllers import (
     GoalRejected, GoalResult, GoalStatus, JointTrajectoryController, TrajectoryGoal,
 )
-from hil.messaging import types as T
+from hil.messaging import cdr
 from hil.messaging.keys import ACTION, direct, key
 from hil.realtime import enter_side_work, paused_collection, release_gradually
 
@@ -51,23 +51,23 @@ class TrajectoryActionServer:
         would otherwise stall the first control cycles that publish."""
         names = list(self.controller.joint_names)
         zeros = [0.0] * len(names)
-        T.encode(T.joint_state_msg(0.0, names, zeros, zeros, zeros))
-        T.encode(T.result_msg("00" * 16, GoalResult(GoalStatus.SUCCEEDED, 0)))
-        T.encode(self._feedback_message("00" * 16, names, zeros, zeros, zeros, zeros))
+        cdr.encode(cdr.joint_state_msg(0.0, names, zeros, zeros, zeros))
+        cdr.encode(cdr.result_msg("00" * 16, GoalResult(GoalStatus.SUCCEEDED, 0)))
+        cdr.encode(self._feedback_message("00" * 16, names, zeros, zeros, zeros, zeros))
 
     def _feedback_message(self, goal_id, names, desired, desired_velocity, actual,
                           actual_velocity):
         desired, actual = np.asarray(desired), np.asarray(actual)
         desired_velocity, actual_velocity = np.asarray(desired_velocity), np.asarray(
             actual_velocity)
-        feedback = T.msg(
-            "control_msgs/action/FollowJointTrajectory_Feedback", header=T.header(time.time()),
-            joint_names=list(names), desired=T.point_msg(desired, desired_velocity),
-            actual=T.point_msg(actual, actual_velocity),
-            error=T.point_msg(desired - actual, desired_velocity - actual_velocity),
+        feedback = cdr.msg(
+            "control_msgs/action/FollowJointTrajectory_Feedback", header=cdr.header(time.time()),
+            joint_names=list(names), desired=cdr.point_msg(desired, desired_velocity),
+            actual=cdr.point_msg(actual, actual_velocity),
+            error=cdr.point_msg(desired - actual, desired_velocity - actual_velocity),
             multi_dof_joint_names=[], multi_dof_desired=_empty_multi_dof(),
             multi_dof_actual=_empty_multi_dof(), multi_dof_error=_empty_multi_dof())
-        return T.msg(T.FEEDBACK_MESSAGE, goal_id=T.uuid_msg(goal_id), feedback=feedback)
+        return cdr.msg(cdr.FEEDBACK_MESSAGE, goal_id=cdr.uuid_msg(goal_id), feedback=feedback)
 
     def _on_send_goal(self, query: zenoh.Query) -> None:
         # a large goal is a burst of Python objects in this thread: decoded below the frame
@@ -80,43 +80,43 @@ class TrajectoryActionServer:
                 if len(payload) > MAX_GOAL_BYTES:
                     raise GoalRejected(f"the goal is {len(payload)} bytes; this controller takes "
                                        f"at most {MAX_GOAL_BYTES} (split it into several goals)")
-                request = T.decode(payload, T.SEND_GOAL_REQUEST)
-                goal_id = T.goal_id_of(request.goal_id)
-                stamp = T.seconds_of(request.goal.trajectory.header.stamp)
+                request = cdr.decode(payload, cdr.SEND_GOAL_REQUEST)
+                goal_id = cdr.goal_id_of(request.goal_id)
+                stamp = cdr.seconds_of(request.goal.trajectory.header.stamp)
                 start = None if stamp == 0 else self.clock() + (stamp - time.time())
-                goal = T.goal_from_msg(request.goal, start)
+                goal = cdr.goal_from_msg(request.goal, start)
                 release_gradually(request.goal.trajectory.points)
                 self.controller.submit(goal_id, goal)
             except (ValueError, GoalRejected) as exc:
                 code = getattr(exc, "error_code", -1)
                 query.reply_err(f"rejected ({code}): {exc}")
                 return
-        query.reply(query.key_expr, T.encode(T.msg(T.SEND_GOAL_RESPONSE, accepted=True,
-                                                     stamp=T.time_msg(time.time()))))
+        query.reply(query.key_expr, cdr.encode(cdr.msg(cdr.SEND_GOAL_RESPONSE, accepted=True,
+                                                     stamp=cdr.time_msg(time.time()))))
 
     def _on_cancel(self, query: zenoh.Query) -> None:
         enter_side_work()
-        request = _decode_or_reply_error(query, T.CANCEL_REQUEST)
+        request = _decode_or_reply_error(query, cdr.CANCEL_REQUEST)
         if request is None:
             return
-        goal_id = T.goal_id_of(request.goal_info.goal_id)
+        goal_id = cdr.goal_id_of(request.goal_info.goal_id)
         canceled = self.controller.cancel(goal_id)
         self.publish_results()
-        query.reply(query.key_expr, T.encode(T.msg(
-            T.CANCEL_RESPONSE, return_code=0 if canceled else 2,   # 2: ERROR_UNKNOWN_GOAL_ID
+        query.reply(query.key_expr, cdr.encode(cdr.msg(
+            cdr.CANCEL_RESPONSE, return_code=0 if canceled else 2,   # 2: ERROR_UNKNOWN_GOAL_ID
             goals_canceling=[request.goal_info] if canceled else [])))
 
     def _on_get_result(self, query: zenoh.Query) -> None:
         enter_side_work()
-        request = _decode_or_reply_error(query, T.GET_RESULT_REQUEST)
+        request = _decode_or_reply_error(query, cdr.GET_RESULT_REQUEST)
         if request is None:
             return
         with self._lock:
-            result = self._results.get(T.goal_id_of(request.goal_id))
+            result = self._results.get(cdr.goal_id_of(request.goal_id))
         if result is None:
             query.reply_err("no result (yet) for that goal")
             return
-        query.reply(query.key_expr, T.encode(T.result_msg(T.goal_id_of(request.goal_id), result)))
+        query.reply(query.key_expr, cdr.encode(cdr.result_msg(cdr.goal_id_of(request.goal_id), result)))
 
     def _on_reset(self, query: zenoh.Query) -> None:
         enter_side_work()
@@ -124,14 +124,14 @@ class TrajectoryActionServer:
             query.reply_err("this controller cannot reset faults")
             return
         succeeded, message = self.on_reset()
-        query.reply(query.key_expr, T.encode(T.msg(T.TRIGGER_RESPONSE, success=succeeded,
-                                                     message=message)))
+        query.reply(query.key_expr, cdr.encode(cdr.msg(cdr.TRIGGER_RESPONSE, success=succeeded,
+                                                         message=message)))
 
     def publish_feedback(self) -> None:
         state = self.controller.state()
         if state.goal_id is None:
             return
-        self._feedback.put(T.encode(self._feedback_message(
+        self._feedback.put(cdr.encode(self._feedback_message(
             state.goal_id, state.joint_names, state.desired_positions, state.desired_velocities,
             state.actual_positions, state.actual_velocities)))
 
@@ -139,7 +139,7 @@ class TrajectoryActionServer:
         for goal_id, result in self.controller.finished():
             with self._lock:
                 self._results[goal_id] = result
-            self._result.put(T.encode(T.result_msg(goal_id, result)))
+            self._result.put(cdr.encode(cdr.result_msg(goal_id, result)))
 
     def close(self) -> None:
         for queryable in self._queryables:
@@ -151,7 +151,7 @@ class TrajectoryActionServer:
 def _decode_or_reply_error(query: zenoh.Query, typename: str):
     """The query's request, or None after answering a malformed one with an error."""
     try:
-        return T.decode(_payload(query), typename)
+        return cdr.decode(_payload(query), typename)
     except ValueError as exc:
         query.reply_err(str(exc))
         return None
@@ -164,8 +164,8 @@ def _payload(query: zenoh.Query) -> bytes:
 
 
 def _empty_multi_dof():
-    return T.msg("trajectory_msgs/msg/MultiDOFJointTrajectoryPoint", transforms=[],
-                 velocities=[], accelerations=[], time_from_start=T.duration_msg(0.0))
+    return cdr.msg("trajectory_msgs/msg/MultiDOFJointTrajectoryPoint", transforms=[],
+                   velocities=[], accelerations=[], time_from_start=cdr.duration_msg(0.0))
 
 
 class ControllerGone(RuntimeError):
@@ -204,14 +204,14 @@ class TrajectoryActionClient:
 
     def _on_result(self, sample: zenoh.Sample) -> None:
         try:
-            message = T.decode(sample.payload.to_bytes(), T.GOAL_RESULT)
+            message = cdr.decode(sample.payload.to_bytes(), cdr.GOAL_RESULT)
         except ValueError:
             return
-        self._results.put((T.goal_id_of(message.goal_id), T.result_from_msg(message)))
+        self._results.put((cdr.goal_id_of(message.goal_id), cdr.result_from_msg(message)))
 
     def _on_feedback(self, sample: zenoh.Sample) -> None:
         try:
-            self._feedback.put(T.decode(sample.payload.to_bytes(), T.FEEDBACK_MESSAGE))
+            self._feedback.put(cdr.decode(sample.payload.to_bytes(), cdr.FEEDBACK_MESSAGE))
         except ValueError:
             pass
 
@@ -222,8 +222,8 @@ class TrajectoryActionClient:
                   timeout: float = 5.0) -> str:
         """Send a goal; return its id, or raise GoalRejected with the controller's reason."""
         goal_id = uuid.uuid4().hex
-        request = T.encode(T.msg(T.SEND_GOAL_REQUEST, goal_id=T.uuid_msg(goal_id),
-                                 goal=T.goal_msg(goal, start_stamp)))
+        request = cdr.encode(cdr.msg(cdr.SEND_GOAL_REQUEST, goal_id=cdr.uuid_msg(goal_id),
+                                     goal=cdr.goal_msg(goal, start_stamp)))
         return self._query("send_goal", request, timeout, goal_id)
 
     def send_raw(self, payload: bytes, timeout: float = 5.0) -> str:
@@ -243,14 +243,14 @@ class TrajectoryActionClient:
         return goal_id
 
     def cancel(self, goal_id: str, timeout: float = 5.0) -> bool:
-        info = T.msg("action_msgs/msg/GoalInfo", goal_id=T.uuid_msg(goal_id),
-                     stamp=T.time_msg(0.0))
+        info = cdr.msg("action_msgs/msg/GoalInfo", goal_id=cdr.uuid_msg(goal_id),
+                       stamp=cdr.time_msg(0.0))
         replies = list(self.session.get(f"{self._prefix}/cancel_goal",
-                                        payload=T.encode(T.msg(T.CANCEL_REQUEST, goal_info=info)),
+                                        payload=cdr.encode(cdr.msg(cdr.CANCEL_REQUEST, goal_info=info)),
                                         timeout=timeout))
         if not replies or replies[0].err is not None:
             return False
-        return T.decode(replies[0].ok.payload.to_bytes(), T.CANCEL_RESPONSE).return_code == 0
+        return cdr.decode(replies[0].ok.payload.to_bytes(), cdr.CANCEL_RESPONSE).return_code == 0
 
     def reset_faults(self, timeout: float = 15.0) -> tuple[bool, str]:
         """Ask the controller to reset drive faults; (succeeded, what happened)."""
@@ -259,7 +259,7 @@ class TrajectoryActionClient:
             raise ControllerGone(f"no controller answered on {key(self.robot, 'reset_faults')}")
         if replies[0].err is not None:
             return False, replies[0].err.payload.to_bytes().decode(errors="replace")
-        response = T.decode(replies[0].ok.payload.to_bytes(), T.TRIGGER_RESPONSE)
+        response = cdr.decode(replies[0].ok.payload.to_bytes(), cdr.TRIGGER_RESPONSE)
         return response.success, response.message
 
     def wait_result(self, goal_id: str, timeout: float,
@@ -269,7 +269,7 @@ class TrajectoryActionClient:
         while time.monotonic() < deadline:
             while not self._feedback.empty():        # drained even when nobody looks at it
                 feedback = self._feedback.get_nowait()
-                if on_feedback is not None and T.goal_id_of(feedback.goal_id) == goal_id:
+                if on_feedback is not None and cdr.goal_id_of(feedback.goal_id) == goal_id:
                     on_feedback(feedback.feedback)
             try:
                 done_id, result = self._results.get(timeout=0.05)

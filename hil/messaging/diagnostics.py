@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 
 from hil.hardware import AxisFault
-from hil.messaging import types as T
+from hil.messaging import cdr
 
 #: DiagnosticStatus.level, by value
 LEVELS = ("OK", "WARN", "ERROR", "STALE")
@@ -40,21 +40,21 @@ class Diagnostic:
     def encode(self) -> bytes:
         pairs = list(self.values) if self.control_time is None else [
             (CONTROL_TIME, repr(self.control_time)), *self.values]
-        values = [T.msg("diagnostic_msgs/msg/KeyValue", key=k, value=v) for k, v in pairs]
-        status = T.msg(T.DIAGNOSTIC_STATUS, level=LEVELS.index(self.level), name=self.name,
-                       message=self.message, hardware_id=self.hardware_id, values=values)
-        return T.encode(T.msg(T.DIAGNOSTIC_ARRAY, header=T.header(self.wall_time),
-                              status=[status]))
+        values = [cdr.msg("diagnostic_msgs/msg/KeyValue", key=k, value=v) for k, v in pairs]
+        status = cdr.msg(cdr.DIAGNOSTIC_STATUS, level=LEVELS.index(self.level), name=self.name,
+                         message=self.message, hardware_id=self.hardware_id, values=values)
+        return cdr.encode(cdr.msg(cdr.DIAGNOSTIC_ARRAY, header=cdr.header(self.wall_time),
+                                  status=[status]))
 
     @classmethod
     def decode(cls, data: bytes) -> list[Diagnostic]:
         """Every status of a DiagnosticArray; raise ValueError naming what is wrong."""
-        message = T.decode(data, T.DIAGNOSTIC_ARRAY)
-        wall_time = T.seconds_of(message.header.stamp)
+        message = cdr.decode(data, cdr.DIAGNOSTIC_ARRAY)
+        wall_time = cdr.seconds_of(message.header.stamp)
         found = []
         for status in message.status:
             if not 0 <= status.level < len(LEVELS):
-                raise ValueError(f"malformed {T.DIAGNOSTIC_ARRAY}: level {status.level} of "
+                raise ValueError(f"malformed {cdr.DIAGNOSTIC_ARRAY}: level {status.level} of "
                                  f"'{status.name}' (0-{len(LEVELS) - 1} exist)")
             found.append(cls(LEVELS[status.level], status.message, wall_time,
                              _control_time(status), status.name, status.hardware_id,
@@ -79,7 +79,7 @@ def _control_time(status) -> float | None:
             except ValueError:
                 value = math.nan
             if not math.isfinite(value):
-                raise ValueError(f"malformed {T.DIAGNOSTIC_ARRAY}: {CONTROL_TIME} "
+                raise ValueError(f"malformed {cdr.DIAGNOSTIC_ARRAY}: {CONTROL_TIME} "
                                  f"'{pair.value}' of '{status.name}' is not a finite number")
             return value
     return None

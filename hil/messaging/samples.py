@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hil.hardware import JointFeedback
-from hil.messaging import types as T
+from hil.messaging import cdr
 
 
 @dataclass(frozen=True)
@@ -57,8 +57,8 @@ class ControlSamples:
         return self.first_cycle + len(self)
 
     def encode(self) -> bytes:
-        return T.encode(T.msg(
-            T.CONTROL_SAMPLES, first_cycle=self.first_cycle, period=self.period,
+        return cdr.encode(cdr.msg(
+            cdr.CONTROL_SAMPLES, first_cycle=self.first_cycle, period=self.period,
             wall_time=self.wall_time, control_time=self.control_time,
             joint_names=list(self.joint_names), reference=self.reference.ravel(),
             reference_velocity=self.reference_velocity.ravel(), position=self.position.ravel(),
@@ -70,24 +70,24 @@ class ControlSamples:
     @classmethod
     def decode(cls, data: bytes) -> ControlSamples:
         """Raise ValueError naming what is wrong with a malformed payload."""
-        message = T.decode(data, T.CONTROL_SAMPLES)
+        message = cdr.decode(data, cdr.CONTROL_SAMPLES)
         cycles = len(message.wall_time)
         joints, actuators = len(message.joint_names), len(message.actuator_names)
 
         def table(name: str, width: int) -> np.ndarray:
             values = np.asarray(getattr(message, name))
             if len(values) != cycles * width:
-                raise ValueError(f"malformed {T.CONTROL_SAMPLES}: '{name}' has {len(values)} "
+                raise ValueError(f"malformed {cdr.CONTROL_SAMPLES}: '{name}' has {len(values)} "
                                  f"values, {cycles} cycles x {width} expected")
             return values.reshape(cycles, width)
 
         for name in ("control_time", "cycle_period", "round_trip"):
             if len(getattr(message, name)) != cycles:
-                raise ValueError(f"malformed {T.CONTROL_SAMPLES}: {len(getattr(message, name))}"
+                raise ValueError(f"malformed {cdr.CONTROL_SAMPLES}: {len(getattr(message, name))}"
                                  f" values of '{name}' for {cycles} wall times")
         states = table("drive_state", actuators)
         if states.size and states.max() >= len(message.state_names):
-            raise ValueError(f"malformed {T.CONTROL_SAMPLES}: drive state {states.max()} "
+            raise ValueError(f"malformed {cdr.CONTROL_SAMPLES}: drive state {states.max()} "
                              f"but only {len(message.state_names)} state names")
         return cls(message.first_cycle, message.period, np.asarray(message.wall_time),
                    np.asarray(message.control_time), tuple(message.joint_names),

@@ -13,7 +13,7 @@ from typing import Any
 import zenoh
 
 from hil.controllers import GoalStatus
-from hil.messaging import types as T
+from hil.messaging import cdr
 from hil.messaging.action import ControllerGone, TrajectoryActionClient, TrajectoryActionServer
 from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.keys import key
@@ -27,8 +27,8 @@ class JointStatePublisher:
         self._publisher = session.declare_publisher(key(robot, "joint_states"))
 
     def publish(self, stamp: float, names, positions, velocities, efforts) -> None:
-        self._publisher.put(T.encode(T.joint_state_msg(stamp, names, positions, velocities,
-                                                       efforts)))
+        self._publisher.put(cdr.encode(cdr.joint_state_msg(stamp, names, positions, velocities,
+                                                           efforts)))
 
     def close(self) -> None:
         self._publisher.undeclare()
@@ -83,7 +83,7 @@ class SimClockPublisher:
         self._publisher = session.declare_publisher(key(robot, "sim/clock"))
 
     def publish(self, wall_time: float, sim_time: float) -> None:
-        self._publisher.put(T.encode(T.msg(T.SIM_CLOCK, wall_time=wall_time, sim_time=sim_time)))
+        self._publisher.put(cdr.encode(cdr.msg(cdr.SIM_CLOCK, wall_time=wall_time, sim_time=sim_time)))
 
     def close(self) -> None:
         self._publisher.undeclare()
@@ -120,7 +120,7 @@ class RunSubscriber:
         self._subscribe(session, key(robot, "control/samples"), ControlSamples.decode,
                         on_samples)
         self._subscribe(session, key(robot, "sim/clock"),
-                        lambda data: T.decode(data, T.SIM_CLOCK),
+                        lambda data: cdr.decode(data, cdr.SIM_CLOCK),
                         lambda clock: on_clock(clock.wall_time, clock.sim_time))
         if on_diagnostic is not None:
             def each(diagnostics: list[Diagnostic]) -> None:

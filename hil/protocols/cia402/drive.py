@@ -5,7 +5,8 @@ with boot-up and heartbeat, the EMCY producer and PDO maps; :mod:`.node` makes t
 refuse what a real CiA 301 slave refuses. canopen does not answer SYNC with TPDOs, does not
 tie PDO contents to the object dictionary, and implements no 402 device (canopen issues
 #555, #558, #166): those parts are written here, the ones that need no CAN (power state
-machine, operation modes' controlword bits, statusword, live objects) in :mod:`.state`.
+machine, operation modes' controlword bits, statusword, live objects) in :mod:`.state`,
+the object dictionary's contents and SDO writes in :mod:`.objects`.
 
 PDOs: RPDOs are processed in OPERATIONAL only; a synchronous one (transmission type
 0-240) is latched and applied at the next SYNC, an event-driven one (254, 255) at once.
@@ -37,20 +38,18 @@ import struct
 import time
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import canopen
-from canopen.sdo import SdoAbortedError
-from canopen.sdo.constants import ABORT_INVALID_VALUE, ABORT_VALUE_TOO_LOW
 
-from hil.drives.core import DriveCore, Fault, SilenceReaction
+from hil.drives.core import DriveCore
+from hil.drives.definitions import Fault
 from hil.drives.profile import DriveProfile
 from hil.protocols.cia402 import NMT_ID, SYNC_ID, Cia402
 from hil.protocols.cia402.node import DriveNode
-from hil.protocols.cia402.state import (ERROR_REGISTER, HOMING_METHODS, LIVE_OBJECTS,
-                                        MODE_CODES, Cia402StateMachine, int32, live_value,
-                                        live_values, uint32)
+from hil.protocols.cia402.objects import PROFILE_PARAMETERS, DriveObjects
+from hil.protocols.cia402.state import ERROR_REGISTER, LIVE_OBJECTS, Cia402StateMachine, live_values
 from hil.resources import eds_path
 
 log = logging.getLogger(__name__)
@@ -124,7 +123,6 @@ class Cia402Drive(DriveProfile):
         heartbeat_ms = round(heartbeat_period * 1000)
         self.machine = Cia402StateMachine(core)
         self.node = DriveNode(node_id, eds or eds_path(), self._refused)
-        self._heartbeat_ms = heartbeat_ms
         self._latched: dict[int, bytes] = {}
         self._fault_reported = False
         self._pending: list[tuple[int, bytes]] = []
@@ -133,11 +131,10 @@ class Cia402Drive(DriveProfile):
         self._rpdo_layouts: dict[int, PdoLayout | None] = {}
         self._rpdo_handlers: list[tuple[int, Callable]] = []     # (COB-ID, subscribed)
         self._tpdos: list[TpdoSchedule] = []
-        self._counts_per_rad = core.parameters.counts_per_rev / (2 * math.pi)
-        self._store_configuration()
-        self.node.add_read_callback(self._on_read)
-        self.node.add_write_callback(self._on_write)
-        self.node.on_stored(self._after_store)
+        self.objects = DriveObjects(self.node, self.machine, core, lock, rated_torque,
+                                    heartbeat_ms, self._configure_pdos)
+        self._counts_per_rad = self.objects.counts_per_rad
+        self.objects.store_configuration()
 
     # --- network life cycle ---------------------------------------------------
 
@@ -196,11 +193,11 @@ class Cia402Drive(DriveProfile):
             self.core.reset_fault()
             self.machine.reset_homing()
             self.node.data_store.clear()
-            self._store_configuration()
+            self.objects.store_configuration()
         else:    # the communication area (0x1000-0x1FFF) takes its defaults again
             for index in [i for i in self.node.data_store if 0x1000 <= i < 0x2000]:
                 del self.node.data_store[index]
-            self._store_communication()
+            self.objects.store_communication()
         self.node.configure_heartbeat_consumers()
         self._configure_pdos()
         self._latched.clear()
@@ -344,10 +341,10 @@ class Cia402Drive(DriveProfile):
         else:
             fields = {variable.index: variable.raw for variable in pdo.map}
         if 0x6060 in fields:
-            self._set_mode(fields[0x6060])
+            self.objects.set_mode(fields[0x6060])
         for index, value in fields.items():
-            if index in _PROFILE_PARAMETERS:
-                self._set_profile_parameter(index, value)
+            if index in PROFILE_PARAMETERS:
+                self.objects.set_profile_parameter(index, value)
         if 0x607A in fields:
             self.machine.target_position = fields[0x607A] / self._counts_per_rad
         self.core.new_setpoint(
@@ -368,157 +365,3 @@ class Cia402Drive(DriveProfile):
         if self._fault_reported and self.core.fault is None:
             self.node.emcy.send(EMCY_NO_ERROR, 0)       # error reset
         self._fault_reported = self.core.fault is not None
-
-    # --- object dictionary ---------------------------------------------------------
-
-    def _on_read(self, index: int, subindex: int, od) -> int | None:
-        if index in LIVE_OBJECTS:
-            with self.lock:
-                return live_value(index, self.machine, self.core.status(),
-                                  self._counts_per_rad, self.rated_torque)
-        return None
-
-    def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
-        value = od.decode_raw(data)
-        cpr = self._counts_per_rad
-        with self.lock:
-            if index == 0x6040:
-                self.machine.controlword(value)
-            elif index == 0x6060:
-                self._set_mode(value)
-            elif index == 0x605A:
-                if value not in (1, 2, 5, 6):
-                    raise SdoAbortedError(ABORT_INVALID_VALUE)
-                self.machine.quick_stop_option = value
-            elif index == 0x6007:
-                if value not in _SILENCE_REACTIONS:
-                    raise SdoAbortedError(ABORT_INVALID_VALUE)
-                self.core.silence_reaction = _SILENCE_REACTIONS[value]
-            elif index == 0x607A:
-                self.machine.target_position = value / cpr
-                self.core.new_setpoint(position=value / cpr)
-            elif index == 0x60FF:
-                self.core.new_setpoint(velocity=value / cpr)
-            elif index == 0x6071:
-                self.core.new_setpoint(torque=value * self.rated_torque / 1000)
-            elif index == 0x607C:
-                self.machine.home_offset = value / cpr
-            elif index == 0x6098:
-                if value not in HOMING_METHODS:
-                    raise SdoAbortedError(ABORT_INVALID_VALUE)
-                self.machine.homing_method = value
-            elif index == 0x60C2:
-                self._set_interpolation_period(subindex, value)
-            elif index in _PROFILE_PARAMETERS:
-                self._set_profile_parameter(index, value)
-            elif index in _PARAMETER_WRITERS:
-                self.core.parameters = _PARAMETER_WRITERS[index](
-                    self.core.parameters, subindex, value, cpr)
-
-    def _after_store(self, index: int, subindex: int) -> None:
-        """A PDO's communication parameters, once stored, take effect: a PDO made valid
-        starts with its (checked) mapping, one made not valid stops."""
-        if 0x1400 <= index < 0x1600 or 0x1800 <= index < 0x1A00:
-            with self.lock:
-                self._configure_pdos()
-
-    def _set_mode(self, code: int) -> None:
-        if code not in MODE_CODES:
-            raise SdoAbortedError(ABORT_INVALID_VALUE)   # value range of parameter exceeded
-        self.core.set_mode(MODE_CODES[code])
-
-    def _set_profile_parameter(self, index: int, value: int) -> None:
-        if index != 0x6081 and value <= 0:
-            raise SdoAbortedError(ABORT_VALUE_TOO_LOW)   # a move needs an acceleration
-        self.core.parameters = replace(self.core.parameters, **{
-            _PROFILE_PARAMETERS[index]: value / self._counts_per_rad})
-
-    def _set_interpolation_period(self, subindex: int, value: int) -> None:
-        """0x60C2: the CSP interpolation period is value x 10^index s."""
-        period = self.node.value(0x60C2, 1)
-        exponent = self.node.value(0x60C2, 2)
-        if subindex == 1:
-            period = value
-        elif subindex == 2:
-            exponent = value
-        if not -6 <= exponent <= 0:
-            raise SdoAbortedError(ABORT_INVALID_VALUE)
-        if period <= 0:
-            raise SdoAbortedError(ABORT_VALUE_TOO_LOW)
-        self.core.set_cycle(period * 10.0 ** exponent)
-
-    def _store_configuration(self) -> None:
-        """Write the drive's configured values into its object dictionary."""
-        p = self.core.parameters
-        cpr = self._counts_per_rad
-        put = self._put
-        self._store_communication()
-        put(0x6076, None, round(self.rated_torque * 1000))
-        put(0x6072, None, round(p.peak_torque / self.rated_torque * 1000))
-        put(0x608F, 1, p.counts_per_rev)
-        put(0x607F, None, uint32(p.max_velocity * cpr))
-        put(0x6081, None, uint32(p.profile_velocity * cpr))
-        put(0x6083, None, uint32(p.profile_acceleration * cpr))
-        put(0x6084, None, uint32(p.profile_deceleration * cpr))
-        put(0x6085, None, uint32(p.quick_stop_deceleration * cpr))
-        put(0x6065, None, uint32(p.following_error_limit * cpr))
-        put(0x6066, None, round(p.following_error_timeout * 1000))
-        put(0x6007, None, self.core.silence_reaction.value)
-        put(0x2010, None, round(p.watchdog_timeout * 1000))
-        put(0x2000, 1, p.position_kp)
-        put(0x2000, 2, p.velocity_kp)
-        put(0x2000, 3, p.velocity_ki)
-        value, exponent = interpolation_period(self.core.cycle)
-        put(0x60C2, 1, value)
-        put(0x60C2, 2, exponent)
-        if p.position_limits is not None:
-            put(0x607D, 1, int32(p.position_limits[0] * cpr))
-            put(0x607D, 2, int32(p.position_limits[1] * cpr))
-
-    def _store_communication(self) -> None:
-        self._put(0x1017, None, self._heartbeat_ms)
-
-    def _put(self, index: int, subindex: int | None, value) -> None:
-        od = self.node.object_dictionary
-        entry = od[index] if subindex is None else od[index][subindex]
-        self.node.data_store.setdefault(index, {})[subindex or 0] = entry.encode_raw(value)
-
-
-def interpolation_period(cycle: float) -> tuple[int, int]:
-    """0x60C2's (value, index) for a period in s: the coarsest exponent that represents it
-    in a byte, to the microsecond."""
-    for exponent in (-3, -4, -5, -6):
-        value = cycle / 10.0 ** exponent
-        if abs(value - round(value)) < 1e-6 * value and 1 <= round(value) <= 255:
-            return round(value), exponent
-    return max(1, min(255, round(cycle * 1e4))), -4
-
-
-def _gains(p, subindex, value, cpr):
-    name = {1: "position_kp", 2: "velocity_kp", 3: "velocity_ki"}.get(subindex)
-    return replace(p, **{name: float(value)}) if name else p
-
-
-def _limits(p, subindex, value, cpr):
-    low, high = p.position_limits or (-math.inf, math.inf)
-    if subindex == 1:
-        low = value / cpr
-    elif subindex == 2:
-        high = value / cpr
-    return replace(p, position_limits=(low, high))
-
-
-#: SDO-writable parameters that take effect at once: index -> (parameters, sub, value, counts/rad)
-_PARAMETER_WRITERS = {
-    0x2000: _gains,
-    0x2010: lambda p, s, v, c: replace(p, watchdog_timeout=v / 1000),
-    0x6065: lambda p, s, v, c: replace(p, following_error_limit=v / c),
-    0x6066: lambda p, s, v, c: replace(p, following_error_timeout=v / 1000),
-    0x6085: lambda p, s, v, c: replace(p, quick_stop_deceleration=v / c),
-    0x607D: _limits,
-}
-#: profile-mode objects (increments/s, /s^2) -> DriveParameters field (rad/s, /s^2)
-_PROFILE_PARAMETERS = {0x6081: "profile_velocity", 0x6083: "profile_acceleration",
-                       0x6084: "profile_deceleration"}
-#: 0x6007 values this drive takes (manufacturer-specific negative ones it has none of)
-_SILENCE_REACTIONS = {reaction.value: reaction for reaction in SilenceReaction}

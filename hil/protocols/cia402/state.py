@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import enum
 
-from hil.drives.core import DriveCore, DriveStatus, Fault, Mode, Power
+from hil.drives.core import DriveCore
+from hil.drives.definitions import DriveStatus, Fault, Mode, Power
 
 #: CiA 402 modes of operation (0x6060/0x6061) this drive supports: profile position (1),
 #: profile velocity (3), homing (6), cyclic synchronous position/velocity/torque (8, 9, 10)

@@ -5,7 +5,8 @@ from __future__ import annotations
 import time
 from contextlib import AbstractContextManager
 
-from hil.drives.core import DriveCore, Fault, Mode, Power
+from hil.drives.core import DriveCore
+from hil.drives.definitions import Fault, Mode, Power
 from hil.drives.profile import DriveProfile
 from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, Mit, MitOptions, MitReply, pack_reply,

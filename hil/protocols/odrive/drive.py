@@ -12,7 +12,8 @@ import time
 from contextlib import AbstractContextManager
 from dataclasses import replace
 
-from hil.drives.core import DriveCore, Fault, Mode, Power
+from hil.drives.core import DriveCore
+from hil.drives.definitions import Fault, Mode, Power
 from hil.drives.profile import DriveProfile
 from hil.protocols.odrive import (
     LAYOUT, TURN, AxisState, Cmd, ControlMode, ODrive, ODriveError, ODriveOptions, can_id,

@@ -1,0 +1,156 @@
+"""The floor under ``hil bench``'s across-processes runs, measured in the same bench run.
+
+The same frames per cycle (every drive's cyclic frames and SYNC out, their answers back,
+per bus) exchanged between two processes over the same transport, python-can on both ends
+and no hil code on the answering side, paced like the controller, each end on the CPU of
+the process it stands for. The ratio stack / floor says what hil adds to the transport.
+
+Run as ``python -m hil.bench.floor SPEC`` it is the answering process.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import can
+
+from hil.bench.frames import cyclic_frames
+from hil.bus_config import SystemConfig
+from hil.realtime import CyclePacer, PeriodStatistics, Ring, enter_real_time, real_time_cpus
+from hil.zenoh_session import free_loopback_port
+
+
+def floor_across_processes(config: SystemConfig, seconds: float) -> dict:
+    """The config's frames per cycle between this process (paced like the controller) and a
+    bare answering process, over Zenoh on loopback: round trip SYNC -> last answer."""
+    endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
+    channels = {bus.name: f"bench-floor/{os.getpid()}/{bus.name}" for bus in config.buses}
+    sim_cpus, control_cpus, _ = real_time_cpus()
+    spec = json.dumps({"endpoint": endpoint, "seconds": seconds + 30,
+                       "cpus": sorted(sim_cpus or ()), "buses": [
+        {"channel": channels[name], "trigger": out[-1].arbitration_id,
+         "answers": [[a.arbitration_id, len(a.data)] for a in answers]}
+        for name, out, answers in cyclic_frames(config)]})
+    responder = subprocess.Popen([sys.executable, "-m", "hil.bench.floor", spec],
+                                 stdout=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        if "ready" not in (responder.stdout.readline() or ""):
+            raise RuntimeError("the floor's answering process did not start")
+        return _run_floor_master(config, channels, endpoint, seconds, control_cpus)
+    finally:
+        responder.terminate()
+        responder.wait(10)
+
+
+def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: str,
+                      seconds: float, cpus: set[int] | None) -> dict:
+    buses = {name: can.Bus(interface="zenoh", channel=channel, connect=[endpoint])
+             for name, channel in channels.items()}
+    result: dict = {}
+    try:
+        exchanges = [(buses[name], out, len(answers))
+                     for name, out, answers in cyclic_frames(config)]
+        expected = sum(count for *_, count in exchanges)
+        counter = _Counter()
+        for bus in buses.values():
+            bus.deliver_to([counter])
+        time.sleep(1.0)                               # the sessions find each other
+        thread = threading.Thread(target=_floor_loop, args=(
+            exchanges, expected, counter, 1.0 / config.cycle_hz, seconds, result, cpus))
+        thread.start()
+        thread.join()
+    finally:
+        for bus in buses.values():
+            bus.shutdown()
+    return result
+
+
+def _floor_loop(exchanges, expected: int, counter: _Counter, period: float, seconds: float,
+                result: dict, cpus: set[int] | None) -> None:
+    """In a thread of its own, as the controller's loop: write the cycle, then the answers
+    to it are due before the next one."""
+    enter_real_time(cpus=cpus)
+    statistics = PeriodStatistics(period)
+    trips, late = Ring(PeriodStatistics.KEEP), 0
+    pacer = CyclePacer(period, statistics)
+    end = time.perf_counter() + seconds
+    try:
+        while time.perf_counter() < end:
+            pacer.release()
+            counter.expect(expected)
+            for bus, out, _ in exchanges:
+                for frame in out:
+                    bus.send(frame)
+            sent = time.perf_counter()
+            arrived = counter.wait(sent + period)
+            if arrived is None:
+                late += 1
+            else:
+                trips.add(arrived - sent)
+    finally:
+        pacer.close()
+    result.update({**statistics.figures(), **trips.percentiles_us("round_trip"),
+                   "late": late})
+
+
+class _Counter(can.Listener):
+    """Counts a cycle's answers; :meth:`wait` returns when the last one arrived."""
+
+    def __init__(self):
+        self._arrived = threading.Condition()
+        self._count = self._expected = 0
+        self._last = 0.0
+
+    def expect(self, count: int) -> None:
+        with self._arrived:
+            self._count, self._expected = 0, count
+
+    def on_message_received(self, msg: can.Message) -> None:
+        with self._arrived:
+            self._count += 1
+            if self._count == self._expected:
+                self._last = time.perf_counter()
+                self._arrived.notify()
+
+    def wait(self, deadline: float) -> float | None:
+        with self._arrived:
+            if self._arrived.wait_for(lambda: self._count >= self._expected,
+                                      max(0.0, deadline - time.perf_counter())):
+                return self._last
+        return None
+
+
+def _respond(spec: dict) -> None:
+    """The floor's answering process: on each bus, the answers on the trigger frame."""
+    enter_real_time(cpus=set(spec["cpus"]) or None)
+    buses = []
+    for bus_spec in spec["buses"]:
+        bus = can.Bus(interface="zenoh", channel=bus_spec["channel"], listen=[spec["endpoint"]])
+        answers = [can.Message(arbitration_id=i, data=bytes(n), is_extended_id=False)
+                   for i, n in bus_spec["answers"]]
+
+        def answer(msg: can.Message, bus=bus, answers=answers,
+                   trigger=bus_spec["trigger"]) -> None:
+            if msg.arbitration_id == trigger:
+                for frame in answers:
+                    bus.send(frame)
+
+        bus.deliver_to([answer])
+        buses.append(bus)
+    print("ready", flush=True)
+    try:
+        time.sleep(spec["seconds"])
+    finally:
+        for bus in buses:
+            bus.shutdown()
+
+
+if __name__ == "__main__":
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
+    _respond(json.loads(sys.argv[1]))

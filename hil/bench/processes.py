@@ -1,0 +1,119 @@
+"""``hil bench``, across processes: the stack as users run it.
+
+Each run starts ``hil sim`` and ``hil control`` (and, in the runs "with viz", ``hil viz``
+recording a file and the CAN log) as separate processes on the Zenoh CAN transport over
+loopback, in real time, placed on the CPUs as ``hil up`` places them, for a while, stops
+them as ``hil up`` does and reads the controller's own report (``hil control --report``):
+period error, missed cycles, busy time, the round trip from each cycle's SYNC to its last
+answer, faults; and each process' CPU share from /proc. Beside each, the floor of the same
+transport (:mod:`hil.bench.floor`).
+
+Rates above a config's own are run on buses of proportionally higher bitrate (the load
+stays what the config has at its rate; the transport has no bitrate of its own).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import yaml
+
+from hil.bench.floor import floor_across_processes
+from hil.bench.settings import BenchSettings
+from hil.bus_config import load_bus_config
+from hil.cli.common import cpus_option
+from hil.cli.supervisor import Child, Run, viz_summary
+from hil.realtime import real_time_cpus
+from hil.zenoh_session import free_loopback_port
+
+#: how long after the controller's banner the measurement starts (bring-up, first goal)
+SETTLE = 2.0
+
+
+def across_processes(settings: BenchSettings, say: Callable[[str], None]) -> list[dict]:
+    """Every (robot, rate) of ``settings``: the floor, then the stack without and with the
+    visualiser."""
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="hil-bench-configs-") as folder:
+        for robot, rate in settings.across_processes:
+            path = config_at(settings.config_dir / f"{robot}.yaml", rate, Path(folder))
+            say(f"hil bench: {robot} at {rate:g} Hz across processes: the floor ...")
+            floor = floor_across_processes(load_bus_config(path), settings.seconds)
+            for viz in (False, True):
+                say(f"hil bench: {robot} at {rate:g} Hz across processes"
+                    f"{', with the visualiser recording' if viz else ''} ...")
+                stack = stack_across_processes(path, settings.seconds, viz)
+                rows.append({"robot": robot, "rate_hz": rate, "viz": viz, **stack,
+                             "floor": floor, "round_trip_p99_over_floor":
+                             stack.get("round_trip_p99_us", math.nan)
+                             / floor.get("round_trip_p99_us", math.nan)})
+    return rows
+
+
+def config_at(path: Path, rate: float, folder: Path) -> Path:
+    """The bus config at ``path`` with every bus at ``rate`` Hz (bitrates scaled with it),
+    written into ``folder``."""
+    data = yaml.safe_load(path.read_text())
+    data["robot"] = str((path.parent / data["robot"]).resolve())
+    for bus in data["buses"]:
+        scale = rate / bus["cycle_hz"]
+        bus["cycle_hz"] = rate
+        if "bitrate" in bus and scale > 1:
+            bus["bitrate"] = int(bus["bitrate"] * scale)
+    written = folder / f"{path.stem}-{rate:g}hz.yaml"
+    written.write_text(yaml.safe_dump(data))
+    return written
+
+
+def stack_across_processes(config_path: Path, seconds: float, with_viz: bool) -> dict:
+    """One real-time run of ``hil sim`` + ``hil control`` (+ ``hil viz``) on the config."""
+    sim_cpus, control_cpus, viz_cpus = real_time_cpus()
+    with tempfile.TemporaryDirectory(prefix="hil-bench-") as folder:
+        folder = Path(folder)
+        endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
+        report = folder / "control.json"
+        children = [Child("sim", ["sim", str(config_path), "--listen", endpoint,
+                                  "--status-period", "0", *cpus_option(sim_cpus)],
+                          folder / "sim.log")]
+        if with_viz:
+            children.append(Child("viz", ["viz", str(config_path), "--connect", endpoint, "--save",
+                                          str(folder / "run.rrd"), "--can-log",
+                                          str(folder / "run.can.log"), *cpus_option(viz_cpus)],
+                                  folder / "viz.log"))
+        children.append(Child("control", ["control", str(config_path), "--connect", endpoint,
+                                          "--report", str(report), *cpus_option(control_cpus)],
+                              folder / "control.log"))
+        run = Run(children)
+        try:
+            for child in children:
+                child.start()
+                run.wait_for_line(child, f"hil {child.name}:")
+            time.sleep(SETTLE)
+            cpu_start = {child.name: _cpu_seconds(child.pid) for child in children}
+            run.wait(seconds)
+            cpu = {child.name: (_cpu_seconds(child.pid) - cpu_start[child.name]) / seconds
+                   for child in children}
+        finally:
+            problems = run.shut_down()
+        if not report.exists():
+            raise RuntimeError(f"hil control wrote no report ({'; '.join(problems)}):\n"
+                               f"{children[-1].last_lines()}")
+        figures = json.loads(report.read_text())
+        recorded = viz_summary(children[1]) if with_viz else None
+    lost = sum(bus.get("lost", 0) for bus in figures.pop("buses", {}).values())
+    return {**figures, "faults": len(figures.get("faults", [])),
+            "first_fault": (figures.get("faults") or [None])[0], "frames_lost": lost,
+            "cpu": {name: round(share, 3) for name, share in cpu.items()},
+            **({"recorded": recorded} if recorded else {})}
+
+
+def _cpu_seconds(pid: int) -> float:
+    with open(f"/proc/{pid}/stat") as stat:
+        fields = stat.read().rpartition(")")[2].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")

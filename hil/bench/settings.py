@@ -1,0 +1,40 @@
+"""What ``hil bench`` measures: robots, rates, run lengths."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from hil.bus_config import SystemConfig
+from hil.resources import BUS_CONFIGS, data_dir
+
+ROBOTS = ("ur3", "pigot")
+RATES = (250.0, 500.0, 1000.0)
+#: the figures every report has (a row list, or {"unavailable": why})
+FIGURES = ("control_cycle", "timing_floor", "socketcan", "lock_step", "overhead", "latency",
+           "tracking", "bus_load", "fault_detection", "across_processes")
+#: across processes: (robot, rate) pairs, each with and without the visualiser
+ACROSS_PROCESSES = tuple((robot, rate) for robot in ROBOTS for rate in (500.0, 1000.0))
+ACROSS_PROCESSES_QUICK = (("ur3", 500.0),)
+
+
+@dataclass(frozen=True)
+class BenchSettings:
+    seconds: float = 10.0          # per real-time run
+    lock_step_cycles: int = 20000
+    bare_cycles: int = 5000
+    config_dir: Path = field(default_factory=lambda: data_dir(BUS_CONFIGS))
+    across_processes: tuple[tuple[str, float], ...] = ACROSS_PROCESSES
+
+    @classmethod
+    def quick(cls, config_dir: Path | None = None) -> BenchSettings:
+        return cls(seconds=2.0, lock_step_cycles=600, bare_cycles=1000,
+                   across_processes=ACROSS_PROCESSES_QUICK,
+                   **({"config_dir": config_dir} if config_dir else {}))
+
+
+
+def with_rate(config: SystemConfig, rate: float) -> SystemConfig:
+    """The same bench with every bus at ``rate`` Hz."""
+    return replace(config, buses=tuple(replace(bus, cycle_hz=rate) for bus in config.buses))
+

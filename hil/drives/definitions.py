@@ -1,0 +1,110 @@
+"""What a drive core is configured with and what it reports: its parameters, the power
+stage's states, the operation modes, faults with their EMCY codes, the reaction to a
+silent master, and the status of each cycle. Compiled with the core (setup.py)."""
+
+from __future__ import annotations
+
+import enum
+import functools
+import math
+from dataclasses import dataclass
+
+
+class Power(enum.Enum):
+    """What the power stage does."""
+
+    DISABLED = "disabled"        # no torque; holding brake engaged if fitted
+    ENABLED = "enabled"          # following targets in the active mode
+    QUICK_STOP = "quick stop"    # ramping to standstill, then holding
+    FAULT = "fault"              # disabled until the fault is reset
+
+
+class Mode(enum.Enum):
+    """What the enabled drive follows."""
+
+    #: cyclic synchronous modes: a setpoint arrives every control cycle
+    POSITION = "position"
+    VELOCITY = "velocity"
+    TORQUE = "torque"
+    #: torque = kp (p - p_actual) + kd (v - v_actual) + torque feed-forward (MIT motors)
+    IMPEDANCE = "impedance"
+    #: the drive plans a trapezoidal move to each target (profile velocity, acceleration,
+    #: deceleration) and follows it
+    PROFILE_POSITION = "profile position"
+    #: the target velocity, reached on a ramp of the profile acceleration/deceleration
+    PROFILE_VELOCITY = "profile velocity"
+    #: holding position while the profile sets its zero (homing on the current position)
+    HOMING = "homing"
+
+
+class SilenceReaction(enum.Enum):
+    """What the drive does when its master goes silent or leaves it (CiA 402 0x6007,
+    "abort connection option code")."""
+
+    NONE = 0           # report it, carry on with the last setpoint
+    FAULT = 1          # fault (brake on) until a fault reset
+    DISABLE = 2        # disable voltage (brake on)
+    QUICK_STOP = 3     # ramp to standstill, hold
+
+
+class Fault(enum.Enum):
+    """Drive faults, each with its CANopen EMCY error code (CiA 301/402)."""
+
+    FOLLOWING_ERROR = (0x8611, "following error")
+    POSITION_LIMIT = (0x8612, "position limit exceeded")
+    CONTROLLER_SILENT = (0x8250, "setpoints stopped arriving (RPDO timeout)")
+    HEARTBEAT_LOST = (0x8130, "the master's heartbeat stopped (heartbeat consumer)")
+    EMERGENCY_STOP = (0x9000, "emergency stop requested")
+
+    @property
+    def code(self) -> int:
+        return self.value[0]
+
+    @property
+    def text(self) -> str:
+        return self.value[1]
+
+
+@dataclass(frozen=True)
+class DriveParameters:
+    """A drive's configuration, motor side, SI units."""
+
+    counts_per_rev: int
+    rated_torque: float
+    peak_torque: float
+    position_kp: float                 # 1/s
+    velocity_kp: float                 # N·m·s/rad
+    velocity_ki: float                 # N·m/rad
+    max_velocity: float                # rad/s
+    following_error_limit: float       # rad
+    following_error_timeout: float     # s
+    quick_stop_deceleration: float     # rad/s^2
+    watchdog_timeout: float            # s; 0 disables the watchdog
+    position_limits: tuple[float, float] | None = None
+    holding_brake: bool = True
+    brake_torque: float | None = None  # N·m; default: rated torque
+    # profile modes (0: a profile move does not start)
+    profile_velocity: float = 0.0      # rad/s
+    profile_acceleration: float = 0.0  # rad/s^2
+    profile_deceleration: float = 0.0  # rad/s^2
+
+    @functools.cached_property    # read several times per drive and plant step
+    def radians_per_count(self) -> float:
+        return 2.0 * math.pi / self.counts_per_rev
+
+
+@dataclass
+class DriveStatus:
+    """What the drive reports each cycle (its profile encodes this)."""
+
+    power: Power
+    mode: Mode
+    position: float
+    velocity: float
+    torque: float
+    following_error: float
+    target_reached: bool
+    internal_limit: bool           # a target was clamped to the position limits
+    following_error_exceeded: bool
+    stopped: bool                  # quick stop has reached standstill
+    fault: Fault | None
