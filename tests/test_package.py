@@ -35,11 +35,25 @@ def python(script: str, *, env: dict | None = None, timeout: float = 120
     return done, modules - {"imported package"}
 
 
-def test_the_controller_process_loads_no_simulated_drive_module():
-    # the controller's command module, and at run time every protocol's master-side axis
-    # for every shipped bus config (CanHardwareInterface imports them on construction)
+def _drive_side(modules: set[str]) -> list[str]:
+    return sorted(m for m in modules if m.startswith(DRIVE_SIDE) or m.endswith(".drive"))
+
+
+def test_importing_the_controller_entry_module_loads_no_drive_side_module_and_no_canopen():
+    done, modules = python("import hil.cli.control")
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "hil.control_node" in modules and "hil.hardware.interface" in modules
+    assert _drive_side(modules) == []
+    assert sorted(m for m in modules if m.split(".")[0] == "canopen") == []
+
+
+def test_the_running_controller_loads_no_simulated_drive_module_and_makes_no_local_node():
+    # at run time every protocol's master-side axis for every shipped bus config
+    # (CanHardwareInterface imports them on construction, canopen with the first bus)
     done, modules = python("""
+        import gc
         import can
+        import canopen
         import hil.cli.control
         from hil.bus_config import load_bus_config
         from hil.hardware import CanHardwareInterface
@@ -48,18 +62,18 @@ def test_the_controller_process_loads_no_simulated_drive_module():
             buses = {b.name: can.Bus(interface="virtual", channel=f"package-{name}-{b.name}")
                      for b in config.buses}
             CanHardwareInterface(config, buses)
+            local = [o for o in gc.get_objects() if issubclass(type(o), canopen.LocalNode)]
+            print("local nodes:", len(local))
             for bus in buses.values():
                 bus.shutdown()
         """)
     assert done.returncode == 0, done.stderr[-3000:]
     assert {"hil.protocols.cia402.axis", "hil.protocols.odrive.axis",
             "hil.protocols.mit.axis"} <= modules           # the check saw every protocol
-    drive_side = sorted(m for m in modules
-                        if m.startswith(DRIVE_SIDE) or m.endswith(".drive"))
-    assert drive_side == []
-    # canopen.node.local is the one exception: canopen's own __init__ imports LocalNode,
-    # so any use of canopen (the master's RemoteNode and Network) loads the module; hil's
-    # controller never makes a LocalNode
+    assert _drive_side(modules) == []
+    # canopen.node.local is loaded here (canopen's own __init__ imports it with the master's
+    # RemoteNode and Network); the master never makes a LocalNode
+    assert done.stdout.count("local nodes: 0") == 3, done.stdout
 
 
 def test_a_protocol_from_an_installed_package_drives_a_joint(tmp_path):

@@ -15,12 +15,13 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import ClassVar
-
-import canopen
+from typing import TYPE_CHECKING, ClassVar
 
 from hil.bus_config import DriveConfig
 from hil.protocols.base import Protocol
+
+if TYPE_CHECKING:
+    import canopen
 
 #: fraction of the max velocity below which an axis counts as still (enable only then)
 STANDSTILL = 0.01

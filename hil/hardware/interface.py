@@ -18,19 +18,21 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import can
-import canopen
 import numpy as np
 
 from hil.bus_config import SystemConfig
 from hil.description import RobotDescription
-from hil.can.network import start_network
 from hil.errors import HilError
 from hil.hardware.axis import Axis, AxisFault, FaultKind
 from hil.realtime import PeriodStatistics, Ring
 from hil.protocols import protocol
 from hil.transmissions import TransmissionStack, build_transmissions
+
+if TYPE_CHECKING:
+    import canopen
 
 BOOT_TIMEOUT = 3.0
 ENABLE_TIMEOUT = 10.0
@@ -173,6 +175,10 @@ class CanHardwareInterface(HardwareInterface):
     # --- bring-up ---------------------------------------------------------------------
 
     def start(self) -> JointFeedback:
+        # canopen loads with the first bus (its __init__ imports canopen.node.local as well,
+        # whose LocalNode the master never makes), not with the controller's modules
+        from hil.can.network import start_network
+
         for name, bus in self._buses.items():
             self._networks[name] = start_network(bus)
         for axis in self.axes:
