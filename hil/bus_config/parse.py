@@ -8,6 +8,7 @@ from pathlib import Path
 import yaml
 
 from hil.bus_config.checks import check_system
+from hil.bus_config.transmissions import add_transmissions
 from hil.bus_config.types import BusConfig, DriveConfig, Gains, SystemConfig
 from hil.bus_config.yaml_reader import LineLoader, LineMapping, Reader
 from hil.description import JointType, PackagePath, RobotDescription, load_description
@@ -16,7 +17,7 @@ from hil.protocols import names as protocol_names
 from hil.protocols import protocol
 from hil.transmissions import SimpleTransmission, Transmission, build_transmissions
 
-_TOP_KEYS = {"robot", "plant_rate_hz", "defaults", "buses"}
+_TOP_KEYS = {"robot", "plant_rate_hz", "defaults", "transmissions", "buses"}
 _BUS_KEYS = {"name", "interface", "channel", "bitrate", "cycle_hz", "drives"}
 _DRIVE_KEYS = {"node_id", "joint", "actuator", "protocol", "encoder_counts_per_rev",
                "rated_torque", "peak_torque", "max_velocity", "following_error_limit",
@@ -53,7 +54,9 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
                     top.key_lines.get("robot", 1),
                     hint="'robot' is a .xacro/.urdf path relative to the config file")
         raise HilError(reader.diagnostics)
-    robot = load_description(robot_path, package_path)
+    robot = add_transmissions(reader, top, load_description(robot_path, package_path))
+    if any(d.severity is Severity.ERROR for d in reader.diagnostics):
+        raise HilError(reader.diagnostics + list(robot.warnings))
     transmissions = build_transmissions(robot)
     plant_rate = reader.number(top, "plant_rate_hz", "the bus config", 1000.0)
     defaults = reader.mapping(top.get("defaults", LineMapping()), "'defaults'",

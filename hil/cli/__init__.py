@@ -20,6 +20,7 @@ from hil.errors import HilError
 #: ``run(args) -> int``) -> its one-line help
 COMMANDS = {
     "check": "validate a robot (.xacro/.urdf) or a bus config (.yaml) and print a summary",
+    "init": "write a bus config for a robot description (drives, transmissions, buses)",
     "sim": "run the plant and all virtual drives of a bus config",
     "control": "run the CAN master, joint state publisher and joint trajectory controller",
     "send": "send a joint trajectory to a running hil control and wait for the result",

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import re
 from dataclasses import replace
 from pathlib import Path
 
 from hil.bus_config import SystemConfig, load_bus_config
 from hil.cli import common
-from hil.description import RobotDescription, load_description
+from hil.description import PackagePath, RobotDescription, load_description
 from hil.errors import HilError, Severity
 from hil.plant import Plant
 
@@ -28,6 +29,8 @@ def run(args: argparse.Namespace) -> int:
         args.path = common.config_path(str(args.path))
     if args.path.suffix in (".yaml", ".yml"):
         config = load_bus_config(args.path, package_path)
+        plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz)   # as hil sim builds it
+        config = replace(config, warnings=config.warnings + plant.warnings)
         if args.strict and config.warnings:
             raise HilError([replace(w, severity=Severity.ERROR) for w in config.warnings])
         print(bus_summary(config))
@@ -38,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
                                    "robots/ur3_description/urdf/ur3.xacro, or a bus config, "
                                    "e.g. bus_config/ur3.yaml")
     description = load_description(args.path, package_path, strict=args.strict)
-    print(summary(description, Plant(description)))
+    print(summary(description, Plant(description), package_path))
     return 0
 
 
@@ -70,27 +73,37 @@ def bus_summary(config: SystemConfig) -> str:
     return "\n".join(lines)
 
 
-def summary(description: RobotDescription, plant: Plant) -> str:
+def summary(description: RobotDescription, plant: Plant, package_path: PackagePath) -> str:
     """A one-screen, human-readable summary of a robot and its MuJoCo model."""
+    passive = [j.name for j in description.movable_joints
+               if j.mimic is None and j not in description.driven_joints]
     lines = [f"robot '{description.name}'  ({description.source})",
              f"  links: {len(description.links)}  (root '{description.root_link}'),  "
              f"total mass {description.total_mass:.3f} kg",
              f"  joints: {len(description.movable_joints)} movable, "
-             f"{len(description.driven_joints)} driven by actuators", ""]
-    lines.append(f"  {'joint':<16}{'type':<11}{'lower':>9}{'upper':>9}{'velocity':>10}"
-                 f"{'effort':>9}{'damping':>9}{'friction':>9}  mimic")
+             f"{len(description.driven_joints)} driven by actuators"
+             + (f"; {len(passive)} passive (no transmission: `hil init` writes a bus config "
+                "with one for each)" if passive else "")]
+    lines += [f"  package '{name}': {folder}" for name, folder in
+              used_packages(description, package_path).items()]
+    width = max([16] + [len(j.name) + 2 for j in description.movable_joints])
+    lines += ["", f"  {'joint':<{width}}{'type':<11}{'lower':>9}{'upper':>9}{'velocity':>10}"
+                  f"{'effort':>9}{'damping':>9}{'friction':>9}  mimic"]
     for joint in description.movable_joints:
         limits = joint.limits
         lower = "-" if limits is None or limits.lower is None else f"{limits.lower:.4g}"
         upper = "-" if limits is None or limits.upper is None else f"{limits.upper:.4g}"
         mimic = (f"{joint.mimic.multiplier:g} x {joint.mimic.joint} + {joint.mimic.offset:g}"
                  if joint.mimic else "")
-        lines.append(f"  {joint.name:<16}{joint.type.value:<11}{lower:>9}{upper:>9}"
+        lines.append(f"  {joint.name:<{width}}{joint.type.value:<11}{lower:>9}{upper:>9}"
                      f"{limits.velocity if limits else 0:>10.4g}"
                      f"{limits.effort if limits else 0:>9.4g}"
                      f"{joint.dynamics.damping:>9.4g}{joint.dynamics.friction:>9.4g}  {mimic}")
-    lines += ["", f"  {'transmission':<22}{'type':<16}{'actuator':<22}{'reduction':>10}"
-                  f"{'rotor J':>10}{'max torque':>12}  joint(s)"]
+    names = [(s.name, a.name) for s in description.transmissions for a in s.actuators]
+    t_width = max([22] + [len(t) + 2 for t, _ in names])
+    a_width = max([22] + [len(a) + 2 for _, a in names])
+    lines += ["", f"  {'transmission':<{t_width}}{'type':<16}{'actuator':<{a_width}}"
+                  f"{'reduction':>10}{'rotor J':>10}{'max torque':>12}  joint(s)"]
     limits = dict(zip(plant.actuator_names, plant.torque_limits))
     for spec in description.transmissions:
         kind = spec.type.rsplit("/", 1)[-1].replace("Transmission", "")
@@ -100,15 +113,30 @@ def summary(description: RobotDescription, plant: Plant) -> str:
             + (f" offset {j.offset:g}" if j.offset else "") for j in spec.joints)
         for actuator in spec.actuators:
             reduction = actuator.reduction * (spec.joints[0].reduction if simple else 1.0)
-            lines.append(f"  {spec.name:<22}{kind:<16}{actuator.name:<22}{reduction:>10.5g}"
-                         f"{actuator.rotor_inertia:>10.2g}{limits[actuator.name]:>12.4g}  "
-                         f"{joints}")
+            lines.append(f"  {spec.name:<{t_width}}{kind:<16}{actuator.name:<{a_width}}"
+                         f"{reduction:>10.5g}{actuator.rotor_inertia:>10.2g}"
+                         f"{limits[actuator.name]:>12.4g}  {joints}")
     model = plant.model
     lines += ["", f"  MuJoCo: {model.nq} dof, {model.nu} actuators, {model.neq} mimic "
                   f"constraint(s), timestep {model.opt.timestep * 1e3:g} ms"]
-    if description.warnings:
-        lines += ["", f"  {len(description.warnings)} warning(s):"]
-        lines += [f"  {w}" for w in description.warnings]
+    warnings = description.warnings + plant.warnings
+    if warnings:
+        lines += ["", f"  {len(warnings)} warning(s):"] + [f"  {w}" for w in warnings]
     else:
         lines.append("  no warnings")
     return "\n".join(lines)
+
+
+def used_packages(description: RobotDescription, package_path: PackagePath) -> dict[str, Path]:
+    """The packages the description's files name (``$(find pkg)``, ``package://pkg``) and
+    the folder each resolved to (``not found`` shown as such)."""
+    names: dict[str, None] = {}
+    for file in description.files:
+        try:
+            text = file.read_text(errors="replace")
+        except OSError:
+            continue
+        for match in re.finditer(r"\$\(find ([^)\s]+)\)|package://([^/\"'\s]+)", text):
+            names[match.group(1) or match.group(2)] = None
+    return {name: package_path.find(name) or Path("(not found on the package path)")
+            for name in names}

@@ -66,7 +66,13 @@ def run(args: argparse.Namespace) -> int:
                   else enter_real_time(args.priority, common.cpus(args)))
     buses = with_frame_faults(open_buses(config, zenoh, interface, channels),
                               [f for f in faults if isinstance(f, FrameFault)], args.fault_seed)
-    simulator = Simulator(config, buses, lock_step=args.lock_step)
+    try:
+        simulator = Simulator(config, buses, lock_step=args.lock_step)
+    except BaseException:       # e.g. MuJoCo rejects the model: no bus may keep us alive
+        for bus in buses.values():
+            bus.shutdown()
+        close_all()
+        raise
     token = session(zenoh).liveliness().declare_token(f"hil/{config.robot.name}/sim")
     stop = threading.Event()
 

@@ -6,7 +6,6 @@ import argparse
 import os
 import signal
 import tempfile
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import rerun as rr
@@ -14,10 +13,10 @@ import rerun as rr
 from hil.bus_config import SystemConfig, load_bus_config, open_buses
 from hil.can.monitor import BusMonitor
 from hil.cli import common
-from hil.description.source import read_robot_source
 from hil.errors import HilError
 from hil.realtime import enter_background
 from hil.visualisation import RunRecorder
+from hil.visualisation.urdf_export import viewer_urdf
 from hil.visualisation.node import VizNode
 from hil.zenoh_session import ZenohSettings, close_all, session
 
@@ -64,8 +63,7 @@ def run(args: argparse.Namespace) -> int:
     described = _open_sinks(recording, args)
     with tempfile.TemporaryDirectory(prefix="hil-viz-") as folder:
         urdf = Path(folder) / f"{config.robot.name}.urdf"
-        urdf.write_bytes(ET.tostring(read_robot_source(config.robot.source,
-                                                       common.package_path(args)).root))
+        urdf.write_bytes(viewer_urdf(config.robot))
         recorder = RunRecorder(recording, config.robot, urdf, _actuator_joints(config),
                                tuple(b.name for b in config.buses))
         recorder.log_static()

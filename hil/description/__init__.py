@@ -6,7 +6,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from hil.description.model import (
-    Geometry, GeometryKind, Inertial, Joint, JointDynamics, JointLimits, JointType, Link, Mimic,
+    WORLD, Geometry, GeometryKind, Inertial, Joint, JointDynamics, JointLimits, JointType, Link, Mimic,
     Pose, RobotDescription, TransmissionActuator, TransmissionJoint, TransmissionSpec, Visual,
 )
 from hil.description.packages import PackagePath, project_robots_dir
@@ -16,7 +16,7 @@ from hil.description.urdf_transmissions import TRANSMISSION_TYPES
 from hil.errors import HilError, Severity
 
 __all__ = [
-    "Geometry", "GeometryKind", "Inertial", "Joint", "JointDynamics", "JointLimits", "JointType",
+    "WORLD", "Geometry", "GeometryKind", "Inertial", "Joint", "JointDynamics", "JointLimits", "JointType",
     "Link", "Mimic", "PackagePath", "Pose", "RobotDescription", "TRANSMISSION_TYPES",
     "TransmissionActuator", "TransmissionJoint", "TransmissionSpec", "Visual",
     "load_description", "project_robots_dir",

@@ -15,6 +15,8 @@ from pathlib import Path
 from hil.errors import Diagnostic
 
 Vec3 = tuple[float, float, float]
+#: a root link of this name is the fixed world (UR, xArm, Unitree arms ...), not a body
+WORLD = "world"
 
 
 @dataclass(frozen=True)
@@ -203,6 +205,8 @@ class RobotDescription:
     joints: tuple[Joint, ...]
     transmissions: tuple[TransmissionSpec, ...]
     warnings: tuple[Diagnostic, ...] = field(default=(), compare=False)
+    #: the files it was read from (the top one first, then xacro's includes)
+    files: tuple[Path, ...] = field(default=(), compare=False)
 
     def link(self, name: str) -> Link:
         return self._links_by_name[name]

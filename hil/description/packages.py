@@ -20,6 +20,7 @@ registers a minimal reader of the same file layout, because
 from __future__ import annotations
 
 import atexit
+import functools
 import importlib.util
 import os
 import shutil
@@ -48,6 +49,9 @@ class PackagePath:
 
     roots: tuple[Path, ...]
 
+    def __post_init__(self):
+        object.__setattr__(self, "roots", tuple(Path(root) for root in self.roots))
+
     @classmethod
     def from_environment(cls, extra: list[str] | tuple[str, ...] = ()) -> "PackagePath":
         """``extra`` (e.g. from ``--package-path``) first, then the environment, then robots/."""
@@ -58,8 +62,8 @@ class PackagePath:
         unique = dict.fromkeys(r.expanduser().resolve() for r in roots)
         return cls(tuple(unique))
 
-    def packages(self) -> dict[str, Path]:
-        """Package name -> folder; the first root that has a package wins."""
+    @functools.cached_property
+    def _found(self) -> dict[str, Path]:
         found: dict[str, Path] = {}
         for root in self.roots:
             if not root.is_dir():
@@ -67,6 +71,12 @@ class PackagePath:
             for name, folder in _packages_under(root):
                 found.setdefault(name, folder)
         return found
+
+    def packages(self) -> dict[str, Path]:
+        """Package name -> folder; the first root that has a package wins. A package is
+        found by its package.xml ``<name>`` and by its folder's name (descriptions use
+        either in ``package://``); the folders are read once."""
+        return dict(self._found)
 
     def find(self, package: str) -> Path | None:
         return self.packages().get(package)
@@ -81,6 +91,7 @@ def _packages_under(root: Path):
             yield child.name, child
     for manifest in sorted(_manifests(root, 0)):
         yield _manifest_name(manifest), manifest.parent
+        yield manifest.parent.name, manifest.parent
 
 
 def _manifests(folder: Path, depth: int):
@@ -121,8 +132,11 @@ class AmentPrefix:
         markers = self._prefix / _RESOURCE_DIR
         markers.mkdir(parents=True)
         for name, folder in self.package_path.packages().items():
+            link = self._prefix / "share" / name
+            if link.exists() or link.is_symlink():     # e.g. a folder named ament_index
+                continue
             (markers / name).touch()
-            (self._prefix / "share" / name).symlink_to(folder, target_is_directory=True)
+            link.symlink_to(folder, target_is_directory=True)
         self._saved_env = os.environ.get("AMENT_PREFIX_PATH")
         os.environ["AMENT_PREFIX_PATH"] = os.pathsep.join(
             p for p in (str(self._prefix), self._saved_env) if p)

@@ -31,11 +31,11 @@ class SourceIndex:
 
     def __init__(self, files: tuple[Path, ...]):
         self.files = files
-        self._texts = {f: f.read_text(errors="replace") for f in files if f.is_file()}
+        self.texts = {f: f.read_text(errors="replace") for f in files if f.is_file()}
 
     def locate(self, tag: str, name: str) -> tuple[Path, int | None]:
         pattern = start_tag(tag, name)
-        for file, text in self._texts.items():
+        for file, text in self.texts.items():
             match = pattern.search(text)
             if match:
                 return file, text.count("\n", 0, match.start()) + 1
@@ -50,10 +50,27 @@ class ElementReader:
         self.package_path = package_path
         self.index = SourceIndex(source.files)
         self.diagnostics: list[Diagnostic] = []
+        #: fixed/floating joints whose zero axis was ignored (reported once, together)
+        self.ignored_axes: list[str] = []
 
     def report(self, make, message: str, tag: str, name: str, hint: str | None = None) -> None:
         file, line = self.index.locate(tag, name)
         self.diagnostics.append(make(message, file, line, hint))
+
+    def find_mesh(self, uri: str) -> Path | None:
+        """The file a mesh ``filename`` names: ``package://pkg/rel`` on the package path,
+        ``file:///abs``, or a path relative to the file that writes it (an included
+        file's own folder, not the top file's), else None."""
+        if uri.startswith("package://"):
+            package, _, rest = uri[len("package://"):].partition("/")
+            folder = self.package_path.find(package)
+            candidates = [folder / rest] if folder else []
+        elif uri.startswith("file://"):
+            candidates = [Path(uri[len("file://"):])]
+        else:
+            writers = [f for f, text in self.index.texts.items() if uri in text]
+            candidates = [f.parent / uri for f in (*writers, self.source.path)]
+        return next((c for c in candidates if c.is_file()), None)
 
     def number(self, text: str | None, what: str, tag: str, name: str,
                default: float | None = None) -> float | None:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hil.description.packages import AmentPrefix, PackagePath
-from hil.errors import HilError
+from hil.errors import HilError, error
 
 
 @dataclass(frozen=True)
@@ -45,25 +45,34 @@ def read_robot_source(path: Path, package_path: PackagePath) -> RobotSource:
 
 
 def _xml_error(path: Path, text: str, lineno: int, offset: int, reason: str) -> HilError:
-    """Explain an XML syntax error, recognising the seeds' common defects."""
+    """Explain an XML syntax error, recognising the seeds' common defects: a comment inside
+    a start tag is reported with every other one in the file, so that one run finds all."""
     lines = text.splitlines()
     line = lines[lineno - 1] if 0 < lineno <= len(lines) else ""
     if line[offset:].startswith("<!--"):
-        tag = _enclosing_tag(lines, lineno, offset)
-        return HilError.single(
-            f"XML comment inside the start tag of <{tag}> (column {offset + 1}): "
-            "XML allows comments only between tags, not between attributes",
-            path, lineno,
+        return HilError([error(
+            f"XML comment inside the start tag of <{tag}> (column {column}): "
+            "XML allows comments only between tags, not between attributes", path, number,
             hint=f"move the comment after the '>' that closes <{tag} ...>, "
                  "e.g. <joint name=\"j\" type=\"revolute\">  <!-- note -->")
+            for number, column, tag in comments_in_start_tags(text)])
     return HilError.single(f"malformed XML: {reason} (column {offset + 1})", path, lineno,
                            hint="fix the XML syntax at that position")
 
 
-def _enclosing_tag(lines: list[str], lineno: int, offset: int) -> str:
-    before = "\n".join(lines[: lineno - 1] + [lines[lineno - 1][:offset]])
-    starts = re.findall(r"<([A-Za-z_][\w:.-]*)", before)
-    return starts[-1] if starts else "?"
+def comments_in_start_tags(text: str) -> list[tuple[int, int, str]]:
+    """(line, column, tag) of every ``<!--`` written inside a start tag."""
+    found = []
+    blanked = re.sub(r"<!--.*?-->", lambda m: " " * len(m.group()), text, flags=re.DOTALL)
+    for match in re.finditer(r"<!--.*?-->", text, re.DOTALL):
+        # the markup this comment sits in: the last '<' or '>' before it, outside comments
+        before = blanked[:match.start()]
+        opened, closed = before.rfind("<"), before.rfind(">")
+        start = re.match(r"<([A-Za-z_][\w:.-]*)", before[opened:]) if opened > closed else None
+        if start:
+            found.append((text.count("\n", 0, match.start()) + 1,
+                          match.start() - text.rfind("\n", 0, match.start()), start.group(1)))
+    return found
 
 
 def _expand_xacro(path: Path, package_path: PackagePath) -> RobotSource:

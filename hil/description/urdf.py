@@ -7,11 +7,15 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 from collections import Counter, defaultdict
+from dataclasses import replace
 from pathlib import Path
 
+from hil.description.corrections import (
+    give_moving_links_mass, note_ignored_axes, note_world_link, physical_inertia,
+)
 from hil.description.model import (
     Geometry, GeometryKind, Inertial, Joint, JointDynamics, JointLimits, JointType, Link,
-    Mimic, RobotDescription, Visual,
+    Mimic, RobotDescription, TransmissionSpec, Visual,
 )
 from hil.description.packages import PackagePath
 from hil.description.reader import ElementReader, start_tag
@@ -26,19 +30,26 @@ def parse_urdf(source: RobotSource, package_path: PackagePath) -> RobotDescripti
     if root.tag != "robot":
         raise HilError.single(f"the root element is <{root.tag}>, not <robot>", source.path,
                               hint="a URDF file starts with <robot name=\"...\">")
+    if root.find("link") is None:
+        raise HilError.single("the robot has no <link>: there is nothing to simulate",
+                              source.path, hint="give the robot's full description (a file of "
+                              "xacro macros alone defines no links until a macro is called)")
     reader = ElementReader(source, package_path)
     links = tuple(_read_link(reader, e) for e in root.findall("link"))
     joints = tuple(_read_joint(reader, e) for e in root.findall("joint"))
     specs = [read_transmission(reader, e) for e in root.findall("transmission")]
     for block in root.findall("ros2_control"):
         specs += [read_transmission(reader, e) for e in block.findall("transmission")]
-    transmissions = tuple(s for s in specs if s is not None)
 
     _check_links(reader, links)
     _check_tree(reader, links, joints)
-    _check_mimic(reader, joints)
-    check_transmissions(reader, joints, transmissions)
+    joints = _check_mimic(reader, joints)
+    transmissions = check_transmissions(reader, joints, tuple(s for s in specs if s is not None))
+    _check_limits(reader, joints, transmissions)
     _check_visuals(reader, links, joints)
+    links = give_moving_links_mass(reader, links, joints)
+    note_ignored_axes(reader)
+    note_world_link(reader, links, joints)
 
     errors = [d for d in reader.diagnostics if d.severity is Severity.ERROR]
     warnings = tuple(d for d in reader.diagnostics if d.severity is Severity.WARNING)
@@ -46,7 +57,7 @@ def parse_urdf(source: RobotSource, package_path: PackagePath) -> RobotDescripti
         raise HilError(errors + list(warnings))
     return RobotDescription(
         name=root.get("name") or source.path.stem, source=source.path, links=links,
-        joints=joints, transmissions=transmissions, warnings=warnings)
+        joints=joints, transmissions=transmissions, warnings=warnings, files=source.files)
 
 
 # --- links -----------------------------------------------------------------
@@ -65,6 +76,12 @@ def _read_link(reader: ElementReader, element: ET.Element) -> Link:
                              f"link '{name}' mass", "link", name, 0.0)
         inertial = Inertial(mass=mass, origin=reader.pose(found.find("origin"), "link", name),
                             **values)
+        inertial, change = physical_inertia(inertial)
+        if change:
+            reader.report(warning, f"link '{name}' inertia is not physical for MuJoCo; corrected: "
+                          f"{change}", "link", name,
+                          hint="export the inertia again (kg m^2 about the centre of mass); "
+                               "MuJoCo needs positive moments with A + B >= C")
     visuals = tuple(v for v in (_read_visual(reader, name, e) for e in element.findall("visual"))
                     if v is not None)
     return Link(name=name, inertial=inertial, visuals=visuals)
@@ -109,28 +126,25 @@ def _read_geometry(reader: ElementReader, link: str, shape: ET.Element) -> Geome
     if shape.tag == "mesh":
         uri = shape.get("filename", "")
         scale = reader.vector(shape.get("scale"), 3, f"{what} scale", "link", link, (1.0,) * 3)
-        path = resolve_uri(uri, reader.source.path, reader.package_path)
-        if path is not None and path.is_file():
+        path = reader.find_mesh(uri)
+        if path is not None:
             return Geometry(GeometryKind.MESH, scale, mesh=path)
-        reader.report(
-            warning, f"link '{link}' mesh '{uri}' not found; drawn as a box of the link's "
-            "equivalent inertia instead", "link", link,
-            hint="add the mesh file to its package, or use --strict to make this an error")
+        package = uri[len("package://"):].partition("/")[0] if uri.startswith("package://") else None
+        if package and reader.package_path.find(package) is None:
+            reader.report(
+                warning, f"link '{link}' mesh '{uri}' not found: package '{package}' is not on "
+                f"the package path ({reader.package_path.describe()}); drawn as a box of the "
+                "link's equivalent inertia instead", "link", link,
+                hint=f"add the folder that holds '{package}' with --package-path DIR")
+        else:
+            reader.report(
+                warning, f"link '{link}' mesh '{uri}' not found; drawn as a box of the link's "
+                "equivalent inertia instead", "link", link,
+                hint="add the mesh file to its package, or use --strict to make this an error")
         return Geometry(GeometryKind.BOX, (), missing_mesh=uri)
     reader.report(error, f"link '{link}' has unknown geometry <{shape.tag}>", "link", link,
                   hint="use <box>, <cylinder>, <sphere> or <mesh>")
     return Geometry(GeometryKind.BOX, (0.05,) * 3)
-
-
-def resolve_uri(uri: str, relative_to: Path, package_path: PackagePath) -> Path | None:
-    """``package://pkg/rel``, ``file:///abs`` or a path relative to the URDF file."""
-    if uri.startswith("package://"):
-        package, _, rest = uri[len("package://"):].partition("/")
-        folder = package_path.find(package)
-        return folder / rest if folder else None
-    if uri.startswith("file://"):
-        return Path(uri[len("file://"):])
-    return relative_to.parent / uri
 
 
 def _check_links(reader: ElementReader, links: tuple[Link, ...]) -> None:
@@ -147,14 +161,6 @@ def _check_links(reader: ElementReader, links: tuple[Link, ...]) -> None:
         if inertial.mass < 0:
             reader.report(error, f"link '{link.name}' has negative mass {inertial.mass}",
                           "link", link.name)
-        principal = (inertial.ixx, inertial.iyy, inertial.izz)
-        if any(i < 0 for i in principal) or any(
-                principal[a] + principal[b] < principal[c] * (1 - 1e-6)
-                for a, b, c in ((0, 1, 2), (1, 2, 0), (2, 0, 1))):
-            reader.report(error, f"link '{link.name}' inertia (ixx, iyy, izz) = {principal} "
-                          "is not physical (each must be >= 0 and no one larger than the sum "
-                          "of the other two)", "link", link.name,
-                          hint="check the inertia export (units kg m^2, about the centre of mass)")
 
 
 # --- joints ----------------------------------------------------------------
@@ -174,8 +180,12 @@ def _read_joint(reader: ElementReader, element: ET.Element) -> Joint:
                          else None, 3, f"joint '{name}' axis", "joint", name, (1.0, 0.0, 0.0))
     norm = math.sqrt(sum(a * a for a in axis))
     if norm == 0.0:
-        reader.report(error, f"joint '{name}' has a zero axis", "joint", name,
-                      hint="give <axis xyz=\"...\"> a non-zero direction")
+        if joint_type in (JointType.REVOLUTE, JointType.CONTINUOUS, JointType.PRISMATIC,
+                          JointType.PLANAR):
+            reader.report(error, f"{joint_type.value} joint '{name}' has a zero axis", "joint",
+                          name, hint="give <axis xyz=\"...\"> a non-zero direction")
+        else:       # URDF ignores the axis of fixed and floating joints
+            reader.ignored_axes.append(name)
         norm, axis = 1.0, (1.0, 0.0, 0.0)
     axis = tuple(a / norm for a in axis)
     return Joint(
@@ -208,10 +218,17 @@ def _read_limits(reader: ElementReader, joint: str, joint_type: JointType,
         if amount is None:
             reader.report(error, f"joint '{joint}' <limit> has no {key}", "joint", joint,
                           hint=f"URDF requires {key}=\"...\" on every <limit>")
-        elif amount <= 0:
-            reader.report(error, f"joint '{joint}' limit {key} is {amount}; it must be > 0",
-                          "joint", joint)
+        elif amount < 0:
+            reader.report(error, f"joint '{joint}' limit {key} is {amount}; it must be >= 0",
+                          "joint", joint, hint=f"give the joint's largest {key} as a positive "
+                          "number")
     if joint_type is JointType.CONTINUOUS:
+        lower = upper = None
+    elif element.get("lower") is None and element.get("upper") is None:
+        reader.report(warning, f"{joint_type.value} joint '{joint}' has no lower/upper limits "
+                      "(URDF's default 0..0 would not let it move): hil takes it as unlimited",
+                      "joint", joint, hint="give lower=\"..\" upper=\"..\", or make it "
+                      "continuous")
         lower = upper = None
     else:
         lower, upper = value("lower", 0.0), value("upper", 0.0)
@@ -220,10 +237,33 @@ def _read_limits(reader: ElementReader, joint: str, joint_type: JointType,
                           "joint", joint, hint="swap lower and upper")
         elif lower == upper:
             reader.report(warning, f"joint '{joint}' has lower == upper == {lower}: it cannot "
-                          "move", "joint", joint,
-                          hint="URDF defaults lower/upper to 0; give both")
+                          "move; hil takes it as unlimited (MuJoCo needs lower < upper)",
+                          "joint", joint, hint="URDF defaults lower/upper to 0; give both")
+            lower = upper = None
     return JointLimits(lower=lower, upper=upper, effort=effort or 0.0,
                        velocity=velocity or 0.0)
+
+
+def _check_limits(reader: ElementReader, joints: tuple[Joint, ...],
+                  transmissions: tuple[TransmissionSpec, ...]) -> None:
+    """A joint a transmission drives needs its effort and velocity limits (the drive is
+    sized from them); on a passive joint a zero limit only means 'not given'."""
+    driven = {tj.name for t in transmissions for tj in t.joints}
+    for joint in joints:
+        limits = joint.limits
+        if limits is None or not joint.is_movable:
+            continue
+        for key, amount in (("effort", limits.effort), ("velocity", limits.velocity)):
+            if amount != 0:
+                continue
+            if joint.name in driven:
+                reader.report(error, f"joint '{joint.name}' is driven but its limit {key} is "
+                              "0", "joint", joint.name, hint=f"give <limit {key}=\"...\"> the "
+                              f"joint's largest {key} (the drive is sized from it)")
+            else:
+                reader.report(warning, f"joint '{joint.name}' limit {key} is 0: taken as not "
+                              "given (the joint is passive)", "joint", joint.name,
+                              hint=f"give the joint's largest {key} to drive it")
 
 
 def _read_dynamics(reader: ElementReader, joint: str, element: ET.Element | None) -> JointDynamics:
@@ -307,20 +347,34 @@ def _find_form(file: Path, package_path: PackagePath) -> str:
     return str(file)
 
 
-def _check_mimic(reader: ElementReader, joints: tuple[Joint, ...]) -> None:
+def _check_mimic(reader: ElementReader, joints: tuple[Joint, ...]) -> tuple[Joint, ...]:
+    """Joints with the mimics MuJoCo can build: a mimic of a joint that does not exist or
+    cannot move is left out with a warning (reduced models fix or drop the leader and keep
+    the mimic); a mimic of a mimic is an error."""
     by_name = {j.name: j for j in joints}
+    kept = []
     for joint in joints:
+        leader = by_name.get(joint.mimic.joint) if joint.mimic else None
         if joint.mimic is None:
-            continue
-        leader = by_name.get(joint.mimic.joint)
-        if leader is None:
-            reader.report(error, f"joint '{joint.name}' mimics joint '{joint.mimic.joint}', "
-                          "which does not exist", "joint", joint.name,
-                          hint=f"name one of: {', '.join(j.name for j in joints if j.is_movable)}")
+            pass
+        elif not joint.is_movable:
+            reader.report(warning, f"{joint.type.value} joint '{joint.name}' has a <mimic>, "
+                          "which does not move it: left out", "joint", joint.name,
+                          hint="remove the <mimic>, or give the joint a movable type")
+            joint = replace(joint, mimic=None)
+        elif leader is None or not leader.is_movable:
+            why = "does not exist" if leader is None else f"is {leader.type.value}"
+            reader.report(warning, f"joint '{joint.name}' mimics joint '{joint.mimic.joint}', "
+                          f"which {why}: the <mimic> is left out (the joint is passive)",
+                          "joint", joint.name,
+                          hint=f"mimic one of: {', '.join(j.name for j in joints if j.is_movable)}")
+            joint = replace(joint, mimic=None)
         elif leader.name == joint.name or leader.mimic is not None:
             reader.report(error, f"joint '{joint.name}' mimics '{leader.name}', which is itself "
                           "or a mimic joint", "joint", joint.name,
                           hint="mimic an actuated joint directly")
+        kept.append(joint)
+    return tuple(kept)
 
 
 # --- visuals ---------------------------------------------------------------

@@ -9,7 +9,7 @@ Both dialects: ROS 1 ``<transmission>`` at the top level (``<type>``,
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from collections import defaultdict
+from collections import Counter, defaultdict
 
 from hil.description.model import (
     Joint, TransmissionActuator, TransmissionJoint, TransmissionSpec,
@@ -17,22 +17,35 @@ from hil.description.model import (
 from hil.description.reader import ElementReader
 from hil.errors import error, warning
 
-#: Transmission types hil can model, by the names ROS 1 and ROS 2 use for them.
+#: Transmission types hil can model, by ros2_control's names for them. A type is read by its
+#: last part, so ROS 1's (``pr2_mechanism_model/SimpleTransmission``, a bare
+#: ``SimpleTransmission``) name the same ones.
 TRANSMISSION_TYPES = {
     "transmission_interface/SimpleTransmission": "simple",
     "transmission_interface/DifferentialTransmission": "differential",
     "transmission_interface/FourBarLinkageTransmission": "four_bar",
 }
+_BY_LAST_PART = {name.rpartition("/")[2]: name for name in TRANSMISSION_TYPES}
 _ARITY = {"simple": 1, "differential": 2, "four_bar": 2}
 
+
+def canonical_type(text: str) -> str:
+    """ros2_control's name of a transmission type as ROS 1 or ROS 2 writes it, or ``text``
+    itself where hil does not model that type."""
+    return _BY_LAST_PART.get(text.strip().rpartition("/")[2], text.strip())
 
 
 def read_transmission(reader: ElementReader, element: ET.Element) -> TransmissionSpec | None:
     name = element.get("name", "")
-    type_text = (element.findtext("type") or element.findtext("plugin") or "").strip()
+    # ROS 2: <plugin>; ROS 1: <type> or, in older files, a type="" attribute
+    type_text = canonical_type(element.findtext("type") or element.findtext("plugin")
+                               or element.get("type") or "")
+    # older ROS 1 files give a simple transmission's reduction on the transmission itself
+    shared = element.findtext("mechanicalReduction")
 
-    def reduction(part: ET.Element, what: str) -> float:
-        text = part.findtext("mechanicalReduction") or part.findtext("mechanical_reduction")
+    def reduction(part: ET.Element, what: str, default: str | None = None) -> float:
+        text = (part.findtext("mechanicalReduction") or part.findtext("mechanical_reduction")
+                or default)
         value = reader.number(text, f"transmission '{name}' {what} reduction", "transmission",
                               name, 1.0)
         if value == 0:
@@ -54,7 +67,7 @@ def read_transmission(reader: ElementReader, element: ET.Element) -> Transmissio
     actuators = tuple(
         TransmissionActuator(
             name=a.get("name", ""), role=role(a),
-            reduction=reduction(a, f"actuator '{a.get('name')}'"),
+            reduction=reduction(a, f"actuator '{a.get('name')}'", shared),
             rotor_inertia=reader.number(a.findtext("rotorInertia") or a.findtext("rotor_inertia"),
                                         f"transmission '{name}' rotor inertia", "transmission",
                                         name, 0.0))
@@ -71,64 +84,96 @@ def _by_role(parts: tuple, prefix: str) -> tuple:
 
 
 def check_transmissions(reader: ElementReader, joints: tuple[Joint, ...],
-                         transmissions: tuple[TransmissionSpec, ...]) -> None:
+                        transmissions: tuple[TransmissionSpec, ...]
+                        ) -> tuple[TransmissionSpec, ...]:
+    """Check every transmission against the joints; return those hil models. One of a type
+    hil does not model, or on a joint that cannot have an actuator (fixed, mimic), is left
+    out with a warning: its joints are passive (no actuator moves them)."""
     by_name = {j.name: j for j in joints}
-    _check_unique(reader, "transmission", [(t.name, t) for t in transmissions],
-                  hint="give each transmission its own name, e.g. in a macro "
-                       "name=\"${joint_name}_trans\"")
-    _check_unique(reader, "actuator", [(a.name, t) for t in transmissions for a in t.actuators],
-                  hint="each actuator drives through one transmission: give each its own "
-                       "name, e.g. name=\"${joint_name}_motor\"")
-    _check_unique(reader, "joint", [(j.name, t) for t in transmissions for j in t.joints],
-                  hint="a joint can be driven through one transmission only")
+    if any(count > 1 for count in Counter(t.name for t in transmissions).values()):
+        # one name for several transmissions: a macro that names them all alike (the seeds'
+        # defect); which actuator drives which joint cannot be told apart
+        for what, named in (("transmission", [(t.name, t) for t in transmissions]),
+                            ("actuator", [(a.name, t) for t in transmissions
+                                          for a in t.actuators])):
+            _check_unique(reader, what, named, hint="give each its own name, e.g. in a macro "
+                          f"name=\"${{joint_name}}_{'trans' if what == 'transmission' else 'motor'}\"")
+        return ()
+    transmissions = _first_of_each(reader, transmissions)
+    kept = []
     for spec in transmissions:
         kind = TRANSMISSION_TYPES.get(spec.type)
         if kind is None:
-            reader.report(error, f"transmission '{spec.name}' has unknown type '{spec.type}'",
+            reader.report(warning, f"transmission '{spec.name}' has type '{spec.type}', which "
+                          "hil does not model: left out, its joints "
+                          f"({', '.join(j.name for j in spec.joints)}) are passive",
                           "transmission", spec.name,
-                          hint=f"use one of: {', '.join(TRANSMISSION_TYPES)}")
+                          hint=f"hil models: {', '.join(TRANSMISSION_TYPES)}")
             continue
-        if kind == "simple":
-            _check_simple_reduction(reader, spec)
+        if _unactuatable(reader, spec, by_name):
+            continue
         arity = _ARITY[kind]
         if len(spec.joints) != arity or len(spec.actuators) != arity:
             reader.report(error, f"transmission '{spec.name}' ({kind}) has "
                           f"{len(spec.joints)} joint(s) and {len(spec.actuators)} actuator(s); "
-                          f"it needs {arity} of each", "transmission", spec.name)
-        for tj in spec.joints:
-            joint = by_name.get(tj.name)
-            if joint is None:
-                reader.report(error, f"transmission '{spec.name}' names joint '{tj.name}', "
-                              "which does not exist", "transmission", spec.name,
-                              hint=f"name one of: {', '.join(j.name for j in joints if j.is_movable)}")
-            elif not joint.is_movable:
-                reader.report(error, f"transmission '{spec.name}' drives {joint.type.value} "
-                              f"joint '{tj.name}', which cannot move", "transmission", spec.name)
-            elif joint.mimic is not None:
-                reader.report(error, f"transmission '{spec.name}' drives mimic joint "
-                              f"'{tj.name}'; a mimic joint follows its leader and has no "
-                              "actuator", "transmission", spec.name,
-                              hint="remove the transmission or the <mimic>")
+                          f"it needs {arity} of each", "transmission", spec.name,
+                          hint=f"give it {arity} <joint> and {arity} <actuator> elements")
         for actuator in spec.actuators:
             if actuator.rotor_inertia < 0:
                 reader.report(error, f"actuator '{actuator.name}' has negative rotor inertia",
-                              "transmission", spec.name)
-    driven = {tj.name for t in transmissions for tj in t.joints}
-    for joint in joints:
-        if joint.is_movable and joint.mimic is None and joint.name not in driven:
-            reader.report(warning, f"joint '{joint.name}' has no transmission: it is passive "
-                          "(no actuator moves it)", "joint", joint.name,
-                          hint="add a <transmission> if a motor drives this joint")
+                              "transmission", spec.name,
+                              hint="give the rotor's inertia in kg m^2 (>= 0)")
+        kept.append(spec)
+    return tuple(kept)
 
 
-def _check_simple_reduction(reader: ElementReader, spec: TransmissionSpec) -> None:
-    # Coupled transmissions use signs for their direction conventions (as in
-    # ros2_control); a simple one has the joint axis for that.
-    for part in (*spec.joints, *spec.actuators):
-        if part.reduction < 0:
-            reader.report(error, f"transmission '{spec.name}' has mechanical reduction "
-                          f"{part.reduction} on '{part.name}'; it must be > 0", "transmission",
-                          spec.name, hint="to reverse the direction, flip the joint's <axis>")
+def _unactuatable(reader: ElementReader, spec: TransmissionSpec,
+                  by_name: dict[str, Joint]) -> bool:
+    """Report a transmission that cannot act (on a missing, fixed or mimic joint); True if
+    it is to be left out."""
+    for tj in spec.joints:
+        joint = by_name.get(tj.name)
+        if joint is None:
+            movable = ", ".join(name for name, j in by_name.items() if j.is_movable)
+            reader.report(warning, f"transmission '{spec.name}' names joint '{tj.name}', "
+                          "which does not exist: left out", "transmission", spec.name,
+                          hint=f"name one of: {movable}")
+            return True
+        if not joint.is_movable or joint.mimic is not None:
+            why = (f"{joint.type.value} joint '{tj.name}', which cannot move"
+                   if not joint.is_movable else
+                   f"mimic joint '{tj.name}', which follows its leader")
+            reader.report(warning, f"transmission '{spec.name}' drives {why}: left out",
+                          "transmission", spec.name,
+                          hint="remove the transmission, or the joint's <mimic>/fixed type")
+            return True
+    return False
+
+
+def _first_of_each(reader: ElementReader, transmissions: tuple[TransmissionSpec, ...]
+                   ) -> tuple[TransmissionSpec, ...]:
+    """Each actuator and each joint in one transmission: the first that names it is kept,
+    a later one is left out with a warning (an underactuated hand's one motor for several
+    fingers is written so; hil drives the first finger and the others are passive)."""
+    kept: list[TransmissionSpec] = []
+    owner: dict[tuple[str, str], str] = {}
+    for spec in transmissions:
+        taken = [(what, name) for what, name in
+                 [*(("actuator", a.name) for a in spec.actuators),
+                  *(("joint", j.name) for j in spec.joints)] if (what, name) in owner]
+        if taken:
+            what, name = taken[0]
+            reader.report(warning, f"transmission '{spec.name}' names {what} '{name}', which "
+                          f"transmission '{owner[what, name]}' already drives: left out",
+                          "transmission", spec.name,
+                          hint=f"a {what} belongs to one transmission; give this one its own")
+            continue
+        for part in spec.actuators:
+            owner["actuator", part.name] = spec.name
+        for part in spec.joints:
+            owner["joint", part.name] = spec.name
+        kept.append(spec)
+    return tuple(kept)
 
 
 def _check_unique(reader: ElementReader, what: str, named: list[tuple[str, TransmissionSpec]],

@@ -1,9 +1,9 @@
 """Hardware interfaces: the CAN master for real (or virtual) drives, and a fake."""
 
 from hil.hardware.axis import AxisFault, FaultKind
+from hil.hardware.feedback import JointFeedback
 from hil.hardware.interface import (
     LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface, HardwareInterface,
-    JointFeedback,
 )
 
 __all__ = ["AxisFault", "CanHardwareInterface", "FaultKind", "FakeHardwareInterface", "HardwareInterface",

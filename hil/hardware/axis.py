@@ -61,6 +61,7 @@ class AxisFeedback:
     velocity: float = 0.0      # rad/s, motor
     torque: float = 0.0        # N·m, motor
     cycle: int = -1            # the master cycle whose answer this is
+    heard: bool = False        # an answer has set the values (until then they are defaults)
 
 
 #: one frame to send: (arbitration id, data, remote)
@@ -149,11 +150,12 @@ class Axis(ABC):
 
     def at_standstill(self) -> bool:
         """Fresh feedback (last cycle's) and not moving: safe to enable here."""
-        return (self.feedback.cycle >= self._cycle - 1
+        return (self.feedback.heard and self.feedback.cycle >= self._cycle - 1
                 and abs(self.feedback.velocity) <= STANDSTILL * self.config.max_velocity)
 
     def answered(self) -> None:
         """The cycle's answer is in: record it and wake the master."""
         self.last_heard = time.monotonic()   # before the cycle mark the master may wake on
+        self.feedback.heard = True
         self.feedback.cycle = self._cycle
         self._on_feedback()

@@ -17,7 +17,6 @@ import math
 import threading
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import can
@@ -27,6 +26,7 @@ from hil.bus_config import SystemConfig
 from hil.description import RobotDescription
 from hil.errors import HilError
 from hil.hardware.axis import Axis, AxisFault, FaultKind
+from hil.hardware.feedback import JointFeedback, PlausibilityCheck
 from hil.realtime import PeriodStatistics, Ring
 from hil.protocols import protocol
 from hil.transmissions import TransmissionStack, build_transmissions
@@ -40,27 +40,8 @@ MISSED_ANSWER_LIMIT = 5
 #: lock-step's wait for a cycle's answers (s): time stands still while nobody answers, so this
 #: only has to tell a slow peer (a loaded machine, User-Mode Linux) from a dead one
 LOCK_STEP_REPLY_TIMEOUT = 2.0
-#: measured joint positions beyond the limits by more than this part of the joint's range
-#: (plus REACH_SLACK, rad or m) cannot be real: a joint overshoots its limit a little at most
-REACH_MARGIN = 0.1
-REACH_SLACK = 0.01
-#: measured joint speeds beyond this many times the velocity limit (plus 1) cannot be real
-SPEED_MARGIN = 10.0
-
 #: CiA 301's SYNC COB-ID, sent on every bus with a protocol that uses it
 SYNC_ID = 0x080
-
-
-@dataclass
-class JointFeedback:
-    """One cycle's measurements: joint space, plus what each drive reported of itself
-    (``HardwareInterface.actuator_names`` order)."""
-
-    positions: np.ndarray
-    velocities: np.ndarray
-    efforts: np.ndarray
-    motor_torques: np.ndarray       # N·m on the motor shaft, as the drive reports it
-    drive_states: tuple[str, ...]   # each drive's state in its own protocol's words
 
 
 class HardwareInterface(ABC):
@@ -149,6 +130,7 @@ class CanHardwareInterface(HardwareInterface):
                                                                        self._on_feedback)
                                  for bus in config.buses for drive in bus.drives]
         self._sync_buses = sorted({a.bus_name for a in self.axes if a.protocol.uses_sync})
+        self._every_joint = np.ones(len(self.joint_names), dtype=bool)
         self.actuator_names = tuple(a.config.actuator for a in self.axes)
         # joints (joint_names order) <-> actuators (axes order) in one map
         self.transmissions = TransmissionStack(build_transmissions(config.robot),
@@ -163,8 +145,7 @@ class CanHardwareInterface(HardwareInterface):
         # a drive may legitimately be unheard while its answers are still within the limit of
         # missed ones: in lock-step (LOCK_STEP_REPLY_TIMEOUT), a stalled sim is slow, not dead
         self._answer_silence_limit = MISSED_ANSWER_LIMIT * self.reply_timeout
-        self._reach, self._speed_limit = _reach(config.robot, self.joint_names)
-        self._plausible: JointFeedback | None = None     # the last feedback that was
+        self._plausibility = PlausibilityCheck(config.robot, self.joint_names)
         #: each cycle's round trip (s): its SYNC (last frame) sent to its last answer in
         self.round_trips = Ring(PeriodStatistics.KEEP)
         self._last_answer = 0.0
@@ -213,7 +194,7 @@ class CanHardwareInterface(HardwareInterface):
             if faults or time.monotonic() > deadline:
                 raise HilError.single(
                     "drives did not enable: " + "; ".join(
-                        map(str, faults) or [f"{a.label} is {a.state}" for a in waiting]))
+                        [str(f) for f in faults] or [f"{a.label} is {a.state}" for a in waiting]))
         self._pending.clear()
         return feedback
 
@@ -281,30 +262,25 @@ class CanHardwareInterface(HardwareInterface):
             tuple(a.state for a in self.axes))
 
     def _checked(self, feedback: JointFeedback) -> JointFeedback:
-        """Feedback no joint can produce (beyond its reach, or impossibly fast) is a fault,
-        never a joint state: such joints keep their last plausible values."""
-        low, high = self._reach
-        bad = ((feedback.positions < low) | (feedback.positions > high)
-               | (np.abs(feedback.velocities) > self._speed_limit))
-        if not bad.any():
-            self._plausible = feedback
-            return feedback
-        for k in np.nonzero(bad)[0]:
+        """Feedback no joint can produce is a fault, never a joint state (see
+        :class:`~hil.hardware.feedback.PlausibilityCheck`)."""
+        checked, implausible = self._plausibility.check(feedback, self._heard_joints())
+        for k, text in implausible:
             name = self.joint_names[k]
             axis = next(a for a in self.axes if name in a.config.joints)   # its first drive
-            self._report(name, "implausible", axis.found(
-                FaultKind.IMPLAUSIBLE,
-                f"sent implausible feedback: joint '{name}' measured at "
-                f"{feedback.positions[k]:+.4g} moving {feedback.velocities[k]:+.4g}/s, "
-                f"beyond what it can reach ([{low[k]:.4g}, {high[k]:.4g}], speed "
-                f"{self._speed_limit[k]:.4g}): a frame the drive did not send, or the "
-                "encoder or transmission settings of the bus config are wrong"))
-        last = self._plausible
-        positions, velocities = feedback.positions.copy(), feedback.velocities.copy()
-        positions[bad] = last.positions[bad] if last else np.clip(positions, low, high)[bad]
-        velocities[bad] = last.velocities[bad] if last else 0.0
-        return JointFeedback(positions, velocities, feedback.efforts, feedback.motor_torques,
-                             feedback.drive_states)
+            self._report(name, "implausible", axis.found(FaultKind.IMPLAUSIBLE, text))
+        return checked
+
+    def _heard_joints(self) -> np.ndarray:
+        """Per joint: all its drives have answered at least once (before that, their values
+        are defaults, not measurements)."""
+        if all(axis.feedback.heard for axis in self.axes):     # from the first cycles on
+            return self._every_joint
+        heard = {j: True for j in self.joint_names}
+        for axis in self.axes:
+            for joint in axis.config.joints:
+                heard[joint] = heard.get(joint, True) and axis.feedback.heard
+        return np.array([heard[j] for j in self.joint_names])
 
     # --- faults -----------------------------------------------------------------------------
 
@@ -380,24 +356,6 @@ class CanHardwareInterface(HardwareInterface):
             self._networks[bus].send_message(can_id, data, remote)
         except can.CanError:
             pass
-
-
-def _reach(robot: RobotDescription, names: tuple[str, ...]
-           ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
-    """((lowest, highest) position, top speed) a joint's measurement can plausibly show."""
-    low, high, speed = [], [], []
-    for name in names:
-        limits = robot.joint(name).limits
-        if limits is None or limits.lower is None or limits.upper is None:
-            low.append(-np.inf)
-            high.append(np.inf)
-        else:
-            margin = REACH_MARGIN * (limits.upper - limits.lower) + REACH_SLACK
-            low.append(limits.lower - margin)
-            high.append(limits.upper + margin)
-        speed.append(SPEED_MARGIN * limits.velocity + 1.0 if limits and limits.velocity > 0
-                     else np.inf)
-    return (np.array(low), np.array(high)), np.array(speed)
 
 
 def _missed_too_many(axis: Axis, cycle: int) -> bool:

@@ -24,18 +24,24 @@ collisions with itself or a scene.
 
 from __future__ import annotations
 
+import functools
 import math
+import re
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from hil.description import GeometryKind, Joint, JointType, Link, RobotDescription
+from hil.description import WORLD, GeometryKind, Joint, JointType, Link, RobotDescription
+from hil.description.reader import SourceIndex
 from hil.errors import HilError
 from hil.transmissions import SimpleTransmission, Transmission
 
 DEFAULT_TIMESTEP = 0.001
 _VISUAL_GROUP = 1
+#: mesh files MuJoCo reads itself; others are drawn as the link's box in the plant
+MUJOCO_MESHES = (".stl", ".obj")
 
 
 @dataclass(frozen=True)
@@ -65,7 +71,11 @@ def build_spec(description: RobotDescription, transmissions: tuple[Transmission,
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
 
     armature = _reflected_joint_armature(description, transmissions)
-    _add_body(spec.worldbody, description, description.root_link, None, armature)
+    if description.root_link == WORLD:        # MuJoCo's world body is that link
+        for child in description.children_of(WORLD):
+            _add_body(spec, spec.worldbody, description, child.child, child, armature)
+    else:
+        _add_body(spec, spec.worldbody, description, description.root_link, None, armature)
     _add_mimic_constraints(spec, description)
     bindings = _add_actuators(spec, description, transmissions)
     return spec, bindings
@@ -75,9 +85,17 @@ def compile_model(spec: mujoco.MjSpec, description: RobotDescription) -> mujoco.
     try:
         return spec.compile()
     except ValueError as exc:
-        raise HilError.single(f"MuJoCo rejects the model of '{description.name}': {exc}",
-                              description.source,
-                              hint="check the named link or joint's inertial and limits") from None
+        text = " ".join(str(exc).split())
+        element = re.search(r"Element name '([^']*)'", text)
+        name = element.group(1) if element else ""
+        kind = ("link" if name in {link.name for link in description.links} else
+                "joint" if name in {joint.name for joint in description.joints} else None)
+        file, line = (SourceIndex(description.files).locate(kind, name) if kind
+                      else (description.source, None))
+        raise HilError.single(f"MuJoCo rejects the model of '{description.name}': {text}",
+                              file, line,
+                              hint=f"check {kind} '{name}' (its inertial and limits)" if kind
+                              else "check the links' inertials and the joints' limits") from None
 
 
 def _reflected_joint_armature(description: RobotDescription,
@@ -87,8 +105,8 @@ def _reflected_joint_armature(description: RobotDescription,
             if isinstance(t, SimpleTransmission)}
 
 
-def _add_body(parent, description: RobotDescription, link_name: str, joint: Joint | None,
-              armature: dict[str, float]) -> None:
+def _add_body(spec: mujoco.MjSpec, parent, description: RobotDescription, link_name: str,
+              joint: Joint | None, armature: dict[str, float]) -> None:
     link = description.link(link_name)
     body = parent.add_body(name=link.name)
     if joint is not None:
@@ -97,9 +115,9 @@ def _add_body(parent, description: RobotDescription, link_name: str, joint: Join
         if joint.is_movable:
             _add_joint(body, joint, armature.get(joint.name, 0.0))
     _set_inertial(body, link)
-    _add_visuals(body, link)
+    _add_visuals(spec, body, link)
     for child in description.children_of(link.name):
-        _add_body(body, description, child.child, child, armature)
+        _add_body(spec, body, description, child.child, child, armature)
 
 
 def _add_joint(body, joint: Joint, armature: float) -> None:
@@ -131,28 +149,55 @@ def _set_inertial(body, link: Link) -> None:
                         inertial.ixy, inertial.ixz, inertial.iyz)
 
 
-def _add_visuals(body, link: Link) -> None:
-    for visual in link.visuals:
+def _add_visuals(spec: mujoco.MjSpec, body, link: Link) -> None:
+    for number, visual in enumerate(link.visuals):
         geometry = visual.geometry
         origin = visual.origin
-        if geometry.kind is GeometryKind.BOX and geometry.size:
+        mesh = geometry.mesh
+        if mesh is not None and unreadable_mesh(mesh) is None:
+            name = f"{link.name}_visual_{number}"
+            # visual only: shell inertia never fails on an open mesh, and the body's
+            # inertia is the URDF's (inertiafromgeom off)
+            spec.add_mesh(name=name, file=str(mesh), scale=list(geometry.size),
+                          inertia=mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL)
+            kind, size = mujoco.mjtGeom.mjGEOM_MESH, [0.0, 0.0, 0.0]
+        elif geometry.kind is GeometryKind.BOX and geometry.size:
             kind, size = mujoco.mjtGeom.mjGEOM_BOX, [s / 2 for s in geometry.size]
         elif geometry.kind is GeometryKind.CYLINDER:
             kind, size = mujoco.mjtGeom.mjGEOM_CYLINDER, [geometry.size[0], geometry.size[1] / 2, 0]
         elif geometry.kind is GeometryKind.SPHERE:
             kind, size = mujoco.mjtGeom.mjGEOM_SPHERE, [geometry.size[0], 0, 0]
         elif link.inertial is not None:
-            # mesh (present or missing): MuJoCo draws the link's equivalent-inertia box
+            # a mesh MuJoCo cannot read (DAE, ASCII STL: the recording draws it) or a
+            # missing one: the link's equivalent-inertia box
             kind, size = mujoco.mjtGeom.mjGEOM_BOX, [s / 2 for s in link.inertial.equivalent_box()]
             origin = link.inertial.origin
         else:
             continue
         geom = body.add_geom(type=kind, size=size)
+        if kind == mujoco.mjtGeom.mjGEOM_MESH:
+            geom.meshname = name
         geom.pos, geom.quat = origin.xyz, rpy_to_quat(origin.rpy)
         geom.contype, geom.conaffinity, geom.group = 0, 0, _VISUAL_GROUP
         geom.mass = 0.0
         if visual.rgba is not None:
             geom.rgba = visual.rgba
+
+
+@functools.cache
+def unreadable_mesh(path: Path) -> str | None:
+    """Why MuJoCo cannot read the mesh file (a format it has no reader for, an ASCII STL,
+    a broken file), or None if it can."""
+    if path.suffix.lower() not in MUJOCO_MESHES:
+        return f"MuJoCo reads {' and '.join(MUJOCO_MESHES)} meshes, not {path.suffix}"
+    probe = mujoco.MjSpec()
+    probe.add_mesh(name="probe", file=str(path),
+                   inertia=mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL)
+    try:
+        probe.compile()
+    except ValueError as exc:
+        return " ".join(str(exc).split()).removeprefix("Error: ").split(" Element name")[0]
+    return None
 
 
 def _add_mimic_constraints(spec: mujoco.MjSpec, description: RobotDescription) -> None:

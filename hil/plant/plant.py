@@ -16,7 +16,10 @@ import mujoco
 import numpy as np
 
 from hil.description import RobotDescription
-from hil.plant.builder import DEFAULT_TIMESTEP, build_spec, compile_model
+from hil.errors import Diagnostic, warning
+from hil.plant.builder import (
+    DEFAULT_TIMESTEP, MUJOCO_MESHES, build_spec, compile_model, unreadable_mesh,
+)
 from hil.transmissions import Transmission, TransmissionStack, build_transmissions
 
 
@@ -47,6 +50,22 @@ class Plant:
         self._driven_dof = np.array([self.model.joint(n).dofadr[0] for n in driven])
         self._motors = TransmissionStack(self.transmissions, tuple(driven), self.actuator_names)
         self._actuator_ids = np.array([self.model.actuator(n).id for n in self.actuator_names])
+        self.set_joint_positions(initial_pose(description))
+
+    @property
+    def warnings(self) -> tuple[Diagnostic, ...]:
+        """STL/OBJ meshes MuJoCo could not read, which the plant draws as their link's box
+        (each with MuJoCo's reason). DAE meshes are boxes in the plant without a word: MuJoCo
+        has no reader for them, and the recording draws them."""
+        return tuple(
+            warning(f"link '{link.name}' mesh '{visual.geometry.mesh}': the plant draws the "
+                    f"link's box instead ({reason}); the recording draws the mesh",
+                    self.description.source,
+                    hint="convert the mesh to binary STL or OBJ to see it in MuJoCo too")
+            for link in self.description.links for visual in link.visuals
+            if visual.geometry.mesh is not None
+            and (reason := unreadable_mesh(visual.geometry.mesh)) is not None
+            and visual.geometry.mesh.suffix.lower() in MUJOCO_MESHES)
 
     # --- motor side --------------------------------------------------------
 
@@ -137,3 +156,22 @@ def _avoid_slow_clock() -> None:
     source = ctypes.CDLL(None).drand48
     source.restype, source.argtypes = ctypes.c_double, []
     mujoco.set_mjcb_time(source)
+
+
+#: how far inside its range a joint starts whose range excludes zero (share of the range)
+INITIAL_MARGIN = 0.1
+
+
+def initial_pose(description: RobotDescription) -> dict[str, float]:
+    """Where the robot starts: every joint at zero, or INITIAL_MARGIN of its range inside
+    the nearer end where zero lies outside it (a real robot is powered up inside its limits,
+    and a drive faults on a position limit it starts on)."""
+    pose = {}
+    for joint in description.movable_joints:
+        limits = joint.limits
+        if joint.mimic is None and limits is not None and limits.lower is not None:
+            margin = INITIAL_MARGIN * (limits.upper - limits.lower)
+            if not limits.lower <= 0.0 <= limits.upper:
+                pose[joint.name] = (limits.lower + margin if limits.lower > 0.0
+                                    else limits.upper - margin)
+    return pose

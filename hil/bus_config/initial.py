@@ -1,0 +1,211 @@
+"""A first bus config for any robot description: what ``hil init`` writes.
+
+One drive per actuated joint: the description's own transmissions where it has them, else
+a simple transmission per movable, non-mimic joint sized by :mod:`hil.bus_config.sizing`
+and carried by the config (``transmissions:``), so the description stays untouched. The
+drives are spread over as many 1 Mbit/s buses as the load check allows at the rate, with
+node ids from 1. Comments in the file say what was assumed.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, replace
+from datetime import date
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from hil.bus_config.sizing import Sizing, size_joint
+from hil.bus_config.transmissions import SIMPLE, actuator_of
+from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD
+from hil.can import bus_load
+from hil.description import (
+    RobotDescription, TransmissionActuator, TransmissionJoint, TransmissionSpec,
+)
+from hil.plant import Plant
+from hil.protocols import protocol
+
+BITRATE = 1_000_000
+HEARTBEAT_PERIOD = 0.1
+#: MIT motors hold position with the master's kp/kd: a critically damped loop at this
+#: bandwidth on the joint's inertia at the zero pose, reflected to the motor
+MIT_BANDWIDTH_HZ = 10.0
+
+
+@dataclass(frozen=True)
+class Drive:
+    """One drive to write: its joint, actuator, what the config adds for it (if anything)."""
+
+    joint: str
+    actuator: str
+    sizing: Sizing | None          # None: the description's own transmission
+    rated_torque: float | None
+    options: dict | None = None
+
+
+@dataclass(frozen=True)
+class InitialConfig:
+    text: str
+    drives: int
+    buses: int
+    skipped: tuple[str, ...]       # joints left passive, each with its reason
+
+
+def initial_config(robot: RobotDescription, description: Path, output: Path,
+                   protocol_name: str, rate: float) -> InitialConfig:
+    """The YAML text of a bus config for ``robot`` (read from ``description``), to be
+    written at ``output``."""
+    driven = {tj.name for t in robot.transmissions for tj in t.joints}
+    loads = gravity_loads(robot)
+    sizings, skipped = [], []
+    for joint in robot.movable_joints:
+        if joint.mimic is not None or joint.name in driven:
+            continue
+        if joint.limits is None or joint.limits.effort <= 0 or joint.limits.velocity <= 0:
+            skipped.append(f"{joint.name}: the description gives no effort/velocity limit to "
+                           "size a drive from (passive)")
+            continue
+        sizings.append(size_joint(joint, loads[joint.name]))
+    added = tuple(_transmission(s) for s in sizings)
+    sized = replace(robot, transmissions=robot.transmissions + added)
+    drives = [Drive(t.joints[0].name if len(t.joints) == 1 else ", ".join(j.name for j in t.joints),
+                    a.name, None, None) for t in robot.transmissions for a in t.actuators]
+    drives += [Drive(s.joint, actuator_of(s.joint), s,
+                     min(s.motor.rated_torque, s.motor.peak_torque,
+                         sized.joint(s.joint).limits.effort / s.reduction)) for s in sizings]
+    if protocol_name == "mit":
+        drives = _with_mit_options(sized, drives)
+    per_bus = _drives_per_bus(protocol_name, rate)
+    buses = [drives[i:i + per_bus] for i in range(0, len(drives), per_bus)]
+    text = _yaml(robot, description, output, protocol_name, rate, sizings, buses, per_bus,
+                 skipped)
+    return InitialConfig(text, len(drives), len(buses), tuple(skipped))
+
+
+def gravity_loads(robot: RobotDescription) -> dict[str, float]:
+    """Each movable joint's static gravity load at the plant's start pose (N·m or N)."""
+    plant = Plant(robot)
+    return {name: float(plant.data.qfrc_bias[plant.model.joint(name).dofadr[0]])
+            for name in plant.joint_names}
+
+
+def _transmission(sizing: Sizing) -> TransmissionSpec:
+    return TransmissionSpec(
+        name=f"{sizing.joint}_transmission", type=SIMPLE,
+        joints=(TransmissionJoint(name=sizing.joint),),
+        actuators=(TransmissionActuator(name=actuator_of(sizing.joint),
+                                        reduction=sizing.reduction,
+                                        rotor_inertia=sizing.motor.rotor_inertia),))
+
+
+def _drives_per_bus(protocol_name: str, rate: float) -> int:
+    """How many drives of the protocol fit on one bus at ``rate`` under LOAD_WARNING."""
+    spec = protocol(protocol_name)
+    one = [(payload, hz) for _, payload, hz in
+           spec.bus_frames(spec.node_ids.start or 1, rate, HEARTBEAT_PERIOD, None) if hz > 0]
+    sync = bus_load(BITRATE, [(SYNC_PAYLOAD, rate)] if spec.uses_sync else [])
+    per_drive = bus_load(BITRATE, one).worst_bits_per_second
+    budget = LOAD_WARNING * BITRATE - sync.worst_bits_per_second
+    return max(1, min(int(budget // per_drive), len(spec.node_ids) - 1))
+
+
+def _with_mit_options(robot: RobotDescription, drives: list[Drive]) -> list[Drive]:
+    """MIT motors pack every value into a range of their own: ranges that cover the motor
+    side of each joint, and the master's gains (see MIT_BANDWIDTH_HZ)."""
+    plant = Plant(robot)
+    data = mujoco.MjData(plant.model)
+    mujoco.mj_forward(plant.model, data)
+    mass = np.zeros((plant.model.nv, plant.model.nv))
+    mujoco.mj_fullM(plant.model, data, mass)
+    omega = 2 * math.pi * MIT_BANDWIDTH_HZ
+    result = []
+    for drive in drives:
+        joint = robot.joint(drive.joint.split(", ")[0])
+        spec = next(t for t in robot.transmissions
+                    if drive.actuator in (a.name for a in t.actuators))
+        reduction = abs(spec.actuators[0].reduction * spec.joints[0].reduction)
+        dof = plant.model.joint(joint.name).dofadr[0]
+        inertia = mass[dof, dof] / reduction ** 2           # at the motor
+        kp, kd = inertia * omega ** 2, 2 * inertia * omega
+        limits = joint.limits
+        reach = (max(abs(limits.lower), abs(limits.upper)) if limits.lower is not None
+                 else 2 * math.pi)                           # unlimited: two turns each way
+        peak = limits.effort / reduction
+        options = {"p_max": _round_up(1.2 * reach * reduction),
+                   "v_max": _round_up(1.2 * limits.velocity * reduction),
+                   "t_max": _round_up(1.2 * peak), "kp_max": _round_up(2 * kp),
+                   "kd_max": _round_up(2 * kd), "kp": float(f"{kp:.4g}"),
+                   "kd": float(f"{kd:.4g}")}
+        result.append(replace(drive, options=options))
+    return result
+
+
+def _round_up(value: float) -> float:
+    """Up to two significant digits (a range written by hand would look so)."""
+    if value <= 0:
+        return 1.0
+    scale = 10 ** (math.floor(math.log10(value)) - 1)
+    return float(f"{math.ceil(value / scale) * scale:.6g}")
+
+
+def _number(value: float) -> str:
+    """A float as YAML 1.1 (PyYAML) reads it back as one: ``1e-07`` is a string there."""
+    text = f"{value:.4g}"
+    mantissa, e, exponent = text.partition("e")
+    return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
+
+
+def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_name: str,
+          rate: float, sizings: list[Sizing], buses: list[list[Drive]], per_bus: int,
+          skipped: list[str]) -> str:
+    robot_path = os.path.relpath(description.resolve(), output.resolve().parent)
+    if robot_path.startswith(os.pardir):          # not below the config's folder
+        robot_path = str(description.resolve())
+    lines = [
+        f"# Bus config for '{robot.name}', written by `hil init` on {date.today()}.",
+        "# Check it, then: hil check THIS.yaml && hil up THIS.yaml --demo",
+        "#",
+        f"# Assumed: {protocol_name} drives, node ids from 1 on each bus, {len(buses)} bus(es) of "
+        f"{BITRATE // 1000} kbit/s at {rate:g} Hz",
+        f"# ({per_bus} drive(s) per bus keep the worst-case load under {LOAD_WARNING:.0%}).",
+    ]
+    if sizings:
+        lines += [
+            "# The description has no transmission for the joints under 'transmissions':",
+            "# each gets a simple one, sized by hil's rule (hil/bus_config/sizing.py): the",
+            "# smallest generic servo motor class whose peak torque x reduction covers the",
+            "# joint's effort limit and whose top speed / reduction covers its velocity limit,",
+            "# with the smallest such reduction. Replace them with your real drives' values.",
+        ]
+    lines += [f"# Left passive: {reason}" for reason in skipped]
+    lines += ["", f"robot: {robot_path}", "plant_rate_hz: 1000"]
+    if sizings:
+        lines += ["", "transmissions:"]
+        lines += [f"  {s.joint}: {{reduction: {s.reduction:.6g}, rotor_inertia: "
+                  f"{_number(s.motor.rotor_inertia)}}}   # {s.note}" for s in sizings]
+    lines += ["", "defaults:", f"  protocol: {protocol_name}",
+              "  encoder_counts_per_rev: 131072   # 17-bit encoder on the motor",
+              f"  heartbeat_period: {HEARTBEAT_PERIOD:g}", "", "buses:"]
+    for number, drives in enumerate(buses, 1):
+        node_id = 1
+        lines += [f"  - name: bus{number}", "    interface: zenoh",
+                  f"    channel: {robot.name}/bus{number}", f"    bitrate: {BITRATE}",
+                  f"    cycle_hz: {rate:g}", "    drives:"]
+        for drive in drives:
+            key = (f"joint: {drive.joint}" if drive.sizing is not None
+                   else f"actuator: {drive.actuator}")
+            fields = [f"node_id: {node_id}", key]
+            if drive.rated_torque is not None:
+                fields.append(f"rated_torque: {_number(drive.rated_torque)}")
+            if drive.options:
+                fields.append("options: {" + ", ".join(f"{k}: {_number(v)}" for k, v in
+                                                        drive.options.items()) + "}")
+            lines.append(f"      - {{{', '.join(fields)}}}")
+            node_id += 1
+    return "\n".join(lines) + "\n"
+
+
+__all__ = ["InitialConfig", "initial_config"]

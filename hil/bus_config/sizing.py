@@ -1,0 +1,97 @@
+"""Choosing a motor and a reduction for a joint from its effort and velocity limits.
+
+``hil init`` uses this where a description has no transmission for a joint. The rule,
+documented so that a user can check it against the drive they have:
+
+* the catalogue is a range of generic servo motor classes (:data:`MOTOR_CLASSES`: rated
+  torque at 3000 rpm for the class' power, peak 3 x rated, the top speed and rotor inertia
+  typical of industrial AC servo motors of that power; small BLDC classes below 50 W);
+* the reductions are the usual gearhead and harmonic-drive ratios for a revolute joint
+  (:data:`ROTARY_REDUCTIONS`) and ball-screw leads for a prismatic one
+  (:data:`SCREW_LEADS_MM`, reduction 2 pi / lead in rad per metre);
+* a joint gets the smallest motor class (by peak torque) for which some reduction ``N``
+  covers both limits, ``peak x N >= effort`` and ``top speed / N >= velocity``, and whose
+  rated (continuous) torque holds the joint's gravity load at the start pose with margin,
+  ``rated x N >= HOLDING_MARGIN x load`` (the holding brake is sized like the rated torque),
+  with the smallest such ``N`` (the least reflected inertia);
+* where no class covers both, the largest class with the smallest reduction that covers
+  the effort, and the note says the speed falls short.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from hil.description import Joint, JointType
+
+
+@dataclass(frozen=True)
+class MotorClass:
+    name: str
+    rated_torque: float       # N·m
+    peak_torque: float        # N·m
+    top_speed: float          # rad/s
+    rotor_inertia: float      # kg m^2
+
+
+def _servo(watts: float, top_rpm: float, rotor_inertia: float) -> MotorClass:
+    rated = watts / (3000 * 2 * math.pi / 60)
+    return MotorClass(f"{watts:g} W", round(rated, 4), round(3 * rated, 4),
+                      round(top_rpm * 2 * math.pi / 60, 1), rotor_inertia)
+
+
+MOTOR_CLASSES = (
+    _servo(10, 10000, 1.0e-7), _servo(25, 8000, 6.0e-7), _servo(50, 6000, 2.5e-6),
+    _servo(100, 6000, 5.1e-6), _servo(200, 6000, 1.5e-5), _servo(400, 6000, 2.7e-5),
+    _servo(750, 6000, 1.1e-4), _servo(1000, 5000, 2.6e-4), _servo(1500, 5000, 3.8e-4),
+    _servo(2000, 5000, 5.2e-4), _servo(3000, 5000, 1.2e-3), _servo(5000, 5000, 2.1e-3),
+)
+#: rated torque x reduction over the static gravity load a joint must hold
+HOLDING_MARGIN = 1.5
+ROTARY_REDUCTIONS = (1, 3, 5, 7, 10, 15, 20, 30, 50, 80, 100, 120, 160)
+SCREW_LEADS_MM = (40, 25, 20, 16, 10, 5, 4, 2, 1)
+
+
+@dataclass(frozen=True)
+class Sizing:
+    """A joint's motor and reduction, and what hil assumed in words."""
+
+    joint: str
+    motor: MotorClass
+    reduction: float
+    note: str
+
+
+def reductions_for(joint: Joint) -> tuple[float, ...]:
+    """The reductions a joint of this type may get, smallest first."""
+    if joint.type is JointType.PRISMATIC:
+        return tuple(2 * math.pi / (lead / 1000) for lead in SCREW_LEADS_MM)
+    return tuple(float(n) for n in ROTARY_REDUCTIONS)
+
+
+def size_joint(joint: Joint, static_load: float = 0.0) -> Sizing:
+    """Motor class and reduction for ``joint`` by the rule of this module; its limits must
+    give effort and velocity (> 0); ``static_load`` is the gravity load it holds at rest
+    (N·m or N)."""
+    effort, velocity = joint.limits.effort, joint.limits.velocity
+    holding = HOLDING_MARGIN * abs(static_load)
+    unit = "N" if joint.type is JointType.PRISMATIC else "N·m"
+    speed_unit = "m/s" if joint.type is JointType.PRISMATIC else "rad/s"
+    limits = (f"joint limits {effort:g} {unit}, {velocity:g} {speed_unit}"
+              + (f", gravity load {abs(static_load):.3g} {unit}" if static_load else ""))
+    for motor in MOTOR_CLASSES:
+        for reduction in reductions_for(joint):
+            if (motor.peak_torque * reduction >= effort and motor.top_speed / reduction >= velocity
+                    and motor.rated_torque * reduction >= holding):
+                return Sizing(joint.name, motor, reduction, f"{motor.name} motor class "
+                              f"(peak {motor.peak_torque:g} N·m, {motor.top_speed:g} rad/s) "
+                              f"x {reduction:.4g}; {limits}")
+    largest = MOTOR_CLASSES[-1]
+    candidates = reductions_for(joint)
+    reduction = next((n for n in candidates if largest.peak_torque * n >= effort),
+                     candidates[-1])
+    return Sizing(joint.name, largest, reduction, f"{largest.name} motor class x "
+                  f"{reduction:.4g}: no class covers both {limits} (reaches "
+                  f"{largest.peak_torque * reduction:.4g} {unit}, "
+                  f"{largest.top_speed / reduction:.4g} {speed_unit})")

@@ -1,0 +1,54 @@
+"""``hil init DESCRIPTION``: write a bus config a user can run at once (see
+:mod:`hil.bus_config.initial`), then load it back as every other command will."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from hil.bus_config import load_bus_config
+from hil.bus_config.initial import initial_config
+from hil.cli import common
+from hil.description import load_description
+from hil.errors import HilError
+from hil.protocols import BUILTIN
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("description", type=Path, help="robot description (.xacro or .urdf)")
+    parser.add_argument("--protocol", choices=sorted(BUILTIN), default="cia402",
+                        help="the drives' protocol (default cia402)")
+    parser.add_argument("--rate", type=float, default=500.0, metavar="HZ",
+                        help="control cycle rate of every bus (default 500)")
+    parser.add_argument("-o", "--output", type=Path, metavar="FILE.yaml",
+                        help="where to write it (default: ROBOT.yaml in this folder)")
+    parser.add_argument("--force", action="store_true", help="replace an existing file")
+    common.add_package_path(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    if not args.rate > 0 or args.rate > 10_000:
+        raise HilError.single(f"--rate {args.rate:g}: give a control rate in Hz, e.g. 500")
+    package_path = common.package_path(args)
+    robot = load_description(args.description, package_path)
+    output = args.output or Path(f"{robot.name}.yaml")
+    if output.suffix not in (".yaml", ".yml"):
+        raise HilError.single(f"-o {output}: a bus config is a .yaml file")
+    if output.exists() and not args.force:
+        raise HilError.single(f"{output} exists already", hint="give another -o, or --force")
+    written = initial_config(robot, args.description, output, args.protocol, args.rate)
+    if written.drives == 0:
+        raise HilError.single(f"'{robot.name}' has no joint hil can drive "
+                              f"({'; '.join(written.skipped) or 'no movable joint'})",
+                              args.description,
+                              hint="give the joints <limit effort=... velocity=...>")
+    output.write_text(written.text)
+    config = load_bus_config(output, package_path)      # as `hil check` and `hil up` will
+    print(f"hil init: wrote {output}: {written.drives} {args.protocol} drive(s) on "
+          f"{written.buses} bus(es) at {args.rate:g} Hz for '{robot.name}'"
+          f"{f'; {len(config.warnings)} warning(s), see hil check' if config.warnings else ''}")
+    for reason in written.skipped:
+        print(f"  left passive: {reason}")
+    where = "".join(f" --package-path {folder}" for folder in args.package_path)
+    print(f"next: hil check {output}{where} && hil up {output} --demo{where}")
+    return 0

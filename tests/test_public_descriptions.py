@@ -1,0 +1,99 @@
+"""Public robot descriptions, as published (example-robot-data from PyPI, the test extra:
+arms, legged robots, hands, humanoids, aerial robots): `hil check` loads nearly all of them
+and never shows a traceback; `hil init` then `hil up --demo` runs arms and legged robots hil
+never shipped, and the recording holds their meshes.
+
+The few that do not load fail for reasons of their own, each named in EXPECTED_FAILURES
+(and in the README)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from importlib.metadata import PackageNotFoundError, distribution
+from pathlib import Path
+
+import pytest
+
+from hil.cli import main
+from hil.description import PackagePath, load_description
+from hil.errors import HilError
+from hil.plant import Plant
+from test_init import mesh_entities
+
+
+def _share() -> Path | None:
+    try:
+        found = Path(distribution("example-robot-data").locate_file("cmeel.prefix/share"))
+    except PackageNotFoundError:
+        return None
+    return found if (found / "example-robot-data" / "robots").is_dir() else None
+
+
+SHARE = _share()
+pytestmark = [pytest.mark.skipif(SHARE is None, reason="example-robot-data is not installed "
+                                 "(it comes with the test extra: pip install -e '.[test]')")]
+ROBOTS = SHARE / "example-robot-data" / "robots" if SHARE else Path()
+
+#: descriptions that do not load, and why (the message hil gives names the file and line)
+EXPECTED_FAILURES = {
+    "ur_description/urdf/ur3.urdf": "an empty <robot> (the published file has no links)",
+    "hector_description/robots/quadrotor_base.urdf.xacro": "xacro macros only, never called",
+    "hector_description/robots/quadrotor_base.xacro":
+        "includes a file by package:// path, which xacro does not resolve",
+}
+
+
+def descriptions() -> list[str]:
+    return sorted(str(p.relative_to(ROBOTS)) for p in ROBOTS.rglob("*")
+                  if p.suffix in (".urdf", ".xacro")) if SHARE else []
+
+
+@pytest.mark.slow
+def test_nearly_every_public_description_loads_and_none_shows_a_traceback():
+    package_path = PackagePath((SHARE,))
+    failed = {}
+    for name in descriptions():
+        try:                  # anything but a HilError (with file and line) fails the test
+            Plant(load_description(ROBOTS / name, package_path))
+        except HilError as exc:
+            assert all(d.file is not None for d in exc.diagnostics), (name, str(exc))
+            failed[name] = str(exc)
+    loaded = len(descriptions()) - len(failed)
+    assert len(descriptions()) >= 70 and loaded / len(descriptions()) >= 0.9
+    assert set(failed) == set(EXPECTED_FAILURES), failed
+
+
+@pytest.mark.slow
+def test_hil_check_prints_no_traceback_for_any_public_description(capsys):
+    for name in descriptions():
+        code = main(["check", str(ROBOTS / name), "--package-path", str(SHARE)])
+        assert code == (1 if name in EXPECTED_FAILURES else 0), name
+    assert "Traceback" not in capsys.readouterr().err
+
+
+#: robots hil never shipped: three arms and a legged robot (fixed base)
+BENCHES = ["panda_description/urdf/panda.urdf", "xarm_description/urdf/xarm7.urdf",
+           "z1_description/urdf/z1.urdf", "go1_description/urdf/go1.urdf"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", BENCHES)
+def test_init_check_and_demo_run_a_public_robot_and_record_its_meshes(name, tmp_path):
+    """The README's "Adding a robot" commands, unedited (the demo in lock-step here: CI's
+    two shared CPUs are no place to judge real time; `hil bench` is)."""
+    config = tmp_path / "robot.yaml"
+    share = ["--package-path", str(SHARE)]
+    assert main(["init", str(ROBOTS / name), "-o", str(config), *share]) == 0
+    assert main(["check", str(config), *share]) == 0
+    save = tmp_path / "robot.rrd"
+    up = subprocess.run([sys.executable, "-m", "hil", "up", str(config), "--demo", "--lock-step",
+                         "--no-viewer", "--save", str(save), *share],
+                        capture_output=True, text=True, timeout=280, cwd=tmp_path)
+    assert up.returncode == 0, up.stdout[-3000:] + up.stderr[-3000:]
+    assert "hil up: demo succeeded" in up.stdout
+    meshes = mesh_entities(save)
+    robot = load_description(ROBOTS / name, PackagePath((SHARE,)))
+    with_meshes = {link.name for link in robot.links
+                   if any(v.geometry.mesh is not None for v in link.visuals)}
+    assert with_meshes and set(meshes) == with_meshes
