@@ -5,14 +5,13 @@ per bus) exchanged between two processes over the same transport, python-can on 
 and no hil code on the answering side, paced like the controller, each end on the CPU of
 the process it stands for. The ratio stack / floor says what hil adds to the transport.
 
-Run as ``python -m hil.bench.floor SPEC`` it is the answering process.
+The answering process is :mod:`hil.bench.responder`.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import signal
 import subprocess
 import sys
 import threading
@@ -37,7 +36,7 @@ def floor_across_processes(config: SystemConfig, seconds: float) -> dict:
         {"channel": channels[name], "trigger": out[-1].arbitration_id,
          "answers": [[a.arbitration_id, len(a.data)] for a in answers]}
         for name, out, answers in cyclic_frames(config)]})
-    responder = subprocess.Popen([sys.executable, "-m", "hil.bench.floor", spec],
+    responder = subprocess.Popen([sys.executable, "-m", "hil.bench.responder", spec],
                                  stdout=subprocess.PIPE, text=True, start_new_session=True)
     try:
         if "ready" not in (responder.stdout.readline() or ""):
@@ -124,33 +123,3 @@ class _Counter(can.Listener):
                                       max(0.0, deadline - time.perf_counter())):
                 return self._last
         return None
-
-
-def _respond(spec: dict) -> None:
-    """The floor's answering process: on each bus, the answers on the trigger frame."""
-    enter_real_time(cpus=set(spec["cpus"]) or None)
-    buses = []
-    for bus_spec in spec["buses"]:
-        bus = can.Bus(interface="zenoh", channel=bus_spec["channel"], listen=[spec["endpoint"]])
-        answers = [can.Message(arbitration_id=i, data=bytes(n), is_extended_id=False)
-                   for i, n in bus_spec["answers"]]
-
-        def answer(msg: can.Message, bus=bus, answers=answers,
-                   trigger=bus_spec["trigger"]) -> None:
-            if msg.arbitration_id == trigger:
-                for frame in answers:
-                    bus.send(frame)
-
-        bus.deliver_to([answer])
-        buses.append(bus)
-    print("ready", flush=True)
-    try:
-        time.sleep(spec["seconds"])
-    finally:
-        for bus in buses:
-            bus.shutdown()
-
-
-if __name__ == "__main__":
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
-    _respond(json.loads(sys.argv[1]))
