@@ -33,7 +33,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import can
-import mujoco
 import numpy as np
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig
@@ -81,22 +80,6 @@ def drive_parameters(drive: DriveConfig, motor_inertia: float) -> DriveParameter
         profile_velocity=drive.max_velocity / 4,
         profile_acceleration=drive.quick_stop_deceleration / 4,
         profile_deceleration=drive.quick_stop_deceleration / 4)
-
-
-def motor_inertias(plant: Plant) -> dict[str, float]:
-    """Each actuator's inertia seen from its motor shaft (rotor + reflected load).
-
-    For a transmission a = P q, the motor-space inertia is P^-T M P^-1.
-    """
-    mass = np.zeros((plant.model.nv, plant.model.nv))
-    mujoco.mj_fullM(plant.model, plant.data, mass)
-    inertias = {}
-    for transmission in plant.transmissions:
-        dofs = [plant.model.joint(j).dofadr[0] for j in transmission.joints]
-        inverse = np.linalg.inv(transmission.position_matrix)
-        motor_space = inverse.T @ mass[np.ix_(dofs, dofs)] @ inverse
-        inertias.update(zip(transmission.actuators, np.diag(motor_space)))
-    return inertias
 
 
 class PlantPresent:
@@ -151,7 +134,7 @@ class Simulator:
         # real time, while run() runs: plant steps done since the clock's epoch
         self._clock: tuple[float, int] | None = None      # (epoch, steps done)
         self._last_step: int | None = None                # run(duration): no step past it
-        inertias = motor_inertias(self.plant)
+        inertias = self.plant.motor_inertias()
         actuator_index = {name: i for i, name in enumerate(self.plant.actuator_names)}
         self._runtimes: list[_BusRuntime] = []
         self.drives = []

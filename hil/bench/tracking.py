@@ -13,7 +13,6 @@ from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import RunSubscriber, TrajectoryActionClient
 from hil.plant import Plant
-from hil.simulator import motor_inertias
 from hil.stack import running_stack
 
 
@@ -70,7 +69,7 @@ def _ideal_servo(config: SystemConfig, reference: np.ndarray) -> np.ndarray:
     velocity bandwidth, motor torque limits kept) following ``reference`` (per cycle)."""
     plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz)
     model = plant.model
-    inertia = motor_inertias(plant)
+    inertia = plant.motor_inertias()
     for drive in config.drives:
         i = model.actuator(drive.actuator).id
         omega = 2 * math.pi * drive.velocity_bandwidth_hz

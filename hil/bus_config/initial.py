@@ -15,9 +15,6 @@ from dataclasses import dataclass, replace
 from datetime import date
 from pathlib import Path
 
-import mujoco
-import numpy as np
-
 from hil.bus_config.sizing import Sizing, size_joint
 from hil.bus_config.transmissions import SIMPLE, actuator_of
 from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD
@@ -74,8 +71,8 @@ def initial_config(robot: RobotDescription, description: Path, output: Path,
     drives = [Drive(t.joints[0].name if len(t.joints) == 1 else ", ".join(j.name for j in t.joints),
                     a.name, None, None) for t in robot.transmissions for a in t.actuators]
     drives += [Drive(s.joint, actuator_of(s.joint), s,
-                     min(s.motor.rated_torque, s.motor.peak_torque,
-                         sized.joint(s.joint).limits.effort / s.reduction)) for s in sizings]
+                     min(s.motor.rated_torque, sized.joint(s.joint).limits.effort / s.reduction))
+               for s in sizings]
     if protocol_name == "mit":
         drives = _with_mit_options(sized, drives)
     per_bus = _drives_per_bus(protocol_name, rate)
@@ -115,11 +112,7 @@ def _drives_per_bus(protocol_name: str, rate: float) -> int:
 def _with_mit_options(robot: RobotDescription, drives: list[Drive]) -> list[Drive]:
     """MIT motors pack every value into a range of their own: ranges that cover the motor
     side of each joint, and the master's gains (see MIT_BANDWIDTH_HZ)."""
-    plant = Plant(robot)
-    data = mujoco.MjData(plant.model)
-    mujoco.mj_forward(plant.model, data)
-    mass = np.zeros((plant.model.nv, plant.model.nv))
-    mujoco.mj_fullM(plant.model, data, mass)
+    inertias = Plant(robot).motor_inertias()       # at the start pose
     omega = 2 * math.pi * MIT_BANDWIDTH_HZ
     result = []
     for drive in drives:
@@ -127,8 +120,7 @@ def _with_mit_options(robot: RobotDescription, drives: list[Drive]) -> list[Driv
         spec = next(t for t in robot.transmissions
                     if drive.actuator in (a.name for a in t.actuators))
         reduction = abs(spec.actuators[0].reduction * spec.joints[0].reduction)
-        dof = plant.model.joint(joint.name).dofadr[0]
-        inertia = mass[dof, dof] / reduction ** 2           # at the motor
+        inertia = inertias[drive.actuator]
         kp, kd = inertia * omega ** 2, 2 * inertia * omega
         limits = joint.limits
         reach = (max(abs(limits.lower), abs(limits.upper)) if limits.lower is not None

@@ -79,7 +79,7 @@ class PackagePath:
         return dict(self._found)
 
     def find(self, package: str) -> Path | None:
-        return self.packages().get(package)
+        return self._found.get(package)
 
     def describe(self) -> str:
         return os.pathsep.join(str(r) for r in self.roots)

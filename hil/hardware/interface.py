@@ -131,6 +131,7 @@ class CanHardwareInterface(HardwareInterface):
                                  for bus in config.buses for drive in bus.drives]
         self._sync_buses = sorted({a.bus_name for a in self.axes if a.protocol.uses_sync})
         self._every_joint = np.ones(len(self.joint_names), dtype=bool)
+        self._all_heard = False
         self.actuator_names = tuple(a.config.actuator for a in self.axes)
         # joints (joint_names order) <-> actuators (axes order) in one map
         self.transmissions = TransmissionStack(build_transmissions(config.robot),
@@ -274,7 +275,9 @@ class CanHardwareInterface(HardwareInterface):
     def _heard_joints(self) -> np.ndarray:
         """Per joint: all its drives have answered at least once (before that, their values
         are defaults, not measurements)."""
-        if all(axis.feedback.heard for axis in self.axes):     # from the first cycles on
+        # once every drive has answered (from the first cycles on) that stays so
+        self._all_heard = self._all_heard or all(axis.feedback.heard for axis in self.axes)
+        if self._all_heard:
             return self._every_joint
         heard = {j: True for j in self.joint_names}
         for axis in self.axes:

@@ -52,6 +52,19 @@ class Plant:
         self._actuator_ids = np.array([self.model.actuator(n).id for n in self.actuator_names])
         self.set_joint_positions(initial_pose(description))
 
+    def motor_inertias(self) -> dict[str, float]:
+        """Each actuator's inertia seen from its motor shaft (rotor + reflected load) in the
+        present pose. For a transmission a = P q, the motor-space inertia is P^-T M P^-1."""
+        mass = np.zeros((self.model.nv, self.model.nv))
+        mujoco.mj_fullM(self.model, self.data, mass)
+        inertias = {}
+        for transmission in self.transmissions:
+            dofs = [self.model.joint(j).dofadr[0] for j in transmission.joints]
+            inverse = np.linalg.inv(transmission.position_matrix)
+            motor_space = inverse.T @ mass[np.ix_(dofs, dofs)] @ inverse
+            inertias.update(zip(transmission.actuators, np.diag(motor_space)))
+        return inertias
+
     @property
     def warnings(self) -> tuple[Diagnostic, ...]:
         """STL/OBJ meshes MuJoCo could not read, which the plant draws as their link's box
