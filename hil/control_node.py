@@ -15,7 +15,9 @@ import math
 import queue
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import zenoh
 
@@ -29,6 +31,18 @@ from hil.messaging.zenoh_api import (
     key,
 )
 from hil.realtime import REAL_TIME_PRIORITY, CyclePacer, PeriodStatistics
+
+
+class RosFace(Protocol):
+    """What the control loop hands a ROS 2 face (:mod:`hil.messaging.ros.face`): CDR bytes
+    it already encoded for hil's own keys, and the goals that ended. It is called from
+    the control loop: each call must take microseconds."""
+
+    def publish_joint_states(self, payload: bytes) -> None: ...
+    def publish_feedback(self, payload: bytes) -> None: ...
+    def publish_diagnostics(self, payload: bytes) -> None: ...
+    def record_results(self, finished: list) -> None: ...
+    def close(self) -> None: ...
 
 
 #: how long a fault reset may take to bring every drive back (s)
@@ -51,8 +65,11 @@ class ControlNode:
     def __init__(self, hardware: HardwareInterface, session: zenoh.Session, cycle_hz: float,
                  lock_step: bool = False, joint_state_hz: float = 100.0,
                  feedback_hz: float = 20.0, samples_hz: float = 10.0,
-                 defaults: Defaults = Defaults(), priority: int = REAL_TIME_PRIORITY):
-        """``priority``: the real-time loop's SCHED_FIFO priority where allowed (0: none)."""
+                 defaults: Defaults = Defaults(), priority: int = REAL_TIME_PRIORITY,
+                 ros: Callable[[ControlNode], RosFace] | None = None):
+        """``priority``: the real-time loop's SCHED_FIFO priority where allowed (0: none).
+        ``ros``: makes the node's ROS 2 face (joint states, feedback, results and
+        diagnostics go to it as well as to hil's keys); None: no ROS face."""
         self.hardware = hardware
         robot = hardware.robot
         self.period = 1.0 / cycle_hz
@@ -83,6 +100,7 @@ class ControlNode:
         self._resets: queue.SimpleQueue[FaultResetRequest] = queue.SimpleQueue()
         self._reset: FaultResetRequest | None = None
         self.server.on_reset = self.reset_faults
+        self.ros = ros(self) if ros is not None else None
 
     def figures(self) -> dict:
         """The run so far: period statistics (real time), the hardware's round trips (SYNC
@@ -172,13 +190,15 @@ class ControlNode:
             while not self._resets.empty():
                 self._resets.get_nowait().done.set()
             self.controller.abort("the controller is shutting down")
-            self.server.publish_results()
+            self._publish_results()
             hardware.stop()
             self._publish_samples()
             self.server.close()
             self.joint_states.close()
             self.sample_publisher.close()
             self.diagnostics.close()
+            if self.ros is not None:
+                self.ros.close()
             if self._token is not None:
                 self._token.undeclare()
 
@@ -205,8 +225,11 @@ class ControlNode:
 
     def _diagnose(self, level: str, message: str,
                   values: tuple[tuple[str, str], ...] = ()) -> None:
-        self.diagnostics.publish(Diagnostic(level, message, time.time(), self.clock(),
-                                            hardware_id=self.hardware.robot.name, values=values))
+        payload = self.diagnostics.publish(Diagnostic(
+            level, message, time.time(), self.clock(), hardware_id=self.hardware.robot.name,
+            values=values))
+        if self.ros is not None:
+            self.ros.publish_diagnostics(payload)
 
     def _finish_reset(self, succeeded: bool, message: str) -> None:
         request, self._reset = self._reset, None
@@ -217,13 +240,24 @@ class ControlNode:
         if self._cycle % self._every_states == self._states_phase:
             positions, velocities, efforts = self.broadcaster.compute(
                 feedback.positions, feedback.velocities, feedback.efforts)
-            self.joint_states.publish(time.time(), self.broadcaster.names, positions,
-                                      velocities, efforts)
+            payload = self.joint_states.publish(time.time(), self.broadcaster.names, positions,
+                                                velocities, efforts)
+            if self.ros is not None:
+                self.ros.publish_joint_states(payload)
         if self._cycle % self._every_feedback == self._feedback_phase:
-            self.server.publish_feedback()
-        self.server.publish_results()
+            payload = self.server.publish_feedback()
+            if payload is not None and self.ros is not None:
+                self.ros.publish_feedback(payload)
+        self._publish_results()
         if self.samples.full:
             self._publish_samples()
+
+    def _publish_results(self) -> None:
+        finished = self.controller.finished()
+        if finished:
+            self.server.publish_results(finished)
+            if self.ros is not None:
+                self.ros.record_results(finished)
 
     def _publish_samples(self) -> None:
         batch = self.samples.take()

@@ -18,7 +18,7 @@ import zenoh
 
 from hil.errors import HilError
 
-DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7450"     # 7447 is Zenoh's and ROS 2's router port
 LOOPBACK_ANY_PORT = "tcp/127.0.0.1:0"
 #: how long a droppable put (a CAN frame) may wait for room in a congested link before it
 #: is dropped (us; Zenoh's default is 1000): about one CAN frame's time at 1 Mbit/s, so a

@@ -16,7 +16,7 @@ import can
 import canopen
 import pytest
 
-from conftest import EDS
+from conftest import EDS, MASTER_PATIENCE, patient
 
 from hil.protocols.cia402.state import SUPPORTED_MODES
 from hil.drives.definitions import Fault
@@ -41,7 +41,7 @@ def enable_csp(bench, node_id: int = 1):
 
 
 def emcy_logged_after(node, code: int, earlier: int | None = None,
-                      timeout: float = 1.0) -> bool:
+                      timeout: float = MASTER_PATIENCE) -> bool:
     """Whether EMCY ``code`` arrives (or arrived) after EMCY ``earlier`` (or at all)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -154,7 +154,7 @@ def test_garbage_frames_never_crash_the_drive(bench):
     bench.network.notifier.add_listener(boot)
     try:
         node.nmt.send_command(0x81)
-        deadline = time.monotonic() + 2
+        deadline = time.monotonic() + 2 * MASTER_PATIENCE    # the garbage is drained first
         booted = False
         while time.monotonic() < deadline and not booted:
             msg = boot.get_message(0.1)
@@ -166,7 +166,7 @@ def test_garbage_frames_never_crash_the_drive(bench):
     fresh = canopen.Network(fresh_bus)
     fresh.notifier = can.Notifier(fresh_bus, fresh.listeners, 0.1)
     try:
-        remote = canopen.RemoteNode(1, str(EDS))
+        remote = patient(canopen.RemoteNode(1, str(EDS)))
         fresh.add_node(remote)
         remote.sdo.MAX_RETRIES = 10              # a slow machine may still be draining
         assert remote.sdo[0x1000].raw == 0x00020192

@@ -30,8 +30,11 @@ def test_socketcan_suite_passes_inside_user_mode_linux():
         [sys.executable, str(ROOT / "tools" / "uml_run.py"), "--timeout", "900",
          "--vcan", "vcan0", "--vcan", "vcan1", "--",
          sys.executable, "-m", "pytest", "-m", "socketcan", "-p", "no:cacheprovider",
-         "-q", "-rs", "--color=no", str(ROOT / "tests")],
+         "-q", "-rfEs", "--tb=short", "--color=no", str(ROOT / "tests")],
         cwd=ROOT, capture_output=True, text=True, timeout=960)
     output = result.stdout + result.stderr
-    assert result.returncode == 0, output[-6000:]
+    # which tests failed first (a CI log keeps only the message's tail), then the details
+    start = output.rfind("short test summary info")
+    summary = output[start:start + 3000] if start >= 0 else ""
+    assert result.returncode == 0, f"{summary}\n...\n{output[-5000:]}"
     assert " passed" in output and "skipped" not in output.split("passed")[-1], output[-3000:]

@@ -46,7 +46,7 @@ def add_zenoh(parser: argparse.ArgumentParser, listens: bool) -> None:
     group = parser.add_argument_group("Zenoh", f"by default this process {default} "
                                                f"{DEFAULT_ENDPOINT} (loopback only)")
     group.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
-                       help="Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)")
+                       help="Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7450 (repeatable)")
     group.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
                        help="Zenoh endpoint of another hil process (repeatable)")
     group.add_argument("--zenoh-config", type=Path, metavar="FILE",
@@ -62,6 +62,46 @@ def zenoh_settings(args: argparse.Namespace) -> ZenohSettings:
         else:
             connect = (DEFAULT_ENDPOINT,)
     return ZenohSettings(listen, connect, args.zenoh_config)
+
+
+def add_ros(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--ros`` and its settings (hil.messaging.ros.face.RosSettings)."""
+    group = parser.add_argument_group(
+        "ROS 2", "appear in a ROS 2 graph on rmw_zenoh (a client of the Zenoh router "
+                 "that ROS uses: rmw_zenohd, or `hil router`)")
+    group.add_argument("--ros", action="store_true", help=what)
+    group.add_argument("--ros-domain-id", type=int, metavar="N",
+                       help="ROS domain id (default: ROS_DOMAIN_ID, else 0)")
+    group.add_argument("--ros-namespace", metavar="NS", help="ROS namespace (default /)")
+    group.add_argument("--ros-distro", metavar="NAME",
+                       help="ROS 2 distribution whose type hashes to use (jazzy, kilted, "
+                            "lyrical; default jazzy)")
+    group.add_argument("--ros-router", metavar="ENDPOINT",
+                       help="the Zenoh router's endpoint (default tcp/localhost:7447, "
+                            "rmw_zenohd's)")
+
+
+def ros_settings(args: argparse.Namespace):
+    """The RosSettings asked for, or None without ``--ros``."""
+    if not args.ros:
+        return None
+    from hil.messaging.ros.face import RosSettings     # noqa: PLC0415 (only with --ros)
+    try:
+        return RosSettings.from_environment(args.ros_domain_id, args.ros_namespace,
+                                            args.ros_distro, args.ros_router)
+    except ValueError as exc:
+        raise HilError.single(f"--ros: {exc}", hint="see hil COMMAND --help, group ROS 2"
+                              ) from None
+
+
+def ros_options(args: argparse.Namespace) -> list[str]:
+    """The ``--ros`` options given, for a child process (none without ``--ros``)."""
+    if not args.ros:
+        return []
+    given = {"--ros-domain-id": args.ros_domain_id, "--ros-namespace": args.ros_namespace,
+             "--ros-distro": args.ros_distro, "--ros-router": args.ros_router}
+    return ["--ros", *(f"{option}={value}" for option, value in given.items()
+                       if value is not None)]
 
 
 def add_can_override(parser: argparse.ArgumentParser) -> None:

@@ -14,6 +14,7 @@ from hil.bus_config import load_bus_config, open_buses
 from hil.cli import common
 from hil.control_node import ControlNode
 from hil.controllers import Defaults
+from hil.errors import HilError
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface
 from hil.realtime import REAL_TIME_PRIORITY, enter_real_time
 from hil.zenoh_session import close_all, session
@@ -42,6 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     common.add_can_override(parser)
     common.add_package_path(parser)
     common.add_zenoh(parser, listens=False)
+    common.add_ros(parser, "also be a ROS 2 node (hil_control): joint_states, the "
+                           "FollowJointTrajectory action at joint_trajectory_controller/"
+                           "follow_joint_trajectory, diagnostics, robot_description")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -57,10 +61,16 @@ def run(args: argparse.Namespace) -> int:
         buses = open_buses(config, zenoh, interface, channels)
         hardware = CanHardwareInterface(
             config, buses, reply_timeout=LOCK_STEP_REPLY_TIMEOUT if args.lock_step else None)
-    node = ControlNode(hardware, session(zenoh), config.cycle_hz, lock_step=args.lock_step,
-                       joint_state_hz=args.joint_state_rate,
-                       defaults=Defaults(goal_position_tolerance=args.goal_tolerance),
-                       priority=args.priority)
+    try:
+        node = ControlNode(hardware, session(zenoh), config.cycle_hz,
+                           lock_step=args.lock_step, joint_state_hz=args.joint_state_rate,
+                           defaults=Defaults(goal_position_tolerance=args.goal_tolerance),
+                           priority=args.priority, ros=_ros_face(args, config))
+    except BaseException:        # e.g. no Zenoh router for --ros: no bus may keep us alive
+        for bus in buses.values():
+            bus.shutdown()
+        close_all()
+        raise
     previous = {s: signal.signal(s, lambda *_: node.stop()) for s in (signal.SIGINT,
                                                                       signal.SIGTERM)}
     mode = "fake hardware" if args.fake else f"{len(config.drives)} drive(s)"
@@ -88,3 +98,25 @@ def run(args: argparse.Namespace) -> int:
         print(f"hil control: {line}")
     print("hil control: stopped; drives disabled", flush=True)
     return 0
+
+
+def _ros_face(args: argparse.Namespace, config):
+    """The factory of the controller's ROS 2 face, or None without --ros."""
+    settings = common.ros_settings(args)
+    if settings is None:
+        return None
+    from hil.messaging.ros.face import ACTION_NAME, RosControlFace   # noqa: PLC0415
+    from hil.visualisation.urdf_export import viewer_urdf            # noqa: PLC0415
+
+    def make(node: ControlNode):
+        try:
+            face = RosControlFace(settings, node.controller, node.clock,
+                                  viewer_urdf(config.robot).decode(), node.reset_faults)
+        except ConnectionError as exc:
+            raise HilError.single(str(exc), hint="or leave out --ros") from None
+        action = f"{settings.namespace.rstrip('/')}/{ACTION_NAME}"
+        print(f"hil control: ROS 2 node {settings.namespace.rstrip('/')}/hil_control on "
+              f"domain {settings.domain_id} via {settings.router} ({settings.distro}); "
+              f"action {action}", flush=True)
+        return face
+    return make

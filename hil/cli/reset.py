@@ -12,12 +12,25 @@ from hil.zenoh_session import close_all, session
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("robot", help="robot name, e.g. ur3")
+    parser.add_argument("robot", nargs="?", help="robot name, e.g. ur3 (none with --ros)")
     parser.add_argument("--timeout", type=float, default=15.0, help="seconds to wait (15)")
     common.add_zenoh(parser, listens=False)
+    common.add_ros(parser, "call a std_srvs/Trigger service on ROS 2 (rmw_zenoh) instead: "
+                           "hil control --ros serves <namespace>/hil_control/reset_faults")
+    parser.add_argument("--service", metavar="NAME",
+                        help="with --ros: the Trigger service to call (default "
+                             "hil_control/reset_faults in --ros-namespace)")
 
 
 def run(args: argparse.Namespace) -> int:
+    settings = common.ros_settings(args)
+    if settings is not None:
+        if args.robot is not None:
+            raise HilError.single(f"with --ros, give no robot name ({args.robot})",
+                                  hint="hil reset --ros [--service NAME]")
+        return _reset_ros(args, settings)
+    if args.robot is None:
+        raise HilError.single("give the robot's name", hint="hil reset ur3")
     client = TrajectoryActionClient(session(common.zenoh_settings(args)), args.robot)
     try:
         if not client.wait_for_controller(min(args.timeout, 15.0)):
@@ -34,3 +47,37 @@ def run(args: argparse.Namespace) -> int:
     finally:
         client.close()
         close_all()
+
+
+def _reset_ros(args: argparse.Namespace, settings) -> int:
+    """Call a std_srvs/Trigger service (hil control --ros' fault reset by default)."""
+    from hil.messaging import cdr                                        # noqa: PLC0415
+    from hil.messaging.ros.face import open_context, reset_service_name  # noqa: PLC0415
+    from hil.messaging.ros.interfaces import TypeHashes                  # noqa: PLC0415
+    from hil.messaging.ros.node import ServiceError                     # noqa: PLC0415
+    from hil.messaging.ros.rmw_zenoh import EntityKind, fully_qualified  # noqa: PLC0415
+    name = (fully_qualified(settings.namespace, args.service) if args.service
+            else reset_service_name(settings))
+    try:
+        context = open_context(settings)
+    except ConnectionError as exc:
+        raise HilError.single(str(exc)) from None
+    node = context.node("hil_reset", settings.namespace)
+    client = node.client(name, TypeHashes(settings.distro).service("std_srvs/srv/Trigger"))
+    try:
+        if not context.wait_for(EntityKind.SERVICE, name, min(args.timeout, 15.0)):
+            raise HilError.single(f"no service {name} on ROS domain {settings.domain_id} via "
+                                  f"{settings.router}",
+                                  hint="start `hil control CONFIG --ros` (or check --service)")
+        try:
+            payload, _ = client.call(cdr.EMPTY_REQUEST, args.timeout)
+            response = cdr.decode(payload, cdr.TRIGGER_RESPONSE)
+        except (ServiceError, ValueError) as exc:
+            print(f"hil reset: {exc}", file=sys.stderr)
+            return 1
+        print(f"hil reset: {'done' if response.success else 'failed'}: {response.message}",
+              file=sys.stdout if response.success else sys.stderr)
+        return 0 if response.success else 1
+    finally:
+        node.close()
+        context.session.close()

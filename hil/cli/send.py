@@ -23,8 +23,9 @@ _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("target", nargs="+", metavar="ROBOT [FILE]",
-                        help="robot name (e.g. ur3), then optionally a trajectory as "
+    parser.add_argument("target", nargs="*", metavar="ROBOT [FILE]",
+                        help="robot name (e.g. ur3; none with --ros), then optionally a "
+                             "trajectory as "
                              "YAML/JSON: joint_names, points (positions, velocities, "
                              "accelerations, time_from_start), optional path_tolerance / "
                              "goal_tolerance {joint: rad}, goal_time_tolerance")
@@ -36,11 +37,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--timeout", type=float, default=60.0, help="seconds to wait (60)")
     parser.add_argument("--quiet", action="store_true", help="print the result only")
     common.add_zenoh(parser, listens=False)
+    common.add_ros(parser, "send to a FollowJointTrajectory action server on ROS 2 "
+                           "(rmw_zenoh): hil control --ros, or a ros2_control "
+                           "joint_trajectory_controller")
+    parser.add_argument("--action", default=None, metavar="NAME",
+                        help="with --ros: the action (default joint_trajectory_controller/"
+                             "follow_joint_trajectory, in --ros-namespace)")
 
 
 def run(args: argparse.Namespace) -> int:
-    if len(args.target) > 2:
-        raise HilError.single(f"too many arguments: {' '.join(args.target[2:])}",
+    settings = common.ros_settings(args)
+    if settings is not None:
+        if len(args.target) > 1 or (args.target and not _is_trajectory_file(args.target[0])):
+            raise HilError.single(f"with --ros, give no robot name: {' '.join(args.target)}",
+                                  hint="hil send --ros [FILE] [--joint NAME --to POS ...] "
+                                       "[--action NAME]")
+        args.file = Path(args.target[0]) if args.target else None
+        return _send_ros(args, settings, _goal(args))
+    if not args.target or len(args.target) > 2:
+        raise HilError.single("give a robot name, then optionally a trajectory file"
+                              if not args.target else
+                              f"too many arguments: {' '.join(args.target[2:])}",
                               hint="hil send ROBOT [FILE] [--joint NAME --to POS ...]")
     args.robot = args.target[0]
     args.file = Path(args.target[1]) if len(args.target) == 2 else None
@@ -50,31 +67,71 @@ def run(args: argparse.Namespace) -> int:
         if not client.wait_for_controller(15.0):
             raise HilError.single(f"no hil control for robot '{args.robot}' is reachable",
                                   hint="start `hil control CONFIG` (or check --connect)")
-        try:
-            goal_id = client.send_goal(goal)
-        except GoalRejected as exc:
-            print(f"hil send: {exc}", file=sys.stderr)
-            return 1
-        print(f"hil send: goal {goal_id[:8]} accepted", flush=True)
-        shown = [0]
-
-        def show(feedback):
-            shown[0] += 1
-            if not args.quiet and shown[0] % 5 == 1:
-                errors = " ".join(f"{n}={e:+.4f}" for n, e in zip(feedback.joint_names,
-                                                                   feedback.error.positions))
-                print(f"  error {errors}", flush=True)
-        try:
-            result = client.wait_result(goal_id, args.timeout, show)
-        except (ControllerGone, TimeoutError) as exc:
-            print(f"hil send: {exc}", file=sys.stderr)
-            return 1
-        text = f" ({result.error_string})" if result.error_string else ""
-        print(f"hil send: {result.status.name.lower()}, error_code {result.error_code}{text}")
-        return 0 if result.status is GoalStatus.SUCCEEDED else 1
+        return _follow(client, goal, args, (GoalRejected, ControllerGone, TimeoutError))
     finally:
         client.close()
         close_all()
+
+
+def _feedback_printer(args: argparse.Namespace):
+    """Prints every fifth feedback's position errors (none with --quiet)."""
+    shown = [0]
+
+    def show(feedback):
+        shown[0] += 1
+        if not args.quiet and shown[0] % 5 == 1:
+            errors = " ".join(f"{n}={e:+.4f}" for n, e in zip(feedback.joint_names,
+                                                               feedback.error.positions))
+            print(f"  error {errors}", flush=True)
+    return show
+
+
+def _follow(client, goal: TrajectoryGoal, args: argparse.Namespace,
+            failures: tuple[type[Exception], ...], by: str = "") -> int:
+    """Send ``goal`` through ``client``, print its feedback and result; the exit status
+    (1 for a goal that did not succeed or for one of ``failures``)."""
+    try:
+        goal_id = client.send_goal(goal)
+        print(f"hil send: goal {goal_id[:8]} accepted{by}", flush=True)
+        result = client.wait_result(goal_id, args.timeout, _feedback_printer(args))
+    except failures as exc:
+        print(f"hil send: {exc}", file=sys.stderr)
+        return 1
+    text = f" ({result.error_string})" if result.error_string else ""
+    print(f"hil send: {result.status.name.lower()}, error_code {result.error_code}{text}")
+    return 0 if result.status is GoalStatus.SUCCEEDED else 1
+
+
+def _is_trajectory_file(text: str) -> bool:
+    return Path(text).suffix in (".yaml", ".yml", ".json") or Path(text).is_file()
+
+
+def _send_ros(args: argparse.Namespace, settings, goal: TrajectoryGoal) -> int:
+    """Send ``goal`` to a ROS 2 FollowJointTrajectory server and wait for its result."""
+    from hil.messaging.ros.action import RosTrajectoryActionClient       # noqa: PLC0415
+    from hil.messaging.ros.face import ACTION_NAME, open_context         # noqa: PLC0415
+    from hil.messaging.ros.interfaces import FollowJointTrajectory, TypeHashes  # noqa: PLC0415
+    from hil.messaging.ros.node import ServiceError                     # noqa: PLC0415
+    from hil.messaging.ros.rmw_zenoh import EntityKind, fully_qualified  # noqa: PLC0415
+    action = fully_qualified(settings.namespace, args.action or ACTION_NAME)
+    try:
+        context = open_context(settings)
+    except ConnectionError as exc:
+        raise HilError.single(str(exc)) from None
+    node = context.node("hil_send", settings.namespace)
+    client = RosTrajectoryActionClient(node, action, FollowJointTrajectory.for_distro(
+        TypeHashes(settings.distro)))
+    try:
+        if not context.wait_for(EntityKind.SERVICE, f"{action}/_action/send_goal", 15.0):
+            raise HilError.single(f"no action server {action} on ROS domain "
+                                  f"{settings.domain_id} via {settings.router}",
+                                  hint="start `hil control CONFIG --ros` (or check "
+                                       "--action, --ros-domain-id, --ros-distro)")
+        return _follow(client, goal, args, (GoalRejected, ServiceError), f" by {action}")
+    finally:
+        client.close()
+        node.close()
+        context.session.close()
 
 
 def _goal(args: argparse.Namespace) -> TrajectoryGoal:

@@ -18,10 +18,13 @@ from hil.can.faults import (
 from hil.drives import Power
 from hil.errors import HilError
 from hil.messaging.zenoh_api import SimClockPublisher
-from hil.realtime import IO_PRIORITY, enter_real_time
+from hil.realtime import IO_PRIORITY, enter_real_time, enter_side_work
 from hil.zenoh_session import close_all, session
 
 CLOCK_PERIOD = 0.05
+#: how often /clock is published with --ros (s of wall time): rclcpp's time source moves in
+#: these steps
+ROS_CLOCK_PERIOD = 0.01
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -48,6 +51,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     common.add_can_override(parser)
     common.add_package_path(parser)
     common.add_zenoh(parser, listens=True)
+    common.add_ros(parser, "also be a ROS 2 node (hil_sim) publishing /clock from the "
+                           f"plant's time every {ROS_CLOCK_PERIOD * 1000:g} ms, for "
+                           "use_sim_time nodes")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -62,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
                               hint="hil sim takes frame and drive faults")
     drive_faults = [f for f in faults if isinstance(f, DriveFault)]
     _check_drive_faults(config, drive_faults)
+    ros_clock = _ros_clock(args)
     scheduling = ("lock-step" if args.lock_step
                   else enter_real_time(args.priority, common.cpus(args)))
     buses = with_frame_faults(open_buses(config, zenoh, interface, channels),
@@ -72,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
         for bus in buses.values():
             bus.shutdown()
         close_all()
+        if ros_clock is not None:
+            ros_clock.close()
         raise
     token = session(zenoh).liveliness().declare_token(f"hil/{config.robot.name}/sim")
     stop = threading.Event()
@@ -86,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
     clock = SimClockPublisher(session(zenoh), config.robot.name)
     clock_thread = threading.Thread(target=_publish_clock, args=(simulator, clock, stop),
                                     daemon=True)
+    ros_thread = threading.Thread(target=_publish_ros_clock, args=(simulator, ros_clock, stop),
+                                  daemon=True)
     try:
         simulator.start()
         gc.collect()
@@ -96,14 +107,19 @@ def run(args: argparse.Namespace) -> int:
               f"cycle {config.cycle_hz:g} Hz; {scheduling}", flush=True)
         printer.start()
         clock_thread.start()
+        if ros_clock is not None:
+            ros_thread.start()
         threading.Thread(target=_inject, args=(simulator, drive_faults, stop),
                          daemon=True).start()
         simulator.run(args.duration)
     finally:
         stop.set()
-        if clock_thread.is_alive():
-            clock_thread.join()
+        for thread in (clock_thread, ros_thread):
+            if thread.is_alive():
+                thread.join()
         clock.close()
+        if ros_clock is not None:
+            ros_clock.close()
         simulator.close()
         token.undeclare()
         for bus in buses.values():
@@ -130,6 +146,30 @@ def _publish_clock(simulator: Simulator, clock: SimClockPublisher, stop: threadi
         with simulator.lock:
             sim_time, wall_time = simulator.plant.time, time.time()
         clock.publish(wall_time, sim_time)
+
+
+def _ros_clock(args: argparse.Namespace):
+    """The simulator's ROS 2 face (/clock), or None without --ros."""
+    settings = common.ros_settings(args)
+    if settings is None:
+        return None
+    from hil.messaging.ros.face import RosClockFace     # noqa: PLC0415 (only with --ros)
+    try:
+        face = RosClockFace(settings)
+    except ConnectionError as exc:
+        raise HilError.single(str(exc), hint="or leave out --ros") from None
+    print(f"hil sim: ROS 2 node hil_sim on domain {settings.domain_id} via {settings.router}: "
+          "/clock", flush=True)
+    return face
+
+
+def _publish_ros_clock(simulator: Simulator, face, stop: threading.Event) -> None:
+    """/clock: the plant's time, in real time as in lock-step (use_sim_time nodes follow
+    the plant either way). Side work: below the frames' priority, and without the
+    simulator's lock (one float read), encoded by a struct.pack (cdr.time_cdr)."""
+    enter_side_work()
+    while not stop.wait(ROS_CLOCK_PERIOD):
+        face.publish(simulator.plant.time)
 
 
 def _check_drive_faults(config, faults: list[DriveFault]) -> None:

@@ -70,6 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "fault:BUS/NODE@S), or kill:sim|control|viz@S (seconds after all "
                              "are up)")
     parser.add_argument("--viewer", metavar="URL", help="also stream to a running rerun viewer")
+    common.add_ros(parser, "sim and control also appear in ROS 2 (see hil sim/control --help)")
     common.add_can_override(parser)
     common.add_package_path(parser)
 
@@ -83,6 +84,8 @@ def run(args: argparse.Namespace) -> int:
     for warning in config.warnings:
         print(warning, file=sys.stderr)
     robot = config.robot.name
+    common.ros_settings(args)                       # a bad --ros option fails here, not later
+    ros = common.ros_options(args)
     can_options = _can_options(args, config)
     faults = [parse_fault(text) for text in args.fault]
     kills = [f for f in faults if isinstance(f, ProcessFault)]
@@ -102,9 +105,9 @@ def run(args: argparse.Namespace) -> int:
     viewer = _viewer_options(args)
     children = {
         "sim": Child("sim", ["sim", *shared, *lock_step, *placed["sim"], "--listen", endpoint,
-                             "--status-period", "0", *sim_faults], logs / "sim.log"),
+                             "--status-period", "0", *sim_faults, *ros], logs / "sim.log"),
         "control": Child("control", ["control", *shared, *lock_step, *placed["control"],
-                                     "--connect", endpoint], logs / "control.log"),
+                                     "--connect", endpoint, *ros], logs / "control.log"),
         "viz": Child("viz", ["viz", *shared, *lock_step, *placed["viz"], "--connect", endpoint,
                              "--save", str(save), "--can-log", str(can_log), *viewer],
                      logs / "viz.log"),

@@ -70,27 +70,12 @@ class TrajectoryActionServer:
         return cdr.msg(cdr.FEEDBACK_MESSAGE, goal_id=cdr.uuid_msg(goal_id), feedback=feedback)
 
     def _on_send_goal(self, query: zenoh.Query) -> None:
-        # a large goal is a burst of Python objects in this thread: decoded below the frame
-        # handling's priority, with the collector paused and freed a chunk at a time, it
-        # never holds the control loop or the frames for long (hil.realtime)
-        enter_side_work()
-        with paused_collection():
-            try:
-                payload = _payload(query)
-                if len(payload) > MAX_GOAL_BYTES:
-                    raise GoalRejected(f"the goal is {len(payload)} bytes; this controller takes "
-                                       f"at most {MAX_GOAL_BYTES} (split it into several goals)")
-                request = cdr.decode(payload, cdr.SEND_GOAL_REQUEST)
-                goal_id = cdr.goal_id_of(request.goal_id)
-                stamp = cdr.seconds_of(request.goal.trajectory.header.stamp)
-                start = None if stamp == 0 else self.clock() + (stamp - time.time())
-                goal = cdr.goal_from_msg(request.goal, start)
-                release_gradually(request.goal.trajectory.points)
-                self.controller.submit(goal_id, goal)
-            except (ValueError, GoalRejected) as exc:
-                code = getattr(exc, "error_code", -1)
-                query.reply_err(f"rejected ({code}): {exc}")
-                return
+        try:
+            submit_goal_request(self.controller, self.clock, _payload(query))
+        except (ValueError, GoalRejected) as exc:
+            code = getattr(exc, "error_code", -1)
+            query.reply_err(f"rejected ({code}): {exc}")
+            return
         query.reply(query.key_expr, cdr.encode(cdr.msg(cdr.SEND_GOAL_RESPONSE, accepted=True,
                                                      stamp=cdr.time_msg(time.time()))))
 
@@ -101,7 +86,6 @@ class TrajectoryActionServer:
             return
         goal_id = cdr.goal_id_of(request.goal_info.goal_id)
         canceled = self.controller.cancel(goal_id)
-        self.publish_results()
         query.reply(query.key_expr, cdr.encode(cdr.msg(
             cdr.CANCEL_RESPONSE, return_code=0 if canceled else 2,   # 2: ERROR_UNKNOWN_GOAL_ID
             goals_canceling=[request.goal_info] if canceled else [])))
@@ -127,16 +111,20 @@ class TrajectoryActionServer:
         query.reply(query.key_expr, cdr.encode(cdr.msg(cdr.TRIGGER_RESPONSE, success=succeeded,
                                                          message=message)))
 
-    def publish_feedback(self) -> None:
+    def publish_feedback(self) -> bytes | None:
+        """Put the active goal's FeedbackMessage; its bytes (None: no active goal)."""
         state = self.controller.state()
         if state.goal_id is None:
-            return
-        self._feedback.put(cdr.encode(self._feedback_message(
+            return None
+        payload = cdr.encode(self._feedback_message(
             state.goal_id, state.joint_names, state.desired_positions, state.desired_velocities,
-            state.actual_positions, state.actual_velocities)))
+            state.actual_positions, state.actual_velocities))
+        self._feedback.put(payload)
+        return payload
 
-    def publish_results(self) -> None:
-        for goal_id, result in self.controller.finished():
+    def publish_results(self, finished: list[tuple[str, GoalResult]]) -> None:
+        """Publish (and keep for get_result) the results of goals that ended."""
+        for goal_id, result in finished:
             with self._lock:
                 self._results[goal_id] = result
             self._result.put(cdr.encode(cdr.result_msg(goal_id, result)))
@@ -146,6 +134,29 @@ class TrajectoryActionServer:
             queryable.undeclare()
         self._feedback.undeclare()
         self._result.undeclare()
+
+
+def submit_goal_request(controller: JointTrajectoryController, clock: Callable[[], float],
+                        payload: bytes) -> str:
+    """Decode a FollowJointTrajectory SendGoal request and hand its goal to ``controller``;
+    the goal's id. Raises GoalRejected (with the controller's reason) or ValueError.
+
+    A large goal is a burst of Python objects in the calling (Zenoh) thread: decoded below
+    the frame handling's priority, with the collector paused and freed a chunk at a time,
+    it never holds the control loop or the frames for long (hil.realtime)."""
+    enter_side_work()
+    with paused_collection():
+        if len(payload) > MAX_GOAL_BYTES:
+            raise GoalRejected(f"the goal is {len(payload)} bytes; this controller takes "
+                               f"at most {MAX_GOAL_BYTES} (split it into several goals)")
+        request = cdr.decode(payload, cdr.SEND_GOAL_REQUEST)
+        goal_id = cdr.goal_id_of(request.goal_id)
+        stamp = cdr.seconds_of(request.goal.trajectory.header.stamp)
+        start = None if stamp == 0 else clock() + (stamp - time.time())
+        goal = cdr.goal_from_msg(request.goal, start)
+        release_gradually(request.goal.trajectory.points)
+        controller.submit(goal_id, goal)
+        return goal_id
 
 
 def _decode_or_reply_error(query: zenoh.Query, typename: str):
@@ -295,4 +306,4 @@ class TrajectoryActionClient:
 
 
 __all__ = ["ControllerGone", "MAX_GOAL_BYTES", "TrajectoryActionClient",
-           "TrajectoryActionServer"]
+           "TrajectoryActionServer", "submit_goal_request"]

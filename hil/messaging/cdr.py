@@ -12,6 +12,7 @@ plotting) and ``hil_msgs/SimClock`` (the plant's time against the wall clock).
 from __future__ import annotations
 
 import math
+import struct
 
 import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -20,7 +21,7 @@ from hil.controllers import (
     GoalResult, GoalStatus, JointTolerance, TrajectoryGoal, TrajectoryPoint, TrajectoryPoints,
 )
 
-_DEFINITIONS = {
+DEFINITIONS = {
     "control_msgs/msg/JointTolerance":
         "string name\nfloat64 position\nfloat64 velocity\nfloat64 acceleration",
     "control_msgs/msg/JointComponentTolerance":
@@ -74,7 +75,7 @@ _DEFINITIONS = {
 }
 
 TYPES = get_typestore(Stores.ROS2_HUMBLE)
-for _name, _text in _DEFINITIONS.items():
+for _name, _text in DEFINITIONS.items():
     TYPES.register(get_types_from_msg(_text, _name))
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -89,6 +90,9 @@ GOAL_RESULT = "hil_msgs/msg/GoalResult"
 CONTROL_SAMPLES = "hil_msgs/msg/ControlSamples"
 TRIGGER_RESPONSE = "std_srvs/srv/msg/Trigger_Response"
 SIM_CLOCK = "hil_msgs/msg/SimClock"
+#: the CDR of a request without fields (std_srvs/Trigger's): the encapsulation header and
+#: the one byte rosidl gives an empty structure
+EMPTY_REQUEST = b"\x00\x01\x00\x00\x00"
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 DIAGNOSTIC_STATUS = "diagnostic_msgs/msg/DiagnosticStatus"
 
@@ -111,17 +115,27 @@ def decode(data: bytes, typename: str):
 
 # --- small builders -----------------------------------------------------------
 
+def time_cdr(seconds: float) -> bytes:
+    """A builtin_interfaces/Time (or rosgraph_msgs/Clock, the same layout) as CDR, packed
+    directly: a clock published every few ms from a real-time process costs a struct.pack,
+    not a rosbags message (tests/test_ros_face.py decodes it with rosbags)."""
+    return _TIME_CDR.pack(b"\x00\x01\x00\x00", *seconds_and_nanoseconds(seconds))
+
+
+_TIME_CDR = struct.Struct("<4siI")
+
+
 def time_msg(seconds: float):
-    sec, nanosec = _seconds_and_nanoseconds(seconds)
+    sec, nanosec = seconds_and_nanoseconds(seconds)
     return msg("builtin_interfaces/msg/Time", sec=sec, nanosec=nanosec)
 
 
 def duration_msg(seconds: float):
-    sec, nanosec = _seconds_and_nanoseconds(seconds)
+    sec, nanosec = seconds_and_nanoseconds(seconds)
     return msg("builtin_interfaces/msg/Duration", sec=sec, nanosec=nanosec)
 
 
-def _seconds_and_nanoseconds(seconds: float) -> tuple[int, int]:
+def seconds_and_nanoseconds(seconds: float) -> tuple[int, int]:
     """builtin_interfaces' (int32 sec, uint32 nanosec); ValueError for what they cannot hold."""
     if not math.isfinite(seconds) or not -2**31 <= seconds < 2**31:
         raise ValueError(f"{seconds} s is not a time ROS 2 can carry (finite, |t| < 2^31 s)")

@@ -26,9 +26,11 @@ class JointStatePublisher:
     def __init__(self, session: zenoh.Session, robot: str):
         self._publisher = session.declare_publisher(key(robot, "joint_states"))
 
-    def publish(self, stamp: float, names, positions, velocities, efforts) -> None:
-        self._publisher.put(cdr.encode(cdr.joint_state_msg(stamp, names, positions, velocities,
-                                                           efforts)))
+    def publish(self, stamp: float, names, positions, velocities, efforts) -> bytes:
+        """Put the joint states; their CDR bytes (for other outlets of the same message)."""
+        payload = cdr.encode(cdr.joint_state_msg(stamp, names, positions, velocities, efforts))
+        self._publisher.put(payload)
+        return payload
 
     def close(self) -> None:
         self._publisher.undeclare()
@@ -97,8 +99,11 @@ class DiagnosticsPublisher:
         self._publisher = session.declare_publisher(
             key(robot, "diagnostics"), congestion_control=zenoh.CongestionControl.BLOCK)
 
-    def publish(self, diagnostic: Diagnostic) -> None:
-        self._publisher.put(diagnostic.encode())
+    def publish(self, diagnostic: Diagnostic) -> bytes:
+        """Put the diagnostic; its CDR bytes (a DiagnosticArray)."""
+        payload = diagnostic.encode()
+        self._publisher.put(payload)
+        return payload
 
     def close(self) -> None:
         self._publisher.undeclare()

@@ -1,0 +1,184 @@
+"""The ROS 2 interfaces hil serves: their names in rmw_zenoh's ``dds_`` form and their
+RIHS01 type hashes (REP-2016) for a ROS distribution.
+
+A message's hash comes from rosbags' type store for the distribution (its
+``hash_rihs01``). Services and actions need what rosidl synthesises around their
+parts, which rosbags does not: the service type (``request_message``,
+``response_message``, ``event_message``), its ``_Event`` message (``service_msgs/
+ServiceEventInfo`` plus a request and a response bounded to one), and an action's
+``_SendGoal``/``_GetResult`` services and ``_FeedbackMessage``. Those are hashed here
+over the same JSON form rosbags and rosidl hash (the type, then its referenced types
+sorted by name), with ``char`` as rosidl maps it (``uint8``).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+from dataclasses import dataclass
+
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.base import Nodetype
+
+from hil.messaging.cdr import DEFINITIONS as HIL_DEFINITIONS
+
+#: ROS 2 distributions with rmw_zenoh and type hashes, and rosbags' store of each
+DISTROS = {"jazzy": Stores.ROS2_JAZZY, "kilted": Stores.ROS2_KILTED,
+           "lyrical": Stores.ROS2_LYRICAL}
+DEFAULT_DISTRO = "jazzy"
+
+# REP-2016 field type ids (type_description_interfaces/FieldType)
+_TYPE_IDS = {"int8": 2, "uint8": 3, "int16": 4, "uint16": 5, "int32": 6, "uint32": 7,
+             "int64": 8, "uint64": 9, "float32": 10, "float64": 11, "float128": 12,
+             "char": 3, "bool": 15, "byte": 16, "string": 17}
+_NESTED, _BOUNDED_STRING = 1, 21
+_ARRAY, _BOUNDED_SEQUENCE, _SEQUENCE = 48, 96, 144
+
+# parts of interfaces hil uses that rosbags' stores lack, as .msg text
+_EXTRA_DEFINITIONS = {
+    "service_msgs/msg/ServiceEventInfo":
+        "uint8 event_type\nbuiltin_interfaces/msg/Time stamp\nuint8[16] client_gid\n"
+        "int64 sequence_number",
+    "action_msgs/srv/CancelGoal_Request": "action_msgs/msg/GoalInfo goal_info",
+    "action_msgs/srv/CancelGoal_Response":
+        "int8 return_code\naction_msgs/msg/GoalInfo[] goals_canceling",
+    "std_srvs/srv/Trigger_Request": "",
+    "std_srvs/srv/Trigger_Response": "bool success\nstring message",
+}
+
+
+@dataclass(frozen=True)
+class Interface:
+    """A ROS 2 message or service type as rmw_zenoh keys it."""
+
+    name: str          # e.g. sensor_msgs/msg/JointState
+    type_name: str     # e.g. sensor_msgs::msg::dds_::JointState_
+    type_hash: str     # RIHS01_...
+
+
+def dds_type_name(name: str) -> str:
+    """``pkg/msg/Name`` -> ``pkg::msg::dds_::Name_`` (what rmw_zenoh's type support names)."""
+    package, kind, base = name.split("/")
+    return f"{package}::{kind}::dds_::{base}_"
+
+
+class TypeHashes:
+    """RIHS01 hashes of the interfaces of one ROS 2 distribution."""
+
+    def __init__(self, distro: str = DEFAULT_DISTRO):
+        if distro not in DISTROS:
+            raise ValueError(f"unknown ROS 2 distribution {distro!r}; hil knows "
+                             f"{', '.join(sorted(DISTROS))}")
+        self.distro = distro
+        self._store = get_typestore(DISTROS[distro])
+        self._fields: dict[str, list] = {}
+        for name, text in {**HIL_DEFINITIONS, **_EXTRA_DEFINITIONS}.items():
+            self.define(name, text)
+
+    def define(self, name: str, text: str) -> None:
+        """Add a type (``pkg/msg/X``, ``pkg/srv/X_Request``...) from its .msg text, under
+        exactly ``name``: rosbags files a service's or action's parts under
+        ``pkg/srv/msg/...``, which would change the hash."""
+        (_, fields), = get_types_from_msg(text, "hil_hashing/msg/Scratch").values()
+        self._fields[name] = [(field, _renamed(desc)) for field, desc in fields]
+
+    def _fields_of(self, name: str) -> list:
+        if name in self._fields:
+            return self._fields[name]
+        if name not in self._store.fielddefs:
+            raise KeyError(f"no definition of {name} for ROS 2 {self.distro}")
+        return self._store.fielddefs[name][1]
+
+    def _description(self, name: str) -> dict:
+        fields = self._fields_of(name) or [
+            ("structure_needs_at_least_one_member", (Nodetype.BASE, ("uint8", 0)))]
+        return {"type_name": name, "fields": [_field(field, desc) for field, desc in fields]}
+
+    def _closure(self, name: str, found: dict[str, dict]) -> dict[str, dict]:
+        for field in self._description(name)["fields"]:
+            nested = field["type"]["nested_type_name"]
+            if nested and nested not in found:
+                found[nested] = self._description(nested)
+                self._closure(nested, found)
+        return found
+
+    @functools.cache
+    def rihs01(self, name: str) -> str:
+        """The RIHS01 hash of a message type (or of a type defined here)."""
+        referenced = self._closure(name, {})
+        document = {"type_description": self._description(name),
+                    "referenced_type_descriptions": [referenced[k] for k in sorted(referenced)]}
+        return "RIHS01_" + hashlib.sha256(json.dumps(document).encode()).hexdigest()
+
+    def message(self, name: str) -> Interface:
+        return Interface(name, dds_type_name(name), self.rihs01(name))
+
+    def service(self, name: str, request: str | None = None,
+                response: str | None = None) -> Interface:
+        """A service type ``pkg/srv/Name`` (or an action's ``pkg/action/Name_SendGoal``)
+        whose parts are ``name + "_Request"`` and ``"_Response"`` (or those given)."""
+        request, response = request or f"{name}_Request", response or f"{name}_Response"
+        event = f"{name}_Event"
+        self.define(event, f"service_msgs/msg/ServiceEventInfo info\n{request}[<=1] request\n"
+                            f"{response}[<=1] response")
+        self.define(name, f"{request} request_message\n{response} response_message\n"
+                           f"{event} event_message")
+        return Interface(name, dds_type_name(name), self.rihs01(name))
+
+
+def _renamed(desc):
+    """A parsed field's type with rosbags' ``pkg/srv/msg/X`` names back to ``pkg/srv/X``."""
+    if isinstance(desc, tuple):
+        return tuple(_renamed(part) for part in desc)
+    if isinstance(desc, str):
+        return desc.replace("/srv/msg/", "/srv/").replace("/action/msg/", "/action/")
+    return desc
+
+
+def _field(name: str, desc) -> dict:
+    """One FieldDescription of REP-2016 from a rosbags field type."""
+    offset = capacity = string_capacity = 0
+    nested = ""
+    if desc[0] == Nodetype.ARRAY:
+        offset, capacity = _ARRAY, desc[1][1]
+        kind, rest = desc[1][0]
+    elif desc[0] == Nodetype.SEQUENCE:
+        capacity = desc[1][1]
+        offset = _BOUNDED_SEQUENCE if capacity else _SEQUENCE
+        kind, rest = desc[1][0]
+    else:
+        kind, rest = desc
+    if kind == Nodetype.NAME:
+        type_id, nested = offset + _NESTED, rest
+    elif rest[0] == "string" and rest[1]:
+        type_id, string_capacity = offset + _BOUNDED_STRING, rest[1]
+    else:
+        type_id = offset + _TYPE_IDS[rest[0]]
+    return {"name": name, "type": {"type_id": type_id, "capacity": capacity,
+                                   "string_capacity": string_capacity,
+                                   "nested_type_name": nested}}
+
+
+@dataclass(frozen=True)
+class FollowJointTrajectory:
+    """The interfaces of control_msgs/action/FollowJointTrajectory's five endpoints."""
+
+    send_goal: Interface
+    cancel_goal: Interface
+    get_result: Interface
+    feedback: Interface
+    status: Interface
+
+    @classmethod
+    def for_distro(cls, hashes: TypeHashes) -> FollowJointTrajectory:
+        base = "control_msgs/action/FollowJointTrajectory"
+        return cls(hashes.service(f"{base}_SendGoal"),
+                   hashes.service("action_msgs/srv/CancelGoal"),
+                   hashes.service(f"{base}_GetResult"),
+                   hashes.message(f"{base}_FeedbackMessage"),
+                   hashes.message("action_msgs/msg/GoalStatusArray"))
+
+
+__all__ = ["DEFAULT_DISTRO", "DISTROS", "FollowJointTrajectory", "Interface", "TypeHashes",
+           "dds_type_name"]

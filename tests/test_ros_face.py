@@ -1,0 +1,298 @@
+"""hil's controller as a ROS 2 node on rmw_zenoh, seen by a client written from the
+specification alone (tests/ros_spec_client.py) through a Zenoh router with rmw_zenohd's
+settings, everything on loopback: the ur3 in lock-step, in this process."""
+
+from __future__ import annotations
+
+import ast
+import queue
+import subprocess
+import sys
+import threading
+import time
+import uuid
+
+import pytest
+import zenoh
+import zenoh.ext
+
+from conftest import ROOT
+from ros_spec_client import ATTACHMENT, SpecClient
+from hil.bus_config import load_bus_config
+from hil.cli.common import config_path
+from hil.controllers import TrajectoryGoal, TrajectoryPoint
+from hil.messaging import cdr
+from hil.messaging.ros.face import ACTION_NAME, RosClockFace, RosControlFace, RosSettings
+from hil.messaging.ros.router import open_router
+from hil.stack import running_stack
+from hil.zenoh_session import free_loopback_port
+
+JOINT_STATE_JAZZY = "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e"
+ACTION = f"/{ACTION_NAME}/_action"
+UR3_JOINTS = [f"joint{i}" for i in range(1, 7)]
+SUCCEEDED, CANCELED, ABORTED, EXECUTING = 4, 5, 6, 2
+
+
+@pytest.fixture(scope="module")
+def router():
+    endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
+    session = open_router((endpoint,))
+    yield endpoint
+    session.close()
+
+
+def _stack(router, namespace: str = "/"):
+    settings = RosSettings(router=router, namespace=namespace)
+    return running_stack(
+        load_bus_config(config_path("ur3")), lock_step=True,
+        ros=lambda node: RosControlFace(settings, node.controller, node.clock,
+                                        "<robot name='ur3'/>", node.reset_faults))
+
+
+@pytest.fixture(scope="module")
+def stack(router):
+    with _stack(router) as running:
+        yield running
+
+
+@pytest.fixture
+def client(router, stack):
+    spec = SpecClient(router)
+    yield spec
+    spec.close()
+
+
+def test_the_spec_client_uses_nothing_of_hils_ros_adapter():
+    tree = ast.parse((ROOT / "tests" / "ros_spec_client.py").read_text())
+    imported = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    imported |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    assert not any(name.startswith("hil.messaging.ros") for name in imported), imported
+
+
+def test_the_graph_shows_the_node_and_every_endpoint(client):
+    tokens = client.graph()
+    assert any(t.kind == "NN" and t.node == "hil_control" for t in tokens)
+    states = client.find("MP", "/joint_states")
+    assert (states.type_name, states.type_hash) == ("sensor_msgs::msg::dds_::JointState_",
+                                                    JOINT_STATE_JAZZY)
+    for service in ("send_goal", "cancel_goal", "get_result"):
+        assert client.find("SS", f"{ACTION}/{service}").node == "hil_control"
+    assert client.find("MP", f"{ACTION}/feedback").qos == "::,10:,:,:,,"
+    assert client.find("MP", f"{ACTION}/status").qos == ":1:,1:,:,:,,"   # transient local
+    assert client.find("MP", "/robot_description").qos == ":1:,1:,:,:,,"
+    assert client.find("MP", "/diagnostics").type_name == (
+        "diagnostic_msgs::msg::dds_::DiagnosticArray_")
+    assert client.find("SS", "/hil_control/reset_faults").type_name == (
+        "std_srvs::srv::dds_::Trigger_")
+
+
+def test_joint_states_arrive_with_the_attachment_in_sequence(client):
+    samples: queue.Queue = queue.Queue()
+    subscriber = client.session.declare_subscriber(
+        client.find("MP", "/joint_states").key(0),
+        lambda s: samples.put((s.payload.to_bytes(), s.attachment.to_bytes())))
+    try:
+        received = [samples.get(timeout=10) for _ in range(5)]
+    finally:
+        subscriber.undeclare()
+    attachments = [ATTACHMENT.unpack(a) for _, a in received]
+    sequence = [a[0] for a in attachments]
+    assert sequence == list(range(sequence[0], sequence[0] + 5)), sequence
+    assert len({a[3] for a in attachments}) == 1 and all(a[2] == 16 for a in attachments)
+    message = cdr.decode(received[-1][0], cdr.JOINT_STATE)
+    assert list(message.name) == UR3_JOINTS and len(message.position) == 6
+
+
+def test_robot_description_reaches_a_late_subscriber(client):
+    token = client.find("MP", "/robot_description")
+    texts: queue.Queue = queue.Queue()
+    subscriber = zenoh.ext.declare_advanced_subscriber(
+        client.session, token.key(0), lambda s: texts.put(s.payload.to_bytes()),
+        history=zenoh.ext.HistoryConfig(detect_late_publishers=True))
+    try:
+        text = cdr.TYPES.deserialize_cdr(texts.get(timeout=10), "std_msgs/msg/String").data
+    finally:
+        subscriber.undeclare()
+    assert text == "<robot name='ur3'/>"
+
+
+def _goal_request(goal_id: str, seconds: float, joint3: float) -> bytes:
+    goal = TrajectoryGoal(("joint3",), (TrajectoryPoint(seconds, (joint3,), (0.0,)),))
+    return cdr.encode(cdr.msg(cdr.SEND_GOAL_REQUEST, goal_id=cdr.uuid_msg(goal_id),
+                              goal=cdr.goal_msg(goal)))
+
+
+def _send(client: SpecClient, request: bytes, action: str = ACTION) -> bool:
+    reply = client.call(client.find("SS", f"{action}/send_goal"), request)
+    return cdr.decode(reply, cdr.SEND_GOAL_RESPONSE).accepted
+
+
+def _result(client: SpecClient, goal_id: str, action: str = ACTION):
+    reply = client.call(client.find("SS", f"{action}/get_result"), cdr.encode(cdr.msg(
+        cdr.GET_RESULT_REQUEST, goal_id=cdr.uuid_msg(goal_id))))
+    return cdr.decode(reply, cdr.GET_RESULT_RESPONSE)
+
+
+def _collect(client: SpecClient, name: str, typename: str):
+    """A subscriber that decodes into a list, and the list."""
+    got: list = []
+    subscriber = client.session.declare_subscriber(
+        client.find("MP", name).key(0),
+        lambda s: got.append(cdr.decode(s.payload.to_bytes(), typename)))
+    return subscriber, got
+
+
+def test_a_goal_runs_to_its_result_with_feedback_and_status(client):
+    feedback_sub, feedback = _collect(client, f"{ACTION}/feedback", cdr.FEEDBACK_MESSAGE)
+    status_sub, statuses = _collect(client, f"{ACTION}/status",
+                                    "action_msgs/msg/GoalStatusArray")
+    goal_id = uuid.uuid4().hex
+    try:
+        assert _send(client, _goal_request(goal_id, 1.0, 0.4))
+        response = _result(client, goal_id)          # answered when the goal ends
+        time.sleep(0.2)
+    finally:
+        feedback_sub.undeclare()
+        status_sub.undeclare()
+    assert response.status == SUCCEEDED and response.result.error_code == 0
+    assert any(cdr.goal_id_of(f.goal_id) == goal_id for f in feedback)
+    ours = [s.status for array in statuses for s in array.status_list
+            if cdr.goal_id_of(s.goal_info.goal_id) == goal_id]
+    assert EXECUTING in ours and ours[-1] == SUCCEEDED, ours
+
+
+def test_a_second_goal_is_canceled(client):
+    first, second = uuid.uuid4().hex, uuid.uuid4().hex
+    assert _send(client, _goal_request(first, 0.5, 0.1))
+    assert _result(client, first).status == SUCCEEDED
+    assert _send(client, _goal_request(second, 30.0, 0.8))
+    info = cdr.msg("action_msgs/msg/GoalInfo", goal_id=cdr.uuid_msg(second),
+                   stamp=cdr.time_msg(0.0))
+    reply = cdr.decode(client.call(client.find("SS", f"{ACTION}/cancel_goal"), cdr.encode(
+        cdr.msg(cdr.CANCEL_REQUEST, goal_info=info))), cdr.CANCEL_RESPONSE)
+    assert reply.return_code == 0
+    assert [cdr.goal_id_of(g.goal_id) for g in reply.goals_canceling] == [second]
+    assert _result(client, second).status == CANCELED
+
+
+def test_a_goal_for_no_known_goal_id_has_status_unknown(client):
+    assert _result(client, uuid.uuid4().hex).status == 0
+
+
+def test_refused_and_malformed_goals_are_answered_not_accepted_and_reported(client):
+    diagnostics_sub, diagnostics = _collect(client, "/diagnostics", cdr.DIAGNOSTIC_ARRAY)
+    try:
+        goal = TrajectoryGoal(("no_such_joint",), (TrajectoryPoint(1.0, (0.1,)),))
+        assert not _send(client, cdr.encode(cdr.msg(
+            cdr.SEND_GOAL_REQUEST, goal_id=cdr.uuid_msg(uuid.uuid4().hex),
+            goal=cdr.goal_msg(goal))))
+        assert not _send(client, b"\x00\x01\x00\x00garbage")
+        time.sleep(0.3)
+    finally:
+        diagnostics_sub.undeclare()
+    messages = [s.message for array in diagnostics for s in array.status]
+    assert any("no_such_joint" in m for m in messages), messages
+    assert any("malformed" in m for m in messages), messages
+
+
+def test_a_request_without_the_attachment_gets_an_error_reply(client):
+    token = client.find("SS", f"{ACTION}/get_result")
+    replies = list(client.session.get(token.key(0), payload=cdr.EMPTY_REQUEST, timeout=5))
+    assert replies and replies[0].err is not None
+    assert b"attachment" in replies[0].err.payload.to_bytes()
+
+
+def test_the_fault_reset_service_answers(client):
+    reply = client.call(client.find("SS", "/hil_control/reset_faults"), cdr.EMPTY_REQUEST)
+    response = cdr.decode(reply, cdr.TRIGGER_RESPONSE)
+    assert response.success and response.message == "no fault to reset"
+
+
+def test_a_result_awaited_at_shutdown_is_answered_aborted(router):
+    with _stack(router, "/second") as running:     # beside the module's stack, as a 2nd robot
+        spec = SpecClient(router)
+        action = f"/second{ACTION}"
+        try:
+            goal_id = uuid.uuid4().hex
+            assert _send(spec, _goal_request(goal_id, 30.0, 0.8), action)
+            answers: queue.Queue = queue.Queue()
+            waiter = threading.Thread(target=lambda: answers.put(_result(spec, goal_id,
+                                                                          action)))
+            waiter.start()
+            time.sleep(0.5)
+            running.node.stop()
+            response = answers.get(timeout=20)
+            waiter.join()
+        finally:
+            spec.close()
+    assert response.status == ABORTED
+    assert "shutting down" in response.result.error_string
+
+
+def test_clock_carries_the_given_plant_time(router):
+    face = RosClockFace(RosSettings(router=router))
+    spec = SpecClient(router)
+    try:
+        token = spec.find("MP", "/clock")
+        assert token.type_name == "rosgraph_msgs::msg::dds_::Clock_"
+        clocks: queue.Queue = queue.Queue()
+        subscriber = spec.session.declare_subscriber(
+            token.key(0), lambda s: clocks.put(s.payload.to_bytes()))
+        time.sleep(0.2)
+        face.publish(12.25)
+        clock = cdr.TYPES.deserialize_cdr(clocks.get(timeout=5), "rosgraph_msgs/msg/Clock").clock
+        subscriber.undeclare()
+    finally:
+        spec.close()
+        face.close()
+    assert (clock.sec, clock.nanosec) == (12, 250_000_000)
+
+
+def _hil(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "hil", *args], cwd=ROOT, capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def test_hil_send_and_reset_with_ros_drive_the_face(router, stack):
+    sent = _hil("send", "--ros", f"--ros-router={router}", "--joint", "joint2", "--to", "0.2",
+                "--in", "0.5s", "--quiet")
+    assert sent.returncode == 0, sent.stdout + sent.stderr
+    assert "succeeded" in sent.stdout
+    reset = _hil("reset", "--ros", f"--ros-router={router}")
+    assert reset.returncode == 0 and "no fault to reset" in reset.stdout, reset.stderr
+
+
+def test_ros_options_without_a_router_fail_with_what_to_do():
+    nowhere = f"tcp/127.0.0.1:{free_loopback_port()}"
+    result = _hil("control", "ur3", "--fake", "--ros", f"--ros-router={nowhere}")
+    assert result.returncode != 0
+    assert "cannot reach the Zenoh router" in result.stderr and "hil router" in result.stderr
+    assert "Traceback" not in result.stderr
+    bad = _hil("send", "--ros", "--ros-domain-id=999", "--joint", "j", "--to", "0")
+    assert bad.returncode != 0 and "outside 0..232" in bad.stderr
+
+
+def test_hil_sim_with_ros_publishes_the_plants_time_on_clock(router):
+    sim = subprocess.Popen(
+        [sys.executable, "-m", "hil", "sim", "ur3", "--duration", "20", "--status-period", "0",
+         f"--listen=tcp/127.0.0.1:{free_loopback_port()}", "--ros", f"--ros-router={router}"],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    spec = SpecClient(router)
+    try:
+        token = spec.find("MP", "/clock", timeout=30)
+        assert token.node == "hil_sim"
+        clocks: queue.Queue = queue.Queue()
+        subscriber = spec.session.declare_subscriber(
+            token.key(0), lambda s: clocks.put(s.payload.to_bytes()))
+        times = []
+        for _ in range(20):
+            clock = cdr.TYPES.deserialize_cdr(clocks.get(timeout=10),
+                                              "rosgraph_msgs/msg/Clock").clock
+            times.append(clock.sec + clock.nanosec * 1e-9)
+        subscriber.undeclare()
+    finally:
+        spec.close()
+        sim.terminate()
+        output = sim.communicate(timeout=30)[0]
+    assert times == sorted(times) and times[-1] > times[0], times
+    assert sim.returncode == 0 and "all drives disabled" in output, output
