@@ -22,10 +22,13 @@ from hil.bus_config import load_bus_config
 from hil.cli.common import config_path
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.messaging import cdr
-from hil.messaging.ros.face import ACTION_NAME, RosClockFace, RosControlFace, RosSettings
+from hil.messaging.ros.face import (
+    ACTION_NAME, PlantClock, RosClockFace, RosControlFace, RosSettings,
+)
+from hil.messaging.zenoh_api import SimClockPublisher
 from hil.messaging.ros.router import open_router
 from hil.stack import running_stack
-from hil.zenoh_session import free_loopback_port
+from hil.zenoh_session import ZenohSettings, close, free_loopback_port, session
 
 JOINT_STATE_JAZZY = "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e"
 ACTION = f"/{ACTION_NAME}/_action"
@@ -296,3 +299,36 @@ def test_hil_sim_with_ros_publishes_the_plants_time_on_clock(router):
         output = sim.communicate(timeout=30)[0]
     assert times == sorted(times) and times[-1] > times[0], times
     assert sim.returncode == 0 and "all drives disabled" in output, output
+
+
+def test_use_sim_time_stamps_joint_states_and_feedback_on_the_plants_clock(router):
+    hil_session = ZenohSettings(listen=(f"tcp/127.0.0.1:{free_loopback_port()}",))
+    plant = PlantClock(session(hil_session), "ur3")
+    sim_clock = SimClockPublisher(session(hil_session), "ur3")
+    settings = RosSettings(router=router, namespace="/simtime")
+    spec = SpecClient(router)
+    try:
+        with running_stack(load_bus_config(config_path("ur3")), lock_step=True,
+                           ros=lambda node: RosControlFace(settings, node.controller, node.clock,
+                                                           "<robot/>", plant_clock=plant)):
+            states_sub, states = _collect(spec, "/simtime/joint_states", cdr.JOINT_STATE)
+            feedback_sub, feedback = _collect(spec, f"/simtime{ACTION}/feedback",
+                                              cdr.FEEDBACK_MESSAGE)
+            time.sleep(0.3)
+            assert not states, "joint states published before the plant's time was known"
+            now = time.time()
+            sim_clock.publish(now - 0.05, 100.0)       # the plant runs at twice the wall's pace
+            sim_clock.publish(now, 100.1)
+            goal_id = uuid.uuid4().hex
+            assert _send(spec, _goal_request(goal_id, 1.0, 0.3), f"/simtime{ACTION}")
+            assert _result(spec, goal_id, f"/simtime{ACTION}").status == SUCCEEDED
+            states_sub.undeclare()
+            feedback_sub.undeclare()
+    finally:
+        spec.close()
+        sim_clock.close()
+        close(hil_session)
+    stamps = [cdr.seconds_of(m.header.stamp) for m in states]
+    assert stamps and all(100.0 < t < 200.0 for t in stamps), stamps[:5]
+    assert feedback and all(100.0 < cdr.seconds_of(f.feedback.header.stamp) < 200.0
+                            for f in feedback)

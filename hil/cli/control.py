@@ -46,6 +46,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     common.add_ros(parser, "also be a ROS 2 node (hil_control): joint_states, the "
                            "FollowJointTrajectory action at joint_trajectory_controller/"
                            "follow_joint_trajectory, diagnostics, robot_description")
+    parser.add_argument("--ros-use-sim-time", action="store_true",
+                        help="with --ros: stamp joint states, feedback and diagnostics on the "
+                             "plant's time (what hil sim --ros publishes as /clock), as "
+                             "use_sim_time nodes expect")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -104,19 +108,26 @@ def _ros_face(args: argparse.Namespace, config):
     """The factory of the controller's ROS 2 face, or None without --ros."""
     settings = common.ros_settings(args)
     if settings is None:
+        if args.ros_use_sim_time:
+            raise HilError.single("--ros-use-sim-time is for the ROS 2 face",
+                                  hint="add --ros")
         return None
-    from hil.messaging.ros.face import ACTION_NAME, RosControlFace   # noqa: PLC0415
+    from hil.messaging.ros.face import ACTION_NAME, PlantClock, RosControlFace  # noqa: PLC0415
     from hil.visualisation.urdf_export import viewer_urdf            # noqa: PLC0415
 
     def make(node: ControlNode):
+        plant_clock = (PlantClock(session(common.zenoh_settings(args)), config.robot.name)
+                       if args.ros_use_sim_time else None)
         try:
             face = RosControlFace(settings, node.controller, node.clock,
-                                  viewer_urdf(config.robot).decode(), node.reset_faults)
+                                  viewer_urdf(config.robot).decode(), node.reset_faults,
+                                  plant_clock)
         except ConnectionError as exc:
             raise HilError.single(str(exc), hint="or leave out --ros") from None
         action = f"{settings.namespace.rstrip('/')}/{ACTION_NAME}"
         print(f"hil control: ROS 2 node {settings.namespace.rstrip('/')}/hil_control on "
               f"domain {settings.domain_id} via {settings.router} ({settings.distro}); "
-              f"action {action}", flush=True)
+              f"action {action}; stamps on the "
+              f"{'plant' if args.ros_use_sim_time else 'wall'} clock", flush=True)
         return face
     return make

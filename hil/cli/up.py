@@ -71,6 +71,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "are up)")
     parser.add_argument("--viewer", metavar="URL", help="also stream to a running rerun viewer")
     common.add_ros(parser, "sim and control also appear in ROS 2 (see hil sim/control --help)")
+    parser.add_argument("--ros-use-sim-time", action="store_true",
+                        help="with --ros: the controller stamps on the plant's time (/clock)")
     common.add_can_override(parser)
     common.add_package_path(parser)
 
@@ -107,7 +109,9 @@ def run(args: argparse.Namespace) -> int:
         "sim": Child("sim", ["sim", *shared, *lock_step, *placed["sim"], "--listen", endpoint,
                              "--status-period", "0", *sim_faults, *ros], logs / "sim.log"),
         "control": Child("control", ["control", *shared, *lock_step, *placed["control"],
-                                     "--connect", endpoint, *ros], logs / "control.log"),
+                                     "--connect", endpoint, *ros,
+                                     *(["--ros-use-sim-time"] if args.ros_use_sim_time else [])],
+                         logs / "control.log"),
         "viz": Child("viz", ["viz", *shared, *lock_step, *placed["viz"], "--connect", endpoint,
                              "--save", str(save), "--can-log", str(can_log), *viewer],
                      logs / "viz.log"),

@@ -14,6 +14,7 @@ put again with rmw_zenoh's attachment on the ROS key expressions.
 from __future__ import annotations
 
 import os
+import struct
 import threading
 import time
 from collections.abc import Callable
@@ -25,7 +26,8 @@ from hil.messaging import cdr
 from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.ros.action import RosTrajectoryActionServer
 from hil.messaging.ros.interfaces import DEFAULT_DISTRO, FollowJointTrajectory, TypeHashes
-from hil.messaging.ros.node import RosContext, RosNode, ServiceRequest
+from hil.messaging.keys import direct, key
+from hil.messaging.ros.node import RosContext, RosNode, RosPublisher, ServiceRequest
 from hil.messaging.ros.rmw_zenoh import CLOCK_QOS, LATCHED_QOS
 from hil.zenoh_session import DROP_WAIT_US
 
@@ -80,6 +82,62 @@ class RosSettings:
         return config
 
 
+class PlantClock:
+    """The plant's time, from the simulator's ``hil/<robot>/sim/clock`` (20 Hz: wall time
+    and plant time): for stamping ROS messages on the clock ``use_sim_time`` nodes follow
+    (hil sim --ros publishes it as /clock). Between two samples the plant's time goes on at
+    the rate of the last two (1 in real time; lock-step runs faster or slower)."""
+
+    def __init__(self, session: zenoh.Session, robot: str):
+        self._samples: tuple[tuple[float, float], ...] = ()     # the last two (wall, plant)
+        self._subscriber = session.declare_subscriber(key(robot, "sim/clock"),
+                                                      direct(self._on_sample))
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        try:
+            clock = cdr.decode(sample.payload.to_bytes(), cdr.SIM_CLOCK)
+        except ValueError:
+            return
+        self.add(clock.wall_time, clock.sim_time)
+
+    def add(self, wall_time: float, plant_time: float) -> None:
+        self._samples = (*self._samples[-1:], (wall_time, plant_time))
+
+    def at(self, wall_time: float) -> float | None:
+        """The plant's time at ``wall_time`` (s since the epoch); None before a sample."""
+        samples = self._samples
+        if not samples:
+            return None
+        wall, plant = samples[-1]
+        rate = 1.0
+        if len(samples) == 2 and samples[1][0] > samples[0][0]:
+            rate = max(0.0, (samples[1][1] - samples[0][1]) / (samples[1][0] - samples[0][0]))
+        return plant + (wall_time - wall) * rate
+
+    def close(self) -> None:
+        self._subscriber.undeclare()
+
+
+def restamped(payload: bytes, offset: int, clock: PlantClock) -> bytes | None:
+    """``payload`` (CDR) with the builtin_interfaces/Time at byte ``offset`` (a header's
+    stamp) moved from wall time to the plant's; None while the plant's time is unknown."""
+    sec, nanosec = _STAMP.unpack_from(payload, offset)
+    plant = clock.at(sec + nanosec * 1e-9)
+    if plant is None:
+        return None
+    return payload[:offset] + _STAMP.pack(*cdr.seconds_and_nanoseconds(plant)) + \
+        payload[offset + _STAMP.size:]
+
+
+_STAMP = struct.Struct("<iI")
+
+
+#: where the header stamp lies in the CDR of what the controller's face re-stamps (bytes)
+JOINT_STATE_STAMP = 4          # after the encapsulation header
+FEEDBACK_STAMP = 20            # after it and the goal's 16-byte UUID
+DIAGNOSTICS_STAMP = 4
+
+
 def reset_service_name(settings: RosSettings) -> str:
     """The fully qualified name of the controller's fault reset (std_srvs/Trigger)."""
     return f"{settings.namespace.rstrip('/')}/{CONTROL_NODE}/reset_faults"
@@ -100,9 +158,13 @@ class RosControlFace:
     """The controller's ROS 2 node; made by :meth:`ControlNode`'s ``ros`` factory."""
 
     def __init__(self, settings: RosSettings, controller, clock, robot_description: str,
-                 reset: Callable[[], tuple[bool, str]] | None = None):
+                 reset: Callable[[], tuple[bool, str]] | None = None,
+                 plant_clock: PlantClock | None = None):
         """``reset``: resets drive faults, (succeeded, what happened); served as the
-        std_srvs/Trigger service ``<namespace>/hil_control/reset_faults``."""
+        std_srvs/Trigger service ``<namespace>/hil_control/reset_faults``. ``plant_clock``:
+        stamp joint states, feedback and diagnostics on the plant's time (ROS's
+        use_sim_time) instead of the wall clock; none are published before it is known."""
+        self._plant_clock = plant_clock
         self.context = open_context(settings)
         self._clock = clock
         hashes = TypeHashes(settings.distro)
@@ -141,13 +203,20 @@ class RosControlFace:
     # --ros: p50 20 us, p99 30 us), which waits at most DROP_WAIT_US for a congested router
     # link (zenoh_config). A thread of their own would add a GIL hand-over mid-cycle
     def publish_joint_states(self, payload: bytes) -> None:
-        self._joint_states.put(payload)
+        self._put(self._joint_states, payload, JOINT_STATE_STAMP)
 
     def publish_feedback(self, payload: bytes) -> None:
-        self.action.feedback.put(payload)
+        self._put(self.action.feedback, payload, FEEDBACK_STAMP)
 
     def publish_diagnostics(self, payload: bytes) -> None:
-        self._diagnostics.put(payload)
+        self._put(self._diagnostics, payload, DIAGNOSTICS_STAMP)
+
+    def _put(self, publisher: RosPublisher, payload: bytes, stamp_at: int) -> None:
+        if self._plant_clock is not None:
+            payload = restamped(payload, stamp_at, self._plant_clock)
+            if payload is None:
+                return
+        publisher.put(payload)
 
     def record_results(self, finished: list) -> None:
         self.action.record_results(finished)
@@ -155,6 +224,8 @@ class RosControlFace:
     def close(self) -> None:
         self.action.close()
         self._reset_service.close()
+        if self._plant_clock is not None:
+            self._plant_clock.close()
         self.node.close()
         self.context.session.close()
 
@@ -176,5 +247,6 @@ class RosClockFace:
         self.context.session.close()
 
 
-__all__ = ["ACTION_NAME", "CONTROL_NODE", "DEFAULT_ROUTER", "RosClockFace", "RosControlFace",
+__all__ = ["ACTION_NAME", "CONTROL_NODE", "DEFAULT_ROUTER", "PlantClock", "RosClockFace",
+           "RosControlFace", "restamped",
            "RosSettings", "SIM_NODE", "open_context", "reset_service_name"]
