@@ -68,19 +68,21 @@ def run(args: argparse.Namespace) -> int:
                               hint="hil sim takes frame and drive faults")
     drive_faults = [f for f in faults if isinstance(f, DriveFault)]
     _check_drive_faults(config, drive_faults)
-    ros_clock = _ros_clock(args)
     scheduling = ("lock-step" if args.lock_step
                   else enter_real_time(args.priority, common.cpus(args)))
     buses = with_frame_faults(open_buses(config, zenoh, interface, channels),
                               [f for f in faults if isinstance(f, FrameFault)], args.fault_seed)
     try:
         simulator = Simulator(config, buses, lock_step=args.lock_step)
+        # after hil's own session: Zenoh's runtime threads, which every session of the
+        # process shares, are made by the first one, and must be made under the real-time
+        # settings above (made first by the ROS session, the frames' threads ran under the
+        # normal scheduler on any CPU)
+        ros_clock = _ros_clock(args)
     except BaseException:       # e.g. MuJoCo rejects the model: no bus may keep us alive
         for bus in buses.values():
             bus.shutdown()
         close_all()
-        if ros_clock is not None:
-            ros_clock.close()
         raise
     token = session(zenoh).liveliness().declare_token(f"hil/{config.robot.name}/sim")
     stop = threading.Event()

@@ -24,6 +24,7 @@ from hil.messaging.action import submit_goal_request
 from hil.messaging.ros.interfaces import FollowJointTrajectory
 from hil.messaging.ros.node import NO_LIMIT, RosNode, ServiceError, ServiceRequest
 from hil.messaging.ros.rmw_zenoh import ACTION_STATUS_QOS
+from hil.realtime import enter_side_work
 
 log = logging.getLogger(__name__)
 
@@ -165,6 +166,7 @@ class RosTrajectoryActionServer:
     # --- results ------------------------------------------------------------------------
 
     def _finish_goals(self) -> None:
+        enter_side_work()           # in a real-time process: below its loop and frames
         while True:
             finished = self._results.get()
             if finished is None:
