@@ -5,12 +5,14 @@ settings, everything on loopback: the ur3 in lock-step, in this process."""
 from __future__ import annotations
 
 import ast
+import os
 import queue
 import subprocess
 import sys
 import threading
 import time
 import uuid
+from pathlib import Path
 
 import pytest
 import zenoh
@@ -285,6 +287,7 @@ def test_hil_sim_with_ros_publishes_the_plants_time_on_clock(router):
     try:
         token = spec.find("MP", "/clock", timeout=30)
         assert token.node == "hil_sim"
+        scheduling = _zenoh_threads_scheduling(sim.pid)
         clocks: queue.Queue = queue.Queue()
         subscriber = spec.session.declare_subscriber(
             token.key(0), lambda s: clocks.put(s.payload.to_bytes()))
@@ -300,6 +303,24 @@ def test_hil_sim_with_ros_publishes_the_plants_time_on_clock(router):
         output = sim.communicate(timeout=30)[0]
     assert times == sorted(times) and times[-1] > times[0], times
     assert sim.returncode == 0 and "all drives disabled" in output, output
+    # the ROS session shares Zenoh's runtime threads with the frames' session: they keep the
+    # sim's scheduling and CPUs (the ROS session opened first once left them to the normal
+    # scheduler, on any CPU)
+    main, threads = scheduling
+    assert threads and all(setting == main for setting in threads.values()), (main, threads)
+
+
+def _zenoh_threads_scheduling(pid: int):
+    """(policy, CPUs) of a process' main thread, and of each of its Zenoh runtime threads."""
+    def setting(tid: int):
+        stat = (Path(f"/proc/{pid}/task/{tid}/stat").read_text().rsplit(")", 1)[1].split())
+        return int(stat[38]), frozenset(os.sched_getaffinity(tid))   # field 41: policy
+    threads = {}
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        name = (task / "comm").read_text().strip()
+        if name.split("-")[0] in ("net", "rx", "tx", "app"):
+            threads[f"{name}/{task.name}"] = setting(int(task.name))
+    return setting(pid), threads
 
 
 def test_use_sim_time_stamps_joint_states_and_feedback_on_the_plants_clock(router):
