@@ -24,9 +24,9 @@ import zenoh
 
 from hil.messaging import cdr
 from hil.messaging.diagnostics import Diagnostic
+from hil.messaging.keys import direct, key
 from hil.messaging.ros.action import RosTrajectoryActionServer
 from hil.messaging.ros.interfaces import DEFAULT_DISTRO, FollowJointTrajectory, TypeHashes
-from hil.messaging.keys import direct, key
 from hil.messaging.ros.node import RosContext, RosNode, RosPublisher, ServiceRequest
 from hil.messaging.ros.rmw_zenoh import CLOCK_QOS, LATCHED_QOS
 from hil.zenoh_session import DROP_WAIT_US
