@@ -26,7 +26,9 @@ from hil.messaging import cdr
 from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.keys import direct, key
 from hil.messaging.ros.action import RosTrajectoryActionServer
-from hil.messaging.ros.interfaces import DEFAULT_DISTRO, FollowJointTrajectory, TypeHashes
+from hil.messaging.ros.interfaces import (
+    DEFAULT_DISTRO, FollowJointTrajectory, TypeHashes, known_distro,
+)
 from hil.messaging.ros.node import RosContext, RosNode, RosPublisher, ServiceRequest
 from hil.messaging.ros.rmw_zenoh import CLOCK_QOS, LATCHED_QOS
 from hil.zenoh_session import DROP_WAIT_US
@@ -63,10 +65,8 @@ class RosSettings:
         namespace = namespace or "/"
         if not namespace.startswith("/"):
             namespace = "/" + namespace
-        settings = cls(domain_id, namespace.rstrip("/") or "/", distro or DEFAULT_DISTRO,
-                       router or DEFAULT_ROUTER)
-        TypeHashes(settings.distro)            # an unknown distribution fails here
-        return settings
+        return cls(domain_id, namespace.rstrip("/") or "/",
+                   known_distro(distro or DEFAULT_DISTRO), router or DEFAULT_ROUTER)
 
     def zenoh_config(self) -> zenoh.Config:
         """A client session of the router, with rmw_zenoh's settings where they apply to a

@@ -57,6 +57,14 @@ class Interface:
     type_hash: str     # RIHS01_...
 
 
+def known_distro(distro: str) -> str:
+    """``distro`` if hil has its type hashes; else a ValueError naming the known ones."""
+    if distro not in DISTROS:
+        raise ValueError(f"unknown ROS 2 distribution {distro!r}; hil knows "
+                         f"{', '.join(sorted(DISTROS))}")
+    return distro
+
+
 def dds_type_name(name: str) -> str:
     """``pkg/msg/Name`` -> ``pkg::msg::dds_::Name_`` (what rmw_zenoh's type support names)."""
     package, kind, base = name.split("/")
@@ -67,10 +75,7 @@ class TypeHashes:
     """RIHS01 hashes of the interfaces of one ROS 2 distribution."""
 
     def __init__(self, distro: str = DEFAULT_DISTRO):
-        if distro not in DISTROS:
-            raise ValueError(f"unknown ROS 2 distribution {distro!r}; hil knows "
-                             f"{', '.join(sorted(DISTROS))}")
-        self.distro = distro
+        self.distro = known_distro(distro)
         self._store = get_typestore(DISTROS[distro])
         self._fields: dict[str, list] = {}
         for name, text in {**HIL_DEFINITIONS, **_EXTRA_DEFINITIONS}.items():
@@ -181,4 +186,4 @@ class FollowJointTrajectory:
 
 
 __all__ = ["DEFAULT_DISTRO", "DISTROS", "FollowJointTrajectory", "Interface", "TypeHashes",
-           "dds_type_name"]
+           "dds_type_name", "known_distro"]
