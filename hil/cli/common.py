@@ -8,6 +8,7 @@ import shutil
 import signal
 import sys
 import threading
+from contextlib import contextmanager
 from pathlib import Path
 
 from hil.description import PackagePath
@@ -92,6 +93,25 @@ def ros_settings(args: argparse.Namespace):
     except ValueError as exc:
         raise HilError.single(f"--ros: {exc}", hint="see hil COMMAND --help, group ROS 2"
                               ) from None
+
+
+@contextmanager
+def ros_node(settings, name: str, serving: str, timeout: float, hint: str):
+    """A ROS 2 node ``name`` for a command-line client, once the service ``serving`` (fully
+    qualified) has a server in the graph; HilError with ``hint`` if none within
+    ``timeout``. Closed, with its session, on exit."""
+    from hil.messaging.ros.face import open_context            # noqa: PLC0415 (only with --ros)
+    from hil.messaging.ros.rmw_zenoh import EntityKind         # noqa: PLC0415
+    context = open_context(settings)
+    node = context.node(name, settings.namespace)
+    try:
+        if not context.wait_for(EntityKind.SERVICE, serving, timeout):
+            raise HilError.single(f"no server of {serving} on ROS domain "
+                                  f"{settings.domain_id} via {settings.router}", hint=hint)
+        yield node
+    finally:
+        node.close()
+        context.session.close()
 
 
 def ros_options(args: argparse.Namespace) -> list[str]:

@@ -118,12 +118,9 @@ def _ros_face(args: argparse.Namespace, config):
     def make(node: ControlNode):
         plant_clock = (PlantClock(session(common.zenoh_settings(args)), config.robot.name)
                        if args.ros_use_sim_time else None)
-        try:
-            face = RosControlFace(settings, node.controller, node.clock,
-                                  viewer_urdf(config.robot).decode(), node.reset_faults,
-                                  plant_clock)
-        except ConnectionError as exc:
-            raise HilError.single(str(exc), hint="or leave out --ros") from None
+        face = RosControlFace(settings, node.controller, node.clock,
+                              viewer_urdf(config.robot).decode(), node.reset_faults,
+                              plant_clock)
         action = f"{settings.namespace.rstrip('/')}/{ACTION_NAME}"
         print(f"hil control: ROS 2 node {settings.namespace.rstrip('/')}/hil_control on "
               f"domain {settings.domain_id} via {settings.router} ({settings.distro}); "

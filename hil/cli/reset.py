@@ -52,32 +52,21 @@ def run(args: argparse.Namespace) -> int:
 def _reset_ros(args: argparse.Namespace, settings) -> int:
     """Call a std_srvs/Trigger service (hil control --ros' fault reset by default)."""
     from hil.messaging import cdr                                        # noqa: PLC0415
-    from hil.messaging.ros.face import open_context, reset_service_name  # noqa: PLC0415
+    from hil.messaging.ros.face import reset_service_name                # noqa: PLC0415
     from hil.messaging.ros.interfaces import TypeHashes                  # noqa: PLC0415
     from hil.messaging.ros.node import ServiceError                     # noqa: PLC0415
-    from hil.messaging.ros.rmw_zenoh import EntityKind, fully_qualified  # noqa: PLC0415
+    from hil.messaging.ros.rmw_zenoh import fully_qualified              # noqa: PLC0415
     name = (fully_qualified(settings.namespace, args.service) if args.service
             else reset_service_name(settings))
-    try:
-        context = open_context(settings)
-    except ConnectionError as exc:
-        raise HilError.single(str(exc)) from None
-    node = context.node("hil_reset", settings.namespace)
-    client = node.client(name, TypeHashes(settings.distro).service("std_srvs/srv/Trigger"))
-    try:
-        if not context.wait_for(EntityKind.SERVICE, name, min(args.timeout, 15.0)):
-            raise HilError.single(f"no service {name} on ROS domain {settings.domain_id} via "
-                                  f"{settings.router}",
-                                  hint="start `hil control CONFIG --ros` (or check --service)")
+    with common.ros_node(settings, "hil_reset", name, min(args.timeout, 15.0),
+                         hint="start `hil control CONFIG --ros` (or check --service)") as node:
+        client = node.client(name, TypeHashes(settings.distro).service("std_srvs/srv/Trigger"))
         try:
             payload, _ = client.call(cdr.EMPTY_REQUEST, args.timeout)
             response = cdr.decode(payload, cdr.TRIGGER_RESPONSE)
         except (ServiceError, ValueError) as exc:
             print(f"hil reset: {exc}", file=sys.stderr)
             return 1
-        print(f"hil reset: {'done' if response.success else 'failed'}: {response.message}",
-              file=sys.stdout if response.success else sys.stderr)
-        return 0 if response.success else 1
-    finally:
-        node.close()
-        context.session.close()
+    print(f"hil reset: {'done' if response.success else 'failed'}: {response.message}",
+          file=sys.stdout if response.success else sys.stderr)
+    return 0 if response.success else 1

@@ -109,29 +109,17 @@ def _is_trajectory_file(text: str) -> bool:
 def _send_ros(args: argparse.Namespace, settings, goal: TrajectoryGoal) -> int:
     """Send ``goal`` to a ROS 2 FollowJointTrajectory server and wait for its result."""
     from hil.messaging.ros.action import RosTrajectoryActionClient       # noqa: PLC0415
-    from hil.messaging.ros.face import ACTION_NAME, open_context         # noqa: PLC0415
+    from hil.messaging.ros.face import ACTION_NAME                       # noqa: PLC0415
     from hil.messaging.ros.interfaces import FollowJointTrajectory, TypeHashes  # noqa: PLC0415
     from hil.messaging.ros.node import ServiceError                     # noqa: PLC0415
-    from hil.messaging.ros.rmw_zenoh import EntityKind, fully_qualified  # noqa: PLC0415
+    from hil.messaging.ros.rmw_zenoh import fully_qualified              # noqa: PLC0415
     action = fully_qualified(settings.namespace, args.action or ACTION_NAME)
-    try:
-        context = open_context(settings)
-    except ConnectionError as exc:
-        raise HilError.single(str(exc)) from None
-    node = context.node("hil_send", settings.namespace)
-    client = RosTrajectoryActionClient(node, action, FollowJointTrajectory.for_distro(
-        TypeHashes(settings.distro)))
-    try:
-        if not context.wait_for(EntityKind.SERVICE, f"{action}/_action/send_goal", 15.0):
-            raise HilError.single(f"no action server {action} on ROS domain "
-                                  f"{settings.domain_id} via {settings.router}",
-                                  hint="start `hil control CONFIG --ros` (or check "
-                                       "--action, --ros-domain-id, --ros-distro)")
+    with common.ros_node(settings, "hil_send", f"{action}/_action/send_goal", 15.0,
+                         hint="start `hil control CONFIG --ros` (or check --action, "
+                              "--ros-domain-id, --ros-distro)") as node:
+        client = RosTrajectoryActionClient(node, action, FollowJointTrajectory.for_distro(
+            TypeHashes(settings.distro)))
         return _follow(client, goal, args, (GoalRejected, ServiceError), f" by {action}")
-    finally:
-        client.close()
-        node.close()
-        context.session.close()
 
 
 def _goal(args: argparse.Namespace) -> TrajectoryGoal:

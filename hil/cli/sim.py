@@ -156,10 +156,7 @@ def _ros_clock(args: argparse.Namespace):
     if settings is None:
         return None
     from hil.messaging.ros.face import RosClockFace     # noqa: PLC0415 (only with --ros)
-    try:
-        face = RosClockFace(settings)
-    except ConnectionError as exc:
-        raise HilError.single(str(exc), hint="or leave out --ros") from None
+    face = RosClockFace(settings)
     print(f"hil sim: ROS 2 node hil_sim on domain {settings.domain_id} via {settings.router}: "
           "/clock", flush=True)
     return face

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import zenoh
 
+from hil.errors import HilError
 from hil.messaging import cdr
 from hil.messaging.diagnostics import Diagnostic
 from hil.messaging.keys import direct, key
@@ -144,12 +145,14 @@ def reset_service_name(settings: RosSettings) -> str:
 
 
 def open_context(settings: RosSettings) -> RosContext:
-    """A ROS 2 context on a session of its own (its id is the context's in the graph)."""
+    """A ROS 2 context on a session of its own (its id is the context's in the graph);
+    HilError, saying what to do, where no router answers (as hil.zenoh_session.session)."""
     try:
         session = zenoh.open(settings.zenoh_config())
     except zenoh.ZError as exc:
-        raise ConnectionError(f"cannot reach the Zenoh router at {settings.router}: {exc} "
-                              "(start one: `hil router` or `ros2 run rmw_zenoh_cpp rmw_zenohd`)"
+        raise HilError.single(f"cannot reach the Zenoh router at {settings.router}: {exc}",
+                              hint="start one (`hil router`, or `ros2 run rmw_zenoh_cpp "
+                                   "rmw_zenohd`), give --ros-router, or leave out --ros"
                               ) from None
     return RosContext(session, settings.domain_id)
 
