@@ -24,7 +24,7 @@ import zenoh
 from hil.controllers import Defaults, JointTrajectoryController
 from hil.controllers.joint_state import JointStateBroadcaster
 from hil.hardware import AxisFault, HardwareInterface
-from hil.messaging.diagnostics import Diagnostic, fault_values
+from hil.messaging.diagnostics import DiagnosticStatus, fault_values
 from hil.messaging.samples import ControlSampleBuffer
 from hil.messaging.zenoh_api import (
     ControlSamplesPublisher, DiagnosticsPublisher, JointStatePublisher, TrajectoryActionServer,
@@ -225,7 +225,7 @@ class ControlNode:
 
     def _diagnose(self, level: str, message: str,
                   values: tuple[tuple[str, str], ...] = ()) -> None:
-        payload = self.diagnostics.publish(Diagnostic(
+        payload = self.diagnostics.publish(DiagnosticStatus(
             level, message, time.time(), self.clock(), hardware_id=self.hardware.robot.name,
             values=values))
         if self.ros is not None:

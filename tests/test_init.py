@@ -12,8 +12,8 @@ import pytest
 
 from conftest import CORPUS
 from hil.bus_config import load_bus_config
-from hil.bus_config.initial import _drives_per_bus
-from hil.bus_config.sizing import MOTOR_CLASSES, ROTARY_REDUCTIONS, size_joint
+from hil.commissioning.initial import _drives_per_bus
+from hil.commissioning.sizing import MOTOR_CLASSES, ROTARY_REDUCTIONS, size_joint
 from hil.cli import main
 from hil.description import (
     Joint, JointDynamics, JointLimits, JointType, PackagePath, Pose, load_description,

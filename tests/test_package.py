@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -115,3 +116,62 @@ def test_a_protocol_from_an_installed_package_drives_a_joint(tmp_path):
     error_code, joint2 = done.stdout.split()
     assert int(error_code) == 0
     assert abs(float(joint2) - 0.3) < 0.01
+
+
+#: import-linter's command, installed beside this interpreter (the test extra)
+LINT_IMPORTS = os.path.join(os.path.dirname(sys.executable), "lint-imports")
+
+
+def lint_imports(package_root, *contracts: str) -> subprocess.CompletedProcess:
+    """import-linter over the ``hil`` package found at ``package_root``, with the contracts
+    of this repository's pyproject.toml."""
+    argv = [LINT_IMPORTS, "--no-cache", "--no-logo", str(ROOT / "pyproject.toml")]
+    for contract in contracts:
+        argv += ["--contract", contract]
+    return subprocess.run(argv, capture_output=True, text=True, timeout=120, cwd=package_root,
+                          env={**os.environ, "PYTHONPATH": str(package_root)})
+
+
+def test_the_package_keeps_its_import_contracts():
+    done = lint_imports(ROOT)
+    assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
+    assert "3 kept, 0 broken" in done.stdout, done.stdout[-2000:]
+
+
+def test_an_upward_import_breaks_the_stages_contract(tmp_path):
+    # the same package with one planted import of the command line into the CAN plumbing
+    shutil.copytree(ROOT / "hil", tmp_path / "hil",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.so", "*.sha256"))
+    frames = tmp_path / "hil" / "can" / "frames.py"
+    frames.write_text(frames.read_text() + "\nimport hil.cli.up\n")
+    done = lint_imports(tmp_path, "stages")
+    assert done.returncode == 1
+    assert "hil.can is not allowed to import hil.cli" in done.stdout, done.stdout[-2000:]
+    assert "hil.can.frames -> hil.cli.up" in done.stdout
+
+
+def test_a_master_side_axis_that_reaches_a_simulated_drive_breaks_its_contract(tmp_path):
+    shutil.copytree(ROOT / "hil", tmp_path / "hil",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.so", "*.sha256"))
+    axis = tmp_path / "hil" / "protocols" / "odrive" / "axis.py"
+    axis.write_text(axis.read_text() + "\nimport hil.protocols.odrive.drive\n")
+    done = lint_imports(tmp_path, "controller-side")
+    assert done.returncode == 1
+    assert "hil.protocols.odrive.axis -> hil.protocols.odrive.drive" in done.stdout, \
+        done.stdout[-2000:]
+
+
+def test_the_bench_loads_no_command_line_module():
+    done, modules = python("import hil.bench")
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "hil.bench.processes" in modules and "hil.supervisor" in modules
+    assert sorted(m for m in modules if m.startswith("hil.cli")) == []
+
+
+def test_the_hardware_interface_loads_no_yaml_parser_and_no_description_reader():
+    done, modules = python("import hil.hardware")
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "hil.hardware.interface" in modules and "hil.bus_config.types" in modules
+    readers = ("yaml", "xacro", "hil.bus_config.parse", "hil.bus_config.yaml_reader",
+               "hil.description.reader", "hil.description.urdf", "hil.description.source")
+    assert sorted(m for m in modules if m.startswith(readers)) == []

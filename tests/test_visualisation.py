@@ -16,7 +16,7 @@ from hil.controllers.demo import demo_goal
 from hil.description.source import read_robot_source
 from hil.hardware import JointFeedback
 from hil.messaging import cdr
-from hil.messaging.diagnostics import Diagnostic
+from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSampleBuffer, ControlSamples
 from hil.visualisation import RunRecorder, SimTimeMap
 from conftest import PIGOT_XACRO, ROOT, UR3_XACRO
@@ -70,13 +70,13 @@ def test_malformed_control_samples_are_refused_with_the_field_named():
 
 
 def test_diagnostics_survive_encoding_and_malformed_ones_are_refused_naming_what():
-    fault = Diagnostic("ERROR", "drive node 2 (joint2) on bus 'arm' is in FAULT", 1.7e9 + 0.25,
+    fault = DiagnosticStatus("ERROR", "drive node 2 (joint2) on bus 'arm' is in FAULT", 1.7e9 + 0.25,
                        12.5, hardware_id="ur3")
-    assert Diagnostic.decode(fault.encode()) == [fault]
-    foreign = Diagnostic("WARN", "from a ROS node", 1.7e9, None, name="other")
-    assert Diagnostic.decode(foreign.encode()) == [foreign]      # no controller clock
+    assert DiagnosticStatus.decode(fault.encode()) == [fault]
+    foreign = DiagnosticStatus("WARN", "from a ROS node", 1.7e9, None, name="other")
+    assert DiagnosticStatus.decode(foreign.encode()) == [foreign]      # no controller clock
     with pytest.raises(ValueError, match="malformed diagnostic_msgs"):
-        Diagnostic.decode(fault.encode()[:-5])
+        DiagnosticStatus.decode(fault.encode()[:-5])
 
     def status(level: int, control_time: str):
         return cdr.msg(cdr.DIAGNOSTIC_STATUS, level=level, name="hil control", message="m",
@@ -87,10 +87,10 @@ def test_diagnostics_survive_encoding_and_malformed_ones_are_refused_naming_what
         return cdr.encode(cdr.msg(cdr.DIAGNOSTIC_ARRAY, header=cdr.header(0.0), status=list(statuses)))
 
     with pytest.raises(ValueError, match="level 7 of 'hil control'"):
-        Diagnostic.decode(array(status(7, "1.0")))
+        DiagnosticStatus.decode(array(status(7, "1.0")))
     for bad in ("soon", "nan"):
         with pytest.raises(ValueError, match=f"control_time '{bad}' of 'hil control' is not"):
-            Diagnostic.decode(array(status(2, "1.0"), status(2, bad)))
+            DiagnosticStatus.decode(array(status(2, "1.0"), status(2, bad)))
 
 
 def test_sample_buffer_reuses_its_arrays_and_starts_each_batch_at_its_first_cycle():
@@ -156,9 +156,9 @@ def recorded(tmp_path, pigot, package_path):
         if index != 2:                       # batch 2 never arrives
             recorder.log_samples(batch)
     fault_at = batches[1].wall_time[5], batches[1].control_time[5]
-    recorder.log_diagnostic(Diagnostic("ERROR", "drive node 2 (arm_rot_2) is in FAULT",
+    recorder.log_diagnostic(DiagnosticStatus("ERROR", "drive node 2 (arm_rot_2) is in FAULT",
                                        *fault_at))
-    recorder.log_diagnostic(Diagnostic("OK", "fault reset", fault_at[0] + 1, None))
+    recorder.log_diagnostic(DiagnosticStatus("OK", "fault reset", fault_at[0] + 1, None))
     recording.flush()
     recording.disconnect()
     rows = collections.Counter()

@@ -27,8 +27,7 @@ import yaml
 from hil.bench.floor import floor_across_processes
 from hil.bench.settings import BenchSettings
 from hil.bus_config import load_bus_config
-from hil.cli.common import cpus_option
-from hil.cli.supervisor import Child, Run, viz_summary
+from hil.supervisor import Child, Run, cpus_argument, viz_summary
 from hil.realtime import real_time_cpus
 from hil.zenoh_session import free_loopback_port
 
@@ -79,15 +78,15 @@ def stack_across_processes(config_path: Path, seconds: float, with_viz: bool) ->
         endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
         report = folder / "control.json"
         children = [Child("sim", ["sim", str(config_path), "--listen", endpoint,
-                                  "--status-period", "0", *cpus_option(sim_cpus)],
+                                  "--status-period", "0", *cpus_argument(sim_cpus)],
                           folder / "sim.log")]
         if with_viz:
             children.append(Child("viz", ["viz", str(config_path), "--connect", endpoint, "--save",
                                           str(folder / "run.rrd"), "--can-log",
-                                          str(folder / "run.can.log"), *cpus_option(viz_cpus)],
+                                          str(folder / "run.can.log"), *cpus_argument(viz_cpus)],
                                   folder / "viz.log"))
         children.append(Child("control", ["control", str(config_path), "--connect", endpoint,
-                                          "--report", str(report), *cpus_option(control_cpus)],
+                                          "--report", str(report), *cpus_argument(control_cpus)],
                               folder / "control.log"))
         run = Run(children)
         try:

@@ -12,12 +12,15 @@ itself sees them.
 The package: :mod:`~hil.bus_config.types` (the typed config), :mod:`~hil.bus_config.parse`
 (YAML to types, every key checked with its line), :mod:`~hil.bus_config.checks` (the
 config against its robot and the bus' physics), :mod:`~hil.bus_config.buses` (opening the
-buses it names).
+buses it names). The types import nothing heavy; ``load_bus_config`` and ``open_buses`` load
+the parser and python-can's buses on first use.
 """
 
-from hil.bus_config.buses import open_buses
-from hil.bus_config.parse import load_bus_config
 from hil.bus_config.types import LOAD_WARNING, BusConfig, DriveConfig, Gains, SystemConfig
+from hil.lazy import lazy_exports
+
+__getattr__ = lazy_exports(__name__, {"load_bus_config": "hil.bus_config.parse",
+                                      "open_buses": "hil.bus_config.buses"})
 
 __all__ = ["BusConfig", "DriveConfig", "Gains", "LOAD_WARNING", "SystemConfig",
            "load_bus_config", "open_buses"]

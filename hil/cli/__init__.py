@@ -13,8 +13,8 @@ import sys
 from types import ModuleType
 
 from hil import __version__
-from hil.cli import common
 from hil.errors import HilError
+from hil.supervisor import end_with_parent_if_asked
 
 #: sub-command name (and module hil.cli.<name>, with ``add_arguments(parser)`` and
 #: ``run(args) -> int``) -> its one-line help
@@ -53,7 +53,7 @@ def build_parser(argv: list[str]) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    common.end_with_parent_if_asked()
+    end_with_parent_if_asked()
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser(argv)
     args, extras = parser.parse_known_args(argv)

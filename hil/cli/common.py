@@ -5,15 +5,14 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import signal
 import sys
-import threading
 from contextlib import contextmanager
 from pathlib import Path
 
 from hil.description import PackagePath
 from hil.errors import HilError
 from hil.resources import BUS_CONFIGS, data_dir
+from hil.supervisor import parse_cpus
 from hil.zenoh_session import DEFAULT_ENDPOINT, ZenohSettings
 
 
@@ -164,7 +163,7 @@ def cpus(args: argparse.Namespace) -> set[int] | None:
     if not args.cpus:
         return None
     try:
-        chosen = {int(part) for part in args.cpus.split(",")}
+        chosen = parse_cpus(args.cpus)
     except ValueError:
         raise HilError.single(f"--cpus '{args.cpus}' is not a list of CPU numbers",
                               hint="e.g. --cpus 1 or --cpus 2,3") from None
@@ -175,31 +174,8 @@ def cpus(args: argparse.Namespace) -> set[int] | None:
     return chosen
 
 
-def cpus_option(chosen: set[int] | None) -> list[str]:
-    """``--cpus`` for a child process (as :func:`cpus` reads it); none for None."""
-    return [f"--cpus={','.join(map(str, sorted(chosen)))}"] if chosen else []
-
-
 def display_available() -> bool:
     """Whether a rerun viewer could open a window here."""
     has_display = sys.platform == "darwin" or bool(os.environ.get("DISPLAY")
                                                    or os.environ.get("WAYLAND_DISPLAY"))
     return has_display and shutil.which("rerun") is not None
-
-
-#: set by ``hil up`` in its children: the pid whose death must end this process too
-PARENT_PID_VARIABLE = "HIL_PARENT_PID"
-
-
-def end_with_parent_if_asked() -> None:
-    """In a child of ``hil up``: SIGTERM this process (a clean stop) once that parent is
-    gone, however it died."""
-    parent = os.environ.get(PARENT_PID_VARIABLE, "")
-    if not parent.isdigit():
-        return
-
-    def watch() -> None:
-        while os.getppid() == int(parent):
-            threading.Event().wait(0.2)
-        os.kill(os.getpid(), signal.SIGTERM)
-    threading.Thread(target=watch, name="end-with-parent", daemon=True).start()

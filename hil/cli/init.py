@@ -1,5 +1,5 @@
 """``hil init DESCRIPTION``: write a bus config a user can run at once (see
-:mod:`hil.bus_config.initial`), then load it back as every other command will."""
+:mod:`hil.commissioning.initial`), then load it back as every other command will."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 from hil.bus_config import load_bus_config
-from hil.bus_config.initial import initial_config
+from hil.commissioning.initial import initial_config
 from hil.cli import common
 from hil.description import load_description
 from hil.errors import HilError

@@ -29,12 +29,14 @@ from hil.controllers import GoalRejected, GoalStatus
 from hil.controllers.demo import demo_goal
 from hil.can.faults import ProcessFault, parse_fault
 from hil.errors import HilError
-from hil.messaging.diagnostics import Diagnostic
+from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import (
     ControllerGone, ProcessWatch, RunSubscriber, TrajectoryActionClient,
 )
-from hil.cli.supervisor import Child, ChildFailed, Run, kill_later, viz_summary, wait_alive
+from hil.supervisor import (
+    Child, ChildFailed, Run, cpus_argument, kill_later, viz_summary, wait_alive,
+)
 from hil.realtime import real_time_cpus
 from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
 
@@ -102,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
               *(f"--package-path={p}" for p in args.package_path)]
     timing = args.timing or "real-time"
     lock_step = ["--lock-step"] if timing == "lock-step" else []
-    placed = {name: [] if lock_step else common.cpus_option(cpus)
+    placed = {name: [] if lock_step else cpus_argument(cpus)
               for name, cpus in zip(("sim", "control", "viz"), real_time_cpus())}
     viewer = _viewer_options(args)
     children = {
@@ -138,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
                 subscriber = RunSubscriber(session(zenoh), robot, progress.on_samples,
                                            lambda wall, sim: None, progress.problems.append,
                                            progress.on_diagnostic)
-            wait_alive(supervised, watch, child)
+            wait_alive(supervised, watch.wait_alive, child)
             if stop.is_set():
                 break
         if not stop.is_set():
@@ -206,7 +208,7 @@ class Progress:
 
     def __init__(self):
         self.lock = threading.Lock()
-        self.diagnostics: list[Diagnostic] = []
+        self.diagnostics: list[DiagnosticStatus] = []
         #: malformed payloads, as RunSubscriber words them
         self.problems: list[str] = []
         self.cycles = 0
@@ -229,7 +231,7 @@ class Progress:
             if len(errors) and errors.max() > self.worst[0]:
                 self.worst = (float(errors.max()), batch.joint_names[int(errors.argmax())])
 
-    def on_diagnostic(self, diagnostic: Diagnostic) -> None:
+    def on_diagnostic(self, diagnostic: DiagnosticStatus) -> None:
         with self.lock:
             self.diagnostics.append(diagnostic)
         print(f"hil up: control: {diagnostic.level}: {diagnostic.message}", file=sys.stderr,

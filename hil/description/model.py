@@ -184,6 +184,15 @@ class TransmissionActuator:
     rotor_inertia: float = 0.0
 
 
+#: Transmission types hil can model, by ros2_control's names for them. A type is read by its
+#: last part, so ROS 1's (``pr2_mechanism_model/SimpleTransmission``, a bare
+#: ``SimpleTransmission``) name the same ones.
+TRANSMISSION_TYPES = {
+    "transmission_interface/SimpleTransmission": "simple",
+    "transmission_interface/DifferentialTransmission": "differential",
+    "transmission_interface/FourBarLinkageTransmission": "four_bar",
+}
+
 @dataclass(frozen=True)
 class TransmissionSpec:
     """A ``<transmission>`` as written in the URDF; turned into maps by

@@ -12,19 +12,11 @@ import xml.etree.ElementTree as ET
 from collections import Counter, defaultdict
 
 from hil.description.model import (
-    Joint, TransmissionActuator, TransmissionJoint, TransmissionSpec,
+    TRANSMISSION_TYPES, Joint, TransmissionActuator, TransmissionJoint, TransmissionSpec,
 )
 from hil.description.reader import ElementReader
 from hil.errors import error, warning
 
-#: Transmission types hil can model, by ros2_control's names for them. A type is read by its
-#: last part, so ROS 1's (``pr2_mechanism_model/SimpleTransmission``, a bare
-#: ``SimpleTransmission``) name the same ones.
-TRANSMISSION_TYPES = {
-    "transmission_interface/SimpleTransmission": "simple",
-    "transmission_interface/DifferentialTransmission": "differential",
-    "transmission_interface/FourBarLinkageTransmission": "four_bar",
-}
 _BY_LAST_PART = {name.rpartition("/")[2]: name for name in TRANSMISSION_TYPES}
 _ARITY = {"simple": 1, "differential": 2, "four_bar": 2}
 

@@ -17,7 +17,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
-from hil.bus_config import DriveConfig
+from hil.bus_config.types import DriveConfig
 from hil.protocols.base import Protocol
 
 if TYPE_CHECKING:

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import can
 import numpy as np
 
-from hil.bus_config import SystemConfig
+from hil.bus_config.types import SystemConfig
 from hil.description import RobotDescription
 from hil.errors import HilError
 from hil.hardware.axis import Axis, AxisFault, FaultKind

@@ -23,7 +23,7 @@ CONTROL_TIME = "control_time"
 
 
 @dataclass(frozen=True)
-class Diagnostic:
+class DiagnosticStatus:
     """One report: ``level`` one of :data:`LEVELS`; ``control_time`` the controller's clock
     (None from a publisher that does not say)."""
 
@@ -47,7 +47,7 @@ class Diagnostic:
                                   status=[status]))
 
     @classmethod
-    def decode(cls, data: bytes) -> list[Diagnostic]:
+    def decode(cls, data: bytes) -> list[DiagnosticStatus]:
         """Every status of a DiagnosticArray; raise ValueError naming what is wrong."""
         message = cdr.decode(data, cdr.DIAGNOSTIC_ARRAY)
         wall_time = cdr.seconds_of(message.header.stamp)

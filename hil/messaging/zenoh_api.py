@@ -15,7 +15,7 @@ import zenoh
 from hil.controllers import GoalStatus
 from hil.messaging import cdr
 from hil.messaging.action import ControllerGone, TrajectoryActionClient, TrajectoryActionServer
-from hil.messaging.diagnostics import Diagnostic
+from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.keys import key
 from hil.messaging.samples import ControlSamples
 from hil.realtime import enter_side_work
@@ -99,7 +99,7 @@ class DiagnosticsPublisher:
         self._publisher = session.declare_publisher(
             key(robot, "diagnostics"), congestion_control=zenoh.CongestionControl.BLOCK)
 
-    def publish(self, diagnostic: Diagnostic) -> bytes:
+    def publish(self, diagnostic: DiagnosticStatus) -> bytes:
         """Put the diagnostic; its CDR bytes (a DiagnosticArray)."""
         payload = diagnostic.encode()
         self._publisher.put(payload)
@@ -118,7 +118,7 @@ class RunSubscriber:
                  on_samples: Callable[[ControlSamples], None],
                  on_clock: Callable[[float, float], None],
                  on_error: Callable[[str], None],
-                 on_diagnostic: Callable[[Diagnostic], None] | None = None):
+                 on_diagnostic: Callable[[DiagnosticStatus], None] | None = None):
         self.malformed = 0
         self._on_error = on_error
         self._subscribers: list[zenoh.Subscriber] = []
@@ -128,11 +128,11 @@ class RunSubscriber:
                         lambda data: cdr.decode(data, cdr.SIM_CLOCK),
                         lambda clock: on_clock(clock.wall_time, clock.sim_time))
         if on_diagnostic is not None:
-            def each(diagnostics: list[Diagnostic]) -> None:
+            def each(diagnostics: list[DiagnosticStatus]) -> None:
                 for diagnostic in diagnostics:
                     on_diagnostic(diagnostic)
 
-            self._subscribe(session, key(robot, "diagnostics"), Diagnostic.decode, each)
+            self._subscribe(session, key(robot, "diagnostics"), DiagnosticStatus.decode, each)
 
     def _subscribe(self, session: zenoh.Session, key_expr: str,
                    decode: Callable[[bytes], Any], deliver: Callable[[Any], Any]) -> None:

@@ -16,7 +16,7 @@ import numpy as np
 import zenoh
 
 from hil.can.monitor import BusMonitor
-from hil.messaging.diagnostics import Diagnostic
+from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import RunSubscriber, key
 from hil.visualisation.recorder import RunRecorder
@@ -80,7 +80,7 @@ class VizNode:
             self.processing.append(time.perf_counter() - started)
             self.lags.append(time.time() - item.wall_time[-1])
             self.batches += 1
-        elif isinstance(item, Diagnostic):
+        elif isinstance(item, DiagnosticStatus):
             self.recorder.log_diagnostic(item)
         else:
             self.recorder.log_clock(*item)

@@ -35,7 +35,7 @@ from rerun.urdf import UrdfTree
 
 from hil.can.monitor import MeasuredLoad
 from hil.description import RobotDescription
-from hil.messaging.diagnostics import Diagnostic
+from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.visualisation.blueprint import run_blueprint
 
@@ -153,7 +153,7 @@ class RunRecorder:
             self._log_state_changes(actuator, batch, k, times)
         self._log_pose(batch, times)
 
-    def log_diagnostic(self, diagnostic: Diagnostic) -> None:
+    def log_diagnostic(self, diagnostic: DiagnosticStatus) -> None:
         """A fault (ERROR) or reset (OK) on the timelines, at the time the controller saw it."""
         control = None if diagnostic.control_time is None else np.array([diagnostic.control_time])
         times = self._times(np.array([diagnostic.wall_time]), control)

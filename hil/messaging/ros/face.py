@@ -24,7 +24,7 @@ import zenoh
 
 from hil.errors import HilError
 from hil.messaging import cdr
-from hil.messaging.diagnostics import Diagnostic
+from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.keys import direct, key
 from hil.messaging.ros.action import RosTrajectoryActionServer
 from hil.messaging.ros.interfaces import (
@@ -199,7 +199,7 @@ class RosControlFace:
                                          message=message)))
 
     def _warn(self, message: str) -> None:
-        self.publish_diagnostics(Diagnostic("WARN", message, time.time(), self._clock(),
+        self.publish_diagnostics(DiagnosticStatus("WARN", message, time.time(), self._clock(),
                                             hardware_id=CONTROL_NODE).encode())
 
     # Called from the control loop: a put of bytes already encoded (measured in hil up ur3

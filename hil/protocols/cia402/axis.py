@@ -15,7 +15,7 @@ import time
 import canopen
 from canopen.profiles.p402 import State402
 
-from hil.bus_config import DriveConfig
+from hil.bus_config.types import DriveConfig
 from hil.errors import HilError
 from hil.hardware.axis import Axis, AxisFault, FaultKind, Frame
 from hil.protocols.cia402 import FRAME_ERRORS, Cia402, emcy_words

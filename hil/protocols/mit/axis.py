@@ -10,7 +10,7 @@ and a motor that stops answering is found silent.
 
 from __future__ import annotations
 
-from hil.bus_config import DriveConfig
+from hil.bus_config.types import DriveConfig
 from hil.hardware.axis import Axis, Frame
 from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitCommand, MitOptions, pack_command, unpack_reply,

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 
-from hil.bus_config import DriveConfig
+from hil.bus_config.types import DriveConfig
 from hil.hardware.axis import Axis, AxisFault, FaultKind, Frame
 from hil.protocols.odrive import (
     LAYOUT, TURN, AxisState, Cmd, ControlMode, ODrive, ODriveError, ODriveOptions, can_id,

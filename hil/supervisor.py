@@ -2,7 +2,8 @@
 stop them in a known order (SIGTERM, then SIGKILL past a timeout).
 
 Children run in their own session, so Ctrl-C reaches the supervisor only, and they stop
-themselves if it is killed (:func:`hil.cli.common.end_with_parent_if_asked`).
+themselves if it is killed (:func:`end_with_parent_if_asked`, which every ``hil`` command
+calls). ``hil up`` and ``hil bench`` both supervise their children with it.
 """
 
 from __future__ import annotations
@@ -18,14 +19,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from hil.cli import common
-from hil.messaging.zenoh_api import ProcessWatch
-
 #: how long each child may take to come up (s); the first run compiles MuJoCo models
 START_TIMEOUT = 60.0
 #: how long each child may take to stop after SIGTERM before it is killed (s)
 STOP_TIMEOUT = 15.0
 LAST_LINES = 15
+#: set in every child: the pid whose death must end the child too
+PARENT_PID_VARIABLE = "HIL_PARENT_PID"
 
 
 @dataclass
@@ -39,7 +39,7 @@ class Child:
     expected_exit: bool = False
 
     def start(self) -> None:
-        env = dict(os.environ, PYTHONUNBUFFERED="1", **{common.PARENT_PID_VARIABLE: str(os.getpid())})
+        env = dict(os.environ, PYTHONUNBUFFERED="1", **{PARENT_PID_VARIABLE: str(os.getpid())})
         with open(self.log_path, "wb") as log:
             self.process = subprocess.Popen(
                 [sys.executable, "-m", "hil", *self.argv], stdout=log, stderr=subprocess.STDOUT,
@@ -144,10 +144,10 @@ def kill_later(child: Child, delay: float, stop: threading.Event) -> None:
         child.process.kill()
 
 
-def wait_alive(run: Run, watch: ProcessWatch, child: Child) -> None:
-    """Wait until ``child`` is alive on Zenoh (its liveliness token), as
-    :meth:`Run.wait_until`."""
-    run.wait_until(child, lambda timeout: watch.wait_alive(child.name, timeout), "alive on Zenoh")
+def wait_alive(run: Run, alive: Callable[[str, float], bool], child: Child) -> None:
+    """Wait until ``alive(name, timeout)`` says ``child`` is up (on Zenoh: its liveliness
+    token, ``hil.messaging.zenoh_api.ProcessWatch.wait_alive``), as :meth:`Run.wait_until`."""
+    run.wait_until(child, lambda timeout: alive(child.name, timeout), "alive on Zenoh")
     if not run.stop.is_set():
         print(f"hil up: {child.name} ready (pid {child.pid})", flush=True)
 
@@ -156,3 +156,27 @@ def viz_summary(viz: Child) -> str | None:
     """The visualiser's closing summary ("N cycles in M batches, ..."), if it printed one."""
     lines = [line for line in viz.last_lines().splitlines() if "cycles in" in line]
     return lines[-1].strip().removeprefix("hil viz: ") if lines else None
+
+
+def cpus_argument(chosen: set[int] | None) -> list[str]:
+    """``--cpus`` for a child process (as :func:`parse_cpus` reads it); none for None."""
+    return [f"--cpus={','.join(map(str, sorted(chosen)))}"] if chosen else []
+
+
+def parse_cpus(text: str) -> set[int]:
+    """The CPU numbers of a ``--cpus`` list ("1", "2,3"); ValueError if it is none."""
+    return {int(part) for part in text.split(",")}
+
+
+def end_with_parent_if_asked() -> None:
+    """In a supervised child: SIGTERM this process (a clean stop) once its supervisor is
+    gone, however it died."""
+    parent = os.environ.get(PARENT_PID_VARIABLE, "")
+    if not parent.isdigit():
+        return
+
+    def watch() -> None:
+        while os.getppid() == int(parent):
+            threading.Event().wait(0.2)
+        os.kill(os.getpid(), signal.SIGTERM)
+    threading.Thread(target=watch, name="end-with-parent", daemon=True).start()

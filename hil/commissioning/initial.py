@@ -1,7 +1,7 @@
 """A first bus config for any robot description: what ``hil init`` writes.
 
 One drive per actuated joint: the description's own transmissions where it has them, else
-a simple transmission per movable, non-mimic joint sized by :mod:`hil.bus_config.sizing`
+a simple transmission per movable, non-mimic joint sized by :mod:`hil.commissioning.sizing`
 and carried by the config (``transmissions:``), so the description stays untouched. The
 drives are spread over as many 1 Mbit/s buses as the load check allows at the rate, with
 node ids from 1. Comments in the file say what was assumed.
@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 from datetime import date
 from pathlib import Path
 
-from hil.bus_config.sizing import Sizing, size_joint
+from hil.commissioning.sizing import Sizing, size_joint
 from hil.bus_config.transmissions import SIMPLE, actuator_of
 from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD
 from hil.can import bus_load
@@ -167,7 +167,7 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
     if sizings:
         lines += [
             "# The description has no transmission for the joints under 'transmissions':",
-            "# each gets a simple one, sized by hil's rule (hil/bus_config/sizing.py): the",
+            "# each gets a simple one, sized by hil's rule (hil/commissioning/sizing.py): the",
             "# smallest generic servo motor class whose peak torque x reduction covers the",
             "# joint's effort limit and whose top speed / reduction covers its velocity limit,",
             "# with the smallest such reduction. Replace them with your real drives' values.",
