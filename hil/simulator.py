@@ -39,6 +39,7 @@ from hil.bus_config import BusConfig, DriveConfig, SystemConfig
 from hil.drives import DriveCore, DriveParameters, DriveProfile, Fault
 from hil.can.network import start_network
 from hil.drives.profile import DriveNetwork
+from hil.drives.tuning import tuned_gains
 from hil.plant import Plant
 from hil.protocols import protocol
 
@@ -53,16 +54,12 @@ LOCK_STEP_WATCHDOG = 10.0
 
 
 def drive_parameters(drive: DriveConfig, motor_inertia: float) -> DriveParameters:
-    """Drive parameters, with gains tuned to the motor-side inertia unless configured.
-
-    Tuning: velocity-loop bandwidth w = 2*pi*velocity_bandwidth_hz, Kv = J w,
-    Ki = Kv w / 4, position-loop gain w / 4 (1/s).
-    """
+    """Drive parameters, with gains tuned to the motor-side inertia unless configured
+    (:func:`hil.drives.tuning.tuned_gains`)."""
     gains = drive.gains
     if gains is None:
-        omega = 2 * math.pi * drive.velocity_bandwidth_hz
-        velocity_kp = motor_inertia * omega
-        position_kp, velocity_ki = omega / 4, velocity_kp * omega / 4
+        position_kp, velocity_kp, velocity_ki = tuned_gains(motor_inertia,
+                                                            drive.velocity_bandwidth_hz)
     else:
         position_kp, velocity_kp, velocity_ki = (gains.position_kp, gains.velocity_kp,
                                                  gains.velocity_ki)
@@ -112,7 +109,9 @@ class PlantPresent:
 
 
 @dataclass
-class _BusRuntime:
+class SimulatedBus:
+    """One bus of the simulator: its config, python-can bus and drives (in config order)."""
+
     config: BusConfig
     bus: can.BusABC
     drives: list
@@ -136,7 +135,7 @@ class Simulator:
         self._last_step: int | None = None                # run(duration): no step past it
         inertias = self.plant.motor_inertias()
         actuator_index = {name: i for i, name in enumerate(self.plant.actuator_names)}
-        self._runtimes: list[_BusRuntime] = []
+        self.buses: list[SimulatedBus] = []
         self.drives = []
         self._drive_actuators: list[int] = []   # plant actuator index of each drive
         for bus_config in config.buses:
@@ -154,7 +153,7 @@ class Simulator:
                 drive.on_command = self._on_command
                 drives.append(drive)
                 self._drive_actuators.append(actuator_index[drive_config.actuator])
-            self._runtimes.append(_BusRuntime(bus_config, buses[bus_config.name], drives))
+            self.buses.append(SimulatedBus(bus_config, buses[bus_config.name], drives))
             self.drives += drives
         self._torques = np.zeros(len(self.plant.actuator_names))
         self._waiting: set[DriveProfile] = set(self.drives)   # lock-step: no command yet
@@ -165,10 +164,10 @@ class Simulator:
 
     def start(self) -> None:
         """Connect every drive to its bus: boot-up messages, heartbeats, SYNC handling."""
-        for runtime in self._runtimes:
-            runtime.network = start_network(runtime.bus, 0.2, DriveNetwork)
-            for drive in runtime.drives:
-                drive.attach(runtime.network)
+        for simulated in self.buses:
+            simulated.network = start_network(simulated.bus, 0.2, DriveNetwork)
+            for drive in simulated.drives:
+                drive.attach(simulated.network)
 
     def close(self) -> None:
         """Disable every drive (brakes on), stop heartbeats, release the buses."""
@@ -176,12 +175,12 @@ class Simulator:
         with self.lock:
             for drive in self.drives:
                 drive.core.disable()
-        for runtime in self._runtimes:
-            for drive in runtime.drives:
+        for simulated in self.buses:
+            for drive in simulated.drives:
                 drive.detach()
-            if runtime.network is not None:
-                runtime.network.notifier.stop(1.0)
-                runtime.network.bus = None
+            if simulated.network is not None:
+                simulated.network.notifier.stop(1.0)
+                simulated.network.bus = None
 
     def stop(self) -> None:
         self._stop.set()
@@ -189,9 +188,9 @@ class Simulator:
     # --- fault injection ------------------------------------------------------------
 
     def drive(self, bus: str, node_id: int) -> DriveProfile:
-        for runtime in self._runtimes:
-            for drive in runtime.drives:
-                if runtime.config.name == bus and drive.node_id == node_id:
+        for simulated in self.buses:
+            for drive in simulated.drives:
+                if simulated.config.name == bus and drive.node_id == node_id:
                     return drive
         raise KeyError(f"no drive with node id {node_id} on bus '{bus}'")
 
@@ -296,34 +295,3 @@ class Simulator:
         self._waiting = {d for d in self.drives if d.attached}
         for each in self.drives:
             each.send_replies()
-
-    # --- status -------------------------------------------------------------------
-
-    def frame_report(self) -> list[str]:
-        """What the drives refused (malformed frames) and could not send, per bus."""
-        lines = []
-        for runtime in self._runtimes:
-            refused = sum(drive.malformed for drive in runtime.drives)
-            lost = runtime.network.lost_frames if runtime.network is not None else 0
-            lines.append(f"bus {runtime.config.name}: the drives refused {refused} malformed "
-                         f"frame(s) and could not send {lost}")
-        return lines
-
-    def status_lines(self) -> list[str]:
-        with self.lock:
-            lines = [f"t = {self.plant.time:8.3f} s   cycles {self.cycles}   "
-                     f"{'lock-step' if self.lock_step else 'real-time'}"]
-            joints = dict(zip(self.plant.joint_names, self.plant.joint_positions()))
-            for runtime in self._runtimes:
-                if runtime.network is not None and runtime.network.lost_frames:
-                    lines.append(f"  {runtime.config.name:>8} lost {runtime.network.lost_frames}"
-                                 " frame(s) the bus would not send")
-                for drive in runtime.drives:
-                    status = drive.core.status()
-                    config = next(d for d in runtime.config.drives if d.node_id == drive.node_id)
-                    positions = " ".join(f"{j}={joints[j]:+.4f}" for j in config.joints)
-                    fault = f"  FAULT {status.fault.text}" if status.fault else ""
-                    lines.append(f"  {runtime.config.name:>8} node {drive.node_id:>3} "
-                                 f"{drive.protocol.name:<7} {drive.state_text:<34} "
-                                 f"{positions}  torque {status.torque:+.4f} N·m{fault}")
-            return lines

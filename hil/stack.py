@@ -25,14 +25,14 @@ import gc
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 
 import can
 
 from hil.bus_config import SystemConfig
 from hil.can.faults import FaultyBus
-from hil.control_node import ControlNode, RosFace
+from hil.control_node import ControlNode, FaceFactory
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
 from hil.simulator import Simulator
 from hil.zenoh_session import ZenohSettings, close, free_loopback_port, session
@@ -51,8 +51,8 @@ class Stack:
 
     def __init__(self, config: SystemConfig, lock_step: bool = False,
                  interface: str = IN_PROCESS, channels: dict[str, str] | None = None,
-                 injectable: bool = False, ros: Callable[[ControlNode], RosFace] | None = None):
-        """``ros``: the control node's ROS 2 face factory (see ControlNode)."""
+                 injectable: bool = False, faces: Sequence[FaceFactory] = ()):
+        """``faces``: the control node's faces beyond hil's own keys (see ControlNode)."""
         tag = uuid.uuid4().hex[:8]
         self.config = config
         #: bus name -> channel
@@ -73,7 +73,7 @@ class Stack:
             config, {b.name: self._opened[2 * i + 1] for i, b in enumerate(config.buses)},
             reply_timeout=LOCK_STEP_REPLY_TIMEOUT if lock_step else None)
         self.node = ControlNode(hardware, self.zenoh, config.cycle_hz, lock_step=lock_step,
-                                ros=ros)
+                                faces=faces)
         #: why the control node's bring-up failed, if it did
         self.error: Exception | None = None
         self._node_thread = threading.Thread(target=self._run_node, daemon=True)
@@ -114,12 +114,12 @@ class Stack:
 @contextmanager
 def running_stack(config: SystemConfig, lock_step: bool = False, interface: str = IN_PROCESS,
                   channels: dict[str, str] | None = None, injectable: bool = False,
-                  ros: Callable[[ControlNode], RosFace] | None = None) -> Iterator[Stack]:
+                  faces: Sequence[FaceFactory] = ()) -> Iterator[Stack]:
     """A :class:`Stack` whose controller cycles (tried START_ATTEMPTS times; RuntimeError
     with every attempt's reason if none comes up), closed on exit."""
     failures = []
     for _ in range(START_ATTEMPTS):
-        stack = Stack(config, lock_step, interface, channels, injectable, ros)
+        stack = Stack(config, lock_step, interface, channels, injectable, faces)
         if stack.running():
             break
         failures.append(str(stack.error or "no bring-up within 30 s"))

@@ -3,12 +3,22 @@
 from __future__ import annotations
 
 import threading
+import time
+import uuid
 from pathlib import Path
 
 import can
+import canopen
 import pytest
 
+from hil.bus_config import load_bus_config
+from hil.can import socketcan_missing as can_socketcan_missing
+from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.description import PackagePath, load_description
+from hil.messaging.zenoh_api import TrajectoryActionClient
+from hil.simulator import Simulator
+from hil.stack import Stack
+from hil.zenoh_session import free_loopback_port
 
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
@@ -58,17 +68,6 @@ def coupled(package_path):
 
 
 # --- CAN benches -------------------------------------------------------------
-
-import time
-import uuid
-
-import can
-import canopen
-
-from hil.bus_config import load_bus_config
-from hil.can import socketcan_missing as can_socketcan_missing
-from hil.simulator import Simulator
-from hil.zenoh_session import free_loopback_port
 
 UR3_VIRTUAL = TESTS / "fixtures" / "ur3_virtual.yaml"
 EDS = ROOT / "bus_config" / "cia402_drive.eds"
@@ -171,11 +170,6 @@ def bench(transport):
 
 
 # --- an in-process controller stack --------------------------------------------
-
-from hil.controllers import TrajectoryGoal, TrajectoryPoint
-from hil.messaging.zenoh_api import TrajectoryActionClient
-from hil.stack import Stack
-
 
 class ControlledBench(Stack):
     """The ur3 fixture as a hil.stack.Stack on a python-can virtual bus, the sim's end able

@@ -50,8 +50,8 @@ def _stack(router, namespace: str = "/"):
     settings = RosSettings(router=router, namespace=namespace)
     return running_stack(
         load_bus_config(config_path("ur3")), lock_step=True,
-        ros=lambda node: RosControlFace(settings, node.controller, node.clock,
-                                        "<robot name='ur3'/>", node.reset_faults))
+        faces=[lambda node: RosControlFace(settings, node.controller, node.clock,
+                                           "<robot name='ur3'/>", node.reset_faults)])
 
 
 @pytest.fixture(scope="module")
@@ -331,8 +331,9 @@ def test_use_sim_time_stamps_joint_states_and_feedback_on_the_plants_clock(route
     spec = SpecClient(router)
     try:
         with running_stack(load_bus_config(config_path("ur3")), lock_step=True,
-                           ros=lambda node: RosControlFace(settings, node.controller, node.clock,
-                                                           "<robot/>", plant_clock=plant)):
+                           faces=[lambda node: RosControlFace(
+                               settings, node.controller, node.clock, "<robot/>",
+                               plant_clock=plant)]):
             states_sub, states = _collect(spec, "/simtime/joint_states", cdr.JOINT_STATE)
             feedback_sub, feedback = _collect(spec, f"/simtime{ACTION}/feedback",
                                               cdr.FEEDBACK_MESSAGE)

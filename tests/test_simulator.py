@@ -18,6 +18,7 @@ import pytest
 from conftest import ROOT, UR3_VIRTUAL, Bench, free_port
 
 from hil.bus_config import load_bus_config
+from hil.cli.sim import status_lines
 from hil.drives import Fault
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FaultKind
 from hil.simulator import LOCK_STEP_WATCHDOG, MAX_CATCH_UP, Simulator
@@ -250,7 +251,7 @@ def test_a_frame_the_bus_will_not_send_is_lost_and_counted_and_the_plant_runs_on
     sim, wall = real_time_sim
     dt = sim.plant.timestep
     sim.start()
-    runtime, = sim._runtimes
+    runtime, = sim.buses
     send = runtime.bus.send
 
     def full_transmit_queue(msg, timeout=None):      # refuses node 1's EMCY only
@@ -266,6 +267,6 @@ def test_a_frame_the_bus_will_not_send_is_lost_and_counted_and_the_plant_runs_on
     assert sim.now() == pytest.approx(before + 10 * dt)
     assert runtime.network.lost_frames == 1
     assert sim.drive("arm", 1).core.fault is Fault.FOLLOWING_ERROR
-    assert any("lost 1 frame(s)" in line for line in sim.status_lines())
+    assert any("lost 1 frame(s)" in line for line in status_lines(sim))
     sim.stop()
     thread.join(5)

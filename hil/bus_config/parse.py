@@ -109,17 +109,9 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
     node_id = reader.number(merged, "node_id", f"{bus} drive", 0, integer=True, positive=False)
     what = f"{bus} node {node_id}"
     name = reader.text(merged, "protocol", what, "cia402")
-    if name not in protocol_names():
-        reader.fail(f"{what}: unknown protocol '{name}'",
-                    merged.key_lines.get("protocol", merged.line),
-                    hint=f"use one of: {', '.join(protocol_names())}")
+    spec = _read_protocol(reader, merged, what, name, node_id)
+    if spec is None:
         return None
-    spec = protocol(name)
-    if node_id not in spec.node_ids:
-        ids = spec.node_ids
-        reader.fail(f"{what}: node id {node_id} is outside {ids.start}..{ids.stop - 1}",
-                    merged.key_lines.get("node_id", merged.line),
-                    hint=f"{name} node ids are {ids.start}..{ids.stop - 1}")
     options = _read_options(reader, merged, what, spec)
     found = _find_actuator(reader, merged, what, robot, transmissions)
     if found is None:
@@ -138,12 +130,7 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
     joint_window = [0.005 if robot.joint(j).type is JointType.PRISMATIC else 0.1
                     for j in transmission.joints]
     window = float(abs(transmission.position_matrix[k]) @ joint_window)
-    gains = None
-    if "gains" in merged:
-        g = reader.mapping(merged["gains"], f"{what} gains", merged.key_lines.get("gains"))
-        reader.unknown_keys(g, _GAIN_KEYS, f"{what} gains")
-        gains = Gains(*(reader.number(g, key, f"{what} gains", 1.0) for key in
-                        ("position_kp", "velocity_kp", "velocity_ki")))
+    gains = _read_gains(reader, merged, what)
     brake = merged.get("holding_brake", True)
     if not isinstance(brake, bool):
         reader.fail(f"{what}: holding_brake must be true or false",
@@ -167,6 +154,33 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
         gains=gains,
         velocity_bandwidth_hz=float(reader.number(merged, "velocity_bandwidth_hz", what, 40.0)),
         options=options, line=own.line)
+
+
+def _read_protocol(reader: Reader, drive: LineMapping, what: str, name: str, node_id: int):
+    """The drive's protocol (None, reported, if none is registered under ``name``); a node
+    id outside the protocol's range is reported."""
+    if name not in protocol_names():
+        reader.fail(f"{what}: unknown protocol '{name}'",
+                    drive.key_lines.get("protocol", drive.line),
+                    hint=f"use one of: {', '.join(protocol_names())}")
+        return None
+    spec = protocol(name)
+    if node_id not in spec.node_ids:
+        ids = spec.node_ids
+        reader.fail(f"{what}: node id {node_id} is outside {ids.start}..{ids.stop - 1}",
+                    drive.key_lines.get("node_id", drive.line),
+                    hint=f"{name} node ids are {ids.start}..{ids.stop - 1}")
+    return spec
+
+
+def _read_gains(reader: Reader, drive: LineMapping, what: str) -> Gains | None:
+    """The drive's ``gains:`` (None: tuned by the simulator)."""
+    if "gains" not in drive:
+        return None
+    gains = reader.mapping(drive["gains"], f"{what} gains", drive.key_lines.get("gains"))
+    reader.unknown_keys(gains, _GAIN_KEYS, f"{what} gains")
+    return Gains(*(reader.number(gains, key, f"{what} gains", 1.0) for key in
+                   ("position_kp", "velocity_kp", "velocity_ki")))
 
 
 def _read_options(reader: Reader, drive: LineMapping, what: str, spec) -> object | None:

@@ -66,7 +66,8 @@ def _cycle_columns(name: str, row: dict) -> str:
             f"{row['busy_p99_us']:>7.0f}")
 
 
-def format_table(report: dict) -> str:
+def _cycle_lines(report: dict) -> list[str]:
+    """The machine and the real-time control cycle in one process."""
     floor = report["timing_floor"][0]
     machine = report["machine"]
     lines = [f"machine: {machine['cpus']} CPUs, Python {machine['python']}, drive core "
@@ -84,12 +85,22 @@ def format_table(report: dict) -> str:
             f"{latency.get('p99_ms', float('nan')):>11.2f}")
     lines.append(f"  {_cycle_columns('empty', floor)}   (the timing floor: the same pacing "
                  "with no work)")
+    return lines
+
+
+def _socketcan_lines(report: dict) -> list[str]:
+    """Real time over SocketCAN, where vcan exists."""
     socketcan = report["socketcan"]
-    lines += ["", "SocketCAN: " + (socketcan["unavailable"] if isinstance(socketcan, dict) else
+    lines = ["", "SocketCAN: " + (socketcan["unavailable"] if isinstance(socketcan, dict) else
                                    "; ".join(f"{r['robot']} {r['rate_hz']:g} Hz p99 "
                                              f"{r['error_p99_us']:.0f} us, missed {r['missed']}"
                                              for r in socketcan))]
-    lines += ["", "lock-step and overhead (per control cycle; quiet: the run's fastest quarter "
+    return lines
+
+
+def _lock_step_lines(report: dict) -> list[str]:
+    """Lock-step speed and the stack's overhead against bare python-can and MuJoCo."""
+    lines = ["", "lock-step and overhead (per control cycle; quiet: the run's fastest quarter "
               f"of {LOCK_STEP_WINDOW * 1e3:.0f} ms windows)",
               f"  {'robot':<6} {'speed-up':>9} {'quiet':>6} {'stack us':>9} {'quiet':>6} "
               f"{'python-can us':>14} {'x':>5} {'MuJoCo us':>10} {'x':>6}"]
@@ -100,7 +111,12 @@ def format_table(report: dict) -> str:
                      f"{over['bare_python_can_cycle_us']:>14.0f} "
                      f"{over['ratio_to_python_can']:>5.1f} {over['bare_mujoco_cycle_us']:>10.1f} "
                      f"{over['ratio_to_mujoco']:>6.0f}")
-    lines += ["", "tracking a fixed trajectory (rad/m): full stack vs MuJoCo's ideal position servo"]
+    return lines
+
+
+def _tracking_and_fault_lines(report: dict) -> list[str]:
+    """Tracking against the ideal servo, and fault detection."""
+    lines = ["", "tracking a fixed trajectory (rad/m): full stack vs MuJoCo's ideal position servo"]
     for row in report["tracking"]:
         lines.append(f"  {row['robot']:<6} {row['result']:<10} rms {row['rms']:.4f} max "
                      f"{row['max']:.4f}   ideal rms {row['ideal_servo_rms']:.4f} max "
@@ -109,7 +125,12 @@ def format_table(report: dict) -> str:
     for row in report["fault_detection"]:
         when = f"{row['detection_ms']:6.1f} ms" if row["detected"] else "NOT DETECTED"
         lines.append(f"  {row['fault']:<22} {when}  {row['first_report'] or ''}")
-    lines += ["", "across processes (hil sim, hil control and with viz hil viz recording, over "
+    return lines
+
+
+def _across_process_lines(report: dict) -> list[str]:
+    """The stack across processes beside the transport's floor."""
+    lines = ["", "across processes (hil sim, hil control and with viz hil viz recording, over "
               "Zenoh on loopback);", "  floor: the same frames between two bare python-can "
               "processes on the same transport, this run",
               f"  {'robot':<6} {'Hz':>5} {'viz':>4} {'cycles':>7} {'p50 us':>7} {'p99 us':>7} "
@@ -129,11 +150,23 @@ def format_table(report: dict) -> str:
             f"{floor.get('round_trip_p50_us', math.nan):>10.0f} "
             f"{floor.get('round_trip_p99_us', math.nan):>5.0f} "
             f"{row['round_trip_p99_over_floor']:>6.2f} {row['faults']:>6}  {cpu}")
-    lines += ["", "bus load (measured nominal / worst-case stuffing; config estimate worst case)"]
+    return lines
+
+
+def _bus_load_lines(report: dict) -> list[str]:
+    """Each bus' measured and estimated load."""
+    lines = ["", "bus load (measured nominal / worst-case stuffing; config estimate worst case)"]
     for row in report["bus_load"]:
         lines.append(f"  {row['robot']:<6} {row['rate_hz']:>5.0f} Hz {row['bus']:<6} "
                      f"{row['measured_frames_per_s']:>7.0f} frames/s  "
                      f"{100 * row['measured_load']:>5.1f} % / "
                      f"{100 * row['measured_load_worst_stuffing']:>5.1f} %  "
                      f"(estimate {100 * row['estimated_load_worst']:.1f} %)")
-    return "\n".join(lines)
+    return lines
+
+
+def format_table(report: dict) -> str:
+    """The report of ``hil bench`` as text tables, a section each."""
+    sections = (_cycle_lines, _socketcan_lines, _lock_step_lines, _tracking_and_fault_lines,
+                _across_process_lines, _bus_load_lines)
+    return "\n".join(line for section in sections for line in section(report))

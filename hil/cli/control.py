@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
         node = ControlNode(hardware, session(zenoh), config.cycle_hz,
                            lock_step=args.lock_step, joint_state_hz=args.joint_state_rate,
                            defaults=Defaults(goal_position_tolerance=args.goal_tolerance),
-                           priority=args.priority, ros=_ros_face(args, config))
+                           priority=args.priority, faces=_ros_faces(args, config))
     except BaseException:        # e.g. no Zenoh router for --ros: no bus may keep us alive
         for bus in buses.values():
             bus.shutdown()
@@ -104,14 +104,14 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _ros_face(args: argparse.Namespace, config):
-    """The factory of the controller's ROS 2 face, or None without --ros."""
+def _ros_faces(args: argparse.Namespace, config) -> list:
+    """The factory of the controller's ROS 2 face in a list; none without --ros."""
     settings = common.ros_settings(args)
     if settings is None:
         if args.ros_use_sim_time:
             raise HilError.single("--ros-use-sim-time is for the ROS 2 face",
                                   hint="add --ros")
-        return None
+        return []
     from hil.messaging.ros.face import ACTION_NAME, PlantClock, RosControlFace  # noqa: PLC0415
     from hil.visualisation.urdf_export import viewer_urdf            # noqa: PLC0415
 
@@ -127,4 +127,4 @@ def _ros_face(args: argparse.Namespace, config):
               f"action {action}; stamps on the "
               f"{'plant' if args.ros_use_sim_time else 'wall'} clock", flush=True)
         return face
-    return make
+    return [make]

@@ -61,29 +61,10 @@ def run(args: argparse.Namespace) -> int:
     for warning in config.warnings:
         print(warning, file=sys.stderr)
     zenoh = common.zenoh_settings(args)
-    interface, channels = common.can_overrides(args)
-    faults = [parse_fault(text) for text in args.fault]
-    if any(isinstance(f, ProcessFault) for f in faults):
-        raise HilError.single("kill faults are for `hil up --fault`",
-                              hint="hil sim takes frame and drive faults")
-    drive_faults = [f for f in faults if isinstance(f, DriveFault)]
-    _check_drive_faults(config, drive_faults)
+    frame_faults, drive_faults = _faults(args, config)
     scheduling = ("lock-step" if args.lock_step
                   else enter_real_time(args.priority, common.cpus(args)))
-    buses = with_frame_faults(open_buses(config, zenoh, interface, channels),
-                              [f for f in faults if isinstance(f, FrameFault)], args.fault_seed)
-    try:
-        simulator = Simulator(config, buses, lock_step=args.lock_step)
-        # after hil's own session: Zenoh's runtime threads, which every session of the
-        # process shares, are made by the first one, and must be made under the real-time
-        # settings above (made first by the ROS session, the frames' threads ran under the
-        # normal scheduler on any CPU)
-        ros_clock = _ros_clock(args)
-    except BaseException:       # e.g. MuJoCo rejects the model: no bus may keep us alive
-        for bus in buses.values():
-            bus.shutdown()
-        close_all()
-        raise
+    simulator, buses, ros_clock = _open(args, config, zenoh, frame_faults)
     token = session(zenoh).liveliness().declare_token(f"hil/{config.robot.name}/sim")
     stop = threading.Event()
 
@@ -92,13 +73,11 @@ def run(args: argparse.Namespace) -> int:
         simulator.stop()
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    printer = threading.Thread(target=_print_status, args=(simulator, stop, args.status_period),
-                               daemon=True)
     clock = SimClockPublisher(session(zenoh), config.robot.name)
-    clock_thread = threading.Thread(target=_publish_clock, args=(simulator, clock, stop),
-                                    daemon=True)
-    ros_thread = threading.Thread(target=_publish_ros_clock, args=(simulator, ros_clock, stop),
-                                  daemon=True)
+    side_work = [(_print_status, args.status_period), (_publish_clock, clock),
+                 (_inject, drive_faults)] + ([(_publish_ros_clock, ros_clock)] if ros_clock else [])
+    threads = [threading.Thread(target=work, args=(simulator, argument, stop), daemon=True)
+               for work, argument in side_work]
     try:
         simulator.start()
         gc.collect()
@@ -107,21 +86,17 @@ def run(args: argparse.Namespace) -> int:
               f"{', '.join(f'{b.name} ({buses[b.name].channel_info})' for b in config.buses)}, "
               f"{'lock-step' if args.lock_step else 'real-time'}, plant {config.plant_rate_hz:g} Hz, "
               f"cycle {config.cycle_hz:g} Hz; {scheduling}", flush=True)
-        printer.start()
-        clock_thread.start()
-        if ros_clock is not None:
-            ros_thread.start()
-        threading.Thread(target=_inject, args=(simulator, drive_faults, stop),
-                         daemon=True).start()
+        for thread in threads:
+            thread.start()
         simulator.run(args.duration)
     finally:
         stop.set()
-        for thread in (clock_thread, ros_thread):
+        for thread in threads[1:]:          # the clocks' last puts before their sessions close
             if thread.is_alive():
                 thread.join()
-        clock.close()
-        if ros_clock is not None:
-            ros_clock.close()
+        for face in (clock, ros_clock):
+            if face is not None:
+                face.close()
         simulator.close()
         token.undeclare()
         for bus in buses.values():
@@ -129,17 +104,80 @@ def run(args: argparse.Namespace) -> int:
         close_all()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-    for line in common.bus_report(buses) + simulator.frame_report():
+    for line in common.bus_report(buses) + frame_report(simulator):
         print(f"hil sim: {line}")
     print("hil sim: stopped; all drives disabled", flush=True)
     return 0
 
 
-def _print_status(simulator: Simulator, stop: threading.Event, period: float) -> None:
+def _faults(args: argparse.Namespace, config) -> tuple[list[FrameFault], list[DriveFault]]:
+    """The --fault specs: (frame faults, drive faults), each drive one of the config's."""
+    faults = [parse_fault(text) for text in args.fault]
+    if any(isinstance(f, ProcessFault) for f in faults):
+        raise HilError.single("kill faults are for `hil up --fault`",
+                              hint="hil sim takes frame and drive faults")
+    drive_faults = [f for f in faults if isinstance(f, DriveFault)]
+    _check_drive_faults(config, drive_faults)
+    return [f for f in faults if isinstance(f, FrameFault)], drive_faults
+
+
+def _open(args: argparse.Namespace, config, zenoh, frame_faults: list[FrameFault]):
+    """(the simulator on its buses, the buses, the ROS 2 clock face or None)."""
+    interface, channels = common.can_overrides(args)
+    buses = with_frame_faults(open_buses(config, zenoh, interface, channels), frame_faults,
+                              args.fault_seed)
+    try:
+        simulator = Simulator(config, buses, lock_step=args.lock_step)
+        # after hil's own session: Zenoh's runtime threads, which every session of the
+        # process shares, are made by the first one, and must be made under the real-time
+        # settings above (made first by the ROS session, the frames' threads ran under the
+        # normal scheduler on any CPU)
+        return simulator, buses, _ros_clock(args)
+    except BaseException:       # e.g. MuJoCo rejects the model: no bus may keep us alive
+        for bus in buses.values():
+            bus.shutdown()
+        close_all()
+        raise
+
+
+def frame_report(simulator: Simulator) -> list[str]:
+    """What the drives refused (malformed frames) and could not send, per bus."""
+    lines = []
+    for simulated in simulator.buses:
+        refused = sum(drive.malformed for drive in simulated.drives)
+        lost = simulated.network.lost_frames if simulated.network is not None else 0
+        lines.append(f"bus {simulated.config.name}: the drives refused {refused} malformed "
+                     f"frame(s) and could not send {lost}")
+    return lines
+
+
+def status_lines(simulator: Simulator) -> list[str]:
+    """The plant's time and every drive's state, position and torque, a line each."""
+    with simulator.lock:
+        plant = simulator.plant
+        lines = [f"t = {plant.time:8.3f} s   cycles {simulator.cycles}   "
+                 f"{'lock-step' if simulator.lock_step else 'real-time'}"]
+        joints = dict(zip(plant.joint_names, plant.joint_positions()))
+        for simulated in simulator.buses:
+            name = simulated.config.name
+            if simulated.network is not None and simulated.network.lost_frames:
+                lines.append(f"  {name:>8} lost {simulated.network.lost_frames}"
+                             " frame(s) the bus would not send")
+            for drive, config in zip(simulated.drives, simulated.config.drives):
+                status = drive.core.status()
+                positions = " ".join(f"{j}={joints[j]:+.4f}" for j in config.joints)
+                fault = f"  FAULT {status.fault.text}" if status.fault else ""
+                lines.append(f"  {name:>8} node {drive.node_id:>3} "
+                             f"{drive.protocol.name:<7} {drive.state_text:<34} "
+                             f"{positions}  torque {status.torque:+.4f} N·m{fault}")
+        return lines
+
+
+def _print_status(simulator: Simulator, period: float, stop: threading.Event) -> None:
     if period <= 0:
         return
     while not stop.wait(period):
-        print("\n".join(simulator.status_lines()), flush=True)
+        print("\n".join(status_lines(simulator)), flush=True)
 
 
 def _publish_clock(simulator: Simulator, clock: SimClockPublisher, stop: threading.Event) -> None:

@@ -40,6 +40,7 @@ from hil.supervisor import (
 from hil.realtime import real_time_cpus
 from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
 
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("target", nargs="*", metavar="ROBOT|CONFIG",
                         help="a robot with a config in bus_config/ (pigot, ur3) or a bus config "
@@ -89,35 +90,14 @@ def run(args: argparse.Namespace) -> int:
         print(warning, file=sys.stderr)
     robot = config.robot.name
     common.ros_settings(args)                       # a bad --ros option fails here, not later
-    ros = common.ros_options(args)
-    can_options = _can_options(args, config)
     faults = [parse_fault(text) for text in args.fault]
-    kills = [f for f in faults if isinstance(f, ProcessFault)]
-    sim_faults = [f"--fault={text}" for text, f in zip(args.fault, faults)
-                  if not isinstance(f, ProcessFault)]
     save = args.save
     logs = save.with_name(save.stem + ".logs")
     logs.mkdir(parents=True, exist_ok=True)
     can_log = save.with_name(save.stem + ".can.log")
     endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
-    shared = [str(config_path), *can_options,
-              *(f"--package-path={p}" for p in args.package_path)]
     timing = args.timing or "real-time"
-    lock_step = ["--lock-step"] if timing == "lock-step" else []
-    placed = {name: [] if lock_step else cpus_argument(cpus)
-              for name, cpus in zip(("sim", "control", "viz"), real_time_cpus())}
-    viewer = _viewer_options(args)
-    children = {
-        "sim": Child("sim", ["sim", *shared, *lock_step, *placed["sim"], "--listen", endpoint,
-                             "--status-period", "0", *sim_faults, *ros], logs / "sim.log"),
-        "control": Child("control", ["control", *shared, *lock_step, *placed["control"],
-                                     "--connect", endpoint, *ros,
-                                     *(["--ros-use-sim-time"] if args.ros_use_sim_time else [])],
-                         logs / "control.log"),
-        "viz": Child("viz", ["viz", *shared, *lock_step, *placed["viz"], "--connect", endpoint,
-                             "--save", str(save), "--can-log", str(can_log), *viewer],
-                     logs / "viz.log"),
-    }
+    children = _children(args, config_path, config, faults, endpoint, logs, can_log)
     stop = threading.Event()
     supervised = Run([], stop)
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT,
@@ -126,25 +106,12 @@ def run(args: argparse.Namespace) -> int:
           f"process logs in {logs}/", flush=True)
     zenoh = ZenohSettings(connect=(endpoint,))
     status = 0
-    watch = subscriber = None
+    watchers: list = []
     progress = Progress()
     try:
-        # the visualiser starts before the controller: its start-up (rerun, the robot model)
-        # is CPU-heavy, and must not starve the first real-time cycles
-        for name in ("sim", "viz", "control"):
-            child = children[name]
-            child.start()
-            supervised.children.append(child)
-            if watch is None:          # the sim listens on the endpoint: now it can be reached
-                watch = ProcessWatch(session(zenoh), robot)
-                subscriber = RunSubscriber(session(zenoh), robot, progress.on_samples,
-                                           lambda wall, sim: None, progress.problems.append,
-                                           progress.on_diagnostic)
-            wait_alive(supervised, watch.wait_alive, child)
-            if stop.is_set():
-                break
+        _start(children, supervised, zenoh, robot, progress, watchers)
         if not stop.is_set():
-            for kill in kills:
+            for kill in (f for f in faults if isinstance(f, ProcessFault)):
                 threading.Thread(target=kill_later, args=(children[kill.process], kill.at,
                                                            stop), daemon=True).start()
             status = _supervise(args, config, supervised, zenoh, progress)
@@ -157,10 +124,8 @@ def run(args: argparse.Namespace) -> int:
             status = 130
         print("hil up: stopping control, viz and sim", flush=True)
         problems = supervised.shut_down()
-        if watch is not None:
-            watch.close()
-        if subscriber is not None:
-            subscriber.close()
+        for watcher in watchers:
+            watcher.close()
         close_all()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
@@ -175,6 +140,52 @@ def run(args: argparse.Namespace) -> int:
         status = 1
     _report_outputs(save, can_log, children["viz"])
     return status
+
+
+def _children(args: argparse.Namespace, config_path: Path, config: SystemConfig, faults: list,
+              endpoint: str, logs: Path, can_log: Path) -> dict[str, Child]:
+    """sim, control and viz as ``hil`` commands, placed on the CPUs in real time."""
+    ros = common.ros_options(args)
+    sim_faults = [f"--fault={text}" for text, f in zip(args.fault, faults)
+                  if not isinstance(f, ProcessFault)]
+    shared = [str(config_path), *_can_options(args, config),
+              *(f"--package-path={p}" for p in args.package_path)]
+    lock_step = ["--lock-step"] if args.timing == "lock-step" else []
+    placed = {name: [] if lock_step else cpus_argument(cpus)
+              for name, cpus in zip(("sim", "control", "viz"), real_time_cpus())}
+    return {
+        "sim": Child("sim", ["sim", *shared, *lock_step, *placed["sim"], "--listen", endpoint,
+                             "--status-period", "0", *sim_faults, *ros], logs / "sim.log"),
+        "control": Child("control", ["control", *shared, *lock_step, *placed["control"],
+                                     "--connect", endpoint, *ros,
+                                     *(["--ros-use-sim-time"] if args.ros_use_sim_time else [])],
+                         logs / "control.log"),
+        "viz": Child("viz", ["viz", *shared, *lock_step, *placed["viz"], "--connect", endpoint,
+                             "--save", str(args.save), "--can-log", str(can_log),
+                             *_viewer_options(args)],
+                     logs / "viz.log"),
+    }
+
+
+def _start(children: dict[str, Child], supervised: Run, zenoh: ZenohSettings, robot: str,
+           progress: Progress, watchers: list) -> None:
+    """Start sim, viz and control in turn, each once the one before is alive on Zenoh;
+    the watchers it makes go into ``watchers`` (to be closed however the start ends)."""
+    watch = None
+    # the visualiser starts before the controller: its start-up (rerun, the robot model)
+    # is CPU-heavy, and must not starve the first real-time cycles
+    for name in ("sim", "viz", "control"):
+        child = children[name]
+        child.start()
+        supervised.children.append(child)
+        if watch is None:          # the sim listens on the endpoint: now it can be reached
+            watch = ProcessWatch(session(zenoh), robot)
+            watchers += [watch, RunSubscriber(session(zenoh), robot, progress.on_samples,
+                                              lambda wall, sim: None, progress.problems.append,
+                                              progress.on_diagnostic)]
+        wait_alive(supervised, watch.wait_alive, child)
+        if supervised.stop.is_set():
+            break
 
 
 def _can_options(args: argparse.Namespace, config: SystemConfig) -> list[str]:

@@ -25,12 +25,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hil.controllers.goal import (
-    GOAL_TOLERANCE_VIOLATED, HARDWARE_FAULT, INVALID_GOAL, INVALID_JOINTS, MAX_POINTS,
-    PATH_TOLERANCE_VIOLATED, SUCCESSFUL, Defaults, GoalRejected, GoalResult, GoalStatus,
-    JointTolerance, TrajectoryGoal, check_tolerances, first_index, goal_arrays,
+    GOAL_TOLERANCE_VIOLATED, HARDWARE_FAULT, INVALID_GOAL, PATH_TOLERANCE_VIOLATED, SUCCESSFUL,
+    Defaults, GoalRejected, GoalResult, GoalStatus, TrajectoryGoal,
 )
+from hil.controllers.planning import GoalPlan, JointLimitTable, plan_goal
 from hil.controllers.spline import Spline
-from hil.description import JointType, RobotDescription
+from hil.description import RobotDescription
 
 
 @dataclass
@@ -47,18 +47,6 @@ class _ActiveGoal:
     goal_time_tolerance: float
     final: np.ndarray
     result: GoalResult | None = None
-
-
-@dataclass
-class _Plan:
-    """A goal checked and planned between its points, before it meets the controller's
-    state (made without the lock)."""
-
-    indices: np.ndarray
-    spline: Spline
-    path: tuple[np.ndarray, np.ndarray]
-    tolerance: tuple[np.ndarray, np.ndarray]
-    goal_time_tolerance: float
 
 
 @dataclass
@@ -89,14 +77,7 @@ class JointTrajectoryController:
         self.joints = tuple(j for j in robot.driven_joints)
         self.joint_names = tuple(j.name for j in self.joints)
         self.defaults = defaults
-        self._mimic = {j.name: j.mimic.joint for j in robot.joints if j.mimic}
-        self._continuous = np.array([j.type is JointType.CONTINUOUS for j in self.joints])
-        self._lower = np.array([j.limits.lower if j.limits and j.limits.lower is not None
-                                else -np.inf for j in self.joints])
-        self._upper = np.array([j.limits.upper if j.limits and j.limits.upper is not None
-                                else np.inf for j in self.joints])
-        self._velocity_limit = np.array([j.limits.velocity if j.limits else np.inf
-                                         for j in self.joints])
+        self.limits = JointLimitTable.of(robot, self.joints)
         n = len(self.joints)
         self._lock = threading.Lock()
         self._active: _ActiveGoal | None = None
@@ -258,70 +239,14 @@ class JointTrajectoryController:
 
     def _wrap(self, difference: np.ndarray, indices: np.ndarray) -> np.ndarray:
         wrapped = (difference + np.pi) % (2 * np.pi) - np.pi
-        return np.where(self._continuous[indices], wrapped, difference)
+        return np.where(self.limits.continuous[indices], wrapped, difference)
 
-    def _plan(self, goal: TrajectoryGoal) -> _Plan:
-        """Check a goal and plan its segments between points (no lock held: it reads only the
-        controller's fixed limits)."""
-        indices = self._check_joints(goal)
-        if not goal.points:
-            raise GoalRejected("the trajectory has no points")
-        if len(goal.points) > MAX_POINTS:
-            raise GoalRejected(f"the trajectory has {len(goal.points)} points; this controller "
-                               f"takes at most {MAX_POINTS} (split it into several goals, or "
-                               "sample it more coarsely)")
-        times, positions, velocities, accelerations, order = goal_arrays(goal)
-        lower, upper = self._lower[indices], self._upper[indices]
-        limit, continuous = self._velocity_limit[indices], self._continuous[indices]
-        outside = ~continuous & ((positions < lower) | (positions > upper))
-        if outside.any():
-            p, k = first_index(outside)
-            raise GoalRejected(f"point {p} joint '{goal.joint_names[k]}' position "
-                               f"{positions[p, k]:g} is outside its limits [{lower[k]:g}, "
-                               f"{upper[k]:g}]")
-        too_fast = np.abs(velocities) > limit
-        if too_fast.any():
-            p, k = first_index(too_fast)
-            raise GoalRejected(f"point {p} joint '{goal.joint_names[k]}' velocity "
-                               f"{velocities[p, k]:g} exceeds its limit {limit[k]:g}")
-        # continuous joints: each point on the turn nearest the point before (the first is
-        # put on the turn nearest the joint's state when the goal starts)
-        positions[:, continuous] = np.unwrap(positions[:, continuous], axis=0)
-        if len(times) > 1:
-            implied = np.diff(positions, axis=0) / np.diff(times)[:, None]
-            too_fast = np.abs(implied) > limit * (1 + 1e-9)
-            if too_fast.any():
-                p, k = first_index(too_fast)
-                raise GoalRejected(
-                    f"point {p + 1} joint '{goal.joint_names[k]}' needs {abs(implied[p, k]):.4g}"
-                    f" on average from point {p}, above its velocity limit {limit[k]:g}")
-        check_tolerances(goal)
-        path = self._tolerances(goal.path_tolerance, goal.joint_names,
-                                self.defaults.path_position_tolerance, 0.0)
-        tolerance = self._tolerances(goal.goal_tolerance, goal.joint_names,
-                                     self.defaults.goal_position_tolerance,
-                                     self.defaults.goal_velocity_tolerance)
-        goal_time = (goal.goal_time_tolerance if goal.goal_time_tolerance > 0 else
-                     self.defaults.goal_time_tolerance)
-        return _Plan(indices, Spline.between(times, positions, velocities, accelerations, order),
-                     path, tolerance, goal_time)
+    def _plan(self, goal: TrajectoryGoal) -> GoalPlan:
+        """:func:`plan_goal` on this controller's joints (no lock held: it reads only their
+        fixed limits)."""
+        return plan_goal(self.limits, self.defaults, goal)
 
-    def _check_joints(self, goal: TrajectoryGoal) -> np.ndarray:
-        names = goal.joint_names
-        if not names:
-            raise GoalRejected("the goal names no joints", INVALID_JOINTS)
-        for name in names:
-            if name in self._mimic:
-                raise GoalRejected(f"joint '{name}' mimics '{self._mimic[name]}' and cannot be "
-                                   "commanded; command its leader", INVALID_JOINTS)
-            if name not in self.joint_names:
-                raise GoalRejected(f"unknown joint '{name}'; this controller has: "
-                                   f"{', '.join(self.joint_names)}", INVALID_JOINTS)
-        if len(set(names)) != len(names):
-            raise GoalRejected("a joint is named twice in the goal", INVALID_JOINTS)
-        return np.array([self.joint_names.index(n) for n in names])
-
-    def _start(self, goal_id: str, goal: TrajectoryGoal, plan: _Plan) -> _ActiveGoal:
+    def _start(self, goal_id: str, goal: TrajectoryGoal, plan: GoalPlan) -> _ActiveGoal:
         """The planned goal from the controller's state now (lock held): continuous joints on
         the turn nearest where they are, the first point reachable at the velocity limits,
         the first segment from the desired state."""
@@ -329,7 +254,7 @@ class JointTrajectoryController:
         start = self._now if goal.start_time is None else max(goal.start_time, self._now)
         here = self._desired[indices].copy()
         turns = np.round((spline.points[0] - here) / (2 * np.pi))
-        spline.shift(np.where(self._continuous[indices], -turns * 2 * np.pi, 0.0))
+        spline.shift(np.where(self.limits.continuous[indices], -turns * 2 * np.pi, 0.0))
         self._check_reachable(goal, indices, here, spline.points[0])
         spline.start_from(here, self._desired_velocity[indices].copy(),
                           self._desired_acceleration[indices].copy())
@@ -348,21 +273,8 @@ class JointTrajectoryController:
                     raise GoalRejected(
                         f"point 0 joint '{name}' is {distance[k]:.4g} from the current position "
                         "at time_from_start 0: give the first point a time to get there")
-            elif distance[k] / first_time > self._velocity_limit[i] * (1 + 1e-9):
+            elif distance[k] / first_time > self.limits.velocity[i] * (1 + 1e-9):
                 raise GoalRejected(
                     f"point 0 joint '{name}' needs {distance[k] / first_time:.4g} on "
                     f"average from the current position, above its velocity limit "
-                    f"{self._velocity_limit[i]:g}")
-
-    @staticmethod
-    def _tolerances(given: tuple[JointTolerance, ...], names: tuple[str, ...],
-                    position_default: float, velocity_default: float):
-        position = np.full(len(names), position_default)
-        velocity = np.full(len(names), velocity_default)
-        for tolerance in given:
-            k = names.index(tolerance.name)
-            if tolerance.position != 0:
-                position[k] = tolerance.position
-            if tolerance.velocity != 0:
-                velocity[k] = tolerance.velocity
-        return position, velocity
+                    f"{self.limits.velocity[i]:g}")

@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from collections import Counter, defaultdict
-from dataclasses import replace
-from pathlib import Path
+from collections import Counter
 
 from hil.description.corrections import (
     give_moving_links_mass, note_ignored_axes, note_world_link, physical_inertia,
@@ -18,8 +16,9 @@ from hil.description.model import (
     Mimic, RobotDescription, TransmissionSpec, Visual,
 )
 from hil.description.packages import PackagePath
-from hil.description.reader import ElementReader, start_tag
+from hil.description.reader import ElementReader
 from hil.description.source import RobotSource
+from hil.description.urdf_checks import check_mimic, check_tree, check_visuals
 from hil.description.urdf_transmissions import check_transmissions, read_transmission
 from hil.errors import HilError, Severity, error, warning
 
@@ -42,11 +41,11 @@ def parse_urdf(source: RobotSource, package_path: PackagePath) -> RobotDescripti
         specs += [read_transmission(reader, e) for e in block.findall("transmission")]
 
     _check_links(reader, links)
-    _check_tree(reader, links, joints)
-    joints = _check_mimic(reader, joints)
+    check_tree(reader, links, joints)
+    joints = check_mimic(reader, joints)
     transmissions = check_transmissions(reader, joints, tuple(s for s in specs if s is not None))
     _check_limits(reader, joints, transmissions)
-    _check_visuals(reader, links, joints)
+    check_visuals(reader, links, joints)
     links = give_moving_links_mass(reader, links, joints)
     note_ignored_axes(reader)
     note_world_link(reader, links, joints)
@@ -288,107 +287,3 @@ def _read_mimic(reader: ElementReader, joint: str, element: ET.Element | None) -
                                  "joint", joint, 1.0),
         offset=reader.number(element.get("offset"), f"joint '{joint}' mimic offset", "joint",
                              joint, 0.0))
-
-
-def _check_tree(reader: ElementReader, links: tuple[Link, ...], joints: tuple[Joint, ...]) -> None:
-    link_names = {link.name for link in links}
-    for name, count in Counter(j.name for j in joints).items():
-        if count > 1:
-            reader.report(error, f"joint name '{name}' is used {count} times", "joint", name,
-                          hint="joint names must be unique")
-    parents_of: dict[str, list[str]] = defaultdict(list)
-    for joint in joints:
-        for role, link in (("parent", joint.parent), ("child", joint.child)):
-            if not link:
-                reader.report(error, f"joint '{joint.name}' has no <{role} link=...>", "joint",
-                              joint.name)
-            elif link not in link_names:
-                reader.report(error, f"joint '{joint.name}': {role} link '{link}' is not "
-                              "defined in any loaded file", "joint", joint.name,
-                              hint=_missing_link_hint(reader, link))
-        parents_of[joint.child].append(joint.name)
-    for child, names in parents_of.items():
-        if len(names) > 1:
-            reader.report(error, f"link '{child}' is the child of several joints "
-                          f"({', '.join(names)}); URDF needs a tree", "link", child)
-    roots = [link.name for link in links if link.name not in parents_of]
-    dangling = any(j.parent not in link_names for j in joints)
-    if links and not roots and not dangling:
-        reader.diagnostics.append(error("the joints form a loop: no link is a root",
-                                        reader.source.path))
-    elif len(roots) > 1:
-        reader.diagnostics.append(error(
-            f"the robot has {len(roots)} unconnected root links ({', '.join(roots)})",
-            reader.source.path, hint="connect every link to one tree with joints"))
-
-
-def _missing_link_hint(reader: ElementReader, link: str) -> str:
-    """Name the file that defines ``link`` if it lies on the package path unincluded."""
-    pattern = start_tag("link", link)
-    loaded = set(reader.source.files)
-    for root in reader.package_path.roots:
-        if not root.is_dir():
-            continue
-        for candidate in sorted(root.rglob("*")):
-            if candidate.suffix not in (".xacro", ".urdf") or candidate.resolve() in loaded:
-                continue
-            if pattern.search(candidate.read_text(errors="replace")):
-                return (f"'{link}' is defined in {candidate}, which is not included: add "
-                        f"<xacro:include filename=\"{_find_form(candidate, reader.package_path)}\"/>")
-    return (f"define <link name=\"{link}\"/> or include the file that defines it "
-            "(no file on the package search path does)")
-
-
-def _find_form(file: Path, package_path: PackagePath) -> str:
-    """``$(find pkg)/rel`` for a file inside a package on the path, else the plain path."""
-    for name, folder in package_path.packages().items():
-        if file.resolve().is_relative_to(folder.resolve()):
-            return f"$(find {name})/{file.resolve().relative_to(folder.resolve())}"
-    return str(file)
-
-
-def _check_mimic(reader: ElementReader, joints: tuple[Joint, ...]) -> tuple[Joint, ...]:
-    """Joints with the mimics MuJoCo can build: a mimic of a joint that does not exist or
-    cannot move is left out with a warning (reduced models fix or drop the leader and keep
-    the mimic); a mimic of a mimic is an error."""
-    by_name = {j.name: j for j in joints}
-    kept = []
-    for joint in joints:
-        leader = by_name.get(joint.mimic.joint) if joint.mimic else None
-        if joint.mimic is None:
-            pass
-        elif not joint.is_movable:
-            reader.report(warning, f"{joint.type.value} joint '{joint.name}' has a <mimic>, "
-                          "which does not move it: left out", "joint", joint.name,
-                          hint="remove the <mimic>, or give the joint a movable type")
-            joint = replace(joint, mimic=None)
-        elif leader is None or not leader.is_movable:
-            why = "does not exist" if leader is None else f"is {leader.type.value}"
-            reader.report(warning, f"joint '{joint.name}' mimics joint '{joint.mimic.joint}', "
-                          f"which {why}: the <mimic> is left out (the joint is passive)",
-                          "joint", joint.name,
-                          hint=f"mimic one of: {', '.join(j.name for j in joints if j.is_movable)}")
-            joint = replace(joint, mimic=None)
-        elif leader.name == joint.name or leader.mimic is not None:
-            reader.report(error, f"joint '{joint.name}' mimics '{leader.name}', which is itself "
-                          "or a mimic joint", "joint", joint.name,
-                          hint="mimic an actuated joint directly")
-        kept.append(joint)
-    return tuple(kept)
-
-
-# --- visuals ---------------------------------------------------------------
-
-def _check_visuals(reader: ElementReader, links: tuple[Link, ...], joints: tuple[Joint, ...]) -> None:
-    """Warn about visuals far outside the robot (unit or export errors)."""
-    extent = sum(j.origin.distance for j in joints)
-    limit = max(1.0, 2.0 * extent)
-    for link in links:
-        for visual in link.visuals:
-            if visual.origin.distance > limit:
-                reader.report(
-                    warning, f"link '{link.name}' visual origin is {visual.origin.distance:.1f} m "
-                    f"from the link frame, but the whole robot spans about {extent:.2f} m",
-                    "link", link.name,
-                    hint="check the <visual><origin xyz=...> (a unit or export error?); "
-                         "it is drawn where it says")

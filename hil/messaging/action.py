@@ -53,21 +53,7 @@ class TrajectoryActionServer:
         zeros = [0.0] * len(names)
         cdr.encode(cdr.joint_state_msg(0.0, names, zeros, zeros, zeros))
         cdr.encode(cdr.result_msg("00" * 16, GoalResult(GoalStatus.SUCCEEDED, 0)))
-        cdr.encode(self._feedback_message("00" * 16, names, zeros, zeros, zeros, zeros))
-
-    def _feedback_message(self, goal_id, names, desired, desired_velocity, actual,
-                          actual_velocity):
-        desired, actual = np.asarray(desired), np.asarray(actual)
-        desired_velocity, actual_velocity = np.asarray(desired_velocity), np.asarray(
-            actual_velocity)
-        feedback = cdr.msg(
-            "control_msgs/action/FollowJointTrajectory_Feedback", header=cdr.header(time.time()),
-            joint_names=list(names), desired=cdr.point_msg(desired, desired_velocity),
-            actual=cdr.point_msg(actual, actual_velocity),
-            error=cdr.point_msg(desired - actual, desired_velocity - actual_velocity),
-            multi_dof_joint_names=[], multi_dof_desired=_empty_multi_dof(),
-            multi_dof_actual=_empty_multi_dof(), multi_dof_error=_empty_multi_dof())
-        return cdr.msg(cdr.FEEDBACK_MESSAGE, goal_id=cdr.uuid_msg(goal_id), feedback=feedback)
+        cdr.encode(_feedback_message("00" * 16, names, zeros, zeros, zeros, zeros))
 
     def _on_send_goal(self, query: zenoh.Query) -> None:
         try:
@@ -111,16 +97,9 @@ class TrajectoryActionServer:
         query.reply(query.key_expr, cdr.encode(cdr.msg(cdr.TRIGGER_RESPONSE, success=succeeded,
                                                          message=message)))
 
-    def publish_feedback(self) -> bytes | None:
-        """Put the active goal's FeedbackMessage; its bytes (None: no active goal)."""
-        state = self.controller.state()
-        if state.goal_id is None:
-            return None
-        payload = cdr.encode(self._feedback_message(
-            state.goal_id, state.joint_names, state.desired_positions, state.desired_velocities,
-            state.actual_positions, state.actual_velocities))
+    def put_feedback(self, payload: bytes) -> None:
+        """Put the active goal's FeedbackMessage (:func:`feedback_payload`)."""
         self._feedback.put(payload)
-        return payload
 
     def publish_results(self, finished: list[tuple[str, GoalResult]]) -> None:
         """Publish (and keep for get_result) the results of goals that ended."""
@@ -134,6 +113,29 @@ class TrajectoryActionServer:
             queryable.undeclare()
         self._feedback.undeclare()
         self._result.undeclare()
+
+
+def feedback_payload(controller: JointTrajectoryController) -> bytes | None:
+    """The active goal's FeedbackMessage as CDR; None without an active goal."""
+    state = controller.state()
+    if state.goal_id is None:
+        return None
+    return cdr.encode(_feedback_message(
+        state.goal_id, state.joint_names, state.desired_positions, state.desired_velocities,
+        state.actual_positions, state.actual_velocities))
+
+
+def _feedback_message(goal_id, names, desired, desired_velocity, actual, actual_velocity):
+    desired, actual = np.asarray(desired), np.asarray(actual)
+    desired_velocity, actual_velocity = np.asarray(desired_velocity), np.asarray(actual_velocity)
+    feedback = cdr.msg(
+        "control_msgs/action/FollowJointTrajectory_Feedback", header=cdr.header(time.time()),
+        joint_names=list(names), desired=cdr.point_msg(desired, desired_velocity),
+        actual=cdr.point_msg(actual, actual_velocity),
+        error=cdr.point_msg(desired - actual, desired_velocity - actual_velocity),
+        multi_dof_joint_names=[], multi_dof_desired=_empty_multi_dof(),
+        multi_dof_actual=_empty_multi_dof(), multi_dof_error=_empty_multi_dof())
+    return cdr.msg(cdr.FEEDBACK_MESSAGE, goal_id=cdr.uuid_msg(goal_id), feedback=feedback)
 
 
 def submit_goal_request(controller: JointTrajectoryController, clock: Callable[[], float],

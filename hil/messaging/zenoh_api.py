@@ -20,17 +20,16 @@ from hil.messaging.keys import key
 from hil.messaging.samples import ControlSamples
 from hil.realtime import enter_side_work
 
+
 class JointStatePublisher:
     """Publishes sensor_msgs/JointState on ``hil/<robot>/joint_states``."""
 
     def __init__(self, session: zenoh.Session, robot: str):
         self._publisher = session.declare_publisher(key(robot, "joint_states"))
 
-    def publish(self, stamp: float, names, positions, velocities, efforts) -> bytes:
-        """Put the joint states; their CDR bytes (for other outlets of the same message)."""
-        payload = cdr.encode(cdr.joint_state_msg(stamp, names, positions, velocities, efforts))
+    def put(self, payload: bytes) -> None:
+        """Put joint states already encoded (:func:`hil.messaging.cdr.joint_state_msg`)."""
         self._publisher.put(payload)
-        return payload
 
     def close(self) -> None:
         self._publisher.undeclare()
@@ -99,11 +98,9 @@ class DiagnosticsPublisher:
         self._publisher = session.declare_publisher(
             key(robot, "diagnostics"), congestion_control=zenoh.CongestionControl.BLOCK)
 
-    def publish(self, diagnostic: DiagnosticStatus) -> bytes:
-        """Put the diagnostic; its CDR bytes (a DiagnosticArray)."""
-        payload = diagnostic.encode()
+    def put(self, payload: bytes) -> None:
+        """Put a DiagnosticArray already encoded (:meth:`DiagnosticStatus.encode`)."""
         self._publisher.put(payload)
-        return payload
 
     def close(self) -> None:
         self._publisher.undeclare()

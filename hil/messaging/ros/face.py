@@ -25,6 +25,7 @@ import zenoh
 from hil.errors import HilError
 from hil.messaging import cdr
 from hil.messaging.diagnostics import DiagnosticStatus
+from hil.messaging.face import ControlFace
 from hil.messaging.keys import direct, key
 from hil.messaging.ros.action import RosTrajectoryActionServer
 from hil.messaging.ros.interfaces import (
@@ -157,8 +158,8 @@ def open_context(settings: RosSettings) -> RosContext:
     return RosContext(session, settings.domain_id)
 
 
-class RosControlFace:
-    """The controller's ROS 2 node; made by :meth:`ControlNode`'s ``ros`` factory."""
+class RosControlFace(ControlFace):
+    """The controller's ROS 2 node, a face of :class:`hil.control_node.ControlNode`."""
 
     def __init__(self, settings: RosSettings, controller, clock, robot_description: str,
                  reset: Callable[[], tuple[bool, str]] | None = None,
@@ -221,7 +222,7 @@ class RosControlFace:
                 return
         publisher.put(payload)
 
-    def record_results(self, finished: list) -> None:
+    def publish_results(self, finished: list) -> None:
         self.action.record_results(finished)
 
     def close(self) -> None:

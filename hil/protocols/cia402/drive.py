@@ -38,7 +38,6 @@ import struct
 import time
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import canopen
@@ -49,6 +48,7 @@ from hil.drives.profile import DriveProfile
 from hil.protocols.cia402 import NMT_ID, SYNC_ID, Cia402
 from hil.protocols.cia402.node import DriveNode
 from hil.protocols.cia402.objects import PROFILE_PARAMETERS, DriveObjects
+from hil.protocols.cia402.pdo import PdoLayout, TpdoSchedule
 from hil.protocols.cia402.state import ERROR_REGISTER, LIVE_OBJECTS, Cia402StateMachine, live_values
 from hil.resources import eds_path
 
@@ -65,49 +65,6 @@ EMCY_NO_ERROR = 0x0000
 COMMUNICATION_ERROR = 0x11
 #: a refused frame is logged the first time, then every this many
 LOG_REFUSED_EVERY = 1000
-
-
-@dataclass(frozen=True)
-class PdoLayout:
-    """A PDO mapping compiled to one struct. canopen packs and unpacks a PDO variable by
-    variable through the object dictionary (about 30 us a PDO here), too slow for the
-    per-SYNC path of six drives; its PdoMap stays the source of the mapping."""
-
-    indices: tuple[int, ...]
-    codec: struct.Struct
-
-    @classmethod
-    def of(cls, pdo) -> PdoLayout | None:
-        """The layout of a canopen PdoMap, or None where a mapped object is not a whole-byte
-        number in its place (canopen's own packing then does it)."""
-        formats, offset = [], 0
-        for variable in pdo.map:
-            kind = variable.od.STRUCT_TYPES.get(variable.od.data_type)
-            if kind is None or variable.offset != offset or variable.length != 8 * kind.size:
-                return None
-            formats.append(kind.format.lstrip("<"))
-            offset += variable.length
-        return cls(tuple(variable.index for variable in pdo.map),
-                   struct.Struct("<" + "".join(formats)))
-
-
-@dataclass
-class TpdoSchedule:
-    """When one TPDO goes out: its transmission type, event timer and inhibit time."""
-
-    pdo: object                            # canopen PdoMap
-    codec: struct.Struct | None            # None: packed by canopen (PdoLayout.of)
-    indices: tuple[int, ...]               # the LIVE_OBJECTS it carries (codec only)
-    transmission_type: int
-    event_timer: float = 0.0               # s; 0: none
-    inhibit: float = 0.0                   # s
-    syncs: int = 0                         # SYNCs since it last went out (types 1-240)
-    last_data: bytes | None = None         # what it last sent (types 0, 254, 255)
-    last_sent: float = field(default=-math.inf)
-
-    @property
-    def event_driven(self) -> bool:
-        return self.transmission_type >= 254
 
 
 class Cia402Drive(DriveProfile):

@@ -1,0 +1,206 @@
+"""The control loop: hardware interface + controllers, and the faces that carry its outputs.
+
+Each cycle: exchange with the hardware (setpoints out, feedback in), report faults to the
+trajectory controller (which aborts and holds) and as diagnostics, run the controller,
+publish joint states, feedback and results, and record the cycle (published in batches as
+``hil_msgs/ControlSamples``). Real-time mode paces the cycle
+(:class:`hil.realtime.CyclePacer`: SCHED_FIFO where allowed) and keeps period statistics;
+lock-step mode runs the next cycle as soon as the hardware answered, with the controller's
+clock advancing one period per cycle.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable, Sequence
+
+import zenoh
+
+from hil.control_node.fault_reset import RESET_TIMEOUT, FaultReset
+from hil.controllers import Defaults, JointTrajectoryController
+from hil.controllers.joint_state import JointStateBroadcaster
+from hil.hardware import AxisFault, HardwareInterface
+from hil.hardware.feedback import JointFeedback
+from hil.messaging import cdr
+from hil.messaging.action import feedback_payload
+from hil.messaging.diagnostics import DiagnosticStatus, fault_values
+from hil.messaging.face import ControlFace, ZenohControlFace
+from hil.messaging.keys import key
+from hil.messaging.samples import ControlSampleBuffer
+from hil.realtime import REAL_TIME_PRIORITY, CyclePacer, PeriodStatistics
+
+#: makes a face of the node (a ROS 2 node, say) once the node has its controller and clock
+FaceFactory = Callable[["ControlNode"], ControlFace]
+
+
+class ControlNode:
+    """Runs the control loop until :meth:`stop`."""
+
+    def __init__(self, hardware: HardwareInterface, session: zenoh.Session, cycle_hz: float,
+                 lock_step: bool = False, joint_state_hz: float = 100.0,
+                 feedback_hz: float = 20.0, samples_hz: float = 10.0,
+                 defaults: Defaults = Defaults(), priority: int = REAL_TIME_PRIORITY,
+                 faces: Sequence[FaceFactory] = ()):
+        """``priority``: the real-time loop's SCHED_FIFO priority where allowed (0: none).
+        The node always has its face on hil's own keys in ``session``; ``faces`` make more
+        (the ROS 2 face), each given every output too."""
+        self.hardware = hardware
+        robot = hardware.robot
+        self.period = 1.0 / cycle_hz
+        self.lock_step = lock_step
+        self.priority = priority
+        self.controller = JointTrajectoryController(robot, defaults)
+        self.broadcaster = JointStateBroadcaster(robot, hardware.joint_names)
+        self._cycle = 0
+        self._start = time.monotonic()
+        self.samples = ControlSampleBuffer(hardware.joint_names, hardware.actuator_names,
+                                           self.period, max(1, round(cycle_hz / samples_hz)))
+        self._session = session
+        self._token = None      # declared once the hardware follows commands
+        self._every_states = max(1, round(cycle_hz / joint_state_hz))
+        self._every_feedback = max(1, round(cycle_hz / feedback_hz))
+        # publications on different cycles where the rates allow (joint states halfway, the
+        # feedback a third into their periods, sample batches on full buffers): each costs
+        # tens to a hundred microseconds, and stacked on one cycle they would overrun it
+        self._states_phase = self._every_states // 2
+        self._feedback_phase = self._every_feedback // 3
+        self.statistics = PeriodStatistics(self.period)
+        self.faults: list[AxisFault] = []
+        self._stop = threading.Event()
+        self._fault_reset = FaultReset(hardware, self.controller, self._diagnose)
+        self.faces: list[ControlFace] = [ZenohControlFace(
+            session, robot.name, self.controller, self.clock, self.reset_faults)]
+        self.faces += [make(self) for make in faces]
+
+    def figures(self) -> dict:
+        """The run so far: period statistics (real time), the hardware's round trips (SYNC
+        out to the last answer in, where it measures them), and the faults reported."""
+        figures = self.statistics.figures() if self.statistics.count else {"cycles": 0}
+        round_trips = getattr(self.hardware, "round_trips", None)
+        if round_trips is not None:
+            figures.update(round_trips.percentiles_us("round_trip"))
+        figures["faults"] = [str(fault) for fault in self.faults]
+        return figures
+
+    def summary(self) -> str:
+        """One line of :meth:`figures`."""
+        line = self.statistics.summary() if not self.lock_step else f"{self._cycle} cycles"
+        round_trips = getattr(self.hardware, "round_trips", None)
+        if round_trips is not None and round_trips.count:
+            trips = round_trips.percentiles_us("rt")
+            line += f"; round trip p50 {trips['rt_p50_us']:.0f} us, p99 {trips['rt_p99_us']:.0f} us"
+        return line
+
+    @property
+    def cycling(self) -> bool:
+        """Whether the bring-up is done and the loop runs its cycles."""
+        return self._token is not None
+
+    @property
+    def cycles(self) -> int:
+        """Cycles run so far."""
+        return self._cycle
+
+    def clock(self) -> float:
+        """The controller's time: cycles x period in lock-step, monotonic otherwise."""
+        return self._cycle * self.period if self.lock_step else time.monotonic() - self._start
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def reset_faults(self, timeout: float = RESET_TIMEOUT) -> tuple[bool, str]:
+        """Reset the hardware's faults and accept goals again, holding where the joints are.
+
+        Blocks until every drive follows commands again (True), or a fault persists or
+        ``timeout`` passes (False, with why). Safe to call from any thread.
+        """
+        return self._fault_reset.request(timeout)
+
+    def run(self) -> None:
+        pacer = None
+        try:
+            start = self.hardware.start()
+            self.controller.update(self.clock(), start.positions, start.velocities)
+            self._token = self._session.liveliness().declare_token(
+                key(self.hardware.robot.name, "control"))
+            pacer = None if self.lock_step else CyclePacer(self.period, self.statistics,
+                                                           self.priority)
+            while not self._stop.is_set():
+                if pacer is not None:
+                    pacer.release()
+                self._cycle_once(pacer)
+        finally:
+            if pacer is not None:
+                pacer.close()      # shutting down is not real-time work
+            self._shut_down()
+
+    def _cycle_once(self, pacer: CyclePacer | None) -> None:
+        """One cycle: read, faults, the controller, write, record, publish."""
+        hardware = self.hardware
+        self._fault_reset.begin()
+        feedback = hardware.read()
+        self._cycle += 1
+        faults = hardware.faults()
+        for fault in faults:
+            self.faults.append(fault)
+            self.controller.abort(str(fault))
+            self._diagnose("ERROR", str(fault), fault_values(fault))
+        self._fault_reset.advance(faults)
+        now = self.clock()
+        command, velocity = self.controller.update(now, feedback.positions, feedback.velocities)
+        hardware.write(command, velocity)
+        self.samples.add(self._cycle, now, command, velocity, feedback,
+                         pacer.last_period if pacer is not None else math.nan,
+                         getattr(hardware, "last_round_trip", math.nan))
+        self._publish(feedback)
+
+    def _shut_down(self) -> None:
+        """After the last cycle: fail a reset under way, abort the goal, disable the drives,
+        publish what is left, close the faces."""
+        self._fault_reset.close()
+        self.controller.abort("the controller is shutting down")
+        self._publish_results()
+        self.hardware.stop()
+        self._publish_samples()
+        for face in self.faces:
+            face.close()
+        if self._token is not None:
+            self._token.undeclare()
+
+    def _diagnose(self, level: str, message: str,
+                  values: tuple[tuple[str, str], ...] = ()) -> None:
+        payload = DiagnosticStatus(level, message, time.time(), self.clock(),
+                                   hardware_id=self.hardware.robot.name, values=values).encode()
+        for face in self.faces:
+            face.publish_diagnostics(payload)
+
+    def _publish(self, feedback: JointFeedback) -> None:
+        if self._cycle % self._every_states == self._states_phase:
+            positions, velocities, efforts = self.broadcaster.compute(
+                feedback.positions, feedback.velocities, feedback.efforts)
+            payload = cdr.encode(cdr.joint_state_msg(time.time(), self.broadcaster.names,
+                                                     positions, velocities, efforts))
+            for face in self.faces:
+                face.publish_joint_states(payload)
+        if self._cycle % self._every_feedback == self._feedback_phase:
+            payload = feedback_payload(self.controller)
+            if payload is not None:
+                for face in self.faces:
+                    face.publish_feedback(payload)
+        self._publish_results()
+        if self.samples.full:
+            self._publish_samples()
+
+    def _publish_results(self) -> None:
+        finished = self.controller.finished()
+        if finished:
+            for face in self.faces:
+                face.publish_results(finished)
+
+    def _publish_samples(self) -> None:
+        batch = self.samples.take()
+        if batch is not None:
+            for face in self.faces:
+                face.publish_samples(batch)

@@ -1,0 +1,298 @@
+"""The CAN master: :class:`CanHardwareInterface`, for the drives of a bus config.
+
+It brings every drive up (NMT, SDO, 402 state machine to OPERATION ENABLED in cyclic
+synchronous position mode), and each cycle sends the setpoints by RPDO, produces SYNC on
+every bus and collects the TPDO feedback, mapping actuator space to joint space through the
+robot's transmissions. It watches heartbeats, EMCY and missing TPDOs; any fault or silence
+is reported with the node id and joint and quick-stops every axis.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import threading
+import time
+from typing import TYPE_CHECKING
+
+import can
+import numpy as np
+
+from hil.bus_config.types import SystemConfig
+from hil.errors import HilError
+from hil.hardware.axis import Axis, AxisFault, FaultKind
+from hil.hardware.feedback import JointFeedback, PlausibilityCheck
+from hil.hardware.interface import HardwareInterface
+from hil.protocols import protocol
+from hil.realtime import PeriodStatistics, Ring
+from hil.transmissions import TransmissionStack, build_transmissions
+
+if TYPE_CHECKING:
+    import canopen
+
+BOOT_TIMEOUT = 3.0
+ENABLE_TIMEOUT = 10.0
+MISSED_ANSWER_LIMIT = 5
+#: lock-step's wait for a cycle's answers (s): time stands still while nobody answers, so this
+#: only has to tell a slow peer (a loaded machine, User-Mode Linux) from a dead one
+LOCK_STEP_REPLY_TIMEOUT = 2.0
+#: CiA 301's SYNC COB-ID, sent on every bus with a protocol that uses it
+SYNC_ID = 0x080
+
+
+
+class CanHardwareInterface(HardwareInterface):
+    """CAN master for every drive of a bus config, each spoken to in its own protocol.
+
+    A cycle is :meth:`read` (the answers to the last SYNC), the controllers, then
+    :meth:`write` (setpoints and SYNC): the answers travel while the loop sleeps, and a
+    cycle's work does not wait for them. The answers to a SYNC are due before the next one,
+    ``reply_timeout`` after it (one period in real time); read waits for what is still
+    missing until then."""
+
+    def __init__(self, config: SystemConfig, buses: dict[str, can.BusABC],
+                 reply_timeout: float | None = None):
+        super().__init__(config.robot)
+        self.config = config
+        self.reply_timeout = reply_timeout if reply_timeout is not None else 1.0 / config.cycle_hz
+        self._buses = buses
+        self._networks: dict[str, canopen.Network] = {}
+        self.axes: list[Axis] = [protocol(drive.protocol).axis_class()(drive, bus.name,
+                                                                       self._on_feedback)
+                                 for bus in config.buses for drive in bus.drives]
+        self._sync_buses = sorted({a.bus_name for a in self.axes if a.protocol.uses_sync})
+        self._every_joint = np.ones(len(self.joint_names), dtype=bool)
+        self._all_heard = False
+        self.actuator_names = tuple(a.config.actuator for a in self.axes)
+        # joints (joint_names order) <-> actuators (axes order) in one map
+        self.transmissions = TransmissionStack(build_transmissions(config.robot),
+                                               self.joint_names, self.actuator_names)
+        self._cycle = 0
+        self._stopping = False
+        self._recovering = False
+        self._reset_cycle = 0          # the cycle reset_faults() was called in
+        self._reported: set[tuple[str, str]] = set()
+        self._pending: list[AxisFault] = []
+        self._arrived = threading.Condition()
+        # a drive may legitimately be unheard while its answers are still within the limit of
+        # missed ones: in lock-step (LOCK_STEP_REPLY_TIMEOUT), a stalled sim is slow, not dead
+        self._answer_silence_limit = MISSED_ANSWER_LIMIT * self.reply_timeout
+        self._plausibility = PlausibilityCheck(config.robot, self.joint_names)
+        #: each cycle's round trip (s): its SYNC (last frame) sent to its last answer in
+        self.round_trips = Ring(PeriodStatistics.KEEP)
+        self._last_answer = 0.0
+        self._sync_sent: float | None = None     # perf_counter of the last write's SYNC
+        #: the round trip of the cycle :meth:`read` last took (s; NaN: not every answer came)
+        self.last_round_trip = math.nan
+
+    # --- bring-up ---------------------------------------------------------------------
+
+    def start(self) -> JointFeedback:
+        # canopen loads with the first bus (its __init__ imports canopen.node.local as well,
+        # whose LocalNode the master never makes), not with the controller's modules
+        from hil.can.network import start_network
+
+        for name, bus in self._buses.items():
+            self._networks[name] = start_network(bus)
+        for axis in self.axes:
+            axis.attach(self._networks[axis.bus_name])
+        for axis in self.axes:                         # reset: every drive starts afresh
+            axis.reset()
+        hold = np.zeros(len(self.joint_names))
+        deadline = time.monotonic() + BOOT_TIMEOUT
+        # cycles run meanwhile (unwatched): some protocols are heard only in answers
+        while not all(axis.booted.is_set() for axis in self.axes):
+            self.write(hold, np.zeros_like(hold), enabling=True)
+            hold = self.read(watch=False).positions
+            if time.monotonic() > deadline:
+                silent = [a.label for a in self.axes if not a.booted.is_set()]
+                raise HilError.single(
+                    f"{'; '.join(silent)}: not heard within {BOOT_TIMEOUT:g} s after reset",
+                    hint="is `hil sim` (or the real drive) running on this bus, with the same "
+                         "node id and protocol?")
+        for axis in self.axes:
+            axis.configure()
+            axis.feedback.cycle = self._cycle    # missed answers count from here on
+        deadline = time.monotonic() + ENABLE_TIMEOUT
+        while True:
+            self.write(hold, np.zeros_like(hold), enabling=True)
+            feedback = self.read()
+            hold = feedback.positions
+            waiting = [a for a in self.axes if not a.enabled]
+            if not waiting:
+                break
+            # a silence or fault seen while enabling ends the bring-up with what it was
+            faults = list(self._pending) + [f for f in map(Axis.fault, waiting) if f]
+            if faults or time.monotonic() > deadline:
+                raise HilError.single(
+                    "drives did not enable: " + "; ".join(
+                        [str(f) for f in faults] or [f"{a.label} is {a.state}" for a in waiting]))
+        self._pending.clear()
+        return feedback
+
+    # --- cyclic ------------------------------------------------------------------------------
+
+    def read(self, watch: bool = True) -> JointFeedback:
+        """The answers to the last SYNC: waited for until ``reply_timeout`` after it; with
+        ``watch``, missing answers, faults and silences are reported (:meth:`faults`)."""
+        self.last_round_trip = math.nan
+        if self._sync_sent is not None:
+            deadline = self._sync_sent + self.reply_timeout
+            if self._await_feedback(skip_silent=watch, deadline=deadline):
+                self.last_round_trip = self._last_answer - self._sync_sent
+                self.round_trips.add(self.last_round_trip)
+        if watch:
+            self._watch()
+        if self._recovering and not self._stopping and all(a.enabled for a in self.axes):
+            self._recovering = False
+        return self._checked(self._joint_feedback())
+
+    def write(self, positions, velocities, enabling: bool = False) -> None:
+        """This cycle's frames of every axis (walking it toward following ``positions``, or
+        holding where it is while ``enabling`` or recovering), then SYNC on every bus."""
+        self._cycle += 1
+        targets = self.transmissions.joint_to_actuator_position(positions).tolist()
+        speeds = self.transmissions.joint_to_actuator_velocity(velocities).tolist()
+        hold = enabling or self._recovering
+        for axis, target, speed in zip(self.axes, targets, speeds):
+            axis.begin_cycle(self._cycle)
+            network = self._networks[axis.bus_name]
+            for can_id, data, remote in axis.cycle_frames(target, speed, self._stopping, hold):
+                network.send_message(can_id, data, remote)
+        for name in self._sync_buses:
+            self._networks[name].send_message(SYNC_ID, b"")
+        self._sync_sent = time.perf_counter()
+
+    def _await_feedback(self, skip_silent: bool, deadline: float) -> bool:
+        """Wait (up to ``deadline``, perf_counter) until every axis' answer of this cycle is
+        in; whether they all came.
+
+        With ``skip_silent``, axes already past the missed-answer limit (reported silent) are
+        not waited for while any other axis answers: in lock-step a dead drive would hold every
+        cycle of the others for the whole timeout (2 s), and their stop with it."""
+        awaited = self.axes
+        if skip_silent:      # silent as of the last cycle's watch
+            awaited = [a for a in self.axes if not _missed_too_many(a, self._cycle - 1)] \
+                or self.axes
+        with self._arrived:
+            return self._arrived.wait_for(
+                lambda: all(a.feedback.cycle == self._cycle for a in awaited),
+                timeout=max(0.0, deadline - time.perf_counter()))
+
+    def _on_feedback(self) -> None:
+        self._last_answer = time.perf_counter()
+        with self._arrived:
+            self._arrived.notify()
+
+    def _joint_feedback(self) -> JointFeedback:
+        feedback = [axis.feedback for axis in self.axes]
+        torques = np.array([f.torque for f in feedback])
+        return JointFeedback(
+            self.transmissions.actuator_to_joint_position([f.position for f in feedback]),
+            self.transmissions.actuator_to_joint_velocity([f.velocity for f in feedback]),
+            self.transmissions.actuator_to_joint_effort(torques), torques,
+            tuple(a.state for a in self.axes))
+
+    def _checked(self, feedback: JointFeedback) -> JointFeedback:
+        """Feedback no joint can produce is a fault, never a joint state (see
+        :class:`~hil.hardware.feedback.PlausibilityCheck`)."""
+        checked, implausible = self._plausibility.check(feedback, self._heard_joints())
+        for k, text in implausible:
+            name = self.joint_names[k]
+            axis = next(a for a in self.axes if name in a.config.joints)   # its first drive
+            self._report(name, "implausible", axis.found(FaultKind.IMPLAUSIBLE, text))
+        return checked
+
+    def _heard_joints(self) -> np.ndarray:
+        """Per joint: all its drives have answered at least once (before that, their values
+        are defaults, not measurements)."""
+        # once every drive has answered (from the first cycles on) that stays so
+        self._all_heard = self._all_heard or all(axis.feedback.heard for axis in self.axes)
+        if self._all_heard:
+            return self._every_joint
+        heard = {j: True for j in self.joint_names}
+        for axis in self.axes:
+            for joint in axis.config.joints:
+                heard[joint] = heard.get(joint, True) and axis.feedback.heard
+        return np.array([heard[j] for j in self.joint_names])
+
+    # --- faults -----------------------------------------------------------------------------
+
+    def _watch(self) -> None:
+        now = time.monotonic()
+        # a reset's first answers may be late ones, sampled before its commands reached the
+        # drives: the states it walks the drives out of (FAULT, QUICK STOP) count once an
+        # answer that late would be silence anyway
+        settling = self._recovering and self._cycle - self._reset_cycle <= MISSED_ANSWER_LIMIT
+        for axis in self.axes:
+            # a silence is reported once per axis, not once per silent cycle; a drive's own
+            # fault once per distinct message
+            fault = None if settling else axis.fault(self._stopping)
+            if fault is not None:
+                self._report(axis.label, fault.message, fault)
+            silence = now - axis.last_heard
+            if silence > max(axis.silence_limit, self._answer_silence_limit):
+                self._report(axis.label, "heartbeat", axis.found(
+                    FaultKind.SILENT, f"is silent: not heard for {silence * 1e3:.0f} ms"))
+            if _missed_too_many(axis, self._cycle):
+                self._report(axis.label, "answer", axis.found(
+                    FaultKind.SILENT,
+                    f"is silent: no answer for {self._cycle - axis.feedback.cycle} cycles"))
+
+    def _report(self, subject: str, what: str, fault: AxisFault) -> None:
+        """Queue a fault for :meth:`faults` (once per subject and what) and stop every axis."""
+        if (subject, what) not in self._reported:
+            self._reported.add((subject, what))
+            self._pending.append(fault)
+            self._stopping = True
+
+    def faults(self) -> list[AxisFault]:
+        found, self._pending = self._pending, []
+        return found
+
+    @property
+    def stopping(self) -> bool:
+        return self._stopping
+
+    def reset_faults(self) -> None:
+        """Fault-reset faulted drives, disable quick-stopped ones, and enable them all again at
+        standstill. A fault that persists (a silent drive, a fault still present) is reported
+        again by the next cycles."""
+        self._recovering = True
+        self._reset_cycle = self._cycle
+        self._stopping = False
+        self._reported.clear()
+        self._pending.clear()
+        for axis in self.axes:
+            axis.forget_faults()
+
+    @property
+    def ready(self) -> bool:
+        return not (self._stopping or self._recovering)
+
+    def stop(self) -> None:
+        """Disable every drive (each in its protocol's way), then release the buses."""
+        # each axis' rounds once (MIT's marks the motor as leaving motor mode), sent in step
+        rounds = [[(axis.bus_name, frames) for frames in axis.disable_rounds()]
+                  for axis in self.axes]
+        for step in itertools.zip_longest(*rounds):
+            for bus_name, frames in filter(None, step):
+                for can_id, data, remote in frames:
+                    self._send_quietly(bus_name, can_id, data, remote)
+            for name in self._sync_buses:
+                self._send_quietly(name, SYNC_ID, b"", False)
+            time.sleep(2.0 / self.config.cycle_hz)
+        for network in self._networks.values():
+            network.notifier.stop(1.0)
+
+    def _send_quietly(self, bus: str, can_id: int, data: bytes, remote: bool) -> None:
+        try:
+            self._networks[bus].send_message(can_id, data, remote)
+        except can.CanError:
+            pass
+
+
+def _missed_too_many(axis: Axis, cycle: int) -> bool:
+    """Whether ``axis`` has missed more than MISSED_ANSWER_LIMIT answers by ``cycle``: the
+    watch reports it silent, and the cycles after that do not wait for it."""
+    return cycle - axis.feedback.cycle > MISSED_ANSWER_LIMIT

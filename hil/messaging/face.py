@@ -1,0 +1,78 @@
+"""The controller's faces to other processes: where the control loop's outputs go.
+
+A :class:`ControlFace` takes what the loop produced, encoded once as CDR of hil's messages,
+and puts it where its clients look: :class:`ZenohControlFace` on hil's own keys
+(:mod:`hil.messaging.keys`), :class:`hil.messaging.ros.face.RosControlFace` on rmw_zenoh's.
+Every method is called from the control loop and must take microseconds (a put of bytes,
+a hand-over to a thread); a face publishes what it has a use for and leaves the rest to
+the no-ops here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import zenoh
+
+from hil.controllers import GoalResult, JointTrajectoryController
+from hil.messaging.action import TrajectoryActionServer
+from hil.messaging.samples import ControlSamples
+from hil.messaging.zenoh_api import (
+    ControlSamplesPublisher, DiagnosticsPublisher, JointStatePublisher,
+)
+
+
+class ControlFace:
+    """One face of the controller; the control node calls each of its faces in turn."""
+
+    def publish_joint_states(self, payload: bytes) -> None:
+        """sensor_msgs/JointState of every movable joint."""
+
+    def publish_feedback(self, payload: bytes) -> None:
+        """The active goal's FollowJointTrajectory FeedbackMessage."""
+
+    def publish_diagnostics(self, payload: bytes) -> None:
+        """A diagnostic_msgs/DiagnosticArray: a fault, a fault reset."""
+
+    def publish_results(self, finished: list[tuple[str, GoalResult]]) -> None:
+        """The goals that ended since the last call, (goal id, result)."""
+
+    def publish_samples(self, batch: ControlSamples) -> None:
+        """A batch of recorded control cycles."""
+
+    def close(self) -> None:
+        """Undeclare everything; called once, after the loop's last cycle."""
+
+
+class ZenohControlFace(ControlFace):
+    """hil's own keys: joint states, the trajectory action (goals in, feedback and results
+    out), diagnostics, control samples and the fault reset query."""
+
+    def __init__(self, session: zenoh.Session, robot: str, controller: JointTrajectoryController,
+                 clock: Callable[[], float], reset: Callable[[], tuple[bool, str]]):
+        self.server = TrajectoryActionServer(session, robot, controller, clock)
+        self.server.on_reset = reset
+        self._joint_states = JointStatePublisher(session, robot)
+        self._samples = ControlSamplesPublisher(session, robot)
+        self._diagnostics = DiagnosticsPublisher(session, robot)
+
+    def publish_joint_states(self, payload: bytes) -> None:
+        self._joint_states.put(payload)
+
+    def publish_feedback(self, payload: bytes) -> None:
+        self.server.put_feedback(payload)
+
+    def publish_diagnostics(self, payload: bytes) -> None:
+        self._diagnostics.put(payload)
+
+    def publish_results(self, finished: list[tuple[str, GoalResult]]) -> None:
+        self.server.publish_results(finished)
+
+    def publish_samples(self, batch: ControlSamples) -> None:
+        self._samples.publish(batch)
+
+    def close(self) -> None:
+        self.server.close()
+        self._joint_states.close()
+        self._samples.close()
+        self._diagnostics.close()
