@@ -70,8 +70,8 @@ def test_malformed_control_samples_are_refused_with_the_field_named():
 
 
 def test_diagnostics_survive_encoding_and_malformed_ones_are_refused_naming_what():
-    fault = DiagnosticStatus("ERROR", "drive node 2 (joint2) on bus 'arm' is in FAULT", 1.7e9 + 0.25,
-                       12.5, hardware_id="ur3")
+    fault = DiagnosticStatus("ERROR", "drive node 2 (joint2) on bus 'arm' is in FAULT",
+                             1.7e9 + 0.25, 12.5, hardware_id="ur3")
     assert DiagnosticStatus.decode(fault.encode()) == [fault]
     foreign = DiagnosticStatus("WARN", "from a ROS node", 1.7e9, None, name="other")
     assert DiagnosticStatus.decode(foreign.encode()) == [foreign]      # no controller clock

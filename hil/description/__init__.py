@@ -8,8 +8,9 @@ package look-up of ``$(find)`` and ``package://``) load on first use.
 from __future__ import annotations
 
 from hil.description.model import (
-    TRANSMISSION_TYPES, WORLD, Geometry, GeometryKind, Inertial, Joint, JointDynamics, JointLimits, JointType, Link, Mimic,
-    Pose, RobotDescription, TransmissionActuator, TransmissionJoint, TransmissionSpec, Visual,
+    TRANSMISSION_TYPES, WORLD, Geometry, GeometryKind, Inertial, Joint, JointDynamics, JointLimits,
+    JointType, Link, Mimic, Pose, RobotDescription, TransmissionActuator, TransmissionJoint,
+    TransmissionSpec, Visual,
 )
 from hil.lazy import lazy_exports
 

@@ -201,7 +201,7 @@ class RosControlFace(ControlFace):
 
     def _warn(self, message: str) -> None:
         self.publish_diagnostics(DiagnosticStatus("WARN", message, time.time(), self._clock(),
-                                            hardware_id=CONTROL_NODE).encode())
+                                                  hardware_id=CONTROL_NODE).encode())
 
     # Called from the control loop: a put of bytes already encoded (measured in hil up ur3
     # --ros: p50 20 us, p99 30 us), which waits at most DROP_WAIT_US for a congested router
