@@ -323,7 +323,7 @@ def _zenoh_threads_scheduling(pid: int):
     return setting(pid), threads
 
 
-def test_use_sim_time_stamps_joint_states_and_feedback_on_the_plants_clock(router):
+def test_use_sim_time_stamps_joint_states_feedback_and_goals_on_the_plants_clock(router):
     hil_session = ZenohSettings(listen=(f"tcp/127.0.0.1:{free_loopback_port()}",))
     plant = PlantClock(session(hil_session), "ur3")
     sim_clock = SimClockPublisher(session(hil_session), "ur3")
@@ -337,16 +337,22 @@ def test_use_sim_time_stamps_joint_states_and_feedback_on_the_plants_clock(route
             states_sub, states = _collect(spec, "/simtime/joint_states", cdr.JOINT_STATE)
             feedback_sub, feedback = _collect(spec, f"/simtime{ACTION}/feedback",
                                               cdr.FEEDBACK_MESSAGE)
+            status_sub, statuses = _collect(spec, f"/simtime{ACTION}/status",
+                                            "action_msgs/msg/GoalStatusArray")
             time.sleep(0.3)
             assert not states, "joint states published before the plant's time was known"
             now = time.time()
             sim_clock.publish(now - 0.05, 100.0)       # the plant runs at twice the wall's pace
             sim_clock.publish(now, 100.1)
             goal_id = uuid.uuid4().hex
-            assert _send(spec, _goal_request(goal_id, 1.0, 0.3), f"/simtime{ACTION}")
+            reply = spec.call(spec.find("SS", f"/simtime{ACTION}/send_goal"),
+                              _goal_request(goal_id, 1.0, 0.3))
+            accepted = cdr.decode(reply, cdr.SEND_GOAL_RESPONSE)
+            assert accepted.accepted
             assert _result(spec, goal_id, f"/simtime{ACTION}").status == SUCCEEDED
             states_sub.undeclare()
             feedback_sub.undeclare()
+            status_sub.undeclare()
     finally:
         spec.close()
         sim_clock.close()
@@ -355,3 +361,65 @@ def test_use_sim_time_stamps_joint_states_and_feedback_on_the_plants_clock(route
     assert stamps and all(100.0 < t < 200.0 for t in stamps), stamps[:5]
     assert feedback and all(100.0 < cdr.seconds_of(f.feedback.header.stamp) < 200.0
                             for f in feedback)
+    # rcl_action stamps goals on the node's ROS time: the plant's here
+    assert 100.0 < cdr.seconds_of(accepted.stamp) < 200.0
+    goal_stamps = [cdr.seconds_of(s.goal_info.stamp) for array in statuses
+                   for s in array.status_list if cdr.goal_id_of(s.goal_info.goal_id) == goal_id]
+    assert goal_stamps and all(100.0 < t < 200.0 for t in goal_stamps), goal_stamps
+
+
+#: control_msgs 6.3's FollowJointTrajectory feedback (ROS 2 Kilted, Lyrical), from its .action
+KILTED_FEEDBACK = """std_msgs/Header header
+string[] joint_names
+trajectory_msgs/JointTrajectoryPoint desired
+trajectory_msgs/JointTrajectoryPoint actual
+trajectory_msgs/JointTrajectoryPoint error
+int32 index
+string[] multi_dof_joint_names
+trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_desired
+trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_actual
+trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_error
+int32 multi_dof_index"""
+#: what ROS computes for it (the prefix reported on issue 27, checked against ROS's own
+#: hash computation over control_msgs 6.3's definitions)
+KILTED_FEEDBACK_MESSAGE_HASH = "RIHS01_95618cc7"
+
+
+def test_a_kilted_client_receives_feedback_in_control_msgs_6s_layout_with_point_indices(router):
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    kilted = get_typestore(Stores.ROS2_KILTED)
+    kilted.register(get_types_from_msg(KILTED_FEEDBACK,
+                                       "control_msgs/action/FollowJointTrajectory_Feedback"))
+    kilted.register(get_types_from_msg(
+        "unique_identifier_msgs/UUID goal_id\n"
+        "control_msgs/action/FollowJointTrajectory_Feedback feedback", cdr.FEEDBACK_MESSAGE))
+    settings = RosSettings(router=router, namespace="/kilted", distro="kilted")
+    spec = SpecClient(router)
+    action = f"/kilted{ACTION}"
+    got: list = []
+    try:
+        with running_stack(load_bus_config(config_path("ur3")), lock_step=True,
+                           faces=[lambda node: RosControlFace(
+                               settings, node.controller, node.clock, "<robot/>")]):
+            token = spec.find("MP", f"{action}/feedback")
+            assert token.type_hash.startswith(KILTED_FEEDBACK_MESSAGE_HASH), token.type_hash
+            subscriber = spec.session.declare_subscriber(
+                token.key(0), lambda s: got.append(kilted.deserialize_cdr(
+                    s.payload.to_bytes(), cdr.FEEDBACK_MESSAGE)))
+            goal_id = uuid.uuid4().hex
+            goal = TrajectoryGoal(("joint3",), tuple(
+                TrajectoryPoint(t, (q,), (0.0,)) for t, q in ((0.5, 0.1), (1.0, 0.2),
+                                                              (1.5, 0.3))))
+            request = cdr.encode(cdr.msg(cdr.SEND_GOAL_REQUEST, goal_id=cdr.uuid_msg(goal_id),
+                                         goal=cdr.goal_msg(goal)))
+            assert _send(spec, request, action)
+            assert _result(spec, goal_id, action).status == SUCCEEDED
+            time.sleep(0.2)
+            subscriber.undeclare()
+    finally:
+        spec.close()
+    ours = [f.feedback for f in got if cdr.goal_id_of(f.goal_id) == goal_id]
+    assert ours, "no feedback decoded in Kilted's layout"
+    indices = [f.index for f in ours]
+    assert indices == sorted(indices) and {0, 1, 2} <= set(indices), indices
+    assert all(f.multi_dof_index == 0 and list(f.joint_names) == UR3_JOINTS for f in ours)

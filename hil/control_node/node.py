@@ -24,7 +24,7 @@ from hil.controllers.joint_state import JointStateBroadcaster
 from hil.hardware import AxisFault, HardwareInterface
 from hil.hardware.feedback import JointFeedback
 from hil.messaging import cdr
-from hil.messaging.action import feedback_payload
+from hil.messaging.action import feedback_message
 from hil.messaging.diagnostics import DiagnosticStatus, fault_values
 from hil.messaging.face import ControlFace, ZenohControlFace
 from hil.messaging.keys import key
@@ -185,10 +185,11 @@ class ControlNode:
             for face in self.faces:
                 face.publish_joint_states(payload)
         if self._cycle % self._every_feedback == self._feedback_phase:
-            payload = feedback_payload(self.controller)
-            if payload is not None:
+            state = self.controller.state()
+            if state.goal_id is not None:
+                payload = cdr.encode(feedback_message(state))
                 for face in self.faces:
-                    face.publish_feedback(payload)
+                    face.publish_feedback(payload, state)
         self._publish_results()
         if self.samples.full:
             self._publish_samples()

@@ -86,9 +86,14 @@ class Spline:
     def end(self) -> float:
         return float(self.t1[-1])
 
+    def segment_at(self, t: float) -> int:
+        """The segment running at ``t`` (goal clock): the index of the point it runs to
+        (0 before the start, the last after the end)."""
+        return min(int(np.searchsorted(self.t1, t, side="left")), len(self.t1) - 1)
+
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration at ``t`` (goal clock), held at either end."""
-        s = min(int(np.searchsorted(self.t1, t, side="left")), len(self.t1) - 1)
+        s = self.segment_at(t)
         tau = min(max(t - self.t0[s], 0.0), self.t1[s] - self.t0[s])
         c = self.coefficients[s]
         powers = tau ** np.arange(6)

@@ -60,6 +60,9 @@ class ControllerState:
     actual_positions: np.ndarray
     actual_velocities: np.ndarray
     goal_id: str | None
+    #: the trajectory point the active goal moves to now (control_msgs 6's feedback
+    #: ``index``: "the currently used point"); 0 before it starts and without a goal
+    point_index: int = 0
     errors: np.ndarray = field(init=False)
 
     def __post_init__(self):
@@ -177,10 +180,12 @@ class JointTrajectoryController:
 
     def state(self) -> ControllerState:
         with self._lock:
+            goal = self._active if self._active and not self._active.result else None
             return ControllerState(
                 self._now, self.joint_names, self._desired.copy(), self._desired_velocity.copy(),
                 self._actual.copy(), self._actual_velocity.copy(),
-                self._active.goal_id if self._active and not self._active.result else None)
+                goal.goal_id if goal else None,
+                goal.spline.segment_at(self._now - goal.start) if goal else 0)
 
     # --- internals (lock held) ----------------------------------------------------
 

@@ -14,7 +14,8 @@ import numpy as np
 import zenoh
 
 from hil.controllers import (
-    GoalRejected, GoalResult, GoalStatus, JointTrajectoryController, TrajectoryGoal,
+    ControllerState, GoalRejected, GoalResult, GoalStatus, JointTrajectoryController,
+    TrajectoryGoal,
 )
 from hil.messaging import cdr
 from hil.messaging.keys import ACTION, direct, key
@@ -50,10 +51,11 @@ class TrajectoryActionServer:
         """Encode each message type once: rosbags builds its codecs on first use, which
         would otherwise stall the first control cycles that publish."""
         names = list(self.controller.joint_names)
-        zeros = [0.0] * len(names)
+        zeros = np.zeros(len(names))
         cdr.encode(cdr.joint_state_msg(0.0, names, zeros, zeros, zeros))
         cdr.encode(cdr.result_msg("00" * 16, GoalResult(GoalStatus.SUCCEEDED, 0)))
-        cdr.encode(_feedback_message("00" * 16, names, zeros, zeros, zeros, zeros))
+        cdr.encode(feedback_message(ControllerState(0.0, tuple(names), zeros, zeros, zeros, zeros,
+                                                    "00" * 16)))
 
     def _on_send_goal(self, query: zenoh.Query) -> None:
         try:
@@ -98,7 +100,7 @@ class TrajectoryActionServer:
                                                          message=message)))
 
     def put_feedback(self, payload: bytes) -> None:
-        """Put the active goal's FeedbackMessage (:func:`feedback_payload`)."""
+        """Put the active goal's FeedbackMessage (:func:`feedback_message`, encoded)."""
         self._feedback.put(payload)
 
     def publish_results(self, finished: list[tuple[str, GoalResult]]) -> None:
@@ -115,27 +117,25 @@ class TrajectoryActionServer:
         self._result.undeclare()
 
 
-def feedback_payload(controller: JointTrajectoryController) -> bytes | None:
-    """The active goal's FeedbackMessage as CDR; None without an active goal."""
-    state = controller.state()
-    if state.goal_id is None:
-        return None
-    return cdr.encode(_feedback_message(
-        state.goal_id, state.joint_names, state.desired_positions, state.desired_velocities,
-        state.actual_positions, state.actual_velocities))
-
-
-def _feedback_message(goal_id, names, desired, desired_velocity, actual, actual_velocity):
-    desired, actual = np.asarray(desired), np.asarray(actual)
-    desired_velocity, actual_velocity = np.asarray(desired_velocity), np.asarray(actual_velocity)
-    feedback = cdr.msg(
-        "control_msgs/action/FollowJointTrajectory_Feedback", header=cdr.header(time.time()),
-        joint_names=list(names), desired=cdr.point_msg(desired, desired_velocity),
+def feedback_message(state: ControllerState, types=cdr.TYPES):
+    """The active goal's FeedbackMessage (``state.goal_id`` set) as ``types`` lays it out:
+    with control_msgs 6's point indices where its Feedback has them (``types``: see
+    :func:`hil.messaging.cdr.encode`)."""
+    desired, actual = np.asarray(state.desired_positions), np.asarray(state.actual_positions)
+    desired_velocity = np.asarray(state.desired_velocities)
+    actual_velocity = np.asarray(state.actual_velocities)
+    feedback_type = types.types["control_msgs/action/FollowJointTrajectory_Feedback"]
+    indices = ({"index": state.point_index, "multi_dof_index": 0}
+               if "index" in feedback_type.__dataclass_fields__ else {})
+    feedback = feedback_type(
+        header=cdr.header(time.time()), joint_names=list(state.joint_names),
+        desired=cdr.point_msg(desired, desired_velocity),
         actual=cdr.point_msg(actual, actual_velocity),
         error=cdr.point_msg(desired - actual, desired_velocity - actual_velocity),
         multi_dof_joint_names=[], multi_dof_desired=_empty_multi_dof(),
-        multi_dof_actual=_empty_multi_dof(), multi_dof_error=_empty_multi_dof())
-    return cdr.msg(cdr.FEEDBACK_MESSAGE, goal_id=cdr.uuid_msg(goal_id), feedback=feedback)
+        multi_dof_actual=_empty_multi_dof(), multi_dof_error=_empty_multi_dof(), **indices)
+    return types.types[cdr.FEEDBACK_MESSAGE](goal_id=cdr.uuid_msg(state.goal_id),
+                                             feedback=feedback)
 
 
 def submit_goal_request(controller: JointTrajectoryController, clock: Callable[[], float],

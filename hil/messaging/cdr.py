@@ -101,14 +101,16 @@ def msg(typename: str, **fields):
     return TYPES.types[typename](**fields)
 
 
-def encode(message) -> bytes:
-    return bytes(TYPES.serialize_cdr(message, message.__msgtype__))
+def encode(message, types=TYPES) -> bytes:
+    """CDR of ``message`` as ``types`` (a rosbags store: hil's own, or a ROS distribution's,
+    :func:`hil.messaging.ros.interfaces.distro_types`) lays out its type."""
+    return bytes(types.serialize_cdr(message, message.__msgtype__))
 
 
-def decode(data: bytes, typename: str):
+def decode(data: bytes, typename: str, types=TYPES):
     """Decode CDR; raises ValueError (with the type) for anything malformed."""
     try:
-        return TYPES.deserialize_cdr(bytes(data), typename)
+        return types.deserialize_cdr(bytes(data), typename)
     except Exception as exc:   # rosbags raises struct/index/assertion errors on bad input
         raise ValueError(f"malformed {typename} payload ({len(data)} bytes): {exc}") from None
 

@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import zenoh
 
-from hil.controllers import GoalResult, JointTrajectoryController
+from hil.controllers import ControllerState, GoalResult, JointTrajectoryController
 from hil.messaging.action import TrajectoryActionServer
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import (
@@ -28,8 +28,9 @@ class ControlFace:
     def publish_joint_states(self, payload: bytes) -> None:
         """sensor_msgs/JointState of every movable joint."""
 
-    def publish_feedback(self, payload: bytes) -> None:
-        """The active goal's FollowJointTrajectory FeedbackMessage."""
+    def publish_feedback(self, payload: bytes, state: ControllerState) -> None:
+        """The active goal's FollowJointTrajectory FeedbackMessage, and the controller's
+        state it was made from (for a face whose clients expect another layout)."""
 
     def publish_diagnostics(self, payload: bytes) -> None:
         """A diagnostic_msgs/DiagnosticArray: a fault, a fault reset."""
@@ -59,7 +60,7 @@ class ZenohControlFace(ControlFace):
     def publish_joint_states(self, payload: bytes) -> None:
         self._joint_states.put(payload)
 
-    def publish_feedback(self, payload: bytes) -> None:
+    def publish_feedback(self, payload: bytes, state: ControllerState) -> None:
         self.server.put_feedback(payload)
 
     def publish_diagnostics(self, payload: bytes) -> None:

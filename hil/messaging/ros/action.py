@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from hil.controllers import GoalRejected, GoalResult, GoalStatus, TrajectoryGoal
 from hil.messaging import cdr
 from hil.messaging.action import submit_goal_request
-from hil.messaging.ros.interfaces import FollowJointTrajectory
+from hil.messaging.ros.interfaces import FollowJointTrajectory, distro_types
 from hil.messaging.ros.node import NO_LIMIT, RosNode, ServiceError, ServiceRequest
 from hil.messaging.ros.rmw_zenoh import ACTION_STATUS_QOS
 from hil.realtime import enter_side_work
@@ -60,10 +60,10 @@ def ros_status(status: GoalStatus) -> RosGoalStatus:
 @dataclass
 class _Goal:
     goal_id: str
-    accepted: float                       # wall-clock time
+    accepted: float                       # ROS time (the server's ros_time)
     status: RosGoalStatus
     result: GoalResult | None = None
-    finished: float = 0.0
+    finished: float = 0.0                 # wall-clock time, for how long it is kept
 
 
 class RosTrajectoryActionServer:
@@ -72,8 +72,13 @@ class RosTrajectoryActionServer:
 
     def __init__(self, node: RosNode, name: str, interfaces: FollowJointTrajectory,
                  controller, clock: Callable[[], float],
-                 on_rejected: Callable[[str], None] | None = None):
+                 on_rejected: Callable[[str], None] | None = None,
+                 ros_time: Callable[[], float] = time.time):
+        """``clock``: the controller's; ``ros_time``: the node's ROS time (s since the
+        epoch, or the plant's time with use_sim_time), which stamps goals as rcl_action
+        does (accepted goals, cancel requests by time)."""
         self.controller, self.clock, self.on_rejected = controller, clock, on_rejected
+        self.ros_time = ros_time
         self._goals: dict[str, _Goal] = {}
         self._waiting: dict[str, list[ServiceRequest]] = {}   # get_result before the end
         self._lock = threading.Lock()
@@ -110,9 +115,9 @@ class RosTrajectoryActionServer:
             if self.on_rejected is not None:
                 self.on_rejected(f"goal rejected: {exc}")
             request.reply(cdr.encode(cdr.msg(cdr.SEND_GOAL_RESPONSE, accepted=False,
-                                             stamp=cdr.time_msg(time.time()))))
+                                             stamp=cdr.time_msg(self.ros_time()))))
             return
-        now = time.time()
+        now = self.ros_time()
         with self._lock:
             # rcl_action: ACCEPTED, then EXECUTING once the server runs it, which the
             # controller already does
@@ -231,6 +236,7 @@ class RosTrajectoryActionClient:
         self._send = node.client(f"{prefix}/send_goal", interfaces.send_goal)
         self._cancel = node.client(f"{prefix}/cancel_goal", interfaces.cancel_goal)
         self._result = node.client(f"{prefix}/get_result", interfaces.get_result)
+        self._types = distro_types(interfaces.distro)
         self._feedback: queue.SimpleQueue = queue.SimpleQueue()
         self._feedback_subscription = node.subscription(
             f"{prefix}/feedback", interfaces.feedback,
@@ -265,7 +271,7 @@ class RosTrajectoryActionClient:
         caller.start()
         while True:
             while not self._feedback.empty():
-                feedback = cdr.decode(self._feedback.get(), cdr.FEEDBACK_MESSAGE)
+                feedback = cdr.decode(self._feedback.get(), cdr.FEEDBACK_MESSAGE, self._types)
                 if on_feedback is not None and cdr.goal_id_of(feedback.goal_id) == goal_id:
                     on_feedback(feedback.feedback)
             try:

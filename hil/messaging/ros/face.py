@@ -22,14 +22,16 @@ from dataclasses import dataclass
 
 import zenoh
 
+from hil.controllers import ControllerState
 from hil.errors import HilError
 from hil.messaging import cdr
+from hil.messaging.action import feedback_message
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.face import ControlFace
 from hil.messaging.keys import direct, key
 from hil.messaging.ros.action import RosTrajectoryActionServer
 from hil.messaging.ros.interfaces import (
-    DEFAULT_DISTRO, FollowJointTrajectory, TypeHashes, known_distro,
+    DEFAULT_DISTRO, FollowJointTrajectory, TypeHashes, distro_types, known_distro,
 )
 from hil.messaging.ros.node import RosContext, RosNode, RosPublisher, ServiceRequest
 from hil.messaging.ros.rmw_zenoh import CLOCK_QOS, LATCHED_QOS
@@ -172,6 +174,7 @@ class RosControlFace(ControlFace):
         self.context = open_context(settings)
         self._clock = clock
         hashes = TypeHashes(settings.distro)
+        self._types = distro_types(settings.distro)
         self.node = RosNode(self.context, CONTROL_NODE, settings.namespace)
         self._joint_states = self.node.publisher("joint_states",
                                                  hashes.message(cdr.JOINT_STATE))
@@ -183,11 +186,19 @@ class RosControlFace(ControlFace):
                                                  data=robot_description)))
         self.action = RosTrajectoryActionServer(
             self.node, ACTION_NAME, FollowJointTrajectory.for_distro(hashes), controller, clock,
-            on_rejected=self._warn)
+            on_rejected=self._warn, ros_time=self._ros_time)
         self._reset = reset
         self._reset_service = self.node.service(
             reset_service_name(settings), hashes.service("std_srvs/srv/Trigger"),
             self._on_reset)
+
+    def _ros_time(self) -> float:
+        """The node's ROS time: the wall clock, or with ``plant_clock`` the plant's time
+        (0 until it is known, as rcl's clock reads before the first /clock)."""
+        if self._plant_clock is None:
+            return time.time()
+        plant_time = self._plant_clock.at(time.time())
+        return 0.0 if plant_time is None else plant_time
 
     def _on_reset(self, request: ServiceRequest) -> None:
         # a reset takes up to seconds: answered from a thread of its own, not Zenoh's
@@ -209,7 +220,9 @@ class RosControlFace(ControlFace):
     def publish_joint_states(self, payload: bytes) -> None:
         self._put(self._joint_states, payload, JOINT_STATE_STAMP)
 
-    def publish_feedback(self, payload: bytes) -> None:
+    def publish_feedback(self, payload: bytes, state: ControllerState) -> None:
+        if self._types is not cdr.TYPES:       # the distribution's own layout (control_msgs 6)
+            payload = cdr.encode(feedback_message(state, self._types), self._types)
         self._put(self.action.feedback, payload, FEEDBACK_STAMP)
 
     def publish_diagnostics(self, payload: bytes) -> None:

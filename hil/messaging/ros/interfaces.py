@@ -1,8 +1,10 @@
 """The ROS 2 interfaces hil serves: their names in rmw_zenoh's ``dds_`` form and their
 RIHS01 type hashes (REP-2016) for a ROS distribution.
 
-A message's hash comes from rosbags' type store for the distribution (its
-``hash_rihs01``). Services and actions need what rosidl synthesises around their
+hil's own definitions (:data:`hil.messaging.cdr.DEFINITIONS`) are the interfaces as ROS 2
+Jazzy releases them; :data:`DISTRO_DEFINITIONS` holds what a later distribution's releases
+changed, and :func:`distro_types` is the CDR codec of that distribution's layouts. A
+message's hash comes from rosbags' type store for the distribution (its ``hash_rihs01``). Services and actions need what rosidl synthesises around their
 parts, which rosbags does not: the service type (``request_message``,
 ``response_message``, ``event_message``), its ``_Event`` message (``service_msgs/
 ServiceEventInfo`` plus a request and a response bounded to one), and an action's
@@ -21,12 +23,27 @@ from dataclasses import dataclass
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.base import Nodetype
 
-from hil.messaging.cdr import DEFINITIONS as HIL_DEFINITIONS
+from hil.messaging import cdr
 
 #: ROS 2 distributions with rmw_zenoh and type hashes, and rosbags' store of each
 DISTROS = {"jazzy": Stores.ROS2_JAZZY, "kilted": Stores.ROS2_KILTED,
            "lyrical": Stores.ROS2_LYRICAL}
 DEFAULT_DISTRO = "jazzy"
+
+FEEDBACK = "control_msgs/action/FollowJointTrajectory_Feedback"
+#: control_msgs 6.3 (released for Kilted and Lyrical; Jazzy's is 5.x) added to
+#: FollowJointTrajectory's feedback "the currently used point" of the trajectory, after
+#: ``error``, and of the multi-DOF trajectory, last. Checked: hashed, this placement alone
+#: gives the FeedbackMessage hash ROS computes for Kilted (RIHS01_95618cc7...)
+_FEEDBACK_WITH_INDICES = cdr.DEFINITIONS[FEEDBACK].replace(
+    "trajectory_msgs/JointTrajectoryPoint error\n",
+    "trajectory_msgs/JointTrajectoryPoint error\nint32 index\n") + "\nint32 multi_dof_index"
+#: what each distribution's releases change in hil's own definitions (Jazzy's)
+DISTRO_DEFINITIONS: dict[str, dict[str, str]] = {
+    "jazzy": {},
+    "kilted": {FEEDBACK: _FEEDBACK_WITH_INDICES},
+    "lyrical": {FEEDBACK: _FEEDBACK_WITH_INDICES},
+}
 
 # REP-2016 field type ids (type_description_interfaces/FieldType)
 _TYPE_IDS = {"int8": 2, "uint8": 3, "int16": 4, "uint16": 5, "int32": 6, "uint32": 7,
@@ -71,6 +88,19 @@ def dds_type_name(name: str) -> str:
     return f"{package}::{kind}::dds_::{base}_"
 
 
+@functools.cache
+def distro_types(distro: str):
+    """The CDR codec (a rosbags type store) of hil's messages as ``distro`` releases them:
+    :data:`hil.messaging.cdr.TYPES` itself where the distribution changed nothing."""
+    overlay = DISTRO_DEFINITIONS[known_distro(distro)]
+    if not overlay:
+        return cdr.TYPES
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    for name, text in {**cdr.DEFINITIONS, **overlay}.items():
+        store.register(get_types_from_msg(text, name))
+    return store
+
+
 class TypeHashes:
     """RIHS01 hashes of the interfaces of one ROS 2 distribution."""
 
@@ -78,7 +108,8 @@ class TypeHashes:
         self.distro = known_distro(distro)
         self._store = get_typestore(DISTROS[distro])
         self._fields: dict[str, list] = {}
-        for name, text in {**HIL_DEFINITIONS, **_EXTRA_DEFINITIONS}.items():
+        for name, text in {**cdr.DEFINITIONS, **DISTRO_DEFINITIONS[distro],
+                           **_EXTRA_DEFINITIONS}.items():
             self.define(name, text)
 
     def define(self, name: str, text: str) -> None:
@@ -174,6 +205,7 @@ class FollowJointTrajectory:
     get_result: Interface
     feedback: Interface
     status: Interface
+    distro: str                      # whose layouts the payloads have (distro_types)
 
     @classmethod
     def for_distro(cls, hashes: TypeHashes) -> FollowJointTrajectory:
@@ -182,8 +214,8 @@ class FollowJointTrajectory:
                    hashes.service("action_msgs/srv/CancelGoal"),
                    hashes.service(f"{base}_GetResult"),
                    hashes.message(f"{base}_FeedbackMessage"),
-                   hashes.message("action_msgs/msg/GoalStatusArray"))
+                   hashes.message("action_msgs/msg/GoalStatusArray"), hashes.distro)
 
 
-__all__ = ["DEFAULT_DISTRO", "DISTROS", "FollowJointTrajectory", "Interface", "TypeHashes",
-           "dds_type_name", "known_distro"]
+__all__ = ["DEFAULT_DISTRO", "DISTROS", "DISTRO_DEFINITIONS", "FollowJointTrajectory",
+           "Interface", "TypeHashes", "dds_type_name", "distro_types", "known_distro"]

@@ -1,0 +1,127 @@
+"""hil's ROS 2 type hashes, per distribution, against ROS's own: every interface hil's ROS
+faces declare, hashed by rosidl_generator_type_description (ROS's implementation of
+REP-2016) over the definitions that distribution releases. control_msgs ships no wheel:
+its FollowJointTrajectory is written here as each release defines it and run through ROS's
+pipeline (.action -> IDL -> type description); the other packages' hashes are the
+type-description files ROS's message wheels were generated with."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import sys
+from pathlib import Path
+
+import pytest
+from rosidl_adapter.action import convert_action_to_idl
+from rosidl_adapter.msg import convert_msg_to_idl
+from rosidl_generator_type_description import generate_type_hash
+
+from hil.messaging.ros.interfaces import DISTROS, FollowJointTrajectory, TypeHashes
+
+#: where the message wheels put their generated type descriptions (share/<pkg>/<kind>/X.json)
+SHARE = Path(sys.prefix) / "share"
+
+# control_msgs, as its releases define the files FollowJointTrajectory needs (comments left out)
+JOINT_TOLERANCE = "string name\nfloat64 position\nfloat64 velocity\nfloat64 acceleration\n"
+JOINT_COMPONENT_TOLERANCE = (
+    "uint16 X_AXIS=1\nuint16 Y_AXIS=2\nuint16 Z_AXIS=3\nuint16 TRANSLATION=4\n"
+    "uint16 ROTATION=5\nstring joint_name\nuint16 component\nfloat64 position\n"
+    "float64 velocity\nfloat64 acceleration\n")
+GOAL = ("trajectory_msgs/JointTrajectory trajectory\n"
+        "trajectory_msgs/MultiDOFJointTrajectory multi_dof_trajectory\n"
+        "JointTolerance[] path_tolerance\nJointComponentTolerance[] component_path_tolerance\n"
+        "JointTolerance[] goal_tolerance\nJointComponentTolerance[] component_goal_tolerance\n"
+        "builtin_interfaces/Duration goal_time_tolerance\n")
+RESULT = ("int32 error_code\nint32 SUCCESSFUL = 0\nint32 INVALID_GOAL = -1\n"
+          "int32 INVALID_JOINTS = -2\nint32 OLD_HEADER_TIMESTAMP = -3\n"
+          "int32 PATH_TOLERANCE_VIOLATED = -4\nint32 GOAL_TOLERANCE_VIOLATED = -5\n"
+          "string error_string\n")
+FEEDBACK_5 = ("std_msgs/Header header\nstring[] joint_names\n"
+              "trajectory_msgs/JointTrajectoryPoint desired\n"
+              "trajectory_msgs/JointTrajectoryPoint actual\n"
+              "trajectory_msgs/JointTrajectoryPoint error\n"
+              "string[] multi_dof_joint_names\n"
+              "trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_desired\n"
+              "trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_actual\n"
+              "trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_error\n")
+#: 6.3 adds "the currently used point" of each trajectory
+FEEDBACK_6 = (FEEDBACK_5.replace("JointTrajectoryPoint error\n",
+                                 "JointTrajectoryPoint error\nint32 index\n")
+              + "int32 multi_dof_index\n")
+#: the control_msgs each distribution releases: Jazzy 5.x, Kilted and Lyrical 6.x
+CONTROL_MSGS_FEEDBACK = {"jazzy": FEEDBACK_5, "kilted": FEEDBACK_6, "lyrical": FEEDBACK_6}
+#: the FollowJointTrajectory hash ROS computes for Kilted's feedback, as reported on issue 27
+KILTED_FEEDBACK_MESSAGE_PREFIX = "RIHS01_95618cc7"
+
+#: the other interfaces hil's ROS faces declare (RosControlFace, RosClockFace, the action)
+MESSAGES = ("sensor_msgs/msg/JointState", "diagnostic_msgs/msg/DiagnosticArray",
+            "std_msgs/msg/String", "rosgraph_msgs/msg/Clock", "action_msgs/msg/GoalStatusArray")
+SERVICES = ("std_srvs/srv/Trigger", "action_msgs/srv/CancelGoal")
+
+
+def control_msgs_hashes(feedback: str, folder: Path) -> dict[str, str]:
+    """ROS's hashes of control_msgs' FollowJointTrajectory with this feedback definition,
+    computed by rosidl's own pipeline against the message wheels' type descriptions."""
+    package = folder / "control_msgs"
+    files = {"msg/JointTolerance.msg": JOINT_TOLERANCE,
+             "msg/JointComponentTolerance.msg": JOINT_COMPONENT_TOLERANCE,
+             "action/FollowJointTrajectory.action": f"{GOAL}---\n{RESULT}---\n{feedback}"}
+    idl = folder / "idl"
+    for relative, text in files.items():
+        source = package / relative
+        source.parent.mkdir(parents=True, exist_ok=True)
+        source.write_text(text)
+        (idl / source.parent.name).mkdir(parents=True, exist_ok=True)
+        convert = convert_action_to_idl if source.suffix == ".action" else convert_msg_to_idl
+        with contextlib.redirect_stdout(io.StringIO()):        # it says what it reads
+            convert(package, "control_msgs", Path(relative), idl / source.parent.name)
+    arguments = folder / "arguments.json"
+    arguments.write_text(json.dumps({
+        "package_name": "control_msgs", "output_dir": str(folder / "out"),
+        "idl_tuples": [f"{idl}:{path.relative_to(idl)}" for path in sorted(idl.rglob("*.idl"))],
+        "include_paths": [f"{p.name}:{p}" for p in SHARE.iterdir() if p.is_dir()]}))
+    hashes = {}
+    for generated in generate_type_hash(str(arguments)):
+        for entry in json.loads(Path(generated).read_text())["type_hashes"]:
+            hashes[entry["type_name"]] = entry["hash_string"]
+    return hashes
+
+
+def wheel_hash(name: str) -> str:
+    """The hash ROS's generated type description of ``name`` carries."""
+    document = json.loads((SHARE / f"{name}.json").read_text())
+    return document["type_hashes"][0]["hash_string"]
+
+
+def test_the_message_wheels_type_descriptions_are_installed():
+    missing = [name for name in MESSAGES + SERVICES if not (SHARE / f"{name}.json").is_file()]
+    assert not missing, f"no generated type description under {SHARE} for {missing}"
+
+
+@pytest.mark.parametrize("distro", sorted(DISTROS))
+def test_every_interface_hil_declares_has_the_hash_ros_computes_for_that_distribution(
+        distro, tmp_path):
+    ours = TypeHashes(distro)
+    action = FollowJointTrajectory.for_distro(ours)
+    ros = control_msgs_hashes(CONTROL_MSGS_FEEDBACK[distro], tmp_path)
+    base = "control_msgs/action/FollowJointTrajectory"
+    pairs = {f"{base}_SendGoal": action.send_goal.type_hash,
+             f"{base}_GetResult": action.get_result.type_hash,
+             f"{base}_FeedbackMessage": action.feedback.type_hash}
+    expected = {name: ros[name] for name in pairs}
+    pairs |= {"action_msgs/srv/CancelGoal": action.cancel_goal.type_hash,
+              "action_msgs/msg/GoalStatusArray": action.status.type_hash}
+    pairs |= {name: ours.message(name).type_hash for name in MESSAGES}
+    pairs |= {name: ours.service(name).type_hash for name in SERVICES}
+    expected |= {name: wheel_hash(name) for name in pairs if name not in expected}
+    assert pairs == expected
+
+
+def test_kilted_feedback_is_the_one_ros_reports_and_differs_from_jazzys(tmp_path):
+    kilted = control_msgs_hashes(FEEDBACK_6, tmp_path)
+    name = "control_msgs/action/FollowJointTrajectory_FeedbackMessage"
+    assert kilted[name].startswith(KILTED_FEEDBACK_MESSAGE_PREFIX)
+    jazzy = FollowJointTrajectory.for_distro(TypeHashes("jazzy")).feedback.type_hash
+    assert jazzy != kilted[name]
