@@ -423,3 +423,174 @@ def test_a_kilted_client_receives_feedback_in_control_msgs_6s_layout_with_point_
     indices = [f.index for f in ours]
     assert indices == sorted(indices) and {0, 1, 2} <= set(indices), indices
     assert all(f.multi_dof_index == 0 and list(f.joint_names) == UR3_JOINTS for f in ours)
+
+
+# --- the node's standard services, from rcl_interfaces' and type_description_interfaces'
+# .srv definitions alone (a codec of the test's own) --------------------------------------
+
+SERVICE_PARTS = {
+    "spec/msg/ListRequest": "string[] prefixes\nuint64 depth",
+    "spec/msg/ListResponse": "rcl_interfaces/msg/ListParametersResult result",
+    "spec/msg/GetRequest": "string[] names",
+    "spec/msg/GetResponse": "rcl_interfaces/msg/ParameterValue[] values",
+    "spec/msg/DescribeRequest": "string[] names",
+    "spec/msg/DescribeResponse": "rcl_interfaces/msg/ParameterDescriptor[] descriptors",
+    "spec/msg/SetRequest": "rcl_interfaces/msg/Parameter[] parameters",
+    "spec/msg/SetResponse": "rcl_interfaces/msg/SetParametersResult[] results",
+    "spec/msg/TypeRequest": "string type_name\nstring type_hash\nbool include_type_sources",
+    "spec/msg/TypeResponse":
+        "bool successful\nstring failure_reason\n"
+        "type_description_interfaces/msg/TypeDescription type_description\n"
+        "type_description_interfaces/msg/TypeSource[] type_sources\n"
+        "type_description_interfaces/msg/KeyValue[] extra_information",
+}
+DOUBLE, STRING, STRING_ARRAY = 3, 4, 9
+
+
+@pytest.fixture(scope="module")
+def spec_types():
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for name, text in SERVICE_PARTS.items():
+        store.register(get_types_from_msg(text, name))
+    return store
+
+
+def _ask(client, types, service: str, request_type: str, response_type: str, **fields):
+    request = types.types[f"spec/msg/{request_type}"](**fields)
+    reply = client.call(client.find("SS", f"/hil_control/{service}"),
+                        bytes(types.serialize_cdr(request, request.__msgtype__)))
+    return types.deserialize_cdr(reply, f"spec/msg/{response_type}")
+
+
+def _value(types, kind: int, **value):
+    import numpy as np
+    fields = {"type": kind, "bool_value": False, "integer_value": 0, "double_value": 0.0,
+              "string_value": "", "byte_array_value": np.zeros(0, np.uint8),
+              "bool_array_value": np.zeros(0, bool), "integer_array_value": np.zeros(0, np.int64),
+              "double_array_value": np.zeros(0), "string_array_value": []}
+    return types.types["rcl_interfaces/msg/ParameterValue"](**{**fields, **value})
+
+
+def _set(client, types, name: str, value):
+    parameter = types.types["rcl_interfaces/msg/Parameter"](name=name, value=value)
+    result, = _ask(client, types, "set_parameters", "SetRequest", "SetResponse",
+                   parameters=[parameter]).results
+    return result
+
+
+def test_a_client_lists_reads_and_describes_the_controllers_parameters(client, spec_types):
+    listed = _ask(client, spec_types, "list_parameters", "ListRequest", "ListResponse",
+                  prefixes=[], depth=0).result
+    assert {"joints", "use_sim_time", "constraints.goal_position_tolerance",
+            "constraints.path_position_tolerance"} <= set(listed.names), listed.names
+    assert "constraints" in listed.prefixes
+    under = _ask(client, spec_types, "list_parameters", "ListRequest", "ListResponse",
+                 prefixes=["constraints"], depth=0).result
+    assert under.names and all(n.startswith("constraints.") for n in under.names)
+    joints, tolerance, unknown = _ask(
+        client, spec_types, "get_parameters", "GetRequest", "GetResponse",
+        names=["joints", "constraints.goal_position_tolerance", "no_such"]).values
+    assert joints.type == STRING_ARRAY and list(joints.string_array_value) == UR3_JOINTS
+    assert tolerance.type == DOUBLE and tolerance.double_value == pytest.approx(0.02)
+    assert unknown.type == 0
+    fixed, settable = _ask(client, spec_types, "describe_parameters", "DescribeRequest",
+                           "DescribeResponse",
+                           names=["joints", "constraints.goal_position_tolerance"]).descriptors
+    assert fixed.read_only and not settable.read_only and settable.type == DOUBLE
+    assert "goal" in settable.description
+
+
+def test_read_only_and_mistyped_parameters_are_refused_with_the_reason(client, spec_types):
+    refused = _set(client, spec_types, "joints",
+                   _value(spec_types, STRING_ARRAY, string_array_value=["joint1"]))
+    assert not refused.successful and "read-only" in refused.reason
+    mistyped = _set(client, spec_types, "constraints.goal_position_tolerance",
+                    _value(spec_types, STRING, string_value="tight"))
+    assert not mistyped.successful and "double" in mistyped.reason
+    negative = _set(client, spec_types, "constraints.goal_position_tolerance",
+                    _value(spec_types, DOUBLE, double_value=-1.0))
+    assert not negative.successful and ">= 0" in negative.reason
+    unknown = _set(client, spec_types, "no_such", _value(spec_types, DOUBLE, double_value=1.0))
+    assert not unknown.successful and "not declared" in unknown.reason
+
+
+def test_a_set_path_tolerance_takes_effect_on_the_next_goal_and_is_announced(client, spec_types,
+                                                                               stack):
+    name = "constraints.path_position_tolerance"
+    events_sub, events = _collect(client, "/parameter_events",
+                                  "rcl_interfaces/msg/ParameterEvent")
+    try:
+        result = _set(client, spec_types, name, _value(spec_types, DOUBLE, double_value=1e-9))
+        assert result.successful, result.reason
+        value, = _ask(client, spec_types, "get_parameters", "GetRequest", "GetResponse",
+                      names=[name]).values
+        assert value.double_value == 1e-9
+        goal_id = uuid.uuid4().hex
+        assert _send(client, _goal_request(goal_id, 1.0, 0.3))
+        response = _result(client, goal_id)
+        time.sleep(0.2)
+    finally:
+        _set(client, spec_types, name, _value(spec_types, DOUBLE, double_value=0.0))
+        events_sub.undeclare()
+    # a tracking error of any size breaks a path tolerance of 1 nrad
+    assert response.status == ABORTED and response.result.error_code == -4, response
+    changed = [(p.name, p.value.double_value) for e in events for p in e.changed_parameters]
+    assert (name, 1e-9) in changed and (name, 0.0) in changed, changed
+    assert all(e.node == "/hil_control" for e in events)
+
+
+def test_rosout_carries_a_goals_life_under_the_nodes_logger_name(client):
+    rosout_sub, lines = _collect(client, "/rosout", "rcl_interfaces/msg/Log")
+    goal_id = uuid.uuid4().hex
+    try:
+        assert _send(client, _goal_request(goal_id, 0.5, 0.2))
+        assert _result(client, goal_id).status == SUCCEEDED
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and sum(goal_id in l.msg for l in lines) < 2:
+            time.sleep(0.05)
+    finally:
+        rosout_sub.undeclare()
+    ours = [(line.level, line.msg) for line in lines if goal_id in line.msg]
+    assert [level for level, _ in ours] == [20, 20], ours          # INFO, INFO
+    assert "accepted" in ours[0][1] and "joint3" in ours[0][1] and "succeeded" in ours[1][1]
+    assert all(line.name == "hil_control" for line in lines)
+
+
+def _rihs01(description) -> str:
+    """REP-2016's hash of a TypeDescription message, as the spec computes it."""
+    import hashlib
+    import json
+
+    def individual(d):
+        return {"type_name": d.type_name, "fields": [
+            {"name": f.name, "type": {"type_id": f.type.type_id, "capacity": f.type.capacity,
+                                      "string_capacity": f.type.string_capacity,
+                                      "nested_type_name": f.type.nested_type_name}}
+            for f in d.fields]}
+    document = {"type_description": individual(description.type_description),
+                "referenced_type_descriptions": [individual(d) for d in
+                                                 description.referenced_type_descriptions]}
+    return "RIHS01_" + hashlib.sha256(json.dumps(document).encode()).hexdigest()
+
+
+def test_the_type_description_service_describes_what_the_node_publishes_to_its_hash(
+        client, spec_types):
+    token = client.find("MP", "/joint_states")
+    answer = _ask(client, spec_types, "get_type_description", "TypeRequest", "TypeResponse",
+                  type_name="sensor_msgs/msg/JointState", type_hash=token.type_hash,
+                  include_type_sources=False)
+    assert answer.successful, answer.failure_reason
+    described = answer.type_description
+    assert described.type_description.type_name == "sensor_msgs/msg/JointState"
+    assert [f.name for f in described.type_description.fields] == [
+        "header", "name", "position", "velocity", "effort"]
+    assert "std_msgs/msg/Header" in [d.type_name for d in described.referenced_type_descriptions]
+    assert _rihs01(described) == token.type_hash
+    wrong = _ask(client, spec_types, "get_type_description", "TypeRequest", "TypeResponse",
+                 type_name="sensor_msgs/msg/JointState", type_hash="RIHS01_" + "0" * 64,
+                 include_type_sources=False)
+    assert not wrong.successful and token.type_hash in wrong.failure_reason
+    unused = _ask(client, spec_types, "get_type_description", "TypeRequest", "TypeResponse",
+                  type_name="sensor_msgs/msg/Image", type_hash="", include_type_sources=False)
+    assert not unused.successful and "uses no type" in unused.failure_reason

@@ -55,10 +55,16 @@ CONTROL_MSGS_FEEDBACK = {"jazzy": FEEDBACK_5, "kilted": FEEDBACK_6, "lyrical": F
 #: the FollowJointTrajectory hash ROS computes for Kilted's feedback, as reported on issue 27
 KILTED_FEEDBACK_MESSAGE_PREFIX = "RIHS01_95618cc7"
 
-#: the other interfaces hil's ROS faces declare (RosControlFace, RosClockFace, the action)
+#: the other interfaces hil's ROS faces declare (RosControlFace, RosClockFace, the action,
+#: every node's parameters, /rosout and type descriptions)
 MESSAGES = ("sensor_msgs/msg/JointState", "diagnostic_msgs/msg/DiagnosticArray",
-            "std_msgs/msg/String", "rosgraph_msgs/msg/Clock", "action_msgs/msg/GoalStatusArray")
-SERVICES = ("std_srvs/srv/Trigger", "action_msgs/srv/CancelGoal")
+            "std_msgs/msg/String", "rosgraph_msgs/msg/Clock", "action_msgs/msg/GoalStatusArray",
+            "rcl_interfaces/msg/Log", "rcl_interfaces/msg/ParameterEvent")
+SERVICES = ("std_srvs/srv/Trigger", "action_msgs/srv/CancelGoal",
+            *(f"rcl_interfaces/srv/{name}" for name in (
+                "ListParameters", "GetParameters", "GetParameterTypes", "DescribeParameters",
+                "SetParameters", "SetParametersAtomically")),
+            "type_description_interfaces/srv/GetTypeDescription")
 
 
 def control_msgs_hashes(feedback: str, folder: Path) -> dict[str, str]:

@@ -120,7 +120,10 @@ def _ros_faces(args: argparse.Namespace, config) -> list:
                        if args.ros_use_sim_time else None)
         face = RosControlFace(settings, node.controller, node.clock,
                               viewer_urdf(config.robot).decode(), node.reset_faults,
-                              plant_clock)
+                              plant_clock, facts={
+                                  "robot": config.robot.name, "cycle_hz": float(config.cycle_hz),
+                                  "lock_step": bool(args.lock_step),
+                                  "fake_hardware": bool(args.fake)})
         action = f"{settings.namespace.rstrip('/')}/{ACTION_NAME}"
         print(f"hil control: ROS 2 node {settings.namespace.rstrip('/')}/hil_control on "
               f"domain {settings.domain_id} via {settings.router} ({settings.distro}); "

@@ -132,7 +132,7 @@ def _open(args: argparse.Namespace, config, zenoh, frame_faults: list[FrameFault
         # process shares, are made by the first one, and must be made under the real-time
         # settings above (made first by the ROS session, the frames' threads ran under the
         # normal scheduler on any CPU)
-        return simulator, buses, _ros_clock(args)
+        return simulator, buses, _ros_clock(args, config)
     except BaseException:       # e.g. MuJoCo rejects the model: no bus may keep us alive
         for bus in buses.values():
             bus.shutdown()
@@ -188,13 +188,15 @@ def _publish_clock(simulator: Simulator, clock: SimClockPublisher, stop: threadi
         clock.publish(wall_time, sim_time)
 
 
-def _ros_clock(args: argparse.Namespace):
+def _ros_clock(args: argparse.Namespace, config):
     """The simulator's ROS 2 face (/clock), or None without --ros."""
     settings = common.ros_settings(args)
     if settings is None:
         return None
     from hil.messaging.ros.face import RosClockFace     # noqa: PLC0415 (only with --ros)
-    face = RosClockFace(settings)
+    face = RosClockFace(settings, facts={
+        "robot": config.robot.name, "plant_rate_hz": float(config.plant_rate_hz),
+        "cycle_hz": float(config.cycle_hz), "lock_step": bool(args.lock_step)})
     print(f"hil sim: ROS 2 node hil_sim on domain {settings.domain_id} via {settings.router}: "
           "/clock", flush=True)
     return face

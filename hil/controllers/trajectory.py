@@ -19,8 +19,9 @@
 
 from __future__ import annotations
 
+import math
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -93,6 +94,19 @@ class JointTrajectoryController:
         self._actual_velocity = np.zeros(n)
         self._now = 0.0
         self._fault: str | None = None
+
+    def set_defaults(self, **changes: float) -> None:
+        """Change :class:`Defaults` fields for the goals accepted from now on (the active
+        goal keeps the ones it was planned with); ValueError, changing nothing, for an
+        unknown field or a value that is not a finite number >= 0. Any thread."""
+        known = Defaults.__dataclass_fields__
+        for name, value in changes.items():
+            if name not in known:
+                raise ValueError(f"no controller default '{name}'; there are: "
+                                 f"{', '.join(known)}")
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, not {value!r}")
+        self.defaults = replace(self.defaults, **changes)
 
     # --- goals ------------------------------------------------------------------
 

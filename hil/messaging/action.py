@@ -4,6 +4,7 @@ Payloads are ROS 2 CDR of the action's messages."""
 
 from __future__ import annotations
 
+import logging
 import queue
 import threading
 import time
@@ -20,6 +21,8 @@ from hil.controllers import (
 from hil.messaging import cdr
 from hil.messaging.keys import ACTION, direct, key
 from hil.realtime import enter_side_work, paused_collection, release_gradually
+
+log = logging.getLogger(__name__)
 
 #: the largest goal request taken (CDR bytes): 16 MiB, over 200,000 points of 6 joints
 #: (the controller takes at most MAX_POINTS of them)
@@ -158,6 +161,8 @@ def submit_goal_request(controller: JointTrajectoryController, clock: Callable[[
         goal = cdr.goal_from_msg(request.goal, start)
         release_gradually(request.goal.trajectory.points)
         controller.submit(goal_id, goal)
+        log.info("goal %s accepted: %d point(s) for %s, %.3g s", goal_id, len(goal.points),
+                 ", ".join(goal.joint_names), goal.points[-1].time_from_start)
         return goal_id
 
 

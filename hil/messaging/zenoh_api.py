@@ -5,7 +5,6 @@ control samples, the sim's clock, diagnostics, liveliness), and, from
 
 from __future__ import annotations
 
-import queue
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -18,7 +17,7 @@ from hil.messaging.action import ControllerGone, TrajectoryActionClient, Traject
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.keys import key
 from hil.messaging.samples import ControlSamples
-from hil.realtime import enter_side_work
+from hil.realtime.side_work import SideWorkQueue
 
 
 class JointStatePublisher:
@@ -54,26 +53,19 @@ class ControlSamplesPublisher:
         self._publisher = session.declare_publisher(
             key(robot, "control/samples"), congestion_control=zenoh.CongestionControl.BLOCK)
         ControlSamples.empty().encode()    # rosbags builds its codec on first use: not in a cycle
-        self.dropped = 0
-        self._queue: queue.Queue[ControlSamples | None] = queue.Queue(self.BACKLOG)
-        self._thread = threading.Thread(target=self._send, name="control samples", daemon=True)
-        self._thread.start()
+        self._work = SideWorkQueue(lambda samples: self._publisher.put(samples.encode()),
+                                   self.BACKLOG, "control samples")
+
+    @property
+    def dropped(self) -> int:
+        return self._work.dropped
 
     def publish(self, samples: ControlSamples) -> None:
-        try:
-            self._queue.put_nowait(samples)
-        except queue.Full:
-            self.dropped += 1
-
-    def _send(self) -> None:
-        enter_side_work()
-        while (samples := self._queue.get()) is not None:
-            self._publisher.put(samples.encode())
+        self._work.put(samples)
 
     def close(self, timeout: float = 10.0) -> None:
         """Publish what is queued (for up to ``timeout`` s), then stop."""
-        self._queue.put(None)
-        self._thread.join(timeout)
+        self._work.close(timeout)
         self._publisher.undeclare()
 
 

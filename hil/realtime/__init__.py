@@ -1,6 +1,7 @@
 """Real-time loops on a stock kernel: scheduling (:mod:`~hil.realtime.scheduling`), pacing
-(:mod:`~hil.realtime.pacing`), what they achieved (:mod:`~hil.realtime.statistics`) and the
-garbage collector around them (:mod:`~hil.realtime.collector`)."""
+(:mod:`~hil.realtime.pacing`), what they achieved (:mod:`~hil.realtime.statistics`), the
+garbage collector around them (:mod:`~hil.realtime.collector`) and the work they hand to a
+thread of its own (:mod:`~hil.realtime.side_work`)."""
 
 from hil.realtime.collector import paused_collection, release_gradually
 from hil.realtime.pacing import CyclePacer
@@ -8,8 +9,9 @@ from hil.realtime.scheduling import (
     IO_PRIORITY, REAL_TIME_PRIORITY, SIDE_PRIORITY, enter_background, enter_real_time,
     enter_side_work, real_time_cpus, use_fifo,
 )
+from hil.realtime.side_work import SideWorkQueue
 from hil.realtime.statistics import PeriodStatistics, Ring
 
 __all__ = ["IO_PRIORITY", "REAL_TIME_PRIORITY", "SIDE_PRIORITY", "CyclePacer", "PeriodStatistics",
-           "Ring", "enter_background", "enter_real_time", "enter_side_work", "paused_collection",
-           "real_time_cpus", "release_gradually", "use_fifo"]
+           "Ring", "SideWorkQueue", "enter_background", "enter_real_time", "enter_side_work",
+           "paused_collection", "real_time_cpus", "release_gradually", "use_fifo"]

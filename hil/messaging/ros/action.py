@@ -184,6 +184,10 @@ class RosTrajectoryActionServer:
                     if goal is None:          # a goal of hil's own action, not of this server
                         continue
                     goal.status, goal.result, goal.finished = ros_status(result.status), result, now
+                    log.log(logging.INFO if goal.status is RosGoalStatus.SUCCEEDED
+                            else logging.WARNING, "goal %s %s%s", goal_id,
+                            goal.status.name.lower(),
+                            f": {result.error_string}" if result.error_string else "")
                     answers += [(r, goal) for r in self._waiting.pop(goal_id, [])]
                 for goal_id in [g.goal_id for g in self._goals.values()
                                 if g.result is not None and now - g.finished > RESULT_TIMEOUT]:

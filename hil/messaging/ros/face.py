@@ -31,9 +31,12 @@ from hil.messaging.face import ControlFace
 from hil.messaging.keys import direct, key
 from hil.messaging.ros.action import RosTrajectoryActionServer
 from hil.messaging.ros.interfaces import (
-    DEFAULT_DISTRO, FollowJointTrajectory, TypeHashes, distro_types, known_distro,
+    DEFAULT_DISTRO, DISTRO_DEFINITIONS, FEEDBACK, FollowJointTrajectory, TypeHashes, distro_types,
+    known_distro,
 )
 from hil.messaging.ros.node import RosContext, RosNode, RosPublisher, ServiceRequest
+from hil.messaging.ros.node_services import NodeServices
+from hil.messaging.ros.parameters import Parameter, Value
 from hil.messaging.ros.rmw_zenoh import CLOCK_QOS, LATCHED_QOS
 from hil.zenoh_session import DROP_WAIT_US
 
@@ -160,21 +163,62 @@ def open_context(settings: RosSettings) -> RosContext:
     return RosContext(session, settings.domain_id)
 
 
+#: the prefix of the trajectory controller's settable parameters (ros2_controllers' JTC
+#: keeps its tolerances under ``constraints.`` too)
+CONSTRAINTS = "constraints."
+#: what each controller default means, for describe_parameters
+CONSTRAINT_DESCRIPTIONS = {
+    "goal_position_tolerance": "rad or m a joint may end from a goal's last point, for goals "
+                               "that give 0; applies to goals accepted after a change",
+    "goal_velocity_tolerance": "rad/s or m/s a joint may still move at a goal's end, for "
+                               "goals that give 0 (0: not checked)",
+    "path_position_tolerance": "rad or m a joint may lag while a goal runs, for goals that "
+                               "give 0 (0: not checked)",
+    "goal_time_tolerance": "s after a goal's last point within which its goal tolerance "
+                           "must hold, for goals that give 0",
+}
+
+
+def control_parameters(controller, settings: RosSettings, use_sim_time: bool) -> list[Parameter]:
+    """The trajectory controller's parameters: its joints and stamps (read-only) and its
+    defaults for what a goal leaves at 0 (settable, ``constraints.<name>``)."""
+    return [
+        Parameter("joints", tuple(controller.joint_names),
+                  "the joints the trajectory controller commands, in its order"),
+        Parameter("ros_distro", settings.distro, "the ROS 2 distribution whose interface "
+                  "definitions and type hashes this node uses", read_only_reason="--ros-distro"),
+        Parameter("use_sim_time", use_sim_time, "stamps on the plant's time (/clock) instead "
+                  "of the wall clock", read_only_reason="--ros-use-sim-time, at start"),
+        *(Parameter(f"{CONSTRAINTS}{name}", float(getattr(controller.defaults, name)),
+                    description, settable=True)
+          for name, description in CONSTRAINT_DESCRIPTIONS.items())]
+
+
+def facts_as_parameters(facts: dict[str, Value]) -> list[Parameter]:
+    """Read-only parameters of what the process was started with."""
+    return [Parameter(name, value, f"the process' {name.replace('_', ' ')}",
+                      read_only_reason="set by the process' command line and bus config")
+            for name, value in facts.items()]
+
+
 class RosControlFace(ControlFace):
     """The controller's ROS 2 node, a face of :class:`hil.control_node.ControlNode`."""
 
     def __init__(self, settings: RosSettings, controller, clock, robot_description: str,
                  reset: Callable[[], tuple[bool, str]] | None = None,
-                 plant_clock: PlantClock | None = None):
+                 plant_clock: PlantClock | None = None, facts: dict[str, Value] | None = None):
         """``reset``: resets drive faults, (succeeded, what happened); served as the
         std_srvs/Trigger service ``<namespace>/hil_control/reset_faults``. ``plant_clock``:
-        stamp joint states, feedback and diagnostics on the plant's time (ROS's
-        use_sim_time) instead of the wall clock; none are published before it is known."""
+        stamp joint states, feedback, diagnostics and goals on the plant's time (ROS's
+        use_sim_time) instead of the wall clock; none are published before it is known.
+        ``facts``: read-only parameters of the process (robot, rate, ...), beside the
+        trajectory controller's own (:func:`control_parameters`)."""
         self._plant_clock = plant_clock
         self.context = open_context(settings)
         self._clock = clock
         hashes = TypeHashes(settings.distro)
         self._types = distro_types(settings.distro)
+        self._own_feedback = FEEDBACK in DISTRO_DEFINITIONS[settings.distro]
         self.node = RosNode(self.context, CONTROL_NODE, settings.namespace)
         self._joint_states = self.node.publisher("joint_states",
                                                  hashes.message(cdr.JOINT_STATE))
@@ -191,6 +235,11 @@ class RosControlFace(ControlFace):
         self._reset_service = self.node.service(
             reset_service_name(settings), hashes.service("std_srvs/srv/Trigger"),
             self._on_reset)
+        self.services = NodeServices(
+            self.node, hashes, [*facts_as_parameters(facts or {}), *control_parameters(
+                controller, settings, plant_clock is not None)],
+            apply=lambda changes: controller.set_defaults(**{
+                name.removeprefix(CONSTRAINTS): value for name, value in changes.items()}))
 
     def _ros_time(self) -> float:
         """The node's ROS time: the wall clock, or with ``plant_clock`` the plant's time
@@ -221,7 +270,7 @@ class RosControlFace(ControlFace):
         self._put(self._joint_states, payload, JOINT_STATE_STAMP)
 
     def publish_feedback(self, payload: bytes, state: ControllerState) -> None:
-        if self._types is not cdr.TYPES:       # the distribution's own layout (control_msgs 6)
+        if self._own_feedback:          # the distribution's own layout (control_msgs 6)
             payload = cdr.encode(feedback_message(state, self._types), self._types)
         self._put(self.action.feedback, payload, FEEDBACK_STAMP)
 
@@ -239,6 +288,7 @@ class RosControlFace(ControlFace):
         self.action.record_results(finished)
 
     def close(self) -> None:
+        self.services.close()
         self.action.close()
         self._reset_service.close()
         if self._plant_clock is not None:
@@ -248,18 +298,22 @@ class RosControlFace(ControlFace):
 
 
 class RosClockFace:
-    """The simulator's ROS 2 node: ``/clock`` from the plant's time."""
+    """The simulator's ROS 2 node: ``/clock`` from the plant's time; ``facts``: its
+    read-only parameters (robot, rates, ...)."""
 
-    def __init__(self, settings: RosSettings):
+    def __init__(self, settings: RosSettings, facts: dict[str, Value] | None = None):
         self.context = open_context(settings)
         self.node = RosNode(self.context, SIM_NODE, settings.namespace)
+        hashes = TypeHashes(settings.distro)
         self._clock = self.node.publisher(
-            "/clock", TypeHashes(settings.distro).message("rosgraph_msgs/msg/Clock"), CLOCK_QOS)
+            "/clock", hashes.message("rosgraph_msgs/msg/Clock"), CLOCK_QOS)
+        self.services = NodeServices(self.node, hashes, facts_as_parameters(facts or {}))
 
     def publish(self, sim_time: float) -> None:
         self._clock.put(cdr.time_cdr(sim_time))
 
     def close(self) -> None:
+        self.services.close()
         self.node.close()
         self.context.session.close()
 

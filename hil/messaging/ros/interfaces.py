@@ -62,6 +62,29 @@ _EXTRA_DEFINITIONS = {
         "int8 return_code\naction_msgs/msg/GoalInfo[] goals_canceling",
     "std_srvs/srv/Trigger_Request": "",
     "std_srvs/srv/Trigger_Response": "bool success\nstring message",
+    # a node's parameter services (rcl_interfaces) and type description service
+    "rcl_interfaces/srv/ListParameters_Request": "string[] prefixes\nuint64 depth",
+    "rcl_interfaces/srv/ListParameters_Response": "rcl_interfaces/msg/ListParametersResult result",
+    "rcl_interfaces/srv/GetParameters_Request": "string[] names",
+    "rcl_interfaces/srv/GetParameters_Response": "rcl_interfaces/msg/ParameterValue[] values",
+    "rcl_interfaces/srv/GetParameterTypes_Request": "string[] names",
+    "rcl_interfaces/srv/GetParameterTypes_Response": "uint8[] types",
+    "rcl_interfaces/srv/DescribeParameters_Request": "string[] names",
+    "rcl_interfaces/srv/DescribeParameters_Response":
+        "rcl_interfaces/msg/ParameterDescriptor[] descriptors",
+    "rcl_interfaces/srv/SetParameters_Request": "rcl_interfaces/msg/Parameter[] parameters",
+    "rcl_interfaces/srv/SetParameters_Response": "rcl_interfaces/msg/SetParametersResult[] results",
+    "rcl_interfaces/srv/SetParametersAtomically_Request":
+        "rcl_interfaces/msg/Parameter[] parameters",
+    "rcl_interfaces/srv/SetParametersAtomically_Response":
+        "rcl_interfaces/msg/SetParametersResult result",
+    "type_description_interfaces/srv/GetTypeDescription_Request":
+        "string type_name\nstring type_hash\nbool include_type_sources",
+    "type_description_interfaces/srv/GetTypeDescription_Response":
+        "bool successful\nstring failure_reason\n"
+        "type_description_interfaces/msg/TypeDescription type_description\n"
+        "type_description_interfaces/msg/TypeSource[] type_sources\n"
+        "type_description_interfaces/msg/KeyValue[] extra_information",
 }
 
 
@@ -90,15 +113,22 @@ def dds_type_name(name: str) -> str:
 
 @functools.cache
 def distro_types(distro: str):
-    """The CDR codec (a rosbags type store) of hil's messages as ``distro`` releases them:
-    :data:`hil.messaging.cdr.TYPES` itself where the distribution changed nothing."""
-    overlay = DISTRO_DEFINITIONS[known_distro(distro)]
-    if not overlay:
-        return cdr.TYPES
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    for name, text in {**cdr.DEFINITIONS, **overlay}.items():
-        store.register(get_types_from_msg(text, name))
+    """The CDR codec (a rosbags type store) of the interfaces hil's ROS faces use, laid out
+    as ``distro`` releases them: the distribution's own messages, hil's definitions with
+    what the distribution changed, the service parts rosbags leaves out (filed, as rosbags
+    files them, under ``pkg/srv/msg/X_Request``)."""
+    store = get_typestore(DISTROS[known_distro(distro)])
+    for name, text in {**cdr.DEFINITIONS, **DISTRO_DEFINITIONS[distro],
+                       **_EXTRA_DEFINITIONS}.items():
+        if name not in store.fielddefs:
+            store.register(get_types_from_msg(text, name))
     return store
+
+
+def service_part(name: str) -> str:
+    """A service part's name in :func:`distro_types`: ``pkg/srv/X_Request`` ->
+    ``pkg/srv/msg/X_Request``."""
+    return name.replace("/srv/", "/srv/msg/")
 
 
 class TypeHashes:
@@ -139,12 +169,17 @@ class TypeHashes:
                 self._closure(nested, found)
         return found
 
+    def description(self, name: str) -> dict:
+        """REP-2016's TypeDescription of a type: its fields and every type it refers to,
+        sorted by name (type_description_interfaces' layout, as dicts)."""
+        referenced = self._closure(name, {})
+        return {"type_description": self._description(name),
+                "referenced_type_descriptions": [referenced[k] for k in sorted(referenced)]}
+
     @functools.cache
     def rihs01(self, name: str) -> str:
         """The RIHS01 hash of a message type (or of a type defined here)."""
-        referenced = self._closure(name, {})
-        document = {"type_description": self._description(name),
-                    "referenced_type_descriptions": [referenced[k] for k in sorted(referenced)]}
+        document = self.description(name)
         return "RIHS01_" + hashlib.sha256(json.dumps(document).encode()).hexdigest()
 
     def message(self, name: str) -> Interface:
@@ -218,4 +253,4 @@ class FollowJointTrajectory:
 
 
 __all__ = ["DEFAULT_DISTRO", "DISTROS", "DISTRO_DEFINITIONS", "FollowJointTrajectory",
-           "Interface", "TypeHashes", "dds_type_name", "distro_types", "known_distro"]
+           "Interface", "TypeHashes", "dds_type_name", "distro_types", "known_distro", "service_part"]

@@ -80,6 +80,9 @@ class RosNode:
         self.entity = self._entity(EntityKind.NODE, None, self.node_id)
         self._token = context.session.liveliness().declare_token(self.entity.token())
         self._closables: list = []
+        #: the interfaces of every entity declared through the node, by type name (what its
+        #: type description service describes)
+        self.interfaces: dict[str, Interface] = {}
 
     def _entity(self, kind: EntityKind, topic: TopicInfo | None, entity_id: int) -> Entity:
         return Entity(self.context.domain_id, self.context.session_id, self.node_id,
@@ -87,6 +90,7 @@ class RosNode:
 
     def _declare(self, kind: EntityKind, name: str, interface: Interface,
                  qos: QoS) -> tuple[Entity, zenoh.LivelinessToken]:
+        self.interfaces[interface.name] = interface
         topic = TopicInfo(fully_qualified(self.namespace, name), interface.type_name,
                           interface.type_hash, qos)
         entity = self._entity(kind, topic, self.context.next_id())

@@ -1,0 +1,31 @@
+"""What rclcpp gives every node besides its own endpoints: its parameters
+(:mod:`~hil.messaging.ros.parameters`), its log on ``/rosout``
+(:mod:`~hil.messaging.ros.rosout`) and the descriptions of the types it uses
+(:mod:`~hil.messaging.ros.type_descriptions`). ``ros2 param``, ``rqt`` and MoveIt ask
+for the first, ``ros2 topic echo /rosout`` and rqt_console read the second, tools built
+for another distribution ask for the third."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from hil.messaging.ros.interfaces import TypeHashes
+from hil.messaging.ros.node import RosNode
+from hil.messaging.ros.parameters import Parameter, ParameterServer, Value
+from hil.messaging.ros.rosout import RosoutHandler
+from hil.messaging.ros.type_descriptions import TypeDescriptionService
+
+
+class NodeServices:
+    """The standard services of ``node``; ``apply`` as :class:`ParameterServer` takes it."""
+
+    def __init__(self, node: RosNode, hashes: TypeHashes, parameters: list[Parameter],
+                 apply: Callable[[dict[str, Value]], None] | None = None):
+        self.parameters = ParameterServer(node, hashes, parameters, apply)
+        self.type_descriptions = TypeDescriptionService(node, hashes)
+        self.rosout = RosoutHandler(node, hashes)
+
+    def close(self) -> None:
+        self.rosout.close()
+        self.parameters.close()
+        self.type_descriptions.close()
