@@ -239,7 +239,8 @@ class RosControlFace(ControlFace):
             self.node, hashes, [*facts_as_parameters(facts or {}), *control_parameters(
                 controller, settings, plant_clock is not None)],
             apply=lambda changes: controller.set_defaults(**{
-                name.removeprefix(CONSTRAINTS): value for name, value in changes.items()}))
+                name.removeprefix(CONSTRAINTS): value for name, value in changes.items()}),
+            ros_time=self._ros_time)
 
     def _ros_time(self) -> float:
         """The node's ROS time: the wall clock, or with ``plant_clock`` the plant's time

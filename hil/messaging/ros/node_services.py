@@ -7,6 +7,7 @@ for another distribution ask for the third."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 from hil.messaging.ros.interfaces import TypeHashes
@@ -17,11 +18,14 @@ from hil.messaging.ros.type_descriptions import TypeDescriptionService
 
 
 class NodeServices:
-    """The standard services of ``node``; ``apply`` as :class:`ParameterServer` takes it."""
+    """The standard services of ``node``; ``apply`` and ``ros_time`` as
+    :class:`ParameterServer` takes them (log lines carry the wall clock, as rcutils stamps
+    them whatever the node's clock)."""
 
     def __init__(self, node: RosNode, hashes: TypeHashes, parameters: list[Parameter],
-                 apply: Callable[[dict[str, Value]], None] | None = None):
-        self.parameters = ParameterServer(node, hashes, parameters, apply)
+                 apply: Callable[[dict[str, Value]], None] | None = None,
+                 ros_time: Callable[[], float] = time.time):
+        self.parameters = ParameterServer(node, hashes, parameters, apply, ros_time)
         self.type_descriptions = TypeDescriptionService(node, hashes)
         self.rosout = RosoutHandler(node, hashes)
 

@@ -58,13 +58,15 @@ def type_of(value: Value) -> int:
 
 
 class ParameterServer:
-    """The parameter services of ``node`` over ``parameters``, and /parameter_events.
+    """The parameter services of ``node`` over ``parameters``, and /parameter_events
+    (stamped on ``ros_time``, the node's ROS time, as rclcpp stamps them).
     ``apply(changes)``: takes {name: new value} of settable parameters, all or none
     (ValueError: none, with why)."""
 
     def __init__(self, node: RosNode, hashes: TypeHashes, parameters: list[Parameter],
-                 apply: Callable[[dict[str, Value]], None] | None = None):
-        self._node, self._apply_changes = node, apply
+                 apply: Callable[[dict[str, Value]], None] | None = None,
+                 ros_time: Callable[[], float] = time.time):
+        self._node, self._apply_changes, self._ros_time = node, apply, ros_time
         self._types = distro_types(hashes.distro)
         self._parameters = {p.name: p for p in parameters}
         self._lock = threading.Lock()
@@ -207,7 +209,7 @@ class ParameterServer:
     def _publish_event(self, new: list[Parameter] = (), changed: list[Parameter] = ()) -> None:
         parameter = self._types.types["rcl_interfaces/msg/Parameter"]
         event = self._types.types["rcl_interfaces/msg/ParameterEvent"](
-            stamp=cdr.time_msg(time.time()),
+            stamp=cdr.time_msg(self._ros_time()),
             node=f"{self._node.namespace.rstrip('/')}/{self._node.name}",
             new_parameters=[parameter(name=p.name, value=self._value_msg(p.value)) for p in new],
             changed_parameters=[parameter(name=p.name, value=self._value_msg(p.value))
