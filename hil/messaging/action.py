@@ -57,8 +57,7 @@ class TrajectoryActionServer:
         zeros = np.zeros(len(names))
         cdr.encode(cdr.joint_state_msg(0.0, names, zeros, zeros, zeros))
         cdr.encode(cdr.result_msg("00" * 16, GoalResult(GoalStatus.SUCCEEDED, 0)))
-        cdr.encode(feedback_message(ControllerState(0.0, tuple(names), zeros, zeros, zeros, zeros,
-                                                    "00" * 16)))
+        encode_feedback_once(names)
 
     def _on_send_goal(self, query: zenoh.Query) -> None:
         try:
@@ -120,21 +119,28 @@ class TrajectoryActionServer:
         self._result.undeclare()
 
 
+def encode_feedback_once(joint_names, types=cdr.TYPES) -> None:
+    """Encode a FeedbackMessage of these joints once, as ``types`` lays it out: rosbags
+    builds each codec on first use, which would otherwise stall the control cycle that
+    publishes the first feedback."""
+    zeros = np.zeros(len(joint_names))
+    cdr.encode(feedback_message(ControllerState(0.0, tuple(joint_names), zeros, zeros, zeros,
+                                                zeros, "00" * 16), types), types)
+
+
 def feedback_message(state: ControllerState, types=cdr.TYPES):
     """The active goal's FeedbackMessage (``state.goal_id`` set) as ``types`` lays it out:
     with control_msgs 6's point indices where its Feedback has them (``types``: see
     :func:`hil.messaging.cdr.encode`)."""
-    desired, actual = np.asarray(state.desired_positions), np.asarray(state.actual_positions)
-    desired_velocity = np.asarray(state.desired_velocities)
-    actual_velocity = np.asarray(state.actual_velocities)
     feedback_type = types.types["control_msgs/action/FollowJointTrajectory_Feedback"]
     indices = ({"index": state.point_index, "multi_dof_index": 0}
                if "index" in feedback_type.__dataclass_fields__ else {})
     feedback = feedback_type(
         header=cdr.header(time.time()), joint_names=list(state.joint_names),
-        desired=cdr.point_msg(desired, desired_velocity),
-        actual=cdr.point_msg(actual, actual_velocity),
-        error=cdr.point_msg(desired - actual, desired_velocity - actual_velocity),
+        desired=cdr.point_msg(state.desired_positions, state.desired_velocities),
+        actual=cdr.point_msg(state.actual_positions, state.actual_velocities),
+        error=cdr.point_msg(state.errors,
+                            state.desired_velocities - state.actual_velocities),
         multi_dof_joint_names=[], multi_dof_desired=_empty_multi_dof(),
         multi_dof_actual=_empty_multi_dof(), multi_dof_error=_empty_multi_dof(), **indices)
     return types.types[cdr.FEEDBACK_MESSAGE](goal_id=cdr.uuid_msg(state.goal_id),

@@ -25,7 +25,7 @@ import zenoh
 from hil.controllers import ControllerState
 from hil.errors import HilError
 from hil.messaging import cdr
-from hil.messaging.action import feedback_message
+from hil.messaging.action import encode_feedback_once, feedback_message
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.face import ControlFace
 from hil.messaging.keys import direct, key
@@ -219,6 +219,8 @@ class RosControlFace(ControlFace):
         hashes = TypeHashes(settings.distro)
         self._types = distro_types(settings.distro)
         self._own_feedback = FEEDBACK in DISTRO_DEFINITIONS[settings.distro]
+        if self._own_feedback:
+            encode_feedback_once(controller.joint_names, self._types)
         self.node = RosNode(self.context, CONTROL_NODE, settings.namespace)
         self._joint_states = self.node.publisher("joint_states",
                                                  hashes.message(cdr.JOINT_STATE))

@@ -86,10 +86,6 @@ class ParameterServer:
                                       PARAMETER_EVENTS_QOS)
         self._publish_event(new=list(self._parameters.values()))
 
-    def value(self, name: str) -> Value:
-        with self._lock:
-            return self._parameters[name].value
-
     def close(self) -> None:
         for service in self._services:
             service.close()

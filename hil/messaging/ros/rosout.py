@@ -48,10 +48,6 @@ class RosoutHandler(logging.Handler):
         self._logger.setLevel(min(self._logger.getEffectiveLevel(), logging.INFO))
         self._logger.addHandler(self)
 
-    @property
-    def dropped(self) -> int:
-        return self._work.dropped
-
     def emit(self, record: logging.LogRecord) -> None:
         self._work.put(record)
 
