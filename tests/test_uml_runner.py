@@ -4,7 +4,7 @@ On CPUs with AMX, Debian 12's UML hands ptrace an FPU-state buffer smaller than 
 host's XSAVE area and panics at boot; tools/uml_xstate_ptrace.c bounces such requests
 through a full-size buffer. These tests run the wrapper's undersized path on any host
 with XSAVE (by handing it a buffer smaller than this host's area, as UML does on an AMX
-host), and check that UML boots with the wrapper preloaded.
+host), and check that UML boots with the wrapper preloaded, on one host CPU.
 """
 
 from __future__ import annotations
@@ -14,6 +14,8 @@ import errno
 import os
 import subprocess
 import sys
+import threading
+import time
 
 import pytest
 
@@ -144,3 +146,45 @@ def test_commands_inside_user_mode_linux_run_with_avx512_off(tmp_path):
     assert "-AVX512F" in inside["GLIBC_TUNABLES"]
     assert inside["OPENBLAS_CORETYPE"] == "Haswell"
     assert "LD_PRELOAD" not in inside
+
+
+def _descendants(pid: int) -> list[int]:
+    """Process ids under ``pid`` on this host, from /proc's parent links."""
+    parents = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                stat = open(f"/proc/{entry}/stat").read()
+            except OSError:
+                continue                      # it ended meanwhile
+            parents[int(entry)] = int(stat.rsplit(")", 1)[1].split()[1])
+    found, frontier = [], [pid]
+    while frontier:
+        children = [child for child, parent in parents.items() if parent in frontier]
+        found += children
+        frontier = children
+    return found
+
+
+def test_user_mode_linux_and_its_processes_run_on_one_host_cpu(tmp_path):
+    if uml_run.available():
+        pytest.skip(f"User-Mode Linux cannot run here: {uml_run.available()}")
+    started = tmp_path / "started"
+    inside = threading.Thread(target=uml_run.run, args=(
+        ["sh", "-c", f"touch {started}; sleep 3"], ["vcan0"], 120, "256M"))
+    inside.start()
+    try:
+        deadline = time.monotonic() + 60
+        while not started.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert started.exists(), "the command inside UML did not start"
+        allowed = {}
+        for pid in _descendants(os.getpid()):
+            try:
+                allowed[pid] = os.sched_getaffinity(pid)
+            except ProcessLookupError:
+                continue
+    finally:
+        inside.join()
+    assert len(allowed) >= 2, "found no UML processes (kernel and the command's host process)"
+    assert set(map(frozenset, allowed.values())) == {frozenset({uml_run.uml_cpu()})}, allowed
