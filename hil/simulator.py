@@ -42,6 +42,7 @@ from hil.drives.profile import DriveNetwork
 from hil.drives.tuning import tuned_gains
 from hil.plant import Plant
 from hil.protocols import protocol
+from hil.realtime.stalls import Stall, StallDetector
 
 log = logging.getLogger(__name__)
 
@@ -129,6 +130,10 @@ class Simulator:
         self.steps_per_cycle = config.steps_per_cycle
         self.cycles = 0
         self.overruns = 0          # real time: gaps skipped (the process stalled)
+        #: real time: the process' own stalls, found from the watchdog's wake-ups
+        self.stalls = StallDetector("sim", WATCHDOG_PERIOD)
+        #: called with each stall found (in the thread that runs :meth:`run`)
+        self.on_stall: Callable[[Stall], None] | None = None
         self.wall_clock = time.perf_counter      # what plant time follows in real time
         # real time, while run() runs: plant steps done since the clock's epoch
         self._clock: tuple[float, int] | None = None      # (epoch, steps done)
@@ -223,12 +228,18 @@ class Simulator:
                 self._clock = (self.wall_clock(), 0)
         try:
             while not self._stop.wait(WATCHDOG_PERIOD):
+                if not self.lock_step:
+                    self._note_stall(self.stalls.tick())
                 self._check_watchdogs()
                 if end is not None and self.now() >= end:
                     return
         finally:
             with self.lock:
                 self._clock = self._last_step = None
+
+    def _note_stall(self, stall: Stall | None) -> None:
+        if stall is not None and self.on_stall is not None:
+            self.on_stall(stall)
 
     def now(self) -> float:
         """The plant's time (s); in real time, brought up to the present first."""

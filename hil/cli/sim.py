@@ -17,7 +17,7 @@ from hil.can.faults import (
 )
 from hil.drives import Power
 from hil.errors import HilError
-from hil.messaging.zenoh_api import SimClockPublisher
+from hil.messaging.zenoh_api import SimClockPublisher, StallPublisher
 from hil.realtime import IO_PRIORITY, enter_real_time, enter_side_work
 from hil.zenoh_session import close_all, session
 
@@ -74,6 +74,8 @@ def run(args: argparse.Namespace) -> int:
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     clock = SimClockPublisher(session(zenoh), config.robot.name)
+    stalls = StallPublisher(session(zenoh), config.robot.name)
+    simulator.on_stall = stalls.publish
     side_work = [(_print_status, args.status_period), (_publish_clock, clock),
                  (_inject, drive_faults)] + ([(_publish_ros_clock, ros_clock)] if ros_clock else [])
     threads = [threading.Thread(target=work, args=(simulator, argument, stop), daemon=True)
@@ -94,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
         for thread in threads[1:]:          # the clocks' last puts before their sessions close
             if thread.is_alive():
                 thread.join()
-        for face in (clock, ros_clock):
+        for face in (clock, ros_clock, stalls):
             if face is not None:
                 face.close()
         simulator.close()
@@ -106,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(signum, handler)
     for line in common.bus_report(buses) + frame_report(simulator):
         print(f"hil sim: {line}")
+    if not args.lock_step:
+        print(f"hil sim: {simulator.stalls.summary()}")
     print("hil sim: stopped; all drives disabled", flush=True)
     return 0
 

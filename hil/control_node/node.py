@@ -11,17 +11,21 @@ clock advancing one period per cycle.
 
 from __future__ import annotations
 
+import logging
 import math
+import queue
 import threading
 import time
 from collections.abc import Callable, Sequence
 
 import zenoh
 
+from hil.control_node.attribution import Attribution, FaultAttribution
 from hil.control_node.fault_reset import RESET_TIMEOUT, FaultReset
 from hil.controllers import Defaults, JointTrajectoryController
 from hil.controllers.joint_state import JointStateBroadcaster
 from hil.hardware import AxisFault, HardwareInterface
+from hil.hardware.can_interface import MISSED_ANSWER_LIMIT
 from hil.hardware.feedback import JointFeedback
 from hil.messaging import cdr
 from hil.messaging.action import feedback_message
@@ -29,7 +33,11 @@ from hil.messaging.diagnostics import DiagnosticStatus, fault_values
 from hil.messaging.face import ControlFace, ZenohControlFace
 from hil.messaging.keys import key
 from hil.messaging.samples import ControlSampleBuffer
+from hil.messaging.zenoh_api import StallSubscriber
 from hil.realtime import REAL_TIME_PRIORITY, CyclePacer, PeriodStatistics
+from hil.realtime.stalls import Stall, StallDetector
+
+log = logging.getLogger(__name__)
 
 #: makes a face of the node (a ROS 2 node, say) once the node has its controller and clock
 FaceFactory = Callable[["ControlNode"], ControlFace]
@@ -73,6 +81,14 @@ class ControlNode:
         self.faces: list[ControlFace] = [ZenohControlFace(
             session, robot.name, self.controller, self.clock, self.reset_faults)]
         self.faces += [make(self) for make in faces]
+        #: faults explained by the bench's own stalls (real time), as diagnosed
+        self.bench_faults: list[Attribution] = []
+        #: the control loop's own stalls (real time)
+        self.stalls = StallDetector("control", self.period)
+        self._attribution = FaultAttribution(self.period, MISSED_ANSWER_LIMIT + 1)
+        self._reported_stalls: queue.SimpleQueue[Stall] = queue.SimpleQueue()
+        self._stall_subscriber = None if lock_step else StallSubscriber(
+            session, robot.name, self._reported_stalls.put, log.warning)
 
     def figures(self) -> dict:
         """The run so far: period statistics (real time), the hardware's round trips (SYNC
@@ -82,11 +98,14 @@ class ControlNode:
         if round_trips is not None:
             figures.update(round_trips.percentiles_us("round_trip"))
         figures["faults"] = [str(fault) for fault in self.faults]
+        figures["bench_faults"] = [attribution.message() for attribution in self.bench_faults]
+        figures["stalls"] = self.stalls.count
         return figures
 
     def summary(self) -> str:
         """One line of :meth:`figures`."""
-        line = self.statistics.summary() if not self.lock_step else f"{self._cycle} cycles"
+        line = (f"{self.statistics.summary()}; {self.stalls.summary()}" if not self.lock_step
+                else f"{self._cycle} cycles")
         round_trips = getattr(self.hardware, "round_trips", None)
         if round_trips is not None and round_trips.count:
             trips = round_trips.percentiles_us("rt")
@@ -139,6 +158,7 @@ class ControlNode:
     def _cycle_once(self, pacer: CyclePacer | None) -> None:
         """One cycle: read, faults, the controller, write, record, publish."""
         hardware = self.hardware
+        released = time.time()
         self._fault_reset.begin()
         feedback = hardware.read()
         self._cycle += 1
@@ -147,7 +167,10 @@ class ControlNode:
             self.faults.append(fault)
             self.controller.abort(str(fault))
             self._diagnose("ERROR", str(fault), fault_values(fault))
+            self._attribution.fault(fault, time.time())
         self._fault_reset.advance(faults)
+        if pacer is not None:
+            self._attribute(pacer, released)
         now = self.clock()
         command, velocity = self.controller.update(now, feedback.positions, feedback.velocities)
         hardware.write(command, velocity)
@@ -155,6 +178,20 @@ class ControlNode:
                          pacer.last_period if pacer is not None else math.nan,
                          getattr(hardware, "last_round_trip", math.nan))
         self._publish(feedback)
+
+    def _attribute(self, pacer: CyclePacer, released: float) -> None:
+        """Real time: note the loop's own stall (it ended at this cycle's release, wall time
+        ``released``) and the bench's reported ones; diagnose the silent drives a stall
+        explains (after the fault itself: the reaction stays)."""
+        own = self.stalls.late(pacer.last_period - self.period, released)
+        if own is not None:
+            self._attribution.stall(own)
+        while not self._reported_stalls.empty():
+            self._attribution.stall(self._reported_stalls.get_nowait())
+        if self._attribution.waiting:
+            for attribution in self._attribution.attributions(time.time()):
+                self.bench_faults.append(attribution)
+                self._diagnose("WARN", attribution.message(), attribution.values())
 
     def _shut_down(self) -> None:
         """After the last cycle: fail a reset under way, abort the goal, disable the drives,
@@ -166,6 +203,8 @@ class ControlNode:
         self._publish_samples()
         for face in self.faces:
             face.close()
+        if self._stall_subscriber is not None:
+            self._stall_subscriber.close()
         if self._token is not None:
             self._token.undeclare()
 

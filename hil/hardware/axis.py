@@ -50,6 +50,8 @@ class AxisFault:
     joints: tuple[str, ...]
     message: str
     code: int | None = None
+    #: a silence: how long the drive had not answered when it was found (s)
+    silent_for: float | None = None
 
     def __str__(self) -> str:
         return self.message
@@ -132,10 +134,11 @@ class Axis(ABC):
         None."""
         return None
 
-    def found(self, kind: FaultKind, what: str, code: int | None = None) -> AxisFault:
+    def found(self, kind: FaultKind, what: str, code: int | None = None,
+              silent_for: float | None = None) -> AxisFault:
         """A fault of this axis: ``what`` follows its label in the message."""
         return AxisFault(kind, self.bus_name, self.node_id, self.config.joints,
-                         f"{self.label} {what}", code)
+                         f"{self.label} {what}", code, silent_for)
 
     def forget_faults(self) -> None:
         """Before a fault reset: forget what the drive reported."""

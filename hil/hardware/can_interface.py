@@ -233,11 +233,13 @@ class CanHardwareInterface(HardwareInterface):
             silence = now - axis.last_heard
             if silence > max(axis.silence_limit, self._answer_silence_limit):
                 self._report(axis.label, "heartbeat", axis.found(
-                    FaultKind.SILENT, f"is silent: not heard for {silence * 1e3:.0f} ms"))
+                    FaultKind.SILENT, f"is silent: not heard for {silence * 1e3:.0f} ms",
+                    silent_for=silence))
             if _missed_too_many(axis, self._cycle):
+                missed = self._cycle - axis.feedback.cycle
                 self._report(axis.label, "answer", axis.found(
-                    FaultKind.SILENT,
-                    f"is silent: no answer for {self._cycle - axis.feedback.cycle} cycles"))
+                    FaultKind.SILENT, f"is silent: no answer for {missed} cycles",
+                    silent_for=missed * self.reply_timeout))
 
     def _report(self, subject: str, what: str, fault: AxisFault) -> None:
         """Queue a fault for :meth:`faults` (once per subject and what) and stop every axis."""

@@ -71,6 +71,8 @@ DEFINITIONS = {
         "string[] actuator_names\nfloat64[] motor_torque\nuint8[] drive_state\n"
         "string[] state_names\nfloat64[] cycle_period\nfloat64[] round_trip",
     "hil_msgs/msg/SimClock": "float64 wall_time\nfloat64 sim_time",
+    # a real-time process' stall (hil.realtime.stalls.Stall): at in s since the epoch
+    "hil_msgs/msg/Stall": "string process\nfloat64 at\nfloat64 length\nfloat64 steal",
     "std_srvs/srv/Trigger_Response": "bool success\nstring message",
 }
 
@@ -90,6 +92,7 @@ GOAL_RESULT = "hil_msgs/msg/GoalResult"
 CONTROL_SAMPLES = "hil_msgs/msg/ControlSamples"
 TRIGGER_RESPONSE = "std_srvs/srv/msg/Trigger_Response"
 SIM_CLOCK = "hil_msgs/msg/SimClock"
+STALL = "hil_msgs/msg/Stall"
 #: the CDR of a request without fields (std_srvs/Trigger's): the encapsulation header and
 #: the one byte rosidl gives an empty structure
 EMPTY_REQUEST = b"\x00\x01\x00\x00\x00"

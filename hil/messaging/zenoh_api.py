@@ -18,6 +18,7 @@ from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.keys import key
 from hil.messaging.samples import ControlSamples
 from hil.realtime.side_work import SideWorkQueue
+from hil.realtime.stalls import Stall
 
 
 class JointStatePublisher:
@@ -80,6 +81,43 @@ class SimClockPublisher:
 
     def close(self) -> None:
         self._publisher.undeclare()
+
+
+class StallPublisher:
+    """Publishes a real-time process' stalls (hil_msgs/Stall) on ``hil/<robot>/stalls``, for
+    the controller to hold against the drives it finds silent."""
+
+    def __init__(self, session: zenoh.Session, robot: str):
+        # BLOCK: the report that explains a fault must not be dropped under load
+        self._publisher = session.declare_publisher(
+            key(robot, "stalls"), congestion_control=zenoh.CongestionControl.BLOCK)
+
+    def publish(self, stall: Stall) -> None:
+        self._publisher.put(cdr.encode(cdr.msg(cdr.STALL, process=stall.process, at=stall.at,
+                                               length=stall.length, steal=stall.steal)))
+
+    def close(self) -> None:
+        self._publisher.undeclare()
+
+
+class StallSubscriber:
+    """Receives the stalls of a robot's real-time processes; a malformed payload is
+    reported through ``on_error`` (key and reason), never passed on."""
+
+    def __init__(self, session: zenoh.Session, robot: str, on_stall: Callable[[Stall], None],
+                 on_error: Callable[[str], None]):
+        def on_sample(sample: zenoh.Sample) -> None:
+            try:
+                got = cdr.decode(sample.payload.to_bytes(), cdr.STALL)
+            except ValueError as exc:
+                on_error(f"{sample.key_expr}: dropped a malformed payload: {exc}")
+                return
+            on_stall(Stall(got.process, got.at, got.length, got.steal))
+
+        self._subscriber = session.declare_subscriber(key(robot, "stalls"), on_sample)
+
+    def close(self) -> None:
+        self._subscriber.undeclare()
 
 
 class DiagnosticsPublisher:
@@ -171,4 +209,5 @@ class ProcessWatch:
 
 __all__ = ["ControlSamplesPublisher", "ControllerGone", "DiagnosticsPublisher", "GoalStatus",
            "JointStatePublisher", "ProcessWatch", "RunSubscriber", "SimClockPublisher",
+           "StallPublisher", "StallSubscriber",
            "TrajectoryActionClient", "TrajectoryActionServer", "key"]

@@ -1,0 +1,77 @@
+"""What ``hil up`` shows and judges of a running robot: the recorded cycles and the
+controller's diagnostics, as they come."""
+
+from __future__ import annotations
+
+import sys
+import threading
+
+import numpy as np
+
+from hil.messaging.diagnostics import DiagnosticStatus
+from hil.messaging.samples import ControlSamples
+
+
+class Progress:
+    """Follows the run: the recorded cycles (how many, the largest tracking error, in real
+    time the control loop's missed cycles and round trips) and the controller's
+    diagnostics, printed as they come."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.diagnostics: list[DiagnosticStatus] = []
+        #: malformed payloads, as RunSubscriber words them
+        self.problems: list[str] = []
+        self.cycles = 0
+        self.control_time = 0.0
+        self.positions: np.ndarray | None = None
+        self.joint_names: tuple[str, ...] = ()
+        self.worst = (0.0, "")
+        self._cycles_shown = 0
+        self.missed = 0                 # cycles whose period was over 1.5 nominal ones
+        self._round_trips: list[np.ndarray] = []      # since the last line
+
+    def on_samples(self, batch: ControlSamples) -> None:
+        errors = np.abs(batch.reference - batch.position).max(axis=0)
+        with self.lock:
+            self.missed += int(np.sum(batch.cycle_period > 1.5 * batch.period))
+            self._round_trips.append(batch.round_trip)
+            self.cycles += len(batch)
+            self.control_time = float(batch.control_time[-1])
+            self.positions, self.joint_names = batch.position[-1], batch.joint_names
+            if len(errors) and errors.max() > self.worst[0]:
+                self.worst = (float(errors.max()), batch.joint_names[int(errors.argmax())])
+
+    def on_diagnostic(self, diagnostic: DiagnosticStatus) -> None:
+        with self.lock:
+            self.diagnostics.append(diagnostic)
+        print(f"hil up: control: {diagnostic.level}: {diagnostic.message}", file=sys.stderr,
+              flush=True)
+
+    def faults(self) -> int:
+        """How many faults (ERROR diagnostics) the controller reported."""
+        with self.lock:
+            return sum(d.level == "ERROR" for d in self.diagnostics)
+
+    def explained(self) -> int:
+        """How many of them the controller put down to the bench's own stalls."""
+        with self.lock:
+            return sum(int(dict(d.values).get("explains", 0)) for d in self.diagnostics
+                       if dict(d.values).get("kind") == "bench_stall")
+
+    def line(self) -> str:
+        with self.lock:
+            worst, self.worst = self.worst, (0.0, "")
+            fresh, self._cycles_shown = self.cycles > self._cycles_shown, self.cycles
+            trips, self._round_trips = self._round_trips, []
+            if not fresh:
+                return f"cycles {self.cycles:>7}   (no new cycles recorded since the last line)"
+            line = (f"cycles {self.cycles:>7}   largest tracking error {worst[0]:.4f} "
+                    f"({worst[1] or '-'})")
+            trips = np.concatenate(trips) * 1e3 if trips else np.zeros(0)
+            if np.isfinite(trips).any():        # real time: the loop's own figures
+                late = np.count_nonzero(np.isnan(trips))
+                line += (f"   missed {self.missed}   round trip p50 "
+                         f"{np.nanpercentile(trips, 50):.2f} ms, max {np.nanmax(trips):.2f} ms"
+                         + (f", {late} late" if late else ""))
+            return line

@@ -1,0 +1,100 @@
+"""A real-time process' own stalls: when it did not run for longer than it should have,
+by how much, and how much of the machine's time the hypervisor took meanwhile.
+
+A bench that reports its own stall as a device's fault sends engineers after a bug that is
+not there (Simulink Real-Time, VeriStand and OPAL-RT count their overruns for that reason).
+Each real-time process of hil finds its stalls from its own wake-ups (:class:`StallDetector`)
+and reports them; the controller holds them against the drives it finds silent.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
+
+#: a wake-up this much later than due is a stall (s): far above a SCHED_FIFO thread's
+#: wake-up jitter (tens of us), below a cycle's worth of a drive's silence limit
+STALL_THRESHOLD = 0.005
+#: what each process is called in words
+PROCESS_WORDS = {"sim": "the simulator", "control": "the controller"}
+
+
+@dataclass(frozen=True)
+class Stall:
+    """A stretch in which ``process`` did not run: from ``at`` (wall clock, s since the
+    epoch) for ``length`` s; ``steal`` s of CPU time the hypervisor took from the machine's
+    CPUs meanwhile (NaN: not measured). Found from wake-ups ``resolution`` s apart, it may
+    have begun up to that much earlier (and lasted that much longer)."""
+
+    process: str
+    at: float
+    length: float
+    steal: float = math.nan
+    resolution: float = 0.0
+
+    def __str__(self) -> str:
+        steal = ("" if math.isnan(self.steal)
+                 else f" (hypervisor steal {self.steal * 1e3:.0f} ms)")
+        when = datetime.fromtimestamp(self.at).strftime("%H:%M:%S.%f")[:-3]
+        return (f"{PROCESS_WORDS.get(self.process, self.process)} stalled "
+                f"{self.length * 1e3:.0f} ms at {when}{steal}")
+
+
+def steal_seconds() -> float:
+    """The machine's CPU time taken by the hypervisor since boot, all CPUs (s; NaN where the
+    kernel does not say: /proc/stat's steal column)."""
+    try:
+        with open("/proc/stat") as stat:
+            fields = stat.readline().split()
+        return int(fields[8]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return math.nan
+
+
+class StallDetector:
+    """Finds the stalls of a thread that means to wake every ``period`` s: :meth:`tick`,
+    called at each wake-up, returns the :class:`Stall` when this one came over
+    ``threshold`` late (or :meth:`late`, where the caller measures). Counts them over the
+    run."""
+
+    def __init__(self, process: str, period: float, threshold: float = STALL_THRESHOLD,
+                 clock: Callable[[], float] = time.monotonic,
+                 wall: Callable[[], float] = time.time,
+                 steal: Callable[[], float] = steal_seconds):
+        self.process, self.period, self.threshold = process, period, threshold
+        self._clock, self._wall, self._steal = clock, wall, steal
+        self._last: tuple[float, float] | None = None       # (clock, steal) at the last tick
+        self.count = 0
+        self.longest = 0.0
+
+    def tick(self) -> Stall | None:
+        """At a wake-up: the stall before it, if it came late."""
+        now, steal = self._clock(), self._steal()
+        last, self._last = self._last, (now, steal)
+        if last is None:
+            return None
+        return self.late(now - last[0] - self.period, steal=steal - last[1],
+                         resolution=self.period)
+
+    def late(self, lateness: float, woke: float | None = None, steal: float = math.nan,
+             resolution: float = 0.0) -> Stall | None:
+        """A wake-up ``lateness`` s late, at wall time ``woke`` (now if None), found by the
+        caller where it measures its own periods (a paced loop): the stall, counted, if it is
+        over the threshold."""
+        if not lateness > self.threshold:        # NaN (no period yet) is no stall
+            return None
+        self.count += 1
+        self.longest = max(self.longest, lateness)
+        woke = self._wall() if woke is None else woke
+        return Stall(self.process, woke - lateness, lateness, steal, resolution)
+
+    def summary(self) -> str:
+        """The run's stalls in words."""
+        if not self.count:
+            return f"no stall over {self.threshold * 1e3:g} ms"
+        return f"{self.count} stall(s) over {self.threshold * 1e3:g} ms, longest " \
+               f"{self.longest * 1e3:.0f} ms"
