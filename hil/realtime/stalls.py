@@ -21,24 +21,30 @@ from datetime import datetime
 STALL_THRESHOLD = 0.005
 #: what each process is called in words
 PROCESS_WORDS = {"sim": "the simulator", "control": "the controller"}
+#: how often a detector reads the machine's steal time (s): reading /proc/stat at every
+#: wake-up cost a simulator inside User-Mode Linux enough to miss its answers
+STEAL_REFRESH = 1.0
 
 
 @dataclass(frozen=True)
 class Stall:
     """A stretch in which ``process`` did not run: from ``at`` (wall clock, s since the
     epoch) for ``length`` s; ``steal`` s of CPU time the hypervisor took from the machine's
-    CPUs meanwhile (NaN: not measured). Found from wake-ups ``resolution`` s apart, it may
-    have begun up to that much earlier (and lasted that much longer)."""
+    CPUs in the ``steal_window`` s that hold the stall (NaN: not measured). Found from
+    wake-ups ``resolution`` s apart, it may have begun up to that much earlier (and lasted
+    that much longer)."""
 
     process: str
     at: float
     length: float
     steal: float = math.nan
     resolution: float = 0.0
+    steal_window: float = math.nan
 
     def __str__(self) -> str:
-        steal = ("" if math.isnan(self.steal)
-                 else f" (hypervisor steal {self.steal * 1e3:.0f} ms)")
+        steal = ("" if math.isnan(self.steal) else
+                 f" (hypervisor steal {self.steal * 1e3:.0f} ms in the "
+                 f"{self.steal_window * 1e3:.0f} ms around it)")
         when = datetime.fromtimestamp(self.at).strftime("%H:%M:%S.%f")[:-3]
         return (f"{PROCESS_WORDS.get(self.process, self.process)} stalled "
                 f"{self.length * 1e3:.0f} ms at {when}{steal}")
@@ -67,21 +73,31 @@ class StallDetector:
                  steal: Callable[[], float] = steal_seconds):
         self.process, self.period, self.threshold = process, period, threshold
         self._clock, self._wall, self._steal = clock, wall, steal
-        self._last: tuple[float, float] | None = None       # (clock, steal) at the last tick
+        self._last: float | None = None                     # the last tick's clock
+        self._steal_mark: tuple[float, float] | None = None  # (clock, steal) last read
         self.count = 0
         self.longest = 0.0
 
     def tick(self) -> Stall | None:
-        """At a wake-up: the stall before it, if it came late."""
-        now, steal = self._clock(), self._steal()
-        last, self._last = self._last, (now, steal)
+        """At a wake-up: the stall before it, if it came late, with the steal since the
+        last reading (at most STEAL_REFRESH before the stall, or the previous stall)."""
+        now = self._clock()
+        last, self._last = self._last, now
+        if self._steal_mark is None or now - self._steal_mark[0] >= STEAL_REFRESH:
+            if last is None or now - last - self.period <= self.threshold:
+                self._steal_mark = (now, self._steal())
         if last is None:
             return None
-        return self.late(now - last[0] - self.period, steal=steal - last[1],
-                         resolution=self.period)
+        lateness = now - last - self.period
+        if not lateness > self.threshold:
+            return None
+        marked, before = self._steal_mark
+        self._steal_mark = (now, self._steal())
+        return self.late(lateness, steal=self._steal_mark[1] - before,
+                         resolution=self.period, steal_window=now - marked)
 
     def late(self, lateness: float, woke: float | None = None, steal: float = math.nan,
-             resolution: float = 0.0) -> Stall | None:
+             resolution: float = 0.0, steal_window: float = math.nan) -> Stall | None:
         """A wake-up ``lateness`` s late, at wall time ``woke`` (now if None), found by the
         caller where it measures its own periods (a paced loop): the stall, counted, if it is
         over the threshold."""
@@ -90,7 +106,7 @@ class StallDetector:
         self.count += 1
         self.longest = max(self.longest, lateness)
         woke = self._wall() if woke is None else woke
-        return Stall(self.process, woke - lateness, lateness, steal, resolution)
+        return Stall(self.process, woke - lateness, lateness, steal, resolution, steal_window)
 
     def summary(self) -> str:
         """The run's stalls in words."""
