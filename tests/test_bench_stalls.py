@@ -17,7 +17,8 @@ import pytest
 from hil.control_node.attribution import GRACE, FaultAttribution
 from hil.hardware import AxisFault, FaultKind
 from hil.realtime.stalls import Stall, StallDetector
-from test_up import hil
+from hil.cli.run_progress import Progress
+from test_up import hil, read_rrd
 
 #: how long the simulator is stopped: 2.5x the controller's silence limit (6 cycles of 2 ms)
 STOP = 0.030
@@ -86,10 +87,8 @@ def _up(tmp_path, *extra: str) -> subprocess.Popen:
                str(tmp_path / "run.rrd"), *extra, cwd=tmp_path)
 
 
-@pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="no SIGSTOP on this platform")
-def test_a_stopped_simulator_is_named_as_the_bench_fault_and_ends_with_the_bench_status(
-        tmp_path):
-    up = _up(tmp_path)
+def _stop_the_sim_once(up: subprocess.Popen) -> tuple[str, str]:
+    """Once the controller cycles, stop ``up``'s simulator for STOP; the run's output."""
     try:
         sim = None
         for line in up.stdout:
@@ -99,14 +98,28 @@ def test_a_stopped_simulator_is_named_as_the_bench_fault_and_ends_with_the_bench
                 break
         assert sim is not None, "hil up named no simulator"
         time.sleep(1.5)                          # the controller cycles
-        os.kill(sim, signal.SIGSTOP)
-        time.sleep(STOP)
-        os.kill(sim, signal.SIGCONT)
-        out, err = up.communicate(timeout=120)
+        try:
+            os.kill(sim, signal.SIGSTOP)
+            time.sleep(STOP)
+            os.kill(sim, signal.SIGCONT)
+        except ProcessLookupError:               # --max-stalls may have ended the run already
+            pass
+        return up.communicate(timeout=120)
     finally:
         if up.poll() is None:
             up.kill()
             up.communicate()
+
+
+needs_sigstop = pytest.mark.skipif(not hasattr(signal, "SIGSTOP"),
+                                   reason="no SIGSTOP on this platform")
+
+
+@needs_sigstop
+def test_a_stopped_simulator_is_named_as_the_bench_fault_and_ends_with_the_bench_status(
+        tmp_path):
+    up = _up(tmp_path)
+    out, err = _stop_the_sim_once(up)
     assert up.returncode == 3, out[-3000:] + err[-3000:]
     assert re.search(r"ERROR: drive node \d \(joint\d\) on bus '\w+' is silent", err), err
     named = re.search(r"WARN: bench fault, not a drive fault: .*the simulator stalled (\d+) ms",
@@ -114,6 +127,35 @@ def test_a_stopped_simulator_is_named_as_the_bench_fault_and_ends_with_the_bench
     # measured from the simulator's own 10 ms wake-ups: at least the stop less one period
     assert named and int(named.group(1)) >= 1e3 * STOP - 10, err[-3000:]
     assert "the bench broke real time" in err
+    assert re.search(r"hil up: the bench's stalls over 5 ms: .*sim [1-9]", out), out[-2000:]
+    rows, static = read_rrd(tmp_path / "run.rrd")          # on the control loop's view
+    assert rows["/loop/stalls/sim"] >= 1 and "/loop/stalls/sim" in static, rows
+
+
+@needs_sigstop
+def test_max_stalls_stops_the_run_at_the_stall_past_the_limit(tmp_path):
+    up = _up(tmp_path, "--max-stalls", "0")
+    out, err = _stop_the_sim_once(up)
+    assert up.returncode == 3, out[-3000:] + err[-3000:]
+    assert "the bench stalled more than --max-stalls 0 times (the last: " in err, err[-3000:]
+    assert "run stopped, exit status 3" in err
+
+
+def test_the_tally_counts_each_process_and_a_limit_calls_once_past_it():
+    calls = []
+    progress = Progress(max_stalls=1, on_too_many=lambda: calls.append(1))
+    progress.on_stall(Stall("sim", time.time() - 60, 0.030))       # in the bring-up
+    progress.count_stalls()
+    assert progress.stalls.total == 0
+    progress.on_stall(Stall("sim", time.time(), 0.030))
+    assert calls == [] and progress.too_many is None
+    progress.on_stall(Stall("transport", time.time(), 0.007, where="ur3/arm"))
+    progress.on_stall(Stall("sim", time.time(), 0.012))
+    assert calls == [1] and progress.too_many.process == "transport"
+    assert progress.stalls.figures() == {"sim": {"count": 2, "longest_ms": 30.0},
+                                         "transport": {"count": 1, "longest_ms": 7.0}}
+    assert progress.stalls.summary() == ("stalls over 5 ms: sim 2 (longest 30 ms), "
+                                         "transport 1 (longest 7 ms)")
 
 
 def test_a_drive_silenced_on_purpose_is_a_device_fault_the_bench_does_not_explain(tmp_path):

@@ -116,8 +116,8 @@ def test_up_runs_the_demo_and_records_axes_robot_and_can_traffic(tmp_path):
     # ones its FIFO could not hold and those still arriving as it closed (the controller is
     # stopped by then: a few heartbeats), and the frames lost on the way are counted
     for bus in ("arm", "wrist"):
-        found = re.search(rf"hil up: CAN log, bus {bus}: sent 0, received (\d+), lost on the way "
-                          r"(\d+), overrun (\d+)", result.stdout)
+        found = re.search(rf"hil up: CAN log, bus {bus}: sent 0 in 0 messages, received (\d+) "
+                          r"in \d+, lost on the way (\d+), overrun (\d+)", result.stdout)
         assert found, result.stdout
         received, _, overrun = map(int, found.groups())
         logged = sum(n for (channel, _), n in frames.items() if channel == f"pigot/{bus}")

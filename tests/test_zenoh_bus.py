@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
+import re
 import subprocess
 import sys
 import threading
@@ -12,7 +14,8 @@ import can
 import canopen
 import pytest
 
-from hil.can.zenoh_bus import decode_frame, encode_frame
+from hil.can.zenoh_bus import _Quickest, decode_frames, encode_frames
+from hil.realtime.stalls import STALL_THRESHOLD
 from hil.zenoh_session import ZenohSettings, close, session
 from conftest import EDS, ROOT, FrameRecorder, free_port
 
@@ -109,22 +112,37 @@ def test_closing_one_session_leaves_the_others_open(endpoint):
     close(second)
 
 
-def test_frame_codec_round_trips_extended_and_remote_frames():
-    for msg in (can.Message(arbitration_id=0x1ABCDEF0, data=b"\x01\x02", is_extended_id=True),
-                can.Message(arbitration_id=0x123, is_remote_frame=True, dlc=4,
-                            is_extended_id=False)):
-        sender, sequence, back = decode_frame(encode_frame(42, msg, 7), "x")
-        assert (sender, sequence) == (42, 7) and back.equals(msg, timestamp_delta=None, check_channel=False,
-                                            check_direction=False)
+def test_frame_codec_round_trips_extended_and_remote_frames_in_one_message():
+    frames = [can.Message(arbitration_id=0x1ABCDEF0, data=b"\x01\x02", is_extended_id=True),
+              can.Message(arbitration_id=0x123, is_remote_frame=True, dlc=4,
+                          is_extended_id=False),
+              can.Message(arbitration_id=0x80, data=b"", is_extended_id=False)]
+    sender, sequence, sent_at, back = decode_frames(encode_frames(42, 7, 1234.5, frames), "x")
+    assert (sender, sequence, sent_at) == (42, 7, 1234.5) and len(back) == 3
+    for msg, got in zip(frames, back):
+        assert got.equals(msg, timestamp_delta=None, check_channel=False,
+                          check_direction=False)
 
 
-@pytest.mark.parametrize("payload", [b"", b"\x00" * 5, encode_frame(1, can.Message(
-    arbitration_id=1, data=b"\x01\x02", is_extended_id=False))[:-1] + b"\x01\x02\x03",
-    encode_frame(1, can.Message(arbitration_id=0x7FF, is_extended_id=False)).replace(
-        b"\xff\x07\x00\x00", b"\xff\xff\x00\x00", 1)])
-def test_malformed_payloads_are_rejected(payload):
-    with pytest.raises(ValueError):
-        decode_frame(payload, "x")
+def _one(arbitration_id: int = 1, data: bytes = b"\x01\x02") -> bytes:
+    return encode_frames(1, 1, 0.0, [can.Message(arbitration_id=arbitration_id, data=data,
+                                                 is_extended_id=False)])
+
+
+@pytest.mark.parametrize("payload, reason", [
+    (b"", "shorter than a message header"),
+    (b"\x00" * 5, "shorter than a message header"),
+    (_one()[:-1], "frame 1 of 1: DLC 2 does not match 1 data bytes"),
+    (_one() + b"\x03", "1 bytes after the last of 1 frames"),
+    (_one()[:-8], "frame 1 of 1 is cut short"),
+    (_one()[:20] + b"\x00\x00", "a message of no frames"),
+    (encode_frames(1, 1, math.nan, [can.Message(arbitration_id=1, is_extended_id=False)]),
+     "the sender's clock reads nan"),
+    (_one(0x7FF).replace(b"\xff\x07\x00\x00", b"\xff\xff\x00\x00", 1),
+     "identifier 0xFFFF out of range")])
+def test_malformed_payloads_are_rejected_with_what_is_wrong(payload, reason):
+    with pytest.raises(ValueError, match=re.escape(reason)):
+        decode_frames(payload, "x")
 
 
 def test_malformed_payloads_on_the_network_are_dropped(bus_pair, endpoint):
@@ -225,9 +243,9 @@ def test_frames_lost_on_the_way_are_counted_from_the_senders_sequence_numbers(bu
     deadline = time.monotonic() + 10
     while b.recv(0.1) is None:                       # until the new session's route is up
         assert time.monotonic() < deadline
-        intruder.put(key, encode_frame(77, frame, 1))   # (a repeated number loses nothing)
+        intruder.put(key, encode_frames(77, 1, time.time(), [frame]))   # (a repeat loses none)
     for sequence in (2, 5, 6, 10):                   # 3, 4, 7, 8, 9 never came
-        intruder.put(key, encode_frame(77, frame, sequence))
+        intruder.put(key, encode_frames(77, sequence, time.time(), [frame]))
     received = [b.recv(2) for _ in range(4)]
     assert all(msg is not None for msg in received)
     assert b.counters.lost == 5
@@ -260,3 +278,99 @@ def test_buses_of_one_process_sharing_a_session_hear_each_other_once(endpoint):
     finally:
         a.shutdown()
         b.shutdown()
+
+
+def test_frames_sent_in_a_batch_arrive_as_one_message_in_order(bus_pair):
+    a, b = bus_pair
+    with a.batch():
+        for i in range(7):
+            a.send(can.Message(arbitration_id=0x200 + i, data=bytes([i]), is_extended_id=False))
+        assert b.recv(0.2) is None, "a frame left before the batch ended"
+    received = [b.recv(2) for _ in range(7)]
+    assert [m.arbitration_id for m in received] == [0x200 + i for i in range(7)]
+    assert (a.counters.messages_sent, a.counters.sent) == (1, 7)
+    assert (b.counters.messages_received, b.counters.received, b.counters.lost) == (1, 7, 0)
+
+
+def test_answers_sent_inside_a_delivery_go_out_as_one_message(bus_pair):
+    a, b = bus_pair
+
+    def answer(msg: can.Message) -> None:
+        if msg.arbitration_id == 0x80:                    # SYNC: six drives answer
+            for node in range(1, 7):
+                b.send(can.Message(arbitration_id=0x180 + node, data=bytes(4),
+                                   is_extended_id=False))
+
+    b.deliver_to([answer])
+    a.send(can.Message(arbitration_id=0x80, data=b"", is_extended_id=False))
+    answers = [a.recv(2) for _ in range(6)]
+    assert all(m is not None for m in answers)
+    assert (b.counters.messages_sent, b.counters.sent) == (1, 6)
+
+
+@contextlib.contextmanager
+def _remote_sender(endpoint, bus):
+    """A put function of another Zenoh session on ``bus``' channel, routed to it: probes
+    (sender 99) until one arrives, then the test's own puts."""
+    settings = ZenohSettings(connect=(endpoint,), listen=(f"tcp/127.0.0.1:{free_port()}",))
+    remote = session(settings)
+    key = bus.channel_info.split(" ", 1)[1]
+    probe = can.Message(arbitration_id=0x7E5, data=b"", is_extended_id=False)
+    try:
+        deadline = time.monotonic() + 10
+        while bus.recv(0.1) is None:
+            assert time.monotonic() < deadline, "no route to the bus"
+            remote.put(key, encode_frames(99, 1, time.time(), [probe]))
+        while bus.recv(0.2) is not None:
+            pass
+        yield lambda payload: remote.put(key, payload)
+    finally:
+        close(settings)
+
+
+def _four_from_a_remote(endpoint, bus, behind_last: float = 0.0, stall_before_last: float = 0.0
+                        ) -> list:
+    """Four frames from a remote sender (77), 20 ms apart, stamped when put; the last stamped
+    ``behind_last`` s before its put (held on the way), after the sender stalled
+    ``stall_before_last`` s. The frames as received."""
+    frame = can.Message(arbitration_id=0x181, data=b"\x01", is_extended_id=False)
+    with _remote_sender(endpoint, bus) as put:
+        for sequence in range(1, 5):
+            if sequence == 4:
+                time.sleep(stall_before_last)
+            put(encode_frames(77, sequence, time.time() - (behind_last if sequence == 4 else 0),
+                              [frame]))
+            time.sleep(0.02)
+        return [bus.recv(2) for _ in range(4)]
+
+
+def test_a_message_stamped_on_time_that_arrives_late_is_a_transport_stall(bus_pair, endpoint):
+    _, b = bus_pair
+    stalls = []
+    b.on_stall = stalls.append
+    got = _four_from_a_remote(endpoint, b, behind_last=0.040)   # held 40 ms on the way
+    assert all(m is not None for m in got)
+    # (a loaded host may delay a delivery over 5 ms besides: only the held one is 35 ms late)
+    held = [stall for stall in stalls if stall.length > 0.035]
+    assert len(held) == 1 and b.counters.late == len(stalls)
+    assert held[0].process == "transport" and held[0].length < 0.2
+    assert "the Zenoh transport delivered a message of" in str(held[0])
+
+
+def test_a_late_sender_stamps_late_and_is_no_transport_stall(bus_pair, endpoint):
+    _, b = bus_pair
+    stalls = []
+    b.on_stall = stalls.append
+    got = _four_from_a_remote(endpoint, b, stall_before_last=0.05)
+    assert all(m is not None for m in got)
+    assert not [stall for stall in stalls if stall.length > 0.035], stalls   # not the 50 ms
+
+
+def test_a_sender_whose_clock_drifts_is_not_late_but_a_held_message_still_is():
+    """Unsynchronised clocks drift: 100 ppm adds 6 ms to the stamps' offset in a minute.
+    The quickest arrival is renewed every window, so only a jump counts."""
+    quickest = _Quickest(0.001, 0.001, 0.0)
+    lateness = [quickest.lateness(0.001 + 100e-6 * t, t) for t in
+                (i * 0.002 for i in range(1, 30_000))]               # 60 s of 500 Hz
+    assert max(lateness) < STALL_THRESHOLD
+    assert quickest.lateness(0.001 + 100e-6 * 60 + 0.020, 60.0) > 0.019   # held 20 ms

@@ -4,6 +4,8 @@ The same frames per cycle (every drive's cyclic frames and SYNC out, their answe
 per bus) exchanged between two processes over the same transport, python-can on both ends
 and no hil code on the answering side, paced like the controller, each end on the CPU of
 the process it stands for. The ratio stack / floor says what hil adds to the transport.
+Both ends send a cycle's frames as hil's do: together, one message per bus and direction
+(the master in ``sent_together``, the answers from inside their delivery).
 
 The answering process is :mod:`hil.bench.responder`.
 """
@@ -21,6 +23,7 @@ import can
 
 from hil.bench.frames import cyclic_frames
 from hil.bus_config import SystemConfig
+from hil.can import sent_together
 from hil.realtime import CyclePacer, PeriodStatistics, Ring, enter_real_time, real_time_cpus
 from hil.zenoh_session import free_loopback_port
 
@@ -83,9 +86,10 @@ def _floor_loop(exchanges, expected: int, counter: _Counter, period: float, seco
         while time.perf_counter() < end:
             pacer.release()
             counter.expect(expected)
-            for bus, out, _ in exchanges:
-                for frame in out:
-                    bus.send(frame)
+            with sent_together(bus for bus, _, _ in exchanges):   # as the controller sends
+                for bus, out, _ in exchanges:
+                    for frame in out:
+                        bus.send(frame)
             sent = time.perf_counter()
             arrived = counter.wait(sent + period)
             if arrived is None:

@@ -10,13 +10,28 @@ from __future__ import annotations
 
 import errno
 import socket
+from collections.abc import Iterable
+from contextlib import ExitStack
 
 import can
 
 from hil.can.frames import BusLoad, bus_load, frame_bits
 from hil.errors import HilError
 
-__all__ = ["BusLoad", "bus_load", "frame_bits", "open_bus", "socketcan_missing"]
+__all__ = ["BusLoad", "bus_load", "frame_bits", "open_bus", "sent_together",
+           "socketcan_missing"]
+
+
+def sent_together(buses: Iterable[can.BusABC]) -> ExitStack:
+    """A block (``with sent_together(buses):``) whose frames go out together, one message
+    per bus, where the bus can do that (``zenoh``: ``batch``); others send each frame as
+    it is sent, as ever."""
+    together = ExitStack()
+    for bus in buses:
+        batch = getattr(bus, "batch", None)
+        if batch is not None:
+            together.enter_context(batch())
+    return together
 
 
 def socketcan_missing(channels: tuple[str, ...] = ("vcan0",)) -> str | None:

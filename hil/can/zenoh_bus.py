@@ -30,21 +30,38 @@ trip between two processes doubled (630 -> 1140 us p50, measured). Received fram
 (:mod:`hil.can.delivery`), straight to the listeners. Every frame carries its sender's
 sequence number, so a receiver counts what was lost on the way (:class:`FrameCounters`).
 
-Wire format of one frame (little-endian): sender id u64, sequence number u32 (per
-sender, wrapping), arbitration id u32, flags u8 (1 extended, 2 remote, 4 error), DLC u8,
-then the data bytes.
+Frames sent together go in one Zenoh message, as a CAN-over-Ethernet gateway packs a
+cycle's frames into one datagram: those a thread sends inside ``with bus.batch():`` (a
+controller's cycle), and those sent in answer to a message while it is being delivered (a
+drive's reply to a SYNC). One put and one Python delivery per cycle and direction instead
+of one per frame. A bus used without ``batch`` sends each frame on its own, in order.
+
+Each message carries the sender's clock at the put, so a receiver tells a late sender (its
+messages stamped late) from a slow delivery (stamped on time, arriving late): a message
+that arrives over STALL_THRESHOLD later than the quickest of that sender's is a
+:class:`~hil.realtime.stalls.Stall` of the transport (``on_stall``), with the sender's
+clock offset taken out as the quickest arrival takes it out (so across hosts too; the
+quickest of the last 10 to 20 s, as clocks drift).
+
+Wire format of one message (little-endian): sender id u64, the first frame's sequence
+number u32 (per sender, wrapping; the frames after it are numbered on), the sender's wall
+clock at the put f64 (s since the epoch), frame count u16; then each frame: arbitration id
+u32, flags u8 (1 extended, 2 remote, 4 error), DLC u8, the data bytes (none for a remote
+frame).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import os
 import queue
 import random
 import struct
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -52,19 +69,22 @@ import can
 import zenoh
 
 from hil.can.delivery import DirectDelivery
-from hil.can.messages import received_copy
+from hil.can.messages import received_copy, received_frame
+from hil.realtime.stalls import STALL_THRESHOLD, Stall
 from hil.zenoh_session import ZenohSettings, session
 
 log = logging.getLogger(__name__)
 
 KEY_PREFIX = "hil/can/"
-_HEADER = struct.Struct("<QIIBB")
-_SENDER = struct.Struct("<Q")
+_HEADER = struct.Struct("<QIdH")
+_FRAME = struct.Struct("<IBB")
 _EXTENDED, _REMOTE, _ERROR = 1, 2, 4
 #: frames a bus holds for ``recv`` before it drops new ones (a CAN controller's RX FIFO)
 RECEIVE_FIFO = 8192
 #: a malformed payload is logged the first time, then every this many
 LOG_EVERY = 1000
+#: how long a sender's quickest delivery stands as the base of its lateness (s)
+QUICKEST_WINDOW = 10.0
 
 
 class _Channels:
@@ -105,34 +125,70 @@ class _Channels:
         buses = self.buses.get(str(sample.key_expr))
         if buses:
             payload = sample.payload.to_bytes()
-            for bus in tuple(buses):
-                bus._on_payload(payload)
+            arrived = time.time()
+            if not any(bus._direct is not None for bus in buses):
+                for bus in tuple(buses):               # queued for recv: nobody answers here
+                    bus._on_payload(payload, arrived)
+                return
+            # what the listeners send in answer goes out together, on any bus of the session
+            # (held and released by hand: a context manager per bus cost 6 us a message)
+            every = [bus for on_key in tuple(self.buses.values()) for bus in on_key]
+            for bus in every:
+                bus._hold()
+            try:
+                for bus in tuple(buses):
+                    bus._on_payload(payload, arrived)
+            finally:
+                for bus in every:
+                    bus._release()
 
 
-def encode_frame(sender: int, msg: can.Message, sequence: int = 0) -> bytes:
-    flags = ((_EXTENDED if msg.is_extended_id else 0) | (_REMOTE if msg.is_remote_frame else 0)
-             | (_ERROR if msg.is_error_frame else 0))
-    return _HEADER.pack(sender, sequence & 0xFFFFFFFF, msg.arbitration_id, flags,
-                        msg.dlc) + bytes(msg.data or b"")
+def encode_frames(sender: int, sequence: int, sent_at: float,
+                  frames: Sequence[can.Message]) -> bytes:
+    """One message of ``frames``, the first numbered ``sequence``, put at ``sent_at``."""
+    parts = [_HEADER.pack(sender, sequence & 0xFFFFFFFF, sent_at, len(frames))]
+    for msg in frames:
+        flags = ((_EXTENDED if msg.is_extended_id else 0)
+                 | (_REMOTE if msg.is_remote_frame else 0) | (_ERROR if msg.is_error_frame else 0))
+        parts.append(_FRAME.pack(msg.arbitration_id, flags, msg.dlc))
+        if not msg.is_remote_frame:
+            parts.append(bytes(msg.data or b""))
+    return b"".join(parts)
 
 
-def decode_frame(payload: bytes, channel: str) -> tuple[int, int, can.Message]:
-    """(sender, sequence number, frame); raise ValueError for anything that is not a
-    well-formed frame."""
+def decode_frames(payload: bytes, channel: str
+                  ) -> tuple[int, int, float, list[can.Message]]:
+    """(sender, the first frame's sequence number, the sender's clock at the put, frames);
+    raise ValueError for anything that is not a well-formed message, naming the frame."""
     if len(payload) < _HEADER.size:
-        raise ValueError(f"{len(payload)} bytes is shorter than a frame header")
-    sender, sequence, arbitration_id, flags, dlc = _HEADER.unpack_from(payload)
-    data = payload[_HEADER.size:]
-    remote = bool(flags & _REMOTE)
-    if dlc > 8 or (not remote and len(data) != dlc) or (remote and data):
-        raise ValueError(f"DLC {dlc} does not match {len(data)} data bytes")
-    limit = 0x1FFFFFFF if flags & _EXTENDED else 0x7FF
-    if arbitration_id > limit:
-        raise ValueError(f"identifier 0x{arbitration_id:X} out of range")
-    return sender, sequence, can.Message(
-        timestamp=time.time(), arbitration_id=arbitration_id,
-        is_extended_id=bool(flags & _EXTENDED), is_remote_frame=remote,
-        is_error_frame=bool(flags & _ERROR), dlc=dlc, data=data, channel=channel, is_rx=True)
+        raise ValueError(f"{len(payload)} bytes is shorter than a message header")
+    sender, sequence, sent_at, count = _HEADER.unpack_from(payload)
+    if count == 0:
+        raise ValueError("a message of no frames")
+    if not math.isfinite(sent_at):
+        raise ValueError(f"the sender's clock reads {sent_at}")
+    frames, offset, now = [], _HEADER.size, time.time()
+    for number in range(count):
+        if len(payload) < offset + _FRAME.size:
+            raise ValueError(f"frame {number + 1} of {count} is cut short")
+        arbitration_id, flags, dlc = _FRAME.unpack_from(payload, offset)
+        offset += _FRAME.size
+        remote = bool(flags & _REMOTE)
+        length = 0 if remote else dlc
+        if dlc > 8 or len(payload) < offset + length:
+            raise ValueError(f"frame {number + 1} of {count}: DLC {dlc} does not match "
+                             f"{min(len(payload) - offset, 8)} data bytes")
+        limit = 0x1FFFFFFF if flags & _EXTENDED else 0x7FF
+        if arbitration_id > limit:
+            raise ValueError(f"frame {number + 1} of {count}: identifier "
+                             f"0x{arbitration_id:X} out of range")
+        frames.append(received_frame(now, arbitration_id, bool(flags & _EXTENDED), remote,
+                                     bool(flags & _ERROR), dlc, payload[offset:offset + length],
+                                     channel))
+        offset += length
+    if offset != len(payload):
+        raise ValueError(f"{len(payload) - offset} bytes after the last of {count} frames")
+    return sender, sequence, sent_at, frames
 
 
 @dataclass
@@ -147,10 +203,49 @@ class FrameCounters:
     overrun: int = 0
     #: payloads on the channel that were not frames
     malformed: int = 0
+    #: messages (frames sent together) put, and received
+    messages_sent: int = 0
+    messages_received: int = 0
+    #: messages delivered over STALL_THRESHOLD later than their sender's quickest
+    late: int = 0
+    #: the latest of them (s beyond the quickest)
+    latest: float = 0.0
 
     def __str__(self) -> str:
-        return (f"sent {self.sent}, received {self.received}, lost on the way {self.lost}, "
-                f"overrun {self.overrun}, malformed {self.malformed}")
+        late = f", {self.late} delivered late (up to {self.latest * 1e3:.0f} ms)" \
+            if self.late else ""
+        return (f"sent {self.sent} in {self.messages_sent} messages, received {self.received} "
+                f"in {self.messages_received}, lost on the way {self.lost}, "
+                f"overrun {self.overrun}, malformed {self.malformed}{late}")
+
+
+class _Quickest:
+    """A sender's quickest arrival minus stamp (s): base latency plus the clocks' offset, which
+    each message's own is held against. A sliding minimum, renewed every QUICKEST_WINDOW:
+    unsynchronised clocks drift (50 ppm is 5 ms in 100 s), and an all-time minimum would
+    turn a slow drift into late deliveries."""
+
+    __slots__ = ("current", "next", "since")
+
+    def __init__(self, current: float, next_: float, since: float):
+        self.current, self.next, self.since = current, next_, since
+
+    def lateness(self, transit: float, arrived: float) -> float:
+        """How much later than the quickest this message came (s), the window updated."""
+        if arrived - self.since > QUICKEST_WINDOW:
+            self.current, self.next, self.since = self.next, transit, arrived
+        elif transit < self.next:
+            self.next = transit
+        return transit - min(self.current, self.next)
+
+
+class _Batch(threading.local):
+    """A thread's frames held for one message, and how deep its ``batch`` blocks nest."""
+
+    depth = 0
+
+    def __init__(self):
+        self.frames: list[can.Message] = []
 
 
 class ZenohBus(can.BusABC):
@@ -158,6 +253,7 @@ class ZenohBus(can.BusABC):
 
     Options: ``listen`` / ``connect`` (lists of Zenoh endpoints),
     ``zenoh_config`` (path of a Zenoh config file), ``receive_own_messages``.
+    ``on_stall``, if set, is called (in Zenoh's delivering thread) with each late delivery.
     """
 
     def __init__(self, channel: str, listen=(), connect=(), zenoh_config=None,
@@ -166,9 +262,11 @@ class ZenohBus(can.BusABC):
         self._channel = str(channel)
         self._receive_own = receive_own_messages
         self._sender = random.getrandbits(63) ^ os.getpid()
-        self._sender_bytes = _SENDER.pack(self._sender)
         self._sequence = 0
         self._heard: dict[int, int] = {}      # sender -> its last sequence number seen
+        self._quickest: dict[int, _Quickest] = {}
+        self.on_stall: Callable[[Stall], None] | None = None
+        self._batch = _Batch()
         self.counters = FrameCounters()
         self._count_lock = threading.Lock()   # Zenoh delivers from a thread per link
         self._queue: queue.Queue[can.Message] = queue.Queue(RECEIVE_FIFO)
@@ -190,22 +288,25 @@ class ZenohBus(can.BusABC):
         self._neighbours = _Channels.join(self._session, key, self)
         super().__init__(channel=channel, **kwargs)
 
-    def _on_payload(self, payload: bytes) -> None:
+    def _on_payload(self, payload: bytes, arrived: float) -> None:
         try:
-            sender, sequence, msg = decode_frame(payload, self._channel)
+            sender, sequence, sent_at, frames = decode_frames(payload, self._channel)
         except ValueError as exc:
             with self._count_lock:
                 self.counters.malformed += 1
                 malformed = self.counters.malformed
             if malformed % LOG_EVERY == 1:
-                log.warning("%s: dropped %d malformed frame(s) from Zenoh: %s",
+                log.warning("%s: dropped %d malformed message(s) from Zenoh: %s",
                             self.channel_info, malformed, exc)
             return
-        self._take(sender, sequence, msg)
+        stall = self._count_arrival(sender, sequence, len(frames), arrived - sent_at, arrived)
+        if stall is not None and self.on_stall is not None:
+            self.on_stall(stall)
+        for msg in frames:
+            self._take(msg)
 
-    def _take(self, sender: int, sequence: int, msg: can.Message) -> None:
-        """A frame for this bus: counted, then to the listeners or the receive FIFO."""
-        self._count_arrival(sender, sequence)
+    def _take(self, msg: can.Message) -> None:
+        """A frame for this bus: to the listeners or the receive FIFO."""
         direct = self._direct
         if direct is not None:
             direct.deliver(msg)
@@ -216,10 +317,14 @@ class ZenohBus(can.BusABC):
             with self._count_lock:
                 self.counters.overrun += 1
 
-    def _count_arrival(self, sender: int, sequence: int) -> None:
+    def _count_arrival(self, sender: int, sequence: int, frames: int, transit: float,
+                       arrived: float) -> Stall | None:
+        """Counts a message of ``frames`` from ``sender``; the transport's stall if it came
+        late."""
         counters = self.counters
         with self._count_lock:
-            counters.received += 1
+            counters.received += frames
+            counters.messages_received += 1
             last = self._heard.get(sender)
             if last is not None:
                 # frames that never came: the gap since the sender's previous one (a late
@@ -227,7 +332,17 @@ class ZenohBus(can.BusABC):
                 gap = (sequence - last - 1) & 0xFFFFFFFF
                 if gap < 0x80000000:
                     counters.lost += gap
-            self._heard[sender] = sequence
+            self._heard[sender] = (sequence + frames - 1) & 0xFFFFFFFF
+            quickest = self._quickest.get(sender)
+            if quickest is None:
+                self._quickest[sender] = _Quickest(transit, transit, arrived)
+                return None
+            late = quickest.lateness(transit, arrived)
+            if not late > STALL_THRESHOLD:
+                return None
+            counters.late += 1
+            counters.latest = max(counters.latest, late)
+        return Stall("transport", arrived - late, late, where=self._channel)
 
     def deliver_to(self, listeners: Iterable[can.Listener],
                    accept: Callable[[can.Message], can.Message | None] | None = None
@@ -242,18 +357,53 @@ class ZenohBus(can.BusABC):
         if self._direct is delivery:
             self._direct = None
 
+    @contextmanager
+    def batch(self) -> Iterator[None]:
+        """Frames this thread sends on this bus inside the block go out in one message at
+        its end (nested blocks: at the outermost's end), in the order sent."""
+        self._hold()
+        try:
+            yield
+        finally:
+            self._release()
+
+    def _hold(self) -> None:
+        self._batch.depth += 1
+
+    def _release(self) -> None:
+        held = self._batch
+        held.depth -= 1
+        if held.depth == 0 and held.frames:
+            frames, held.frames = held.frames, []
+            self._put(frames)
+
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if self._is_shutdown:
+            raise can.CanOperationError(f"{self.channel_info}: the bus is shut down")
+        held = self._batch
+        if held.depth:
+            held.frames.append(msg)
+        else:
+            self._put((msg,))
+
+    def _put(self, frames: Sequence[can.Message]) -> None:
+        """One message of ``frames`` to the other processes; copies to this process' buses
+        on the channel. Numbered here, so that messages of several threads keep their order."""
         with self._send_lock:
             if self._is_shutdown:
                 raise can.CanOperationError(f"{self.channel_info}: the bus is shut down")
-            self._sequence += 1
-            self.counters.sent += 1
-            sequence = self._sequence
-            self._publisher.put(encode_frame(self._sender, msg, sequence))
+            first = self._sequence + 1
+            self._sequence += len(frames)
+            self.counters.sent += len(frames)
+            self.counters.messages_sent += 1
+            self._publisher.put(encode_frames(self._sender, first, time.time(), frames))
         for neighbour in tuple(self._neighbours):    # buses of this process on this channel
             if neighbour is not self or self._receive_own:
-                neighbour._take(self._sender, sequence, received_copy(
-                    msg, time.time(), self._channel, neighbour is not self))
+                neighbour._count_arrival(self._sender, first, len(frames), 0.0, 0.0)
+                now = time.time()
+                for msg in frames:
+                    neighbour._take(received_copy(msg, now, self._channel,
+                                                  neighbour is not self))
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         try:

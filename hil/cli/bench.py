@@ -132,14 +132,18 @@ def _across_process_lines(report: dict) -> list[str]:
     """The stack across processes beside the transport's floor."""
     lines = ["", "across processes (hil sim, hil control and with viz hil viz recording, over "
               "Zenoh on loopback);", "  floor: the same frames between two bare python-can "
-              "processes on the same transport, this run",
+              "processes on the same transport, this run; stalls over 5 ms of the sim's and "
+              "the controller's loops and of Zenoh's deliveries (s/c/t)",
               f"  {'robot':<6} {'Hz':>5} {'viz':>4} {'cycles':>7} {'p50 us':>7} {'p99 us':>7} "
               f"{'max us':>7} {'missed':>7} {'busy p50':>9} {'p99':>5} {'rt p50':>7} "
-              f"{'p99':>5} {'floor p50':>10} {'p99':>5} {'x p99':>6} {'faults':>6}  CPU"]
+              f"{'p99':>5} {'floor p50':>10} {'p99':>5} {'x p99':>6} {'faults':>6} "
+              f"{'stalls s/c/t':>12}  CPU"]
     for row in report["across_processes"]:
         floor = row["floor"]
         cpu = " ".join(f"{name} {share:.0%}" for name, share in row["cpu"].items())
         missed = f"{row['missed']} {100 * row['missed'] / max(row['cycles'], 1):.2f}%"
+        stalls = "/".join(str(row.get("stalls", {}).get(process, {}).get("count", 0))
+                          for process in ("sim", "control", "transport"))
         lines.append(
             f"  {row['robot']:<6} {row['rate_hz']:>5.0f} {'yes' if row['viz'] else 'no':>4} "
             f"{row['cycles']:>7} {row.get('error_p50_us', math.nan):>7.0f} "
@@ -149,7 +153,7 @@ def _across_process_lines(report: dict) -> list[str]:
             f" {row.get('round_trip_p99_us', math.nan):>5.0f} "
             f"{floor.get('round_trip_p50_us', math.nan):>10.0f} "
             f"{floor.get('round_trip_p99_us', math.nan):>5.0f} "
-            f"{row['round_trip_p99_over_floor']:>6.2f} {row['faults']:>6}  {cpu}")
+            f"{row['round_trip_p99_over_floor']:>6.2f} {row['faults']:>6} {stalls:>12}  {cpu}")
     return lines
 
 

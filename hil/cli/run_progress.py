@@ -1,15 +1,19 @@
-"""What ``hil up`` shows and judges of a running robot: the recorded cycles and the
-controller's diagnostics, as they come."""
+"""What ``hil up`` shows and judges of a running robot: the recorded cycles, the
+controller's diagnostics and the bench's stalls, as they come."""
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
+import time
+from collections.abc import Callable
 
 import numpy as np
 
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
+from hil.realtime.stalls import Stall, StallTally
 
 
 class Progress:
@@ -17,7 +21,8 @@ class Progress:
     time the control loop's missed cycles and round trips) and the controller's
     diagnostics, printed as they come."""
 
-    def __init__(self):
+    def __init__(self, max_stalls: int | None = None,
+                 on_too_many: Callable[[], None] = lambda: None):
         self.lock = threading.Lock()
         self.diagnostics: list[DiagnosticStatus] = []
         #: malformed payloads, as RunSubscriber words them
@@ -30,6 +35,13 @@ class Progress:
         self._cycles_shown = 0
         self.missed = 0                 # cycles whose period was over 1.5 nominal ones
         self._round_trips: list[np.ndarray] = []      # since the last line
+        #: the stalls the real-time processes reported (real time) since :meth:`count_stalls`,
+        #: per process
+        self.stalls = StallTally()
+        self._counting_since = math.inf
+        #: the stall past ``max_stalls``, on which ``on_too_many`` was called
+        self.too_many: Stall | None = None
+        self._max_stalls, self._on_too_many = max_stalls, on_too_many
 
     def on_samples(self, batch: ControlSamples) -> None:
         errors = np.abs(batch.reference - batch.position).max(axis=0)
@@ -41,6 +53,23 @@ class Progress:
             self.positions, self.joint_names = batch.position[-1], batch.joint_names
             if len(errors) and errors.max() > self.worst[0]:
                 self.worst = (float(errors.max()), batch.joint_names[int(errors.argmax())])
+
+    def count_stalls(self) -> None:
+        """From now on count the stalls (the bring-up's, before the controller cycled, are
+        not the run's)."""
+        with self.lock:
+            self._counting_since = time.time()
+
+    def on_stall(self, stall: Stall) -> None:
+        with self.lock:
+            if stall.at + stall.length < self._counting_since:
+                return
+            self.stalls.add(stall)
+            if (self._max_stalls is None or self.too_many is not None
+                    or self.stalls.total <= self._max_stalls):
+                return
+            self.too_many = stall
+        self._on_too_many()
 
     def on_diagnostic(self, diagnostic: DiagnosticStatus) -> None:
         with self.lock:

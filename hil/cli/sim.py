@@ -76,6 +76,9 @@ def run(args: argparse.Namespace) -> int:
     clock = SimClockPublisher(session(zenoh), config.robot.name)
     stalls = StallPublisher(session(zenoh), config.robot.name)
     simulator.on_stall = stalls.publish
+    for simulated in simulator.buses:        # zenoh: the controller's messages delivered late
+        if hasattr(simulated.bus, "on_stall") and not args.lock_step:
+            simulated.bus.on_stall = stalls.publish
     side_work = [(_print_status, args.status_period), (_publish_clock, clock),
                  (_inject, drive_faults)] + ([(_publish_ros_clock, ros_clock)] if ros_clock else [])
     threads = [threading.Thread(target=work, args=(simulator, argument, stop), daemon=True)

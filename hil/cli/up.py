@@ -51,8 +51,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "fault that no stall of the bench explains (a device fault, injected ones included), "
         "the demo failed, or a process failed; "
         f"{BENCH_FAULT_STATUS} every fault the controller reported was explained by a "
-        "measured stall of the bench's own simulator or controller (the bench broke real "
-        "time: a flaky host, not a regression); 130 interrupted")
+        "measured stall of the bench's own simulator, controller or Zenoh transport, or the "
+        "bench stalled more than --max-stalls times (the bench broke real time: a flaky host, "
+        "not a regression); 130 interrupted")
     parser.add_argument("target", nargs="*", metavar="ROBOT|CONFIG",
                         help="a robot with a config in bus_config/ (pigot, ur3) or a bus config "
                              "path (default: pigot)")
@@ -78,6 +79,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--spawn", action="store_true",
                         help="also spawn a rerun viewer (default where a display exists)")
     parser.add_argument("--no-viewer", action="store_true", help="never spawn a viewer")
+    parser.add_argument("--max-stalls", type=int, metavar="N",
+                        help="real time: stop the run once the bench has stalled more than N "
+                             "times (the sim's or the controller's loop, or a Zenoh delivery, "
+                             f"over 5 ms late), exit status {BENCH_FAULT_STATUS}, as Simulink "
+                             "Real-Time's Max Overloads (0: at the first); default: no limit, "
+                             "each stall is counted, reported and held against the faults")
     parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
                         help="inject a fault (repeatable): the sim's (drop:BUS:FRACTION, "
                              "delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, silence:BUS/NODE@S, "
@@ -118,9 +125,10 @@ def run(args: argparse.Namespace) -> int:
     zenoh = ZenohSettings(connect=(endpoint,))
     status = 0
     watchers: list = []
-    progress = Progress()
+    progress = Progress(args.max_stalls if timing == "real-time" else None, stop.set)
     try:
         _start(children, supervised, zenoh, robot, progress, watchers)
+        progress.count_stalls()
         if not stop.is_set():
             for kill in (f for f in faults if isinstance(f, ProcessFault)):
                 threading.Thread(target=kill_later, args=(children[kill.process], kill.at,
@@ -130,7 +138,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"hil up: {exc}", file=sys.stderr, flush=True)
         status = 1
     finally:
-        if stop.is_set():
+        if progress.too_many is not None:
+            print(f"hil up: the bench stalled more than --max-stalls {args.max_stalls} times "
+                  f"(the last: {progress.too_many}): run stopped, exit status "
+                  f"{BENCH_FAULT_STATUS}", file=sys.stderr, flush=True)
+            status = BENCH_FAULT_STATUS
+        elif stop.is_set():
             print("hil up: interrupted", flush=True)
             status = 130
         print("hil up: stopping control, viz and sim", flush=True)
@@ -146,6 +159,11 @@ def run(args: argparse.Namespace) -> int:
         status = 1
     if status == 0:
         status = _fault_status(progress, logs)
+    if timing == "real-time":
+        with progress.lock:
+            print(f"hil up: the bench's {progress.stalls.summary()} since the controller "
+                  f"cycled (sim, control: their loops; transport: Zenoh's deliveries)",
+                  flush=True)
     _report_outputs(save, can_log, children["viz"])
     return status
 
@@ -190,7 +208,7 @@ def _start(children: dict[str, Child], supervised: Run, zenoh: ZenohSettings, ro
             watch = ProcessWatch(session(zenoh), robot)
             watchers += [watch, RunSubscriber(session(zenoh), robot, progress.on_samples,
                                               lambda wall, sim: None, progress.problems.append,
-                                              progress.on_diagnostic)]
+                                              progress.on_diagnostic, progress.on_stall)]
         wait_alive(supervised, watch.wait_alive, child)
         if supervised.stop.is_set():
             break

@@ -33,9 +33,9 @@ from hil.messaging.diagnostics import DiagnosticStatus, fault_values
 from hil.messaging.face import ControlFace, ZenohControlFace
 from hil.messaging.keys import key
 from hil.messaging.samples import ControlSampleBuffer
-from hil.messaging.zenoh_api import StallSubscriber
+from hil.messaging.zenoh_api import StallPublisher, StallSubscriber
 from hil.realtime import REAL_TIME_PRIORITY, CyclePacer, PeriodStatistics
-from hil.realtime.stalls import Stall, StallDetector
+from hil.realtime.stalls import Stall, StallDetector, StallTally
 
 log = logging.getLogger(__name__)
 
@@ -85,10 +85,20 @@ class ControlNode:
         self.bench_faults: list[Attribution] = []
         #: the control loop's own stalls (real time)
         self.stalls = StallDetector("control", self.period)
+        #: every stall of the bench heard of since the loop cycles (the loop's own, the
+        #: simulator's, the transport's), by process
+        self.bench_stalls = StallTally()
         self._attribution = FaultAttribution(self.period, MISSED_ANSWER_LIMIT + 1)
         self._reported_stalls: queue.SimpleQueue[Stall] = queue.SimpleQueue()
-        self._stall_subscriber = None if lock_step else StallSubscriber(
-            session, robot.name, self._reported_stalls.put, log.warning)
+        self._cycling_since = math.inf            # wall time; stalls before it are not counted
+        # one path for every stall, this process' own too: published (for hil up and the
+        # recording) and heard back with the others'
+        self._stall_publisher = self._stall_subscriber = None
+        if not lock_step:
+            self._stall_publisher = StallPublisher(session, robot.name)
+            self._stall_subscriber = StallSubscriber(
+                session, robot.name, self._reported_stalls.put, log.warning)
+            hardware.watch_transport(self._stall_publisher.publish)
 
     def figures(self) -> dict:
         """The run so far: period statistics (real time), the hardware's round trips (SYNC
@@ -99,13 +109,13 @@ class ControlNode:
             figures.update(round_trips.percentiles_us("round_trip"))
         figures["faults"] = [str(fault) for fault in self.faults]
         figures["bench_faults"] = [attribution.message() for attribution in self.bench_faults]
-        figures["stalls"] = self.stalls.count
+        figures["stalls"] = self.bench_stalls.figures()
         return figures
 
     def summary(self) -> str:
         """One line of :meth:`figures`."""
-        line = (f"{self.statistics.summary()}; {self.stalls.summary()}" if not self.lock_step
-                else f"{self._cycle} cycles")
+        line = (f"{self.statistics.summary()}; {self.bench_stalls.summary()}"
+                if not self.lock_step else f"{self._cycle} cycles")
         round_trips = getattr(self.hardware, "round_trips", None)
         if round_trips is not None and round_trips.count:
             trips = round_trips.percentiles_us("rt")
@@ -144,6 +154,7 @@ class ControlNode:
             self.controller.update(self.clock(), start.positions, start.velocities)
             self._token = self._session.liveliness().declare_token(
                 key(self.hardware.robot.name, "control"))
+            self._cycling_since = time.time()
             pacer = None if self.lock_step else CyclePacer(self.period, self.statistics,
                                                            self.priority)
             while not self._stop.is_set():
@@ -185,9 +196,12 @@ class ControlNode:
         explains (after the fault itself: the reaction stays)."""
         own = self.stalls.late(pacer.last_period - self.period, released)
         if own is not None:
-            self._attribution.stall(own)
+            self._stall_publisher.publish(own)
         while not self._reported_stalls.empty():
-            self._attribution.stall(self._reported_stalls.get_nowait())
+            stall = self._reported_stalls.get_nowait()
+            if stall.at + stall.length >= self._cycling_since:    # not the bring-up's
+                self.bench_stalls.add(stall)
+                self._attribution.stall(stall)
         if self._attribution.waiting:
             for attribution in self._attribution.attributions(time.time()):
                 self.bench_faults.append(attribution)
@@ -203,8 +217,9 @@ class ControlNode:
         self._publish_samples()
         for face in self.faces:
             face.close()
-        if self._stall_subscriber is not None:
-            self._stall_subscriber.close()
+        for stalls in (self._stall_subscriber, self._stall_publisher):
+            if stalls is not None:
+                stalls.close()
         if self._token is not None:
             self._token.undeclare()
 

@@ -13,18 +13,21 @@ import itertools
 import math
 import threading
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import can
 import numpy as np
 
 from hil.bus_config.types import SystemConfig
+from hil.can import sent_together
 from hil.errors import HilError
 from hil.hardware.axis import Axis, AxisFault, FaultKind
 from hil.hardware.feedback import JointFeedback, PlausibilityCheck
 from hil.hardware.interface import HardwareInterface
 from hil.protocols import protocol
 from hil.realtime import PeriodStatistics, Ring
+from hil.realtime.stalls import Stall
 from hil.transmissions import TransmissionStack, build_transmissions
 
 if TYPE_CHECKING:
@@ -154,13 +157,16 @@ class CanHardwareInterface(HardwareInterface):
         targets = self.transmissions.joint_to_actuator_position(positions).tolist()
         speeds = self.transmissions.joint_to_actuator_velocity(velocities).tolist()
         hold = enabling or self._recovering
-        for axis, target, speed in zip(self.axes, targets, speeds):
-            axis.begin_cycle(self._cycle)
-            network = self._networks[axis.bus_name]
-            for can_id, data, remote in axis.cycle_frames(target, speed, self._stopping, hold):
-                network.send_message(can_id, data, remote)
-        for name in self._sync_buses:
-            self._networks[name].send_message(SYNC_ID, b"")
+        # one message per bus where the transport can (zenoh): a cycle's frames in one put
+        with sent_together(network.bus for network in self._networks.values()):
+            for axis, target, speed in zip(self.axes, targets, speeds):
+                axis.begin_cycle(self._cycle)
+                network = self._networks[axis.bus_name]
+                for can_id, data, remote in axis.cycle_frames(target, speed, self._stopping,
+                                                              hold):
+                    network.send_message(can_id, data, remote)
+            for name in self._sync_buses:
+                self._networks[name].send_message(SYNC_ID, b"")
         self._sync_sent = time.perf_counter()
 
     def _await_feedback(self, skip_silent: bool, deadline: float) -> bool:
@@ -286,6 +292,11 @@ class CanHardwareInterface(HardwareInterface):
             time.sleep(2.0 / self.config.cycle_hz)
         for network in self._networks.values():
             network.notifier.stop(1.0)
+
+    def watch_transport(self, on_stall: Callable[[Stall], None]) -> None:
+        for bus in self._buses.values():
+            if hasattr(bus, "on_stall"):         # zenoh: it stamps and times its messages
+                bus.on_stall = on_stall
 
     def _send_quietly(self, bus: str, can_id: int, data: bytes, remote: bool) -> None:
         try:

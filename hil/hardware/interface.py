@@ -8,12 +8,14 @@ measurements, with no CAN and no physics.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 
 import numpy as np
 
 from hil.description import RobotDescription
 from hil.hardware.axis import AxisFault
 from hil.hardware.feedback import JointFeedback
+from hil.realtime.stalls import Stall
 
 
 class HardwareInterface(ABC):
@@ -57,6 +59,10 @@ class HardwareInterface(ABC):
 
     def stop(self) -> None:
         """Leave every actuator disabled (brakes on where fitted)."""
+
+    def watch_transport(self, on_stall: Callable[[Stall], None]) -> None:
+        """From now on call ``on_stall`` (from any thread) with each late delivery the
+        transport to the actuators reports; a transport that reports none ignores it."""
 
 
 class FakeHardwareInterface(HardwareInterface):

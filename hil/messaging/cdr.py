@@ -72,7 +72,8 @@ DEFINITIONS = {
         "string[] state_names\nfloat64[] cycle_period\nfloat64[] round_trip",
     "hil_msgs/msg/SimClock": "float64 wall_time\nfloat64 sim_time",
     # a real-time process' stall (hil.realtime.stalls.Stall): at in s since the epoch
-    "hil_msgs/msg/Stall": "string process\nfloat64 at\nfloat64 length\nfloat64 steal",
+    "hil_msgs/msg/Stall": "string process\nfloat64 at\nfloat64 length\nfloat64 steal\n"
+                          "string where",
     "std_srvs/srv/Trigger_Response": "bool success\nstring message",
 }
 

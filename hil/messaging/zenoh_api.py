@@ -85,34 +85,48 @@ class SimClockPublisher:
 
 class StallPublisher:
     """Publishes a real-time process' stalls (hil_msgs/Stall) on ``hil/<robot>/stalls``, for
-    the controller to hold against the drives it finds silent."""
+    the controller to hold against the drives it finds silent. :meth:`publish` never blocks
+    (a stall is found in the loop that stalled, or in Zenoh's delivering thread): the put is
+    side work."""
 
     def __init__(self, session: zenoh.Session, robot: str):
         # BLOCK: the report that explains a fault must not be dropped under load
         self._publisher = session.declare_publisher(
             key(robot, "stalls"), congestion_control=zenoh.CongestionControl.BLOCK)
+        self._work = SideWorkQueue(self._put, 64, "stalls")
 
     def publish(self, stall: Stall) -> None:
-        self._publisher.put(cdr.encode(cdr.msg(cdr.STALL, process=stall.process, at=stall.at,
-                                               length=stall.length, steal=stall.steal)))
+        self._work.put(stall)
+
+    def _put(self, stall: Stall) -> None:
+        self._publisher.put(cdr.encode(cdr.msg(
+            cdr.STALL, process=stall.process, at=stall.at, length=stall.length,
+            steal=stall.steal, where=stall.where)))
 
     def close(self) -> None:
+        self._work.close(1.0)
         self._publisher.undeclare()
 
 
+def decode_stall(data: bytes) -> Stall:
+    """A hil_msgs/Stall payload as a :class:`Stall`; ValueError if it is not one."""
+    got = cdr.decode(data, cdr.STALL)
+    return Stall(got.process, got.at, got.length, got.steal, where=got.where)
+
+
 class StallSubscriber:
-    """Receives the stalls of a robot's real-time processes; a malformed payload is
-    reported through ``on_error`` (key and reason), never passed on."""
+    """Receives the stalls of a robot's real-time processes (this process' own among them);
+    a malformed payload is reported through ``on_error`` (key and reason), never passed on."""
 
     def __init__(self, session: zenoh.Session, robot: str, on_stall: Callable[[Stall], None],
                  on_error: Callable[[str], None]):
         def on_sample(sample: zenoh.Sample) -> None:
             try:
-                got = cdr.decode(sample.payload.to_bytes(), cdr.STALL)
+                stall = decode_stall(sample.payload.to_bytes())
             except ValueError as exc:
                 on_error(f"{sample.key_expr}: dropped a malformed payload: {exc}")
                 return
-            on_stall(Stall(got.process, got.at, got.length, got.steal))
+            on_stall(stall)
 
         self._subscriber = session.declare_subscriber(key(robot, "stalls"), on_sample)
 
@@ -137,15 +151,17 @@ class DiagnosticsPublisher:
 
 
 class RunSubscriber:
-    """Receives a robot's recorded cycles, sim clock and (given ``on_diagnostic``) the
-    controller's diagnostics; malformed payloads are counted and reported (key and reason)
-    through ``on_error``, never passed on."""
+    """Receives a robot's recorded cycles, sim clock and (given ``on_diagnostic`` and
+    ``on_stall``) the controller's diagnostics and the real-time processes' stalls;
+    malformed payloads are counted and reported (key and reason) through ``on_error``, never
+    passed on."""
 
     def __init__(self, session: zenoh.Session, robot: str,
                  on_samples: Callable[[ControlSamples], None],
                  on_clock: Callable[[float, float], None],
                  on_error: Callable[[str], None],
-                 on_diagnostic: Callable[[DiagnosticStatus], None] | None = None):
+                 on_diagnostic: Callable[[DiagnosticStatus], None] | None = None,
+                 on_stall: Callable[[Stall], None] | None = None):
         self.malformed = 0
         self._on_error = on_error
         self._subscribers: list[zenoh.Subscriber] = []
@@ -160,6 +176,8 @@ class RunSubscriber:
                     on_diagnostic(diagnostic)
 
             self._subscribe(session, key(robot, "diagnostics"), DiagnosticStatus.decode, each)
+        if on_stall is not None:
+            self._subscribe(session, key(robot, "stalls"), decode_stall, on_stall)
 
     def _subscribe(self, session: zenoh.Session, key_expr: str,
                    decode: Callable[[bytes], Any], deliver: Callable[[Any], Any]) -> None:
@@ -209,5 +227,5 @@ class ProcessWatch:
 
 __all__ = ["ControlSamplesPublisher", "ControllerGone", "DiagnosticsPublisher", "GoalStatus",
            "JointStatePublisher", "ProcessWatch", "RunSubscriber", "SimClockPublisher",
-           "StallPublisher", "StallSubscriber",
+           "StallPublisher", "StallSubscriber", "decode_stall",
            "TrajectoryActionClient", "TrajectoryActionServer", "key"]

@@ -20,7 +20,8 @@ from datetime import datetime
 #: wake-up jitter (tens of us), below a cycle's worth of a drive's silence limit
 STALL_THRESHOLD = 0.005
 #: what each process is called in words
-PROCESS_WORDS = {"sim": "the simulator", "control": "the controller"}
+PROCESS_WORDS = {"sim": "the simulator", "control": "the controller",
+                 "transport": "the Zenoh transport"}
 #: how often a detector reads the machine's steal time (s): reading /proc/stat at every
 #: wake-up cost a simulator inside User-Mode Linux enough to miss its answers
 STEAL_REFRESH = 1.0
@@ -32,7 +33,8 @@ class Stall:
     epoch) for ``length`` s; ``steal`` s of CPU time the hypervisor took from the machine's
     CPUs in the ``steal_window`` s that hold the stall (NaN: not measured). Found from
     wake-ups ``resolution`` s apart, it may have begun up to that much earlier (and lasted
-    that much longer)."""
+    that much longer). ``where``: what stalled within the process (the transport: the
+    CAN channel whose message came late)."""
 
     process: str
     at: float
@@ -40,14 +42,18 @@ class Stall:
     steal: float = math.nan
     resolution: float = 0.0
     steal_window: float = math.nan
+    where: str = ""
 
     def __str__(self) -> str:
         steal = ("" if math.isnan(self.steal) else
                  f" (hypervisor steal {self.steal * 1e3:.0f} ms in the "
                  f"{self.steal_window * 1e3:.0f} ms around it)")
         when = datetime.fromtimestamp(self.at).strftime("%H:%M:%S.%f")[:-3]
-        return (f"{PROCESS_WORDS.get(self.process, self.process)} stalled "
-                f"{self.length * 1e3:.0f} ms at {when}{steal}")
+        what = PROCESS_WORDS.get(self.process, self.process)
+        if self.process == "transport":
+            return (f"{what} delivered a message of {self.where or 'a CAN channel'} "
+                    f"{self.length * 1e3:.0f} ms late at {when}{steal}")
+        return f"{what} stalled {self.length * 1e3:.0f} ms at {when}{steal}"
 
 
 def steal_seconds() -> float:
@@ -114,3 +120,32 @@ class StallDetector:
             return f"no stall over {self.threshold * 1e3:g} ms"
         return f"{self.count} stall(s) over {self.threshold * 1e3:g} ms, longest " \
                f"{self.longest * 1e3:.0f} ms"
+
+
+class StallTally:
+    """Stalls counted per process, with the longest of each: what a run reports."""
+
+    def __init__(self):
+        self._counts: dict[str, tuple[int, float]] = {}
+
+    def add(self, stall: Stall) -> None:
+        count, longest = self._counts.get(stall.process, (0, 0.0))
+        self._counts[stall.process] = (count + 1, max(longest, stall.length))
+
+    @property
+    def total(self) -> int:
+        """Stalls of every process."""
+        return sum(count for count, _ in self._counts.values())
+
+    def figures(self) -> dict[str, dict[str, float]]:
+        """{process: {"count": n, "longest_ms": ms}}."""
+        return {process: {"count": count, "longest_ms": round(longest * 1e3, 1)}
+                for process, (count, longest) in sorted(self._counts.items())}
+
+    def summary(self, threshold: float = STALL_THRESHOLD) -> str:
+        """In words, per process: 'sim 2 (longest 19 ms), transport 5 (longest 7 ms)'."""
+        if not self._counts:
+            return f"no stall over {threshold * 1e3:g} ms"
+        return f"stalls over {threshold * 1e3:g} ms: " + ", ".join(
+            f"{process} {count} (longest {longest * 1e3:.0f} ms)"
+            for process, (count, longest) in sorted(self._counts.items()))

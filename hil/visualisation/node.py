@@ -19,6 +19,7 @@ from hil.can.monitor import BusMonitor
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import RunSubscriber, key
+from hil.realtime.stalls import Stall
 from hil.visualisation.recorder import RunRecorder
 
 
@@ -40,7 +41,7 @@ class VizNode:
         self._errors = 0
         self.subscriber = RunSubscriber(session, robot, self._queue.put,
                                         lambda wall, sim: self._queue.put((wall, sim)),
-                                        self._report, self._queue.put)
+                                        self._report, self._queue.put, self._queue.put)
 
     def _report(self, text: str) -> None:
         self._errors += 1
@@ -82,12 +83,14 @@ class VizNode:
             self.batches += 1
         elif isinstance(item, DiagnosticStatus):
             self.recorder.log_diagnostic(item)
+        elif isinstance(item, Stall):
+            self.recorder.log_stall(item)
         else:
             self.recorder.log_clock(*item)
 
     def summary(self) -> str:
         text = (f"{self.recorder.cycles_logged} cycles in {self.batches} batches, "
-                f"{self.recorder.cycles_lost} lost")
+                f"{self.recorder.cycles_lost} lost, {self.recorder.stalls_logged} stalls")
         if self.lags:
             lags = np.array(self.lags) * 1e3
             text += (f"; lag p50 {np.percentile(lags, 50):.1f} ms, p99 "

@@ -13,6 +13,9 @@ for all of them 1-3 ms per batch):
 ``drives/<actuator>/torque``            motor torque as the drive reports it
 ``drives/<actuator>/state``             the drive's state (StateChange, on change)
 ``bus/<bus>/load``                      measured bus load, % of the bitrate
+``loop/period_ms``, ``loop/round_trip_ms``  the control loop's period and round trip
+``loop/stalls/<process>``               each stall of a real-time process (sim, control,
+                                        transport): its length (ms) where it began
 ``diagnostics``                         the controller's faults and resets (TextLog)
 ``robot/...``, ``joints/<joint>``       the URDF (rerun's loader) and joint transforms
 ======================================  ==============================================
@@ -37,6 +40,7 @@ from hil.can.monitor import MeasuredLoad
 from hil.description import RobotDescription
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
+from hil.realtime.stalls import PROCESS_WORDS, Stall
 from hil.visualisation.blueprint import run_blueprint
 
 #: the 3D robot is posed at most this often (Hz): the eye needs no more
@@ -90,6 +94,7 @@ class RunRecorder:
         self.sim_time = SimTimeMap()
         self.cycles_logged = 0
         self.cycles_lost = 0
+        self.stalls_logged = 0
         self._next_cycle: int | None = None
         self._last_states: dict[str, str] = {}
         self._last_pose = -np.inf
@@ -119,6 +124,10 @@ class RunRecorder:
         for actuator in self._actuator_joints:
             rec.log(f"drives/{actuator}/torque", rr.SeriesLines(names=["motor torque [N·m]"]),
                     static=True)
+        for process, words in PROCESS_WORDS.items():     # points: a stall is an event
+            rec.log(f"loop/stalls/{process}", rr.SeriesPoints(
+                names=[f"{words} stalled [ms]"], markers=["cross"], marker_sizes=[6.0]),
+                static=True)
         for bus in self._buses:
             rec.log(f"bus/{bus}/load",
                     rr.SeriesLines(names=["load [%]", "load, worst-case stuffing [%]"]),
@@ -161,6 +170,13 @@ class RunRecorder:
             "diagnostics", indexes=times.columns(),
             columns=rr.TextLog.columns(text=[diagnostic.message],
                                        level=[_TEXT_LOG_LEVELS[diagnostic.level]]))
+
+    def log_stall(self, stall: Stall) -> None:
+        """A stall of a real-time process on the wall and sim timelines, where it began."""
+        table = _ScalarTable(self._times(np.array([stall.at])))
+        table.add(f"/loop/stalls/{stall.process}", np.array([stall.length * 1e3]))
+        table.send(self.recording)
+        self.stalls_logged += 1
 
     def log_bus_load(self, wall_time: float, loads: list[MeasuredLoad]) -> None:
         table = _ScalarTable(self._times(np.array([wall_time])))
