@@ -68,6 +68,26 @@ def test_a_short_stall_late_inside_a_long_silence_does_not_explain_it():
     assert [f.node_id for f in explained.faults] == [3]
 
 
+def test_a_watchdog_trip_during_a_stall_as_long_as_its_timeout_is_the_benchs():
+    """A drive's RPDO watchdog (EMCY 0x8250) trips when the controller's frames stop coming:
+    during a 115 ms stall of the controller, that is the bench's; a stall too short to trip
+    a 100 ms watchdog, or a following error, is not."""
+    attribution = FaultAttribution(period=0.002, silence_cycles=6,
+                                   link_timeouts={("arm", 1): 0.1, ("arm", 2): 0.1})
+    tripped = AxisFault(FaultKind.QUICK_STOP, "arm", 1, ("joint1",),
+                        "quick-stopped on its own after EMCY 0x8250", 0x8250)
+    following = AxisFault(FaultKind.FAULT, "arm", 2, ("joint2",), "in FAULT", 0x8611)
+    attribution.fault(tripped, 100.117)
+    attribution.fault(following, 100.117)
+    attribution.stall(Stall("control", 100.0, 0.115))
+    explained, = attribution.attributions(100.117 + GRACE)
+    assert explained.faults == (tripped,)
+    assert "drive fault(s) of lost frames (arm/1)" in explained.message()
+    attribution.fault(tripped, 200.117)
+    attribution.stall(Stall("transport", 200.09, 0.020))   # too short for a 100 ms watchdog
+    assert attribution.attributions(200.117 + GRACE) == []
+
+
 def test_the_detector_measures_a_late_wake_up_and_the_steal_around_it():
     ticks = iter([10.0, 10.010, 10.045])
     steals = iter([5.0, 5.012])           # read at the start and at the stall only

@@ -34,7 +34,7 @@ def errors_of(path):
     return caught.value.diagnostics
 
 
-@pytest.mark.parametrize("name", ["ur3.yaml", "pigot.yaml", "pigot_mixed.yaml"])
+@pytest.mark.parametrize("name", ["ur3.yaml", "ur3_1khz.yaml", "pigot.yaml", "pigot_mixed.yaml"])
 def test_shipped_configs_load_and_check(name, capsys):
     config = load_bus_config(ROOT / "bus_config" / name)
     assert all(bus.load().worst_ratio <= 1.0 for bus in config.buses)

@@ -134,7 +134,7 @@ def _across_process_lines(report: dict) -> list[str]:
               "Zenoh on loopback);", "  floor: the same frames between two bare python-can "
               "processes on the same transport, this run; stalls over 5 ms of the sim's and "
               "the controller's loops and of Zenoh's deliveries (s/c/t)",
-              f"  {'robot':<6} {'Hz':>5} {'viz':>4} {'cycles':>7} {'p50 us':>7} {'p99 us':>7} "
+              f"  {'robot':<8} {'Hz':>5} {'viz':>4} {'cycles':>7} {'p50 us':>7} {'p99 us':>7} "
               f"{'max us':>7} {'missed':>7} {'busy p50':>9} {'p99':>5} {'rt p50':>7} "
               f"{'p99':>5} {'floor p50':>10} {'p99':>5} {'x p99':>6} {'faults':>6} "
               f"{'stalls s/c/t':>12}  CPU"]
@@ -145,7 +145,7 @@ def _across_process_lines(report: dict) -> list[str]:
         stalls = "/".join(str(row.get("stalls", {}).get(process, {}).get("count", 0))
                           for process in ("sim", "control", "transport"))
         lines.append(
-            f"  {row['robot']:<6} {row['rate_hz']:>5.0f} {'yes' if row['viz'] else 'no':>4} "
+            f"  {row['robot']:<8} {row['rate_hz']:>5.0f} {'yes' if row['viz'] else 'no':>4} "
             f"{row['cycles']:>7} {row.get('error_p50_us', math.nan):>7.0f} "
             f"{row.get('error_p99_us', math.nan):>7.0f} {row.get('error_max_us', math.nan):>7.0f}"
             f" {missed:>7} {row.get('busy_p50_us', math.nan):>9.0f} "

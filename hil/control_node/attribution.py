@@ -22,6 +22,10 @@ GRACE = 1.0
 RETAIN = 5.0
 #: slack for the clocks' readings around when a silence began (s)
 MARGIN = 0.005
+#: EMCY codes of a drive that lost its master's frames (CiA 402: RPDO timeout 0x8250,
+#: heartbeat consumer 0x8130): a stall of the controller, of the transport or of the
+#: simulator's own clock can trip them as it can a silence
+LINK_LOSS_CODES = frozenset({0x8250, 0x8130})
 
 
 @dataclass(frozen=True)
@@ -35,7 +39,7 @@ class Attribution:
         drives = ", ".join(f"{f.bus}/{f.node_id}" for f in self.faults)
         return (f"bench fault, not a drive fault: {'; '.join(map(str, self.stalls))}; "
                 f"{'it explains' if len(self.stalls) == 1 else 'they explain'} the "
-                f"{len(self.faults)} drive(s) reported silent ({drives})")
+                f"{len(self.faults)} drive fault(s) of lost frames ({drives})")
 
     def values(self) -> tuple[tuple[str, str], ...]:
         """As diagnostic KeyValues: kind bench_stall, the stalls (comma-separated, in turn)
@@ -51,17 +55,23 @@ class Attribution:
 
 
 class FaultAttribution:
-    """Holds silent drives against stalls. A stall explains a silence if it lasted at least
-    two cycles and was under way when the silence began (found at ``t`` after the drive had
-    not answered for its ``silent_for``, or ``silence_cycles`` of ``period``): a stall that
-    comes later, such as the controller's own work of reporting the fault, or a short one
-    inside a long silence, is no cause. Not thread-safe: the control loop feeds and asks
-    it."""
+    """Holds faults that losing frames causes against stalls. A drive found silent, and a
+    drive that reported losing its master's frames (LINK_LOSS_CODES, where ``link_timeouts``
+    gives its watchdog time), can be the bench's. A stall explains such a fault if it was
+    under way when the drive's silence began (found at ``t`` after the drive had not
+    answered for its ``silent_for``, or ``silence_cycles`` of ``period``; for a lost link,
+    its watchdog time before the EMCY was read) and lasted at least two cycles (a lost
+    link: at least half its watchdog time): a stall that comes later, such as the
+    controller's own work of reporting the fault, or a short one inside a long silence, is
+    no cause. Not thread-safe: the control loop feeds and asks it."""
 
-    def __init__(self, period: float, silence_cycles: int):
+    def __init__(self, period: float, silence_cycles: int,
+                 link_timeouts: dict[tuple[str, int], float] | None = None):
         self.period = period
         self.window = silence_cycles * period
-        self._faults: list[tuple[float, AxisFault]] = []
+        self.link_timeouts = dict(link_timeouts or {})
+        # (when its silence began, found, the fault, the shortest stall that can cause it)
+        self._faults: list[tuple[float, float, AxisFault, float]] = []
         self._stalls: list[Stall] = []
 
     @property
@@ -70,9 +80,15 @@ class FaultAttribution:
         return bool(self._faults)
 
     def fault(self, fault: AxisFault, wall: float) -> None:
-        """A fault found at ``wall`` (s since the epoch); only silences can be the bench's."""
+        """A fault found at ``wall`` (s since the epoch); only losses of frames can be the
+        bench's."""
         if fault.kind is FaultKind.SILENT:
-            self._faults.append((wall, fault))
+            silence = fault.silent_for if fault.silent_for is not None else self.window
+            self._faults.append((wall - silence, wall, fault, 2 * self.period))
+            return
+        timeout = self.link_timeouts.get((fault.bus, fault.node_id))
+        if fault.code in LINK_LOSS_CODES and timeout is not None:
+            self._faults.append((wall - timeout, wall, fault, timeout / 2))
 
     def stall(self, stall: Stall) -> None:
         self._stalls.append(stall)
@@ -82,22 +98,22 @@ class FaultAttribution:
         stall that explains each), grouped by those stalls; forgets what is too old."""
         found: dict[tuple[Stall, ...], list[AxisFault]] = {}
         waiting = []
-        for found_at, fault in self._faults:
-            began = found_at - (fault.silent_for if fault.silent_for is not None
-                                else self.window)
-            stalls = tuple(sorted((s for s in self._stalls if self._explains(s, began)),
-                                  key=lambda s: s.at))
+        for entry in self._faults:
+            began, found_at, fault, shortest = entry
+            stalls = tuple(sorted((s for s in self._stalls
+                                   if self._explains(s, began, shortest)), key=lambda s: s.at))
             if wall - found_at < GRACE:
-                waiting.append((found_at, fault))
+                waiting.append(entry)
             elif stalls:
                 found.setdefault(stalls, []).append(fault)
             elif wall - found_at < RETAIN:
-                waiting.append((found_at, fault))
+                waiting.append(entry)
         self._faults = waiting
         self._stalls = [s for s in self._stalls if wall - (s.at + s.length) < RETAIN]
         return [Attribution(stalls, tuple(faults)) for stalls, faults in found.items()]
 
-    def _explains(self, stall: Stall, began: float) -> bool:
-        return (stall.length >= 2 * self.period
+    @staticmethod
+    def _explains(stall: Stall, began: float, shortest: float) -> bool:
+        return (stall.length >= shortest
                 and stall.at - stall.resolution <= began + MARGIN
                 and stall.at + stall.length >= began - MARGIN)

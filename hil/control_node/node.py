@@ -88,7 +88,11 @@ class ControlNode:
         #: every stall of the bench heard of since the loop cycles (the loop's own, the
         #: simulator's, the transport's), by process
         self.bench_stalls = StallTally()
-        self._attribution = FaultAttribution(self.period, MISSED_ANSWER_LIMIT + 1)
+        config = getattr(hardware, "config", None)          # a CAN bench's drives
+        self._attribution = FaultAttribution(
+            self.period, MISSED_ANSWER_LIMIT + 1,
+            {} if config is None else {(bus.name, drive.node_id): drive.watchdog_timeout
+                                       for bus in config.buses for drive in bus.drives})
         self._reported_stalls: queue.SimpleQueue[Stall] = queue.SimpleQueue()
         self._cycling_since = math.inf            # wall time; stalls before it are not counted
         # one path for every stall, this process' own too: published (for hil up and the
