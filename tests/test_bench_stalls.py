@@ -88,6 +88,19 @@ def test_a_watchdog_trip_during_a_stall_as_long_as_its_timeout_is_the_benchs():
     assert attribution.attributions(200.117 + GRACE) == []
 
 
+def test_a_burst_of_late_deliveries_explains_every_drive_in_one_line():
+    attribution = FaultAttribution(period=0.002, silence_cycles=6)
+    for node in range(1, 7):
+        attribution.fault(_silent(node), 100.014)
+    for i, where in enumerate(["ur3/arm", "ur3/wrist"] * 3):
+        attribution.stall(Stall("transport", 100.0 + i * 0.001, 0.013 + i * 0.001, where=where))
+    explained, = attribution.attributions(100.014 + GRACE)
+    assert len(explained.faults) == 6 and len(explained.stalls) == 6
+    assert ("the Zenoh transport delivered 6 messages late from" in explained.message()
+            and "up to 18 ms (ur3/arm, ur3/wrist)" in explained.message())
+    assert dict(explained.values())["explains"] == "6"
+
+
 def test_the_detector_measures_a_late_wake_up_and_the_steal_around_it():
     ticks = iter([10.0, 10.010, 10.045])
     steals = iter([5.0, 5.012])           # read at the start and at the stall only

@@ -11,9 +11,10 @@ broke real time from a device that failed.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from datetime import datetime
 
 from hil.hardware import AxisFault, FaultKind
-from hil.realtime.stalls import Stall
+from hil.realtime.stalls import PROCESS_WORDS, Stall
 
 #: how long a fault waits for stalls that explain it before it is attributed (s): another
 #: process reports its stall once it has ended, after the silence it caused was found
@@ -37,9 +38,26 @@ class Attribution:
 
     def message(self) -> str:
         drives = ", ".join(f"{f.bus}/{f.node_id}" for f in self.faults)
-        return (f"bench fault, not a drive fault: {'; '.join(map(str, self.stalls))}; "
+        return (f"bench fault, not a drive fault: {'; '.join(self._stalls_in_words())}; "
                 f"{'it explains' if len(self.stalls) == 1 else 'they explain'} the "
                 f"{len(self.faults)} drive fault(s) of lost frames ({drives})")
+
+    def _stalls_in_words(self) -> list[str]:
+        """Each process' stalls: one in full, several (a burst of late messages) in a line."""
+        words = []
+        for process in dict.fromkeys(stall.process for stall in self.stalls):
+            own = [stall for stall in self.stalls if stall.process == process]
+            if len(own) == 1:
+                words.append(str(own[0]))
+                continue
+            where = ", ".join(dict.fromkeys(stall.where for stall in own if stall.where))
+            first = datetime.fromtimestamp(own[0].at).strftime("%H:%M:%S.%f")[:-3]
+            longest = max(stall.length for stall in own)
+            what = (f"delivered {len(own)} messages late" if process == "transport" else
+                    f"stalled {len(own)} times")
+            words.append(f"{PROCESS_WORDS.get(process, process)} {what} from {first}, up to "
+                         f"{longest * 1e3:.0f} ms" + (f" ({where})" if where else ""))
+        return words
 
     def values(self) -> tuple[tuple[str, str], ...]:
         """As diagnostic KeyValues: kind bench_stall, the stalls (comma-separated, in turn)
@@ -94,9 +112,11 @@ class FaultAttribution:
         self._stalls.append(stall)
 
     def attributions(self, wall: float) -> list[Attribution]:
-        """The faults found GRACE or more before ``wall`` and explained by stalls (every
-        stall that explains each), grouped by those stalls; forgets what is too old."""
-        found: dict[tuple[Stall, ...], list[AxisFault]] = {}
+        """The faults found GRACE or more before ``wall`` and explained by stalls, in one
+        attribution with every stall that explains any of them (none: an empty list);
+        forgets what is too old."""
+        stalls_found: dict[Stall, None] = {}
+        faults_found: list[AxisFault] = []
         waiting = []
         for entry in self._faults:
             began, found_at, fault, shortest = entry
@@ -105,12 +125,16 @@ class FaultAttribution:
             if wall - found_at < GRACE:
                 waiting.append(entry)
             elif stalls:
-                found.setdefault(stalls, []).append(fault)
+                stalls_found.update(dict.fromkeys(stalls))
+                faults_found.append(fault)
             elif wall - found_at < RETAIN:
                 waiting.append(entry)
         self._faults = waiting
         self._stalls = [s for s in self._stalls if wall - (s.at + s.length) < RETAIN]
-        return [Attribution(stalls, tuple(faults)) for stalls, faults in found.items()]
+        if not faults_found:
+            return []
+        return [Attribution(tuple(sorted(stalls_found, key=lambda s: s.at)),
+                            tuple(faults_found))]
 
     @staticmethod
     def _explains(stall: Stall, began: float, shortest: float) -> bool:
