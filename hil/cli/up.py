@@ -40,8 +40,9 @@ from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, sess
 
 
 #: exit status: every fault the controller reported was explained by a stall of the bench's
-#: own real-time processes (the simulator's or the controller's): the bench broke real time,
-#: the device did not fail (1: the device reported a fault, or a process failed)
+#: own real-time processes (the simulator's, the controller's, the Zenoh transport's), or the
+#: run passed --max-stalls: the bench broke real time, the device did not fail (1: the device
+#: reported a fault, or a process failed)
 BENCH_FAULT_STATUS = 3
 
 
