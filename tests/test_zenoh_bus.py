@@ -117,7 +117,8 @@ def test_frame_codec_round_trips_extended_and_remote_frames_in_one_message():
               can.Message(arbitration_id=0x123, is_remote_frame=True, dlc=4,
                           is_extended_id=False),
               can.Message(arbitration_id=0x80, data=b"", is_extended_id=False)]
-    sender, sequence, sent_at, back = decode_frames(encode_frames(42, 7, 1234.5, frames), "x")
+    sender, sequence, sent_at, back = decode_frames(encode_frames(42, 7, 1234.5, frames), "x",
+                                                 1235.0)
     assert (sender, sequence, sent_at) == (42, 7, 1234.5) and len(back) == 3
     for msg, got in zip(frames, back):
         assert got.equals(msg, timestamp_delta=None, check_channel=False,
@@ -142,7 +143,7 @@ def _one(arbitration_id: int = 1, data: bytes = b"\x01\x02") -> bytes:
      "identifier 0xFFFF out of range")])
 def test_malformed_payloads_are_rejected_with_what_is_wrong(payload, reason):
     with pytest.raises(ValueError, match=re.escape(reason)):
-        decode_frames(payload, "x")
+        decode_frames(payload, "x", 0.0)
 
 
 def test_malformed_payloads_on_the_network_are_dropped(bus_pair, endpoint):

@@ -10,16 +10,17 @@ from __future__ import annotations
 
 import errno
 import socket
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from contextlib import ExitStack
 
 import can
 
 from hil.can.frames import BusLoad, bus_load, frame_bits
 from hil.errors import HilError
+from hil.realtime.stalls import Stall
 
 __all__ = ["BusLoad", "bus_load", "frame_bits", "open_bus", "sent_together",
-           "socketcan_missing"]
+           "socketcan_missing", "watch_deliveries"]
 
 
 def sent_together(buses: Iterable[can.BusABC]) -> ExitStack:
@@ -32,6 +33,14 @@ def sent_together(buses: Iterable[can.BusABC]) -> ExitStack:
         if batch is not None:
             together.enter_context(batch())
     return together
+
+
+def watch_deliveries(buses: Iterable[can.BusABC], on_stall: Callable[[Stall], None]) -> None:
+    """From now on ``on_stall`` gets each late delivery of the buses that time theirs
+    (``zenoh``: it stamps its messages); others report none."""
+    for bus in buses:
+        if hasattr(bus, "on_stall"):
+            bus.on_stall = on_stall
 
 
 def socketcan_missing(channels: tuple[str, ...] = ("vcan0",)) -> str | None:

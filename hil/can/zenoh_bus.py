@@ -156,10 +156,11 @@ def encode_frames(sender: int, sequence: int, sent_at: float,
     return b"".join(parts)
 
 
-def decode_frames(payload: bytes, channel: str
+def decode_frames(payload: bytes, channel: str, arrived: float
                   ) -> tuple[int, int, float, list[can.Message]]:
-    """(sender, the first frame's sequence number, the sender's clock at the put, frames);
-    raise ValueError for anything that is not a well-formed message, naming the frame."""
+    """(sender, the first frame's sequence number, the sender's clock at the put, frames
+    stamped ``arrived``); raise ValueError for anything that is not a well-formed message,
+    naming the frame."""
     if len(payload) < _HEADER.size:
         raise ValueError(f"{len(payload)} bytes is shorter than a message header")
     sender, sequence, sent_at, count = _HEADER.unpack_from(payload)
@@ -167,7 +168,7 @@ def decode_frames(payload: bytes, channel: str
         raise ValueError("a message of no frames")
     if not math.isfinite(sent_at):
         raise ValueError(f"the sender's clock reads {sent_at}")
-    frames, offset, now = [], _HEADER.size, time.time()
+    frames, offset = [], _HEADER.size
     for number in range(count):
         if len(payload) < offset + _FRAME.size:
             raise ValueError(f"frame {number + 1} of {count} is cut short")
@@ -182,7 +183,7 @@ def decode_frames(payload: bytes, channel: str
         if arbitration_id > limit:
             raise ValueError(f"frame {number + 1} of {count}: identifier "
                              f"0x{arbitration_id:X} out of range")
-        frames.append(received_frame(now, arbitration_id, bool(flags & _EXTENDED), remote,
+        frames.append(received_frame(arrived, arbitration_id, bool(flags & _EXTENDED), remote,
                                      bool(flags & _ERROR), dlc, payload[offset:offset + length],
                                      channel))
         offset += length
@@ -290,7 +291,7 @@ class ZenohBus(can.BusABC):
 
     def _on_payload(self, payload: bytes, arrived: float) -> None:
         try:
-            sender, sequence, sent_at, frames = decode_frames(payload, self._channel)
+            sender, sequence, sent_at, frames = decode_frames(payload, self._channel, arrived)
         except ValueError as exc:
             with self._count_lock:
                 self.counters.malformed += 1

@@ -62,7 +62,7 @@ class Progress:
 
     def on_stall(self, stall: Stall) -> None:
         with self.lock:
-            if stall.at + stall.length < self._counting_since:
+            if stall.end < self._counting_since:
                 return
             self.stalls.add(stall)
             if (self._max_stalls is None or self.too_many is not None

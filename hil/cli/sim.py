@@ -11,6 +11,7 @@ import time
 
 from hil.bus_config import load_bus_config, open_buses
 from hil.cli import common
+from hil.can import watch_deliveries
 from hil.simulator import Simulator
 from hil.can.faults import (
     DriveFault, FrameFault, ProcessFault, parse_fault, with_frame_faults,
@@ -76,9 +77,8 @@ def run(args: argparse.Namespace) -> int:
     clock = SimClockPublisher(session(zenoh), config.robot.name)
     stalls = StallPublisher(session(zenoh), config.robot.name)
     simulator.on_stall = stalls.publish
-    for simulated in simulator.buses:        # zenoh: the controller's messages delivered late
-        if hasattr(simulated.bus, "on_stall") and not args.lock_step:
-            simulated.bus.on_stall = stalls.publish
+    if not args.lock_step:                  # the controller's messages delivered late
+        watch_deliveries((simulated.bus for simulated in simulator.buses), stalls.publish)
     side_work = [(_print_status, args.status_period), (_publish_clock, clock),
                  (_inject, drive_faults)] + ([(_publish_ros_clock, ros_clock)] if ros_clock else [])
     threads = [threading.Thread(target=work, args=(simulator, argument, stop), daemon=True)

@@ -11,10 +11,9 @@ broke real time from a device that failed.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import datetime
 
 from hil.hardware import AxisFault, FaultKind
-from hil.realtime.stalls import PROCESS_WORDS, Stall
+from hil.realtime.stalls import PROCESS_WORDS, Stall, clock_time
 
 #: how long a fault waits for stalls that explain it before it is attributed (s): another
 #: process reports its stall once it has ended, after the silence it caused was found
@@ -51,7 +50,7 @@ class Attribution:
                 words.append(str(own[0]))
                 continue
             where = ", ".join(dict.fromkeys(stall.where for stall in own if stall.where))
-            first = datetime.fromtimestamp(own[0].at).strftime("%H:%M:%S.%f")[:-3]
+            first = clock_time(own[0].at)
             longest = max(stall.length for stall in own)
             what = (f"delivered {len(own)} messages late" if process == "transport" else
                     f"stalled {len(own)} times")
@@ -130,7 +129,7 @@ class FaultAttribution:
             elif wall - found_at < RETAIN:
                 waiting.append(entry)
         self._faults = waiting
-        self._stalls = [s for s in self._stalls if wall - (s.at + s.length) < RETAIN]
+        self._stalls = [s for s in self._stalls if wall - s.end < RETAIN]
         if not faults_found:
             return []
         return [Attribution(tuple(sorted(stalls_found, key=lambda s: s.at)),
@@ -140,4 +139,4 @@ class FaultAttribution:
     def _explains(stall: Stall, began: float, shortest: float) -> bool:
         return (stall.length >= shortest
                 and stall.at - stall.resolution <= began + MARGIN
-                and stall.at + stall.length >= began - MARGIN)
+                and stall.end >= began - MARGIN)

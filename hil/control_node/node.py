@@ -203,7 +203,7 @@ class ControlNode:
             self._stall_publisher.publish(own)
         while not self._reported_stalls.empty():
             stall = self._reported_stalls.get_nowait()
-            if stall.at + stall.length >= self._cycling_since:    # not the bring-up's
+            if stall.end >= self._cycling_since:    # not the bring-up's
                 self.bench_stalls.add(stall)
                 self._attribution.stall(stall)
         if self._attribution.waiting:

@@ -20,7 +20,7 @@ import can
 import numpy as np
 
 from hil.bus_config.types import SystemConfig
-from hil.can import sent_together
+from hil.can import sent_together, watch_deliveries
 from hil.errors import HilError
 from hil.hardware.axis import Axis, AxisFault, FaultKind
 from hil.hardware.feedback import JointFeedback, PlausibilityCheck
@@ -294,9 +294,7 @@ class CanHardwareInterface(HardwareInterface):
             network.notifier.stop(1.0)
 
     def watch_transport(self, on_stall: Callable[[Stall], None]) -> None:
-        for bus in self._buses.values():
-            if hasattr(bus, "on_stall"):         # zenoh: it stamps and times its messages
-                bus.on_stall = on_stall
+        watch_deliveries(self._buses.values(), on_stall)
 
     def _send_quietly(self, bus: str, can_id: int, data: bytes, remote: bool) -> None:
         try:

@@ -44,16 +44,26 @@ class Stall:
     steal_window: float = math.nan
     where: str = ""
 
+    @property
+    def end(self) -> float:
+        """When it ended (wall clock, s since the epoch)."""
+        return self.at + self.length
+
     def __str__(self) -> str:
         steal = ("" if math.isnan(self.steal) else
                  f" (hypervisor steal {self.steal * 1e3:.0f} ms in the "
                  f"{self.steal_window * 1e3:.0f} ms around it)")
-        when = datetime.fromtimestamp(self.at).strftime("%H:%M:%S.%f")[:-3]
+        when = clock_time(self.at)
         what = PROCESS_WORDS.get(self.process, self.process)
         if self.process == "transport":
             return (f"{what} delivered a message of {self.where or 'a CAN channel'} "
                     f"{self.length * 1e3:.0f} ms late at {when}{steal}")
         return f"{what} stalled {self.length * 1e3:.0f} ms at {when}{steal}"
+
+
+def clock_time(at: float) -> str:
+    """Wall time ``at`` (s since the epoch) as a stall is told in words: HH:MM:SS.mmm."""
+    return datetime.fromtimestamp(at).strftime("%H:%M:%S.%f")[:-3]
 
 
 def steal_seconds() -> float:
