@@ -4,21 +4,33 @@ Every process (sim, control, viz, clients) is a Zenoh peer. By default it
 talks to loopback only: multicast scouting is off, and peers find each other
 through explicit ``listen``/``connect`` endpoints (``tcp/127.0.0.1:PORT``).
 For several hosts, give routable endpoints or a Zenoh config file.
+
+Without endpoints, the hil processes of one host meet at one endpoint
+(:func:`meeting_endpoint`, ``tcp/127.0.0.1:7450``): the first to start listens there, the
+others connect to it, and Zenoh's gossip tells each about the others, so that every pair
+ends up linked directly (each also listens on a loopback port of its own). Any order of
+start works, and when the one listening there ends, the others keep dialling it until a
+new process listens there. Peers, not a router: nothing relays another process' messages,
+so a process' own access rules (``--secure``) see who sent each message it acts on.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import socket
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import zenoh
 
 from hil.errors import HilError
+from hil.zenoh_security import Identity, secured_endpoint
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7450"     # 7447 is Zenoh's and ROS 2's router port
+#: the environment variable that moves the meeting point (tests, two benches on one host)
+MEETING_VARIABLE = "HIL_ZENOH_ENDPOINT"
 LOOPBACK_ANY_PORT = "tcp/127.0.0.1:0"
 #: how long a droppable put (a CAN frame) may wait for room in a congested link before it
 #: is dropped (us; Zenoh's default is 1000): about one CAN frame's time at 1 Mbit/s, so a
@@ -33,6 +45,12 @@ DROP_WAIT_US = 150
 SOCKET_BUFFER = 65536
 
 
+def meeting_endpoint() -> str:
+    """Where the hil processes of this host meet when given no endpoints: $HIL_ZENOH_ENDPOINT,
+    else DEFAULT_ENDPOINT."""
+    return os.environ.get(MEETING_VARIABLE) or DEFAULT_ENDPOINT
+
+
 def free_loopback_port() -> int:
     """A TCP port on 127.0.0.1 that is free right now (for a Zenoh endpoint to listen on)."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
@@ -42,11 +60,28 @@ def free_loopback_port() -> int:
 
 @dataclass(frozen=True)
 class ZenohSettings:
-    """Where this process listens and whom it connects to."""
+    """Where this process listens and whom it connects to; or, with ``meet``, the endpoint
+    where it listens if it is free and which it connects to if not (see the module doc)."""
 
     listen: tuple[str, ...] = ()
     connect: tuple[str, ...] = ()
     config_file: Path | None = None
+    meet: str | None = None
+    #: with one, TLS only, mutual, and the access policy (hil.zenoh_security)
+    identity: Identity | None = None
+
+    @classmethod
+    def meeting(cls, identity: Identity | None = None) -> ZenohSettings:
+        """The settings of a process given no endpoints: the host's meeting point."""
+        return cls(meet=meeting_endpoint(), identity=identity)
+
+    def hosting(self) -> ZenohSettings:
+        """These settings, listening at the meeting point."""
+        return replace(self, listen=self.listen + (self.meet,), meet=None)
+
+    def joining(self) -> ZenohSettings:
+        """These settings, connecting to the meeting point."""
+        return replace(self, connect=self.connect + (self.meet,), meet=None)
 
     def to_config(self) -> zenoh.Config:
         try:
@@ -63,10 +98,16 @@ class ZenohSettings:
             # Zenoh's own default listener is tcp/[::]:0, every interface and IPv6 only
             # where IPv6 exists; a process that only connects listens on loopback instead.
             listen = self.listen or (() if self.config_file else (LOOPBACK_ANY_PORT,))
+            connect = self.connect
+            if self.identity is not None:
+                listen, connect = (tuple(map(secured_endpoint, listen)),
+                                   tuple(map(secured_endpoint, connect)))
+                for path, value in self.identity.zenoh_json().items():
+                    config.insert_json5(path, value)
             if listen:
                 config.insert_json5("listen/endpoints", json.dumps(list(listen)))
-            if self.connect:
-                config.insert_json5("connect/endpoints", json.dumps(list(self.connect)))
+            if connect:
+                config.insert_json5("connect/endpoints", json.dumps(list(connect)))
         except zenoh.ZError as exc:
             raise HilError.single(f"invalid Zenoh configuration: {exc}", self.config_file,
                                   hint="check the endpoints (e.g. tcp/127.0.0.1:7447)") from None
@@ -81,15 +122,24 @@ def session(settings: ZenohSettings) -> zenoh.Session:
     """The process' session for these settings (opened once, shared)."""
     with _lock:
         if settings not in _sessions:
-            try:
-                _sessions[settings] = zenoh.open(settings.to_config())
-            except zenoh.ZError as exc:
-                raise HilError.single(
-                    f"cannot open a Zenoh session (listen {list(settings.listen)}, connect "
-                    f"{list(settings.connect)}): {exc}",
-                    hint="is the listen port already taken by another hil process? "
-                         "choose another with --listen") from None
+            _sessions[settings] = _open(settings)
         return _sessions[settings]
+
+
+def _open(settings: ZenohSettings) -> zenoh.Session:
+    if settings.meet is not None:
+        try:     # the first at the meeting point listens there; the OS decides who is first
+            return zenoh.open(settings.hosting().to_config())
+        except zenoh.ZError:
+            settings = settings.joining()
+    try:
+        return zenoh.open(settings.to_config())
+    except zenoh.ZError as exc:
+        raise HilError.single(
+            f"cannot open a Zenoh session (listen {list(settings.listen)}, connect "
+            f"{list(settings.connect)}): {exc}",
+            hint="is the listen port already taken by another hil process? "
+                 "choose another with --listen") from None
 
 
 def close(settings: ZenohSettings) -> None:

@@ -26,8 +26,7 @@ def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None
     try:
         for bus in config.buses:
             name = interface or bus.interface
-            options = ({"listen": zenoh.listen, "connect": zenoh.connect,
-                        "zenoh_config": zenoh.config_file} if name == "zenoh" else {})
+            options = {"settings": zenoh} if name == "zenoh" else {}
             opened[bus.name] = open_bus(name, channels.get(bus.name, bus.channel), bus.bitrate,
                                         **options)
     except HilError:

@@ -252,13 +252,17 @@ class _Batch(threading.local):
 class ZenohBus(can.BusABC):
     """python-can bus over Zenoh pub/sub on key ``hil/can/<channel>``.
 
-    Options: ``listen`` / ``connect`` (lists of Zenoh endpoints),
-    ``zenoh_config`` (path of a Zenoh config file), ``receive_own_messages``.
+    Options: ``listen`` / ``connect`` (lists of Zenoh endpoints; with neither, nor a config
+    file, the bus joins the hil processes of this host at their meeting point:
+    :func:`hil.zenoh_session.meeting_endpoint`), ``zenoh_config`` (path of a Zenoh config
+    file), ``receive_own_messages``; ``settings`` (a :class:`ZenohSettings`, in place of the
+    three: how hil's own processes join their session, ``--secure`` included).
     ``on_stall``, if set, is called (in Zenoh's delivering thread) with each late delivery.
     """
 
     def __init__(self, channel: str, listen=(), connect=(), zenoh_config=None,
-                 receive_own_messages: bool = False, **kwargs):
+                 receive_own_messages: bool = False, settings: ZenohSettings | None = None,
+                 **kwargs):
         self.channel_info = f"Zenoh {KEY_PREFIX}{channel}"
         self._channel = str(channel)
         self._receive_own = receive_own_messages
@@ -273,8 +277,10 @@ class ZenohBus(can.BusABC):
         self._queue: queue.Queue[can.Message] = queue.Queue(RECEIVE_FIFO)
         self._direct: DirectDelivery | None = None
         self._send_lock = threading.Lock()
-        settings = ZenohSettings(tuple(listen), tuple(connect),
-                                 Path(zenoh_config) if zenoh_config else None)
+        if settings is None:
+            settings = (ZenohSettings(tuple(listen), tuple(connect),
+                                      Path(zenoh_config) if zenoh_config else None)
+                        if listen or connect or zenoh_config else ZenohSettings.meeting())
         self._session = session(settings)
         key = KEY_PREFIX + self._channel
         # not express: Zenoh batches what a burst puts before its TX task sends it. Measured on

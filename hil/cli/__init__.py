@@ -27,6 +27,7 @@ COMMANDS = {
     "reset": "reset drive faults (after a fault aborted a goal) and hold position",
     "viz": "show and record every axis of a running robot in rerun",
     "up": "start sim, controller and visualiser together (optionally run a demo), record the run",
+    "keys": "make the certificates of --secure (mutual TLS and rights by role)",
     "router": "run a Zenoh router with rmw_zenohd's settings (for --ros without ROS 2 installed)",
     "bench": "measure cycle timing, real-time factors, overheads, latency, tracking and bus load",
 }

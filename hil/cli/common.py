@@ -13,7 +13,11 @@ from hil.description import PackagePath
 from hil.errors import HilError
 from hil.resources import BUS_CONFIGS, data_dir
 from hil.supervisor import parse_cpus
-from hil.zenoh_session import DEFAULT_ENDPOINT, ZenohSettings
+from hil.zenoh_security import Identity
+from hil.zenoh_session import DEFAULT_ENDPOINT, MEETING_VARIABLE, ZenohSettings
+
+#: how a loopback listener's endpoint reads (anything else is reachable from elsewhere)
+LOOPBACK_HOSTS = ("/127.", "/[::1]", "/localhost:")
 
 
 def config_path(name: str) -> Path:
@@ -41,27 +45,43 @@ def package_path(args: argparse.Namespace) -> PackagePath:
     return PackagePath.from_environment(args.package_path)
 
 
-def add_zenoh(parser: argparse.ArgumentParser, listens: bool) -> None:
-    default = "listens on" if listens else "connects to"
-    group = parser.add_argument_group("Zenoh", f"by default this process {default} "
-                                               f"{DEFAULT_ENDPOINT} (loopback only)")
+def add_zenoh(parser: argparse.ArgumentParser, role: str) -> None:
+    """The Zenoh options of a command whose process takes ``role`` under ``--secure``
+    (hil.zenoh_security.ROLES)."""
+    group = parser.add_argument_group(
+        "Zenoh", f"without endpoints, the hil processes of this host meet at {DEFAULT_ENDPOINT} "
+                 f"(${MEETING_VARIABLE} moves it): the first to start listens there, the others "
+                 "connect to it, in any order (loopback only)")
     group.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
                        help="Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7450 (repeatable)")
     group.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
                        help="Zenoh endpoint of another hil process (repeatable)")
     group.add_argument("--zenoh-config", type=Path, metavar="FILE",
                        help="a Zenoh JSON5 config file (endpoints above still apply)")
-    parser.set_defaults(zenoh_listens=listens)
+    group.add_argument("--secure", type=Path, metavar="DIR",
+                       help=f"mutual TLS with the keys of `hil keys init DIR`, as the {role} "
+                            "role: TLS endpoints only, peers of that CA only, each role's rights "
+                            "enforced (see `hil keys --help`)")
+    parser.set_defaults(zenoh_role=role)
 
 
 def zenoh_settings(args: argparse.Namespace) -> ZenohSettings:
     listen, connect = tuple(args.listen), tuple(args.connect)
+    identity = Identity.of(args.secure, args.zenoh_role) if args.secure else None
+    if not identity:
+        _warn_if_exposed(listen)
     if not listen and not connect and args.zenoh_config is None:
-        if args.zenoh_listens:
-            listen = (DEFAULT_ENDPOINT,)
-        else:
-            connect = (DEFAULT_ENDPOINT,)
-    return ZenohSettings(listen, connect, args.zenoh_config)
+        return ZenohSettings.meeting(identity)
+    return ZenohSettings(listen, connect, args.zenoh_config, identity=identity)
+
+
+def _warn_if_exposed(listen: tuple[str, ...]) -> None:
+    """Say what a listener beyond loopback exposes without --secure."""
+    exposed = [e for e in listen if not any(host in e for host in LOOPBACK_HOSTS)]
+    if exposed:
+        print(f"hil: warning: listening on {', '.join(exposed)} without --secure: anyone who "
+              "reaches it can put CAN frames to the drives, send goals and reset faults "
+              "(see `hil keys --help`)", file=sys.stderr)
 
 
 def add_ros(parser: argparse.ArgumentParser, what: str) -> None:

@@ -20,6 +20,11 @@ from hil.realtime import REAL_TIME_PRIORITY, enter_real_time
 from hil.zenoh_session import close_all, session
 
 
+#: how long ``hil control`` waits for its drives by default (s): long enough to start the
+#: sim in another terminal after it
+CONTROL_BOOT_TIMEOUT = 60.0
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
                                        "name (ur3, pigot)")
@@ -36,13 +41,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "normal scheduler)")
     parser.add_argument("--goal-tolerance", type=float, default=Defaults.goal_position_tolerance,
                         metavar="RAD", help="default goal position tolerance")
+    parser.add_argument("--boot-timeout", type=float, default=CONTROL_BOOT_TIMEOUT, metavar="S",
+                        help="how long to wait for every drive to boot (default "
+                             f"{CONTROL_BOOT_TIMEOUT:g}: start hil sim before or after)")
     parser.add_argument("--report", type=Path, metavar="FILE.json",
                         help="at exit, write the run's figures (periods, busy times, round "
                              "trips, faults, frame counts) as JSON")
     common.add_cpus(parser)
     common.add_can_override(parser)
     common.add_package_path(parser)
-    common.add_zenoh(parser, listens=False)
+    common.add_zenoh(parser, "controller")
     common.add_ros(parser, "also be a ROS 2 node (hil_control): joint_states, the "
                            "FollowJointTrajectory action at joint_trajectory_controller/"
                            "follow_joint_trajectory, diagnostics, robot_description")
@@ -64,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
         interface, channels = common.can_overrides(args)
         buses = open_buses(config, zenoh, interface, channels)
         hardware = CanHardwareInterface(
-            config, buses, reply_timeout=LOCK_STEP_REPLY_TIMEOUT if args.lock_step else None)
+            config, buses, reply_timeout=LOCK_STEP_REPLY_TIMEOUT if args.lock_step else None,
+            boot_timeout=args.boot_timeout)
     try:
         node = ControlNode(hardware, session(zenoh), config.cycle_hz,
                            lock_step=args.lock_step, joint_state_hz=args.joint_state_rate,

@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="time to get there, e.g. 2s or 500ms (default 2s)")
     parser.add_argument("--timeout", type=float, default=60.0, help="seconds to wait (60)")
     parser.add_argument("--quiet", action="store_true", help="print the result only")
-    common.add_zenoh(parser, listens=False)
+    common.add_zenoh(parser, "operator")
     common.add_ros(parser, "send to a FollowJointTrajectory action server on ROS 2 "
                            "(rmw_zenoh): hil control --ros, or a ros2_control "
                            "joint_trajectory_controller")

@@ -51,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     common.add_cpus(parser)
     common.add_can_override(parser)
     common.add_package_path(parser)
-    common.add_zenoh(parser, listens=True)
+    common.add_zenoh(parser, "drives")
     common.add_ros(parser, "also be a ROS 2 node (hil_sim) publishing /clock from the "
                            f"plant's time every {ROS_CLOCK_PERIOD * 1000:g} ms, for "
                            "use_sim_time nodes")

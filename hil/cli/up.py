@@ -29,6 +29,7 @@ from hil.controllers import GoalRejected, GoalStatus
 from hil.controllers.demo import demo_goal
 from hil.can.faults import ProcessFault, parse_fault
 from hil.errors import HilError
+from hil.hardware import BOOT_TIMEOUT
 from hil.messaging.zenoh_api import (
     ControllerGone, ProcessWatch, RunSubscriber, TrajectoryActionClient,
 )
@@ -36,6 +37,7 @@ from hil.supervisor import (
     Child, ChildFailed, Run, cpus_argument, kill_later, viz_summary, wait_alive,
 )
 from hil.realtime import real_time_cpus
+from hil.zenoh_security import Identity
 from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
 
 
@@ -92,6 +94,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "fault:BUS/NODE@S), or kill:sim|control|viz@S (seconds after all "
                              "are up)")
     parser.add_argument("--viewer", metavar="URL", help="also stream to a running rerun viewer")
+    parser.add_argument("--secure", type=Path, metavar="DIR",
+                        help="mutual TLS between the processes with the keys of `hil keys init "
+                             "DIR`, each in its role (sim: drives, control: controller, viz: "
+                             "observer, this process' goals: operator)")
     common.add_ros(parser, "sim and control also appear in ROS 2 (see hil sim/control --help)")
     parser.add_argument("--ros-use-sim-time", action="store_true",
                         help="with --ros: the controller stamps on the plant's time (/clock)")
@@ -123,7 +129,8 @@ def run(args: argparse.Namespace) -> int:
                                                                       signal.SIGTERM)}
     print(f"hil up: {robot} from {config_path}; Zenoh {endpoint}; {timing}; "
           f"process logs in {logs}/", flush=True)
-    zenoh = ZenohSettings(connect=(endpoint,))
+    zenoh = ZenohSettings(connect=(endpoint,), identity=Identity.of(args.secure, "operator")
+                          if args.secure else None)
     status = 0
     watchers: list = []
     progress = Progress(args.max_stalls if timing == "real-time" else None, stop.set)
@@ -176,6 +183,7 @@ def _children(args: argparse.Namespace, config_path: Path, config: SystemConfig,
     sim_faults = [f"--fault={text}" for text, f in zip(args.fault, faults)
                   if not isinstance(f, ProcessFault)]
     shared = [str(config_path), *_can_options(args, config),
+              *(["--secure", str(args.secure)] if args.secure else []),
               *(f"--package-path={p}" for p in args.package_path)]
     lock_step = ["--lock-step"] if args.timing == "lock-step" else []
     placed = {name: [] if lock_step else cpus_argument(cpus)
@@ -185,6 +193,8 @@ def _children(args: argparse.Namespace, config_path: Path, config: SystemConfig,
                              "--status-period", "0", *sim_faults, *ros], logs / "sim.log"),
         "control": Child("control", ["control", *shared, *lock_step, *placed["control"],
                                      "--connect", endpoint, *ros,
+                                     # the sim already runs: a drive silent at boot is a fault
+                                     "--boot-timeout", f"{BOOT_TIMEOUT:g}",
                                      *(["--ros-use-sim-time"] if args.ros_use_sim_time else [])],
                          logs / "control.log"),
         "viz": Child("viz", ["viz", *shared, *lock_step, *placed["viz"], "--connect", endpoint,

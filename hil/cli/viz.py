@@ -47,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     common.add_cpus(parser)
     common.add_can_override(parser)
     common.add_package_path(parser)
-    common.add_zenoh(parser, listens=False)
+    common.add_zenoh(parser, "observer")
 
 
 def run(args: argparse.Namespace) -> int:

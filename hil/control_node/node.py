@@ -154,7 +154,7 @@ class ControlNode:
     def run(self) -> None:
         pacer = None
         try:
-            start = self.hardware.start()
+            start = self.hardware.start(self._stop)
             self.controller.update(self.clock(), start.positions, start.velocities)
             self._token = self._session.liveliness().declare_token(
                 key(self.hardware.robot.name, "control"))

@@ -29,6 +29,7 @@ import canopen
 
 from hil.can.network import CanopenNetwork
 from hil.drives.core import DriveCore
+from hil.drives.definitions import Fault
 from hil.protocols.base import Protocol
 
 log = logging.getLogger(__name__)
@@ -121,6 +122,16 @@ class DriveProfile(ABC):
 
     def after_update(self) -> None:
         """After each plant step (lock held): report new faults, state follow-ups."""
+
+    def take_events(self) -> list[Fault]:
+        """The faults the core raised since the last call, each logged: the drive's own
+        account, on the simulator's console, of why it stopped (lock held)."""
+        events = self.core.events
+        if events:
+            self.core.events = []
+            for fault in events:
+                log.warning("node %d: %s (0x%04X)", self.node_id, fault.text, fault.code)
+        return events
 
     def tick(self, now: float) -> None:
         """Timer-driven frames due at monotonic time ``now`` (lock held), in real time."""

@@ -10,6 +10,7 @@ is reported with the node id and joint and quick-stops every axis.
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 import threading
 import time
@@ -33,7 +34,16 @@ from hil.transmissions import TransmissionStack, build_transmissions
 if TYPE_CHECKING:
     import canopen
 
+log = logging.getLogger(__name__)
+
+#: how long a bring-up waits for every drive's boot-up by default (s): hil up starts the
+#: controller once its sim runs; ``hil control`` alone waits longer (its --boot-timeout)
 BOOT_TIMEOUT = 3.0
+#: while waiting for drives, who is still missing is logged this often (s)
+BOOT_REPORT_EVERY = 5.0
+#: a drive not heard since its reset is reset again this often (s), as a CiA 302 master
+#: retries a slave's boot: its boot-up may have been sent before the link to it was up
+BOOT_RETRY_EVERY = 1.0
 ENABLE_TIMEOUT = 10.0
 MISSED_ANSWER_LIMIT = 5
 #: lock-step's wait for a cycle's answers (s): time stands still while nobody answers, so this
@@ -54,9 +64,12 @@ class CanHardwareInterface(HardwareInterface):
     missing until then."""
 
     def __init__(self, config: SystemConfig, buses: dict[str, can.BusABC],
-                 reply_timeout: float | None = None):
+                 reply_timeout: float | None = None, boot_timeout: float = BOOT_TIMEOUT):
+        """``boot_timeout``: how long :meth:`start` waits for every drive to boot (s): a
+        CANopen master waits for its slaves' boot-up (CiA 302), whichever starts first."""
         super().__init__(config.robot)
         self.config = config
+        self.boot_timeout = boot_timeout
         self.reply_timeout = reply_timeout if reply_timeout is not None else 1.0 / config.cycle_hz
         self._buses = buses
         self._networks: dict[str, canopen.Network] = {}
@@ -90,7 +103,7 @@ class CanHardwareInterface(HardwareInterface):
 
     # --- bring-up ---------------------------------------------------------------------
 
-    def start(self) -> JointFeedback:
+    def start(self, cancel: threading.Event | None = None) -> JointFeedback:
         # canopen loads with the first bus (its __init__ imports canopen.node.local as well,
         # whose LocalNode the master never makes), not with the controller's modules
         from hil.can.network import start_network
@@ -102,17 +115,31 @@ class CanHardwareInterface(HardwareInterface):
         for axis in self.axes:                         # reset: every drive starts afresh
             axis.reset()
         hold = np.zeros(len(self.joint_names))
-        deadline = time.monotonic() + BOOT_TIMEOUT
+        began = time.monotonic()
+        reported = retried = began
         # cycles run meanwhile (unwatched): some protocols are heard only in answers
         while not all(axis.booted.is_set() for axis in self.axes):
             self.write(hold, np.zeros_like(hold), enabling=True)
             hold = self.read(watch=False).positions
-            if time.monotonic() > deadline:
-                silent = [a.label for a in self.axes if not a.booted.is_set()]
+            now = time.monotonic()
+            silent = [a.label for a in self.axes if not a.booted.is_set()]
+            if now - began > self.boot_timeout:
                 raise HilError.single(
-                    f"{'; '.join(silent)}: not heard within {BOOT_TIMEOUT:g} s after reset",
-                    hint="is `hil sim` (or the real drive) running on this bus, with the same "
-                         "node id and protocol?")
+                    f"{'; '.join(silent)}: not heard within {self.boot_timeout:g} s after "
+                    "reset", hint="is `hil sim` (or the real drive) running on this bus, with "
+                                  "the same node id and protocol?")
+            if cancel is not None and cancel.is_set():
+                raise HilError.single(f"stopped while waiting for {'; '.join(silent)} to boot")
+            if now - retried >= BOOT_RETRY_EVERY:
+                retried = now
+                for axis in self.axes:
+                    if not axis.booted.is_set():
+                        axis.reset()
+            if now - reported >= BOOT_REPORT_EVERY and silent:
+                reported = now
+                log.warning("waiting for %d of %d drive(s) to boot (%.0f of %g s): %s",
+                            len(silent), len(self.axes), now - began, self.boot_timeout,
+                            "; ".join(silent))
         for axis in self.axes:
             axis.configure()
             axis.feedback.cycle = self._cycle    # missed answers count from here on

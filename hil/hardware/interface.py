@@ -7,6 +7,7 @@ measurements, with no CAN and no physics.
 
 from __future__ import annotations
 
+import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 
@@ -27,8 +28,9 @@ class HardwareInterface(ABC):
         self.actuator_names = tuple(a.name for a in robot.actuators)
 
     @abstractmethod
-    def start(self) -> JointFeedback:
-        """Bring the hardware up until it follows position commands; return where it is."""
+    def start(self, cancel: threading.Event | None = None) -> JointFeedback:
+        """Bring the hardware up until it follows position commands; return where it is.
+        Setting ``cancel`` (from another thread) ends a bring-up that waits (HilError)."""
 
     @abstractmethod
     def read(self) -> JointFeedback:
@@ -76,7 +78,7 @@ class FakeHardwareInterface(HardwareInterface):
         self._state = JointFeedback(np.zeros(n), np.zeros(n), np.zeros(n), self._torques,
                                     self._states)
 
-    def start(self) -> JointFeedback:
+    def start(self, cancel: threading.Event | None = None) -> JointFeedback:
         return self._state
 
     def read(self) -> JointFeedback:

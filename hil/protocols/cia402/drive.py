@@ -314,7 +314,7 @@ class Cia402Drive(DriveProfile):
     def after_update(self) -> None:
         """After the inner loops ran: state machine follow-ups and EMCY for new faults."""
         self.machine.after_update()
-        events, self.core.events = self.core.events, []
+        events = self.take_events()
         if not self.attached:
             return
         for fault in events:

@@ -63,7 +63,7 @@ class MitDrive(DriveProfile):
             self.send(self.options.reply_id, reply)
 
     def after_update(self) -> None:
-        events, self.core.events = self.core.events, []
+        events = self.take_events()
         if Fault.CONTROLLER_SILENT in events:
             # the firmware's CAN timeout: leave motor mode (no torque), nothing is reported
             self.core.disable()

@@ -188,7 +188,7 @@ class ODriveDrive(DriveProfile):
         return LAYOUT[cmd].pack(*ANSWERS[cmd](self, self.core.status()))
 
     def after_update(self) -> None:
-        events, self.core.events = self.core.events, []
+        events = self.take_events()
         for fault in events:
             self._disarm(FAULT_ERRORS[fault])
         status = self.core.status()

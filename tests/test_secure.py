@@ -1,0 +1,218 @@
+"""--secure: mutual TLS between hil's processes, and each role's rights enforced by the
+process that would act (the drives' own process for CAN frames, the controller for goals)."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+
+import can
+import pytest
+import zenoh
+
+from conftest import free_port
+from hil.controllers import TrajectoryGoal, TrajectoryPoint
+from hil.errors import HilError
+from hil.messaging import cdr
+from hil.messaging.action import ACTION
+from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient, key
+from hil.zenoh_security import (COMMAND_KEYS, Identity, access_policy, make_keys,
+                                 secured_endpoint)
+from hil.zenoh_session import ZenohSettings, close, session
+
+pytestmark = pytest.mark.slow
+
+#: an SDO upload request of the device type (0x1000:00) to node 1, and its answer's id
+SDO_REQUEST = can.Message(arbitration_id=0x601, data=bytes([0x40, 0x00, 0x10, 0, 0, 0, 0, 0]),
+                          is_extended_id=False)
+SDO_ANSWER = 0x581
+
+
+@pytest.fixture(scope="module")
+def keys(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("keys")
+    make_keys(folder)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def other_keys(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("other-keys")
+    make_keys(folder)
+    return folder
+
+
+def spawn(*args: str) -> subprocess.Popen:
+    process = subprocess.Popen([sys.executable, "-m", "hil", *args], stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True)
+    banner = process.stdout.readline()
+    if not banner.startswith("hil "):
+        process.kill()
+        raise AssertionError(f"hil {args[0]} did not start: {banner}{process.stdout.read()}")
+    return process
+
+
+def stop(process: subprocess.Popen) -> str:
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        return process.communicate(timeout=20)[0]
+    except subprocess.TimeoutExpired:
+        process.kill()
+        return process.communicate()[0]
+
+
+@pytest.fixture(scope="module")
+def secure_sim(keys):
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    process = spawn("sim", "ur3", "--secure", str(keys), "--listen", endpoint,
+                    "--status-period", "0")
+    yield endpoint
+    stop(process)
+
+
+@pytest.fixture(scope="module")
+def secure_controller(keys):
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    process = spawn("control", "ur3", "--fake", "--secure", str(keys), "--listen", endpoint)
+    yield endpoint
+    stop(process)
+
+
+class Peer:
+    """A session of ``role`` (keys of ``folder``) connected to ``endpoint``."""
+
+    def __init__(self, folder, role: str, endpoint: str):
+        self.settings = ZenohSettings(connect=(endpoint,), identity=Identity.of(folder, role))
+        self.session = session(self.settings)
+
+    def linked(self, timeout: float = 5.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if list(self.session.info.peers_zid()):
+                return True
+            time.sleep(0.05)
+        return False
+
+    def sdo_answered(self) -> bool:
+        """Whether node 1 answers an SDO request this peer puts on the arm bus."""
+        bus = can.Bus(interface="zenoh", channel="ur3/arm", settings=self.settings)
+        try:
+            bus.send(SDO_REQUEST)
+            deadline = time.monotonic() + 2.0
+            while time.monotonic() < deadline:
+                msg = bus.recv(0.1)
+                if msg is not None and msg.arbitration_id == SDO_ANSWER:
+                    return True
+            return False
+        finally:
+            bus.shutdown()
+
+    def close(self) -> None:
+        close(self.settings)
+
+
+@pytest.fixture
+def peers():
+    opened = []
+
+    def peer(folder, role, endpoint) -> Peer:
+        made = Peer(folder, role, endpoint)
+        opened.append(made)
+        return made
+
+    yield peer
+    for made in opened:
+        made.close()
+
+
+def test_the_drives_answer_the_controller_and_refuse_operators_and_observers(
+        keys, secure_sim, peers):
+    controller = peers(keys, "controller", secure_sim)
+    assert controller.linked()
+    assert controller.sdo_answered()
+    for role in ("operator", "observer"):
+        connected = peers(keys, role, secure_sim)
+        assert connected.linked(), f"{role} did not connect"
+        assert not connected.sdo_answered(), f"the drives acted on a frame of the {role}"
+
+
+def test_a_certificate_of_another_ca_cannot_connect(other_keys, secure_sim, peers):
+    stranger = peers(other_keys, "controller", secure_sim)
+    assert not stranger.linked(timeout=3.0)
+
+
+def test_a_process_without_tls_cannot_connect(secure_sim):
+    settings = ZenohSettings(connect=(secure_sim,))
+    try:
+        assert not list(session(settings).info.peers_zid())
+        time.sleep(2.0)
+        assert not list(session(settings).info.peers_zid())
+    finally:
+        close(settings)
+
+
+def _joint_states(peer: Peer) -> list:
+    states = []
+    peer.session.declare_subscriber(
+        key("ur3", "joint_states"),
+        lambda s: states.append(cdr.decode(s.payload.to_bytes(), cdr.JOINT_STATE)))
+    return states
+
+
+GOAL = TrajectoryGoal(("joint2",), (TrajectoryPoint(0.5, (0.3,), (0.0,)),))
+
+
+def test_an_observer_sees_joint_states_but_cannot_send_goals_or_reset(
+        keys, secure_controller, peers):
+    observer = peers(keys, "observer", secure_controller)
+    states = _joint_states(observer)
+    client = TrajectoryActionClient(observer.session, "ur3")
+    assert client.wait_for_controller(10)
+    with pytest.raises(ControllerGone):           # the query never reached the server
+        client.send_goal(GOAL, timeout=2.0)
+    with pytest.raises(ControllerGone):
+        client.reset_faults(timeout=2.0)
+    time.sleep(1.0)
+    assert states, "the observer receives no joint states"
+    assert states[-1].position[list(states[-1].name).index("joint2")] == 0.0
+    client.close()
+
+
+def test_an_operator_sends_goals(keys, secure_controller, peers):
+    operator = peers(keys, "operator", secure_controller)
+    client = TrajectoryActionClient(operator.session, "ur3")
+    assert client.wait_for_controller(10)
+    result = client.wait_result(client.send_goal(GOAL), timeout=10)
+    assert result.error_code == 0
+    client.close()
+
+
+def test_the_policy_denies_by_default_and_names_every_role():
+    policy = access_policy()
+    assert policy["default_permission"] == "deny"
+    subjects = {s["id"]: s["cert_common_names"] for s in policy["subjects"]}
+    assert subjects == {r: [r] for r in ("drives", "controller", "operator", "observer")}
+
+
+def test_the_commands_the_controller_serves_are_the_ones_observers_may_not_query():
+    served = [f"{key('ur3', ACTION)}/{name}" for name in ("send_goal", "cancel_goal",
+                                                           "get_result")] + [
+        key("ur3", "reset_faults")]
+    denied = [zenoh.KeyExpr(k) for k in COMMAND_KEYS]
+    assert [any(d.intersects(zenoh.KeyExpr(k)) for d in denied) for k in served] == [
+        True, True, False, True]
+
+
+def test_secure_endpoints_are_tls_and_refuse_other_protocols():
+    assert secured_endpoint("tcp/10.0.0.1:7450") == "tls/10.0.0.1:7450"
+    assert secured_endpoint("tls/10.0.0.1:7450") == "tls/10.0.0.1:7450"
+    with pytest.raises(HilError, match="not TCP or TLS"):
+        secured_endpoint("udp/10.0.0.1:7450")
+
+
+def test_secure_without_keys_names_the_missing_files_and_the_command(tmp_path):
+    with pytest.raises(HilError, match="hil keys init"):
+        Identity.of(tmp_path, "drives")

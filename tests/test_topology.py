@@ -1,0 +1,100 @@
+"""hil's processes on one host find each other with no endpoints given, in any order."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+import yaml
+
+from conftest import ROOT, free_port
+from hil.zenoh_session import MEETING_VARIABLE
+
+pytestmark = pytest.mark.slow
+
+
+class Processes:
+    """hil commands run with defaults only, meeting at a loopback port of their own
+    ($HIL_ZENOH_ENDPOINT: the test's port, not 7450, which a user's bench may hold)."""
+
+    def __init__(self):
+        self.env = {**os.environ, MEETING_VARIABLE: f"tcp/127.0.0.1:{free_port()}"}
+        self.started: list[subprocess.Popen] = []
+
+    def start(self, *args: str) -> subprocess.Popen:
+        process = subprocess.Popen([sys.executable, "-m", "hil", *args], env=self.env,
+                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.started.append(process)
+        return process
+
+    def run(self, *args: str, timeout: float = 60) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "hil", *args], env=self.env,
+                              capture_output=True, text=True, timeout=timeout)
+
+    def stop(self) -> list[str]:
+        """SIGINT to every process started, in reverse order; their outputs."""
+        outputs = []
+        for process in reversed(self.started):
+            if process.poll() is None:
+                process.send_signal(signal.SIGINT)
+            try:
+                outputs.append(process.communicate(timeout=20)[0])
+            except subprocess.TimeoutExpired:
+                process.kill()
+                outputs.append(process.communicate()[0])
+        return outputs
+
+
+@pytest.fixture
+def processes():
+    made = Processes()
+    yield made
+    made.stop()
+
+
+@pytest.fixture
+def ur3_100hz(tmp_path):
+    # real time across processes at 100 Hz: a shared 2-CPU machine stalls a process by 10 ms
+    # now and then, which at 500 Hz rightly faults; this pins who finds whom, not timing
+    config = yaml.safe_load((ROOT / "bus_config" / "ur3.yaml").read_text())
+    config["robot"] = str((ROOT / "bus_config" / config["robot"]).resolve())
+    for bus in config["buses"]:
+        bus["cycle_hz"] = 100
+    path = tmp_path / "ur3.yaml"
+    path.write_text(yaml.safe_dump(config))
+    return str(path)
+
+
+def test_fake_controller_and_send_meet_with_no_endpoints(processes):
+    control = processes.start("control", "ur3", "--fake")
+    assert "hil control:" in control.stdout.readline()
+    sent = processes.run("send", "ur3", "--joint", "joint2", "--to", "0.3", "--in", "1s")
+    assert sent.returncode == 0, sent.stdout + sent.stderr
+    assert "succeeded" in sent.stdout
+
+
+def test_controller_started_before_its_sim_waits_for_the_drives(processes, ur3_100hz, tmp_path):
+    control = processes.start("control", ur3_100hz)
+    assert "hil control:" in control.stdout.readline()
+    time.sleep(2.0)       # the drives' boot-up is not there yet: the controller waits
+    assert control.poll() is None
+    sim = processes.start("sim", ur3_100hz, "--status-period", "0")
+    assert "hil sim:" in sim.stdout.readline()
+    viz = processes.start("viz", ur3_100hz, "--save", str(tmp_path / "run.rrd"))
+    sent = processes.run("send", "ur3", "--joint", "joint2", "--to", "0.3", "--in", "1s")
+    assert sent.returncode == 0, sent.stdout + sent.stderr
+    assert viz.poll() is None
+    outputs = processes.stop()
+    assert "drives disabled" in outputs[-1]            # the controller's, stopped last
+
+
+def test_controller_gives_up_on_drives_that_never_boot_naming_them(processes, ur3_100hz):
+    control = processes.run("control", ur3_100hz, "--boot-timeout", "2")
+    assert control.returncode != 0
+    assert "drive node 1 (joint1) on bus 'arm'" in control.stderr
+    assert "not heard within 2 s" in control.stderr
+    assert "Traceback" not in control.stderr
