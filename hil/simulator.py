@@ -206,6 +206,11 @@ class Simulator:
             drive.detach()
             self._waiting.discard(drive)
 
+    def restart(self, bus: str, node_id: int) -> None:
+        """The drive restarts as after a power cycle: it boots again, unconfigured."""
+        with self.lock:
+            self.drive(bus, node_id).restart()
+
     def raise_fault(self, bus: str, node_id: int) -> None:
         """The drive faults as on a following error (it reports it in its protocol)."""
         with self.lock:

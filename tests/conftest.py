@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import signal
+import subprocess
 import threading
 import time
 import uuid
@@ -10,6 +12,7 @@ from pathlib import Path
 import can
 import canopen
 import pytest
+import yaml
 
 from hil.bus_config import load_bus_config
 from hil.can import socketcan_missing as can_socketcan_missing
@@ -205,3 +208,38 @@ def controlled():
     bench = ControlledBench()
     yield bench
     bench.close()
+
+
+# --- processes -------------------------------------------------------------------
+
+
+def ur3_at_100hz(folder: Path) -> Path:
+    """bus_config/ur3.yaml with its buses at 100 Hz, written into ``folder``. For real time
+    across processes on a shared 2-CPU machine: at 500 Hz the master rightly calls a drive
+    silent after 5 missed answers (8 ms), and a busy neighbour stalls a process that long now
+    and then; at 100 Hz that takes 40 ms, so tests that pin something else are not flaky."""
+    config = yaml.safe_load((ROOT / "bus_config" / "ur3.yaml").read_text())
+    config["robot"] = str((ROOT / "bus_config" / config["robot"]).resolve())
+    for bus in config["buses"]:
+        bus["cycle_hz"] = 100
+    path = folder / "ur3_100hz.yaml"
+    path.write_text(yaml.safe_dump(config))
+    return path
+
+
+@pytest.fixture
+def ur3_100hz(tmp_path) -> str:
+    """The path of :func:`ur3_at_100hz`'s config, in the test's folder."""
+    return str(ur3_at_100hz(tmp_path))
+
+
+def stop_process(process: subprocess.Popen, timeout: float = 20) -> str:
+    """Ctrl-C to a `hil` process started with text stdout, then its output (killed if it
+    does not end within ``timeout``)."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        return process.communicate(timeout=timeout)[0] or ""
+    except subprocess.TimeoutExpired:
+        process.kill()
+        return process.communicate()[0] or ""

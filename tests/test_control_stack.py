@@ -10,13 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 from hil.controllers import GoalRejected, GoalStatus, TrajectoryGoal, TrajectoryPoint
 from hil.messaging import cdr
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient, key
 from hil.zenoh_session import ZenohSettings, session
-from conftest import ROOT, free_port, socketcan_missing
+from conftest import ROOT, free_port, socketcan_missing, ur3_at_100hz
 
 
 #: bus configs whose robot is not named like the config
@@ -109,17 +108,9 @@ def stack(request):
 
 @pytest.fixture
 def ur3_stack(tmp_path):
-    # bus_config/ur3.yaml at 100 Hz: these tests run `hil sim` and `hil control` in real time
-    # as separate processes. At 500 Hz the master rightly calls a drive silent after 5 missed
-    # answers (8 ms), and on a shared 2-core machine a busy neighbour stalls the processes
-    # that long now and then; these tests pin cancel and kill behaviour, not the scheduler.
-    # 100 Hz gives them 40 ms
-    config = yaml.safe_load((ROOT / "bus_config" / "ur3.yaml").read_text())
-    config["robot"] = str((ROOT / "bus_config" / config["robot"]).resolve())
-    for bus in config["buses"]:
-        bus["cycle_hz"] = 100
-    path = tmp_path / "ur3_100hz.yaml"
-    path.write_text(yaml.safe_dump(config))
+    # real time as separate processes, at 100 Hz (see ur3_at_100hz): these tests pin cancel
+    # and kill behaviour, not the scheduler
+    path = ur3_at_100hz(tmp_path)
     made = ProcessStack("ur3", config=path)
     yield made
     made.close()

@@ -70,6 +70,21 @@ def test_reset_fails_naming_the_drive_while_it_stays_silent(controlled):
         controlled.move("joint1", 0.1)
 
 
+def test_a_drive_that_restarted_is_named_and_a_reset_configures_it_again(controlled):
+    controlled.sim.restart("arm", 2)            # a power cycle: boots unconfigured
+    deadline = time.monotonic() + 5
+    while not controlled.node.faults and time.monotonic() < deadline:
+        time.sleep(0.01)
+    rebooted = [f for f in controlled.node.faults if f.kind is FaultKind.REBOOTED]
+    assert [(f.bus, f.node_id) for f in rebooted] == [("arm", 2)], controlled.node.faults
+    assert "booted again" in str(rebooted[0])
+    succeeded, message = controlled.client.reset_faults()
+    assert succeeded, message
+    assert all(axis.state == "OPERATION ENABLED" for axis in controlled.hardware.axes)
+    result = controlled.client.wait_result(controlled.move("joint2", 0.1), 30)
+    assert result.status is GoalStatus.SUCCEEDED, result
+
+
 def test_reset_without_a_fault_leaves_the_active_goal_running(controlled):
     goal_id = controlled.move("joint1", 0.2, seconds=1.0)
     assert controlled.client.reset_faults() == (True, "no fault to reset")

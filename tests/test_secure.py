@@ -3,7 +3,6 @@ process that would act (the drives' own process for CAN frames, the controller f
 
 from __future__ import annotations
 
-import signal
 import subprocess
 import sys
 import time
@@ -12,7 +11,7 @@ import can
 import pytest
 import zenoh
 
-from conftest import free_port
+from conftest import free_port, stop_process
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.errors import HilError
 from hil.messaging import cdr
@@ -54,23 +53,13 @@ def spawn(*args: str) -> subprocess.Popen:
     return process
 
 
-def stop(process: subprocess.Popen) -> str:
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-    try:
-        return process.communicate(timeout=20)[0]
-    except subprocess.TimeoutExpired:
-        process.kill()
-        return process.communicate()[0]
-
-
 @pytest.fixture(scope="module")
 def secure_sim(keys):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     process = spawn("sim", "ur3", "--secure", str(keys), "--listen", endpoint,
                     "--status-period", "0")
     yield endpoint
-    stop(process)
+    stop_process(process)
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +67,7 @@ def secure_controller(keys):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     process = spawn("control", "ur3", "--fake", "--secure", str(keys), "--listen", endpoint)
     yield endpoint
-    stop(process)
+    stop_process(process)
 
 
 class Peer:

@@ -8,16 +8,14 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import time
 import uuid
 
 import pytest
-import yaml
 
-from conftest import ROOT
+from conftest import stop_process
 from hil.zenoh_security import make_keys
 
 pytestmark = pytest.mark.slow
@@ -78,18 +76,9 @@ class TwoHosts:
     def link(self, up: bool) -> None:
         ip("-n", self.drives, "link", "set", self.drives_link, "up" if up else "down")
 
-    def stop(self, process: subprocess.Popen) -> str:
-        if process.poll() is None:
-            process.send_signal(signal.SIGINT)
-        try:
-            return process.communicate(timeout=20)[0]
-        except subprocess.TimeoutExpired:
-            process.kill()
-            return process.communicate()[0]
-
     def close(self) -> None:
         for process in reversed(self.processes):
-            self.stop(process)
+            stop_process(process)
         for namespace in (self.drives, self.controller):    # the veth pair goes with them
             subprocess.run(["ip", "netns", "del", namespace], capture_output=True)
 
@@ -102,19 +91,6 @@ def hosts():
     made = TwoHosts()
     yield made
     made.close()
-
-
-@pytest.fixture
-def ur3_100hz(tmp_path):
-    # 100 Hz: a shared 2-CPU machine stalls a process by 10 ms now and then, which at 500 Hz
-    # rightly faults; this pins what the link does, not the scheduler
-    config = yaml.safe_load((ROOT / "bus_config" / "ur3.yaml").read_text())
-    config["robot"] = str((ROOT / "bus_config" / config["robot"]).resolve())
-    for bus in config["buses"]:
-        bus["cycle_hz"] = 100
-    path = tmp_path / "ur3.yaml"
-    path.write_text(yaml.safe_dump(config))
-    return str(path)
 
 
 def test_a_cut_link_stops_the_drives_and_aborts_the_goal_and_a_reset_recovers(
@@ -161,6 +137,6 @@ def test_a_cut_link_stops_the_drives_and_aborts_the_goal_and_a_reset_recovers(
     assert sim.poll() is None and control.poll() is None      # nothing restarted
 
     # the drives' own account: each stopped on its RPDO watchdog during the cut
-    sim_output = hosts.stop(sim)
+    sim_output = stop_process(sim)
     for node in range(1, 7):
         assert f"node {node}: setpoints stopped arriving (RPDO timeout) (0x8250)" in sim_output

@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
 import time
 
 import pytest
-import yaml
 
-from conftest import ROOT, free_port
+from conftest import free_port, stop_process
 from hil.zenoh_session import MEETING_VARIABLE
 
 pytestmark = pytest.mark.slow
@@ -37,16 +35,7 @@ class Processes:
 
     def stop(self) -> list[str]:
         """SIGINT to every process started, in reverse order; their outputs."""
-        outputs = []
-        for process in reversed(self.started):
-            if process.poll() is None:
-                process.send_signal(signal.SIGINT)
-            try:
-                outputs.append(process.communicate(timeout=20)[0])
-            except subprocess.TimeoutExpired:
-                process.kill()
-                outputs.append(process.communicate()[0])
-        return outputs
+        return [stop_process(process) for process in reversed(self.started)]
 
 
 @pytest.fixture
@@ -54,19 +43,6 @@ def processes():
     made = Processes()
     yield made
     made.stop()
-
-
-@pytest.fixture
-def ur3_100hz(tmp_path):
-    # real time across processes at 100 Hz: a shared 2-CPU machine stalls a process by 10 ms
-    # now and then, which at 500 Hz rightly faults; this pins who finds whom, not timing
-    config = yaml.safe_load((ROOT / "bus_config" / "ur3.yaml").read_text())
-    config["robot"] = str((ROOT / "bus_config" / config["robot"]).resolve())
-    for bus in config["buses"]:
-        bus["cycle_hz"] = 100
-    path = tmp_path / "ur3.yaml"
-    path.write_text(yaml.safe_dump(config))
-    return str(path)
 
 
 def test_fake_controller_and_send_meet_with_no_endpoints(processes):

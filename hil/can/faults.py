@@ -9,6 +9,7 @@ Specifications (repeatable options):
 ``corrupt:BUS:FRACTION``   flip one random bit in that fraction of the frames' data
 ``silence:BUS/NODE@S``     the drive leaves the bus (no frames in or out)
 ``fault:BUS/NODE@S``       the drive faults as on a following error (EMCY, FAULT...)
+``restart:BUS/NODE@S``     the drive restarts as after a power cycle (boots unconfigured)
 ``kill:PROCESS@S``         ``hil up`` kills its child PROCESS (sim, control, viz)
 =========================  ===========================================================
 
@@ -31,7 +32,7 @@ import can
 from hil.errors import HilError
 
 FRAME_KINDS = ("drop", "delay", "corrupt")
-DRIVE_KINDS = ("silence", "fault")
+DRIVE_KINDS = ("silence", "fault", "restart")
 PROCESSES = ("sim", "control", "viz")
 
 
@@ -45,7 +46,7 @@ class FrameFault:
 
 @dataclass(frozen=True)
 class DriveFault:
-    kind: str               # silence | fault
+    kind: str               # silence | fault | restart
     bus: str
     node_id: int
     at: float               # s after start
@@ -60,7 +61,8 @@ class ProcessFault:
 def parse_fault(text: str) -> FrameFault | DriveFault | ProcessFault:
     """One ``--fault`` specification; HilError with the accepted forms otherwise."""
     hint = ("forms: drop:BUS:FRACTION, delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, "
-            "silence:BUS/NODE@S, fault:BUS/NODE@S, kill:sim|control|viz@S")
+            "silence:BUS/NODE@S, fault:BUS/NODE@S, restart:BUS/NODE@S, "
+            "kill:sim|control|viz@S")
     kind, _, rest = text.partition(":")
     try:
         if kind in FRAME_KINDS:

@@ -40,7 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="print the status every S seconds (0: never; default 2)")
     parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
                         help="inject a fault (repeatable): drop:BUS:FRACTION, "
-                             "delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, silence:BUS/NODE@S, "
+                             "delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, silence:BUS/NODE@S, restart:BUS/NODE@S, "
                              "fault:BUS/NODE@S")
     parser.add_argument("--fault-seed", type=int, default=0, metavar="N",
                         help="seed of the fault injector's random choices (default 0)")
@@ -242,6 +242,8 @@ def _inject(simulator: Simulator, faults: list[DriveFault], stop: threading.Even
             return
         if fault.kind == "silence":
             simulator.silence(fault.bus, fault.node_id)
+        elif fault.kind == "restart":
+            simulator.restart(fault.bus, fault.node_id)
         else:
             simulator.raise_fault(fault.bus, fault.node_id)
         print(f"hil sim: injected {fault.kind} on {fault.bus}/{fault.node_id}", flush=True)

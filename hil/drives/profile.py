@@ -133,6 +133,12 @@ class DriveProfile(ABC):
                 log.warning("node %d: %s (0x%04X)", self.node_id, fault.text, fault.code)
         return events
 
+    def restart(self) -> None:
+        """Restart as after a power cycle (lock held): disabled, faults cleared; a protocol
+        with a boot sequence of its own boots again, unconfigured."""
+        self.core.disable()
+        self.core.reset_fault()
+
     def tick(self, now: float) -> None:
         """Timer-driven frames due at monotonic time ``now`` (lock held), in real time."""
 

@@ -36,6 +36,7 @@ class FaultKind(enum.Enum):
     REPORTED = "reported"                 # an error the drive reported (EMCY), acted on alone
     DISARMED = "disarmed"                 # the drive disarmed itself with an error (ODrive)
     IMPLAUSIBLE = "implausible feedback"  # feedback no joint can produce
+    REBOOTED = "rebooted"                 # booted again mid-run: it lost its configuration
 
 
 @dataclass(frozen=True)
@@ -86,6 +87,11 @@ class Axis(ABC):
         self.network: canopen.Network | None = None
         self.last_heard = time.monotonic()      # the drive's last sign of life
         self.booted = threading.Event()          # heard from since reset()
+        #: configured (:meth:`configure` done) and not heard booting again since
+        self.configured = False
+        #: heard booting again after it was configured (a power cycle, its host restarted):
+        #: set by a protocol that can tell; it follows nothing until configured again
+        self.rebooted = False
         self._cycle = 0
         self._on_feedback = on_feedback          # called when a cycle's answer is in
 
@@ -123,7 +129,8 @@ class Axis(ABC):
         self.booted.clear()
 
     def configure(self) -> None:
-        """After boot: check the drive and select cyclic position control."""
+        """After boot: check the drive and select cyclic position control (then
+        :attr:`configured`)."""
 
     def disable_rounds(self) -> list[list[Frame]]:
         """Frames that leave the drive disabled, in rounds sent a cycle or two apart."""

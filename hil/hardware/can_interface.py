@@ -88,6 +88,8 @@ class CanHardwareInterface(HardwareInterface):
         self._recovering = False
         self._reset_cycle = 0          # the cycle reset_faults() was called in
         self._reported: set[tuple[str, str]] = set()
+        #: rebooted axes being configured again (a reset's), off the watch meanwhile
+        self._configuring: set[Axis] = set()
         self._pending: list[AxisFault] = []
         self._arrived = threading.Condition()
         # a drive may legitimately be unheard while its answers are still within the limit of
@@ -173,7 +175,8 @@ class CanHardwareInterface(HardwareInterface):
                 self.round_trips.add(self.last_round_trip)
         if watch:
             self._watch()
-        if self._recovering and not self._stopping and all(a.enabled for a in self.axes):
+        if (self._recovering and not self._stopping and not self._configuring
+                and all(a.enabled for a in self.axes)):
             self._recovering = False
         return self._checked(self._joint_feedback())
 
@@ -258,6 +261,8 @@ class CanHardwareInterface(HardwareInterface):
         # answer that late would be silence anyway
         settling = self._recovering and self._cycle - self._reset_cycle <= MISSED_ANSWER_LIMIT
         for axis in self.axes:
+            if axis in self._configuring:
+                continue
             # a silence is reported once per axis, not once per silent cycle; a drive's own
             # fault once per distinct message
             fault = None if settling else axis.fault(self._stopping)
@@ -300,10 +305,28 @@ class CanHardwareInterface(HardwareInterface):
         self._pending.clear()
         for axis in self.axes:
             axis.forget_faults()
+        rebooted = [a for a in self.axes if a.rebooted and a not in self._configuring]
+        if rebooted:
+            # SDO takes round trips the control loop must not wait for: the cycles go on
+            # (the drives hold), and the reset is done once these follow setpoints too
+            self._configuring.update(rebooted)
+            threading.Thread(target=self._configure_again, args=(rebooted,),
+                             name="configure", daemon=True).start()
+
+    def _configure_again(self, axes: list[Axis]) -> None:
+        for axis in axes:
+            try:
+                axis.configure()
+                axis.feedback.cycle = self._cycle    # missed answers count from here on
+            except HilError as exc:
+                self._report(axis.label, "configure", axis.found(
+                    FaultKind.REBOOTED, f"booted again and could not be configured: {exc}"))
+            finally:
+                self._configuring.discard(axis)
 
     @property
     def ready(self) -> bool:
-        return not (self._stopping or self._recovering)
+        return not (self._stopping or self._recovering or self._configuring)
 
     def stop(self) -> None:
         """Disable every drive (each in its protocol's way), then release the buses."""

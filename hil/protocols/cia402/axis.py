@@ -21,6 +21,8 @@ from hil.hardware.axis import Axis, AxisFault, FaultKind, Frame
 from hil.protocols.cia402 import FRAME_ERRORS, Cia402, emcy_words
 from hil.resources import eds_path
 
+#: NMT states in a heartbeat (CiA 301)
+BOOT_UP, OPERATIONAL, PRE_OPERATIONAL = 0x00, 0x05, 0x7F
 _RPDO1 = struct.Struct("<Hi")       # controlword, target position
 _TPDO1 = struct.Struct("<Hi")       # statusword, position actual
 _TPDO2 = struct.Struct("<ih")       # velocity actual, torque actual
@@ -55,6 +57,7 @@ class Cia402Axis(Axis):
         self.statusword = 0
         self.last_emcy: int | None = None
         self._emcy_cycle = 0          # the master's cycle when it arrived
+        self._operational = False     # its heartbeat said OPERATIONAL since configure()
 
     # --- network hooks ----------------------------------------------------------
 
@@ -86,7 +89,19 @@ class Cia402Axis(Axis):
 
     def _on_heartbeat(self, can_id, data, timestamp) -> None:
         self.last_heard = time.monotonic()
-        if len(data) >= 1 and data[0] == 0:
+        if not data:
+            return
+        state = data[0]
+        if state == OPERATIONAL and self.configured:
+            self._operational = True
+        # booted again: its boot-up, or (the boot-up lost while the link was down) back in
+        # PRE-OPERATIONAL after it had been started, which this master never asks for
+        if self.configured and (state == BOOT_UP or state == PRE_OPERATIONAL
+                                and self._operational):
+            self.rebooted = True
+            self._operational = False
+            self.statusword = 0        # its state before the reboot is gone
+        if state == BOOT_UP:
             self.booted.set()
 
     # --- bring-up ------------------------------------------------------------------
@@ -119,6 +134,10 @@ class Cia402Axis(Axis):
                     self.node.network.unsubscribe(pdo.cob_id, pdo.on_message)
             self.node.sdo[0x6060].raw = 8        # cyclic synchronous position
             self.node.nmt.send_command(0x01)     # start: operational
+            self.configured, self.rebooted, self._operational = True, False, False
+            # what it said before (a reboot) is no longer its state: walk it up from its
+            # first answer, never from a state and position it had before it restarted
+            self.statusword, self.feedback.heard = 0, False
         except canopen.SdoCommunicationError as exc:
             raise HilError.single(f"{self.label} does not answer SDO: {exc}",
                                   hint="is the drive powered and on this bus?") from None
@@ -190,6 +209,10 @@ class Cia402Axis(Axis):
         return _RPDO1.pack(controlword, counts)
 
     def fault(self, stopping: bool = False) -> AxisFault | None:
+        if self.rebooted:
+            return self.found(FaultKind.REBOOTED, "booted again mid-run (a power cycle, or its "
+                              "host restarted) and lost its configuration: a fault reset "
+                              "configures it again")
         code = self.last_emcy or None
         if self.state == "QUICK STOP ACTIVE" and not stopping:
             why = f" after {emcy_words(code)}" if code else ""

@@ -144,6 +144,11 @@ class Cia402Drive(DriveProfile):
                 self.core.lose_connection()     # 0x6007 says what leaving OPERATIONAL does
                 self.machine.after_update()
 
+    def restart(self) -> None:
+        """A power cycle: the application reset (CiA 301 0x81), stored configuration and all,
+        then boot-up in PRE-OPERATIONAL."""
+        self._reset(communication_only=False)
+
     def _reset(self, communication_only: bool) -> None:
         if not communication_only:
             self.machine.controlword(0x0000)
