@@ -205,3 +205,13 @@ def test_secure_endpoints_are_tls_and_refuse_other_protocols():
 def test_secure_without_keys_names_the_missing_files_and_the_command(tmp_path):
     with pytest.raises(HilError, match="hil keys init"):
         Identity.of(tmp_path, "drives")
+
+
+def test_up_secure_runs_the_demo_and_records_it_each_process_in_its_role(keys, tmp_path):
+    save = tmp_path / "run.rrd"
+    result = subprocess.run([sys.executable, "-m", "hil", "up", "ur3", "--demo", "--lock-step",
+                             "--secure", str(keys), "--no-viewer", "--save", str(save)],
+                            capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "demo succeeded" in result.stdout
+    assert save.stat().st_size > 100_000       # the observer (hil viz) received the run

@@ -186,7 +186,10 @@ def _children(args: argparse.Namespace, config_path: Path, config: SystemConfig,
               *(["--secure", str(args.secure)] if args.secure else []),
               *(f"--package-path={p}" for p in args.package_path)]
     lock_step = ["--lock-step"] if args.timing == "lock-step" else []
-    placed = {name: [] if lock_step else cpus_argument(cpus)
+    # over TLS the processes are not pinned to a CPU each: pinned, every `hil up ur3 --secure`
+    # on 2 CPUs faulted within a second as soon as a third process took the traffic (the
+    # transport 40-107 ms late), unpinned 3 of 3 ran clean (docs/performance.md)
+    placed = {name: [] if lock_step or args.secure else cpus_argument(cpus)
               for name, cpus in zip(("sim", "control", "viz"), real_time_cpus())}
     return {
         "sim": Child("sim", ["sim", *shared, *lock_step, *placed["sim"], "--listen", endpoint,
