@@ -41,6 +41,16 @@ def real_world_path() -> PackagePath:
     ("effort_zero_passive.urdf", 10, "joint 'rotor_joint' limit effort is 0: taken as not given"),
     ("mimic_on_fixed_joint.urdf", 17, "fixed joint 'tip_joint' has a <mimic>, which does not "
      "move it: left out"),
+    ("zero_size_visual.urdf", 8, "link 'tool' has a <visual> sphere of size 0: a placeholder, "
+     "not drawn"),
+    ("zero_size_visual.urdf", 8, "link 'tool' has a <visual> box of size 0 0 0"),
+    ("numbers_with_commas.urdf", 10, "joint 'shoulder' origin rpy '1.5707963, 1.3089969, 0' "
+     "separates its numbers with commas: read as '1.5707963 1.3089969 0'"),
+    ("untidy_file.urdf", 1, "2 blank line(s) before the XML declaration"),
+    ("untidy_file.urdf", 19, "1 NUL byte(s) in the file: removed"),
+    ("undeclared_prefix.urdf", 15, "namespace prefix 'drake:' is used but never declared"),
+    ("transmission_reduction_not_a_number.urdf", 17, "transmission 'shoulder_trans' has "
+     "mechanical reduction 'reduction', which is not a number: left out"),
 ])
 def test_a_published_defect_is_corrected_with_a_warning_and_the_plant_builds(
         name, line, message, real_world_path):

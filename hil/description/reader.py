@@ -11,7 +11,7 @@ from pathlib import Path
 from hil.description.model import Pose
 from hil.description.packages import PackagePath
 from hil.description.source import RobotSource
-from hil.errors import Diagnostic, error
+from hil.errors import Diagnostic, error, warning
 
 
 def start_tag(tag: str, name: str) -> re.Pattern:
@@ -91,7 +91,12 @@ class ElementReader:
                default: tuple[float, ...]) -> tuple[float, ...]:
         if text is None:
             return default
-        parts = text.split()
+        parts = text.replace(",", " ").split()
+        if "," in text and len(parts) == size:
+            # urdfdom reads '1.57, 0, 0' as three numbers (a stream stops at the comma)
+            self.report(warning, f"{tag} '{name}' {what} '{text}' separates its numbers with "
+                        f"commas: read as '{' '.join(parts)}'", tag, name,
+                        hint="URDF separates numbers with spaces")
         values = [self.number(p, what, tag, name) for p in parts]
         if len(parts) != size or any(v is None for v in values):
             if len(parts) != size:

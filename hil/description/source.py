@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hil.description.packages import AmentPrefix, PackagePath
-from hil.errors import HilError, error
+from hil.errors import Diagnostic, HilError, error, warning
 
 
 @dataclass(frozen=True)
@@ -25,6 +25,61 @@ class RobotSource:
     path: Path
     root: ET.Element
     files: tuple[Path, ...]
+    #: what was corrected in the main file's text before parsing (warnings)
+    corrections: tuple[Diagnostic, ...] = ()
+
+
+#: namespaces hil knows by prefix; any other prefix a file uses without declaring it is
+#: declared with a placeholder (its attributes mean nothing to hil)
+KNOWN_NAMESPACES = {"xacro": "http://www.ros.org/wiki/xacro"}
+
+
+def lenient_text(path: Path, text: str) -> tuple[str, list[Diagnostic]]:
+    """``text`` with the defects ROS tools read past corrected, each a warning naming the
+    line: blank lines before the XML declaration, NUL bytes, namespace prefixes used but
+    never declared (``drake:acceleration="..."``)."""
+    corrections = []
+
+    def line_of(position: int) -> int:          # in the file as it is on disk
+        return text.count("\n", 0, position) + 1
+
+    if "\0" in text:
+        corrections.append(warning(f"{text.count(chr(0))} NUL byte(s) in the file: removed",
+                                   path, line_of(text.index("\0")),
+                                   hint="save the file as plain UTF-8 text"))
+    declared = set(re.findall(r"xmlns:([\w.-]+)\s*=", text)) | {"xml", "xmlns"}
+    used: dict[str, int] = {}
+    for match in re.finditer(r"[<\s]([A-Za-z_][\w.-]*):[A-Za-z_][\w.-]*", _markup(text)):
+        if match.group(1) not in declared:
+            used.setdefault(match.group(1), line_of(match.start() + 1))
+    for prefix, line in used.items():
+        corrections.append(warning(
+            f"namespace prefix '{prefix}:' is used but never declared: declared for you",
+            path, line, hint=f"add xmlns:{prefix}=\"...\" to <robot>"))
+    start = len(text) - len(text.lstrip())
+    if start and text.lstrip().startswith("<?xml"):
+        corrections.append(warning(
+            f"{line_of(start) - 1} blank line(s) before the XML declaration, which XML "
+            "allows only at the very start: removed", path, 1,
+            hint="start the file with <?xml ...?>"))
+    else:
+        start = 0
+    text = text[start:].replace("\0", "")
+    root = re.search(r"<robot\b", text)
+    if used and root:
+        text = text[:root.end()] + "".join(
+            f' xmlns:{prefix}="{KNOWN_NAMESPACES.get(prefix, "urn:hil:undeclared:" + prefix)}"'
+            for prefix in used) + text[root.end():]
+    return text, corrections
+
+
+def _markup(text: str) -> str:
+    """``text`` with comments, text between tags and attribute values blanked out (same
+    length): only tag and attribute names are left to look at."""
+    blanked = re.sub(r"<!--.*?-->|<\?.*?\?>", lambda m: " " * len(m.group()), text,
+                     flags=re.DOTALL)
+    blanked = re.sub(r'"[^"]*"|\'[^\']*\'', lambda m: " " * len(m.group()), blanked)
+    return re.sub(r">[^<]*<", lambda m: ">" + " " * (len(m.group()) - 2) + "<", blanked)
 
 
 def read_robot_source(path: Path, package_path: PackagePath) -> RobotSource:
@@ -33,15 +88,17 @@ def read_robot_source(path: Path, package_path: PackagePath) -> RobotSource:
     if not path.is_file():
         raise HilError.single(f"robot description '{path}' does not exist",
                               hint="give the path of a .urdf or .xacro file")
+    text, corrections = lenient_text(path.resolve(),
+                                     path.read_text(encoding="utf-8", errors="replace"))
     if path.suffix == ".urdf":
-        text = path.read_text(encoding="utf-8", errors="replace")
         try:
             root = ET.fromstring(text)
         except ET.ParseError as exc:
             line, column = exc.position
             raise _xml_error(path, text, line, column, str(exc).split(":")[0]) from None
-        return RobotSource(path, root, (path.resolve(),))
-    return _expand_xacro(path, package_path)
+        return RobotSource(path, root, (path.resolve(),), tuple(corrections))
+    return _expand_xacro(path, package_path, text if corrections else None,
+                         tuple(corrections))
 
 
 def _xml_error(path: Path, text: str, lineno: int, offset: int, reason: str) -> HilError:
@@ -75,14 +132,22 @@ def comments_in_start_tags(text: str) -> list[tuple[int, int, str]]:
     return found
 
 
-def _expand_xacro(path: Path, package_path: PackagePath) -> RobotSource:
+def _expand_xacro(path: Path, package_path: PackagePath, corrected: str | None,
+                  corrections: tuple[Diagnostic, ...]) -> RobotSource:
+    """Expand with xacro; ``corrected``: the main file's text to expand instead of the
+    file's own (lenient_text changed it)."""
     import xacro  # imported here: its import is slow and plain URDF does not need it
 
     known_includes = len(xacro.all_includes)
     # Paths are resolved inside the block: the prefix's package links vanish after it.
     with AmentPrefix(package_path):
         try:
-            doc = xacro.process_file(str(path))
+            if corrected is None:
+                doc = xacro.process_file(str(path))
+            else:       # xacro.process_file, on the corrected text
+                xacro.init_stacks(str(path))
+                doc = xacro.parse(corrected, str(path))
+                xacro.process_doc(doc)
         except xml.parsers.expat.ExpatError as exc:
             failing = Path(xacro.filestack[-1] or path).resolve()
             raise _xml_error(failing, failing.read_text(errors="replace"), exc.lineno,
@@ -92,7 +157,7 @@ def _expand_xacro(path: Path, package_path: PackagePath) -> RobotSource:
             raise _xacro_error(exc, current, package_path) from None
         includes = [Path(p).resolve() for p in xacro.all_includes[known_includes:]]
     files = tuple(dict.fromkeys((path.resolve(), *includes)))
-    return RobotSource(path, ET.fromstring(doc.toxml()), files)
+    return RobotSource(path, ET.fromstring(doc.toxml()), files, corrections)
 
 
 def _xacro_error(exc, current: Path, package_path: PackagePath) -> HilError:

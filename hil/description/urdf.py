@@ -34,6 +34,7 @@ def parse_urdf(source: RobotSource, package_path: PackagePath) -> RobotDescripti
                               source.path, hint="give the robot's full description (a file of "
                               "xacro macros alone defines no links until a macro is called)")
     reader = ElementReader(source, package_path)
+    reader.diagnostics.extend(source.corrections)
     links = tuple(_read_link(reader, e) for e in root.findall("link"))
     joints = tuple(_read_joint(reader, e) for e in root.findall("joint"))
     specs = [read_transmission(reader, e) for e in root.findall("transmission")]
@@ -94,6 +95,12 @@ def _read_visual(reader: ElementReader, link: str, element: ET.Element) -> Visua
                       "link", link)
         return None
     geometry = _read_geometry(reader, link, shape)
+    if geometry.kind is not GeometryKind.MESH and geometry.size and min(geometry.size) <= 0:
+        # a placeholder (ROS tools draw nothing for it; MuJoCo refuses a geom of size 0)
+        reader.report(warning, f"link '{link}' has a <visual> {shape.tag} of size "
+                      f"{' '.join(f'{v:g}' for v in geometry.size)}: a placeholder, not drawn",
+                      "link", link, hint="remove the <visual>, or give it a positive size")
+        return None
     rgba = None
     color = element.find("material/color")
     if color is not None:

@@ -35,9 +35,24 @@ def read_transmission(reader: ElementReader, element: ET.Element) -> Transmissio
     # older ROS 1 files give a simple transmission's reduction on the transmission itself
     shared = element.findtext("mechanicalReduction")
 
-    def reduction(part: ET.Element, what: str, default: str | None = None) -> float:
-        text = (part.findtext("mechanicalReduction") or part.findtext("mechanical_reduction")
+    def reduction_text(part: ET.Element, default: str | None = None) -> str | None:
+        return (part.findtext("mechanicalReduction") or part.findtext("mechanical_reduction")
                 or default)
+
+    unreadable = [text for part, default in [(j, None) for j in element.findall("joint")]
+                  + [(a, shared) for a in element.findall("actuator")]
+                  if not _readable(text := reduction_text(part, default))]
+    if unreadable:
+        # ROS tools load such a file (the reduction is read when a controller starts): the
+        # robot loads, this transmission does not, and its joint is sized as one without any
+        reader.report(warning, f"transmission '{name}' has mechanical reduction "
+                      f"'{unreadable[0].strip()}', which is not a number: left out, its joints "
+                      "as if it had none", "transmission", name,
+                      hint="a reduction is motor turns per joint turn, e.g. 100")
+        return None
+
+    def reduction(part: ET.Element, what: str, default: str | None = None) -> float:
+        text = reduction_text(part, default)
         value = reader.number(text, f"transmission '{name}' {what} reduction", "transmission",
                               name, 1.0)
         if value == 0:
@@ -66,6 +81,17 @@ def read_transmission(reader: ElementReader, element: ET.Element) -> Transmissio
         for a in element.findall("actuator"))
     return TransmissionSpec(name=name, type=type_text, joints=_by_role(joints, "joint"),
                             actuators=_by_role(actuators, "actuator"))
+
+
+def _readable(text: str | None) -> bool:
+    """Whether a reduction's text is absent or a number (its value is checked later)."""
+    if text is None or not text.strip():
+        return True
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _by_role(parts: tuple, prefix: str) -> tuple:
