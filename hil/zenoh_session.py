@@ -126,11 +126,22 @@ def session(settings: ZenohSettings) -> zenoh.Session:
         return _sessions[settings]
 
 
+def dials_peers(settings: ZenohSettings) -> bool:
+    """Whether the process' session for these settings connects to someone (endpoints to
+    connect to, or a meeting point another process holds): it has peers to wait for."""
+    return bool(settings.connect) or settings in _joined
+
+
+#: meeting settings whose session found the meeting point taken and connected to it
+_joined: set[ZenohSettings] = set()
+
+
 def _open(settings: ZenohSettings) -> zenoh.Session:
     if settings.meet is not None:
         try:     # the first at the meeting point listens there; the OS decides who is first
             return zenoh.open(settings.hosting().to_config())
         except zenoh.ZError:
+            _joined.add(settings)
             settings = settings.joining()
     try:
         return zenoh.open(settings.to_config())

@@ -74,3 +74,15 @@ def test_controller_gives_up_on_drives_that_never_boot_naming_them(processes, ur
     assert "drive node 1 (joint1) on bus 'arm'" in control.stderr
     assert "not heard within 2 s" in control.stderr
     assert "Traceback" not in control.stderr
+
+
+def test_a_second_sim_or_controller_of_one_robot_is_refused_naming_it(processes, ur3_100hz):
+    sim = processes.start("sim", ur3_100hz, "--status-period", "0")
+    assert "hil sim:" in sim.stdout.readline()
+    control = processes.start("control", ur3_100hz, "--fake")
+    assert "hil control:" in control.stdout.readline()
+    for process in ("sim", "control"):
+        second = processes.run(process, ur3_100hz, *(["--fake"] if process == "control" else []))
+        assert second.returncode == 1
+        assert f"a hil {process} for robot 'ur3' already runs" in second.stderr
+        assert "Traceback" not in second.stderr

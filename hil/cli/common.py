@@ -6,6 +6,7 @@ import argparse
 import os
 import shutil
 import sys
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -14,7 +15,8 @@ from hil.errors import HilError
 from hil.resources import BUS_CONFIGS, data_dir
 from hil.supervisor import parse_cpus
 from hil.zenoh_security import Identity
-from hil.zenoh_session import DEFAULT_ENDPOINT, MEETING_VARIABLE, ZenohSettings
+from hil.zenoh_session import (DEFAULT_ENDPOINT, MEETING_VARIABLE, ZenohSettings, dials_peers,
+                                session)
 
 #: how a loopback listener's endpoint reads (anything else is reachable from elsewhere)
 LOOPBACK_HOSTS = ("/127.", "/[::1]", "/localhost:")
@@ -82,6 +84,37 @@ def _warn_if_exposed(listen: tuple[str, ...]) -> None:
         print(f"hil: warning: listening on {', '.join(exposed)} without --secure: anyone who "
               "reaches it can put CAN frames to the drives, send goals and reset faults "
               "(see `hil keys --help`)", file=sys.stderr)
+
+
+#: how long a starting sim or controller looks for its peers before asking who runs (s),
+#: and how long the set of them must stay the same
+PEER_WAIT = 2.0
+PEER_SETTLE = 0.3
+
+
+def refuse_a_second(zenoh: ZenohSettings, robot: str, process: str) -> None:
+    """HilError if a ``hil <process>`` for ``robot`` already runs on this Zenoh network: two
+    simulators would both answer every frame (two nodes of one id on a CAN bus), two
+    controllers would both command the drives. With no endpoints every process of the host
+    meets every other, so a forgotten one in another terminal is found here."""
+    opened = session(zenoh)
+    # the first peer (the meeting point's), then those its gossip names, until no new one
+    # came for PEER_SETTLE: a token is heard from the peer that holds it, not relayed
+    start = settled = time.monotonic()
+    peers = 0
+    while dials_peers(zenoh) and time.monotonic() < start + PEER_WAIT and (
+            not peers or time.monotonic() < settled + PEER_SETTLE):
+        now_peers = len(list(opened.info.peers_zid()))
+        if now_peers != peers:
+            peers, settled = now_peers, time.monotonic()
+        time.sleep(0.02)
+    found = [reply for reply in opened.liveliness().get(f"hil/{robot}/{process}",
+                                                        timeout=PEER_WAIT) if reply.ok]
+    if found:
+        raise HilError.single(
+            f"a hil {process} for robot '{robot}' already runs on this Zenoh network",
+            hint=f"stop that one first, or give this one a network of its own (--listen and "
+                 f"--connect, or ${MEETING_VARIABLE})")
 
 
 def add_ros(parser: argparse.ArgumentParser, what: str) -> None:

@@ -65,6 +65,8 @@ def run(args: argparse.Namespace) -> int:
     zenoh = common.zenoh_settings(args)
     if not args.lock_step:         # the frame handling just below the loop (its own priority)
         enter_real_time(max(0, args.priority - 1), common.cpus(args))
+    # after the scheduling: Zenoh's runtime threads, started with the session, inherit it
+    common.refuse_a_second(zenoh, config.robot.name, "control")
     buses = {}
     if args.fake:
         hardware = FakeHardwareInterface(config.robot)

@@ -65,6 +65,8 @@ def run(args: argparse.Namespace) -> int:
     frame_faults, drive_faults = _faults(args, config)
     scheduling = ("lock-step" if args.lock_step
                   else enter_real_time(args.priority, common.cpus(args)))
+    # after the scheduling: Zenoh's runtime threads, started with the session, inherit it
+    common.refuse_a_second(zenoh, config.robot.name, "sim")
     simulator, buses, ros_clock = _open(args, config, zenoh, frame_faults)
     token = session(zenoh).liveliness().declare_token(f"hil/{config.robot.name}/sim")
     stop = threading.Event()
