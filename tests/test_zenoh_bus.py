@@ -375,3 +375,16 @@ def test_a_sender_whose_clock_drifts_is_not_late_but_a_held_message_still_is():
                 (i * 0.002 for i in range(1, 30_000))]               # 60 s of 500 Hz
     assert max(lateness) < STALL_THRESHOLD
     assert quickest.lateness(0.001 + 100e-6 * 60 + 0.020, 60.0) > 0.019   # held 20 ms
+
+
+def test_a_script_that_never_shuts_its_bus_down_still_exits(tmp_path):
+    script = tmp_path / "forgetful.py"
+    script.write_text(
+        "import can\n"
+        f"bus = can.Bus(interface='zenoh', channel='test/exit', "
+        f"listen=['tcp/127.0.0.1:{free_port()}'])\n"
+        "bus.send(can.Message(arbitration_id=1, data=b'x', is_extended_id=False))\n")
+    # it used to wait for Zenoh's delivery thread for good; 60 s only bounds the test
+    result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 0, result.stderr

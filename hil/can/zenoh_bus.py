@@ -60,6 +60,7 @@ import random
 import struct
 import threading
 import time
+import weakref
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -249,6 +250,23 @@ class _Batch(threading.local):
         self.frames: list[can.Message] = []
 
 
+#: buses not shut down yet: shut down at exit (see _shut_down_at_exit)
+_open_buses: weakref.WeakSet[ZenohBus] = weakref.WeakSet()
+
+
+def _shut_down_at_exit() -> None:
+    """Shut down every bus still open. Zenoh delivers in a thread that is no daemon and
+    ends only when its subscriber goes, and Python joins such threads before atexit
+    handlers run: a script that never called ``bus.shutdown()`` hung at exit for good.
+    Registered with ``threading._register_atexit`` (what concurrent.futures uses), which
+    runs before that join."""
+    for bus in list(_open_buses):
+        bus.shutdown()
+
+
+threading._register_atexit(_shut_down_at_exit)
+
+
 class ZenohBus(can.BusABC):
     """python-can bus over Zenoh pub/sub on key ``hil/can/<channel>``.
 
@@ -294,6 +312,7 @@ class ZenohBus(can.BusABC):
         self._key = key
         self._neighbours = _Channels.join(self._session, key, self)
         super().__init__(channel=channel, **kwargs)
+        _open_buses.add(self)
 
     def _on_payload(self, payload: bytes, arrived: float) -> None:
         try:
