@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import time
@@ -33,7 +34,10 @@ def test_dropping_every_frame_aborts_the_goal_and_the_drives_quick_stop(controll
     controlled.sim_bus.add(FrameFault("drop", "arm", 1.0))
     result = controlled.client.wait_result(goal_id, 10)
     assert result.status is GoalStatus.ABORTED and result.error_code == HARDWARE_FAULT
-    assert "drive node 1 (joint1) on bus 'arm' is silent" in result.error_string
+    # whichever drive's answers stopped first: the drop begins between two drives'
+    # answers of a cycle as often as not
+    assert re.search(r"drive node \d \(joint\d\) on bus 'arm' is silent", result.error_string), \
+        result.error_string
     time.sleep(0.5)                          # watchdog 0.2 s: no more setpoints arrive
     assert all(d.core.power in (Power.QUICK_STOP, Power.DISABLED)
                for d in controlled.sim.drives)
