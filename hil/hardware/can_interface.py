@@ -143,8 +143,7 @@ class CanHardwareInterface(HardwareInterface):
                             len(silent), len(self.axes), now - began, self.boot_timeout,
                             "; ".join(silent))
         for axis in self.axes:
-            axis.configure()
-            axis.feedback.cycle = self._cycle    # missed answers count from here on
+            self._configure(axis)
         deadline = time.monotonic() + ENABLE_TIMEOUT
         while True:
             self.write(hold, np.zeros_like(hold), enabling=True)
@@ -313,11 +312,14 @@ class CanHardwareInterface(HardwareInterface):
             threading.Thread(target=self._configure_again, args=(rebooted,),
                              name="configure", daemon=True).start()
 
+    def _configure(self, axis: Axis) -> None:
+        axis.configure()
+        axis.feedback.cycle = self._cycle    # missed answers count from here on
+
     def _configure_again(self, axes: list[Axis]) -> None:
         for axis in axes:
             try:
-                axis.configure()
-                axis.feedback.cycle = self._cycle    # missed answers count from here on
+                self._configure(axis)
             except HilError as exc:
                 self._report(axis.label, "configure", axis.found(
                     FaultKind.REBOOTED, f"booted again and could not be configured: {exc}"))
