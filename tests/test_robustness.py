@@ -3,6 +3,7 @@ feedback, scripts that forget to close, and floods of frames into running proces
 
 from __future__ import annotations
 
+import itertools
 import random
 import signal
 import struct
@@ -95,12 +96,16 @@ FLOOD_SECONDS = 10.0
 
 def _flood(channel: str, endpoint: str, kind: str, rate: float, seconds: float) -> int:
     """Send ``kind`` frames ("sdo": valid SDO reads of every node; "random": any id 0..0x7FF,
-    any length 0..8) at ``rate`` for ``seconds``; returns how many were sent."""
+    any length 0..8) at up to ``rate`` for ``seconds``; returns how many were sent. The flood
+    ends on time, not on count: Zenoh's congestion control blocks a put while the receiver
+    is behind, so on a busy host fewer frames go out, never for longer."""
     bus = can.Bus(interface="zenoh", channel=channel, connect=[endpoint])
     rng = random.Random(17)
     sent, start = 0, time.monotonic()
     try:
-        for i in range(int(rate * seconds)):
+        for i in itertools.count():
+            if time.monotonic() - start >= seconds:
+                break
             if kind == "sdo":
                 msg = can.Message(arbitration_id=0x601 + i % 3, is_extended_id=False,
                                   data=bytes([0x40, 0x41, 0x60, 0, 0, 0, 0, 0]))
@@ -137,7 +142,7 @@ def _probe_drive(channel: str, endpoint: str) -> int:
 
 @pytest.mark.slow
 def test_a_flooded_real_time_stack_stays_up_answers_and_stops_on_sigterm(tmp_path):
-    """10 s of valid SDO requests and 10 s of random frames, each at 10,000/s, into a
+    """10 s of valid SDO requests and 10 s of random frames, each at up to 10,000/s, into a
     real-time sim and its controller running a goal. Faults are expected (random NMT frames
     stop and reset drives); what must hold: both processes stay up and answer afterwards,
     stop on SIGTERM within 5 s, report what they dropped, and log no traceback."""
@@ -172,6 +177,8 @@ def test_a_flooded_real_time_stack_stays_up_answers_and_stops_on_sigterm(tmp_pat
             flooder.join(FLOOD_SECONDS * 3)
             assert not flooder.is_alive(), f"the {kind} flood could not be sent"
         print("flooded:", floods, "goal:", goal.communicate(timeout=60)[0].strip())
+        # a tenth of the rate is still 50 times the drives' own traffic: a flood, not a trickle
+        assert all(sent >= FLOOD_RATE * FLOOD_SECONDS / 10 for sent in floods.values()), floods
         for name, process in processes.items():
             assert process.poll() is None, f"hil {name} died in the flood"
         assert _probe_drive("ur3/arm", sim_endpoint) == 0x00020192     # the sim answers

@@ -515,6 +515,12 @@ def test_read_only_and_mistyped_parameters_are_refused_with_the_reason(client, s
     assert not unknown.successful and "not declared" in unknown.reason
 
 
+def _changes(events: list, name: str, value: float) -> bool:
+    """Whether a parameter event in ``events`` set ``name`` to ``value``."""
+    return any((p.name, p.value.double_value) == (name, value)
+               for e in events for p in e.changed_parameters)
+
+
 def test_a_set_path_tolerance_takes_effect_on_the_next_goal_and_is_announced(client, spec_types,
                                                                                stack):
     name = "constraints.path_position_tolerance"
@@ -532,6 +538,10 @@ def test_a_set_path_tolerance_takes_effect_on_the_next_goal_and_is_announced(cli
         time.sleep(0.2)
     finally:
         _set(client, spec_types, name, _value(spec_types, DOUBLE, double_value=0.0))
+        # the set is answered before its event arrives: wait for it (or give up and report)
+        deadline = time.monotonic() + 5.0
+        while not _changes(events, name, 0.0) and time.monotonic() < deadline:
+            time.sleep(0.05)
         events_sub.undeclare()
     # a tracking error of any size breaks a path tolerance of 1 nrad
     assert response.status == ABORTED and response.result.error_code == -4, response
