@@ -11,7 +11,7 @@ import sys
 import pytest
 
 from hil.cli import main
-from hil.description import load_description
+from hil.description import PackagePath, load_description
 from hil.errors import HilError, Severity
 from conftest import CORPUS
 
@@ -88,6 +88,42 @@ def test_undefined_parent_link_names_the_file_missing_from_includes(package_path
     assert diag.file.name == "arm.xacro" and diag.line == 3
     assert "body.xacro, which is not included" in diag.hint
     assert "$(find missing_include_description)/urdf/body.xacro" in diag.hint
+
+
+_XACRO = '<?xml version="1.0"?>\n<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
+
+
+@pytest.mark.parametrize("body, line, message", [
+    ('<link name="a"/>\n<link name="b" value="${mass_of_b * 2}"/>\n', 4,
+     "name 'mass_of_b' is not defined"),
+    ('<xacro:macro name="m" params="x y"><link name="${x}"/></xacro:macro>\n<xacro:m x="q"/>\n',
+     3, "Undefined parameters [y]"),
+    ('<link name="a"/>\n<xacro:no_such_macro x="q"/>\n', 4, "unknown macro name"),
+    ('<link name="a"/>\n<link name="$(arg not_given)"/>\n', 4,
+     "Undefined substitution argument not_given"),
+])
+def test_a_xacro_error_names_the_line_that_causes_it(body, line, message, tmp_path):
+    path = tmp_path / "robot.xacro"
+    path.write_text(_XACRO + body + "</robot>\n")
+    (diag,) = diagnostics_of(path, PackagePath(()))
+    assert message in diag.message and (diag.file, diag.line) == (path, line)
+
+
+def test_a_file_without_links_names_its_robot_element(tmp_path):
+    path = tmp_path / "macros.xacro"
+    path.write_text(_XACRO + '<xacro:macro name="arm" params="prefix">\n'
+                    '<link name="${prefix}base"/></xacro:macro>\n</robot>\n')
+    (diag,) = diagnostics_of(path, PackagePath(()))
+    assert "has no <link>" in diag.message and diag.line == 2
+
+
+def test_an_include_fragment_given_alone_is_called_one_not_sent_to_another_robots_file(
+        package_path):
+    # body_link is defined on the package path, by another robot's package: no answer here
+    (diag,) = diagnostics_of(CORPUS / "real_world" / "gripper_fragment.urdf", package_path)
+    assert "parent link 'body_link' is not defined" in diag.message and diag.line == 9
+    assert "looks like a fragment that a robot's main file includes" in diag.hint
+    assert "body.xacro" not in diag.hint
 
 
 @pytest.mark.parametrize("name, line, message", [

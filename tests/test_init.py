@@ -8,20 +8,26 @@ import math
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from conftest import CORPUS
 from hil.bus_config import load_bus_config
-from hil.commissioning.initial import _drives_per_bus
-from hil.commissioning.sizing import MOTOR_CLASSES, ROTARY_REDUCTIONS, size_joint
+from hil.commissioning.initial import _drives_per_bus, worst_gravity_loads
+from hil.commissioning.sizing import (
+    DEFAULT_EFFORT_FLOOR, DEFAULT_EFFORT_MARGIN, DEFAULT_VELOCITY, MOTOR_CLASSES,
+    ROTARY_REDUCTIONS, size_joint,
+)
 from hil.cli import main
 from hil.description import (
     Joint, JointDynamics, JointLimits, JointType, PackagePath, Pose, load_description,
 )
 from hil.errors import HilError
+from hil.plant.plant import INITIAL_MARGIN
 
 REAL_WORLD = CORPUS / "real_world"
 ARM = REAL_WORLD / "arm_folder" / "urdf" / "arm.urdf.xacro"
+HAND = REAL_WORLD / "hand_without_limits.urdf"
 
 
 def _joint(kind: JointType, effort: float, velocity: float) -> Joint:
@@ -88,12 +94,64 @@ def test_init_spreads_drives_over_buses_by_the_load_check(tmp_path):
     assert config.warnings == ()
 
 
+def test_init_gives_joints_without_limits_the_default_class_and_says_so(tmp_path, capsys):
+    output = tmp_path / "hand.yaml"
+    assert main(["init", str(HAND), "-o", str(output)]) == 0
+    printed = capsys.readouterr().out
+    robot = load_description(HAND)
+    worst = worst_gravity_loads(robot)
+    config = load_bus_config(output)
+    assert [d.joints[0] for d in config.drives] == [j.name for j in robot.movable_joints]
+    for joint in robot.movable_joints:
+        assert f"warning: joint '{joint.name}': the description gives effort 0, velocity 0" \
+            in printed
+        limits = config.robot.joint(joint.name).limits
+        assert limits.velocity == DEFAULT_VELOCITY[JointType.REVOLUTE]
+        assert limits.effort == pytest.approx(max(DEFAULT_EFFORT_FLOOR[JointType.REVOLUTE],
+                                                  DEFAULT_EFFORT_MARGIN * worst[joint.name]),
+                                              rel=1e-2)
+        assert (limits.lower, limits.upper) == (0.0, 1.5)        # the description's range
+
+
+def test_the_largest_gravity_load_is_the_carried_weight_at_its_distance_from_the_axis():
+    # the hand's proximal finger joints carry two links of 0.03 kg, centred 0.02 m out on
+    # each, the distal one 0.04 m out, bent by the start pose (its range starts at 0, so it
+    # starts a tenth of the range inside); the axes (x) are horizontal
+    bend = INITIAL_MARGIN * 1.5
+    centre = (np.array([0.0, 0.02]) + [0.02 * math.sin(bend), 0.04 + 0.02 * math.cos(bend)]) / 2
+    worst = worst_gravity_loads(load_description(HAND))
+    assert worst["index_proximal_joint"] == pytest.approx(0.06 * 9.81 * np.linalg.norm(centre),
+                                                          rel=1e-3)
+    assert worst["index_distal_joint"] == pytest.approx(0.03 * 9.81 * 0.02, rel=1e-3)
+
+
+@pytest.mark.parametrize("name", ["hand_without_limits.urdf", "effort_zero_passive.urdf",
+                                  "arm_folder/urdf/arm.urdf.xacro", "transmission_on_mimic_"
+                                  "joint.urdf", "shared_actuator.urdf"])
+def test_check_and_init_agree_on_the_joints_a_drive_moves(name, tmp_path, capsys):
+    """`hil check` of a description lists its driven joints and those `hil init` will give a
+    drive; the config `hil init` writes drives exactly those."""
+    package = ["--package-path", str(REAL_WORLD)]
+    assert main(["check", str(REAL_WORLD / name), *package]) == 0
+    summary = capsys.readouterr().out
+    robot = load_description(REAL_WORLD / name, PackagePath((REAL_WORLD,)))
+    promised = {j.name for j in robot.driven_joints + robot.undriven_joints}
+    if robot.undriven_joints:
+        assert f"{len(robot.undriven_joints)} passive (no transmission: `hil init`" in summary
+    assert main(["init", str(REAL_WORLD / name), "-o", str(tmp_path / "c.yaml"), *package]) == 0
+    config = load_bus_config(tmp_path / "c.yaml", PackagePath((REAL_WORLD,)))
+    assert {j for d in config.drives for j in d.joints} == promised
+
+
 def test_init_refuses_a_robot_without_a_joint_to_drive_and_says_why(tmp_path, capsys):
+    urdf = tmp_path / "statue.urdf"
+    urdf.write_text('<robot name="statue"><link name="a"/><link name="b"><inertial><mass '
+                    'value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" '
+                    'izz="0.01"/></inertial></link><joint name="j" type="fixed"><parent '
+                    'link="a"/><child link="b"/></joint></robot>')
     output = tmp_path / "x.yaml"
-    assert main(["init", str(REAL_WORLD / "effort_zero_passive.urdf"), "-o", str(output)]) == 1
-    err = capsys.readouterr().err
-    assert "has no joint hil can drive" in err
-    assert "rotor_joint: the description gives no effort/velocity limit" in err
+    assert main(["init", str(urdf), "-o", str(output)]) == 1
+    assert "has no joint hil can drive: no movable joint" in capsys.readouterr().err
     assert not output.exists()
 
 
@@ -104,21 +162,51 @@ def test_init_does_not_replace_a_file(tmp_path, capsys):
     assert "exists already" in capsys.readouterr().err and output.read_text() == "mine"
 
 
-@pytest.mark.parametrize("entry, message", [
-    ("nope: {reduction: 10}", "transmissions: joint 'nope' is not in the robot"),
-    ("base_joint: {reduction: 10}", "transmissions: joint 'base_joint' is fixed and cannot move"),
-    ("shoulder: {reduction: 0}", "'reduction' must not be 0"),
-    ("shoulder: {reduction: 10, rotor_inertia: -1.0}", "'rotor_inertia' must be >= 0"),
-    ("shoulder: {reduction: 10, gear: 3}", "unknown key 'gear'"),
+@pytest.mark.parametrize("section, entry, message", [
+    ("transmissions", "nope: {reduction: 10}", "transmissions: joint 'nope' is not in the robot"),
+    ("transmissions", "base_joint: {reduction: 10}",
+     "transmissions: joint 'base_joint' is fixed and cannot move"),
+    ("transmissions", "shoulder: {reduction: 0}", "'reduction' must not be 0"),
+    ("transmissions", "shoulder: {reduction: 10, rotor_inertia: -1.0}",
+     "'rotor_inertia' must be >= 0"),
+    ("transmissions", "shoulder: {reduction: 10, gear: 3}", "unknown key 'gear'"),
+    ("joint_limits", "nope: {max_effort: 1}", "joint_limits: joint 'nope' is not in the robot"),
+    ("joint_limits", "base_joint: {max_effort: 1}",
+     "joint_limits: joint 'base_joint' cannot move"),
+    ("joint_limits", "shoulder: {max_effort: 0}", "'max_effort' must be > 0"),
+    ("joint_limits", "shoulder: {max_velocity: fast}", "'max_velocity' must be a number"),
+    ("joint_limits", "shoulder: {max_accel: 3}", "unknown key 'max_accel'"),
 ])
-def test_a_bad_config_transmission_is_an_error_on_its_line(entry, message, tmp_path):
+def test_a_bad_config_transmission_or_joint_limit_is_an_error_on_its_line(section, entry, message,
+                                                                          tmp_path):
     config = tmp_path / "arm.yaml"
-    config.write_text(f"robot: {ARM}\ntransmissions:\n  {entry}\nbuses:\n  - name: a\n"
+    config.write_text(f"robot: {ARM}\n{section}:\n  {entry}\nbuses:\n  - name: a\n"
                       "    cycle_hz: 500\n    drives:\n      - {node_id: 1, joint: elbow}\n")
     with pytest.raises(HilError) as caught:
         load_bus_config(config, PackagePath((REAL_WORLD,)))
     (error,) = [d for d in caught.value.diagnostics if message in d.message]
     assert error.line == 3
+
+
+def test_config_joint_limits_size_the_drive_over_the_descriptions(tmp_path):
+    config = tmp_path / "hand.yaml"
+    config.write_text(f"robot: {HAND}\njoint_limits:\n  index_proximal_joint: {{max_effort: 0.4, "
+                      "max_velocity: 3}\ntransmissions:\n  index_proximal_joint: {reduction: "
+                      "10}\nbuses:\n  - name: a\n    cycle_hz: 500\n    drives:\n      - "
+                      "{node_id: 1, joint: index_proximal_joint}\n")
+    (drive,) = load_bus_config(config).drives
+    assert drive.peak_torque == pytest.approx(0.04) and drive.max_velocity == pytest.approx(30)
+
+
+def test_a_config_transmission_on_a_joint_without_limits_names_joint_limits(tmp_path):
+    config = tmp_path / "hand.yaml"
+    config.write_text(f"robot: {HAND}\ntransmissions:\n  index_proximal_joint: {{reduction: "
+                      "10}\nbuses:\n  - name: a\n    cycle_hz: 500\n    drives:\n      - "
+                      "{node_id: 1, joint: index_proximal_joint}\n")
+    with pytest.raises(HilError) as caught:
+        load_bus_config(config)
+    assert any("give it max_effort under 'joint_limits:'" in (d.hint or "")
+               for d in caught.value.diagnostics), str(caught.value)
 
 
 @pytest.mark.slow

@@ -72,9 +72,11 @@ def test_hil_check_prints_no_traceback_for_any_public_description(capsys):
     assert "Traceback" not in capsys.readouterr().err
 
 
-#: robots hil never shipped: three arms and a legged robot (fixed base)
-BENCHES = ["panda_description/urdf/panda.urdf", "xarm_description/urdf/xarm7.urdf",
-           "z1_description/urdf/z1.urdf", "go1_description/urdf/go1.urdf"]
+#: robots hil never shipped (bases fixed): an arm, a quadruped, a humanoid (two of its joints
+#: without limits: the default class), a mobile manipulator with a prismatic lift, a hand
+BENCHES = ["panda_description/urdf/panda.urdf", "go1_description/urdf/go1.urdf",
+           "romeo_description/urdf/romeo.urdf", "tiago_description/robots/tiago_no_hand.urdf",
+           "allegro_hand_description/urdf/allegro_right_hand.urdf"]
 
 
 @pytest.mark.slow

@@ -39,6 +39,8 @@ def real_world_path() -> PackagePath:
      "'finger_1_trans' already drives: left out"),
     ("revolute_without_range.urdf", 10, "revolute joint 'wheel_joint' has no lower/upper limits"),
     ("effort_zero_passive.urdf", 10, "joint 'rotor_joint' limit effort is 0: taken as not given"),
+    ("hand_without_limits.urdf", 10, "joint 'index_proximal_joint' limit velocity is 0: taken as "
+     "not given (`hil init` gives the joint hil's default class"),
     ("mimic_on_fixed_joint.urdf", 17, "fixed joint 'tip_joint' has a <mimic>, which does not "
      "move it: left out"),
     ("zero_size_visual.urdf", 8, "link 'tool' has a <visual> sphere of size 0: a placeholder, "
@@ -107,7 +109,7 @@ def test_a_reference_to_a_missing_joint_is_left_out_with_a_warning(name, line, m
 
 
 @pytest.mark.parametrize("name, line, message, hint", [
-    ("empty_robot.urdf", None, "the robot has no <link>", "xacro macros alone"),
+    ("empty_robot.urdf", 3, "the robot has no <link>", "xacro macros alone"),
     ("effort_zero_driven.urdf", 10, "joint 'shoulder' is driven but its limit effort is 0",
      "the drive is sized from it"),
 ])

@@ -8,6 +8,7 @@ from pathlib import Path
 import yaml
 
 from hil.bus_config.checks import check_system
+from hil.bus_config.joint_limits import apply_joint_limits
 from hil.bus_config.transmissions import add_transmissions
 from hil.bus_config.types import BusConfig, DriveConfig, Gains, SystemConfig
 from hil.bus_config.yaml_reader import LineLoader, LineMapping, Reader
@@ -17,7 +18,7 @@ from hil.protocols import names as protocol_names
 from hil.protocols import protocol
 from hil.transmissions import SimpleTransmission, Transmission, build_transmissions
 
-_TOP_KEYS = {"robot", "plant_rate_hz", "defaults", "transmissions", "buses"}
+_TOP_KEYS = {"robot", "plant_rate_hz", "defaults", "joint_limits", "transmissions", "buses"}
 _BUS_KEYS = {"name", "interface", "channel", "bitrate", "cycle_hz", "drives"}
 _DRIVE_KEYS = {"node_id", "joint", "actuator", "protocol", "encoder_counts_per_rev",
                "rated_torque", "peak_torque", "max_velocity", "following_error_limit",
@@ -54,7 +55,8 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
                     top.key_lines.get("robot", 1),
                     hint="'robot' is a .xacro/.urdf path relative to the config file")
         raise HilError(reader.diagnostics)
-    robot = add_transmissions(reader, top, load_description(robot_path, package_path))
+    robot = load_description(robot_path, package_path)
+    robot = add_transmissions(reader, top, apply_joint_limits(reader, top, robot))
     if any(d.severity is Severity.ERROR for d in reader.diagnostics):
         raise HilError(reader.diagnostics + list(robot.warnings))
     transmissions = build_transmissions(robot)

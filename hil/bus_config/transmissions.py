@@ -55,7 +55,8 @@ def add_transmissions(reader: Reader, top: LineMapping, robot: RobotDescription
         for key, amount in (("effort", joint.limits.effort), ("velocity", joint.limits.velocity)):
             if amount <= 0:
                 reader.fail(f"{what}: the description gives no {key} limit, which the drive is "
-                            "sized from", at, hint=f"give the joint <limit {key}=\"...\">")
+                            "sized from", at, hint=f"give it max_{key} under 'joint_limits:' here, "
+                            f"or the joint <limit {key}=\"...\">")
         entry = reader.mapping(raw, what, at)
         reader.unknown_keys(entry, _KEYS, what)
         reduction = reader.number(entry, "reduction", what, positive=False)

@@ -75,8 +75,7 @@ def bus_summary(config: SystemConfig) -> str:
 
 def summary(description: RobotDescription, plant: Plant, package_path: PackagePath) -> str:
     """A one-screen, human-readable summary of a robot and its MuJoCo model."""
-    passive = [j.name for j in description.movable_joints
-               if j.mimic is None and j not in description.driven_joints]
+    passive = description.undriven_joints
     lines = [f"robot '{description.name}'  ({description.source})",
              f"  links: {len(description.links)}  (root '{description.root_link}'),  "
              f"total mass {description.total_mass:.3f} kg",

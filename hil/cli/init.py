@@ -38,17 +38,18 @@ def run(args: argparse.Namespace) -> int:
         raise HilError.single(f"{output} exists already", hint="give another -o, or --force")
     written = initial_config(robot, args.description, output, args.protocol, args.rate)
     if written.drives == 0:
-        raise HilError.single(f"'{robot.name}' has no joint hil can drive "
-                              f"({'; '.join(written.skipped) or 'no movable joint'})",
-                              args.description,
-                              hint="give the joints <limit effort=... velocity=...>")
+        raise HilError.single(f"'{robot.name}' has no joint hil can drive: no movable joint "
+                              "that is not a mimic", args.description,
+                              hint="hil drives revolute, continuous and prismatic joints; "
+                                   "check that this is the robot's main file, not an include")
     output.write_text(written.text)
     config = load_bus_config(output, package_path)      # as `hil check` and `hil up` will
     print(f"hil init: wrote {output}: {written.drives} {args.protocol} drive(s) on "
           f"{written.buses} bus(es) at {args.rate:g} Hz for '{robot.name}'"
           f"{f'; {len(config.warnings)} warning(s), see hil check' if config.warnings else ''}")
-    for reason in written.skipped:
-        print(f"  left passive: {reason}")
+    for joint in written.defaulted:
+        print(f"  warning: joint '{joint.joint}': {joint.note}; review 'joint_limits:' in "
+              f"{output}")
     where = "".join(f" --package-path {folder}" for folder in args.package_path)
     print(f"next: hil check {output}{where} && hil up {output} --demo{where}")
     return 0

@@ -2,7 +2,9 @@
 
 One drive per actuated joint: the description's own transmissions where it has them, else
 a simple transmission per movable, non-mimic joint sized by :mod:`hil.commissioning.sizing`
-and carried by the config (``transmissions:``), so the description stays untouched. The
+and carried by the config (``transmissions:``), so the description stays untouched; a joint
+the description gives no effort or velocity limit gets sizing's default class, carried by
+the config too (``joint_limits:``). The
 drives are spread over as many 1 Mbit/s buses as the load check allows at the rate, with
 node ids from 1. Comments in the file say what was assumed.
 """
@@ -15,12 +17,17 @@ from dataclasses import dataclass, replace
 from datetime import date
 from pathlib import Path
 
-from hil.commissioning.sizing import Sizing, size_joint
+import mujoco
+import numpy as np
+
+from hil.commissioning.sizing import Sizing, default_limits, needs_default_limits, size_joint
+from hil.bus_config.joint_limits import KEYS as LIMIT_KEYS
 from hil.bus_config.transmissions import SIMPLE, actuator_of
 from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD
 from hil.can import bus_load
 from hil.description import (
-    RobotDescription, TransmissionActuator, TransmissionJoint, TransmissionSpec,
+    Joint, JointLimits, JointType, RobotDescription, TransmissionActuator, TransmissionJoint,
+    TransmissionSpec,
 )
 from hil.plant import Plant
 from hil.protocols import protocol
@@ -44,28 +51,33 @@ class Drive:
 
 
 @dataclass(frozen=True)
+class DefaultedJoint:
+    """A joint given the default class: the limits written, and what the description had."""
+
+    joint: str
+    limits: JointLimits
+    note: str
+
+
+@dataclass(frozen=True)
 class InitialConfig:
     text: str
     drives: int
     buses: int
-    skipped: tuple[str, ...]       # joints left passive, each with its reason
+    defaulted: tuple[DefaultedJoint, ...]
 
 
 def initial_config(robot: RobotDescription, description: Path, output: Path,
                    protocol_name: str, rate: float) -> InitialConfig:
     """The YAML text of a bus config for ``robot`` (read from ``description``), to be
-    written at ``output``."""
-    driven = {tj.name for t in robot.transmissions for tj in t.joints}
-    loads = gravity_loads(robot)
-    sizings, skipped = [], []
-    for joint in robot.movable_joints:
-        if joint.mimic is not None or joint.name in driven:
-            continue
-        if joint.limits is None or joint.limits.effort <= 0 or joint.limits.velocity <= 0:
-            skipped.append(f"{joint.name}: the description gives no effort/velocity limit to "
-                           "size a drive from (passive)")
-            continue
-        sizings.append(size_joint(joint, loads[joint.name]))
+    written at ``output``: a drive for every joint of ``robot.undriven_joints``."""
+    loads, worst = gravity_loads(robot), worst_gravity_loads(robot)
+    defaulted = tuple(_defaulted(j, worst[j.name]) for j in robot.undriven_joints
+                      if needs_default_limits(j))
+    limited = {d.joint: d.limits for d in defaulted}
+    robot = replace(robot, joints=tuple(replace(j, limits=limited[j.name]) if j.name in limited
+                                        else j for j in robot.joints))
+    sizings = [size_joint(joint, loads[joint.name]) for joint in robot.undriven_joints]
     added = tuple(_transmission(s) for s in sizings)
     sized = replace(robot, transmissions=robot.transmissions + added)
     drives = [Drive(t.joints[0].name if len(t.joints) == 1 else ", ".join(j.name for j in t.joints),
@@ -78,8 +90,8 @@ def initial_config(robot: RobotDescription, description: Path, output: Path,
     per_bus = _drives_per_bus(protocol_name, rate)
     buses = [drives[i:i + per_bus] for i in range(0, len(drives), per_bus)]
     text = _yaml(robot, description, output, protocol_name, rate, sizings, buses, per_bus,
-                 skipped)
-    return InitialConfig(text, len(drives), len(buses), tuple(skipped))
+                 defaulted)
+    return InitialConfig(text, len(drives), len(buses), defaulted)
 
 
 def gravity_loads(robot: RobotDescription) -> dict[str, float]:
@@ -87,6 +99,39 @@ def gravity_loads(robot: RobotDescription) -> dict[str, float]:
     plant = Plant(robot)
     return {name: float(plant.data.qfrc_bias[plant.model.joint(name).dofadr[0]])
             for name in plant.joint_names}
+
+
+def worst_gravity_loads(robot: RobotDescription) -> dict[str, float]:
+    """Each movable joint's largest gravity load in any of its own positions (N·m or N),
+    the rest of the robot at the start pose: the weight of all it carries, times (for a
+    rotary joint) the distance of that weight's centre from its axis."""
+    plant = Plant(robot)
+    model, data = plant.model, plant.data
+    gravity = float(np.linalg.norm(model.opt.gravity))
+    loads = {}
+    for name in plant.joint_names:
+        joint = model.joint(name)
+        body = joint.bodyid[0]
+        weight = float(model.body_subtreemass[body]) * gravity
+        if joint.type[0] == mujoco.mjtJoint.mjJNT_SLIDE:
+            loads[name] = weight
+            continue
+        arm = data.subtree_com[body] - data.xanchor[joint.id]
+        axis = data.xaxis[joint.id]
+        loads[name] = weight * float(np.linalg.norm(arm - (arm @ axis) * axis))
+    return loads
+
+
+def _defaulted(joint: Joint, worst_load: float) -> DefaultedJoint:
+    limits = default_limits(joint, worst_load)
+    given = joint.limits
+    had = ("no <limit>" if given is None else
+           f"effort {given.effort:g}, velocity {given.velocity:g}")
+    unit, speed = joint.type.effort_unit, "m/s" if joint.type is JointType.PRISMATIC else "rad/s"
+    return DefaultedJoint(joint.name, limits,
+                          f"the description gives {had}: hil's default class, "
+                          f"{limits.effort:g} {unit} (its largest gravity load "
+                          f"{abs(worst_load):.3g} {unit}), {limits.velocity:g} {speed}")
 
 
 def _transmission(sizing: Sizing) -> TransmissionSpec:
@@ -152,7 +197,7 @@ def _number(value: float) -> str:
 
 def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_name: str,
           rate: float, sizings: list[Sizing], buses: list[list[Drive]], per_bus: int,
-          skipped: list[str]) -> str:
+          defaulted: tuple[DefaultedJoint, ...]) -> str:
     robot_path = os.path.relpath(description.resolve(), output.resolve().parent)
     if robot_path.startswith(os.pardir):          # not below the config's folder
         robot_path = str(description.resolve())
@@ -172,8 +217,14 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
             "# joint's effort limit and whose top speed / reduction covers its velocity limit,",
             "# with the smallest such reduction. Replace them with your real drives' values.",
         ]
-    lines += [f"# Left passive: {reason}" for reason in skipped]
     lines += ["", f"robot: {robot_path}", "plant_rate_hz: 1000"]
+    if defaulted:
+        lines += ["", "# No effort or velocity limit in the description: hil's default class",
+                  "# (hil/commissioning/sizing.py). Replace them with the joints' real limits.",
+                  "joint_limits:"]
+        lines += [f"  {d.joint}: {{{LIMIT_KEYS[0]}: {_number(d.limits.effort)}, "
+                  f"{LIMIT_KEYS[1]}: {_number(d.limits.velocity)}}}   # {d.note}"
+                  for d in defaulted]
     if sizings:
         lines += ["", "transmissions:"]
         lines += [f"  {s.joint}: {{reduction: {s.reduction:.6g}, rotor_inertia: "
@@ -200,4 +251,4 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
     return "\n".join(lines) + "\n"
 
 
-__all__ = ["InitialConfig", "initial_config"]
+__all__ = ["DefaultedJoint", "InitialConfig", "initial_config"]

@@ -16,14 +16,22 @@ documented so that a user can check it against the drive they have:
   with the smallest such ``N`` (the least reflected inertia);
 * where no class covers both, the largest class with the smallest reduction that covers
   the effort, and the note says the speed falls short.
+
+A joint whose description gives no effort or velocity limit (``0``, or no ``<limit>`` on a
+continuous joint, as many public descriptions have it) gets the default class
+(:func:`default_limits`) for what is missing: velocity :data:`DEFAULT_VELOCITY` (1 rad/s, or
+0.1 m/s for a prismatic joint); effort :data:`DEFAULT_EFFORT_MARGIN` x the largest load
+gravity can put on it (the weight of everything it carries at the distance of that weight's
+centre from its axis; for a prismatic joint the weight), at least
+:data:`DEFAULT_EFFORT_FLOOR` (1 N·m, 10 N).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-from hil.description import Joint, JointType
+from hil.description import Joint, JointLimits, JointType
 
 
 @dataclass(frozen=True)
@@ -51,6 +59,28 @@ MOTOR_CLASSES = (
 HOLDING_MARGIN = 1.5
 ROTARY_REDUCTIONS = (1, 3, 5, 7, 10, 15, 20, 30, 50, 80, 100, 120, 160)
 SCREW_LEADS_MM = (40, 25, 20, 16, 10, 5, 4, 2, 1)
+
+
+#: the default class: velocity by joint type (rad/s, m/s); effort as the module doc says
+DEFAULT_VELOCITY = {JointType.PRISMATIC: 0.1, JointType.REVOLUTE: 1.0, JointType.CONTINUOUS: 1.0}
+DEFAULT_EFFORT_MARGIN = 2.0
+DEFAULT_EFFORT_FLOOR = {JointType.PRISMATIC: 10.0, JointType.REVOLUTE: 1.0,
+                        JointType.CONTINUOUS: 1.0}
+
+
+def needs_default_limits(joint: Joint) -> bool:
+    """Whether the description leaves the joint's effort or velocity limit ungiven."""
+    return joint.limits is None or joint.limits.effort <= 0 or joint.limits.velocity <= 0
+
+
+def default_limits(joint: Joint, worst_load: float) -> JointLimits:
+    """``joint``'s limits with the default class in place of an ungiven effort or velocity
+    (``worst_load``: the largest gravity load it can carry, N·m or N); given ones stay."""
+    limits = joint.limits or JointLimits(lower=None, upper=None, effort=0.0, velocity=0.0)
+    effort = limits.effort if limits.effort > 0 else max(
+        DEFAULT_EFFORT_FLOOR[joint.type], DEFAULT_EFFORT_MARGIN * abs(worst_load))
+    velocity = limits.velocity if limits.velocity > 0 else DEFAULT_VELOCITY[joint.type]
+    return replace(limits, effort=float(f"{effort:.3g}"), velocity=velocity)
 
 
 @dataclass(frozen=True)

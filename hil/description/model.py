@@ -247,6 +247,14 @@ class RobotDescription:
         return tuple(j for j in self.joints if j.name in names)
 
     @property
+    def undriven_joints(self) -> tuple[Joint, ...]:
+        """Movable joints that no transmission drives and that follow no other (mimic): the
+        joints ``hil init`` gives a drive each, in URDF order."""
+        driven = {tj.name for t in self.transmissions for tj in t.joints}
+        return tuple(j for j in self.joints
+                     if j.is_movable and j.mimic is None and j.name not in driven)
+
+    @property
     def actuators(self) -> tuple[TransmissionActuator, ...]:
         return tuple(a for t in self.transmissions for a in t.actuators)
 

@@ -168,19 +168,47 @@ def _xacro_error(exc, current: Path, package_path: PackagePath) -> HilError:
         return HilError.single(
             f"$(find {name}): no package named '{name}' on the package search path "
             f"({package_path.describe()})",
-            current, _line_of(current, f"$(find {name})"),
+            current, first_line_of(current, f"$(find {name})"),
             hint=f"add the folder that contains '{name}' with --package-path DIR "
                  f"or the HIL_PACKAGE_PATH environment variable")
     if isinstance(cause, OSError) and getattr(cause, "filename", None):
         missing = Path(cause.filename)
         return HilError.single(
             f"included file '{missing}' does not exist",
-            current, _line_of(current, missing.name),
+            current, first_line_of(current, missing.name),
             hint="fix the <xacro:include filename=...> or add the missing file")
-    return HilError.single(f"xacro: {exc}", current, hint="fix the xacro at the named file")
+    line = _xacro_line(str(exc), current)
+    return HilError.single(f"xacro: {' '.join(str(exc).split())}", current, line,
+                           hint="fix the xacro at that line" if line else
+                           "fix the xacro at the named file")
 
 
-def _line_of(path: Path, needle: str) -> int | None:
+#: what each kind of xacro error names, and how that appears in the file
+_XACRO_NEEDLES = (
+    (r"when evaluating expression '(.+?)'", lambda m: re.escape(m)),
+    (r"name '(\w+)' is not defined", lambda m: rf"\$\{{[^}}]*\b{m}\b"),
+    (r"unknown macro name: (\S+)", lambda m: rf"<{re.escape(m)}\b"),
+    (r"Undefined parameters \[([^\],]+)", lambda m: rf"params=[\"'][^\"']*\b{m}\b"),
+    (r"Undefined substitution argument (\S+)", lambda m: rf"\$\(arg {re.escape(m)}\)"),
+)
+
+
+def _xacro_line(message: str, file: Path) -> int | None:
+    """The line of ``file`` where what a xacro error names is written, if it can be found."""
+    try:
+        text = file.read_text(errors="replace")
+    except OSError:
+        return None
+    for named, written in _XACRO_NEEDLES:
+        match = re.search(named, message)
+        found = match and re.search(written(match.group(1)), text)
+        if found:
+            return text.count("\n", 0, found.start()) + 1
+    return None
+
+
+def first_line_of(path: Path, needle: str) -> int | None:
+    """The first line of ``path`` that holds ``needle`` (None if none does, or no file)."""
     try:
         for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
             if needle in line:

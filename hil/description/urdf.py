@@ -17,7 +17,7 @@ from hil.description.model import (
 )
 from hil.description.packages import PackagePath
 from hil.description.reader import ElementReader
-from hil.description.source import RobotSource
+from hil.description.source import RobotSource, first_line_of
 from hil.description.urdf_checks import check_mimic, check_tree, check_visuals
 from hil.description.urdf_transmissions import check_transmissions, read_transmission
 from hil.errors import HilError, Severity, error, warning
@@ -28,10 +28,12 @@ def parse_urdf(source: RobotSource, package_path: PackagePath) -> RobotDescripti
     root = source.root
     if root.tag != "robot":
         raise HilError.single(f"the root element is <{root.tag}>, not <robot>", source.path,
+                              first_line_of(source.path, f"<{root.tag}"),
                               hint="a URDF file starts with <robot name=\"...\">")
     if root.find("link") is None:
         raise HilError.single("the robot has no <link>: there is nothing to simulate",
-                              source.path, hint="give the robot's full description (a file of "
+                              source.path, first_line_of(source.path, "<robot"),
+                              hint="give the robot's full description (a file of "
                               "xacro macros alone defines no links until a macro is called)")
     reader = ElementReader(source, package_path)
     reader.diagnostics.extend(source.corrections)
@@ -268,8 +270,9 @@ def _check_limits(reader: ElementReader, joints: tuple[Joint, ...],
                               f"joint's largest {key} (the drive is sized from it)")
             else:
                 reader.report(warning, f"joint '{joint.name}' limit {key} is 0: taken as not "
-                              "given (the joint is passive)", "joint", joint.name,
-                              hint=f"give the joint's largest {key} to drive it")
+                              "given (`hil init` gives the joint hil's default class in the "
+                              "bus config's joint_limits:)", "joint", joint.name,
+                              hint=f"give the joint's largest {key}")
 
 
 def _read_dynamics(reader: ElementReader, joint: str, element: ET.Element | None) -> JointDynamics:

@@ -30,7 +30,7 @@ def check_tree(reader: ElementReader, links: tuple[Link, ...], joints: tuple[Joi
             elif link not in link_names:
                 reader.report(error, f"joint '{joint.name}': {role} link '{link}' is not "
                               "defined in any loaded file", "joint", joint.name,
-                              hint=_missing_link_hint(reader, link))
+                              hint=_missing_link_hint(reader, link, role))
         parents_of[joint.child].append(joint.name)
     for child, names in parents_of.items():
         if len(names) > 1:
@@ -47,21 +47,35 @@ def check_tree(reader: ElementReader, links: tuple[Link, ...], joints: tuple[Joi
             reader.source.path, hint="connect every link to one tree with joints"))
 
 
-def _missing_link_hint(reader: ElementReader, link: str) -> str:
-    """Name the file that defines ``link`` if it lies on the package path unincluded."""
+def _missing_link_hint(reader: ElementReader, link: str, role: str) -> str:
+    """What to do about a link no loaded file defines: the file of the description's own
+    package that defines it, if one does; for a missing parent, that the file is likely a
+    fragment a robot's main file includes (an arm's gripper, a sensor mount). Other packages
+    are not searched: names like ``base_link`` are in every robot, and a file of another
+    robot that defines one is no answer."""
     pattern = start_tag("link", link)
     loaded = set(reader.source.files)
-    for root in reader.package_path.roots:
-        if not root.is_dir():
+    for candidate in _package_files(reader.source.path):
+        if candidate.suffix not in (".xacro", ".urdf") or candidate.resolve() in loaded:
             continue
-        for candidate in sorted(root.rglob("*")):
-            if candidate.suffix not in (".xacro", ".urdf") or candidate.resolve() in loaded:
-                continue
-            if pattern.search(candidate.read_text(errors="replace")):
-                return (f"'{link}' is defined in {candidate}, which is not included: add "
-                        f"<xacro:include filename=\"{_find_form(candidate, reader.package_path)}\"/>")
-    return (f"define <link name=\"{link}\"/> or include the file that defines it "
-            "(no file on the package search path does)")
+        if pattern.search(candidate.read_text(errors="replace")):
+            return (f"'{link}' is defined in {candidate}, which is not included: add "
+                    f"<xacro:include filename=\"{_find_form(candidate, reader.package_path)}\"/>")
+    if role == "parent":
+        return (f"this file attaches to link '{link}' without defining it: it looks like a "
+                "fragment that a robot's main file includes; check that main file instead, "
+                f"or define <link name=\"{link}\"/> here to check the fragment alone")
+    return f"define <link name=\"{link}\"/> or include the file that defines it"
+
+
+def _package_files(path: Path) -> list[Path]:
+    """The files of the ROS package holding ``path`` (below the nearest folder with a
+    package.xml), else those beside ``path`` (a file in no package may lie in a home folder)."""
+    folder = path.resolve().parent
+    for candidate in (folder, *folder.parents):
+        if (candidate / "package.xml").is_file():
+            return sorted(candidate.rglob("*"))
+    return sorted(folder.iterdir())
 
 
 def _find_form(file: Path, package_path: PackagePath) -> str:

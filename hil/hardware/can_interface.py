@@ -23,7 +23,7 @@ import numpy as np
 from hil.bus_config.types import SystemConfig
 from hil.can import sent_together, watch_deliveries
 from hil.errors import HilError
-from hil.hardware.axis import Axis, AxisFault, FaultKind
+from hil.hardware.axis import STANDSTILL, Axis, AxisFault, FaultKind
 from hil.hardware.feedback import JointFeedback, PlausibilityCheck
 from hil.hardware.interface import HardwareInterface
 from hil.protocols import protocol
@@ -157,7 +157,7 @@ class CanHardwareInterface(HardwareInterface):
             if faults or time.monotonic() > deadline:
                 raise HilError.single(
                     "drives did not enable: " + "; ".join(
-                        [str(f) for f in faults] or [f"{a.label} is {a.state}" for a in waiting]))
+                        [str(f) for f in faults] or [_not_enabled(a) for a in waiting]))
         self._pending.clear()
         return feedback
 
@@ -353,6 +353,16 @@ class CanHardwareInterface(HardwareInterface):
             self._networks[bus].send_message(can_id, data, remote)
         except can.CanError:
             pass
+
+
+def _not_enabled(axis: Axis) -> str:
+    """Why ``axis`` is not enabled yet, in words: its state, and its motion where that is
+    what holds it back (the master enables only at standstill)."""
+    if axis.at_standstill() or not axis.feedback.heard:
+        return f"{axis.label} is {axis.state}"
+    return (f"{axis.label} is {axis.state}, never at standstill (moving at "
+            f"{axis.feedback.velocity:.3g} rad/s on the motor, standstill below "
+            f"{STANDSTILL * axis.config.max_velocity:.3g}): the joint is not held still")
 
 
 def _missed_too_many(axis: Axis, cycle: int) -> bool:
