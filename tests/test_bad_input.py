@@ -8,6 +8,8 @@ from __future__ import annotations
 import subprocess
 import sys
 
+from pathlib import Path
+
 import pytest
 
 from hil.cli import main
@@ -115,6 +117,16 @@ def test_a_file_without_links_names_its_robot_element(tmp_path):
                     '<link name="${prefix}base"/></xacro:macro>\n</robot>\n')
     (diag,) = diagnostics_of(path, PackagePath(()))
     assert "has no <link>" in diag.message and diag.line == 2
+
+
+def test_a_package_root_given_relative_to_the_working_folder_resolves_find(monkeypatch):
+    # the package path's stand-in ament prefix once linked a relative root as given, so
+    # every $(find pkg) include under it "did not exist"
+    monkeypatch.chdir(CORPUS.parent)
+    root = Path(CORPUS.name)
+    (diag,) = diagnostics_of(root / "missing_include_description" / "urdf" / "robot.xacro",
+                             PackagePath((root,)))
+    assert "parent link 'body_link' is not defined" in diag.message     # the include was read
 
 
 def test_an_include_fragment_given_alone_is_called_one_not_sent_to_another_robots_file(

@@ -38,8 +38,11 @@ def real_world_path() -> PackagePath:
     ("shared_actuator.urdf", 26, "names actuator 'hand_motor', which transmission "
      "'finger_1_trans' already drives: left out"),
     ("revolute_without_range.urdf", 10, "revolute joint 'wheel_joint' has no lower/upper limits"),
-    ("effort_zero_passive.urdf", 10, "joint 'rotor_joint' limit effort is 0: taken as not given"),
-    ("hand_without_limits.urdf", 10, "joint 'index_proximal_joint' limit velocity is 0: taken as "
+    ("effort_zero_passive.urdf", 10, "joint 'rotor_joint' limit effort is 0 or missing: taken "
+     "as not given"),
+    ("limit_without_effort.urdf", 11, "joint 'lid_joint' limit effort is 0 or missing: taken as "
+     "not given"),
+    ("hand_without_limits.urdf", 10, "joint 'index_proximal_joint' limit velocity is 0 or missing: taken as "
      "not given (`hil init` gives the joint hil's default class"),
     ("mimic_on_fixed_joint.urdf", 17, "fixed joint 'tip_joint' has a <mimic>, which does not "
      "move it: left out"),
@@ -110,7 +113,7 @@ def test_a_reference_to_a_missing_joint_is_left_out_with_a_warning(name, line, m
 
 @pytest.mark.parametrize("name, line, message, hint", [
     ("empty_robot.urdf", 3, "the robot has no <link>", "xacro macros alone"),
-    ("effort_zero_driven.urdf", 10, "joint 'shoulder' is driven but its limit effort is 0",
+    ("effort_zero_driven.urdf", 10, "joint 'shoulder' is driven but its limit effort is 0 or missing",
      "the drive is sized from it"),
 ])
 def test_what_cannot_be_corrected_fails_with_file_line_and_what_to_do(name, line, message,

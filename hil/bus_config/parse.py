@@ -26,6 +26,8 @@ _DRIVE_KEYS = {"node_id", "joint", "actuator", "protocol", "encoder_counts_per_r
                "heartbeat_period", "holding_brake", "gains", "velocity_bandwidth_hz",
                "options"}
 _GAIN_KEYS = {"position_kp", "velocity_kp", "velocity_ki"}
+#: the default following-error window holds at least this long at the joint's top speed (s)
+FOLLOWING_ERROR_TIME = 0.02
 
 
 def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -> SystemConfig:
@@ -128,8 +130,11 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
         reader.fail(f"{what}: peak_torque {peak} is below rated_torque {rated}",
                     merged.key_lines.get("peak_torque", merged.line))
     max_velocity = reader.number(merged, "max_velocity", what, float(motor_speed))
-    # default following-error window: 0.1 rad (revolute) or 5 mm (prismatic) at the joint
-    joint_window = [0.005 if robot.joint(j).type is JointType.PRISMATIC else 0.1
+    # default following-error window at the joint: 0.1 rad (revolute) or 5 mm (prismatic),
+    # or FOLLOWING_ERROR_TIME at the joint's top speed where that is more (a fast axis lags
+    # its setpoint by a bus cycle and its loops' delay)
+    joint_window = [max(0.005 if robot.joint(j).type is JointType.PRISMATIC else 0.1,
+                        FOLLOWING_ERROR_TIME * robot.joint(j).limits.velocity)
                     for j in transmission.joints]
     window = float(abs(transmission.position_matrix[k]) @ joint_window)
     gains = _read_gains(reader, merged, what)

@@ -26,7 +26,7 @@ from hil.bus_config import SystemConfig, load_bus_config
 from hil.cli import common
 from hil.cli.run_progress import Progress
 from hil.controllers import GoalRejected, GoalStatus
-from hil.controllers.demo import demo_goal
+from hil.commissioning.demo_pace import MOTION_SHARE, paced_demo
 from hil.can.faults import ProcessFault, parse_fault
 from hil.errors import HilError
 from hil.hardware import BOOT_TIMEOUT
@@ -294,12 +294,17 @@ def _demo(config: SystemConfig, run: Run, zenoh: ZenohSettings, progress: Progre
             return 1
     with progress.lock:
         names, positions = progress.joint_names, progress.positions.copy()
-    goal = demo_goal(config.robot, names, positions)
+    demo = paced_demo(config.robot, names, positions)
+    goal = demo.goal
     client = TrajectoryActionClient(session(zenoh), config.robot.name)
     try:
         duration = goal.points[-1].time_from_start
+        slowed = (f", slowed {demo.slower:.2g}x to keep its motion within {MOTION_SHARE:.0%} of "
+                  "the joints' effort limits" if demo.slower > 1 else "")
         print(f"hil up: demo: {len(goal.points)} waypoints for {len(names)} joints over "
-              f"{duration:.1f} s", flush=True)
+              f"{duration:.1f} s{slowed}", flush=True)
+        for note in demo.notes:
+            print(f"hil up: warning: {note}", file=sys.stderr, flush=True)
         try:
             goal_id = client.send_goal(goal)
         except (GoalRejected, ControllerGone) as exc:

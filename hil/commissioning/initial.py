@@ -20,6 +20,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from hil.commissioning.demo_pace import paced_demo
 from hil.commissioning.sizing import Sizing, default_limits, needs_default_limits, size_joint
 from hil.bus_config.joint_limits import KEYS as LIMIT_KEYS
 from hil.bus_config.transmissions import SIMPLE, actuator_of
@@ -71,13 +72,14 @@ def initial_config(robot: RobotDescription, description: Path, output: Path,
                    protocol_name: str, rate: float) -> InitialConfig:
     """The YAML text of a bus config for ``robot`` (read from ``description``), to be
     written at ``output``: a drive for every joint of ``robot.undriven_joints``."""
-    loads, worst = gravity_loads(robot), worst_gravity_loads(robot)
+    worst = worst_gravity_loads(robot)
     defaulted = tuple(_defaulted(j, worst[j.name]) for j in robot.undriven_joints
                       if needs_default_limits(j))
     limited = {d.joint: d.limits for d in defaulted}
     robot = replace(robot, joints=tuple(replace(j, limits=limited[j.name]) if j.name in limited
                                         else j for j in robot.joints))
-    sizings = [size_joint(joint, loads[joint.name]) for joint in robot.undriven_joints]
+    holding = demo_holding_loads(robot)
+    sizings = [size_joint(joint, holding[joint.name]) for joint in robot.undriven_joints]
     added = tuple(_transmission(s) for s in sizings)
     sized = replace(robot, transmissions=robot.transmissions + added)
     drives = [Drive(t.joints[0].name if len(t.joints) == 1 else ", ".join(j.name for j in t.joints),
@@ -94,11 +96,16 @@ def initial_config(robot: RobotDescription, description: Path, output: Path,
     return InitialConfig(text, len(drives), len(buses), defaulted)
 
 
-def gravity_loads(robot: RobotDescription) -> dict[str, float]:
-    """Each movable joint's static gravity load at the plant's start pose (N·m or N)."""
+def demo_holding_loads(robot: RobotDescription) -> dict[str, float]:
+    """The largest gravity load each joint that gets a drive holds along the demo `hil up
+    --demo` runs from the start pose (N·m or N)."""
+    names = [j.name for t in robot.transmissions for j in t.joints]
+    names += [j.name for j in robot.undriven_joints]
+    if not names:
+        return {}
     plant = Plant(robot)
-    return {name: float(plant.data.qfrc_bias[plant.model.joint(name).dofadr[0]])
-            for name in plant.joint_names}
+    start = dict(zip(plant.joint_names, plant.joint_positions().tolist()))
+    return paced_demo(robot, names, [start[n] for n in names]).loads.holding
 
 
 def worst_gravity_loads(robot: RobotDescription) -> dict[str, float]:

@@ -11,8 +11,10 @@ documented so that a user can check it against the drive they have:
   (:data:`SCREW_LEADS_MM`, reduction 2 pi / lead in rad per metre);
 * a joint gets the smallest motor class (by peak torque) for which some reduction ``N``
   covers both limits, ``peak x N >= effort`` and ``top speed / N >= velocity``, and whose
-  rated (continuous) torque holds the joint's gravity load at the start pose with margin,
-  ``rated x N >= HOLDING_MARGIN x load`` (the holding brake is sized like the rated torque),
+  rated (continuous) torque holds the joint's gravity load with margin,
+  ``rated x N >= HOLDING_MARGIN x load`` (the holding brake is sized like the rated torque;
+  the load is the largest along the demo `hil up --demo` runs, from
+  :mod:`hil.commissioning.demo_pace`),
   with the smallest such ``N`` (the least reflected inertia);
 * where no class covers both, the largest class with the smallest reduction that covers
   the effort, and the note says the speed falls short.
@@ -109,7 +111,7 @@ def size_joint(joint: Joint, static_load: float = 0.0) -> Sizing:
     unit = "N" if joint.type is JointType.PRISMATIC else "N·m"
     speed_unit = "m/s" if joint.type is JointType.PRISMATIC else "rad/s"
     limits = (f"joint limits {effort:g} {unit}, {velocity:g} {speed_unit}"
-              + (f", gravity load {abs(static_load):.3g} {unit}" if static_load else ""))
+              + (f", gravity load up to {abs(static_load):.3g} {unit}" if static_load else ""))
     for motor in MOTOR_CLASSES:
         for reduction in reductions_for(joint):
             if (motor.peak_torque * reduction >= effort and motor.top_speed / reduction >= velocity

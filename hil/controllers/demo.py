@@ -15,14 +15,16 @@ SPEED_FRACTION, MIN_SEGMENT = 0.5, 1.5
 MARGIN = 0.05
 
 
-def demo_goal(robot: RobotDescription, joint_names, current) -> TrajectoryGoal:
+def demo_goal(robot: RobotDescription, joint_names, current, slower: float = 1.0
+              ) -> TrajectoryGoal:
     """Rotary joints swing one way, the other way and back to the middle of their swing;
     prismatic joints (grippers) open fully, close and open again.
 
     ``current`` are the joints' positions now; a joint resting outside its
     swing (e.g. hanging on a limit) is brought into it by the first segment.
     Segments stop at each waypoint (cubic, zero velocity), with peak speed at
-    most SPEED_FRACTION of each joint's velocity limit.
+    most SPEED_FRACTION of each joint's velocity limit; ``slower`` stretches every
+    segment by that factor (see :func:`hil.commissioning.demo_pace.paced_demo`).
     """
     waypoints = np.array([_waypoints(robot.joint(name), position)
                           for name, position in zip(joint_names, current)]).T   # (3, joints)
@@ -30,8 +32,8 @@ def demo_goal(robot: RobotDescription, joint_names, current) -> TrajectoryGoal:
     points, time, previous = [], 0.0, np.asarray(current, dtype=float)
     for positions in waypoints:
         # a cubic from rest to rest peaks at 1.5 x the mean speed
-        duration = max(MIN_SEGMENT, float(np.max(1.5 * np.abs(positions - previous)
-                                                 / (SPEED_FRACTION * limits))))
+        duration = slower * max(MIN_SEGMENT, float(np.max(1.5 * np.abs(positions - previous)
+                                                          / (SPEED_FRACTION * limits))))
         time += duration
         points.append(TrajectoryPoint(time, tuple(positions), (0.0,) * len(positions)))
         previous = positions

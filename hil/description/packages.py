@@ -136,7 +136,7 @@ class AmentPrefix:
             if link.exists() or link.is_symlink():     # e.g. a folder named ament_index
                 continue
             (markers / name).touch()
-            link.symlink_to(folder, target_is_directory=True)
+            link.symlink_to(folder.resolve(), target_is_directory=True)   # a relative root
         self._saved_env = os.environ.get("AMENT_PREFIX_PATH")
         os.environ["AMENT_PREFIX_PATH"] = os.pathsep.join(
             p for p in (str(self._prefix), self._saved_env) if p)

@@ -221,12 +221,11 @@ def _read_limits(reader: ElementReader, joint: str, joint_type: JointType,
         return reader.number(element.get(key), f"joint '{joint}' limit {key}", "joint", joint,
                              default)
 
-    effort, velocity = value("effort", None), value("velocity", None)
+    # a missing effort or velocity is read as 0, "not given", as pybullet and MuJoCo read it
+    # (urdfdom refuses the file; `--strict` does too): _check_limits warns about it
+    effort, velocity = value("effort", 0.0), value("velocity", 0.0)
     for key, amount in (("effort", effort), ("velocity", velocity)):
-        if amount is None:
-            reader.report(error, f"joint '{joint}' <limit> has no {key}", "joint", joint,
-                          hint=f"URDF requires {key}=\"...\" on every <limit>")
-        elif amount < 0:
+        if amount < 0:
             reader.report(error, f"joint '{joint}' limit {key} is {amount}; it must be >= 0",
                           "joint", joint, hint=f"give the joint's largest {key} as a positive "
                           "number")
@@ -266,12 +265,13 @@ def _check_limits(reader: ElementReader, joints: tuple[Joint, ...],
                 continue
             if joint.name in driven:
                 reader.report(error, f"joint '{joint.name}' is driven but its limit {key} is "
-                              "0", "joint", joint.name, hint=f"give <limit {key}=\"...\"> the "
-                              f"joint's largest {key} (the drive is sized from it)")
+                              "0 or missing", "joint", joint.name, hint=f"give <limit "
+                              f"{key}=\"...\"> the joint's largest {key} (the drive is sized "
+                              "from it)")
             else:
-                reader.report(warning, f"joint '{joint.name}' limit {key} is 0: taken as not "
-                              "given (`hil init` gives the joint hil's default class in the "
-                              "bus config's joint_limits:)", "joint", joint.name,
+                reader.report(warning, f"joint '{joint.name}' limit {key} is 0 or missing: "
+                              "taken as not given (`hil init` gives the joint hil's default "
+                              "class in the bus config's joint_limits:)", "joint", joint.name,
                               hint=f"give the joint's largest {key}")
 
 
