@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import queue
 import signal
+import socket
 import subprocess
 import threading
 import time
@@ -243,3 +245,58 @@ def stop_process(process: subprocess.Popen, timeout: float = 20) -> str:
     except subprocess.TimeoutExpired:
         process.kill()
         return process.communicate()[0] or ""
+
+
+class DelayingRelay:
+    """A TCP relay on loopback that holds every byte ``delay`` seconds each way: a slow link
+    (the kernel here has no netem). Listens on ``port``, forwards to ``target`` (a port on
+    127.0.0.1); ``close`` ends it and its connections."""
+
+    def __init__(self, target: int, delay: float):
+        self.target, self.delay = target, delay
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self.port = self._server.getsockname()[1]
+        self._sockets: list[socket.socket] = [self._server]
+        self._closed = threading.Event()
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self) -> None:
+        while not self._closed.is_set():
+            try:
+                client, _ = self._server.accept()
+                upstream = socket.create_connection(("127.0.0.1", self.target))
+            except OSError:
+                return
+            self._sockets += [client, upstream]
+            for source, sink in ((client, upstream), (upstream, client)):
+                held: queue.Queue = queue.Queue()
+                threading.Thread(target=self._read, args=(source, held), daemon=True).start()
+                threading.Thread(target=self._write, args=(held, sink), daemon=True).start()
+
+    def _read(self, source: socket.socket, held: queue.Queue) -> None:
+        try:
+            while data := source.recv(65536):
+                held.put((time.monotonic() + self.delay, data))
+        except OSError:
+            pass
+        held.put((0.0, b""))
+
+    def _write(self, held: queue.Queue, sink: socket.socket) -> None:
+        while True:
+            due, data = held.get()
+            if not data:
+                break
+            time.sleep(max(0.0, due - time.monotonic()))
+            try:
+                sink.sendall(data)
+            except OSError:
+                break
+        try:
+            sink.shutdown(socket.SHUT_WR)
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        self._closed.set()
+        for each in self._sockets:
+            each.close()

@@ -101,6 +101,20 @@ def test_a_burst_of_late_deliveries_explains_every_drive_in_one_line():
     assert dict(explained.values())["explains"] == "6"
 
 
+def test_a_slow_link_that_held_the_answers_explains_the_silences_and_is_named():
+    attribution = FaultAttribution(period=0.002, silence_cycles=6)
+    for node in (1, 2, 3):
+        attribution.fault(_silent(node), 100.014)       # silent since 100.002
+    # the link's round trips as the transport measured them, one stall per stretch: the one
+    # under way when the silence began explains it, the next (after it) does not
+    for start in (99.99, 100.03):
+        attribution.stall(Stall("link", start, 0.040, where="ur3/arm"))
+    explained, = attribution.attributions(100.014 + GRACE)
+    assert len(explained.faults) == 3 and [s.at for s in explained.stalls] == [99.99]
+    assert explained.message().startswith("bench fault, not a drive fault: the link of ur3/arm "
+                                          "took 40 ms a round trip at")
+
+
 def test_the_detector_measures_a_late_wake_up_and_the_steal_around_it():
     ticks = iter([10.0, 10.010, 10.045])
     steals = iter([5.0, 5.012])           # read at the start and at the stall only

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import time
 
 import pytest
 
-from conftest import free_port, stop_process
+from conftest import DelayingRelay, free_port, stop_process
 from hil.zenoh_session import MEETING_VARIABLE
 
 pytestmark = pytest.mark.slow
@@ -86,3 +87,24 @@ def test_a_second_sim_or_controller_of_one_robot_is_refused_naming_it(processes,
         assert second.returncode == 1
         assert f"a hil {process} for robot 'ur3' already runs" in second.stderr
         assert "Traceback" not in second.stderr
+
+
+def test_a_slow_link_to_the_drives_is_named_as_the_link_not_the_drives(processes):
+    """20 ms each way between controller and drives (a relay that holds every byte: this
+    kernel has no netem) against a 2 ms cycle: the drives' answers cannot come in their
+    cycle, and the controller says the link is slow, with its measured round trip."""
+    sim_port = free_port()
+    sim = processes.start("sim", "ur3", "--listen", f"tcp/127.0.0.1:{sim_port}")
+    assert "hil sim:" in sim.stdout.readline()
+    relay = DelayingRelay(sim_port, 0.02)
+    try:
+        control = processes.run("control", "ur3", "--connect",
+                                f"tcp/127.0.0.1:{relay.port}", timeout=120)
+    finally:
+        relay.close()
+    said = control.stdout + control.stderr
+    assert control.returncode == 1, said
+    named = re.search(r"the link of bus 'arm' takes ([\d.]+) ms a round trip, over the "
+                      r"[\d.]+ ms the answers have: a slow link \(the network, or a Zenoh end "
+                      r"falling behind\), not the drives", said)
+    assert named and 40.0 <= float(named.group(1)) < 200.0, said

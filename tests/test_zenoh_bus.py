@@ -14,10 +14,10 @@ import can
 import canopen
 import pytest
 
-from hil.can.zenoh_bus import _Quickest, decode_frames, encode_frames
+from hil.can.zenoh_bus import Echo, _Quickest, decode_frames, encode_frames
 from hil.realtime.stalls import STALL_THRESHOLD
 from hil.zenoh_session import ZenohSettings, close, session
-from conftest import EDS, ROOT, FrameRecorder, free_port
+from conftest import EDS, ROOT, DelayingRelay, FrameRecorder, free_port
 
 
 @pytest.fixture
@@ -117,10 +117,11 @@ def test_frame_codec_round_trips_extended_and_remote_frames_in_one_message():
               can.Message(arbitration_id=0x123, is_remote_frame=True, dlc=4,
                           is_extended_id=False),
               can.Message(arbitration_id=0x80, data=b"", is_extended_id=False)]
-    sender, sequence, sent_at, back = decode_frames(encode_frames(42, 7, 1234.5, frames), "x",
-                                                 1235.0)
-    assert (sender, sequence, sent_at) == (42, 7, 1234.5) and len(back) == 3
-    for msg, got in zip(frames, back):
+    message = decode_frames(encode_frames(42, 7, 1234.5, frames, Echo(9, 3, 0.25)), "x",
+                            1235.0)
+    assert (message.sender, message.sequence, message.sent_at) == (42, 7, 1234.5)
+    assert message.echo == Echo(9, 3, 0.25) and len(message.frames) == 3
+    for msg, got in zip(frames, message.frames):
         assert got.equals(msg, timestamp_delta=None, check_channel=False,
                           check_direction=False)
 
@@ -136,7 +137,9 @@ def _one(arbitration_id: int = 1, data: bytes = b"\x01\x02") -> bytes:
     (_one()[:-1], "frame 1 of 1: DLC 2 does not match 1 data bytes"),
     (_one() + b"\x03", "1 bytes after the last of 1 frames"),
     (_one()[:-8], "frame 1 of 1 is cut short"),
-    (_one()[:20] + b"\x00\x00", "a message of no frames"),
+    (encode_frames(1, 1, 0.0, []), "a message of no frames"),
+    (encode_frames(1, 1, 0.0, [can.Message(arbitration_id=1, is_extended_id=False)],
+                   Echo(1, 1, -1.0)), "the echo was held -1.0 s"),
     (encode_frames(1, 1, math.nan, [can.Message(arbitration_id=1, is_extended_id=False)]),
      "the sender's clock reads nan"),
     (_one(0x7FF).replace(b"\xff\x07\x00\x00", b"\xff\xff\x00\x00", 1),
@@ -388,3 +391,45 @@ def test_a_script_that_never_shuts_its_bus_down_still_exits(tmp_path):
     result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
                             timeout=60)
     assert result.returncode == 0, result.stderr
+
+
+class _SlowAnswer(can.Listener):
+    """Answers every frame on ``bus`` after holding it ``hold`` s (a drive's processing)."""
+
+    def __init__(self, bus, hold: float):
+        self.bus, self.hold = bus, hold
+
+    def on_message_received(self, msg: can.Message) -> None:
+        time.sleep(self.hold)
+        self.bus.send(can.Message(arbitration_id=0x181, data=b"\x01", is_extended_id=False))
+
+
+def test_the_link_round_trip_comes_from_echoes_without_the_answers_hold_and_a_slow_one_is_named(
+        endpoint):
+    """20 ms each way through a delaying relay, answers held 30 ms: the round trip is the
+    link's 40 ms (the hold taken out), and the master's bus reports the slow link."""
+    relay = DelayingRelay(int(endpoint.rsplit(":", 1)[1]), 0.02)
+    channel = f"test/{time.monotonic_ns()}"
+    drive = can.Bus(interface="zenoh", channel=channel, listen=[endpoint])
+    master = can.Bus(interface="zenoh", channel=channel,
+                     connect=[f"tcp/127.0.0.1:{relay.port}"])
+    drive.deliver_to([_SlowAnswer(drive, 0.03)])
+    stalls = []
+    master.on_stall = stalls.append
+    try:
+        time.sleep(1.0)                                # the sessions meet through the relay
+        answers = 0
+        for _ in range(10):
+            master.send(can.Message(arbitration_id=0x80, data=b"", is_extended_id=False))
+            answers += master.recv(2.0) is not None
+    finally:
+        master.shutdown()
+        drive.shutdown()
+        relay.close()
+    counters = master.counters
+    assert answers == 10 and counters.round_trips >= 9, counters
+    assert 0.04 <= counters.round_trip_min < 0.065, counters      # held 30 ms: not counted
+    link = [s for s in stalls if s.process == "link"]
+    assert link and link[0].where == channel and link[0].length >= 0.04
+    assert "link round trip" in str(counters)
+    assert "took 4" in str(link[0]) and "ms a round trip" in str(link[0])

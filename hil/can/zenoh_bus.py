@@ -43,9 +43,19 @@ that arrives over STALL_THRESHOLD later than the quickest of that sender's is a
 clock offset taken out as the quickest arrival takes it out (so across hosts too; the
 quickest of the last 10 to 20 s, as clocks drift).
 
+Each message also says which message its sender heard last and how long ago (the echo:
+that message's sender and first sequence number, and the time held since it arrived), as
+an RTCP receiver report does: the sender of the echoed message takes its own put time and
+the hold out of the arrival and has the link's round trip, on its own clock, with no
+clock shared between hosts. A drive's answer echoes the master's SYNC, so the master's
+bus knows the round trip of the link to its drives (:attr:`FrameCounters.round_trip`); one
+over STALL_THRESHOLD is a :class:`~hil.realtime.stalls.Stall` of the link (``on_stall``),
+the cause of the silence a slow link makes of every drive on it.
+
 Wire format of one message (little-endian): sender id u64, the first frame's sequence
 number u32 (per sender, wrapping; the frames after it are numbered on), the sender's wall
-clock at the put f64 (s since the epoch), frame count u16; then each frame: arbitration id
+clock at the put f64 (s since the epoch), the echo: sender id u64 (0: none), first
+sequence number u32, time held f32 (s); frame count u16; then each frame: arbitration id
 u32, flags u8 (1 extended, 2 remote, 4 error), DLC u8, the data bytes (none for a remote
 frame).
 """
@@ -65,6 +75,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import can
 import zenoh
@@ -77,7 +88,7 @@ from hil.zenoh_session import ZenohSettings, session
 log = logging.getLogger(__name__)
 
 KEY_PREFIX = "hil/can/"
-_HEADER = struct.Struct("<QIdH")
+_HEADER = struct.Struct("<QIdQIfH")
 _FRAME = struct.Struct("<IBB")
 _EXTENDED, _REMOTE, _ERROR = 1, 2, 4
 #: frames a bus holds for ``recv`` before it drops new ones (a CAN controller's RX FIFO)
@@ -86,6 +97,8 @@ RECEIVE_FIFO = 8192
 LOG_EVERY = 1000
 #: how long a sender's quickest delivery stands as the base of its lateness (s)
 QUICKEST_WINDOW = 10.0
+#: put times kept for echoes to be matched with (messages)
+PUTS_KEPT = 1024
 
 
 class _Channels:
@@ -144,10 +157,25 @@ class _Channels:
                     bus._release()
 
 
+class Echo(NamedTuple):
+    """The message a sender heard last: its sender, its first sequence number, and how long
+    it was held before this message was put (s). (Named tuples: a frozen dataclass costs a
+    microsecond more a message to make.)"""
+
+    sender: int = 0
+    sequence: int = 0
+    held: float = 0.0
+
+
+NO_ECHO = Echo()
+
+
 def encode_frames(sender: int, sequence: int, sent_at: float,
-                  frames: Sequence[can.Message]) -> bytes:
-    """One message of ``frames``, the first numbered ``sequence``, put at ``sent_at``."""
-    parts = [_HEADER.pack(sender, sequence & 0xFFFFFFFF, sent_at, len(frames))]
+                  frames: Sequence[can.Message], echo: Echo = NO_ECHO) -> bytes:
+    """One message of ``frames``, the first numbered ``sequence``, put at ``sent_at``,
+    echoing ``echo``."""
+    parts = [_HEADER.pack(sender, sequence & 0xFFFFFFFF, sent_at, echo.sender,
+                          echo.sequence & 0xFFFFFFFF, echo.held, len(frames))]
     for msg in frames:
         flags = ((_EXTENDED if msg.is_extended_id else 0)
                  | (_REMOTE if msg.is_remote_frame else 0) | (_ERROR if msg.is_error_frame else 0))
@@ -157,18 +185,30 @@ def encode_frames(sender: int, sequence: int, sent_at: float,
     return b"".join(parts)
 
 
-def decode_frames(payload: bytes, channel: str, arrived: float
-                  ) -> tuple[int, int, float, list[can.Message]]:
-    """(sender, the first frame's sequence number, the sender's clock at the put, frames
-    stamped ``arrived``); raise ValueError for anything that is not a well-formed message,
-    naming the frame."""
+class Message(NamedTuple):
+    """A decoded message: who put it, its first frame's sequence number, the sender's clock
+    at the put, what it echoes, and its frames."""
+
+    sender: int
+    sequence: int
+    sent_at: float
+    echo: Echo
+    frames: list[can.Message]
+
+
+def decode_frames(payload: bytes, channel: str, arrived: float) -> Message:
+    """The message in ``payload``, its frames stamped ``arrived``; raise ValueError for
+    anything that is not a well-formed message, naming the frame."""
     if len(payload) < _HEADER.size:
         raise ValueError(f"{len(payload)} bytes is shorter than a message header")
-    sender, sequence, sent_at, count = _HEADER.unpack_from(payload)
+    sender, sequence, sent_at, echo_sender, echo_sequence, held, count = \
+        _HEADER.unpack_from(payload)
     if count == 0:
         raise ValueError("a message of no frames")
     if not math.isfinite(sent_at):
         raise ValueError(f"the sender's clock reads {sent_at}")
+    if not (math.isfinite(held) and held >= 0):
+        raise ValueError(f"the echo was held {held} s")
     frames, offset = [], _HEADER.size
     for number in range(count):
         if len(payload) < offset + _FRAME.size:
@@ -190,7 +230,7 @@ def decode_frames(payload: bytes, channel: str, arrived: float
         offset += length
     if offset != len(payload):
         raise ValueError(f"{len(payload) - offset} bytes after the last of {count} frames")
-    return sender, sequence, sent_at, frames
+    return Message(sender, sequence, sent_at, Echo(echo_sender, echo_sequence, held), frames)
 
 
 @dataclass
@@ -212,13 +252,30 @@ class FrameCounters:
     late: int = 0
     #: the latest of them (s beyond the quickest)
     latest: float = 0.0
+    #: the link's round trip, from the echoes of this bus' messages (s): how many, the
+    #: last, the least and the most
+    round_trips: int = 0
+    round_trip: float = math.nan
+    round_trip_min: float = math.nan
+    round_trip_max: float = math.nan
 
     def __str__(self) -> str:
         late = f", {self.late} delivered late (up to {self.latest * 1e3:.0f} ms)" \
             if self.late else ""
+        link = (f", link round trip {self.round_trip_min * 1e3:.2f}-"
+                f"{self.round_trip_max * 1e3:.2f} ms (last {self.round_trip * 1e3:.2f})"
+                if self.round_trips else "")
         return (f"sent {self.sent} in {self.messages_sent} messages, received {self.received} "
                 f"in {self.messages_received}, lost on the way {self.lost}, "
-                f"overrun {self.overrun}, malformed {self.malformed}{late}")
+                f"overrun {self.overrun}, malformed {self.malformed}{late}{link}")
+
+    def add_round_trip(self, seconds: float) -> None:
+        self.round_trips += 1
+        self.round_trip = seconds
+        self.round_trip_min = min(self.round_trip_min, seconds) if self.round_trips > 1 \
+            else seconds
+        self.round_trip_max = max(self.round_trip_max, seconds) if self.round_trips > 1 \
+            else seconds
 
 
 class _Quickest:
@@ -288,6 +345,10 @@ class ZenohBus(can.BusABC):
         self._sequence = 0
         self._heard: dict[int, int] = {}      # sender -> its last sequence number seen
         self._quickest: dict[int, _Quickest] = {}
+        # the last message heard (sender, first sequence, monotonic arrival): echoed
+        self._last_heard: tuple[int, int, float] | None = None
+        self._puts: dict[int, float] = {}    # first sequence -> monotonic put time
+        self._link_stall_end = 0.0            # when the link stall reported last ended
         self.on_stall: Callable[[Stall], None] | None = None
         self._batch = _Batch()
         self.counters = FrameCounters()
@@ -315,8 +376,9 @@ class ZenohBus(can.BusABC):
         _open_buses.add(self)
 
     def _on_payload(self, payload: bytes, arrived: float) -> None:
+        now = time.monotonic()
         try:
-            sender, sequence, sent_at, frames = decode_frames(payload, self._channel, arrived)
+            message = decode_frames(payload, self._channel, arrived)
         except ValueError as exc:
             with self._count_lock:
                 self.counters.malformed += 1
@@ -325,11 +387,33 @@ class ZenohBus(can.BusABC):
                 log.warning("%s: dropped %d malformed message(s) from Zenoh: %s",
                             self.channel_info, malformed, exc)
             return
-        stall = self._count_arrival(sender, sequence, len(frames), arrived - sent_at, arrived)
-        if stall is not None and self.on_stall is not None:
-            self.on_stall(stall)
+        frames = message.frames
+        self._last_heard = (message.sender, message.sequence, now)
+        stalls = (self._count_arrival(message.sender, message.sequence, len(frames),
+                                      arrived - message.sent_at, arrived),
+                  self._count_round_trip(message.echo, now, arrived))
+        if self.on_stall is not None:
+            for stall in filter(None, stalls):
+                self.on_stall(stall)
         for msg in frames:
             self._take(msg)
+
+    def _count_round_trip(self, echo: Echo, now: float, arrived: float) -> Stall | None:
+        """The link's round trip, if ``echo`` is of a message of this bus; a stall of the
+        link if it took over STALL_THRESHOLD (one per stretch of slow round trips: a
+        slow link would otherwise report each of its messages)."""
+        if echo.sender != self._sender:
+            return None
+        put = self._puts.get(echo.sequence)
+        if put is None:
+            return None
+        round_trip = max(0.0, now - put - echo.held)
+        with self._count_lock:
+            self.counters.add_round_trip(round_trip)
+            if not round_trip > STALL_THRESHOLD or arrived <= self._link_stall_end:
+                return None
+            self._link_stall_end = arrived
+        return Stall("link", arrived - round_trip, round_trip, where=self._channel)
 
     def _take(self, msg: can.Message) -> None:
         """A frame for this bus: to the listeners or the receive FIFO."""
@@ -422,7 +506,12 @@ class ZenohBus(can.BusABC):
             self._sequence += len(frames)
             self.counters.sent += len(frames)
             self.counters.messages_sent += 1
-            self._publisher.put(encode_frames(self._sender, first, time.time(), frames))
+            heard, now = self._last_heard, time.monotonic()
+            echo = NO_ECHO if heard is None else Echo(heard[0], heard[1], now - heard[2])
+            self._puts[first & 0xFFFFFFFF] = now
+            if len(self._puts) > PUTS_KEPT:
+                del self._puts[next(iter(self._puts))]       # the oldest
+            self._publisher.put(encode_frames(self._sender, first, time.time(), frames, echo))
         for neighbour in tuple(self._neighbours):    # buses of this process on this channel
             if neighbour is not self or self._receive_own:
                 neighbour._count_arrival(self._sender, first, len(frames), 0.0, 0.0)

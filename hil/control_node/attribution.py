@@ -52,8 +52,9 @@ class Attribution:
             where = ", ".join(dict.fromkeys(stall.where for stall in own if stall.where))
             first = clock_time(own[0].at)
             longest = max(stall.length for stall in own)
-            what = (f"delivered {len(own)} messages late" if process == "transport" else
-                    f"stalled {len(own)} times")
+            what = {"transport": f"delivered {len(own)} messages late",
+                    "link": f"was slow {len(own)} times, round trips"}.get(
+                        process, f"stalled {len(own)} times")
             words.append(f"{PROCESS_WORDS.get(process, process)} {what} from {first}, up to "
                          f"{longest * 1e3:.0f} ms" + (f" ({where})" if where else ""))
         return words

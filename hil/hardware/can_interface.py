@@ -21,7 +21,7 @@ import can
 import numpy as np
 
 from hil.bus_config.types import SystemConfig
-from hil.can import sent_together, watch_deliveries
+from hil.can import link_round_trip, sent_together, watch_deliveries
 from hil.errors import HilError
 from hil.hardware.axis import STANDSTILL, Axis, AxisFault, FaultKind
 from hil.hardware.feedback import JointFeedback, PlausibilityCheck
@@ -157,7 +157,8 @@ class CanHardwareInterface(HardwareInterface):
             if faults or time.monotonic() > deadline:
                 raise HilError.single(
                     "drives did not enable: " + "; ".join(
-                        [str(f) for f in faults] or [_not_enabled(a) for a in waiting]))
+                        [str(f) for f in faults] or [_not_enabled(a) for a in waiting])
+                    + self._slow_links())
         self._pending.clear()
         return feedback
 
@@ -344,6 +345,17 @@ class CanHardwareInterface(HardwareInterface):
             time.sleep(2.0 / self.config.cycle_hz)
         for network in self._networks.values():
             network.notifier.stop(1.0)
+
+    def _slow_links(self) -> str:
+        """What the buses' links say, where a round trip outlasts the reply window (the
+        drives' answers cannot come in their cycle over it): '' if none does."""
+        slow = [(name, trip) for name, trip in ((n, link_round_trip(b))
+                                                for n, b in self._buses.items())
+                if trip is not None and trip > self.reply_timeout]
+        return "".join(f"; the link of bus '{name}' takes {trip * 1e3:.1f} ms a round trip, "
+                       f"over the {self.reply_timeout * 1e3:.1f} ms the answers have: a slow "
+                       "link (the network, or a Zenoh end falling behind), not the drives"
+                       for name, trip in slow)
 
     def watch_transport(self, on_stall: Callable[[Stall], None]) -> None:
         watch_deliveries(self._buses.values(), on_stall)

@@ -21,7 +21,7 @@ from datetime import datetime
 STALL_THRESHOLD = 0.005
 #: what each process is called in words
 PROCESS_WORDS = {"sim": "the simulator", "control": "the controller",
-                 "transport": "the Zenoh transport"}
+                 "transport": "the Zenoh transport", "link": "the link"}
 #: how often a detector reads the machine's steal time (s): reading /proc/stat at every
 #: wake-up cost a simulator inside User-Mode Linux enough to miss its answers
 STEAL_REFRESH = 1.0
@@ -34,7 +34,8 @@ class Stall:
     CPUs in the ``steal_window`` s that hold the stall (NaN: not measured). Found from
     wake-ups ``resolution`` s apart, it may have begun up to that much earlier (and lasted
     that much longer). ``where``: what stalled within the process (the transport: the
-    CAN channel whose message came late)."""
+    CAN channel whose message came late; the link: the CAN channel whose messages took
+    ``length`` from their put to the echo of their answer)."""
 
     process: str
     at: float
@@ -58,6 +59,9 @@ class Stall:
         if self.process == "transport":
             return (f"{what} delivered a message of {self.where or 'a CAN channel'} "
                     f"{self.length * 1e3:.0f} ms late at {when}{steal}")
+        if self.process == "link":
+            return (f"{what} of {self.where or 'a CAN channel'} took {self.length * 1e3:.0f} ms "
+                    f"a round trip at {when}")
         return f"{what} stalled {self.length * 1e3:.0f} ms at {when}{steal}"
 
 
