@@ -44,10 +44,10 @@ def watch_deliveries(buses: Iterable[can.BusABC], on_stall: Callable[[Stall], No
 
 
 def link_round_trip(bus: can.BusABC) -> float | None:
-    """The last round trip (s) of the link under ``bus``, for buses that measure it
-    (``zenoh``: from the echoes of its messages), else None."""
+    """The round trip (s) of the link under ``bus`` now (the least of its last few), for
+    buses that measure it (``zenoh``: from the echoes of its messages), else None."""
     counters = getattr(bus, "counters", None)
-    return counters.round_trip if getattr(counters, "round_trips", 0) else None
+    return counters.round_trip_floor if getattr(counters, "round_trips", 0) else None
 
 
 def socketcan_missing(channels: tuple[str, ...] = ("vcan0",)) -> str | None:

@@ -62,6 +62,7 @@ frame).
 
 from __future__ import annotations
 
+import collections
 import logging
 import math
 import os
@@ -99,6 +100,8 @@ LOG_EVERY = 1000
 QUICKEST_WINDOW = 10.0
 #: put times kept for echoes to be matched with (messages)
 PUTS_KEPT = 1024
+#: a link is slow when this many round trips in a row are over STALL_THRESHOLD
+SLOW_LINK_ECHOES = 4
 
 
 class _Channels:
@@ -253,9 +256,12 @@ class FrameCounters:
     #: the latest of them (s beyond the quickest)
     latest: float = 0.0
     #: the link's round trip, from the echoes of this bus' messages (s): how many, the
-    #: last, the least and the most
+    #: last, the least of the last SLOW_LINK_ECHOES (the link's floor now: one late echo
+    #: is a hiccup of either end, every one of them late is the link), the least and the
+    #: most
     round_trips: int = 0
     round_trip: float = math.nan
+    round_trip_floor: float = math.nan
     round_trip_min: float = math.nan
     round_trip_max: float = math.nan
 
@@ -269,9 +275,9 @@ class FrameCounters:
                 f"in {self.messages_received}, lost on the way {self.lost}, "
                 f"overrun {self.overrun}, malformed {self.malformed}{late}{link}")
 
-    def add_round_trip(self, seconds: float) -> None:
+    def add_round_trip(self, seconds: float, floor: float) -> None:
         self.round_trips += 1
-        self.round_trip = seconds
+        self.round_trip, self.round_trip_floor = seconds, floor
         self.round_trip_min = min(self.round_trip_min, seconds) if self.round_trips > 1 \
             else seconds
         self.round_trip_max = max(self.round_trip_max, seconds) if self.round_trips > 1 \
@@ -348,6 +354,8 @@ class ZenohBus(can.BusABC):
         # the last message heard (sender, first sequence, monotonic arrival): echoed
         self._last_heard: tuple[int, int, float] | None = None
         self._puts: dict[int, float] = {}    # first sequence -> monotonic put time
+        self._recent_trips: collections.deque[float] = collections.deque(
+            maxlen=SLOW_LINK_ECHOES)
         self._link_stall_end = 0.0            # when the link stall reported last ended
         self.on_stall: Callable[[Stall], None] | None = None
         self._batch = _Batch()
@@ -400,8 +408,10 @@ class ZenohBus(can.BusABC):
 
     def _count_round_trip(self, echo: Echo, now: float, arrived: float) -> Stall | None:
         """The link's round trip, if ``echo`` is of a message of this bus; a stall of the
-        link if it took over STALL_THRESHOLD (one per stretch of slow round trips: a
-        slow link would otherwise report each of its messages)."""
+        link while its floor (SLOW_LINK_ECHOES round trips in a row) is over
+        STALL_THRESHOLD, one per stretch of them (a slow link would otherwise report each
+        of its messages; a single late echo is a hiccup of an end, which the processes'
+        and the transport's own accounting report)."""
         if echo.sender != self._sender:
             return None
         put = self._puts.get(echo.sequence)
@@ -409,8 +419,12 @@ class ZenohBus(can.BusABC):
             return None
         round_trip = max(0.0, now - put - echo.held)
         with self._count_lock:
-            self.counters.add_round_trip(round_trip)
-            if not round_trip > STALL_THRESHOLD or arrived <= self._link_stall_end:
+            recent = self._recent_trips
+            recent.append(round_trip)
+            floor = min(recent)
+            self.counters.add_round_trip(round_trip, floor)
+            if (len(recent) < SLOW_LINK_ECHOES or not floor > STALL_THRESHOLD
+                    or arrived <= self._link_stall_end):
                 return None
             self._link_stall_end = arrived
         return Stall("link", arrived - round_trip, round_trip, where=self._channel)
