@@ -433,3 +433,21 @@ def test_the_link_round_trip_comes_from_echoes_without_the_answers_hold_and_a_sl
     assert link and link[0].where == channel and link[0].length >= 0.04
     assert "link round trip" in str(counters)
     assert "took 4" in str(link[0]) and "ms a round trip" in str(link[0])
+
+
+def test_a_slow_link_is_one_stall_per_stretch_not_one_per_message(bus_pair):
+    """Messages 2 ms apart, each answered 40 ms later: once four in a row were slow, one
+    stall covers a round trip; the messages put inside it add none."""
+    master, _ = bus_pair
+    start = 1000.0
+    stalls = []
+    for k in range(30):
+        master._puts[k + 1] = start + k * 0.002
+        arrived = start + k * 0.002 + 0.040
+        stall = master._count_round_trip(Echo(master._sender, k + 1, 0.0), arrived, arrived)
+        if stall is not None:
+            stalls.append(stall)
+    assert [round(s.at - start, 3) for s in stalls] == [0.006, 0.046]
+    assert all(s.process == "link" and s.length == pytest.approx(0.040) for s in stalls)
+    assert master.counters.round_trips == 30
+    assert master.counters.round_trip_floor == pytest.approx(0.040)

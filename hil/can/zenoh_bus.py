@@ -48,9 +48,10 @@ that message's sender and first sequence number, and the time held since it arri
 an RTCP receiver report does: the sender of the echoed message takes its own put time and
 the hold out of the arrival and has the link's round trip, on its own clock, with no
 clock shared between hosts. A drive's answer echoes the master's SYNC, so the master's
-bus knows the round trip of the link to its drives (:attr:`FrameCounters.round_trip`); one
-over STALL_THRESHOLD is a :class:`~hil.realtime.stalls.Stall` of the link (``on_stall``),
-the cause of the silence a slow link makes of every drive on it.
+bus knows the round trip of the link to its drives (:attr:`FrameCounters.round_trip`);
+SLOW_LINK_ECHOES of them in a row over STALL_THRESHOLD are a
+:class:`~hil.realtime.stalls.Stall` of the link (``on_stall``), the cause of the silence a
+slow link makes of every drive on it.
 
 Wire format of one message (little-endian): sender id u64, the first frame's sequence
 number u32 (per sender, wrapping; the frames after it are numbered on), the sender's wall
@@ -423,8 +424,9 @@ class ZenohBus(can.BusABC):
             recent.append(round_trip)
             floor = min(recent)
             self.counters.add_round_trip(round_trip, floor)
+            # a stall covers this message's round trip: the next begins after it ends
             if (len(recent) < SLOW_LINK_ECHOES or not floor > STALL_THRESHOLD
-                    or arrived <= self._link_stall_end):
+                    or arrived - round_trip < self._link_stall_end):
                 return None
             self._link_stall_end = arrived
         return Stall("link", arrived - round_trip, round_trip, where=self._channel)

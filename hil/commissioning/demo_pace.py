@@ -6,8 +6,9 @@ that carries the whole upper body, cannot accelerate that fast. MuJoCo's inverse
 along the demo's path (gravity, inertia and velocity terms) tell each joint's load; the
 demo is slowed until moving (all but the gravity load) takes no joint more than
 MOTION_SHARE of its effort limit, the rest left to gravity and the drive's loops; a joint
-that needs more than EFFORT_SHARE of its limit even so is named. `hil init` sizes drives for the same demo (the gravity load
-held along it, not only at the start pose), and `hil up --demo` runs it.
+that needs more than EFFORT_SHARE of its limit even so is named. `hil init` sizes drives
+for the same demo (the gravity load held along it, not only at the start pose), and `hil
+up --demo` runs it.
 """
 
 from __future__ import annotations
@@ -49,11 +50,15 @@ class PacedDemo:
     notes: tuple[str, ...]        # joints that still need more than EFFORT_SHARE
 
 
-def paced_demo(robot: RobotDescription, joint_names, current) -> PacedDemo:
-    """The demo goal for ``joint_names`` from ``current``, slowed (by at most MOST_SLOWER)
-    until its motion takes every joint at most MOTION_SHARE of its effort limit; joints that
-    need more than EFFORT_SHARE of it even so are named in the notes."""
+def paced_demo(robot: RobotDescription, joint_names, current=None) -> PacedDemo:
+    """The demo goal for ``joint_names`` from ``current`` (None: where the plant starts),
+    slowed (by at most MOST_SLOWER) until its motion takes every joint at most MOTION_SHARE
+    of its effort limit; joints that need more than EFFORT_SHARE of it even so are named in
+    the notes."""
     plant = Plant(robot)
+    if current is None:
+        start = dict(zip(plant.joint_names, plant.joint_positions().tolist()))
+        current = [start[name] for name in joint_names]
     effort = np.array([robot.joint(name).limits.effort for name in joint_names])
     slower = 1.0
     while True:

@@ -27,7 +27,7 @@ from hil.bus_config.transmissions import SIMPLE, actuator_of
 from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD
 from hil.can import bus_load
 from hil.description import (
-    Joint, JointLimits, JointType, RobotDescription, TransmissionActuator, TransmissionJoint,
+    Joint, JointLimits, RobotDescription, TransmissionActuator, TransmissionJoint,
     TransmissionSpec,
 )
 from hil.plant import Plant
@@ -103,9 +103,7 @@ def demo_holding_loads(robot: RobotDescription) -> dict[str, float]:
     names += [j.name for j in robot.undriven_joints]
     if not names:
         return {}
-    plant = Plant(robot)
-    start = dict(zip(plant.joint_names, plant.joint_positions().tolist()))
-    return paced_demo(robot, names, [start[n] for n in names]).loads.holding
+    return paced_demo(robot, names).loads.holding
 
 
 def worst_gravity_loads(robot: RobotDescription) -> dict[str, float]:
@@ -134,11 +132,12 @@ def _defaulted(joint: Joint, worst_load: float) -> DefaultedJoint:
     given = joint.limits
     had = ("no <limit>" if given is None else
            f"effort {given.effort:g}, velocity {given.velocity:g}")
-    unit, speed = joint.type.effort_unit, "m/s" if joint.type is JointType.PRISMATIC else "rad/s"
+    unit = joint.type.effort_unit
     return DefaultedJoint(joint.name, limits,
                           f"the description gives {had}: hil's default class, "
                           f"{limits.effort:g} {unit} (its largest gravity load "
-                          f"{abs(worst_load):.3g} {unit}), {limits.velocity:g} {speed}")
+                          f"{abs(worst_load):.3g} {unit}), {limits.velocity:g} "
+                          f"{joint.type.unit}/s")
 
 
 def _transmission(sizing: Sizing) -> TransmissionSpec:

@@ -186,8 +186,8 @@ INITIAL_MARGIN = 0.1
 
 def initial_pose(description: RobotDescription) -> dict[str, float]:
     """Where the robot starts: every joint at zero, or INITIAL_MARGIN of its range inside
-    the nearer end where zero lies outside it or on an end (a real robot is powered up inside its limits,
-    and a drive faults on a position limit it starts on)."""
+    the nearer end where zero lies outside it or on an end (a real robot is powered up
+    inside its limits, and a drive faults on a position limit it starts on)."""
     pose = {}
     for joint in description.movable_joints:
         limits = joint.limits
