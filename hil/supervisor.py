@@ -30,13 +30,21 @@ PARENT_PID_VARIABLE = "HIL_PARENT_PID"
 
 @dataclass
 class Child:
-    """One ``hil`` sub-process, its log file and what it must be stopped with."""
+    """One ``hil`` sub-process, its log file and what it must be stopped with. ``name`` is
+    its role (``sim``, ``control``, ``viz``: its liveliness token's name); ``robot`` names the
+    robot it serves where a run has several."""
 
     name: str
     argv: list[str]
     log_path: Path
+    robot: str = ""
     process: subprocess.Popen | None = None
     expected_exit: bool = False
+
+    @property
+    def label(self) -> str:
+        """The child in words: its role, with its robot where a run has several."""
+        return f"{self.robot} {self.name}" if self.robot else self.name
 
     def start(self) -> None:
         env = dict(os.environ, PYTHONUNBUFFERED="1", **{PARENT_PID_VARIABLE: str(os.getpid())})
@@ -71,8 +79,8 @@ class Child:
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
-            return f"{self.name} did not stop within {STOP_TIMEOUT:g} s and was killed"
-        return None if status == 0 else f"{self.name} stopped with status {status}"
+            return f"{self.label} did not stop within {STOP_TIMEOUT:g} s and was killed"
+        return None if status == 0 else f"{self.label} stopped with status {status}"
 
 
 class ChildFailed(Exception):
@@ -92,7 +100,7 @@ class Run:
         for child in self.children:
             status = child.exited()
             if status is not None and not child.expected_exit:
-                raise ChildFailed(f"{child.name} (pid {child.pid}) exited with status {status}; "
+                raise ChildFailed(f"{child.label} (pid {child.pid}) exited with status {status}; "
                                   f"its last lines ({child.log_path}):\n{child.last_lines()}")
 
     def wait(self, seconds: float) -> None:
@@ -111,7 +119,7 @@ class Run:
             if self.stop.is_set():
                 return
             if time.monotonic() > deadline:
-                raise ChildFailed(f"{child.name} (pid {child.pid}) was not {what} within "
+                raise ChildFailed(f"{child.label} (pid {child.pid}) was not {what} within "
                                   f"{START_TIMEOUT:g} s; its last lines ({child.log_path}):\n"
                                   f"{child.last_lines()}")
 
@@ -140,7 +148,7 @@ class Run:
 def kill_later(child: Child, delay: float, stop: threading.Event) -> None:
     """Fault injection: SIGKILL a child; the supervision then reports it as crashed."""
     if not stop.wait(delay) and child.exited() is None:
-        print(f"hil up: injected kill of {child.name} (pid {child.pid})", flush=True)
+        print(f"hil up: injected kill of {child.label} (pid {child.pid})", flush=True)
         child.process.kill()
 
 
@@ -149,7 +157,7 @@ def wait_alive(run: Run, alive: Callable[[str, float], bool], child: Child) -> N
     token, ``hil.messaging.zenoh_api.ProcessWatch.wait_alive``), as :meth:`Run.wait_until`."""
     run.wait_until(child, lambda timeout: alive(child.name, timeout), "alive on Zenoh")
     if not run.stop.is_set():
-        print(f"hil up: {child.name} ready (pid {child.pid})", flush=True)
+        print(f"hil up: {child.label} ready (pid {child.pid})", flush=True)
 
 
 def viz_summary(viz: Child) -> str | None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from hil.bus_config import load_bus_config
+from hil.bus_config import check_together, load_bus_config
 from hil.can import frame_bits
 from hil.cli import main
 from hil.errors import HilError
@@ -150,3 +150,20 @@ def test_colliding_can_ids_of_mixed_protocols_are_rejected(tmp_path, drives, cla
     rest = "".join(f"- {{node_id: {i + 90}, joint: joint{i}}}\n" for i in range(3, 7))
     diagnostics = errors_of(write_config(tmp_path, one_bus(drives + rest, 250)))
     assert any(clash in d.message for d in diagnostics), [d.message for d in diagnostics]
+
+
+def test_benches_that_would_share_keys_or_a_bus_are_refused_naming_both(tmp_path):
+    ur3 = load_bus_config(ROOT / "bus_config" / "ur3.yaml")
+    with pytest.raises(HilError, match=r"robot 'ur3' is named by two configs"):
+        check_together([ur3, load_bus_config(ROOT / "bus_config" / "ur3.yaml")])
+    text = (ROOT / "bus_config" / "pigot.yaml").read_text()
+    assert "channel: pigot/wrist" in text
+    on_ur3s_bus = tmp_path / "pigot.yaml"
+    on_ur3s_bus.write_text(text.replace("channel: pigot/wrist", "channel: ur3/wrist").replace(
+        "robot: ../robots", f"robot: {ROOT / 'robots'}"))
+    with pytest.raises(HilError) as refused:
+        check_together([ur3, load_bus_config(on_ur3s_bus)])
+    message = str(refused.value)
+    assert "pigot.yaml:" in message and "ur3.yaml" in message
+    assert "bus 'wrist' of robot 'pigot' is on channel 'ur3/wrist'" in message
+    check_together([ur3, load_bus_config(ROOT / "bus_config" / "pigot.yaml")])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import collections
 import os
 import re
@@ -15,6 +16,9 @@ import can
 import pytest
 import rerun.chunk
 
+from hil.bus_config import load_bus_config
+from hil.cli import up
+from hil.cli.run_progress import Progress
 from hil.messaging.zenoh_api import RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
 from conftest import ROOT, free_port
@@ -214,6 +218,57 @@ def test_up_prints_a_fault_nobody_injected_as_it_happens_and_ends_nonzero(tmp_pa
     # the others ran on at speed once drive 2 was known silent (each cycle would otherwise
     # wait the whole 2 s lock-step reply timeout for it)
     assert rows["/axes/arm_rot_1/position"] > 1000
+
+
+@pytest.mark.slow
+def test_up_runs_two_robots_demos_together_into_one_recording(tmp_path):
+    save = tmp_path / "run.rrd"
+    result = subprocess.run([sys.executable, "-m", "hil", "up", "ur3", "pigot", "--demo",
+                             "--lock-step", "--no-viewer", "--save", str(save)],
+                            capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "hil up: ur3: demo succeeded" in result.stdout
+    assert "hil up: pigot: demo succeeded" in result.stdout
+    rows, static = read_rrd(save)
+    # both robots' timelines, each under its name, through both demos (ur3 6 s, pigot 4.5 s)
+    for robot, joints, cycles in (("ur3", ("joint1", "joint6"), 3000),
+                                  ("pigot", ("arm_rot_1", "finger_pri_1"), 2250)):
+        for joint in joints:
+            assert rows[f"/{robot}/axes/{joint}/position"] >= cycles, (robot, joint)
+            assert rows[f"/{robot}/joints/{joint}"] > 10, (robot, joint)
+        assert rows[f"/{robot}/bus/arm/load"] > 0 and rows[f"/{robot}/bus/wrist/load"] > 0
+        assert f"/{robot}/tf_static" in static
+    assert not any(path.startswith(("/axes/", "/robot/")) for path in [*rows, *static])
+    channels = collections.Counter(m.channel for m in can.LogReader(
+        save.with_name("run.can.log")))
+    assert all(channels[c] > 1000 for c in ("ur3/arm", "ur3/wrist", "pigot/arm",
+                                            "pigot/wrist")), channels
+    assert {p.name for p in save.with_name("run.logs").iterdir()} == {
+        "ur3.sim.log", "ur3.control.log", "pigot.sim.log", "pigot.control.log", "viz.log"}
+    for robot in ("ur3", "pigot"):
+        assert "stopped; drives disabled" in (
+            save.with_name("run.logs") / f"{robot}.control.log").read_text()
+
+
+def test_up_puts_each_of_several_robots_in_a_ros_namespace_of_its_own(tmp_path):
+    parser = argparse.ArgumentParser()
+    up.add_arguments(parser)
+    args = parser.parse_args(["ur3", "pigot", "--ros", "--ros-namespace", "/lab"])
+    robots = [up._Robot(ROOT / "bus_config" / f"{name}.yaml", load_bus_config(
+        ROOT / "bus_config" / f"{name}.yaml"), Progress()) for name in ("ur3", "pigot")]
+    up._children(args, robots, [], "tcp/127.0.0.1:7", tmp_path, tmp_path / "run.can.log")
+    for robot in robots:
+        for child in robot.children.values():
+            assert f"--ros-namespace=/lab/{robot.name}" in child.argv, child.argv
+            assert sum(a.startswith("--ros-namespace") for a in child.argv) == 1
+
+
+def test_up_refuses_two_configs_of_one_robot_before_starting_anything(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "hil", "up", "ur3", "ur3"],
+                            capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert result.returncode == 1
+    assert "robot 'ur3' is named by two configs" in result.stderr
+    assert "Traceback" not in result.stderr and not (tmp_path / "run.logs").exists()
 
 
 def test_up_with_a_bad_config_says_so_and_starts_nothing(tmp_path):

@@ -11,7 +11,7 @@ import pytest
 import rerun as rr
 import rerun.chunk
 
-from hil.can.monitor import BusLoadMeter
+from hil.can.monitor import BusLoadMeter, MeasuredLoad
 from hil.controllers.demo import demo_goal
 from hil.description.source import read_robot_source
 from hil.hardware import JointFeedback
@@ -219,6 +219,58 @@ def test_recorder_poses_the_3d_robot_including_its_mimic_joint(recorded):
     drawn = {path.split("/")[4] for path in static
              if path.startswith("/robot/pigot/visual_geometries/")}
     assert links <= drawn
+
+
+def test_robots_sharing_a_recording_each_keep_their_entities_frames_and_bus_loads(
+        tmp_path, pigot, ur3, package_path):
+    recording = rr.RecordingStream("hil-test")
+    path = tmp_path / "two.rrd"
+    recording.save(str(path))
+    recorders = {}
+    for robot, xacro in ((pigot, PIGOT_XACRO), (ur3, UR3_XACRO)):
+        urdf = tmp_path / f"{robot.name}.urdf"
+        urdf.write_bytes(ET.tostring(read_robot_source(xacro, package_path).root))
+        actuators = {a.name: tuple(j.name for j in t.joints)
+                     for t in robot.transmissions for a in t.actuators}
+        recorder = recorders[robot.name] = RunRecorder(recording, robot, urdf, actuators,
+                                                       ("arm", "wrist"), namespaced=True)
+        recorder.log_static()
+        recorder.log_clock(0.0, 0.0)
+        joints = tuple(j.name for j in robot.driven_joints)
+        for batch in make_batches(joints, tuple(actuators), 2, 10):
+            recorder.log_samples(batch)
+    assert recorders["ur3"].monitor_names == {"ur3/arm": "arm", "ur3/wrist": "wrist"}
+    # one monitor of all four buses: each robot logs its own two, none of the other's
+    loads = [MeasuredLoad(name, 100.0, load, load) for name, load in
+             (("ur3/arm", 0.1), ("ur3/wrist", 0.2), ("pigot/arm", 0.3), ("pigot/wrist", 0.4))]
+    for recorder in recorders.values():
+        recorder.log_bus_load(1.0, loads)
+    recording.flush()
+    recording.disconnect()
+    rows, static, frames, load_logged = collections.Counter(), set(), set(), {}
+    for chunk in rerun.chunk.RrdReader(path).store().stream():
+        if chunk.is_static:
+            static.add(chunk.entity_path)
+            continue
+        rows[chunk.entity_path] += chunk.num_rows
+        batch = chunk.to_record_batch()
+        for name in batch.schema.names:
+            if name.endswith("child_frame"):
+                frames.update(f for row in batch.column(name).to_pylist() for f in row)
+            if "/bus/" in chunk.entity_path:
+                if name == "Scalars:scalars":
+                    load_logged[chunk.entity_path] = batch.column(name).to_pylist()[0][0]
+    assert rows["/pigot/axes/arm_rot_1/position"] == 20 and rows["/ur3/axes/joint1/position"] == 20
+    assert rows["/ur3/drives/joint1_motor/torque"] == 20
+    assert not any(p.startswith(("/axes", "/drives", "/joints")) for p in rows)
+    assert load_logged == pytest.approx({"/ur3/bus/arm/load": 10, "/ur3/bus/wrist/load": 20,
+                                         "/pigot/bus/arm/load": 30,
+                                         "/pigot/bus/wrist/load": 40})
+    # each robot's model under its name, its frames named after it: no link shared
+    assert any(p.startswith("/pigot/visual_geometries/arm_link_6") for p in static)
+    assert any(p.startswith("/ur3/visual_geometries/") for p in static)
+    assert "pigot/arm_link_1" in frames and "ur3/link1" in frames
+    assert all(f.startswith(("pigot/", "ur3/")) for f in frames)
 
 
 @pytest.mark.parametrize("xacro", [PIGOT_XACRO, UR3_XACRO], ids=["pigot", "ur3"])

@@ -20,7 +20,8 @@ from hil.bus_config.types import LOAD_WARNING, BusConfig, DriveConfig, Gains, Sy
 from hil.lazy import lazy_exports
 
 __getattr__ = lazy_exports(__name__, {"load_bus_config": "hil.bus_config.parse",
-                                      "open_buses": "hil.bus_config.buses"})
+                                      "open_buses": "hil.bus_config.buses",
+                                      "check_together": "hil.bus_config.checks"})
 
 __all__ = ["BusConfig", "DriveConfig", "Gains", "LOAD_WARNING", "SystemConfig",
-           "load_bus_config", "open_buses"]
+           "check_together", "load_bus_config", "open_buses"]

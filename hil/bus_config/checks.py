@@ -6,6 +6,7 @@ from __future__ import annotations
 from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD, BusConfig, DriveConfig, SystemConfig
 from hil.bus_config.yaml_reader import LineMapping, Reader
 from hil.can import bus_load
+from hil.errors import HilError
 from hil.protocols import names as protocol_names
 from hil.protocols import protocol
 
@@ -96,3 +97,26 @@ def _check_load(reader: Reader, bus: BusConfig) -> None:
     elif load.worst_ratio > LOAD_WARNING:
         reader.warn(f"{summary}: above {LOAD_WARNING:.0%}, no room for SDO, EMCY and retries",
                     bus.line, hint=hint)
+
+
+def check_together(configs: list[SystemConfig]) -> None:
+    """HilError unless benches can share one Zenoh network and one recording: every robot
+    named once (its keys are ``hil/<robot>/...``), every CAN channel used by one bus only
+    (two benches' drives on one bus would answer each other's master)."""
+    robots: dict[str, SystemConfig] = {}
+    channels: dict[str, tuple[SystemConfig, BusConfig]] = {}
+    for config in configs:
+        other = robots.setdefault(config.robot.name, config)
+        if other is not config:
+            raise HilError.single(
+                f"robot '{config.robot.name}' is named by two configs ({other.path} and "
+                f"{config.path}): its processes and keys would be one robot's", config.path,
+                hint="give each robot once (two of one robot need URDFs of different names)")
+        for bus in config.buses:
+            first = channels.setdefault(bus.channel, (config, bus))
+            if first[1] is not bus:
+                raise HilError.single(
+                    f"bus '{bus.name}' of robot '{config.robot.name}' is on channel "
+                    f"'{bus.channel}', which bus '{first[1].name}' of robot "
+                    f"'{first[0].robot.name}' ({first[0].path}) uses too", config.path, bus.line,
+                    hint="give each bus a channel of its own")

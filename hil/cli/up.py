@@ -1,4 +1,4 @@
-"""``hil up [ROBOT|CONFIG]``: sim, controller and visualiser as three processes, one command.
+"""``hil up [ROBOT|CONFIG ...]``: sim, controller and visualiser as processes, one command.
 
 The seed's launch file, reborn: each part is its own ``hil`` process (so any
 of them could run elsewhere), started in order and waited for through its
@@ -19,10 +19,12 @@ import signal
 import sys
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 from pathlib import Path
 
 
-from hil.bus_config import SystemConfig, load_bus_config
+from hil.bus_config import SystemConfig, check_together, load_bus_config
 from hil.cli import common
 from hil.cli.run_progress import Progress
 from hil.controllers import GoalRejected, GoalStatus
@@ -49,6 +51,10 @@ BENCH_FAULT_STATUS = 3
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.description = (
+        "start sim, controller and visualiser together (optionally run a demo), record the "
+        "run; several robots (hil up ur3 pigot): a sim and a controller each, one visualiser "
+        "recording them all, the demos run together")
     parser.epilog = (
         "exit status: 0 the run (and the demo) succeeded; 1 the controller reported a drive "
         "fault that no stall of the bench explains (a device fault, injected ones included), "
@@ -59,7 +65,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "not a regression); 130 interrupted")
     parser.add_argument("target", nargs="*", metavar="ROBOT|CONFIG",
                         help="a robot with a config in bus_config/ (pigot, ur3) or a bus config "
-                             "path (default: pigot)")
+                             "path (default: pigot); several: each robot's entities go under "
+                             "/<robot>/ in the recording, its process logs are "
+                             "<robot>.sim.log and <robot>.control.log, and with --ros it is "
+                             "in the namespace <--ros-namespace>/<robot>")
     parser.add_argument("--demo", action="store_true",
                         help="run a goal that moves every axis (and opens/closes grippers), "
                              "then stop")
@@ -105,15 +114,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     common.add_package_path(parser)
 
 
+@dataclass
+class _Robot:
+    """One robot under ``hil up``: its config, its sim and controller, and what is followed
+    of its run."""
+
+    config_path: Path
+    config: SystemConfig
+    progress: Progress
+    #: before what ``hil up`` says of this robot ("" with one robot, "ur3: " with several)
+    label: str = ""
+    children: dict[str, Child] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return self.config.robot.name
+
+
 def run(args: argparse.Namespace) -> int:
-    if len(args.target) > 1:
-        raise HilError.single(f"too many arguments: {' '.join(args.target[1:])}",
-                              hint="hil up [ROBOT|CONFIG] [options]")
-    config_path = common.config_path(args.target[0] if args.target else "pigot")
-    config = load_bus_config(config_path, common.package_path(args))
-    for warning in config.warnings:
-        print(warning, file=sys.stderr)
-    robot = config.robot.name
+    paths = [common.config_path(target) for target in args.target or ["pigot"]]
+    configs = [load_bus_config(path, common.package_path(args)) for path in paths]
+    check_together(configs)
+    several = len(configs) > 1
+    if several and (args.can or args.channel or args.fault):
+        raise HilError.single("--can, --channel and --fault name one robot's buses and "
+                              "processes", hint="run that robot alone with them")
+    for config in configs:
+        for warning in config.warnings:
+            print(warning, file=sys.stderr)
     common.ros_settings(args)                       # a bad --ros option fails here, not later
     faults = [parse_fault(text) for text in args.fault]
     save = args.save
@@ -122,34 +150,41 @@ def run(args: argparse.Namespace) -> int:
     can_log = save.with_name(save.stem + ".can.log")
     endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
     timing = args.timing or "real-time"
-    children = _children(args, config_path, config, faults, endpoint, logs, can_log)
     stop = threading.Event()
+    robots = [_Robot(path, config, Progress(args.max_stalls if timing == "real-time" else None,
+                                            stop.set), f"{config.robot.name}: " if several else "")
+              for path, config in zip(paths, configs)]
+    viz = _children(args, robots, faults, endpoint, logs, can_log)
     supervised = Run([], stop)
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT,
                                                                       signal.SIGTERM)}
-    print(f"hil up: {robot} from {config_path}; Zenoh {endpoint}; {timing}; "
-          f"process logs in {logs}/", flush=True)
+    for robot in robots:
+        print(f"hil up: {robot.name} from {robot.config_path}; Zenoh {endpoint}; {timing}; "
+              f"process logs in {logs}/", flush=True)
     zenoh = ZenohSettings(connect=(endpoint,), identity=Identity.of(args.secure, "operator")
                           if args.secure else None)
     status = 0
     watchers: list = []
-    progress = Progress(args.max_stalls if timing == "real-time" else None, stop.set)
     try:
-        _start(children, supervised, zenoh, robot, progress, watchers)
-        progress.count_stalls()
+        _start(robots, viz, supervised, zenoh, watchers)
+        for robot in robots:
+            robot.progress.count_stalls()
         if not stop.is_set():
             for kill in (f for f in faults if isinstance(f, ProcessFault)):
-                threading.Thread(target=kill_later, args=(children[kill.process], kill.at,
-                                                           stop), daemon=True).start()
-            status = _supervise(args, config, supervised, zenoh, progress)
+                child = viz if kill.process == "viz" else robots[0].children[kill.process]
+                threading.Thread(target=kill_later, args=(child, kill.at, stop),
+                                 daemon=True).start()
+            status = _supervise(args, robots, supervised, zenoh)
     except ChildFailed as exc:
         print(f"hil up: {exc}", file=sys.stderr, flush=True)
         status = 1
     finally:
-        if progress.too_many is not None:
-            print(f"hil up: the bench stalled more than --max-stalls {args.max_stalls} times "
-                  f"(the last: {progress.too_many}): run stopped, exit status "
-                  f"{BENCH_FAULT_STATUS}", file=sys.stderr, flush=True)
+        too_many = [r for r in robots if r.progress.too_many is not None]
+        if too_many:
+            for robot in too_many:
+                print(f"hil up: {robot.label}the bench stalled more than --max-stalls "
+                      f"{args.max_stalls} times (the last: {robot.progress.too_many}): run "
+                      f"stopped, exit status {BENCH_FAULT_STATUS}", file=sys.stderr, flush=True)
             status = BENCH_FAULT_STATUS
         elif stop.is_set():
             print("hil up: interrupted", flush=True)
@@ -161,29 +196,34 @@ def run(args: argparse.Namespace) -> int:
         close_all()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-    for problem in progress.problems[:5] + problems:
+    for robot in robots:
+        for problem in robot.progress.problems[:5]:
+            print(f"hil up: {robot.label}{problem}", file=sys.stderr)
+    for problem in problems:
         print(f"hil up: {problem}", file=sys.stderr)
     if problems and status == 0:
         status = 1
     if status == 0:
-        status = _fault_status(progress, logs)
+        status = _fault_status(robots)
     if timing == "real-time":
-        with progress.lock:
-            print(f"hil up: the bench's {progress.stalls.summary()} since the controller "
-                  f"cycled (sim, control: their loops; transport: Zenoh's deliveries)",
-                  flush=True)
-    _report_outputs(save, can_log, children["viz"])
+        for robot in robots:
+            with robot.progress.lock:
+                print(f"hil up: {robot.label}the bench's {robot.progress.stalls.summary()} "
+                      f"since the controller cycled (sim, control: their loops; transport: "
+                      f"Zenoh's deliveries)", flush=True)
+    _report_outputs(save, can_log, viz)
     return status
 
 
-def _children(args: argparse.Namespace, config_path: Path, config: SystemConfig, faults: list,
-              endpoint: str, logs: Path, can_log: Path) -> dict[str, Child]:
-    """sim, control and viz as ``hil`` commands, placed on the CPUs in real time."""
-    ros = common.ros_options(args)
+def _children(args: argparse.Namespace, robots: list[_Robot], faults: list, endpoint: str,
+              logs: Path, can_log: Path) -> Child:
+    """Each robot's sim and control (into its ``children``) and the one visualiser (returned)
+    as ``hil`` commands, placed on the CPUs in real time. The first robot's sim listens on
+    ``endpoint``; every other process connects there (Zenoh's gossip links the rest)."""
+    several = len(robots) > 1
     sim_faults = [f"--fault={text}" for text, f in zip(args.fault, faults)
                   if not isinstance(f, ProcessFault)]
-    shared = [str(config_path), *_can_options(args, config),
-              *(["--secure", str(args.secure)] if args.secure else []),
+    shared = [*(["--secure", str(args.secure)] if args.secure else []),
               *(f"--package-path={p}" for p in args.package_path)]
     lock_step = ["--lock-step"] if args.timing == "lock-step" else []
     # over TLS the processes are not pinned to a CPU each: pinned, every `hil up ur3 --secure`
@@ -191,59 +231,101 @@ def _children(args: argparse.Namespace, config_path: Path, config: SystemConfig,
     # transport 40-107 ms late), unpinned 3 of 3 ran clean (docs/performance.md)
     placed = {name: [] if lock_step or args.secure else cpus_argument(cpus)
               for name, cpus in zip(("sim", "control", "viz"), real_time_cpus())}
-    return {
-        "sim": Child("sim", ["sim", *shared, *lock_step, *placed["sim"], "--listen", endpoint,
-                             "--status-period", "0", *sim_faults, *ros], logs / "sim.log"),
-        "control": Child("control", ["control", *shared, *lock_step, *placed["control"],
-                                     "--connect", endpoint, *ros,
-                                     # the sim already runs: a drive silent at boot is a fault
-                                     "--boot-timeout", f"{BOOT_TIMEOUT:g}",
-                                     *(["--ros-use-sim-time"] if args.ros_use_sim_time else [])],
-                         logs / "control.log"),
-        "viz": Child("viz", ["viz", *shared, *lock_step, *placed["viz"], "--connect", endpoint,
-                             "--save", str(args.save), "--can-log", str(can_log),
-                             *_viewer_options(args)],
-                     logs / "viz.log"),
-    }
+    for index, robot in enumerate(robots):
+        config = [str(robot.config_path), *_can_options(args, robot.config), *shared]
+        ros = _ros_options(args, robot.name, several)
+        log = (lambda role, name=robot.name: logs / f"{name}.{role}.log") if several else (
+            lambda role: logs / f"{role}.log")
+        meet = ["--listen" if index == 0 else "--connect", endpoint]
+        robot.children = {
+            "sim": Child("sim", ["sim", *config, *lock_step, *placed["sim"], *meet,
+                                 "--status-period", "0", *sim_faults, *ros], log("sim"),
+                         robot.name if several else ""),
+            "control": Child("control", [
+                "control", *config, *lock_step, *placed["control"], "--connect", endpoint, *ros,
+                # the sim already runs: a drive silent at boot is a fault
+                "--boot-timeout", f"{BOOT_TIMEOUT:g}",
+                *(["--ros-use-sim-time"] if args.ros_use_sim_time else [])],
+                log("control"), robot.name if several else ""),
+        }
+    return Child("viz", ["viz", *(str(r.config_path) for r in robots),
+                         *_can_options(args, robots[0].config), *shared, *lock_step,
+                         *placed["viz"], "--connect", endpoint, "--save", str(args.save),
+                         "--can-log", str(can_log), *_viewer_options(args)],
+                 logs / "viz.log")
 
 
-def _start(children: dict[str, Child], supervised: Run, zenoh: ZenohSettings, robot: str,
-           progress: Progress, watchers: list) -> None:
-    """Start sim, viz and control in turn, each once the one before is alive on Zenoh;
-    the watchers it makes go into ``watchers`` (to be closed however the start ends)."""
-    watch = None
-    # the visualiser starts before the controller: its start-up (rerun, the robot model)
-    # is CPU-heavy, and must not starve the first real-time cycles
-    for name in ("sim", "viz", "control"):
-        child = children[name]
+def _ros_options(args: argparse.Namespace, robot: str, several: bool) -> list[str]:
+    """The ``--ros`` options of a robot's processes: with several robots each in a namespace
+    of its own under ``--ros-namespace`` (``/ur3``, ``/pigot``), as their topics and
+    services would otherwise be one robot's."""
+    options = common.ros_options(args)
+    if options and several:
+        namespace = f"{(args.ros_namespace or '').rstrip('/')}/{robot}"
+        options = [o for o in options if not o.startswith("--ros-namespace=")]
+        options.append(f"--ros-namespace={namespace}")
+    return options
+
+
+def _start(robots: list[_Robot], viz: Child, supervised: Run, zenoh: ZenohSettings,
+           watchers: list) -> None:
+    """Start the sims, the visualiser and the controllers in turn, each once the one before
+    is alive on Zenoh; the watchers it makes go into ``watchers`` (to be closed however the
+    start ends)."""
+    watches: dict[str, ProcessWatch] = {}
+
+    def started(child: Child, robot: _Robot) -> None:
         child.start()
         supervised.children.append(child)
-        if watch is None:          # the sim listens on the endpoint: now it can be reached
-            watch = ProcessWatch(session(zenoh), robot)
-            watchers += [watch, RunSubscriber(session(zenoh), robot, progress.on_samples,
-                                              lambda wall, sim: None, progress.problems.append,
-                                              progress.on_diagnostic, progress.on_stall)]
-        wait_alive(supervised, watch.wait_alive, child)
+        if not watches:            # the first sim listens on the endpoint: now it can be reached
+            for each in robots:
+                watches[each.name] = ProcessWatch(session(zenoh), each.name)
+                progress = each.progress
+                watchers.extend([watches[each.name], RunSubscriber(
+                    session(zenoh), each.name, progress.on_samples, lambda wall, sim: None,
+                    progress.problems.append, progress.on_diagnostic, progress.on_stall)])
+        wait_alive(supervised, watches[robot.name].wait_alive, child)
+
+    # the visualiser starts before the controllers: its start-up (rerun, the robot models)
+    # is CPU-heavy, and must not starve the first real-time cycles
+    for robot in robots:
+        started(robot.children["sim"], robot)
         if supervised.stop.is_set():
-            break
+            return
+    viz.start()
+    supervised.children.append(viz)
+    # the one visualiser declares itself for every robot
+    wait_alive(supervised, lambda name, timeout: all(
+        watches[robot.name].wait_alive(name, timeout) for robot in robots), viz)
+    if supervised.stop.is_set():
+        return
+    for robot in robots:
+        started(robot.children["control"], robot)
+        if supervised.stop.is_set():
+            return
 
 
-def _fault_status(progress: Progress, logs: Path) -> int:
+def _fault_status(robots: list[_Robot]) -> int:
     """After a run that otherwise succeeded: 0 without faults, BENCH_FAULT_STATUS when the
-    bench's own stalls explain every one, else 1; says which."""
-    reported, explained = progress.faults(), progress.explained()
-    if not reported:
-        return 0
-    story = f"the whole story: {logs / 'control.log'}"
-    if explained >= reported:
-        print(f"hil up: the controller reported {reported} fault(s), each explained by a "
-              f"stall of the bench itself (above): the bench broke real time, the device did "
-              f"not fail; exit status {BENCH_FAULT_STATUS} ({story})", file=sys.stderr)
-        return BENCH_FAULT_STATUS
-    print(f"hil up: the controller reported {reported} fault(s), above, {reported - explained} "
-          f"of them not explained by a stall of the bench; the drives were stopped ({story})",
-          file=sys.stderr)
-    return 1
+    bench's own stalls explain every one, else 1; says which, robot by robot."""
+    statuses = [0]
+    for robot in robots:
+        reported, explained = robot.progress.faults(), robot.progress.explained()
+        if not reported:
+            continue
+        story = f"the whole story: {robot.children['control'].log_path}"
+        if explained >= reported:
+            print(f"hil up: {robot.label}the controller reported {reported} fault(s), each "
+                  f"explained by a stall of the bench itself (above): the bench broke real "
+                  f"time, the device did not fail; exit status {BENCH_FAULT_STATUS} ({story})",
+                  file=sys.stderr)
+            statuses.append(BENCH_FAULT_STATUS)
+        else:
+            print(f"hil up: {robot.label}the controller reported {reported} fault(s), above, "
+                  f"{reported - explained} of them not explained by a stall of the bench; the "
+                  f"drives were stopped ({story})", file=sys.stderr)
+            statuses.append(1)
+    return 1 if 1 in statuses else max(statuses)
 
 
 def _can_options(args: argparse.Namespace, config: SystemConfig) -> list[str]:
@@ -270,16 +352,22 @@ def _viewer_options(args: argparse.Namespace) -> list[str]:
     return options
 
 
-def _supervise(args, config: SystemConfig, run: Run, zenoh: ZenohSettings,
-               progress: Progress) -> int:
+def _supervise(args, robots: list[_Robot], run: Run, zenoh: ZenohSettings) -> int:
     if not args.demo:
         limit = args.duration if args.duration is not None else float("inf")
         started = time.monotonic()
         while not run.stop.is_set() and time.monotonic() - started < limit:
             run.wait(min(1.0, limit - (time.monotonic() - started)))
-            print(f"  [{time.monotonic() - started:6.1f} s]  {progress.line()}", flush=True)
+            for robot in robots:
+                print(f"  [{time.monotonic() - started:6.1f} s]  {robot.label}"
+                      f"{robot.progress.line()}", flush=True)
         return 0
-    status = _demo(config, run, zenoh, progress)
+    # the robots' demos run together, each in a thread of its own; a child that dies ends
+    # them all (ChildFailed, raised here from the thread that found it)
+    with ThreadPoolExecutor(len(robots), thread_name_prefix="demo") as pool:
+        demos = [pool.submit(_demo, robot, run, zenoh) for robot in robots]
+        statuses = [demo.result() for demo in demos]
+    status = max(statuses)
     if args.keep_running and status == 0:
         print("hil up: demo done; running until Ctrl-C", flush=True)
         while not run.stop.is_set():
@@ -287,28 +375,29 @@ def _supervise(args, config: SystemConfig, run: Run, zenoh: ZenohSettings,
     return status
 
 
-def _demo(config: SystemConfig, run: Run, zenoh: ZenohSettings, progress: Progress) -> int:
+def _demo(robot: _Robot, run: Run, zenoh: ZenohSettings) -> int:
+    progress, say = robot.progress, f"hil up: {robot.label}"
     while progress.positions is None:          # the first samples tell where the joints are
         run.wait(0.05)
         if run.stop.is_set():
             return 1
     with progress.lock:
         names, positions = progress.joint_names, progress.positions.copy()
-    demo = paced_demo(config.robot, names, positions)
+    demo = paced_demo(robot.config.robot, names, positions)
     goal = demo.goal
-    client = TrajectoryActionClient(session(zenoh), config.robot.name)
+    client = TrajectoryActionClient(session(zenoh), robot.name)
     try:
         duration = goal.points[-1].time_from_start
         slowed = (f", slowed {demo.slower:.2g}x to keep its motion within {MOTION_SHARE:.0%} of "
                   "the joints' effort limits" if demo.slower > 1 else "")
-        print(f"hil up: demo: {len(goal.points)} waypoints for {len(names)} joints over "
+        print(f"{say}demo: {len(goal.points)} waypoints for {len(names)} joints over "
               f"{duration:.1f} s{slowed}", flush=True)
         for note in demo.notes:
-            print(f"hil up: warning: {note}", file=sys.stderr, flush=True)
+            print(f"{say}warning: {note}", file=sys.stderr, flush=True)
         try:
             goal_id = client.send_goal(goal)
         except (GoalRejected, ControllerGone) as exc:
-            print(f"hil up: the demo goal was refused: {exc}", file=sys.stderr, flush=True)
+            print(f"{say}the demo goal was refused: {exc}", file=sys.stderr, flush=True)
             return 1
         started = progress.control_time     # progress on the controller's clock (lock-step!)
         while True:
@@ -319,16 +408,16 @@ def _demo(config: SystemConfig, run: Run, zenoh: ZenohSettings, progress: Progre
                 pass
             except ControllerGone as exc:
                 run.check()
-                print(f"hil up: {exc}", file=sys.stderr, flush=True)
+                print(f"{say}{exc}", file=sys.stderr, flush=True)
                 return 1
             run.check()
             if run.stop.is_set():
                 return 1
             elapsed = progress.control_time - started
-            print(f"  [{elapsed:6.1f} s]  demo {min(100, 100 * elapsed / duration):3.0f} %   "
-                  f"{progress.line()}", flush=True)
+            print(f"  [{elapsed:6.1f} s]  {robot.label}demo "
+                  f"{min(100, 100 * elapsed / duration):3.0f} %   {progress.line()}", flush=True)
         text = f" ({result.error_string})" if result.error_string else ""
-        print(f"hil up: demo {result.status.name.lower()}{text}", flush=True)
+        print(f"{say}demo {result.status.name.lower()}{text}", flush=True)
         return 0 if result.status is GoalStatus.SUCCEEDED else 1
     finally:
         client.close()

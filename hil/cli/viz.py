@@ -1,4 +1,5 @@
-"""``hil viz CONFIG``: log a running robot to rerun (viewer, .rrd file, or both)."""
+"""``hil viz CONFIG [CONFIG ...]``: log running robots to rerun (viewer, .rrd file, or both);
+several robots share one recording, each under ``/<robot>/``."""
 
 from __future__ import annotations
 
@@ -10,20 +11,23 @@ from pathlib import Path
 
 import rerun as rr
 
-from hil.bus_config import SystemConfig, load_bus_config, open_buses
+from hil.bus_config import SystemConfig, check_together, load_bus_config, open_buses
 from hil.can.monitor import BusMonitor
 from hil.cli import common
 from hil.errors import HilError
 from hil.realtime import enter_background
 from hil.visualisation import RunRecorder
+from hil.visualisation.blueprint import run_blueprint
 from hil.visualisation.urdf_export import viewer_urdf
 from hil.visualisation.node import VizNode
 from hil.zenoh_session import ZenohSettings, close_all, session
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
-                                       "name (ur3, pigot)")
+    parser.add_argument("config", nargs="+",
+                        help="bus config, e.g. bus_config/ur3.yaml, or a robot's name (ur3, "
+                             "pigot); several: one recording of them all, each robot's "
+                             "entities under /<robot>/")
     sinks = parser.add_argument_group(
         "rerun", "where the recording goes (several may be given); default: a spawned viewer "
                  "where a display exists, else --save run.rrd")
@@ -51,27 +55,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    config = load_bus_config(common.config_path(args.config), common.package_path(args))
+    configs = [load_bus_config(common.config_path(c), common.package_path(args))
+               for c in args.config]
+    check_together(configs)
     if args.no_can and args.can_log:
         raise HilError.single("--can-log needs the CAN buses, but --no-can was given")
+    if len(configs) > 1 and (args.channel or args.interface):
+        raise HilError.single("--channel and --interface are for one robot's buses",
+                              hint="give the robots' channels in their bus configs")
     zenoh = common.zenoh_settings(args)
     if not args.lock_step:
         enter_background()      # never the real-time processes' time (its threads inherit it)
     if common.cpus(args):
         os.sched_setaffinity(0, common.cpus(args))
-    recording = rr.RecordingStream("hil", recording_id=f"{config.robot.name}-{os.getpid()}")
+    names = "+".join(c.robot.name for c in configs)
+    recording = rr.RecordingStream("hil", recording_id=f"{names}-{os.getpid()}")
     described = _open_sinks(recording, args)
     with tempfile.TemporaryDirectory(prefix="hil-viz-") as folder:
-        urdf = Path(folder) / f"{config.robot.name}.urdf"
-        urdf.write_bytes(viewer_urdf(config.robot))
-        recorder = RunRecorder(recording, config.robot, urdf, _actuator_joints(config),
-                               tuple(b.name for b in config.buses))
-        recorder.log_static()
-        monitor = None if args.no_can else _monitor(config, zenoh, args)
-        node = VizNode(recorder, session(zenoh), config.robot.name, monitor)
+        recorders = [_recorder(recording, config, Path(folder), len(configs) > 1)
+                     for config in configs]
+        for recorder in recorders:
+            recorder.log_static()
+        recording.send_blueprint(run_blueprint([r.view() for r in recorders]))
+        monitor = None if args.no_can else _monitor(configs, recorders, zenoh, args)
+        node = VizNode(recorders, session(zenoh), monitor)
         previous = {s: signal.signal(s, lambda *_: node.stop())
                     for s in (signal.SIGINT, signal.SIGTERM)}
-        print(f"hil viz: {config.robot.name}; {described}"
+        print(f"hil viz: {', '.join(c.robot.name for c in configs)}; {described}"
               + (f"; CAN log {args.can_log}" if args.can_log else ""), flush=True)
         buses = []
         try:
@@ -90,6 +100,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"hil viz: CAN monitor, {line}", flush=True)
     print(f"hil viz: {node.summary()}", flush=True)
     return 0
+
+
+def _recorder(recording: rr.RecordingStream, config: SystemConfig, folder: Path,
+              namespaced: bool) -> RunRecorder:
+    urdf = folder / f"{config.robot.name}.urdf"
+    urdf.write_bytes(viewer_urdf(config.robot))
+    return RunRecorder(recording, config.robot, urdf, _actuator_joints(config),
+                       tuple(b.name for b in config.buses), namespaced)
 
 
 def _open_sinks(recording: rr.RecordingStream, args: argparse.Namespace) -> str:
@@ -127,8 +145,17 @@ def _actuator_joints(config: SystemConfig) -> dict[str, tuple[str, ...]]:
             for t in config.robot.transmissions for a in t.actuators}
 
 
-def _monitor(config: SystemConfig, zenoh: ZenohSettings, args: argparse.Namespace) -> BusMonitor:
+def _monitor(configs: list[SystemConfig], recorders: list[RunRecorder], zenoh: ZenohSettings,
+             args: argparse.Namespace) -> BusMonitor:
+    """One monitor of every robot's buses (one CAN log), each named as its recorder names
+    it."""
     interface, channels = common.can_overrides(args)
-    buses = open_buses(config, zenoh, interface, channels)
-    return BusMonitor(buses, {b.name: channels.get(b.name, b.channel) for b in config.buses},
-                      {b.name: b.bitrate for b in config.buses}, args.can_log)
+    buses, channel_of, bitrates = {}, {}, {}
+    for config, recorder in zip(configs, recorders):
+        opened = open_buses(config, zenoh, interface, channels)
+        for name, bus in recorder.monitor_names.items():
+            buses[name] = opened[bus]
+            config_bus = next(b for b in config.buses if b.name == bus)
+            channel_of[name] = channels.get(bus, config_bus.channel)
+            bitrates[name] = config_bus.bitrate
+    return BusMonitor(buses, channel_of, bitrates, args.can_log)

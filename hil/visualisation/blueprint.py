@@ -1,6 +1,6 @@
 """The rerun layout of a run: the 3D robot, drive states, bus load and the control loop's
 timing beside one time-series view per axis (position, velocity, effort tabs), so that
-six axes read at a glance."""
+six axes read at a glance; several robots get a tab each."""
 
 from __future__ import annotations
 
@@ -9,8 +9,10 @@ import rerun.blueprint as rrb
 from hil.description import RobotDescription
 
 
-def run_blueprint(robot: RobotDescription, actuator_joints: dict[str, tuple[str, ...]],
-                  buses: tuple[str, ...]) -> rrb.Blueprint:
+def robot_view(robot: RobotDescription, actuator_joints: dict[str, tuple[str, ...]],
+               buses: tuple[str, ...], root: str = "") -> rrb.Container:
+    """One robot's layout, its entities under ``root`` ("" or "/<robot>", as
+    ``RunRecorder.root``)."""
     joints = [j.name for j in robot.driven_joints]
     actuators_of = {j: [a for a, js in actuator_joints.items() if j in js] for j in joints}
 
@@ -19,20 +21,28 @@ def run_blueprint(robot: RobotDescription, actuator_joints: dict[str, tuple[str,
                           for joint in joints), name=name)
 
     axes = rrb.Tabs(
-        grid("position", lambda j: [f"/axes/{j}/position", f"/axes/{j}/error"]),
-        grid("velocity", lambda j: [f"/axes/{j}/velocity"]),
-        grid("effort", lambda j: [f"/axes/{j}/effort"]
-             + [f"/drives/{a}/torque" for a in actuators_of[j]]),
+        grid("position", lambda j: [f"{root}/axes/{j}/position", f"{root}/axes/{j}/error"]),
+        grid("velocity", lambda j: [f"{root}/axes/{j}/velocity"]),
+        grid("effort", lambda j: [f"{root}/axes/{j}/effort"]
+             + [f"{root}/drives/{a}/torque" for a in actuators_of[j]]),
     )
+    model = ([f"{root}/visual_geometries/**", f"{root}/collision_geometries/**"] if root
+             else ["/robot/**"])
     side = rrb.Vertical(
-        rrb.Spatial3DView(name=robot.name, origin="/", contents=["/robot/**", "/joints/**"]),
-        rrb.StateTimelineView(name="drive states", origin="/drives"),
-        rrb.TimeSeriesView(name="bus load [%]", origin="/bus",
-                           contents=[f"/bus/{b}/load" for b in buses]),
-        rrb.TimeSeriesView(name="control loop [ms]: period, round trip, stalls", origin="/loop",
-                           contents=["/loop/period_ms", "/loop/round_trip_ms",
-                                     "/loop/stalls/**"]),
+        rrb.Spatial3DView(name=robot.name, origin="/", contents=[*model, f"{root}/joints/**"]),
+        rrb.StateTimelineView(name="drive states", origin=f"{root}/drives"),
+        rrb.TimeSeriesView(name="bus load [%]", origin=f"{root}/bus",
+                           contents=[f"{root}/bus/{b}/load" for b in buses]),
+        rrb.TimeSeriesView(name="control loop [ms]: period, round trip, stalls",
+                           origin=f"{root}/loop",
+                           contents=[f"{root}/loop/period_ms", f"{root}/loop/round_trip_ms",
+                                     f"{root}/loop/stalls/**"]),
         row_shares=[3, 1, 1, 1],
     )
-    return rrb.Blueprint(rrb.Horizontal(side, axes, column_shares=[2, 3]),
+    return rrb.Horizontal(side, axes, column_shares=[2, 3], name=robot.name)
+
+
+def run_blueprint(views: list[rrb.Container]) -> rrb.Blueprint:
+    """The whole layout: one robot's view, or a tab per robot."""
+    return rrb.Blueprint(views[0] if len(views) == 1 else rrb.Tabs(*views),
                          rrb.SelectionPanel(state="collapsed"))

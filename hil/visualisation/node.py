@@ -1,8 +1,8 @@
-"""The visualiser process' loop: Zenoh in, rerun out.
+"""The visualiser process' loop: Zenoh in, rerun out, for one robot or several.
 
-Zenoh callbacks only queue what arrives; one thread does all rerun logging,
-so batches are logged in arrival order and none is dropped. Each batch's
-lag (logged time minus its newest cycle's wall time) is kept for the summary.
+Zenoh callbacks only queue what arrives (with the recorder of its robot); one thread does
+all rerun logging, so batches are logged in arrival order and none is dropped. Each
+batch's lag (logged time minus its newest cycle's wall time) is kept for the summary.
 """
 
 from __future__ import annotations
@@ -24,24 +24,30 @@ from hil.visualisation.recorder import RunRecorder
 
 
 class VizNode:
-    """Logs a robot's run (control samples, sim clock, diagnostics, bus load) until
-    :meth:`stop`."""
+    """Logs robots' runs (control samples, sim clock, diagnostics, bus load), each with its
+    recorder, until :meth:`stop`. The monitor's buses are named as the recorders'
+    ``monitor_names``."""
 
-    def __init__(self, recorder: RunRecorder, session: zenoh.Session, robot: str,
+    def __init__(self, recorders: list[RunRecorder], session: zenoh.Session,
                  monitor: BusMonitor | None = None, bus_load_hz: float = 10.0):
-        self.recorder = recorder
+        self.recorders = recorders
         self.monitor = monitor
         self.batches = 0
         self.lags: list[float] = []
         self.processing: list[float] = []
-        self._session, self._robot = session, robot
+        self._session = session
         self._period = 1.0 / bus_load_hz
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._stop = threading.Event()
         self._errors = 0
-        self.subscriber = RunSubscriber(session, robot, self._queue.put,
-                                        lambda wall, sim: self._queue.put((wall, sim)),
-                                        self._report, self._queue.put, self._queue.put)
+        self.subscribers = [self._subscribe(recorder) for recorder in recorders]
+
+    def _subscribe(self, recorder: RunRecorder) -> RunSubscriber:
+        def put(item) -> None:
+            self._queue.put((recorder, item))
+
+        return RunSubscriber(self._session, recorder.robot.name, put,
+                             lambda wall, sim: put((wall, sim)), self._report, put, put)
 
     def _report(self, text: str) -> None:
         self._errors += 1
@@ -53,7 +59,8 @@ class VizNode:
 
     def run(self) -> None:
         """Log until stopped, then log what is still queued."""
-        token = self._session.liveliness().declare_token(key(self._robot, "viz"))
+        tokens = [self._session.liveliness().declare_token(key(r.robot.name, "viz"))
+                  for r in self.recorders]
         next_load = time.monotonic() + self._period
         try:
             while not self._stop.is_set():
@@ -64,33 +71,43 @@ class VizNode:
                 if self.monitor is not None and time.monotonic() >= next_load:
                     next_load += self._period
                     now = time.time()
-                    self.recorder.log_bus_load(now, self.monitor.meter.take(now))
+                    loads = self.monitor.meter.take(now)
+                    for recorder in self.recorders:
+                        recorder.log_bus_load(now, loads)
         finally:
-            token.undeclare()
-            self.subscriber.close()
+            for token in tokens:
+                token.undeclare()
+            for subscriber in self.subscribers:
+                subscriber.close()
             while True:
                 try:
                     self._handle(self._queue.get_nowait())
                 except queue.Empty:
                     break
 
-    def _handle(self, item) -> None:
+    def _handle(self, queued: tuple[RunRecorder, object]) -> None:
+        recorder, item = queued
         if isinstance(item, ControlSamples):
             started = time.perf_counter()
-            self.recorder.log_samples(item)
+            recorder.log_samples(item)
             self.processing.append(time.perf_counter() - started)
             self.lags.append(time.time() - item.wall_time[-1])
             self.batches += 1
         elif isinstance(item, DiagnosticStatus):
-            self.recorder.log_diagnostic(item)
+            recorder.log_diagnostic(item)
         elif isinstance(item, Stall):
-            self.recorder.log_stall(item)
+            recorder.log_stall(item)
         else:
-            self.recorder.log_clock(*item)
+            recorder.log_clock(*item)
 
     def summary(self) -> str:
-        text = (f"{self.recorder.cycles_logged} cycles in {self.batches} batches, "
-                f"{self.recorder.cycles_lost} lost, {self.recorder.stalls_logged} stalls")
+        recorders = self.recorders
+        text = (f"{sum(r.cycles_logged for r in recorders)} cycles in {self.batches} batches, "
+                f"{sum(r.cycles_lost for r in recorders)} lost, "
+                f"{sum(r.stalls_logged for r in recorders)} stalls")
+        if len(recorders) > 1:
+            text += " (" + ", ".join(f"{r.robot.name} {r.cycles_logged} cycles, {r.cycles_lost} "
+                                     f"lost" for r in recorders) + ")"
         if self.lags:
             lags = np.array(self.lags) * 1e3
             text += (f"; lag p50 {np.percentile(lags, 50):.1f} ms, p99 "

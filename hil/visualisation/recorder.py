@@ -20,6 +20,11 @@ for all of them 1-3 ms per batch):
 ``robot/...``, ``joints/<joint>``       the URDF (rerun's loader) and joint transforms
 ======================================  ==============================================
 
+Several robots in one recording (``hil up ur3 pigot``): each robot's entities lie under
+``/<robot>/`` (``/ur3/axes/joint1/position``, the URDF at ``/ur3/visual_geometries/...``)
+and its URDF's frames are named ``<robot>/<link>``, so robots with links of the same name
+never share a frame.
+
 Timelines: ``wall_time``; ``control_time`` (the controller's clock);
 ``sim_time`` (the plant's clock, found from the sim's clock pairs by
 interpolation over wall time; absent while no sim has been heard).
@@ -34,6 +39,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import rerun as rr
+import rerun.blueprint as rrb
 from rerun.urdf import UrdfTree
 
 from hil.can.monitor import MeasuredLoad
@@ -41,7 +47,7 @@ from hil.description import RobotDescription
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.realtime.stalls import PROCESS_WORDS, Stall
-from hil.visualisation.blueprint import run_blueprint
+from hil.visualisation.blueprint import robot_view
 
 #: the 3D robot is posed at most this often (Hz): the eye needs no more
 POSE_RATE = 30.0
@@ -88,7 +94,8 @@ class RunRecorder:
 
     def __init__(self, recording: rr.RecordingStream, robot: RobotDescription,
                  urdf_path: Path, actuator_joints: dict[str, tuple[str, ...]],
-                 buses: tuple[str, ...]):
+                 buses: tuple[str, ...], namespaced: bool = False):
+        """``namespaced``: one of several robots in the recording (see the module doc)."""
         self.recording = recording
         self.robot = robot
         self.sim_time = SimTimeMap()
@@ -98,41 +105,51 @@ class RunRecorder:
         self._next_cycle: int | None = None
         self._last_states: dict[str, str] = {}
         self._last_pose = -np.inf
-        self._urdf = UrdfTree.from_file_path(urdf_path)
-        self._urdf_path = urdf_path
+        #: where this robot's entities lie: "" (the recording's root) or "/<robot>"
+        self.root = f"/{robot.name}" if namespaced else ""
+        self._urdf = (UrdfTree.from_file_path(urdf_path, None, frame_prefix=f"{robot.name}/",
+                                              static_transform_entity_path=f"{self.root}/tf_static")
+                      if namespaced else UrdfTree.from_file_path(urdf_path, "robot"))
         self._actuator_joints = actuator_joints
         self._buses = buses
+        #: the bus monitor's name of each of this robot's buses: the bus' own, or
+        #: "<robot>/<bus>" when namespaced (robots may have buses of the same name)
+        self.monitor_names = {(f"{robot.name}/{bus}" if namespaced else bus): bus
+                              for bus in buses}
         self._mimics = {j.name: j.mimic for j in robot.joints if j.mimic is not None}
 
     def log_static(self) -> None:
-        """The robot model, series names and the blueprint; once, before any sample."""
-        rec = self.recording
-        rec.log_file_from_path(self._urdf_path, entity_path_prefix="robot", static=True)
+        """The robot model and series names; once, before any sample."""
+        rec, root = self.recording, self.root
+        self._urdf.log_urdf_to_recording(rec)
         for joint in self.robot.driven_joints:
             unit = joint.type.unit
-            rec.log(f"axes/{joint.name}/position",
+            rec.log(f"{root}/axes/{joint.name}/position",
                     rr.SeriesLines(names=[f"reference [{unit}]", f"measured [{unit}]"]),
                     static=True)
-            rec.log(f"axes/{joint.name}/error", rr.SeriesLines(names=[f"error [{unit}]"]),
+            rec.log(f"{root}/axes/{joint.name}/error", rr.SeriesLines(names=[f"error [{unit}]"]),
                     static=True)
-            rec.log(f"axes/{joint.name}/velocity",
+            rec.log(f"{root}/axes/{joint.name}/velocity",
                     rr.SeriesLines(names=[f"reference [{unit}/s]", f"measured [{unit}/s]"]),
                     static=True)
-            rec.log(f"axes/{joint.name}/effort",
+            rec.log(f"{root}/axes/{joint.name}/effort",
                     rr.SeriesLines(names=[f"joint effort [{joint.type.effort_unit}]"]),
                     static=True)
         for actuator in self._actuator_joints:
-            rec.log(f"drives/{actuator}/torque", rr.SeriesLines(names=["motor torque [N·m]"]),
+            rec.log(f"{root}/drives/{actuator}/torque", rr.SeriesLines(names=["motor torque [N·m]"]),
                     static=True)
         for process, words in PROCESS_WORDS.items():     # points: a stall is an event
-            rec.log(f"loop/stalls/{process}", rr.SeriesPoints(
+            rec.log(f"{root}/loop/stalls/{process}", rr.SeriesPoints(
                 names=[f"{words} stalled [ms]"], markers=["cross"], marker_sizes=[6.0]),
                 static=True)
         for bus in self._buses:
-            rec.log(f"bus/{bus}/load",
+            rec.log(f"{root}/bus/{bus}/load",
                     rr.SeriesLines(names=["load [%]", "load, worst-case stuffing [%]"]),
                     static=True)
-        rec.send_blueprint(run_blueprint(self.robot, self._actuator_joints, self._buses))
+
+    def view(self) -> rrb.Container:
+        """This robot's part of the viewer's layout (``hil.visualisation.blueprint``)."""
+        return robot_view(self.robot, self._actuator_joints, self._buses, self.root)
 
     def log_clock(self, wall_time: float, sim_time: float) -> None:
         self.sim_time.add(wall_time, sim_time)
@@ -147,16 +164,16 @@ class RunRecorder:
         table = _ScalarTable(times)
         for i, joint in enumerate(batch.joint_names):
             reference, position = batch.reference[:, i], batch.position[:, i]
-            table.add(f"/axes/{joint}/position", reference, position)
-            table.add(f"/axes/{joint}/error", reference - position)
-            table.add(f"/axes/{joint}/velocity", batch.reference_velocity[:, i],
+            table.add(f"{self.root}/axes/{joint}/position", reference, position)
+            table.add(f"{self.root}/axes/{joint}/error", reference - position)
+            table.add(f"{self.root}/axes/{joint}/velocity", batch.reference_velocity[:, i],
                       batch.velocity[:, i])
-            table.add(f"/axes/{joint}/effort", batch.effort[:, i])
+            table.add(f"{self.root}/axes/{joint}/effort", batch.effort[:, i])
         for k, actuator in enumerate(batch.actuator_names):
-            table.add(f"/drives/{actuator}/torque", batch.motor_torque[:, k])
+            table.add(f"{self.root}/drives/{actuator}/torque", batch.motor_torque[:, k])
         if not np.isnan(batch.cycle_period).all():       # real time: the loop's own timing
-            table.add("/loop/period_ms", 1e3 * batch.cycle_period)
-            table.add("/loop/round_trip_ms", 1e3 * batch.round_trip)
+            table.add(f"{self.root}/loop/period_ms", 1e3 * batch.cycle_period)
+            table.add(f"{self.root}/loop/round_trip_ms", 1e3 * batch.round_trip)
         table.send(self.recording)
         for k, actuator in enumerate(batch.actuator_names):
             self._log_state_changes(actuator, batch, k, times)
@@ -167,21 +184,26 @@ class RunRecorder:
         control = None if diagnostic.control_time is None else np.array([diagnostic.control_time])
         times = self._times(np.array([diagnostic.wall_time]), control)
         self.recording.send_columns(
-            "diagnostics", indexes=times.columns(),
+            f"{self.root}/diagnostics", indexes=times.columns(),
             columns=rr.TextLog.columns(text=[diagnostic.message],
                                        level=[_TEXT_LOG_LEVELS[diagnostic.level]]))
 
     def log_stall(self, stall: Stall) -> None:
         """A stall of a real-time process on the wall and sim timelines, where it began."""
         table = _ScalarTable(self._times(np.array([stall.at])))
-        table.add(f"/loop/stalls/{stall.process}", np.array([stall.length * 1e3]))
+        table.add(f"{self.root}/loop/stalls/{stall.process}", np.array([stall.length * 1e3]))
         table.send(self.recording)
         self.stalls_logged += 1
 
     def log_bus_load(self, wall_time: float, loads: list[MeasuredLoad]) -> None:
+        """The loads of this robot's buses among ``loads`` (named as ``monitor_names``)."""
+        mine = [(self.monitor_names[load.bus], load) for load in loads
+                if load.bus in self.monitor_names]
+        if not mine:
+            return
         table = _ScalarTable(self._times(np.array([wall_time])))
-        for load in loads:
-            table.add(f"/bus/{load.bus}/load", np.array([100 * load.nominal]),
+        for bus, load in mine:
+            table.add(f"{self.root}/bus/{bus}/load", np.array([100 * load.nominal]),
                       np.array([100 * load.worst_case]))
         table.send(self.recording)
 
@@ -201,7 +223,7 @@ class RunRecorder:
         self._last_states[actuator] = batch.state_names[codes[-1]]
         if len(rows):
             self.recording.send_columns(
-                f"drives/{actuator}/state", indexes=times.columns(rows),
+                f"{self.root}/drives/{actuator}/state", indexes=times.columns(rows),
                 columns=rr.StateChange.columns(state=[batch.state_names[c] for c in codes[rows]]))
 
     def _log_pose(self, batch: ControlSamples, times: _Times) -> None:
@@ -224,7 +246,7 @@ class RunRecorder:
             joint = self._urdf.get_joint_by_name(name)
             if joint is not None:
                 self.recording.send_columns(
-                    f"joints/{name}", indexes=selected,
+                    f"{self.root}/joints/{name}", indexes=selected,
                     columns=joint.compute_transform_columns(values, clamp=False))
 
 
