@@ -153,6 +153,48 @@ def _open(settings: ZenohSettings) -> zenoh.Session:
                  "choose another with --listen") from None
 
 
+def why_unreached(settings: ZenohSettings) -> str | None:
+    """Why the process' session for these settings has no peer, in words, where it has none
+    and dials someone (None otherwise): for each endpoint it dials, whether anything listens
+    there (a plain TCP connect: Zenoh itself only retries), and so whether the far end
+    refused this session (TLS on one side only, or keys of another CA)."""
+    with _lock:
+        opened = _sessions.get(settings)
+    if opened is None or list(opened.info.peers_zid()):
+        return None
+    dialled = settings.connect + ((settings.meet,) if settings in _joined else ())
+    words = []
+    for endpoint in dialled:
+        listening = _listening(endpoint)
+        if listening is None:
+            continue
+        if not listening:
+            words.append(f"nothing listens at {endpoint}")
+        elif settings.identity is None:
+            words.append(f"something listens at {endpoint} but made no Zenoh session with this "
+                         "plain-TCP process: a process with --secure takes TLS only (give "
+                         "--secure DIR here too)")
+        else:
+            words.append(f"something listens at {endpoint} but made no TLS session with this "
+                         "--secure process: a process without --secure, or one with keys of "
+                         "another CA")
+    return "; ".join(words) or None
+
+
+def _listening(endpoint: str) -> bool | None:
+    """Whether a TCP connect to a tcp/tls endpoint's address succeeds (None: not such an
+    endpoint)."""
+    protocol, _, address = endpoint.partition("/")
+    host, _, port = address.split("#")[0].rpartition(":")
+    if protocol not in ("tcp", "tls") or not port.isdigit():
+        return None
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=1.0):
+            return True
+    except OSError:
+        return False
+
+
 def close(settings: ZenohSettings) -> None:
     """Close the process' session for these settings, if one is open."""
     with _lock:

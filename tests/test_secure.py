@@ -19,7 +19,7 @@ from hil.messaging.action import ACTION
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient, key
 from hil.zenoh_security import (COMMAND_KEYS, Identity, access_policy, make_keys,
                                  secured_endpoint)
-from hil.zenoh_session import ZenohSettings, close, session
+from hil.zenoh_session import ZenohSettings, close, session, why_unreached
 
 pytestmark = pytest.mark.slow
 
@@ -128,19 +128,38 @@ def test_the_drives_answer_the_controller_and_refuse_operators_and_observers(
         assert not connected.sdo_answered(), f"the drives acted on a frame of the {role}"
 
 
-def test_a_certificate_of_another_ca_cannot_connect(other_keys, secure_sim, peers):
+def test_a_certificate_of_another_ca_cannot_connect_and_is_told_why(
+        other_keys, secure_sim, peers):
     stranger = peers(other_keys, "controller", secure_sim)
     assert not stranger.linked(timeout=3.0)
+    assert "made no TLS session with this --secure process: a process without --secure, or " \
+           "one with keys of another CA" in why_unreached(stranger.settings)
 
 
-def test_a_process_without_tls_cannot_connect(secure_sim):
+def test_a_process_without_tls_cannot_connect_and_is_told_to_give_secure(secure_sim):
     settings = ZenohSettings(connect=(secure_sim,))
     try:
         assert not list(session(settings).info.peers_zid())
         time.sleep(2.0)
         assert not list(session(settings).info.peers_zid())
+        assert why_unreached(settings) == (
+            f"something listens at {secure_sim} but made no Zenoh session with this plain-TCP "
+            "process: a process with --secure takes TLS only (give --secure DIR here too)")
     finally:
         close(settings)
+
+
+def test_a_process_dialling_a_port_nobody_listens_on_is_told_so_and_a_linked_one_nothing(
+        secure_sim, keys, peers):
+    nobody = f"tcp/127.0.0.1:{free_port()}"
+    settings = ZenohSettings(connect=(nobody,))
+    try:
+        session(settings)
+        assert why_unreached(settings) == f"nothing listens at {nobody}"
+    finally:
+        close(settings)
+    controller = peers(keys, "controller", secure_sim)
+    assert controller.linked() and why_unreached(controller.settings) is None
 
 
 def _joint_states(peer: Peer) -> list:

@@ -19,8 +19,8 @@ from hil.can.frames import BusLoad, bus_load, frame_bits
 from hil.errors import HilError
 from hil.realtime.stalls import Stall
 
-__all__ = ["BusLoad", "bus_load", "frame_bits", "open_bus", "sent_together",
-           "socketcan_missing", "watch_deliveries"]
+__all__ = ["BusLoad", "bus_load", "frame_bits", "link_round_trip", "link_unreached", "open_bus",
+           "sent_together", "socketcan_missing", "watch_deliveries"]
 
 
 def sent_together(buses: Iterable[can.BusABC]) -> ExitStack:
@@ -48,6 +48,13 @@ def link_round_trip(bus: can.BusABC) -> float | None:
     buses that measure it (``zenoh``: from the echoes of its messages), else None."""
     counters = getattr(bus, "counters", None)
     return counters.round_trip_floor if getattr(counters, "round_trips", 0) else None
+
+
+def link_unreached(bus: can.BusABC) -> str | None:
+    """Why the link under ``bus`` reaches no other process, for buses that can tell
+    (``zenoh``: its session has no peer), else None."""
+    unreached = getattr(bus, "unreached", None)
+    return unreached() if unreached is not None else None
 
 
 def socketcan_missing(channels: tuple[str, ...] = ("vcan0",)) -> str | None:

@@ -85,7 +85,7 @@ import zenoh
 from hil.can.delivery import DirectDelivery
 from hil.can.messages import received_copy, received_frame
 from hil.realtime.stalls import STALL_THRESHOLD, Stall
-from hil.zenoh_session import ZenohSettings, session
+from hil.zenoh_session import ZenohSettings, session, why_unreached
 
 log = logging.getLogger(__name__)
 
@@ -369,6 +369,7 @@ class ZenohBus(can.BusABC):
             settings = (ZenohSettings(tuple(listen), tuple(connect),
                                       Path(zenoh_config) if zenoh_config else None)
                         if listen or connect or zenoh_config else ZenohSettings.meeting())
+        self._settings = settings
         self._session = session(settings)
         key = KEY_PREFIX + self._channel
         # not express: Zenoh batches what a burst puts before its TX task sends it. Measured on
@@ -383,6 +384,11 @@ class ZenohBus(can.BusABC):
         self._neighbours = _Channels.join(self._session, key, self)
         super().__init__(channel=channel, **kwargs)
         _open_buses.add(self)
+
+    def unreached(self) -> str | None:
+        """Why this bus' session reaches no other process, in words, if it reaches none
+        (:func:`hil.zenoh_session.why_unreached`)."""
+        return why_unreached(self._settings)
 
     def _on_payload(self, payload: bytes, arrived: float) -> None:
         now = time.monotonic()

@@ -16,7 +16,7 @@ from hil.resources import BUS_CONFIGS, data_dir
 from hil.supervisor import parse_cpus
 from hil.zenoh_security import Identity
 from hil.zenoh_session import (DEFAULT_ENDPOINT, MEETING_VARIABLE, ZenohSettings, dials_peers,
-                                session)
+                                session, why_unreached)
 
 #: how a loopback listener's endpoint reads (anything else is reachable from elsewhere)
 LOOPBACK_HOSTS = ("/127.", "/[::1]", "/localhost:")
@@ -115,6 +115,13 @@ def refuse_a_second(zenoh: ZenohSettings, robot: str, process: str) -> None:
             f"a hil {process} for robot '{robot}' already runs on this Zenoh network",
             hint=f"stop that one first, or give this one a network of its own (--listen and "
                  f"--connect, or ${MEETING_VARIABLE})")
+
+
+def unreachable(zenoh: ZenohSettings, what: str, hint: str) -> HilError:
+    """The error for a peer that never answered: ``what``, and why, where the session
+    reached nobody at all (``why_unreached``)."""
+    why = why_unreached(zenoh)
+    return HilError.single(f"{what}: {why}" if why else what, hint=hint)
 
 
 def add_ros(parser: argparse.ArgumentParser, what: str) -> None:

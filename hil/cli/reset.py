@@ -31,11 +31,13 @@ def run(args: argparse.Namespace) -> int:
         return _reset_ros(args, settings)
     if args.robot is None:
         raise HilError.single("give the robot's name", hint="hil reset ur3")
-    client = TrajectoryActionClient(session(common.zenoh_settings(args)), args.robot)
+    zenoh = common.zenoh_settings(args)
+    client = TrajectoryActionClient(session(zenoh), args.robot)
     try:
         if not client.wait_for_controller(min(args.timeout, 15.0)):
-            raise HilError.single(f"no hil control for robot '{args.robot}' is reachable",
-                                  hint="start `hil control CONFIG` (or check --connect)")
+            raise common.unreachable(zenoh, f"no hil control for robot '{args.robot}' is "
+                                     "reachable", "start `hil control CONFIG` (or check "
+                                     "--connect)")
         try:
             succeeded, message = client.reset_faults(args.timeout)
         except ControllerGone as exc:

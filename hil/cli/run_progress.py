@@ -22,8 +22,10 @@ class Progress:
     diagnostics, printed as they come."""
 
     def __init__(self, max_stalls: int | None = None,
-                 on_too_many: Callable[[], None] = lambda: None):
+                 on_too_many: Callable[[], None] = lambda: None, label: str = ""):
+        """``label``: before what is printed of this robot ("ur3: " where a run has several)."""
         self.lock = threading.Lock()
+        self.label = label
         self.diagnostics: list[DiagnosticStatus] = []
         #: malformed payloads, as RunSubscriber words them
         self.problems: list[str] = []
@@ -74,8 +76,8 @@ class Progress:
     def on_diagnostic(self, diagnostic: DiagnosticStatus) -> None:
         with self.lock:
             self.diagnostics.append(diagnostic)
-        print(f"hil up: control: {diagnostic.level}: {diagnostic.message}", file=sys.stderr,
-              flush=True)
+        print(f"hil up: {self.label}control: {diagnostic.level}: {diagnostic.message}",
+              file=sys.stderr, flush=True)
 
     def faults(self) -> int:
         """How many faults (ERROR diagnostics) the controller reported."""

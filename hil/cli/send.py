@@ -62,11 +62,13 @@ def run(args: argparse.Namespace) -> int:
     args.robot = args.target[0]
     args.file = Path(args.target[1]) if len(args.target) == 2 else None
     goal = _goal(args)
-    client = TrajectoryActionClient(session(common.zenoh_settings(args)), args.robot)
+    zenoh = common.zenoh_settings(args)
+    client = TrajectoryActionClient(session(zenoh), args.robot)
     try:
         if not client.wait_for_controller(15.0):
-            raise HilError.single(f"no hil control for robot '{args.robot}' is reachable",
-                                  hint="start `hil control CONFIG` (or check --connect)")
+            raise common.unreachable(zenoh, f"no hil control for robot '{args.robot}' is "
+                                     "reachable", "start `hil control CONFIG` (or check "
+                                     "--connect)")
         return _follow(client, goal, args, (GoalRejected, ControllerGone, TimeoutError))
     finally:
         client.close()

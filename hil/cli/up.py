@@ -58,11 +58,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.epilog = (
         "exit status: 0 the run (and the demo) succeeded; 1 the controller reported a drive "
         "fault that no stall of the bench explains (a device fault, injected ones included), "
-        "the demo failed, or a process failed; "
-        f"{BENCH_FAULT_STATUS} every fault the controller reported was explained by a "
-        "measured stall of the bench's own simulator, controller or Zenoh transport, or the "
-        "bench stalled more than --max-stalls times (the bench broke real time: a flaky host, "
-        "not a regression); 130 interrupted")
+        "the demo failed without a fault, or a process failed; "
+        f"{BENCH_FAULT_STATUS} every fault the controller reported (and so a demo they "
+        "aborted) was explained by a measured stall of the bench's own simulator, controller "
+        "or Zenoh transport, or the bench stalled more than --max-stalls times (the bench "
+        "broke real time: a flaky host, not a regression); 130 interrupted. With several "
+        f"robots, the worst of theirs (1, then {BENCH_FAULT_STATUS})")
     parser.add_argument("target", nargs="*", metavar="ROBOT|CONFIG",
                         help="a robot with a config in bus_config/ (pigot, ur3) or a bus config "
                              "path (default: pigot); several: each robot's entities go under "
@@ -122,13 +123,19 @@ class _Robot:
     config_path: Path
     config: SystemConfig
     progress: Progress
-    #: before what ``hil up`` says of this robot ("" with one robot, "ur3: " with several)
-    label: str = ""
     children: dict[str, Child] = field(default_factory=dict)
+    #: whether its demo (if any) succeeded
+    demo_succeeded: bool = True
 
     @property
     def name(self) -> str:
         return self.config.robot.name
+
+    @property
+    def label(self) -> str:
+        """Before what ``hil up`` says of this robot ("" with one robot, "ur3: " with
+        several)."""
+        return self.progress.label
 
 
 def run(args: argparse.Namespace) -> int:
@@ -152,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
     timing = args.timing or "real-time"
     stop = threading.Event()
     robots = [_Robot(path, config, Progress(args.max_stalls if timing == "real-time" else None,
-                                            stop.set), f"{config.robot.name}: " if several else "")
+                                            stop.set, f"{config.robot.name}: " if several else ""))
               for path, config in zip(paths, configs)]
     viz = _children(args, robots, faults, endpoint, logs, can_log)
     supervised = Run([], stop)
@@ -174,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
                 child = viz if kill.process == "viz" else robots[0].children[kill.process]
                 threading.Thread(target=kill_later, args=(child, kill.at, stop),
                                  daemon=True).start()
-            status = _supervise(args, robots, supervised, zenoh)
+            _supervise(args, robots, supervised, zenoh)
     except ChildFailed as exc:
         print(f"hil up: {exc}", file=sys.stderr, flush=True)
         status = 1
@@ -204,7 +211,7 @@ def run(args: argparse.Namespace) -> int:
     if problems and status == 0:
         status = 1
     if status == 0:
-        status = _fault_status(robots)
+        status = _outcome(robots)
     if timing == "real-time":
         for robot in robots:
             with robot.progress.lock:
@@ -305,13 +312,15 @@ def _start(robots: list[_Robot], viz: Child, supervised: Run, zenoh: ZenohSettin
             return
 
 
-def _fault_status(robots: list[_Robot]) -> int:
-    """After a run that otherwise succeeded: 0 without faults, BENCH_FAULT_STATUS when the
-    bench's own stalls explain every one, else 1; says which, robot by robot."""
+def _outcome(robots: list[_Robot]) -> int:
+    """After a run no process failed, robot by robot: 0 without faults and with its demo
+    (if any) succeeded; BENCH_FAULT_STATUS when the bench's own stalls explain every fault
+    (a demo aborted by them too); else 1; says which. The worst of them: 1, then 3, then 0."""
     statuses = [0]
     for robot in robots:
         reported, explained = robot.progress.faults(), robot.progress.explained()
         if not reported:
+            statuses.append(0 if robot.demo_succeeded else 1)
             continue
         story = f"the whole story: {robot.children['control'].log_path}"
         if explained >= reported:
@@ -352,7 +361,8 @@ def _viewer_options(args: argparse.Namespace) -> list[str]:
     return options
 
 
-def _supervise(args, robots: list[_Robot], run: Run, zenoh: ZenohSettings) -> int:
+def _supervise(args, robots: list[_Robot], run: Run, zenoh: ZenohSettings) -> None:
+    """Run for ``--duration`` (or until stopped), or each robot's demo (``demo_succeeded``)."""
     if not args.demo:
         limit = args.duration if args.duration is not None else float("inf")
         started = time.monotonic()
@@ -361,26 +371,26 @@ def _supervise(args, robots: list[_Robot], run: Run, zenoh: ZenohSettings) -> in
             for robot in robots:
                 print(f"  [{time.monotonic() - started:6.1f} s]  {robot.label}"
                       f"{robot.progress.line()}", flush=True)
-        return 0
+        return
     # the robots' demos run together, each in a thread of its own; a child that dies ends
     # them all (ChildFailed, raised here from the thread that found it)
     with ThreadPoolExecutor(len(robots), thread_name_prefix="demo") as pool:
         demos = [pool.submit(_demo, robot, run, zenoh) for robot in robots]
-        statuses = [demo.result() for demo in demos]
-    status = max(statuses)
-    if args.keep_running and status == 0:
+        for robot, demo in zip(robots, demos):
+            robot.demo_succeeded = demo.result()
+    if args.keep_running and all(robot.demo_succeeded for robot in robots):
         print("hil up: demo done; running until Ctrl-C", flush=True)
         while not run.stop.is_set():
             run.wait(1.0)
-    return status
 
 
-def _demo(robot: _Robot, run: Run, zenoh: ZenohSettings) -> int:
+def _demo(robot: _Robot, run: Run, zenoh: ZenohSettings) -> bool:
+    """The robot's demo goal, followed to its end; whether it succeeded."""
     progress, say = robot.progress, f"hil up: {robot.label}"
     while progress.positions is None:          # the first samples tell where the joints are
         run.wait(0.05)
         if run.stop.is_set():
-            return 1
+            return False
     with progress.lock:
         names, positions = progress.joint_names, progress.positions.copy()
     demo = paced_demo(robot.config.robot, names, positions)
@@ -398,7 +408,7 @@ def _demo(robot: _Robot, run: Run, zenoh: ZenohSettings) -> int:
             goal_id = client.send_goal(goal)
         except (GoalRejected, ControllerGone) as exc:
             print(f"{say}the demo goal was refused: {exc}", file=sys.stderr, flush=True)
-            return 1
+            return False
         started = progress.control_time     # progress on the controller's clock (lock-step!)
         while True:
             try:
@@ -409,16 +419,16 @@ def _demo(robot: _Robot, run: Run, zenoh: ZenohSettings) -> int:
             except ControllerGone as exc:
                 run.check()
                 print(f"{say}{exc}", file=sys.stderr, flush=True)
-                return 1
+                return False
             run.check()
             if run.stop.is_set():
-                return 1
+                return False
             elapsed = progress.control_time - started
             print(f"  [{elapsed:6.1f} s]  {robot.label}demo "
                   f"{min(100, 100 * elapsed / duration):3.0f} %   {progress.line()}", flush=True)
         text = f" ({result.error_string})" if result.error_string else ""
         print(f"{say}demo {result.status.name.lower()}{text}", flush=True)
-        return 0 if result.status is GoalStatus.SUCCEEDED else 1
+        return result.status is GoalStatus.SUCCEEDED
     finally:
         client.close()
 

@@ -21,7 +21,7 @@ import can
 import numpy as np
 
 from hil.bus_config.types import SystemConfig
-from hil.can import link_round_trip, sent_together, watch_deliveries
+from hil.can import link_round_trip, link_unreached, sent_together, watch_deliveries
 from hil.errors import HilError
 from hil.hardware.axis import STANDSTILL, Axis, AxisFault, FaultKind
 from hil.hardware.feedback import JointFeedback, PlausibilityCheck
@@ -128,8 +128,9 @@ class CanHardwareInterface(HardwareInterface):
             if now - began > self.boot_timeout:
                 raise HilError.single(
                     f"{'; '.join(silent)}: not heard within {self.boot_timeout:g} s after "
-                    "reset", hint="is `hil sim` (or the real drive) running on this bus, with "
-                                  "the same node id and protocol?")
+                    "reset" + self._unreached_links(),
+                    hint="is `hil sim` (or the real drive) running on this bus, with the same "
+                         "node id and protocol?")
             if cancel is not None and cancel.is_set():
                 raise HilError.single(f"stopped while waiting for {'; '.join(silent)} to boot")
             if now - retried >= BOOT_RETRY_EVERY:
@@ -356,6 +357,12 @@ class CanHardwareInterface(HardwareInterface):
                        f"over the {self.reply_timeout * 1e3:.1f} ms the answers have: a slow "
                        "link (the network, or a Zenoh end falling behind), not the drives"
                        for name, trip in slow)
+
+    def _unreached_links(self) -> str:
+        """What the buses' links say, where one reaches no other process: '' if all do."""
+        # buses of one process share a session: one reason, said once
+        reasons = dict.fromkeys(why for why in map(link_unreached, self._buses.values()) if why)
+        return "".join(f"; the link reaches nobody: {why}" for why in reasons)
 
     def watch_transport(self, on_stall: Callable[[Stall], None]) -> None:
         watch_deliveries(self._buses.values(), on_stall)
