@@ -70,6 +70,17 @@ def test_quick_bench_reports_every_figure(tmp_path):
         assert set(row["cpu"]) == ({"sim", "control", "viz"} if row["viz"] else {"sim", "control"})
         if row["viz"]:
             assert " 0 lost" in row["recorded"], row["recorded"]
+    stepped = report["lock_step_across_processes"]
+    assert [r["robot"] for r in stepped] == [robot for robot, _ in ACROSS_PROCESSES_QUICK]
+    for row in stepped:
+        # the cycles the controller ran over the seconds it ran them, in the plant's time
+        assert row["cycles"] > 0 and row["speedup_over_real_time"] == pytest.approx(
+            row["cycles"] / row["rate_hz"] / row["cycling_seconds"])
+        assert row["floor"]["speedup_over_real_time"] > 0 and row["faults"] == 0
+        assert row["speedup_over_floor"] == pytest.approx(
+            row["speedup_over_real_time"] / row["floor"]["speedup_over_real_time"])
+        assert set(row["cpu"]) == {"sim", "control"}
+    assert "lock-step across processes" in result.stdout
     assert "control cycle, real time" in result.stdout and "tracking" in result.stdout
     assert "across processes" in result.stdout
     assert report["machine"]["drive_core"] in ("compiled", "interpreted")   # read figures by it

@@ -44,7 +44,7 @@ from collections.abc import Callable
 import hil.drives.core as core_module
 from hil.bench.faults import fault_detection
 from hil.bench.lock_step import LOCK_STEP_WINDOW, bare_mujoco, bare_python_can, lock_step
-from hil.bench.processes import across_processes
+from hil.bench.processes import across_processes, lock_step_across_processes
 from hil.bench.real_time import real_time, socketcan, timing_floor, vcan_missing
 from hil.bench.settings import (
     ACROSS_PROCESSES, ACROSS_PROCESSES_QUICK, FIGURES, RATES, ROBOTS, BenchSettings, with_rate,
@@ -102,6 +102,7 @@ def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> di
     report["socketcan"] = {"unavailable": missing} if missing else socketcan(settings)
     close_all()
     report["across_processes"] = across_processes(settings, say)
+    report["lock_step_across_processes"] = lock_step_across_processes(settings, say)
     absent = [name for name in FIGURES if not report.get(name)]
     if absent:
         raise RuntimeError(f"figures missing from the report: {', '.join(absent)}")

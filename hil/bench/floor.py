@@ -24,17 +24,20 @@ import can
 from hil.bench.frames import cyclic_frames
 from hil.bus_config import SystemConfig
 from hil.can import sent_together
+from hil.hardware.can_interface import LOCK_STEP_REPLY_TIMEOUT
 from hil.realtime import CyclePacer, PeriodStatistics, Ring, enter_real_time, real_time_cpus
 from hil.zenoh_session import free_loopback_port
 
 
-def floor_across_processes(config: SystemConfig, seconds: float) -> dict:
-    """The config's frames per cycle between this process (paced like the controller) and a
-    bare answering process, over Zenoh on loopback: round trip SYNC -> last answer."""
+def floor_across_processes(config: SystemConfig, seconds: float, paced: bool = True) -> dict:
+    """The config's frames per cycle between this process (paced like the controller, or
+    unpaced as in lock-step: each cycle as soon as the last one's answers are in) and a bare
+    answering process, over Zenoh on loopback: round trip SYNC -> last answer; unpaced, also
+    the speed-up over real time the exchange alone allows."""
     endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
     channels = {bus.name: f"bench-floor/{os.getpid()}/{bus.name}" for bus in config.buses}
-    sim_cpus, control_cpus, _ = real_time_cpus()
-    spec = json.dumps({"endpoint": endpoint, "seconds": seconds + 30,
+    sim_cpus, control_cpus, _ = real_time_cpus() if paced else (None, None, None)
+    spec = json.dumps({"endpoint": endpoint, "seconds": seconds + 30, "real_time": paced,
                        "cpus": sorted(sim_cpus or ()), "buses": [
         {"channel": channels[name], "trigger": out[-1].arbitration_id,
          "answers": [[a.arbitration_id, len(a.data)] for a in answers]}
@@ -44,14 +47,14 @@ def floor_across_processes(config: SystemConfig, seconds: float) -> dict:
     try:
         if "ready" not in (responder.stdout.readline() or ""):
             raise RuntimeError("the floor's answering process did not start")
-        return _run_floor_master(config, channels, endpoint, seconds, control_cpus)
+        return _run_floor_master(config, channels, endpoint, seconds, control_cpus, paced)
     finally:
         responder.terminate()
         responder.wait(10)
 
 
 def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: str,
-                      seconds: float, cpus: set[int] | None) -> dict:
+                      seconds: float, cpus: set[int] | None, paced: bool) -> dict:
     buses = {name: can.Bus(interface="zenoh", channel=channel, connect=[endpoint])
              for name, channel in channels.items()}
     result: dict = {}
@@ -64,7 +67,7 @@ def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: 
             bus.deliver_to([counter])
         time.sleep(1.0)                               # the sessions find each other
         thread = threading.Thread(target=_floor_loop, args=(
-            exchanges, expected, counter, 1.0 / config.cycle_hz, seconds, result, cpus))
+            exchanges, expected, counter, 1.0 / config.cycle_hz, seconds, result, cpus, paced))
         thread.start()
         thread.join()
     finally:
@@ -74,32 +77,41 @@ def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: 
 
 
 def _floor_loop(exchanges, expected: int, counter: _Counter, period: float, seconds: float,
-                result: dict, cpus: set[int] | None) -> None:
+                result: dict, cpus: set[int] | None, paced: bool) -> None:
     """In a thread of its own, as the controller's loop: write the cycle, then the answers
-    to it are due before the next one."""
-    enter_real_time(cpus=cpus)
+    to it are due before the next one (paced), or the next cycle goes as soon as they are in
+    (unpaced: lock-step, where a reply may take the controller's 2 s)."""
+    if paced:
+        enter_real_time(cpus=cpus)
     statistics = PeriodStatistics(period)
     trips, late = Ring(PeriodStatistics.KEEP), 0
-    pacer = CyclePacer(period, statistics)
-    end = time.perf_counter() + seconds
+    pacer = CyclePacer(period, statistics) if paced else None
+    wait = period if paced else LOCK_STEP_REPLY_TIMEOUT
+    start = time.perf_counter()
+    end, cycles = start + seconds, 0
     try:
         while time.perf_counter() < end:
-            pacer.release()
+            if pacer is not None:
+                pacer.release()
+            cycles += 1
             counter.expect(expected)
             with sent_together(bus for bus, _, _ in exchanges):   # as the controller sends
                 for bus, out, _ in exchanges:
                     for frame in out:
                         bus.send(frame)
             sent = time.perf_counter()
-            arrived = counter.wait(sent + period)
+            arrived = counter.wait(sent + wait)
             if arrived is None:
                 late += 1
             else:
                 trips.add(arrived - sent)
     finally:
-        pacer.close()
-    result.update({**statistics.figures(), **trips.percentiles_us("round_trip"),
-                   "late": late})
+        if pacer is not None:
+            pacer.close()
+    figures = statistics.figures() if paced else {
+        "cycles": cycles, "speedup_over_real_time":
+            cycles * period / (time.perf_counter() - start)}
+    result.update({**figures, **trips.percentiles_us("round_trip"), "late": late})
 
 
 class _Counter(can.Listener):

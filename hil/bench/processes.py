@@ -2,7 +2,8 @@
 
 Each run starts ``hil sim`` and ``hil control`` (and, in the runs "with viz", ``hil viz``
 recording a file and the CAN log) as separate processes on the Zenoh CAN transport over
-loopback, in real time, placed on the CPUs as ``hil up`` places them, for a while, stops
+loopback, in real time, placed on the CPUs as ``hil up`` places them (or in lock-step, as
+``hil up --lock-step`` runs them: the speed-up over real time), for a while, stops
 them as ``hil up`` does and reads the controller's own report (``hil control --report``):
 period error, missed cycles, busy time, the round trip from each cycle's SYNC to its last
 answer, faults; and each process' CPU share from /proc. Beside each, the floor of the same
@@ -70,23 +71,48 @@ def config_at(path: Path, rate: float, folder: Path) -> Path:
     return written
 
 
-def stack_across_processes(config_path: Path, seconds: float, with_viz: bool) -> dict:
-    """One real-time run of ``hil sim`` + ``hil control`` (+ ``hil viz``) on the config."""
-    sim_cpus, control_cpus, viz_cpus = real_time_cpus()
+def lock_step_across_processes(settings: BenchSettings, say: Callable[[str], None]
+                               ) -> list[dict]:
+    """Each robot of ``settings``' across-processes runs at its config's own rate, in
+    lock-step as ``hil up --lock-step`` runs it (no visualiser), beside the same frames
+    exchanged as fast as they are answered between two bare processes."""
+    rows = []
+    for robot in dict.fromkeys(robot for robot, _ in settings.across_processes):
+        path = settings.config_dir / f"{robot}.yaml"
+        config = load_bus_config(path)
+        say(f"hil bench: {robot} in lock-step across processes: the floor ...")
+        floor = floor_across_processes(config, settings.seconds, paced=False)
+        say(f"hil bench: {robot} in lock-step across processes ...")
+        stack = stack_across_processes(path, settings.seconds, False, lock_step=True)
+        rows.append({"robot": robot, "rate_hz": config.cycle_hz, **stack, "floor": floor,
+                     "speedup_over_floor": stack["speedup_over_real_time"]
+                     / floor["speedup_over_real_time"]})
+    return rows
+
+
+def stack_across_processes(config_path: Path, seconds: float, with_viz: bool,
+                           lock_step: bool = False) -> dict:
+    """One run of ``hil sim`` + ``hil control`` (+ ``hil viz``) on the config: in real time,
+    placed on the CPUs as ``hil up`` places them; or in lock-step, where ``hil up`` places
+    nothing."""
+    sim_cpus, control_cpus, viz_cpus = (None, None, None) if lock_step else real_time_cpus()
+    timing = ["--lock-step"] if lock_step else []
     with tempfile.TemporaryDirectory(prefix="hil-bench-") as folder:
         folder = Path(folder)
         endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
         report = folder / "control.json"
         children = [Child("sim", ["sim", str(config_path), "--listen", endpoint,
-                                  "--status-period", "0", *cpus_argument(sim_cpus)],
+                                  "--status-period", "0", *timing, *cpus_argument(sim_cpus)],
                           folder / "sim.log")]
         if with_viz:
             children.append(Child("viz", ["viz", str(config_path), "--connect", endpoint, "--save",
                                           str(folder / "run.rrd"), "--can-log",
-                                          str(folder / "run.can.log"), *cpus_argument(viz_cpus)],
+                                          str(folder / "run.can.log"), *timing,
+                                          *cpus_argument(viz_cpus)],
                                   folder / "viz.log"))
         children.append(Child("control", ["control", str(config_path), "--connect", endpoint,
-                                          "--report", str(report), *cpus_argument(control_cpus)],
+                                          "--report", str(report), *timing,
+                                          *cpus_argument(control_cpus)],
                               folder / "control.log"))
         run = Run(children)
         try:

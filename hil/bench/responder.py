@@ -17,8 +17,11 @@ from hil.realtime import enter_real_time
 
 
 def respond(spec: dict) -> None:
-    """The floor's answering process: on each bus, the answers on the trigger frame."""
-    enter_real_time(cpus=set(spec["cpus"]) or None)
+    """The floor's answering process: on each bus, the answers on the trigger frame; in
+    real time as ``hil sim`` runs there (``spec["real_time"]``), else scheduled normally as
+    in lock-step."""
+    if spec["real_time"]:
+        enter_real_time(cpus=set(spec["cpus"]) or None)
     buses = []
     for bus_spec in spec["buses"]:
         bus = can.Bus(interface="zenoh", channel=bus_spec["channel"], listen=[spec["endpoint"]])

@@ -12,7 +12,8 @@ ROBOTS = ("ur3", "pigot")
 RATES = (250.0, 500.0, 1000.0)
 #: the figures every report has (a row list, or {"unavailable": why})
 FIGURES = ("control_cycle", "timing_floor", "socketcan", "lock_step", "overhead", "latency",
-           "tracking", "bus_load", "fault_detection", "across_processes")
+           "tracking", "bus_load", "fault_detection", "across_processes",
+           "lock_step_across_processes")
 #: across processes: (bus config, rate) pairs, each with and without the visualiser; the ur3
 #: at 1 kHz on its three-bus config (two buses would carry 109 % of 1 Mbit/s at 1 kHz)
 ACROSS_PROCESSES = (("ur3", 500.0), ("ur3_1khz", 1000.0), ("pigot", 500.0), ("pigot", 1000.0))

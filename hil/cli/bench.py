@@ -157,6 +157,28 @@ def _across_process_lines(report: dict) -> list[str]:
     return lines
 
 
+def _lock_step_across_process_lines(report: dict) -> list[str]:
+    """Lock-step across processes beside the same frames exchanged as fast as they come."""
+    lines = ["", "lock-step across processes (hil sim and hil control --lock-step, over Zenoh on "
+                 "loopback);", "  floor: the same frames between two bare python-can processes, "
+                 "each cycle as soon as the last one's answers are in, this run",
+             f"  {'robot':<8} {'Hz':>5} {'cycles':>7} {'speed-up':>9} {'rt p50 us':>10} "
+             f"{'p99':>6} {'floor speed-up':>15} {'rt p50 us':>10} {'p99':>6} {'of floor':>9}"
+             "  CPU"]
+    for row in report["lock_step_across_processes"]:
+        floor = row["floor"]
+        cpu = " ".join(f"{name} {share:.0%}" for name, share in row["cpu"].items())
+        lines.append(
+            f"  {row['robot']:<8} {row['rate_hz']:>5.0f} {row['cycles']:>7} "
+            f"{row['speedup_over_real_time']:>9.2f} {row.get('round_trip_p50_us', math.nan):>10.0f}"
+            f" {row.get('round_trip_p99_us', math.nan):>6.0f} "
+            f"{floor['speedup_over_real_time']:>15.2f} "
+            f"{floor.get('round_trip_p50_us', math.nan):>10.0f} "
+            f"{floor.get('round_trip_p99_us', math.nan):>6.0f} "
+            f"{row['speedup_over_floor']:>8.0%}  {cpu}")
+    return lines
+
+
 def _bus_load_lines(report: dict) -> list[str]:
     """Each bus' measured and estimated load."""
     lines = ["", "bus load (measured nominal / worst-case stuffing; config estimate worst case)"]
@@ -172,5 +194,5 @@ def _bus_load_lines(report: dict) -> list[str]:
 def format_table(report: dict) -> str:
     """The report of ``hil bench`` as text tables, a section each."""
     sections = (_cycle_lines, _socketcan_lines, _lock_step_lines, _tracking_and_fault_lines,
-                _across_process_lines, _bus_load_lines)
+                _across_process_lines, _lock_step_across_process_lines, _bus_load_lines)
     return "\n".join(line for section in sections for line in section(report))

@@ -95,6 +95,7 @@ class ControlNode:
                                        for bus in config.buses for drive in bus.drives})
         self._reported_stalls: queue.SimpleQueue[Stall] = queue.SimpleQueue()
         self._cycling_since = math.inf            # wall time; stalls before it are not counted
+        self._stopped_cycling: float | None = None
         # one path for every stall, this process' own too: published (for hil up and the
         # recording) and heard back with the others'
         self._stall_publisher = self._stall_subscriber = None
@@ -105,9 +106,15 @@ class ControlNode:
             hardware.watch_transport(self._stall_publisher.publish)
 
     def figures(self) -> dict:
-        """The run so far: period statistics (real time), the hardware's round trips (SYNC
-        out to the last answer in, where it measures them), and the faults reported."""
+        """The run so far: period statistics (real time) or cycles, seconds cycling and
+        speed-up over real time (lock-step), the hardware's round trips (SYNC out to the last
+        answer in, where it measures them), and the faults reported."""
         figures = self.statistics.figures() if self.statistics.count else {"cycles": 0}
+        if self.lock_step:      # no pacing: the speed is what the run is about
+            cycling = max(0.0, (self._stopped_cycling or time.time()) - self._cycling_since)
+            figures.update({"cycles": self._cycle, "cycling_seconds": cycling,
+                            "speedup_over_real_time": self._cycle * self.period / cycling
+                            if cycling > 0 else 0.0})
         round_trips = getattr(self.hardware, "round_trips", None)
         if round_trips is not None:
             figures.update(round_trips.percentiles_us("round_trip"))
@@ -165,6 +172,7 @@ class ControlNode:
                 if pacer is not None:
                     pacer.release()
                 self._cycle_once(pacer)
+            self._stopped_cycling = time.time()
         finally:
             if pacer is not None:
                 pacer.close()      # shutting down is not real-time work
