@@ -66,6 +66,17 @@ def test_six_drives_at_1khz_is_infeasible_but_at_250hz_fits(tmp_path):
     assert config.buses[0].load().worst_ratio == pytest.approx(0.53, abs=0.01)
 
 
+def test_velocity_feed_forward_adds_each_drives_rpdo4_to_the_bus_load(tmp_path):
+    plain = load_bus_config(write_config(tmp_path, one_bus(ALL_SIX, 250)))
+    fed = load_bus_config(write_config(tmp_path, one_bus(
+        ALL_SIX.replace("}", ", options: {feed_forward: velocity}}"), 250)))
+    assert all(d.options.feed_forward == "velocity" for d in fed.drives)
+    # six drives, each one 6-byte frame (0x500 + id) more per cycle
+    extra = 6 * 250 * frame_bits(6)[1] / 1_000_000
+    assert fed.buses[0].load().worst_ratio == pytest.approx(
+        plain.buses[0].load().worst_ratio + extra)
+
+
 def test_heavy_but_feasible_load_warns(tmp_path):
     config = load_bus_config(write_config(tmp_path, one_bus(ALL_SIX, 250, bitrate=625000)))
     (warning,) = config.warnings
@@ -89,7 +100,9 @@ def test_heavy_but_feasible_load_warns(tmp_path):
     (ALL_SIX.replace("joint: joint6}", "joint: joint6, protocol: mit, options: {kp: 1, kq: 2}}"),
      "unknown option(s) kq for protocol 'mit'"),
     (ALL_SIX.replace("joint: joint6}", "joint: joint6, options: {kp: 1}}"),
-     "protocol 'cia402' takes no 'options'"),
+     "unknown option(s) kp for protocol 'cia402'"),
+    (ALL_SIX.replace("joint: joint6}", "joint: joint6, options: {feed_forward: torque}}"),
+     "'feed_forward' is one of none, velocity, not 'torque'"),
 ])
 def test_config_errors_name_the_drive_and_line(tmp_path, drives, message):
     diagnostics = errors_of(write_config(tmp_path, one_bus(drives)))

@@ -253,8 +253,9 @@ def test_invalid_pdo_parameters_are_refused_with_the_cia301_abort_code(bench, wh
         "an object that cannot be mapped": lambda: invalid_tpdo3(0x10000020),
         "an object that does not exist": lambda: invalid_tpdo3(0x50000020),
         "a 64-bit entry for a 32-bit object": lambda: invalid_tpdo3(0x60640040),
-        "a read-only object into an RPDO": lambda: (
+        "a read-only object into an RPDO": lambda: (   # RPDO4: not valid, its count to 0
             sdo.download(0x1403, 0x1, struct.pack("<L", 0x80000501)),
+            sdo.download(0x1603, 0, b"\x00"),
             sdo.download(0x1603, 1, struct.pack("<L", 0x60410010))),
         "a count beyond the mapping's entries": lambda: (
             invalid_tpdo3(), sdo.download(0x1A02, 0, b"\x09")),

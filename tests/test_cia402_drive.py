@@ -239,6 +239,36 @@ def test_csv_and_cst_modes_move_the_joint(bench):
     assert measured == torque
 
 
+def _torque_seen(bench, node, frames, expected: int, seconds: float = 2.0) -> int:
+    """Send ``frames`` each cycle until TPDO2's torque is ``expected`` or time is up; the
+    last torque seen."""
+    deadline, measured = time.monotonic() + seconds, None
+    while time.monotonic() < deadline and measured != expected:
+        for arbitration_id, data in frames:
+            _raw(bench, arbitration_id, data)
+        node.tpdo[2].wait_for_reception(1)
+        measured = node.tpdo[2]["Torque actual value"].raw
+    return measured
+
+
+def test_rpdo4_carries_the_offsets_once_a_master_makes_it_valid(bench):
+    node = enable_csp(bench)
+    node.rpdo.read()
+    assert [v.index for v in node.rpdo[4]] == [0x60B1, 0x60B2] and not node.rpdo[4].enabled
+    node.op_mode = "CYCLIC SYNCHRONOUS TORQUE"
+    node.rpdo[1].stop()
+    target = (0x401, struct.pack("<Hh", 0x0F, 100))           # 10 % of rated torque
+    offset = (0x501, struct.pack("<ih", 0, -30))               # torque offset -3 %
+    assert _torque_seen(bench, node, [target], 100) == 100
+    # not valid: a frame of its id is nobody's PDO (a mixed bus' other protocols use it)
+    assert _torque_seen(bench, node, [target, offset], 70, seconds=0.5) == 100
+    node.sdo[0x1403][1].raw = 0x501
+    # CST: the torque offset adds to the target torque, exactly
+    assert _torque_seen(bench, node, [target, offset], 70) == 70
+    node.sdo[0x60B2].raw = 0                                    # by SDO as well
+    assert _torque_seen(bench, node, [target], 100) == 100
+
+
 @pytest.mark.parametrize("mapped", [(0x6061, 0x6064), (0x6060, 0x6064)],
                          ids=["live objects", "with a stored object"])
 def test_a_tpdo_remapped_by_sdo_carries_its_new_objects_after_nmt_start(bench, mapped):

@@ -11,6 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hil.bench.settings import with_feed_forward
+from hil.bench.tracking import tracking
+from hil.bus_config import load_bus_config
 from hil.controllers import GoalRejected, GoalStatus, TrajectoryGoal, TrajectoryPoint
 from hil.messaging import cdr
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient, key
@@ -275,3 +278,14 @@ def test_hil_send_exits_zero_on_success_and_one_on_rejection(fake_stack, tmp_pat
     bad = subprocess.run(base + [str(broken)], capture_output=True, text=True, timeout=60)
     assert bad.returncode == 1 and "is not a trajectory" in bad.stderr
     assert "Traceback" not in bad.stderr + rejected.stderr
+
+
+@pytest.mark.parametrize("robot", ["ur3", "pigot"])
+def test_velocity_feed_forward_tracks_at_least_as_close_as_the_ideal_servo(robot):
+    # lock-step: the same cycles every run. Positions alone trail the reference by the
+    # interpolation's cycle; the trajectory's velocity as 0x60B1 takes that away
+    config = load_bus_config(ROOT / "bus_config" / f"{robot}.yaml")
+    plain, fed = tracking(config), tracking(with_feed_forward(config))
+    assert plain["result"] == fed["result"] == "succeeded"
+    assert fed["rms"] < 0.5 * plain["rms"], (fed["rms"], plain["rms"])
+    assert fed["rms"] <= 1.1 * fed["ideal_servo_rms"], (fed["rms"], fed["ideal_servo_rms"])

@@ -146,3 +146,50 @@ def test_statusword_matches_cia402_masks(state, value):
     mask = 0x4F if state in (State.SWITCH_ON_DISABLED, State.FAULT) else 0x6F
     assert word & mask == value
     assert word & 0x0200                         # remote
+
+
+def first_torque(core: DriveCore) -> float:
+    """The torque of the first inner-loop step, the motor at rest at 0."""
+    core.measure(0.0, 0.0)
+    return core.update(DT)
+
+
+def test_a_velocity_offset_is_the_csp_feed_forward_in_place_of_the_setpoints_difference():
+    p = parameters()
+    cycle, step = 0.01, 0.05
+    derived, given = DriveCore(p), DriveCore(p)
+    for core in (derived, given):
+        core.set_cycle(cycle)
+        core.enable()
+    derived.new_setpoint(position=step, now=0.0)
+    given.new_setpoint(position=step, now=0.0, velocity_ff=1.5)
+    # velocity command = feed-forward + position_kp x (interpolated target - position)
+    error = step * DT / cycle
+    for core, feed_forward in ((derived, step / cycle), (given, 1.5)):
+        velocity = feed_forward + p.position_kp * error
+        assert first_torque(core) == pytest.approx(
+            p.velocity_kp * velocity + p.velocity_ki * velocity * DT)
+
+
+def test_offsets_add_to_the_velocity_and_torque_modes_targets():
+    p = parameters()
+    velocity_mode, torque_mode = DriveCore(p), DriveCore(p)
+    velocity_mode.set_mode(Mode.VELOCITY)
+    torque_mode.set_mode(Mode.TORQUE)
+    for core in (velocity_mode, torque_mode):
+        core.enable()
+    velocity_mode.new_setpoint(velocity=2.0, velocity_ff=0.5, torque_ff=0.1, now=0.0)
+    torque_mode.new_setpoint(torque=0.3, torque_ff=-0.1, now=0.0)
+    assert first_torque(velocity_mode) == pytest.approx(
+        p.velocity_kp * 2.5 + p.velocity_ki * 2.5 * DT + 0.1)
+    assert first_torque(torque_mode) == pytest.approx(0.2)
+
+
+def test_enabling_again_forgets_the_offsets():
+    core = DriveCore(parameters())
+    core.set_cycle(0.01)
+    core.enable()
+    core.new_setpoint(position=0.0, velocity_ff=3.0, torque_ff=0.2, now=0.0)
+    core.disable()
+    core.enable()
+    assert first_torque(core) == 0.0

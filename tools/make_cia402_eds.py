@@ -31,7 +31,8 @@ HEADER = """\
 ;   RPDO1 0x200+id: controlword 0x6040 + target position 0x607A   (CSP, PP)
 ;   RPDO2 0x300+id: controlword 0x6040 + target velocity 0x60FF   (CSV, PV)
 ;   RPDO3 0x400+id: controlword 0x6040 + target torque 0x6071     (CST)
-;   RPDO4 0x500+id: not valid, nothing mapped
+;   RPDO4 0x500+id: velocity offset 0x60B1 + torque offset 0x60B2 (feed-forward in CSP and
+;                   CSV, an added torque in CST), not valid until a master makes it valid
 ;   TPDO1 0x180+id: statusword 0x6041 + position actual 0x6064
 ;   TPDO2 0x280+id: velocity actual 0x606C + torque actual 0x6077
 ;   TPDO3 0x380+id, TPDO4 0x480+id: not valid, nothing mapped
@@ -56,12 +57,15 @@ def compound(name, object_type, entries):
 
 def pdo_objects():
     rpdo_maps = [[0x60400010, 0x607A0020], [0x60400010, 0x60FF0020],
-                 [0x60400010, 0x60710010], []]
+                 [0x60400010, 0x60710010], [0x60B10020, 0x60B20010]]
+    #: RPDO4 is mapped but not valid: a master makes it valid to send feed-forward (an
+    #: always-valid one would act on any frame of its id, a mixed bus' other protocols too)
+    rpdo_valid = [True, True, True, False]
     tpdo_maps = [[0x60410010, 0x60640020], [0x606C0020, 0x60770010], [], []]
     objects = {}
     for n in range(4):
         # bit 31 set: not valid (canopen evaluates "$NODEID+<one number>")
-        invalid = 0 if rpdo_maps[n] else 0x80000000
+        invalid = 0 if rpdo_valid[n] else 0x80000000
         objects[0x1400 + n] = compound(f"RPDO{n + 1} communication parameter", RECORD, {
             1: var("COB-ID used by RPDO", UINT32, "rw",
                    f"$NODEID+0x{invalid | 0x200 + 0x100 * n:X}"),
@@ -137,6 +141,8 @@ OBJECTS = {
         1: var("Speed during search for switch", UINT32, "rw", 0),
         2: var("Speed during search for zero", UINT32, "rw", 0)}),
     0x609A: var("Homing acceleration", UINT32, "rw", 0),
+    0x60B1: var("Velocity offset", INT32, "rw", 0, mappable=True),
+    0x60B2: var("Torque offset", INT16, "rw", 0, mappable=True),
     0x60C2: compound("Interpolation time period", RECORD, {
         1: var("Interpolation time period value", UINT8, "rw", 2),
         2: var("Interpolation time index", INT8, "rw", -3)}),

@@ -47,7 +47,8 @@ from hil.bench.lock_step import LOCK_STEP_WINDOW, bare_mujoco, bare_python_can, 
 from hil.bench.processes import across_processes, lock_step_across_processes
 from hil.bench.real_time import real_time, socketcan, timing_floor, vcan_missing
 from hil.bench.settings import (
-    ACROSS_PROCESSES, ACROSS_PROCESSES_QUICK, FIGURES, RATES, ROBOTS, BenchSettings, with_rate,
+    ACROSS_PROCESSES, ACROSS_PROCESSES_QUICK, FIGURES, RATES, ROBOTS, BenchSettings,
+    with_feed_forward, with_rate,
 )
 from hil.bench.soak import run_soak
 from hil.bench.tracking import tracking, tracking_goal
@@ -94,7 +95,9 @@ def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> di
             "bare_mujoco_cycle_us": bare_physics, "ratio_to_python_can": full / bare_can,
             "ratio_to_mujoco": full / bare_physics})
         say(f"hil bench: {robot} tracking against MuJoCo's ideal position servo ...")
-        report["tracking"].append({"robot": robot, **tracking(config)})
+        fed = tracking(with_feed_forward(config))
+        report["tracking"].append({"robot": robot, **tracking(config), "feed_forward": {
+            key: fed[key] for key in ("result", "rms", "max", "rms_per_joint")}})
     say("hil bench: fault detection (ur3, 500 Hz) ...")
     report["fault_detection"] = fault_detection(
         load_bus_config(settings.config_dir / "ur3.yaml"))

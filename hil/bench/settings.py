@@ -6,6 +6,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from hil.bus_config import SystemConfig
+from hil.protocols.cia402 import Cia402, Cia402Options
 from hil.resources import BUS_CONFIGS, data_dir
 
 ROBOTS = ("ur3", "pigot")
@@ -40,3 +41,12 @@ def with_rate(config: SystemConfig, rate: float) -> SystemConfig:
     """The same bench with every bus at ``rate`` Hz."""
     return replace(config, buses=tuple(replace(bus, cycle_hz=rate) for bus in config.buses))
 
+
+def with_feed_forward(config: SystemConfig) -> SystemConfig:
+    """The same bench with every CiA 402 drive's master sending velocity feed-forward (ODrive
+    and MIT masters always send theirs)."""
+    return replace(config, buses=tuple(
+        replace(bus, drives=tuple(replace(drive, options=Cia402Options("velocity"))
+                                  if drive.protocol == Cia402.name else drive
+                                  for drive in bus.drives))
+        for bus in config.buses))

@@ -116,10 +116,13 @@ def _lock_step_lines(report: dict) -> list[str]:
 
 def _tracking_and_fault_lines(report: dict) -> list[str]:
     """Tracking against the ideal servo, and fault detection."""
-    lines = ["", "tracking a fixed trajectory (rad/m): full stack vs MuJoCo's ideal position servo"]
+    lines = ["", "tracking a fixed trajectory (rad/m): full stack (positions only; with the "
+                 "velocity feed-forward) vs MuJoCo's ideal position servo"]
     for row in report["tracking"]:
+        fed = row["feed_forward"]
         lines.append(f"  {row['robot']:<6} {row['result']:<10} rms {row['rms']:.4f} max "
-                     f"{row['max']:.4f}   ideal rms {row['ideal_servo_rms']:.4f} max "
+                     f"{row['max']:.4f}   feed-forward {fed['result']:<10} rms {fed['rms']:.4f} "
+                     f"max {fed['max']:.4f}   ideal rms {row['ideal_servo_rms']:.4f} max "
                      f"{row['ideal_servo_max']:.4f}")
     lines += ["", "fault detection (ur3, 500 Hz: injected on bus 'arm')"]
     for row in report["fault_detection"]:

@@ -50,8 +50,12 @@ class DriveCore:
         self._cycle = 1e-3
         self._target_velocity = 0.0
         self._target_torque = 0.0
-        self._velocity_ff = 0.0          # position mode: added to the position loop's output
-        self._torque_ff = 0.0            # position/velocity mode: added to the velocity loop's
+        self._velocity_ff = 0.0          # velocity offset: see new_setpoint
+        #: position mode: the master gave a velocity feed-forward (CiA 402 0x60B1, ODrive's
+        #: vel_ff) since the drive was enabled: it is the feed-forward, in place of the one
+        #: the drive derives from the difference of its setpoints
+        self._velocity_ff_given = False
+        self._torque_ff = 0.0            # torque offset: see new_setpoint
         self._stiffness = 0.0            # impedance mode: kp (N·m/rad), kd (N·m·s/rad)
         self._damping = 0.0
         self._stop_velocity = 0.0
@@ -88,6 +92,7 @@ class DriveCore:
             self._segment_elapsed = self._cycle
             self._target_velocity = self._target_torque = 0.0
             self._velocity_ff = self._torque_ff = self._stiffness = self._damping = 0.0
+            self._velocity_ff_given = False
             self._hold_reference()
         self.power = Power.ENABLED
 
@@ -180,9 +185,14 @@ class DriveCore:
                      stiffness: float | None = None, damping: float | None = None) -> None:
         """A cyclic setpoint: a position starts a new interpolation segment (position mode)
         or is the impedance target; ``velocity``/``torque`` are the velocity/torque mode
-        targets, or the impedance mode's v_des and feed-forward torque."""
+        targets, or the impedance mode's v_des and feed-forward torque. ``velocity_ff`` is,
+        in position mode, the velocity feed-forward (in place of the setpoints' difference
+        from then on), in velocity mode added to the target; ``torque_ff`` is added to the
+        torque the loops command (position, velocity and torque modes), as CiA 402's velocity
+        and torque offsets (0x60B1, 0x60B2) are."""
         if velocity_ff is not None:
             self._velocity_ff = velocity_ff
+            self._velocity_ff_given = True
         if torque_ff is not None:
             self._torque_ff = torque_ff
         if stiffness is not None:
@@ -258,10 +268,11 @@ class DriveCore:
         p = self.parameters
         if self.mode is Mode.TORQUE:
             self._following_error = 0.0
-            return self._target_torque
+            return self._target_torque + self._torque_ff
         if self.mode is Mode.VELOCITY:
             self._following_error = 0.0
-            return self._velocity_loop(self._target_velocity, dt) + self._torque_ff
+            return (self._velocity_loop(self._target_velocity + self._velocity_ff, dt)
+                    + self._torque_ff)
         if self.mode is Mode.IMPEDANCE:
             # no interpolation, no following-error check: the firmware of MIT motors has none
             self._following_error = self._segment_end - self._position
@@ -280,11 +291,14 @@ class DriveCore:
             return self._velocity_loop(velocity, dt)
         self._segment_elapsed = min(self._segment_elapsed + dt, self._cycle)
         target = self._interpolated_target()
-        feed_forward = ((self._segment_end - self._segment_start) / self._cycle
-                        if self._segment_elapsed < self._cycle else 0.0)
+        if self._velocity_ff_given:
+            feed_forward = self._velocity_ff
+        else:
+            feed_forward = ((self._segment_end - self._segment_start) / self._cycle
+                            if self._segment_elapsed < self._cycle else 0.0)
         self._following_error = target - self._position
         self._check_following_error(dt)
-        velocity = feed_forward + self._velocity_ff + p.position_kp * self._following_error
+        velocity = feed_forward + p.position_kp * self._following_error
         return self._velocity_loop(velocity, dt) + self._torque_ff
 
     def _quick_stop_torque(self, dt: float) -> float:

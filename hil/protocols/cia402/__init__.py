@@ -7,6 +7,8 @@ their object dictionary from the EDS hil ships (:func:`hil.resources.eds_path`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from hil.protocols.base import Protocol
 
 SYNC_ID = 0x080          # CiA 301's SYNC COB-ID
@@ -27,11 +29,36 @@ def emcy_words(code: int) -> str:
     return f"EMCY 0x{code:04X} {EMCY_TEXT.get(code, '')}".rstrip()
 
 
+#: what a CiA 402 master may send beside each target position (``feed_forward`` option)
+FEED_FORWARD = ("none", "velocity")
+
+
+@dataclass(frozen=True)
+class Cia402Options:
+    """A CiA 402 drive's settings in a bus config: ``feed_forward: velocity`` makes the
+    master send the trajectory's velocity as the drive's velocity offset (0x60B1, RPDO4
+    0x500+id on every SYNC, the torque offset 0x60B2 beside it at 0), which the drive then
+    uses as its velocity feed-forward in place of its setpoints' difference."""
+
+    feed_forward: str = "none"
+
+    KEYS = ("feed_forward",)
+
+    @classmethod
+    def from_mapping(cls, values: dict) -> Cia402Options:
+        options = cls(**{k: str(v) for k, v in values.items()})
+        if options.feed_forward not in FEED_FORWARD:
+            raise ValueError(f"'feed_forward' is one of {', '.join(FEED_FORWARD)}, not "
+                             f"'{options.feed_forward}'")
+        return options
+
+
 class Cia402(Protocol):
     """CiA 402 drives with the EDS's default PDOs, synchronised by SYNC."""
 
     name = "cia402"
     uses_sync = True
+    Options = Cia402Options
     drive = "hil.protocols.cia402.drive:Cia402Drive"
     axis = "hil.protocols.cia402.axis:Cia402Axis"
 
@@ -39,8 +66,11 @@ class Cia402(Protocol):
     def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float, options=None
                    ) -> list[tuple[int, int, float]]:
         """(arbitration id, payload bytes, frames/s) of the default mapping's exchange:
-        RPDO1 (controlword, target), TPDO1, TPDO2 per SYNC; heartbeat; EMCY and SDO
-        only on events (their ids are reserved)."""
+        RPDO1 (controlword, target), TPDO1, TPDO2 per SYNC, and RPDO4 (velocity and torque
+        offsets) with feed-forward; heartbeat; EMCY and SDO only on events (their ids are
+        reserved)."""
+        feed_forward = options is not None and options.feed_forward != "none"
         return [(0x200 + node_id, 6, cycle_hz), (0x180 + node_id, 6, cycle_hz),
                 (0x280 + node_id, 6, cycle_hz), (0x700 + node_id, 1, 1.0 / heartbeat_period),
+                *([(0x500 + node_id, 6, cycle_hz)] if feed_forward else []),
                 (0x080 + node_id, 8, 0.0), (0x580 + node_id, 8, 0.0), (0x600 + node_id, 8, 0.0)]

@@ -18,7 +18,7 @@ from canopen.profiles.p402 import State402
 from hil.bus_config.types import DriveConfig
 from hil.errors import HilError
 from hil.hardware.axis import Axis, AxisFault, FaultKind, Frame
-from hil.protocols.cia402 import FRAME_ERRORS, Cia402, emcy_words
+from hil.protocols.cia402 import FRAME_ERRORS, Cia402, Cia402Options, emcy_words
 from hil.resources import eds_path
 
 #: NMT states in a heartbeat (CiA 301)
@@ -26,6 +26,7 @@ BOOT_UP, OPERATIONAL, PRE_OPERATIONAL = 0x00, 0x05, 0x7F
 _RPDO1 = struct.Struct("<Hi")       # controlword, target position
 _TPDO1 = struct.Struct("<Hi")       # statusword, position actual
 _TPDO2 = struct.Struct("<ih")       # velocity actual, torque actual
+_RPDO4 = struct.Struct("<ih")       # velocity offset, torque offset
 
 # the controlwords, by canopen's names
 SHUTDOWN, SWITCH_ON, ENABLE = State402.CW_SHUTDOWN, State402.CW_SWITCH_ON, \
@@ -58,6 +59,9 @@ class Cia402Axis(Axis):
         self.last_emcy: int | None = None
         self._emcy_cycle = 0          # the master's cycle when it arrived
         self._operational = False     # its heartbeat said OPERATIONAL since configure()
+        options = config.options or Cia402Options()
+        #: RPDO4 (velocity offset) beside each target: the trajectory's velocity
+        self.feed_forward = options.feed_forward == "velocity"
 
     # --- network hooks ----------------------------------------------------------
 
@@ -129,6 +133,8 @@ class Cia402Axis(Axis):
             self.node.tpdo.read()
             self.node.rpdo.read()
             self._check_mapping()
+            if self.feed_forward:       # valid from now on: the drive maps and applies it
+                self.node.sdo[0x1403][1].raw = 0x500 + self.node_id
             for pdo in self.node.tpdo.map.values():   # read() subscribed them; the frames
                 if pdo.enabled:                       # come to this axis' own handlers
                     self.node.network.unsubscribe(pdo.cob_id, pdo.on_message)
@@ -147,10 +153,12 @@ class Cia402Axis(Axis):
     def _check_mapping(self) -> None:
         expected = {("rpdo", 1): [0x6040, 0x607A], ("tpdo", 1): [0x6041, 0x6064],
                     ("tpdo", 2): [0x606C, 0x6077]}
+        if self.feed_forward:
+            expected["rpdo", 4] = [0x60B1, 0x60B2]
         for (kind, number), indices in expected.items():
             pdo = getattr(self.node, kind)[number]
             found = [v.index for v in pdo.map]
-            if found != indices or not pdo.enabled:
+            if found != indices or not (pdo.enabled or (kind, number) == ("rpdo", 4)):
                 raise HilError.single(
                     f"{self.label} {kind.upper()}{number} maps "
                     f"{', '.join(f'0x{i:04X}' for i in found) or 'nothing'}; hil expects "
@@ -172,8 +180,13 @@ class Cia402Axis(Axis):
         controlword = self.next_controlword(stopping)
         # until the axis follows setpoints, its setpoint is where it is (no jump on enable)
         following = self.enabled and not enabling
-        return [(0x200 + self.node_id, self.rpdo(controlword, target if following
-                                                  else self.feedback.position), False)]
+        frames = [(0x200 + self.node_id, self.rpdo(controlword, target if following
+                                                    else self.feedback.position), False)]
+        if self.feed_forward:
+            speed = velocity * self.counts_per_rad if following and not stopping else 0.0
+            frames.append((0x500 + self.node_id, _RPDO4.pack(
+                max(-2**31, min(2**31 - 1, round(speed))), 0), False))
+        return frames
 
     def disable_rounds(self) -> list[list[Frame]]:
         return [[(0x200 + self.node_id, self.rpdo(word, self.feedback.position), False)]

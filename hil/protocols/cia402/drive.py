@@ -312,7 +312,9 @@ class Cia402Drive(DriveProfile):
         self.core.new_setpoint(
             position=self.machine.target_position if 0x607A in fields else None,
             velocity=fields[0x60FF] / self._counts_per_rad if 0x60FF in fields else None,
-            torque=fields[0x6071] * self.rated_torque / 1000 if 0x6071 in fields else None)
+            torque=fields[0x6071] * self.rated_torque / 1000 if 0x6071 in fields else None,
+            velocity_ff=fields[0x60B1] / self._counts_per_rad if 0x60B1 in fields else None,
+            torque_ff=fields[0x60B2] * self.rated_torque / 1000 if 0x60B2 in fields else None)
         if 0x6040 in fields:
             self.machine.controlword(fields[0x6040])
 

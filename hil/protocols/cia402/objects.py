@@ -67,6 +67,10 @@ class DriveObjects:
                 self.core.new_setpoint(velocity=value / cpr)
             elif index == 0x6071:
                 self.core.new_setpoint(torque=value * self.rated_torque / 1000)
+            elif index == 0x60B1:
+                self.core.new_setpoint(velocity_ff=value / cpr)
+            elif index == 0x60B2:
+                self.core.new_setpoint(torque_ff=value * self.rated_torque / 1000)
             elif index == 0x607C:
                 self.machine.home_offset = value / cpr
             elif index == 0x6098:
