@@ -77,7 +77,8 @@ def drive_parameters(drive: DriveConfig, motor_inertia: float) -> DriveParameter
         # profile moves (CiA 402 profile modes) until a master sets its own
         profile_velocity=drive.max_velocity / 4,
         profile_acceleration=drive.quick_stop_deceleration / 4,
-        profile_deceleration=drive.quick_stop_deceleration / 4)
+        profile_deceleration=drive.quick_stop_deceleration / 4,
+        no_load_speed=drive.effects.no_load_speed)
 
 
 class PlantPresent:
@@ -126,7 +127,8 @@ class Simulator:
         self.config = config
         self.lock_step = lock_step
         self.lock = PlantPresent(self._advance)
-        self.plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz)
+        self.plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz,
+                           effects=config.effects)
         self.steps_per_cycle = config.steps_per_cycle
         self.cycles = 0
         self.overruns = 0          # real time: gaps skipped (the process stalled)

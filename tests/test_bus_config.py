@@ -77,6 +77,19 @@ def test_velocity_feed_forward_adds_each_drives_rpdo4_to_the_bus_load(tmp_path):
         plain.buses[0].load().worst_ratio + extra)
 
 
+def test_actuator_effects_are_read_per_drive_over_the_defaults_and_off_unless_set(tmp_path):
+    body = ("defaults:\n  effects: {viscous_friction: 0.001}\n"
+            + one_bus(ALL_SIX.replace("joint: joint1}", "joint: joint1, effects: "
+                                      "{coulomb_friction: 0.02, delay: 0.002}}"), 250))
+    config = load_bus_config(write_config(tmp_path, body))
+    first, second = config.drives[:2]
+    assert first.effects.in_force() == {"coulomb_friction": 0.02, "delay": 0.002}
+    assert second.effects.in_force() == {"viscous_friction": 0.001}
+    assert set(config.effects) == {d.actuator for d in config.drives}
+    plain = load_bus_config(write_config(tmp_path, one_bus(ALL_SIX, 250)))
+    assert plain.effects == {} and not plain.drives[0].effects.in_force()
+
+
 def test_heavy_but_feasible_load_warns(tmp_path):
     config = load_bus_config(write_config(tmp_path, one_bus(ALL_SIX, 250, bitrate=625000)))
     (warning,) = config.warnings
@@ -103,6 +116,10 @@ def test_heavy_but_feasible_load_warns(tmp_path):
      "unknown option(s) kp for protocol 'cia402'"),
     (ALL_SIX.replace("joint: joint6}", "joint: joint6, options: {feed_forward: torque}}"),
      "'feed_forward' is one of none, velocity, not 'torque'"),
+    (ALL_SIX.replace("joint: joint2}", "joint: joint2, effects: {backlash: 0.01}}"),
+     "unknown key 'backlash'"),
+    (ALL_SIX.replace("joint: joint2}", "joint: joint2, effects: {delay: -0.001}}"),
+     "effects: 'delay' must be >= 0 (0: off), not -0.001"),
 ])
 def test_config_errors_name_the_drive_and_line(tmp_path, drives, message):
     diagnostics = errors_of(write_config(tmp_path, one_bus(drives)))

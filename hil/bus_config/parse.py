@@ -10,7 +10,9 @@ import yaml
 from hil.bus_config.checks import check_system
 from hil.bus_config.joint_limits import apply_joint_limits
 from hil.bus_config.transmissions import add_transmissions
-from hil.bus_config.types import BusConfig, DriveConfig, Gains, SystemConfig
+from hil.bus_config.types import (
+    NO_EFFECTS, ActuatorEffects, BusConfig, DriveConfig, Gains, SystemConfig,
+)
 from hil.bus_config.yaml_reader import LineLoader, LineMapping, Reader
 from hil.description import JointType, PackagePath, RobotDescription, load_description
 from hil.errors import HilError, Severity
@@ -24,7 +26,7 @@ _DRIVE_KEYS = {"node_id", "joint", "actuator", "protocol", "encoder_counts_per_r
                "rated_torque", "peak_torque", "max_velocity", "following_error_limit",
                "following_error_timeout", "quick_stop_deceleration", "watchdog_timeout",
                "heartbeat_period", "holding_brake", "gains", "velocity_bandwidth_hz",
-               "options"}
+               "options", "effects"}
 _GAIN_KEYS = {"position_kp", "velocity_kp", "velocity_ki"}
 #: the default following-error window holds at least this long at the joint's top speed (s)
 FOLLOWING_ERROR_TIME = 0.02
@@ -160,7 +162,7 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
         position_limits=_motor_limits(robot, transmission),
         gains=gains,
         velocity_bandwidth_hz=float(reader.number(merged, "velocity_bandwidth_hz", what, 40.0)),
-        options=options, line=own.line)
+        options=options, line=own.line, effects=_read_effects(reader, merged, what))
 
 
 def _read_protocol(reader: Reader, drive: LineMapping, what: str, name: str, node_id: int):
@@ -188,6 +190,23 @@ def _read_gains(reader: Reader, drive: LineMapping, what: str) -> Gains | None:
     reader.unknown_keys(gains, _GAIN_KEYS, f"{what} gains")
     return Gains(*(reader.number(gains, key, f"{what} gains", 1.0) for key in
                    ("position_kp", "velocity_kp", "velocity_ki")))
+
+
+def _read_effects(reader: Reader, drive: LineMapping, what: str) -> ActuatorEffects:
+    """The drive's ``effects:`` (none set: the perfect motor and gear)."""
+    if "effects" not in drive:
+        return NO_EFFECTS
+    effects = reader.mapping(drive["effects"], f"{what} effects", drive.key_lines.get("effects"))
+    reader.unknown_keys(effects, set(ActuatorEffects.KEYS), f"{what} effects")
+    values = []
+    for key in ActuatorEffects.KEYS:
+        value = float(reader.number(effects, key, f"{what} effects", 0.0, positive=False))
+        if value < 0:
+            reader.fail(f"{what} effects: '{key}' must be >= 0 (0: off), not {value:g}",
+                        effects.key_lines.get(key, effects.line))
+            value = 0.0
+        values.append(value)
+    return ActuatorEffects(*values)
 
 
 def _read_options(reader: Reader, drive: LineMapping, what: str, spec) -> object | None:

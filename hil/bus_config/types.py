@@ -25,6 +25,34 @@ class Gains:
 
 
 @dataclass(frozen=True)
+class ActuatorEffects:
+    """What a real motor and gear add to a perfect one, motor side, each off (0) unless a bus
+    config sets it (``effects:``; the equations are the README's "Actuator effects"). They act
+    in the plant or the drive, so every protocol and every master meets them."""
+
+    #: N·m: Coulomb friction, -c·sign(ω) while moving; at rest it holds up to c (breakaway):
+    #: MuJoCo's frictionloss, on the joint (c x reduction) or the coupled motor's tendon
+    coulomb_friction: float = 0.0
+    #: N·m·s/rad: viscous friction, -b·ω: MuJoCo's actuator damping
+    viscous_friction: float = 0.0
+    #: s: the motor applies the torque the drive commanded this long before (a transport or
+    #: current-loop delay): MuJoCo's actuator delay, zero-order hold, whole plant steps
+    delay: float = 0.0
+    #: rad/s: the torque-speed line of a motor at its supply voltage: driving, |τ| is at most
+    #: τ_peak (1 - |ω|/ω0), braking the full τ_peak; 0: no line (hil's drive applies it)
+    no_load_speed: float = 0.0
+
+    KEYS = ("coulomb_friction", "viscous_friction", "delay", "no_load_speed")
+
+    def in_force(self) -> dict[str, float]:
+        """The effects set (not 0), by key."""
+        return {key: getattr(self, key) for key in self.KEYS if getattr(self, key)}
+
+
+NO_EFFECTS = ActuatorEffects()
+
+
+@dataclass(frozen=True)
 class DriveConfig:
     """One drive on a bus; ``gains`` None means tuned from the plant's inertia."""
 
@@ -47,6 +75,7 @@ class DriveConfig:
     velocity_bandwidth_hz: float
     options: object | None = None     # the protocol's own settings (its profile's Options)
     line: int | None = None
+    effects: ActuatorEffects = NO_EFFECTS
 
     @property
     def label(self) -> str:
@@ -94,6 +123,11 @@ class SystemConfig:
     plant_rate_hz: float
     buses: tuple[BusConfig, ...]
     warnings: tuple[Diagnostic, ...] = field(default=(), compare=False)
+
+    @property
+    def effects(self) -> dict[str, ActuatorEffects]:
+        """Each actuator's effects, where its drive sets any."""
+        return {d.actuator: d.effects for d in self.drives if d.effects.in_force()}
 
     @property
     def cycle_hz(self) -> float:

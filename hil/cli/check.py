@@ -29,7 +29,8 @@ def run(args: argparse.Namespace) -> int:
         args.path = common.config_path(str(args.path))
     if args.path.suffix in (".yaml", ".yml"):
         config = load_bus_config(args.path, package_path)
-        plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz)   # as hil sim builds it
+        plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz,   # as hil sim builds it
+                      effects=config.effects)
         config = replace(config, warnings=config.warnings + plant.warnings)
         if args.strict and config.warnings:
             raise HilError([replace(w, severity=Severity.ERROR) for w in config.warnings])
@@ -63,9 +64,18 @@ def bus_summary(config: SystemConfig) -> str:
                          f"{d.peak_torque:>8.3g} {d.max_velocity:>8.4g} "
                          f"{d.following_error_limit:>8.4g} {d.watchdog_timeout:>8.3g}  "
                          f"{'yes' if d.holding_brake else 'no'}")
+    effects = config.effects
+    options = {d.label: d.options for d in config.drives
+               if d.options is not None and getattr(d.options, "feed_forward", "none") != "none"}
+    if effects or options:
+        lines += ["", "  in force beyond the perfect motor and gear (motor side):"]
+        lines += [f"    {d.label}: " + ", ".join(f"{key} {value:g}" for key, value in
+                                              d.effects.in_force().items())
+                  for d in config.drives if d.actuator in effects]
+        lines += [f"    {label}: feed_forward {o.feed_forward}" for label, o in options.items()]
     lines.append("")
     lines.append("  units: motor side; torque N·m, velocity rad/s, following error rad, "
-                 "watchdog s")
+                 "watchdog s; effects: friction N·m and N·m·s/rad, delay s, no-load speed rad/s")
     if config.warnings:
         lines += ["", f"  {len(config.warnings)} warning(s):"] + [f"  {w}" for w in config.warnings]
     else:

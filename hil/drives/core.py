@@ -253,15 +253,22 @@ class DriveCore:
         """Advance the inner loops by ``dt`` and return the motor torque command."""
         p = self.parameters
         self._check_position_limits()
+        peak = p.peak_torque
+        motor = True
         if self.power is Power.ENABLED:
             torque = self._enabled_torque(dt)
         elif self.power is Power.QUICK_STOP:
             torque = self._quick_stop_torque(dt)
         elif p.holding_brake:
             torque = self._brake_torque(dt)
+            motor = False
         else:
             torque = 0.0
-        self._torque = max(-p.peak_torque, min(p.peak_torque, torque))
+        if p.no_load_speed > 0.0 and motor and torque * self._velocity > 0.0:
+            # driving (torque along the motion): the supply voltage less the back-EMF
+            # leaves the motor this much; braking it has its full peak
+            peak = peak * max(0.0, 1.0 - abs(self._velocity) / p.no_load_speed)
+        self._torque = max(-peak, min(peak, torque))
         return self._torque
 
     def _enabled_torque(self, dt: float) -> float:

@@ -87,6 +87,8 @@ class DriveParameters:
     profile_velocity: float = 0.0      # rad/s
     profile_acceleration: float = 0.0  # rad/s^2
     profile_deceleration: float = 0.0  # rad/s^2
+    #: the motor's torque-speed line (rad/s): driving, |torque| <= peak (1 - |w| / w0); 0: none
+    no_load_speed: float = 0.0
 
     @functools.cached_property    # read several times per drive and plant step
     def radians_per_count(self) -> float:

@@ -27,8 +27,10 @@ from __future__ import annotations
 import functools
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import mujoco
 import numpy as np
@@ -61,8 +63,23 @@ def rpy_to_quat(rpy: tuple[float, float, float]) -> np.ndarray:
     return quat
 
 
+#: MuJoCo solimp of a motor's Coulomb friction (dmin, dmax, width, midpoint, power)
+STICTION_IMPEDANCE = (0.99, 0.999, 0.001, 0.5, 2.0)
+
+
+class ActuatorLosses(Protocol):
+    """What the plant models of a real motor and gear, motor side (a bus config's
+    ``ActuatorEffects`` is one): each 0 for none."""
+
+    coulomb_friction: float      # N·m
+    viscous_friction: float      # N·m·s/rad
+    delay: float                 # s
+
+
 def build_spec(description: RobotDescription, transmissions: tuple[Transmission, ...],
-               timestep: float = DEFAULT_TIMESTEP) -> tuple[mujoco.MjSpec, tuple[ActuatorBinding, ...]]:
+               timestep: float = DEFAULT_TIMESTEP,
+               losses: Mapping[str, ActuatorLosses] | None = None,
+               ) -> tuple[mujoco.MjSpec, tuple[ActuatorBinding, ...]]:
     spec = mujoco.MjSpec()
     spec.modelname = description.name
     spec.compiler.degree = False
@@ -78,7 +95,40 @@ def build_spec(description: RobotDescription, transmissions: tuple[Transmission,
         _add_body(spec, spec.worldbody, description, description.root_link, None, armature)
     _add_mimic_constraints(spec, description)
     bindings = _add_actuators(spec, description, transmissions)
+    for binding in bindings:
+        if losses and binding.name in losses:
+            _add_losses(spec, transmissions[binding.transmission], binding, losses[binding.name],
+                        timestep)
     return spec, bindings
+
+
+def _add_losses(spec: mujoco.MjSpec, transmission: Transmission, binding: ActuatorBinding,
+                losses: ActuatorLosses, timestep: float) -> None:
+    """MuJoCo's own models of a motor's losses, at the motor: Coulomb friction as the
+    frictionloss of what the motor turns (its joint, seen through the reduction, or its
+    tendon), viscous friction as the actuator's damping, the delay as the actuator's (a
+    history of its controls, zero-order hold)."""
+    actuator = spec.actuator(binding.name)
+    if losses.coulomb_friction:
+        if isinstance(transmission, SimpleTransmission):
+            turned = spec.joint(transmission.joints[0])
+            turned.frictionloss += losses.coulomb_friction * abs(transmission.reduction)
+        else:
+            turned = spec.tendon(f"{binding.name}_tendon")
+            turned.frictionloss = losses.coulomb_friction
+        # MuJoCo's friction is a soft constraint: at its defaults a motor held at 3/4 of its
+        # breakaway torque crept at 1.7 % of the speed a torque as far above it gives (one
+        # axis, 1 ms steps); at the stiffest time constant the step allows (2 steps) and a
+        # hard impedance, at 0.02 %
+        turned.solref_friction = [2 * timestep, 1.0]
+        turned.solimp_friction = list(STICTION_IMPEDANCE)
+    if losses.viscous_friction:
+        actuator.damping = [losses.viscous_friction, 0.0, 0.0]
+    if losses.delay:
+        steps = round(losses.delay / timestep)
+        actuator.delay = steps * timestep
+        actuator.nsample = steps + 1
+        actuator.interp = 0
 
 
 def compile_model(spec: mujoco.MjSpec, description: RobotDescription) -> mujoco.MjModel:

@@ -18,7 +18,7 @@ import numpy as np
 from hil.description import RobotDescription
 from hil.errors import Diagnostic, warning
 from hil.plant.builder import (
-    DEFAULT_TIMESTEP, MUJOCO_MESHES, build_spec, compile_model, unreadable_mesh,
+    DEFAULT_TIMESTEP, MUJOCO_MESHES, ActuatorLosses, build_spec, compile_model, unreadable_mesh,
 )
 from hil.transmissions import Transmission, TransmissionStack, build_transmissions
 
@@ -32,11 +32,14 @@ class Plant:
     N·m or N for efforts.
     """
 
-    def __init__(self, description: RobotDescription, timestep: float = DEFAULT_TIMESTEP):
+    def __init__(self, description: RobotDescription, timestep: float = DEFAULT_TIMESTEP,
+                 effects: Mapping[str, ActuatorLosses] | None = None):
+        """``effects``: the motor losses of actuators that have any, by actuator name."""
         _avoid_slow_clock()
         self.description = description
         self.transmissions: tuple[Transmission, ...] = build_transmissions(description)
-        self.spec, self.bindings = build_spec(description, self.transmissions, timestep)
+        self.spec, self.bindings = build_spec(description, self.transmissions, timestep,
+                                              effects)
         self.model = compile_model(self.spec, description)
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)
