@@ -111,21 +111,24 @@ def test_up_runs_the_demo_and_records_axes_robot_and_can_traffic(tmp_path):
         assert rows[f"/drives/{joint}_motor/torque"] > 1000
     assert rows["/bus/arm/load"] > 0 and rows["/bus/wrist/load"] > 0
     assert any(p.startswith("/robot/pigot/visual_geometries/arm_link_6") for p in static)
+    # the CAN log is BLF, its channels numbered in the config's order of the buses
     frames = collections.Counter(
-        (m.channel, m.arbitration_id) for m in can.LogReader(save.with_name("run.can.log")))
+        (m.channel, m.arbitration_id) for m in can.LogReader(save.with_name("run.can.blf")))
     for node in range(1, 8):                 # every drive's TPDO1 and every RPDO
-        bus = "pigot/arm" if node <= 3 else "pigot/wrist"
-        assert frames[(bus, 0x180 + node)] > 1000 and frames[(bus, 0x200 + node)] > 1000
+        number = 1 if node <= 3 else 2
+        assert frames[(number, 0x180 + node)] > 1000 and frames[(number, 0x200 + node)] > 1000
     # the CAN log says what it missed: the frames the monitor received are in it, less the
     # ones its FIFO could not hold and those still arriving as it closed (the controller is
     # stopped by then: a few heartbeats), and the frames lost on the way are counted
-    for bus in ("arm", "wrist"):
-        found = re.search(rf"hil up: CAN log, bus {bus}: sent 0 in 0 messages, received (\d+) "
-                          r"in \d+, lost on the way (\d+), overrun (\d+)", result.stdout)
+    for number, bus in enumerate(("arm", "wrist"), start=1):
+        found = re.search(rf"hil up: CAN log, bus {bus} \(log channel {number}\): sent 0 in 0 "
+                          r"messages, received (\d+) in \d+, lost on the way (\d+), overrun "
+                          r"(\d+)", result.stdout)
         assert found, result.stdout
         received, _, overrun = map(int, found.groups())
-        logged = sum(n for (channel, _), n in frames.items() if channel == f"pigot/{bus}")
+        logged = sum(n for (channel, _), n in frames.items() if channel == number)
         assert 0 <= received - overrun - logged <= 50, (bus, received, overrun, logged)
+    assert "hil up: CAN log (Vector BLF): " in result.stdout
     logs = save.with_name("run.logs")
     assert {p.name for p in logs.iterdir()} == {"sim.log", "control.log", "viz.log"}
 
@@ -240,9 +243,10 @@ def test_up_runs_two_robots_demos_together_into_one_recording(tmp_path):
         assert f"/{robot}/tf_static" in static
     assert not any(path.startswith(("/axes/", "/robot/")) for path in [*rows, *static])
     channels = collections.Counter(m.channel for m in can.LogReader(
-        save.with_name("run.can.log")))
-    assert all(channels[c] > 1000 for c in ("ur3/arm", "ur3/wrist", "pigot/arm",
-                                            "pigot/wrist")), channels
+        save.with_name("run.can.blf")))
+    for number, bus in enumerate(("ur3/arm", "ur3/wrist", "pigot/arm", "pigot/wrist"), 1):
+        assert channels[number] > 1000, channels          # numbered robot by robot, bus by bus
+        assert f"hil up: CAN log, bus {bus} (log channel {number}): sent" in result.stdout
     assert {p.name for p in save.with_name("run.logs").iterdir()} == {
         "ur3.sim.log", "ur3.control.log", "pigot.sim.log", "pigot.control.log", "viz.log"}
     for robot in ("ur3", "pigot"):
@@ -288,13 +292,14 @@ def test_up_on_socketcan_runs_the_demo_and_logs_the_vcan_frames(tmp_path):
     if missing:
         pytest.skip(missing)
     save = tmp_path / "run.rrd"
+    candump = tmp_path / "frames.log"            # candump's text keeps the channels' names
     result = subprocess.run([sys.executable, "-m", "hil", "up", "pigot", "--demo", "--lock-step",
                              "--can", "vcan0", "--can", "vcan1", "--no-viewer", "--save",
-                             str(save)], capture_output=True, text=True, timeout=600,
-                            cwd=tmp_path)
+                             str(save), "--can-log", str(candump)], capture_output=True,
+                            text=True, timeout=600, cwd=tmp_path)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "demo succeeded" in result.stdout
-    channels = collections.Counter(m.channel for m in can.LogReader(save.with_name("run.can.log")))
+    channels = collections.Counter(m.channel for m in can.LogReader(candump))
     assert channels["vcan0"] > 1000 and channels["vcan1"] > 1000, channels
     rows, _ = read_rrd(save)
     assert rows["/axes/finger_pri_1/position"] > 1000

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import collections
+import time
 import xml.etree.ElementTree as ET
 
 import can
@@ -11,7 +12,7 @@ import pytest
 import rerun as rr
 import rerun.chunk
 
-from hil.can.monitor import BusLoadMeter, MeasuredLoad
+from hil.can.monitor import BusLoadMeter, BusMonitor, MeasuredLoad
 from hil.controllers.demo import demo_goal
 from hil.description.source import read_robot_source
 from hil.hardware import JointFeedback
@@ -134,6 +135,37 @@ def test_bus_load_meter_counts_each_bus_in_bits_against_its_bitrate():
     assert loads["wrist"].nominal == pytest.approx(10 * 47 / 5e5)
     assert meter.unknown_channel_frames == 1
     assert all(load.frames_per_second == 0 for load in meter.take(now=0.2))
+
+
+@pytest.mark.parametrize("suffix, named", [(".blf", False), (".log", True)])
+def test_the_can_log_holds_every_frame_as_sent_its_channels_numbered_where_the_format_does(
+        tmp_path, suffix, named):
+    tag = f"{suffix[1:]}-{tmp_path.name}"
+    channels = {"arm": f"log-arm-{tag}", "wrist": f"log-wrist-{tag}"}
+    senders = {name: can.Bus(interface="virtual", channel=c) for name, c in channels.items()}
+    watched = {name: can.Bus(interface="virtual", channel=c) for name, c in channels.items()}
+    path = tmp_path / f"run.can{suffix}"
+    monitor = BusMonitor(watched, channels, {"arm": 1_000_000, "wrist": 1_000_000}, path)
+    sent = []
+    for k in range(200):
+        name = ("arm", "wrist")[k % 2]
+        frame = can.Message(arbitration_id=0x180 + k % 7, data=bytes([k % 256, k // 256, 7]),
+                            is_extended_id=k % 5 == 0, timestamp=1000.0 + k * 1e-4)
+        senders[name].send(frame)
+        sent.append((name, frame))
+    time.sleep(0.5)
+    monitor.close()
+    for bus in senders.values():
+        bus.shutdown()
+    logged = list(can.LogReader(path))
+    assert monitor.channel_numbers == ({} if named else {"arm": 1, "wrist": 2})
+    assert len(logged) == len(sent)
+    for name in channels:        # each bus in its order (a notifier thread per bus)
+        channel = channels[name] if named else monitor.channel_numbers[name]
+        mine = [frame for bus, frame in sent if bus == name]
+        back = [frame for frame in logged if frame.channel == channel]
+        assert [(f.arbitration_id, bytes(f.data), f.is_extended_id, f.dlc) for f in back] == [
+            (f.arbitration_id, bytes(f.data), f.is_extended_id, f.dlc) for f in mine]
 
 
 @pytest.fixture

@@ -107,7 +107,7 @@ def stack_across_processes(config_path: Path, seconds: float, with_viz: bool,
         if with_viz:
             children.append(Child("viz", ["viz", str(config_path), "--connect", endpoint, "--save",
                                           str(folder / "run.rrd"), "--can-log",
-                                          str(folder / "run.can.log"), *timing,
+                                          str(folder / "run.can.blf"), *timing,
                                           *cpus_argument(viz_cpus)],
                                   folder / "viz.log"))
         children.append(Child("control", ["control", str(config_path), "--connect", endpoint,

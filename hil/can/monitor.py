@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
+from pathlib import Path
 
 import can
 
@@ -66,24 +67,54 @@ class BusLoadMeter(can.Listener):
                 for bus, (frames, nominal, worst) in counts.items()]
 
 
+#: log formats that number their channels (1, 2, ...) where hil's are names
+NUMBERED_CHANNELS = (".blf", ".asc", ".trc")
+
+
+class NumberedChannels(can.Listener):
+    """Passes each frame on to a log writer with its channel's number instead of its name
+    (BLF, ASC and TRC store a number; python-can's writers put every named channel on 1)."""
+
+    def __init__(self, writer: can.Listener, numbers: dict[str, int]):
+        self._writer, self._numbers = writer, numbers
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self._writer.on_message_received(can.Message(
+            timestamp=msg.timestamp, arbitration_id=msg.arbitration_id,
+            is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
+            is_error_frame=msg.is_error_frame, dlc=msg.dlc, data=msg.data, is_rx=msg.is_rx,
+            channel=self._numbers.get(str(msg.channel), 0)))
+
+    def stop(self) -> None:
+        self._writer.stop()
+
+
 class BusMonitor:
     """Listens to buses opened for monitoring: measures their load and optionally writes
-    every frame to a python-can log file (format by suffix: .log is candump's, .asc,
-    .blf, .csv, .trc ...)."""
+    every frame to a python-can log file (format by suffix: .blf is Vector's binary log,
+    .log candump's, .asc, .csv, .trc ...). Where the format numbers channels, each bus is
+    numbered in the order given (``channel_numbers``)."""
 
     def __init__(self, buses: dict[str, can.BusABC], channels: dict[str, str],
                  bitrates: dict[str, int], log_path=None, now: float = 0.0):
         self.buses = buses
         self.meter = BusLoadMeter({channels[name]: (name, bitrates[name]) for name in buses},
                                   now)
-        self.logger = can.Logger(log_path) if log_path is not None else None
+        #: bus name -> its channel number in the log (formats that number them), else empty
+        self.channel_numbers: dict[str, int] = {}
+        self.logger = None
+        if log_path is not None:
+            self.logger = can.Logger(log_path)
+            if Path(log_path).suffix.lower() in NUMBERED_CHANNELS:
+                self.channel_numbers = {name: k + 1 for k, name in enumerate(buses)}
+                self.logger = NumberedChannels(self.logger, {
+                    str(channels[name]): number for name, number in self.channel_numbers.items()})
         listeners = [self.meter] + ([self.logger] if self.logger is not None else [])
         self._notifier = can.Notifier(list(buses.values()), listeners, timeout=0.1)
 
     def close(self) -> None:
-        """Stop listening, close the log (flushed) and the buses."""
+        """Stop listening, close the log (flushed: the notifier stops its listeners) and the
+        buses."""
         self._notifier.stop(1.0)
-        if self.logger is not None:
-            self.logger.stop()
         for bus in self.buses.values():
             bus.shutdown()

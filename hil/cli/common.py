@@ -202,13 +202,18 @@ def can_overrides(args: argparse.Namespace) -> tuple[str | None, dict[str, str]]
     return args.interface, channels
 
 
-def bus_report(buses: dict) -> list[str]:
-    """One line per bus with its frame counters (where its interface keeps them: zenoh)."""
+def bus_report(buses: dict, channel_numbers: dict[str, int] | None = None) -> list[str]:
+    """One line per bus with its frame counters (where its interface keeps them: zenoh), and
+    its channel number in the CAN log where the log numbers them."""
     lines = []
     for name, bus in buses.items():
         counters = getattr(getattr(bus, "inner", bus), "counters", None)
+        number = (channel_numbers or {}).get(name)
+        label = f"bus {name}" + (f" (log channel {number})" if number else "")
         if counters is not None:
-            lines.append(f"bus {name}: {counters}")
+            lines.append(f"{label}: {counters}")
+        elif number:
+            lines.append(label)
     return lines
 
 

@@ -43,6 +43,10 @@ from hil.zenoh_security import Identity
 from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
 
 
+#: the CAN log's format in words, by suffix
+CAN_LOG_FORMATS = {".blf": "Vector BLF", ".log": "candump", ".asc": "Vector ASC",
+                   ".trc": "PEAK TRC", ".csv": "python-can CSV"}
+
 #: exit status: every fault the controller reported was explained by a stall of the bench's
 #: own real-time processes (the simulator's, the controller's, the Zenoh transport's), or the
 #: run passed --max-stalls: the bench broke real time, the device did not fail (1: the device
@@ -79,8 +83,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="without --demo: stop after S seconds (default: run until Ctrl-C)")
     parser.add_argument("--save", type=Path, default=Path("run.rrd"), metavar="FILE.rrd",
                         help="the rerun recording (default run.rrd); the CAN log "
-                             "(FILE.can.log, candump format) and the processes' logs "
-                             "(FILE.logs/) go beside it")
+                             "(FILE.can.blf) and the processes' logs (FILE.logs/) go beside it")
+    parser.add_argument("--can-log", type=Path, metavar="FILE",
+                        help="the CAN log instead of FILE.can.blf, in python-can's format by "
+                             "suffix: .blf Vector's binary log (the default: about 12x smaller "
+                             "than candump's text), channels numbered in the config's bus "
+                             "order (printed at the end); .log candump's text, channels named; "
+                             ".asc, .trc, .csv")
     timing = parser.add_mutually_exclusive_group()
     timing.add_argument("--lock-step", dest="timing", action="store_const", const="lock-step",
                         help="sim and controller in lock-step (reproducible, as fast as they go)")
@@ -154,7 +163,7 @@ def run(args: argparse.Namespace) -> int:
     save = args.save
     logs = save.with_name(save.stem + ".logs")
     logs.mkdir(parents=True, exist_ok=True)
-    can_log = save.with_name(save.stem + ".can.log")
+    can_log = args.can_log or save.with_name(save.stem + ".can.blf")
     endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
     timing = args.timing or "real-time"
     stop = threading.Event()
@@ -434,7 +443,8 @@ def _demo(robot: _Robot, run: Run, zenoh: ZenohSettings) -> bool:
 
 
 def _report_outputs(save: Path, can_log: Path, viz: Child) -> None:
-    for path, what in ((save, "rerun recording"), (can_log, "CAN log (candump)")):
+    kind = CAN_LOG_FORMATS.get(can_log.suffix.lower(), can_log.suffix.lstrip("."))
+    for path, what in ((save, "rerun recording"), (can_log, f"CAN log ({kind})")):
         if path.is_file():
             print(f"hil up: {what}: {path} ({path.stat().st_size / 1e6:.1f} MB)")
     if viz.process is not None:

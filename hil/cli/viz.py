@@ -38,8 +38,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sinks.add_argument("--serve", action="store_true",
                        help="serve the web viewer (prints its address)")
     parser.add_argument("--can-log", type=Path, metavar="FILE",
-                        help="also write every CAN frame to FILE (python-can format by suffix; "
-                             ".log is candump's)")
+                        help="also write every CAN frame to FILE (python-can's format by "
+                             "suffix: .blf Vector's binary log, channels numbered in the "
+                             "config's bus order; .log candump's text, channels named; .asc, "
+                             ".trc, .csv)")
     parser.add_argument("--no-can", action="store_true",
                         help="do not open the CAN buses (no bus load, no CAN log): for a host "
                              "that cannot reach them")
@@ -91,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
                 monitor.close()
                 # what the CAN log and the bus-load plot missed: a visualiser that falls
                 # behind loses frames (the transport drops them rather than stall a sender)
-                buses = common.bus_report(monitor.buses)
+                buses = common.bus_report(monitor.buses, monitor.channel_numbers)
             recording.flush()
             close_all()
             for signum, handler in previous.items():
