@@ -181,6 +181,31 @@ def test_a_stopped_simulator_is_named_as_the_bench_fault_and_ends_with_the_bench
 
 
 @needs_sigstop
+def test_a_stall_just_before_the_run_ends_is_still_named_as_the_bench_fault(tmp_path):
+    # the run ends within the attribution's grace after the silence it caused: the
+    # controller, stopping, waits for the stall's report instead of leaving it unexplained
+    up = hil("up", "ur3", "--real-time", "--no-viewer", "--duration", "1.3", "--save",
+             str(tmp_path / "run.rrd"), cwd=tmp_path)
+    try:
+        sim = None
+        for line in up.stdout:
+            found = re.search(r"sim ready \(pid (\d+)\)", line)
+            sim = int(found.group(1)) if found else sim
+            if line.strip().startswith("[") and "1.0 s]" in line:
+                break                            # 0.3 s before the end
+        os.kill(sim, signal.SIGSTOP)
+        time.sleep(STOP)
+        os.kill(sim, signal.SIGCONT)
+        out, err = up.communicate(timeout=120)
+    finally:
+        if up.poll() is None:
+            up.kill()
+            up.communicate()
+    assert up.returncode == 3, out[-3000:] + err[-3000:]
+    assert "WARN: bench fault, not a drive fault: " in err and "the simulator stalled" in err
+
+
+@needs_sigstop
 def test_max_stalls_stops_the_run_at_the_stall_past_the_limit(tmp_path):
     up = _up(tmp_path, "--max-stalls", "0")
     out, err = _stop_the_sim_once(up)

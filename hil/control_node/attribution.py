@@ -10,6 +10,7 @@ broke real time from a device that failed.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from hil.hardware import AxisFault, FaultKind
@@ -96,6 +97,10 @@ class FaultAttribution:
     def waiting(self) -> bool:
         """Whether a fault waits for its explanation."""
         return bool(self._faults)
+
+    def settled_at(self) -> float:
+        """When every waiting fault has had its GRACE (wall time; -inf if none waits)."""
+        return max((found_at + GRACE for _, found_at, _, _ in self._faults), default=-math.inf)
 
     def fault(self, fault: AxisFault, wall: float) -> None:
         """A fault found at ``wall`` (s since the epoch); only losses of frames can be the

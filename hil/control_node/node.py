@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 
 import zenoh
 
-from hil.control_node.attribution import Attribution, FaultAttribution
+from hil.control_node.attribution import GRACE, Attribution, FaultAttribution
 from hil.control_node.fault_reset import RESET_TIMEOUT, FaultReset
 from hil.controllers import Defaults, JointTrajectoryController
 from hil.controllers.joint_state import JointStateBroadcaster
@@ -209,6 +209,10 @@ class ControlNode:
         own = self.stalls.late(pacer.last_period - self.period, released)
         if own is not None:
             self._stall_publisher.publish(own)
+        self._attribute_waiting_faults()
+
+    def _attribute_waiting_faults(self) -> None:
+        """The stalls reported since, held against the faults that wait for them."""
         while not self._reported_stalls.empty():
             stall = self._reported_stalls.get_nowait()
             if stall.end >= self._cycling_since:    # not the bring-up's
@@ -219,6 +223,15 @@ class ControlNode:
                 self.bench_faults.append(attribution)
                 self._diagnose("WARN", attribution.message(), attribution.values())
 
+    def _attribute_at_the_end(self) -> None:
+        """Real time, the drives stopped: faults still in their grace get it (the reports of
+        stalls in flight are waited for, at most GRACE), so that a run ending right after
+        a stall does not leave the faults it caused unexplained."""
+        if self.lock_step or not self._attribution.waiting:
+            return
+        time.sleep(max(0.0, min(GRACE, self._attribution.settled_at() - time.time())))
+        self._attribute_waiting_faults()
+
     def _shut_down(self) -> None:
         """After the last cycle: fail a reset under way, abort the goal, disable the drives,
         publish what is left, close the faces."""
@@ -226,6 +239,7 @@ class ControlNode:
         self.controller.abort("the controller is shutting down")
         self._publish_results()
         self.hardware.stop()
+        self._attribute_at_the_end()
         self._publish_samples()
         for face in self.faces:
             face.close()
