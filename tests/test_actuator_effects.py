@@ -121,3 +121,18 @@ def test_the_simulator_and_hil_check_take_a_bus_configs_effects(tmp_path, capsys
     assert main(["check", str(config_path)]) == 0
     assert ("node 1 (yaw): coulomb_friction 0.02, viscous_friction 0.01, delay 0.002, "
             "no_load_speed 400") in capsys.readouterr().out
+
+
+def test_a_delay_between_plant_steps_is_rounded_and_said_so(tmp_path):
+    config_path = tmp_path / "one_axis.yaml"
+    config_path.write_text(
+        f"robot: {ONE_AXIS}\nplant_rate_hz: 1000\nbuses:\n  - name: axis\n"
+        "    interface: virtual\n    cycle_hz: 500\n"
+        "    drives:\n      - {node_id: 1, joint: yaw, effects: {delay: 0.0024}}\n")
+    config = load_bus_config(config_path)
+    (warning,) = [w for w in config.warnings if "delay" in w.message]
+    assert "0.0024 s is not a whole number of plant steps (0.001 s): the plant delays it 2 " \
+           "step(s)" in warning.message and warning.line == 8
+    plant = Plant(config.robot, timestep=0.001, effects=config.effects)
+    assert plant.model.actuator_delay[0] == pytest.approx(0.002)
+

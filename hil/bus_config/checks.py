@@ -40,6 +40,12 @@ def check_system(reader: Reader, config: SystemConfig, transmissions, top: LineM
     by_actuator: dict[str, list[DriveConfig]] = {}
     for drive in config.drives:
         by_actuator.setdefault(drive.actuator, []).append(drive)
+        steps = drive.effects.delay * config.plant_rate_hz
+        if abs(steps - round(steps)) > 1e-6:
+            reader.warn(f"{drive.label}: effects delay {drive.effects.delay:g} s is not a whole "
+                        f"number of plant steps ({1 / config.plant_rate_hz:g} s): the plant "
+                        f"delays it {round(steps)} step(s)", drive.line,
+                        hint="give a multiple of the plant step")
     for actuator, drives in by_actuator.items():
         if len(drives) > 1:
             reader.fail(f"actuator '{actuator}' has {len(drives)} drives "

@@ -124,8 +124,8 @@ def _add_losses(spec: mujoco.MjSpec, transmission: Transmission, binding: Actuat
         turned.solimp_friction = list(STICTION_IMPEDANCE)
     if losses.viscous_friction:
         actuator.damping = [losses.viscous_friction, 0.0, 0.0]
-    if losses.delay:
-        steps = round(losses.delay / timestep)
+    steps = round(losses.delay / timestep)      # the bus config says so where it rounds
+    if steps:
         actuator.delay = steps * timestep
         actuator.nsample = steps + 1
         actuator.interp = 0
