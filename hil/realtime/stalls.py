@@ -51,9 +51,11 @@ class Stall:
         return self.at + self.length
 
     def __str__(self) -> str:
+        # the window stays in the process that measured it (hil_msgs/Stall carries no window)
+        window = ("" if math.isnan(self.steal_window)
+                  else f" in the {self.steal_window * 1e3:.0f} ms")
         steal = ("" if math.isnan(self.steal) else
-                 f" (hypervisor steal {self.steal * 1e3:.0f} ms in the "
-                 f"{self.steal_window * 1e3:.0f} ms around it)")
+                 f" (hypervisor steal {self.steal * 1e3:.0f} ms{window} around it)")
         when = clock_time(self.at)
         what = PROCESS_WORDS.get(self.process, self.process)
         if self.process == "transport":
