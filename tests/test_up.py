@@ -94,6 +94,26 @@ def test_viz_records_every_published_cycle_of_the_controller(tmp_path, processes
         assert rows[f"/axes/{joint}/effort"] == logged
 
 
+def test_a_recording_cut_off_by_sigkill_reads_back_up_to_its_last_flush(tmp_path, processes):
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    control = hil("control", PIGOT_CONFIG, "--fake", "--listen", endpoint)
+    processes.append(control)
+    assert "hil control:" in control.stdout.readline()
+    save = tmp_path / "cut.rrd"
+    viz = hil("viz", PIGOT_CONFIG, "--no-can", "--connect", endpoint, "--save", str(save))
+    processes.append(viz)
+    assert "hil viz:" in viz.stdout.readline()
+    time.sleep(4.0)                          # 500 Hz: about 2000 cycles, several flushes
+    viz.kill()
+    viz.wait(timeout=20)
+    # no footer (it never closed): rerun scans the stream, as its viewer does
+    cycles = []
+    for chunk in rerun.chunk.RrdReader(save).stream():
+        if chunk.entity_path == "/axes/arm_rot_1/position" and not chunk.is_static:
+            cycles.append(chunk.num_rows)
+    assert sum(cycles) > 500, cycles
+
+
 @pytest.mark.slow
 def test_up_runs_the_demo_and_records_axes_robot_and_can_traffic(tmp_path):
     save = tmp_path / "out" / "run.rrd"
