@@ -98,13 +98,20 @@ def test_the_torque_speed_line_caps_driving_torque_at_peak_times_one_less_speed_
     assert measured_torque(parameters, speed, command) == pytest.approx(expected)
 
 
-def test_the_simulator_and_hil_check_take_a_bus_configs_effects(tmp_path, capsys):
-    config_path = tmp_path / "one_axis.yaml"
-    config_path.write_text(
+def one_axis_config(folder, effects: str):
+    """A bus config of the one axis (1 kHz plant, 500 Hz bus 'axis' on virtual channel
+    'one-axis-effects'), its drive's ``effects`` on line 9."""
+    path = folder / "one_axis.yaml"
+    path.write_text(
         f"robot: {ONE_AXIS}\nplant_rate_hz: 1000\nbuses:\n  - name: axis\n"
         "    interface: virtual\n    channel: one-axis-effects\n    cycle_hz: 500\n"
-        "    drives:\n      - {node_id: 1, joint: yaw, effects: {coulomb_friction: 0.02, "
-        "viscous_friction: 0.01, delay: 0.002, no_load_speed: 400}}\n")
+        f"    drives:\n      - {{node_id: 1, joint: yaw, effects: {{{effects}}}}}\n")
+    return path
+
+
+def test_the_simulator_and_hil_check_take_a_bus_configs_effects(tmp_path, capsys):
+    config_path = one_axis_config(tmp_path, "coulomb_friction: 0.02, viscous_friction: 0.01, "
+                                            "delay: 0.002, no_load_speed: 400")
     config = load_bus_config(config_path)
     buses = {"axis": can.Bus(interface="virtual", channel="one-axis-effects")}
     simulator = Simulator(config, buses)
@@ -124,15 +131,10 @@ def test_the_simulator_and_hil_check_take_a_bus_configs_effects(tmp_path, capsys
 
 
 def test_a_delay_between_plant_steps_is_rounded_and_said_so(tmp_path):
-    config_path = tmp_path / "one_axis.yaml"
-    config_path.write_text(
-        f"robot: {ONE_AXIS}\nplant_rate_hz: 1000\nbuses:\n  - name: axis\n"
-        "    interface: virtual\n    cycle_hz: 500\n"
-        "    drives:\n      - {node_id: 1, joint: yaw, effects: {delay: 0.0024}}\n")
-    config = load_bus_config(config_path)
+    config = load_bus_config(one_axis_config(tmp_path, "delay: 0.0024"))
     (warning,) = [w for w in config.warnings if "delay" in w.message]
     assert "0.0024 s is not a whole number of plant steps (0.001 s): the plant delays it 2 " \
-           "step(s)" in warning.message and warning.line == 8
+           "step(s)" in warning.message and warning.line == 9
     plant = Plant(config.robot, timestep=0.001, effects=config.effects)
     assert plant.model.actuator_delay[0] == pytest.approx(0.002)
 

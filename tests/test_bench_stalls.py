@@ -133,22 +133,24 @@ def test_the_detector_measures_a_late_wake_up_and_the_steal_around_it():
     assert detector.count == 1 and detector.late(math.nan) is None
 
 
-def _up(tmp_path, *extra: str) -> subprocess.Popen:
-    return hil("up", "ur3", "--real-time", "--no-viewer", "--duration", "6", "--save",
+def _up(tmp_path, *extra: str, duration: str = "6") -> subprocess.Popen:
+    return hil("up", "ur3", "--real-time", "--no-viewer", "--duration", duration, "--save",
                str(tmp_path / "run.rrd"), *extra, cwd=tmp_path)
 
 
-def _stop_the_sim_once(up: subprocess.Popen) -> tuple[str, str]:
-    """Once the controller cycles, stop ``up``'s simulator for STOP; the run's output."""
+def _stop_the_sim_once(up: subprocess.Popen, once: str = "control ready",
+                       settle: float = 1.5) -> tuple[str, str]:
+    """``settle`` s after ``up`` prints a line holding ``once`` (by default: after the
+    controller is up, once it cycles), stop its simulator for STOP; the run's output."""
     try:
         sim = None
         for line in up.stdout:
             found = re.search(r"sim ready \(pid (\d+)\)", line)
             sim = int(found.group(1)) if found else sim
-            if "control ready" in line:
+            if once in line:
                 break
         assert sim is not None, "hil up named no simulator"
-        time.sleep(1.5)                          # the controller cycles
+        time.sleep(settle)
         try:
             os.kill(sim, signal.SIGSTOP)
             time.sleep(STOP)
@@ -188,23 +190,8 @@ def test_a_stopped_simulator_is_named_as_the_bench_fault_and_ends_with_the_bench
 def test_a_stall_just_before_the_run_ends_is_still_named_as_the_bench_fault(tmp_path):
     # the run ends within the attribution's grace after the silence it caused: the
     # controller, stopping, waits for the stall's report instead of leaving it unexplained
-    up = hil("up", "ur3", "--real-time", "--no-viewer", "--duration", "1.3", "--save",
-             str(tmp_path / "run.rrd"), cwd=tmp_path)
-    try:
-        sim = None
-        for line in up.stdout:
-            found = re.search(r"sim ready \(pid (\d+)\)", line)
-            sim = int(found.group(1)) if found else sim
-            if line.strip().startswith("[") and "1.0 s]" in line:
-                break                            # 0.3 s before the end
-        os.kill(sim, signal.SIGSTOP)
-        time.sleep(STOP)
-        os.kill(sim, signal.SIGCONT)
-        out, err = up.communicate(timeout=120)
-    finally:
-        if up.poll() is None:
-            up.kill()
-            up.communicate()
+    up = _up(tmp_path, duration="1.3")
+    out, err = _stop_the_sim_once(up, once="[   1.0 s]", settle=0.0)   # 0.3 s before the end
     assert up.returncode == 3, out[-3000:] + err[-3000:]
     assert "WARN: bench fault, not a drive fault: " in err and "the simulator stalled" in err
 

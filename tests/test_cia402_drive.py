@@ -213,6 +213,18 @@ def _raw(bench, arbitration_id, data):
                                       is_extended_id=False))
 
 
+def _torque_seen(bench, node, frames, expected: int, seconds: float = 2.0) -> int:
+    """Send ``frames`` each cycle until TPDO2's torque is ``expected`` or time is up; the
+    last torque seen."""
+    deadline, measured = time.monotonic() + seconds, None
+    while time.monotonic() < deadline and measured != expected:
+        for arbitration_id, data in frames:
+            _raw(bench, arbitration_id, data)
+        node.tpdo[2].wait_for_reception(1)
+        measured = node.tpdo[2]["Torque actual value"].raw
+    return measured
+
+
 def test_csv_and_cst_modes_move_the_joint(bench):
     node = enable_csp(bench)
     node.op_mode = "CYCLIC SYNCHRONOUS VELOCITY"
@@ -230,25 +242,8 @@ def test_csv_and_cst_modes_move_the_joint(bench):
     assert node.tpdo[1]["Position actual value"].raw > start
     node.op_mode = "CYCLIC SYNCHRONOUS TORQUE"
     torque = 100                                                      # per mille of rated
-    deadline = time.monotonic() + 5
-    measured = 0
-    while time.monotonic() < deadline and measured != torque:
-        _raw(bench, 0x401, struct.pack("<Hh", 0x0F, torque))
-        node.tpdo[2].wait_for_reception(1)
-        measured = node.tpdo[2]["Torque actual value"].raw
-    assert measured == torque
-
-
-def _torque_seen(bench, node, frames, expected: int, seconds: float = 2.0) -> int:
-    """Send ``frames`` each cycle until TPDO2's torque is ``expected`` or time is up; the
-    last torque seen."""
-    deadline, measured = time.monotonic() + seconds, None
-    while time.monotonic() < deadline and measured != expected:
-        for arbitration_id, data in frames:
-            _raw(bench, arbitration_id, data)
-        node.tpdo[2].wait_for_reception(1)
-        measured = node.tpdo[2]["Torque actual value"].raw
-    return measured
+    assert _torque_seen(bench, node, [(0x401, struct.pack("<Hh", 0x0F, torque))], torque,
+                        seconds=5) == torque
 
 
 def test_rpdo4_carries_the_offsets_once_a_master_makes_it_valid(bench):

@@ -66,7 +66,7 @@ def bus_summary(config: SystemConfig) -> str:
                          f"{'yes' if d.holding_brake else 'no'}")
     effects = config.effects
     options = {d.label: d.options for d in config.drives
-               if d.options is not None and getattr(d.options, "feed_forward", "none") != "none"}
+               if getattr(d.options, "sends_velocity", False)}
     if effects or options:
         lines += ["", "  in force beyond the perfect motor and gear (motor side):"]
         lines += [f"    {d.label}: " + ", ".join(f"{key} {value:g}" for key, value in

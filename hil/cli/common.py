@@ -117,11 +117,13 @@ def refuse_a_second(zenoh: ZenohSettings, robot: str, process: str) -> None:
                  f"--connect, or ${MEETING_VARIABLE})")
 
 
-def unreachable(zenoh: ZenohSettings, what: str, hint: str) -> HilError:
-    """The error for a peer that never answered: ``what``, and why, where the session
-    reached nobody at all (``why_unreached``)."""
+def no_controller(zenoh: ZenohSettings, robot: str) -> HilError:
+    """The error for a client whose robot's ``hil control`` never answered, with why where
+    the session reached nobody at all (``why_unreached``)."""
+    what = f"no hil control for robot '{robot}' is reachable"
     why = why_unreached(zenoh)
-    return HilError.single(f"{what}: {why}" if why else what, hint=hint)
+    return HilError.single(f"{what}: {why}" if why else what,
+                           hint="start `hil control CONFIG` (or check --connect)")
 
 
 def add_ros(parser: argparse.ArgumentParser, what: str) -> None:

@@ -66,9 +66,7 @@ def run(args: argparse.Namespace) -> int:
     client = TrajectoryActionClient(session(zenoh), args.robot)
     try:
         if not client.wait_for_controller(15.0):
-            raise common.unreachable(zenoh, f"no hil control for robot '{args.robot}' is "
-                                     "reachable", "start `hil control CONFIG` (or check "
-                                     "--connect)")
+            raise common.no_controller(zenoh, args.robot)
         return _follow(client, goal, args, (GoalRejected, ControllerGone, TimeoutError))
     finally:
         client.close()

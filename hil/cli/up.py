@@ -250,19 +250,19 @@ def _children(args: argparse.Namespace, robots: list[_Robot], faults: list, endp
     for index, robot in enumerate(robots):
         config = [str(robot.config_path), *_can_options(args, robot.config), *shared]
         ros = _ros_options(args, robot.name, several)
-        log = (lambda role, name=robot.name: logs / f"{name}.{role}.log") if several else (
-            lambda role: logs / f"{role}.log")
+        tag = robot.name if several else ""         # in its messages and its logs' names
+        prefix = f"{tag}." if tag else ""
         meet = ["--listen" if index == 0 else "--connect", endpoint]
         robot.children = {
             "sim": Child("sim", ["sim", *config, *lock_step, *placed["sim"], *meet,
-                                 "--status-period", "0", *sim_faults, *ros], log("sim"),
-                         robot.name if several else ""),
+                                 "--status-period", "0", *sim_faults, *ros],
+                         logs / f"{prefix}sim.log", tag),
             "control": Child("control", [
                 "control", *config, *lock_step, *placed["control"], "--connect", endpoint, *ros,
                 # the sim already runs: a drive silent at boot is a fault
                 "--boot-timeout", f"{BOOT_TIMEOUT:g}",
                 *(["--ros-use-sim-time"] if args.ros_use_sim_time else [])],
-                log("control"), robot.name if several else ""),
+                logs / f"{prefix}control.log", tag),
         }
     return Child("viz", ["viz", *(str(r.config_path) for r in robots),
                          *_can_options(args, robots[0].config), *shared, *lock_step,

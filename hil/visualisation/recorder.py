@@ -17,7 +17,7 @@ for all of them 1-3 ms per batch):
 ``loop/stalls/<process>``               each stall of a real-time process (sim, control,
                                         transport): its length (ms) where it began
 ``diagnostics``                         the controller's faults and resets (TextLog)
-``robot/...``, ``joints/<joint>``       the URDF (rerun's loader) and joint transforms
+``robot/...``, ``joints/<joint>``       the URDF (rerun's UrdfTree) and joint transforms
 ======================================  ==============================================
 
 Several robots in one recording (``hil up ur3 pigot``): each robot's entities lie under

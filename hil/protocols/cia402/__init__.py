@@ -44,6 +44,11 @@ class Cia402Options:
 
     KEYS = ("feed_forward",)
 
+    @property
+    def sends_velocity(self) -> bool:
+        """Whether the master sends RPDO4 (the velocity offset) every cycle."""
+        return self.feed_forward == "velocity"
+
     @classmethod
     def from_mapping(cls, values: dict) -> Cia402Options:
         options = cls(**{k: str(v) for k, v in values.items()})
@@ -69,7 +74,7 @@ class Cia402(Protocol):
         RPDO1 (controlword, target), TPDO1, TPDO2 per SYNC, and RPDO4 (velocity and torque
         offsets) with feed-forward; heartbeat; EMCY and SDO only on events (their ids are
         reserved)."""
-        feed_forward = options is not None and options.feed_forward != "none"
+        feed_forward = options is not None and options.sends_velocity
         return [(0x200 + node_id, 6, cycle_hz), (0x180 + node_id, 6, cycle_hz),
                 (0x280 + node_id, 6, cycle_hz), (0x700 + node_id, 1, 1.0 / heartbeat_period),
                 *([(0x500 + node_id, 6, cycle_hz)] if feed_forward else []),

@@ -28,6 +28,12 @@ _TPDO1 = struct.Struct("<Hi")       # statusword, position actual
 _TPDO2 = struct.Struct("<ih")       # velocity actual, torque actual
 _RPDO4 = struct.Struct("<ih")       # velocity offset, torque offset
 
+
+def _int32(value: float) -> int:
+    """A value for an INTEGER32 object, clamped as a drive would (the drive's own is in
+    ``.state``, compiled, which the controller's side never loads)."""
+    return max(-2**31, min(2**31 - 1, round(value)))
+
 # the controlwords, by canopen's names
 SHUTDOWN, SWITCH_ON, ENABLE = State402.CW_SHUTDOWN, State402.CW_SWITCH_ON, \
     State402.CW_OPERATION_ENABLED
@@ -59,9 +65,8 @@ class Cia402Axis(Axis):
         self.last_emcy: int | None = None
         self._emcy_cycle = 0          # the master's cycle when it arrived
         self._operational = False     # its heartbeat said OPERATIONAL since configure()
-        options = config.options or Cia402Options()
         #: RPDO4 (velocity offset) beside each target: the trajectory's velocity
-        self.feed_forward = options.feed_forward == "velocity"
+        self.feed_forward = (config.options or Cia402Options()).sends_velocity
 
     # --- network hooks ----------------------------------------------------------
 
@@ -184,8 +189,7 @@ class Cia402Axis(Axis):
                                                     else self.feedback.position), False)]
         if self.feed_forward:
             speed = velocity * self.counts_per_rad if following and not stopping else 0.0
-            frames.append((0x500 + self.node_id, _RPDO4.pack(
-                max(-2**31, min(2**31 - 1, round(speed))), 0), False))
+            frames.append((0x500 + self.node_id, _RPDO4.pack(_int32(speed), 0), False))
         return frames
 
     def disable_rounds(self) -> list[list[Frame]]:
@@ -218,8 +222,7 @@ class Cia402Axis(Axis):
                 "SWITCHED ON": ENABLE, "OPERATION ENABLED": ENABLE}.get(state, SHUTDOWN)
 
     def rpdo(self, controlword: int, target: float) -> bytes:
-        counts = max(-2**31, min(2**31 - 1, round(target * self.counts_per_rad)))
-        return _RPDO1.pack(controlword, counts)
+        return _RPDO1.pack(controlword, _int32(target * self.counts_per_rad))
 
     def fault(self, stopping: bool = False) -> AxisFault | None:
         if self.rebooted:
