@@ -128,7 +128,7 @@ class Simulator:
         self.lock_step = lock_step
         self.lock = PlantPresent(self._advance)
         self.plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz,
-                           effects=config.effects)
+                           effects=config.effects, scene=config.scene)
         self.steps_per_cycle = config.steps_per_cycle
         self.cycles = 0
         self.overruns = 0          # real time: gaps skipped (the process stalled)

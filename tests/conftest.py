@@ -220,11 +220,17 @@ def ur3_at_100hz(folder: Path) -> Path:
     across processes on a shared 2-CPU machine: at 500 Hz the master rightly calls a drive
     silent after 5 missed answers (8 ms), and a busy neighbour stalls a process that long now
     and then; at 100 Hz that takes 40 ms, so tests that pin something else are not flaky."""
-    config = yaml.safe_load((ROOT / "bus_config" / "ur3.yaml").read_text())
+    return shipped_at_100hz("ur3", folder)
+
+
+def shipped_at_100hz(name: str, folder: Path) -> Path:
+    """bus_config/<name>.yaml with its buses at 100 Hz, written into ``folder`` (see
+    :func:`ur3_at_100hz`)."""
+    config = yaml.safe_load((ROOT / "bus_config" / f"{name}.yaml").read_text())
     config["robot"] = str((ROOT / "bus_config" / config["robot"]).resolve())
     for bus in config["buses"]:
         bus["cycle_hz"] = 100
-    path = folder / "ur3_100hz.yaml"
+    path = folder / f"{name}_100hz.yaml"
     path.write_text(yaml.safe_dump(config))
     return path
 

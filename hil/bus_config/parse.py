@@ -9,6 +9,7 @@ import yaml
 
 from hil.bus_config.checks import check_system
 from hil.bus_config.joint_limits import apply_joint_limits
+from hil.bus_config.scene import read_scene
 from hil.bus_config.transmissions import add_transmissions
 from hil.bus_config.types import (
     NO_EFFECTS, ActuatorEffects, BusConfig, DriveConfig, Gains, SystemConfig,
@@ -20,7 +21,8 @@ from hil.protocols import names as protocol_names
 from hil.protocols import protocol
 from hil.transmissions import SimpleTransmission, Transmission, build_transmissions
 
-_TOP_KEYS = {"robot", "plant_rate_hz", "defaults", "joint_limits", "transmissions", "buses"}
+_TOP_KEYS = {"robot", "plant_rate_hz", "defaults", "joint_limits", "transmissions", "buses",
+             "scene"}
 _BUS_KEYS = {"name", "interface", "channel", "bitrate", "cycle_hz", "drives"}
 _DRIVE_KEYS = {"node_id", "joint", "actuator", "protocol", "encoder_counts_per_rev",
                "rated_torque", "peak_torque", "max_velocity", "following_error_limit",
@@ -74,14 +76,16 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
         raise HilError(reader.diagnostics)
     buses = tuple(_read_bus(reader, raw, index, robot, transmissions, defaults)
                   for index, raw in enumerate(raw_buses))
-    config = SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses)
+    scene = read_scene(reader, top)
+    config = SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses,
+                          scene=scene)
     check_system(reader, config, transmissions, top)
     errors = [d for d in reader.diagnostics if d.severity is Severity.ERROR]
     warnings = tuple(d for d in reader.diagnostics if d.severity is Severity.WARNING)
     if errors:
         raise HilError(errors + list(warnings))
     return SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses,
-                        warnings=robot.warnings + warnings)
+                        warnings=robot.warnings + warnings, scene=scene)
 
 
 def _read_bus(reader: Reader, raw, index: int, robot: RobotDescription,

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hil.can import BusLoad, bus_load
-from hil.description import RobotDescription
+from hil.description import Geometry, Pose, RobotDescription
 from hil.errors import Diagnostic
 from hil.protocols import protocol
 
@@ -50,6 +50,25 @@ class ActuatorEffects:
 
 
 NO_EFFECTS = ActuatorEffects()
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """A thing in the robot's world (the bus config's ``scene:``): a ground plane, a table, a
+    box to grasp. With a mass it moves freely (MuJoCo's free joint) from its pose; without,
+    it is fixed in the world. The robot's links touch it through their ``<collision>``
+    shapes."""
+
+    name: str
+    geometry: Geometry
+    pose: Pose
+    mass: float = 0.0            # kg; 0: fixed in the world
+    friction: float = 1.0        # sliding friction coefficient against what it touches
+    line: int | None = None
+
+    @property
+    def movable(self) -> bool:
+        return self.mass > 0
 
 
 @dataclass(frozen=True)
@@ -123,6 +142,7 @@ class SystemConfig:
     plant_rate_hz: float
     buses: tuple[BusConfig, ...]
     warnings: tuple[Diagnostic, ...] = field(default=(), compare=False)
+    scene: tuple[SceneObject, ...] = ()
 
     @property
     def effects(self) -> dict[str, ActuatorEffects]:

@@ -8,8 +8,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from hil.bus_config import SystemConfig, load_bus_config
+from hil.bus_config.types import SceneObject
 from hil.cli import common
-from hil.description import PackagePath, RobotDescription, load_description
+from hil.description import GeometryKind, PackagePath, RobotDescription, load_description
 from hil.errors import HilError, Severity
 from hil.plant import Plant
 
@@ -30,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     if args.path.suffix in (".yaml", ".yml"):
         config = load_bus_config(args.path, package_path)
         plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz,   # as hil sim builds it
-                      effects=config.effects)
+                      effects=config.effects, scene=config.scene)
         config = replace(config, warnings=config.warnings + plant.warnings)
         if args.strict and config.warnings:
             raise HilError([replace(w, severity=Severity.ERROR) for w in config.warnings])
@@ -73,6 +74,9 @@ def bus_summary(config: SystemConfig) -> str:
                                               d.effects.in_force().items())
                   for d in config.drives if d.actuator in effects]
         lines += [f"    {label}: feed_forward {o.feed_forward}" for label, o in options.items()]
+    lines += ["", f"  contacts: {collision_summary(config.robot)}"
+                  + (", touching the scene:" if config.scene else "; no scene to touch")]
+    lines += [f"    {scene_line(thing)}" for thing in config.scene]
     lines.append("")
     lines.append("  units: motor side; torque N·m, velocity rad/s, following error rad, "
                  "watchdog s; effects: friction N·m and N·m·s/rad, delay s, no-load speed rad/s")
@@ -81,6 +85,27 @@ def bus_summary(config: SystemConfig) -> str:
     else:
         lines.append("  no warnings")
     return "\n".join(lines)
+
+
+def collision_summary(description: RobotDescription) -> str:
+    """How many collision shapes the robot has, on how many links, and how many stand in
+    for a missing mesh."""
+    shapes = [c for link in description.links for c in link.collisions]
+    links = sum(1 for link in description.links if link.collisions)
+    missing = sum(1 for c in shapes if c.geometry.missing_mesh)
+    return (f"{len(shapes)} collision shape(s) on {links} of {len(description.links)} links"
+            + (f" ({missing} the box of a link whose mesh is missing)" if missing else ""))
+
+
+def scene_line(thing: SceneObject) -> str:
+    """One scene object: shape, size, where, and whether it moves."""
+    geometry = thing.geometry
+    size = (f" {' x '.join(f'{v:g}' for v in geometry.size)} m"
+            if geometry.kind is not GeometryKind.MESH else f" {geometry.mesh.name}")
+    where = ", ".join(f"{v:g}" for v in thing.pose.xyz)
+    moves = f"{thing.mass:g} kg, free" if thing.movable else "fixed"
+    return (f"{thing.name}: {geometry.kind.value}{size if geometry.size else ''} at ({where}), "
+            f"{moves}, friction {thing.friction:g}")
 
 
 def summary(description: RobotDescription, plant: Plant, package_path: PackagePath) -> str:
@@ -126,6 +151,7 @@ def summary(description: RobotDescription, plant: Plant, package_path: PackagePa
                          f"{reduction:>10.5g}{actuator.rotor_inertia:>10.2g}"
                          f"{limits[actuator.name]:>12.4g}  {joints}")
     model = plant.model
+    lines += ["", f"  contacts: {collision_summary(description)}"]
     lines += ["", f"  MuJoCo: {model.nq} dof, {model.nu} actuators, {model.neq} mimic "
                   f"constraint(s), timestep {model.opt.timestep * 1e3:g} ms"]
     warnings = description.warnings + plant.warnings

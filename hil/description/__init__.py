@@ -8,9 +8,9 @@ package look-up of ``$(find)`` and ``package://``) load on first use.
 from __future__ import annotations
 
 from hil.description.model import (
-    TRANSMISSION_TYPES, WORLD, Geometry, GeometryKind, Inertial, Joint, JointDynamics, JointLimits,
-    JointType, Link, Mimic, Pose, RobotDescription, TransmissionActuator, TransmissionJoint,
-    TransmissionSpec, Visual,
+    TRANSMISSION_TYPES, WORLD, Collision, Geometry, GeometryKind, Inertial, Joint, JointDynamics,
+    JointLimits, JointType, Link, Mimic, Pose, RobotDescription, TransmissionActuator,
+    TransmissionJoint, TransmissionSpec, Visual,
 )
 from hil.lazy import lazy_exports
 
@@ -19,7 +19,8 @@ __getattr__ = lazy_exports(__name__, {
     "project_robots_dir": "hil.description.packages"})
 
 __all__ = [
-    "WORLD", "Geometry", "GeometryKind", "Inertial", "Joint", "JointDynamics", "JointLimits", "JointType",
+    "WORLD", "Collision", "Geometry", "GeometryKind", "Inertial", "Joint", "JointDynamics",
+    "JointLimits", "JointType",
     "Link", "Mimic", "PackagePath", "Pose", "RobotDescription", "TRANSMISSION_TYPES",
     "TransmissionActuator", "TransmissionJoint", "TransmissionSpec", "Visual",
     "load_description", "project_robots_dir",

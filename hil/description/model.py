@@ -63,6 +63,8 @@ class GeometryKind(enum.Enum):
     CYLINDER = "cylinder"
     SPHERE = "sphere"
     MESH = "mesh"
+    #: a scene's ground (never in a URDF): the plane z = 0 of its pose, endless
+    PLANE = "plane"
 
 
 @dataclass(frozen=True)
@@ -89,10 +91,20 @@ class Visual:
 
 
 @dataclass(frozen=True)
+class Collision:
+    """A ``<collision>`` shape: what the link touches the scene with (a mesh as its convex
+    hull)."""
+
+    origin: Pose
+    geometry: Geometry
+
+
+@dataclass(frozen=True)
 class Link:
     name: str
     inertial: Inertial | None = None
     visuals: tuple[Visual, ...] = ()
+    collisions: tuple[Collision, ...] = ()
 
 
 class JointType(enum.Enum):

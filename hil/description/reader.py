@@ -52,6 +52,8 @@ class ElementReader:
         self.diagnostics: list[Diagnostic] = []
         #: fixed/floating joints whose zero axis was ignored (reported once, together)
         self.ignored_axes: list[str] = []
+        #: mesh URIs reported missing
+        self.missing_meshes: set[str] = set()
 
     def report(self, make, message: str, tag: str, name: str, hint: str | None = None) -> None:
         file, line = self.index.locate(tag, name)

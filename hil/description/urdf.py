@@ -12,7 +12,7 @@ from hil.description.corrections import (
     give_moving_links_mass, note_ignored_axes, note_world_link, physical_inertia,
 )
 from hil.description.model import (
-    Geometry, GeometryKind, Inertial, Joint, JointDynamics, JointLimits, JointType, Link,
+    Collision, Geometry, GeometryKind, Inertial, Joint, JointDynamics, JointLimits, JointType, Link,
     Mimic, RobotDescription, TransmissionSpec, Visual,
 )
 from hil.description.packages import PackagePath
@@ -86,22 +86,41 @@ def _read_link(reader: ElementReader, element: ET.Element) -> Link:
                                "MuJoCo needs positive moments with A + B >= C")
     visuals = tuple(v for v in (_read_visual(reader, name, e) for e in element.findall("visual"))
                     if v is not None)
-    return Link(name=name, inertial=inertial, visuals=visuals)
+    collisions = tuple(c for c in (_read_collision(reader, name, e)
+                                   for e in element.findall("collision")) if c is not None)
+    return Link(name=name, inertial=inertial, visuals=visuals, collisions=collisions)
 
 
-def _read_visual(reader: ElementReader, link: str, element: ET.Element) -> Visual | None:
+def _read_collision(reader: ElementReader, link: str, element: ET.Element) -> Collision | None:
+    geometry = _read_shape(reader, link, element, "collides", "left out")
+    if geometry is None:
+        return None
+    return Collision(origin=reader.pose(element.find("origin"), "link", link), geometry=geometry)
+
+
+def _read_shape(reader: ElementReader, link: str, element: ET.Element, role: str,
+                left_out: str) -> Geometry | None:
+    """The geometry of a ``<visual>`` or ``<collision>``, or None (said so, with
+    ``left_out``) where it has none or is a placeholder of size 0 (ROS tools draw nothing
+    for it; MuJoCo refuses a geom of size 0)."""
     geometry_element = element.find("geometry")
     shape = geometry_element[0] if geometry_element is not None and len(geometry_element) else None
     if shape is None:
-        reader.report(warning, f"link '{link}' has a <visual> without geometry; it is not drawn",
-                      "link", link)
+        reader.report(warning, f"link '{link}' has a <{element.tag}> without geometry; "
+                      f"it is {left_out}", "link", link)
         return None
-    geometry = _read_geometry(reader, link, shape)
+    geometry = _read_geometry(reader, link, shape, role)
     if geometry.kind is not GeometryKind.MESH and geometry.size and min(geometry.size) <= 0:
-        # a placeholder (ROS tools draw nothing for it; MuJoCo refuses a geom of size 0)
-        reader.report(warning, f"link '{link}' has a <visual> {shape.tag} of size "
-                      f"{' '.join(f'{v:g}' for v in geometry.size)}: a placeholder, not drawn",
-                      "link", link, hint="remove the <visual>, or give it a positive size")
+        reader.report(warning, f"link '{link}' has a <{element.tag}> {shape.tag} of size "
+                      f"{' '.join(f'{v:g}' for v in geometry.size)}: a placeholder, {left_out}",
+                      "link", link, hint=f"remove the <{element.tag}>, or give it a positive size")
+        return None
+    return geometry
+
+
+def _read_visual(reader: ElementReader, link: str, element: ET.Element) -> Visual | None:
+    geometry = _read_shape(reader, link, element, "drawn", "not drawn")
+    if geometry is None:
         return None
     rgba = None
     color = element.find("material/color")
@@ -118,7 +137,8 @@ def _read_visual(reader: ElementReader, link: str, element: ET.Element) -> Visua
                   rgba=rgba)
 
 
-def _read_geometry(reader: ElementReader, link: str, shape: ET.Element) -> Geometry:
+def _read_geometry(reader: ElementReader, link: str, shape: ET.Element, role: str) -> Geometry:
+    """The shape; ``role`` ("drawn" or "collides") words what a missing mesh becomes."""
     what = f"link '{link}' {shape.tag}"
     if shape.tag == "box":
         return Geometry(GeometryKind.BOX,
@@ -137,22 +157,28 @@ def _read_geometry(reader: ElementReader, link: str, shape: ET.Element) -> Geome
         path = reader.find_mesh(uri)
         if path is not None:
             return Geometry(GeometryKind.MESH, scale, mesh=path)
-        package = uri[len("package://"):].partition("/")[0] if uri.startswith("package://") else None
-        if package and reader.package_path.find(package) is None:
-            reader.report(
-                warning, f"link '{link}' mesh '{uri}' not found: package '{package}' is not on "
-                f"the package path ({reader.package_path.describe()}); drawn as a box of the "
-                "link's equivalent inertia instead", "link", link,
-                hint=f"add the folder that holds '{package}' with --package-path DIR")
-        else:
-            reader.report(
-                warning, f"link '{link}' mesh '{uri}' not found; drawn as a box of the link's "
-                "equivalent inertia instead", "link", link,
-                hint="add the mesh file to its package, or use --strict to make this an error")
+        if uri not in reader.missing_meshes:      # a visual and a collision may share it
+            reader.missing_meshes.add(uri)
+            _report_missing_mesh(reader, link, uri, role)
         return Geometry(GeometryKind.BOX, (), missing_mesh=uri)
     reader.report(error, f"link '{link}' has unknown geometry <{shape.tag}>", "link", link,
                   hint="use <box>, <cylinder>, <sphere> or <mesh>")
     return Geometry(GeometryKind.BOX, (0.05,) * 3)
+
+
+def _report_missing_mesh(reader: ElementReader, link: str, uri: str, role: str) -> None:
+    package = uri[len("package://"):].partition("/")[0] if uri.startswith("package://") else None
+    if package and reader.package_path.find(package) is None:
+        reader.report(
+            warning, f"link '{link}' mesh '{uri}' not found: package '{package}' is not on "
+            f"the package path ({reader.package_path.describe()}); {role} as a box of the "
+            "link's equivalent inertia instead", "link", link,
+            hint=f"add the folder that holds '{package}' with --package-path DIR")
+    else:
+        reader.report(
+            warning, f"link '{link}' mesh '{uri}' not found; {role} as a box of the link's "
+            "equivalent inertia instead", "link", link,
+            hint="add the mesh file to its package, or use --strict to make this an error")
 
 
 def _check_links(reader: ElementReader, links: tuple[Link, ...]) -> None:

@@ -18,7 +18,8 @@ import numpy as np
 from hil.description import RobotDescription
 from hil.errors import Diagnostic, warning
 from hil.plant.builder import (
-    DEFAULT_TIMESTEP, MUJOCO_MESHES, ActuatorLosses, build_spec, compile_model, unreadable_mesh,
+    DEFAULT_TIMESTEP, MUJOCO_MESHES, ActuatorLosses, ScenePart, build_spec, compile_model,
+    unreadable_mesh,
 )
 from hil.transmissions import Transmission, TransmissionStack, build_transmissions
 
@@ -33,13 +34,16 @@ class Plant:
     """
 
     def __init__(self, description: RobotDescription, timestep: float = DEFAULT_TIMESTEP,
-                 effects: Mapping[str, ActuatorLosses] | None = None):
-        """``effects``: the motor losses of actuators that have any, by actuator name."""
+                 effects: Mapping[str, ActuatorLosses] | None = None,
+                 scene: tuple[ScenePart, ...] = ()):
+        """``effects``: the motor losses of actuators that have any, by actuator name;
+        ``scene``: the things in the robot's world."""
         _avoid_slow_clock()
         self.description = description
+        self.scene = scene
         self.transmissions: tuple[Transmission, ...] = build_transmissions(description)
         self.spec, self.bindings = build_spec(description, self.transmissions, timestep,
-                                              effects)
+                                              effects, scene)
         self.model = compile_model(self.spec, description)
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)
@@ -149,6 +153,14 @@ class Plant:
                     joint.mimic.multiplier * leader + joint.mimic.offset)
         self.data.qvel[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
+
+    # --- the scene -----------------------------------------------------------
+
+    def object_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Where a scene object is: its position (m) and orientation (quaternion w, x, y, z)
+        in the world."""
+        body = self.data.body(name)
+        return body.xpos.copy(), body.xquat.copy()
 
     def inverse_dynamics(self) -> np.ndarray:
         """Joint forces MuJoCo needs for the current state and acceleration."""
