@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import queue
 import signal
 import socket
@@ -306,3 +307,16 @@ class DelayingRelay:
         self._closed.set()
         for each in self._sockets:
             each.close()
+
+
+def read_rrd(path):
+    """Rows per entity (temporal) and the static entity paths of an .rrd file."""
+    import rerun.chunk      # noqa: PLC0415 (only the recording tests need rerun)
+
+    rows, static = collections.Counter(), set()
+    for chunk in rerun.chunk.RrdReader(path).store().stream():
+        if chunk.is_static:
+            static.add(chunk.entity_path)
+        else:
+            rows[chunk.entity_path] += chunk.num_rows
+    return rows, static

@@ -1,9 +1,11 @@
 """Contacts: the robot's ``<collision>`` shapes touch the bus config's scene (never each
-other), and the pigot's gripper picks up the cube of bus_config/pigot_pick.yaml through its
-CiA 402 drives, in lock-step and in real time."""
+other), the pigot's gripper picks up the cube of bus_config/pigot_pick.yaml through its
+CiA 402 drives, in lock-step and in real time, and the recording follows the scene."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 
 import mujoco
@@ -16,10 +18,11 @@ from hil.cli import main
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.description import Pose, load_description
 from hil.errors import HilError
+from hil.messaging.scene import SceneState
 from hil.messaging.zenoh_api import TrajectoryActionClient
 from hil.plant import Plant
 from hil.stack import running_stack
-from conftest import ROOT, shipped_at_100hz
+from conftest import ROOT, read_rrd, shipped_at_100hz
 
 PICK = ROOT / "bus_config" / "pigot_pick.yaml"
 PIGOT = ROOT / "robots" / "pigot_description" / "urdf" / "pigot.xacro"
@@ -194,3 +197,47 @@ def test_hil_check_lists_the_collision_shapes_and_the_scene(capsys):
     assert "contacts: 9 collision shape(s) on 9 of 10 links, touching the scene:" in out
     assert "cube: box 0.04 x 0.04 x 0.04 m at (0, -0.966, 0.76), 0.05 kg, free" in out
     assert "post: box 0.03 x 0.03 x 0.74 m at (0, -0.966, 0.37), fixed" in out
+
+
+def test_contact_forces_carry_a_resting_objects_weight(pick):
+    """A 50 g cube at rest on a post away from the arm: the contacts' forces on it sum to its
+    weight, straight up."""
+    post, cube = pick.scene
+    away = (SceneObject("stand", post.geometry, Pose((2.0, 0.0, 0.37))),
+            SceneObject("load", cube.geometry, Pose((2.0, 0.0, 0.761)), mass=0.05))
+    plant = Plant(pick.robot, scene=away)
+    plant.step(1000)
+    points, forces = plant.contacts()
+    model, data = plant.model, plant.data
+    load = model.body("load").id
+    on_load = sum(force if model.geom_bodyid[contact.geom1] == load else -force
+                  for contact, force in zip(data.contact[:data.ncon], forces))
+    assert len(points) >= 1 and np.allclose(points[:, 2], 0.74, atol=1e-3)
+    np.testing.assert_allclose(on_load, [0.0, 0.0, 0.05 * 9.81], atol=2e-3)
+
+
+def test_scene_states_survive_encoding_and_malformed_ones_are_refused():
+    state = SceneState(1.5, 0.25, ("cube",), np.array([[0.0, -0.9, 0.8]]),
+                       np.array([[1.0, 0.0, 0.0, 0.0]]), np.array([[0.0, -0.9, 0.74]] * 2),
+                       np.array([[0.0, 0.0, 0.25]] * 2))
+    back = SceneState.decode(state.encode())
+    assert back.names == ("cube",) and (back.wall_time, back.sim_time) == (1.5, 0.25)
+    for name in ("positions", "orientations", "contact_points", "contact_forces"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(state, name))
+    broken = SceneState(1.5, 0.25, ("cube", "ball"), state.positions, state.orientations,
+                        state.contact_points, state.contact_forces)
+    with pytest.raises(ValueError, match="'position' has 3 values, 2 x 3 expected"):
+        SceneState.decode(broken.encode())
+
+
+@pytest.mark.slow
+def test_the_recording_draws_the_scene_and_follows_the_cube_and_the_contacts(tmp_path):
+    save = tmp_path / "run.rrd"
+    result = subprocess.run([sys.executable, "-m", "hil", "up", str(PICK), "--lock-step",
+                             "--duration", "2", "--no-viewer", "--save", str(save)],
+                            capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    rows, static = read_rrd(save)
+    assert {"/scene/post", "/scene/cube"} <= static         # shapes, and the post's pose
+    # the sim's scene at its clock's rate (20 Hz of wall time): a 2 s run at least 40 poses
+    assert rows["/scene/cube"] >= 40 and rows["/scene/contacts"] == rows["/scene/cube"]

@@ -21,7 +21,7 @@ from hil.cli import up
 from hil.cli.run_progress import Progress
 from hil.messaging.zenoh_api import RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
-from conftest import ROOT, free_port
+from conftest import ROOT, free_port, read_rrd
 
 PIGOT_CONFIG = str(ROOT / "bus_config" / "pigot.yaml")
 
@@ -29,17 +29,6 @@ PIGOT_CONFIG = str(ROOT / "bus_config" / "pigot.yaml")
 def hil(*args, **kwargs) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "hil", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, **kwargs)
-
-
-def read_rrd(path):
-    """Rows per entity (temporal) and the static entity paths of an .rrd file."""
-    rows, static = collections.Counter(), set()
-    for chunk in rerun.chunk.RrdReader(path).store().stream():
-        if chunk.is_static:
-            static.add(chunk.entity_path)
-        else:
-            rows[chunk.entity_path] += chunk.num_rows
-    return rows, static
 
 
 def gone(pid: int) -> bool:

@@ -9,6 +9,8 @@ import sys
 import threading
 import time
 
+import numpy as np
+
 from hil.bus_config import load_bus_config, open_buses
 from hil.cli import common
 from hil.can import watch_deliveries
@@ -18,7 +20,8 @@ from hil.can.faults import (
 )
 from hil.drives import Power
 from hil.errors import HilError
-from hil.messaging.zenoh_api import SimClockPublisher, StallPublisher
+from hil.messaging.scene import SceneState
+from hil.messaging.zenoh_api import ScenePublisher, SimClockPublisher, StallPublisher
 from hil.realtime import IO_PRIORITY, enter_real_time, enter_side_work
 from hil.zenoh_session import close_all, session
 
@@ -77,11 +80,12 @@ def run(args: argparse.Namespace) -> int:
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     clock = SimClockPublisher(session(zenoh), config.robot.name)
+    scene = ScenePublisher(session(zenoh), config.robot.name) if config.scene else None
     stalls = StallPublisher(session(zenoh), config.robot.name)
     simulator.on_stall = stalls.publish
     if not args.lock_step:                  # the controller's messages delivered late
         watch_deliveries((simulated.bus for simulated in simulator.buses), stalls.publish)
-    side_work = [(_print_status, args.status_period), (_publish_clock, clock),
+    side_work = [(_print_status, args.status_period), (_publish_clock, (clock, scene)),
                  (_inject, drive_faults)] + ([(_publish_ros_clock, ros_clock)] if ros_clock else [])
     threads = [threading.Thread(target=work, args=(simulator, argument, stop), daemon=True)
                for work, argument in side_work]
@@ -101,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
         for thread in threads[1:]:          # the clocks' last puts before their sessions close
             if thread.is_alive():
                 thread.join()
-        for face in (clock, ros_clock, stalls):
+        for face in (clock, scene, ros_clock, stalls):
             if face is not None:
                 face.close()
         simulator.close()
@@ -189,12 +193,25 @@ def _print_status(simulator: Simulator, period: float, stop: threading.Event) ->
         print("\n".join(status_lines(simulator)), flush=True)
 
 
-def _publish_clock(simulator: Simulator, clock: SimClockPublisher, stop: threading.Event) -> None:
-    """The plant's time against the wall clock, for placing samples on the sim-time timeline."""
+def _publish_clock(simulator: Simulator, publishers: tuple[SimClockPublisher,
+                                                          ScenePublisher | None],
+                   stop: threading.Event) -> None:
+    """The plant's time against the wall clock, for placing samples on the sim-time timeline;
+    and its scene where it has one (moving objects and contacts, for the recording)."""
+    clock, scene = publishers
+    plant = simulator.plant
+    moving = plant.moving_objects()
     while not stop.wait(CLOCK_PERIOD):
         with simulator.lock:
-            sim_time, wall_time = simulator.plant.time, time.time()
+            sim_time, wall_time = plant.time, time.time()
+            if scene is not None:
+                poses = [plant.object_pose(name) for name in moving]
+                points, forces = plant.contacts()
         clock.publish(wall_time, sim_time)
+        if scene is not None:
+            scene.publish(SceneState(
+                wall_time, sim_time, moving, np.array([p for p, _ in poses]).reshape(-1, 3),
+                np.array([q for _, q in poses]).reshape(-1, 4), points, forces))
 
 
 def _ros_clock(args: argparse.Namespace, config):

@@ -109,7 +109,7 @@ def _recorder(recording: rr.RecordingStream, config: SystemConfig, folder: Path,
     urdf = folder / f"{config.robot.name}.urdf"
     urdf.write_bytes(viewer_urdf(config.robot))
     return RunRecorder(recording, config.robot, urdf, _actuator_joints(config),
-                       tuple(b.name for b in config.buses), namespaced)
+                       tuple(b.name for b in config.buses), namespaced, config.scene)
 
 
 def _open_sinks(recording: rr.RecordingStream, args: argparse.Namespace) -> str:

@@ -6,7 +6,8 @@ rosbags does not ship (control_msgs' FollowJointTrajectory, action_msgs'
 CancelGoal service) are registered from their .msg/.action field layouts;
 hil's own types are ``hil_msgs/GoalResult`` (a goal's terminal status),
 ``hil_msgs/ControlSamples`` (a batch of control cycles, for recording and
-plotting) and ``hil_msgs/SimClock`` (the plant's time against the wall clock).
+plotting), ``hil_msgs/SimClock`` (the plant's time against the wall clock) and
+``hil_msgs/SceneState`` (the scene's moving objects and contacts).
 """
 
 from __future__ import annotations
@@ -71,6 +72,11 @@ DEFINITIONS = {
         "string[] actuator_names\nfloat64[] motor_torque\nuint8[] drive_state\n"
         "string[] state_names\nfloat64[] cycle_period\nfloat64[] round_trip",
     "hil_msgs/msg/SimClock": "float64 wall_time\nfloat64 sim_time",
+    # the plant's scene now: each moving object's pose (names x 3, names x 4: w x y z) and
+    # each contact's point and force on its first body (contacts x 3 each), world frame
+    "hil_msgs/msg/SceneState":
+        "float64 wall_time\nfloat64 sim_time\nstring[] names\nfloat64[] position\n"
+        "float64[] orientation\nfloat64[] contact_point\nfloat64[] contact_force",
     # a real-time process' stall (hil.realtime.stalls.Stall): at in s since the epoch
     "hil_msgs/msg/Stall": "string process\nfloat64 at\nfloat64 length\nfloat64 steal\n"
                           "string where",
@@ -93,6 +99,7 @@ GOAL_RESULT = "hil_msgs/msg/GoalResult"
 CONTROL_SAMPLES = "hil_msgs/msg/ControlSamples"
 TRIGGER_RESPONSE = "std_srvs/srv/msg/Trigger_Response"
 SIM_CLOCK = "hil_msgs/msg/SimClock"
+SCENE_STATE = "hil_msgs/msg/SceneState"
 STALL = "hil_msgs/msg/Stall"
 #: the CDR of a request without fields (std_srvs/Trigger's): the encapsulation header and
 #: the one byte rosidl gives an empty structure

@@ -17,6 +17,7 @@ from hil.messaging.action import ControllerGone, TrajectoryActionClient, Traject
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.keys import key
 from hil.messaging.samples import ControlSamples
+from hil.messaging.scene import SceneState
 from hil.realtime.side_work import SideWorkQueue
 from hil.realtime.stalls import Stall
 
@@ -78,6 +79,19 @@ class SimClockPublisher:
 
     def publish(self, wall_time: float, sim_time: float) -> None:
         self._publisher.put(cdr.encode(cdr.msg(cdr.SIM_CLOCK, wall_time=wall_time, sim_time=sim_time)))
+
+    def close(self) -> None:
+        self._publisher.undeclare()
+
+
+class ScenePublisher:
+    """Publishes the plant's scene (hil_msgs/SceneState) on ``hil/<robot>/sim/scene``."""
+
+    def __init__(self, session: zenoh.Session, robot: str):
+        self._publisher = session.declare_publisher(key(robot, "sim/scene"))
+
+    def publish(self, state: SceneState) -> None:
+        self._publisher.put(state.encode())
 
     def close(self) -> None:
         self._publisher.undeclare()
@@ -151,8 +165,9 @@ class DiagnosticsPublisher:
 
 
 class RunSubscriber:
-    """Receives a robot's recorded cycles, sim clock and (given ``on_diagnostic`` and
-    ``on_stall``) the controller's diagnostics and the real-time processes' stalls;
+    """Receives a robot's recorded cycles, sim clock and (given ``on_diagnostic``,
+    ``on_stall`` and ``on_scene``) the controller's diagnostics, the real-time processes'
+    stalls and the plant's scene;
     malformed payloads are counted and reported (key and reason) through ``on_error``, never
     passed on."""
 
@@ -161,7 +176,8 @@ class RunSubscriber:
                  on_clock: Callable[[float, float], None],
                  on_error: Callable[[str], None],
                  on_diagnostic: Callable[[DiagnosticStatus], None] | None = None,
-                 on_stall: Callable[[Stall], None] | None = None):
+                 on_stall: Callable[[Stall], None] | None = None,
+                 on_scene: Callable[[SceneState], None] | None = None):
         self.malformed = 0
         self._on_error = on_error
         self._subscribers: list[zenoh.Subscriber] = []
@@ -178,6 +194,8 @@ class RunSubscriber:
             self._subscribe(session, key(robot, "diagnostics"), DiagnosticStatus.decode, each)
         if on_stall is not None:
             self._subscribe(session, key(robot, "stalls"), decode_stall, on_stall)
+        if on_scene is not None:
+            self._subscribe(session, key(robot, "sim/scene"), SceneState.decode, on_scene)
 
     def _subscribe(self, session: zenoh.Session, key_expr: str,
                    decode: Callable[[bytes], Any], deliver: Callable[[Any], Any]) -> None:

@@ -156,6 +156,26 @@ class Plant:
 
     # --- the scene -----------------------------------------------------------
 
+    def moving_objects(self) -> tuple[str, ...]:
+        """The scene objects that move (those with a mass), in the scene's order."""
+        return tuple(part.name for part in self.scene if part.mass > 0)
+
+    def contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """Where things touch now, and how hard: each contact's point (m) and the force on
+        its first body (N), both in the world frame, (contacts, 3) each."""
+        data = self.data
+        count = data.ncon
+        points, forces = np.empty((count, 3)), np.empty((count, 3))
+        wrench = np.empty(6)
+        for index in range(count):
+            contact = data.contact[index]
+            mujoco.mj_contactForce(self.model, data, index, wrench)
+            points[index] = contact.pos
+            # the force is in the contact's frame (rows: normal, two tangents); the normal
+            # points from the first geom to the second, so the first body feels its opposite
+            forces[index] = -contact.frame.reshape(3, 3).T @ wrench[:3]
+        return points, forces
+
     def object_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Where a scene object is: its position (m) and orientation (quaternion w, x, y, z)
         in the world."""

@@ -29,7 +29,8 @@ def robot_view(robot: RobotDescription, actuator_joints: dict[str, tuple[str, ..
     model = ([f"{root}/visual_geometries/**", f"{root}/collision_geometries/**"] if root
              else ["/robot/**"])
     side = rrb.Vertical(
-        rrb.Spatial3DView(name=robot.name, origin="/", contents=[*model, f"{root}/joints/**"]),
+        rrb.Spatial3DView(name=robot.name, origin="/",
+                          contents=[*model, f"{root}/joints/**", f"{root}/scene/**"]),
         rrb.StateTimelineView(name="drive states", origin=f"{root}/drives"),
         rrb.TimeSeriesView(name="bus load [%]", origin=f"{root}/bus",
                            contents=[f"{root}/bus/{b}/load" for b in buses]),

@@ -18,6 +18,7 @@ import zenoh
 from hil.can.monitor import BusMonitor
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
+from hil.messaging.scene import SceneState
 from hil.messaging.zenoh_api import RunSubscriber, key
 from hil.realtime.stalls import Stall
 from hil.visualisation.recorder import RunRecorder
@@ -47,7 +48,7 @@ class VizNode:
             self._queue.put((recorder, item))
 
         return RunSubscriber(self._session, recorder.robot.name, put,
-                             lambda wall, sim: put((wall, sim)), self._report, put, put)
+                             lambda wall, sim: put((wall, sim)), self._report, put, put, put)
 
     def _report(self, text: str) -> None:
         self._errors += 1
@@ -97,6 +98,8 @@ class VizNode:
             recorder.log_diagnostic(item)
         elif isinstance(item, Stall):
             recorder.log_stall(item)
+        elif isinstance(item, SceneState):
+            recorder.log_scene(item)
         else:
             recorder.log_clock(*item)
 

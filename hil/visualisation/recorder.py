@@ -18,6 +18,10 @@ for all of them 1-3 ms per batch):
                                         transport): its length (ms) where it began
 ``diagnostics``                         the controller's faults and resets (TextLog)
 ``robot/...``, ``joints/<joint>``       the URDF (rerun's UrdfTree) and joint transforms
+``scene/<object>``                      a scene object of the bus config: its shape, and
+                                        its pose (each sim clock tick for one that moves)
+``scene/contacts``                      where things touch (points) and the force on the
+                                        first of the two bodies (arrows, CONTACT_ARROW m/N)
 ======================================  ==============================================
 
 Several robots in one recording (``hil up ur3 pigot``): each robot's entities lie under
@@ -42,15 +46,21 @@ import rerun as rr
 import rerun.blueprint as rrb
 from rerun.urdf import UrdfTree
 
+from hil.bus_config.types import SceneObject
 from hil.can.monitor import MeasuredLoad
-from hil.description import RobotDescription
+from hil.description import GeometryKind, RobotDescription
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
+from hil.messaging.scene import SceneState
 from hil.realtime.stalls import PROCESS_WORDS, Stall
 from hil.visualisation.blueprint import robot_view
 
 #: the 3D robot is posed at most this often (Hz): the eye needs no more
 POSE_RATE = 30.0
+#: contact force arrows: metres of arrow per newton (a 50 g object's weight: 25 mm)
+CONTACT_ARROW = 0.05
+#: a scene's plane is drawn as a square this wide (m): it is endless in the plant
+PLANE_DRAWN = 4.0
 #: diagnostic levels as rerun's text log levels
 _TEXT_LOG_LEVELS = {"OK": rr.TextLogLevel.INFO, "WARN": rr.TextLogLevel.WARN,
                     "ERROR": rr.TextLogLevel.ERROR, "STALE": rr.TextLogLevel.WARN}
@@ -94,8 +104,10 @@ class RunRecorder:
 
     def __init__(self, recording: rr.RecordingStream, robot: RobotDescription,
                  urdf_path: Path, actuator_joints: dict[str, tuple[str, ...]],
-                 buses: tuple[str, ...], namespaced: bool = False):
-        """``namespaced``: one of several robots in the recording (see the module doc)."""
+                 buses: tuple[str, ...], namespaced: bool = False,
+                 scene: tuple[SceneObject, ...] = ()):
+        """``namespaced``: one of several robots in the recording (see the module doc);
+        ``scene``: the bus config's scene objects."""
         self.recording = recording
         self.robot = robot
         self.sim_time = SimTimeMap()
@@ -117,6 +129,7 @@ class RunRecorder:
         self.monitor_names = {(f"{robot.name}/{bus}" if namespaced else bus): bus
                               for bus in buses}
         self._mimics = {j.name: j.mimic for j in robot.joints if j.mimic is not None}
+        self._scene = scene
 
     def log_static(self) -> None:
         """The robot model and series names; once, before any sample."""
@@ -146,6 +159,12 @@ class RunRecorder:
             rec.log(f"{root}/bus/{bus}/load",
                     rr.SeriesLines(names=["load [%]", "load, worst-case stuffing [%]"]),
                     static=True)
+        for thing in self._scene:
+            rec.log(f"{root}/scene/{thing.name}", _shape(thing), static=True)
+            if not thing.movable:       # a moving one is posed by each SceneState
+                rec.log(f"{root}/scene/{thing.name}", rr.Transform3D(
+                    translation=thing.pose.xyz,
+                    quaternion=rr.Quaternion(xyzw=_quaternion(thing.pose.rpy))), static=True)
 
     def view(self) -> rrb.Container:
         """This robot's part of the viewer's layout (``hil.visualisation.blueprint``)."""
@@ -207,6 +226,24 @@ class RunRecorder:
                       np.array([100 * load.worst_case]))
         table.send(self.recording)
 
+    def log_scene(self, state: SceneState) -> None:
+        """The moving objects' poses and the contacts, at the state's wall and sim time."""
+        times = _Times(np.array([state.wall_time]), None, np.array([state.sim_time]))
+        indexes = times.columns()
+        rec, root = self.recording, self.root
+        for name, position, orientation in zip(state.names, state.positions,
+                                               state.orientations):
+            rec.send_columns(f"{root}/scene/{name}", indexes=indexes,
+                             columns=rr.Transform3D.columns(
+                                 translation=[position],
+                                 quaternion=[np.roll(orientation, -1)]))     # w first -> last
+        rec.send_columns(f"{root}/scene/contacts", indexes=indexes, columns=[
+            *rr.Points3D.columns(positions=state.contact_points).partition([
+                len(state.contact_points)]),
+            *rr.Arrows3D.columns(origins=state.contact_points,
+                                 vectors=CONTACT_ARROW * state.contact_forces).partition([
+                len(state.contact_points)])])
+
     # --- helpers -----------------------------------------------------------------------
 
     def _times(self, wall: np.ndarray, control: np.ndarray | None = None) -> _Times:
@@ -248,6 +285,31 @@ class RunRecorder:
                 self.recording.send_columns(
                     f"{self.root}/joints/{name}", indexes=selected,
                     columns=joint.compute_transform_columns(values, clamp=False))
+
+
+def _shape(thing: SceneObject) -> rr.AsComponents:
+    """The rerun archetype that draws a scene object's shape, in its own frame."""
+    geometry = thing.geometry
+    size = geometry.size
+    if geometry.kind is GeometryKind.BOX:
+        return rr.Boxes3D(half_sizes=[[s / 2 for s in size]])
+    if geometry.kind is GeometryKind.SPHERE:
+        return rr.Ellipsoids3D(half_sizes=[[size[0]] * 3])
+    if geometry.kind is GeometryKind.CYLINDER:
+        return rr.Cylinders3D(lengths=[size[1]], radii=[size[0]])
+    if geometry.kind is GeometryKind.MESH:
+        return rr.Asset3D(path=geometry.mesh)
+    return rr.Boxes3D(half_sizes=[[PLANE_DRAWN / 2, PLANE_DRAWN / 2, 0.0005]],
+                      centers=[[0.0, 0.0, -0.0005]], colors=[[128, 128, 128, 96]])
+
+
+def _quaternion(rpy) -> np.ndarray:
+    """Roll-pitch-yaw (fixed X, Y, Z) as a quaternion x, y, z, w (rerun's order)."""
+    roll, pitch, yaw = (angle / 2 for angle in rpy)
+    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
+                              np.cos(yaw), np.sin(yaw))
+    return np.array([sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+                     cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy])
 
 
 @dataclass(frozen=True)
