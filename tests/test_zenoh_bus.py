@@ -14,6 +14,7 @@ import can
 import canopen
 import pytest
 
+from hil.can import sent_together
 from hil.can.zenoh_bus import Echo, _Quickest, decode_frames, encode_frames
 from hil.realtime.stalls import STALL_THRESHOLD
 from hil.zenoh_session import ZenohSettings, close, session
@@ -117,36 +118,51 @@ def test_frame_codec_round_trips_extended_and_remote_frames_in_one_message():
               can.Message(arbitration_id=0x123, is_remote_frame=True, dlc=4,
                           is_extended_id=False),
               can.Message(arbitration_id=0x80, data=b"", is_extended_id=False)]
-    message = decode_frames(encode_frames(42, 7, 1234.5, frames, Echo(9, 3, 0.25)), "x",
-                            1235.0)
-    assert (message.sender, message.sequence, message.sent_at) == (42, 7, 1234.5)
+    [message] = decode_frames(encode_frames("x", 42, 7, 1234.5, frames, Echo(9, 3, 0.25)),
+                              1235.0)
+    assert (message.channel, message.sender, message.sequence, message.sent_at) == (
+        "x", 42, 7, 1234.5)
     assert message.echo == Echo(9, 3, 0.25) and len(message.frames) == 3
     for msg, got in zip(frames, message.frames):
         assert got.equals(msg, timestamp_delta=None, check_channel=False,
                           check_direction=False)
 
 
+def test_sections_of_several_channels_in_one_message_decode_each_with_its_own_numbers():
+    sync = [can.Message(arbitration_id=0x80, data=b"", is_extended_id=False)]
+    payload = (encode_frames("ur3/arm", 1, 10, 5.0, sync * 2)
+               + encode_frames("ur3/wrist", 2, 20, 5.0, sync, Echo(7, 3, 0.5)))
+    arm, wrist = decode_frames(payload, 6.0)
+    assert (arm.channel, arm.sender, arm.sequence, len(arm.frames)) == ("ur3/arm", 1, 10, 2)
+    assert (wrist.channel, wrist.sender, wrist.sequence, wrist.echo) == (
+        "ur3/wrist", 2, 20, Echo(7, 3, 0.5))
+    assert [m.channel for m in arm.frames + wrist.frames] == ["ur3/arm"] * 2 + ["ur3/wrist"]
+
+
 def _one(arbitration_id: int = 1, data: bytes = b"\x01\x02") -> bytes:
-    return encode_frames(1, 1, 0.0, [can.Message(arbitration_id=arbitration_id, data=data,
-                                                 is_extended_id=False)])
+    return encode_frames("x", 1, 1, 0.0, [can.Message(arbitration_id=arbitration_id,
+                                                      data=data, is_extended_id=False)])
 
 
 @pytest.mark.parametrize("payload, reason", [
-    (b"", "shorter than a message header"),
-    (b"\x00" * 5, "shorter than a message header"),
-    (_one()[:-1], "frame 1 of 1: DLC 2 does not match 1 data bytes"),
-    (_one() + b"\x03", "1 bytes after the last of 1 frames"),
-    (_one()[:-8], "frame 1 of 1 is cut short"),
-    (encode_frames(1, 1, 0.0, []), "a message of no frames"),
-    (encode_frames(1, 1, 0.0, [can.Message(arbitration_id=1, is_extended_id=False)],
+    (b"", "no channel name: the message is empty"),
+    (b"\x01x" + b"\x00" * 5, "channel 'x': 5 bytes is shorter than a section header"),
+    (b"\x02\xff\xfe" + _one()[2:], "the channel's name is not UTF-8"),
+    (_one()[:-1], "channel 'x': frame 1 of 1: DLC 2 does not match 1 data bytes"),
+    (_one() + b"\x03", "section 2: the channel's name is cut short"),
+    (_one() + b"\x00", "section 2: channel '': 0 bytes is shorter than a section header"),
+    (_one()[:-8], "channel 'x': frame 1 of 1 is cut short"),
+    (encode_frames("x", 1, 1, 0.0, []), "channel 'x': a section of no frames"),
+    (encode_frames("x", 1, 1, 0.0, [can.Message(arbitration_id=1, is_extended_id=False)],
                    Echo(1, 1, -1.0)), "the echo was held -1.0 s"),
-    (encode_frames(1, 1, math.nan, [can.Message(arbitration_id=1, is_extended_id=False)]),
+    (encode_frames("x", 1, 1, math.nan,
+                   [can.Message(arbitration_id=1, is_extended_id=False)]),
      "the sender's clock reads nan"),
     (_one(0x7FF).replace(b"\xff\x07\x00\x00", b"\xff\xff\x00\x00", 1),
      "identifier 0xFFFF out of range")])
 def test_malformed_payloads_are_rejected_with_what_is_wrong(payload, reason):
     with pytest.raises(ValueError, match=re.escape(reason)):
-        decode_frames(payload, "x", 0.0)
+        decode_frames(payload, 0.0)
 
 
 def test_malformed_payloads_on_the_network_are_dropped(bus_pair, endpoint):
@@ -247,9 +263,9 @@ def test_frames_lost_on_the_way_are_counted_from_the_senders_sequence_numbers(bu
     deadline = time.monotonic() + 10
     while b.recv(0.1) is None:                       # until the new session's route is up
         assert time.monotonic() < deadline
-        intruder.put(key, encode_frames(77, 1, time.time(), [frame]))   # (a repeat loses none)
+        intruder.put(key, encode_frames(b._channel, 77, 1, time.time(), [frame]))   # (no loss)
     for sequence in (2, 5, 6, 10):                   # 3, 4, 7, 8, 9 never came
-        intruder.put(key, encode_frames(77, sequence, time.time(), [frame]))
+        intruder.put(key, encode_frames(b._channel, 77, sequence, time.time(), [frame]))
     received = [b.recv(2) for _ in range(4)]
     assert all(msg is not None for msg in received)
     assert b.counters.lost == 5
@@ -312,6 +328,54 @@ def test_answers_sent_inside_a_delivery_go_out_as_one_message(bus_pair):
     assert (b.counters.messages_sent, b.counters.sent) == (1, 6)
 
 
+
+def _answering_each_sync(drive: can.BusABC) -> None:
+    """``drive`` stands for three drives: on each SYNC, three answers."""
+    def answer(msg: can.Message) -> None:
+        if msg.arbitration_id == 0x80:
+            for node in (1, 2, 3):
+                drive.send(can.Message(arbitration_id=0x180 + node, data=bytes(6),
+                                       is_extended_id=False))
+    drive.deliver_to([answer])
+
+
+def test_a_cycle_on_several_buses_is_one_zenoh_message_each_way(endpoint):
+    """A master's cycle on two buses of its session goes out as one Zenoh message, and the
+    drives' answers on both buses, sent inside its delivery, come back as one: each bus'
+    frames in a section of their own, numbered and counted per bus."""
+    tag = time.monotonic_ns()
+    master = [can.Bus(interface="zenoh", channel=f"test/{tag}/{name}", listen=[endpoint])
+              for name in ("arm", "wrist")]
+    drives = [can.Bus(interface="zenoh", channel=f"test/{tag}/{name}", connect=[endpoint])
+              for name in ("arm", "wrist")]
+    watching = ZenohSettings(connect=(endpoint,), listen=(f"tcp/127.0.0.1:{free_port()}",))
+    puts: list[str] = []
+    observer = session(watching).declare_subscriber(
+        f"hil/can/test/{tag}/**", lambda sample: puts.append(str(sample.key_expr)))
+    try:
+        for drive in drives:
+            _answering_each_sync(drive)
+        time.sleep(0.5)                                # the sessions find each other
+        with sent_together(master):
+            for bus in master:
+                bus.send(can.Message(arbitration_id=0x201, data=bytes(6), is_extended_id=False))
+                bus.send(can.Message(arbitration_id=0x80, data=b"", is_extended_id=False))
+        answers = {bus._channel: [bus.recv(2) for _ in range(3)] for bus in master}
+        deadline = time.monotonic() + 2
+        while len(puts) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert all(msg is not None and msg.channel == channel
+                   for channel, got in answers.items() for msg in got)
+        assert puts == [f"hil/can/test/{tag}/arm"] * 2        # the cycle, then its answers
+        for bus in master + drives:
+            assert bus.counters.messages_sent == 1 and bus.counters.lost == 0
+    finally:
+        observer.undeclare()
+        close(watching)
+        for bus in master + drives:
+            bus.shutdown()
+
+
 @contextlib.contextmanager
 def _remote_sender(endpoint, bus):
     """A put function of another Zenoh session on ``bus``' channel, routed to it: probes
@@ -324,7 +388,7 @@ def _remote_sender(endpoint, bus):
         deadline = time.monotonic() + 10
         while bus.recv(0.1) is None:
             assert time.monotonic() < deadline, "no route to the bus"
-            remote.put(key, encode_frames(99, 1, time.time(), [probe]))
+            remote.put(key, encode_frames(bus._channel, 99, 1, time.time(), [probe]))
         while bus.recv(0.2) is not None:
             pass
         yield lambda payload: remote.put(key, payload)
@@ -342,8 +406,8 @@ def _four_from_a_remote(endpoint, bus, behind_last: float = 0.0, stall_before_la
         for sequence in range(1, 5):
             if sequence == 4:
                 time.sleep(stall_before_last)
-            put(encode_frames(77, sequence, time.time() - (behind_last if sequence == 4 else 0),
-                              [frame]))
+            put(encode_frames(bus._channel, 77, sequence,
+                              time.time() - (behind_last if sequence == 4 else 0), [frame]))
             time.sleep(0.02)
         return [bus.recv(2) for _ in range(4)]
 

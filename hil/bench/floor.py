@@ -4,7 +4,7 @@ The same frames per cycle (every drive's cyclic frames and SYNC out, their answe
 per bus) exchanged between two processes over the same transport, python-can on both ends
 and no hil code on the answering side, paced like the controller, each end on the CPU of
 the process it stands for. The ratio stack / floor says what hil adds to the transport.
-Both ends send a cycle's frames as hil's do: together, one message per bus and direction
+Both ends send a cycle's frames as hil's do: together, one message per process and direction
 (the master in ``sent_together``, the answers from inside their delivery).
 
 The answering process is :mod:`hil.bench.responder`.

@@ -24,9 +24,9 @@ __all__ = ["BusLoad", "bus_load", "frame_bits", "link_round_trip", "link_unreach
 
 
 def sent_together(buses: Iterable[can.BusABC]) -> ExitStack:
-    """A block (``with sent_together(buses):``) whose frames go out together, one message
-    per bus, where the bus can do that (``zenoh``: ``batch``); others send each frame as
-    it is sent, as ever."""
+    """A block (``with sent_together(buses):``) whose frames go out together where the bus
+    can do that (``zenoh``: ``batch``, one message for all the buses of a Zenoh session);
+    others send each frame as it is sent, as ever."""
     together = ExitStack()
     for bus in buses:
         batch = getattr(bus, "batch", None)

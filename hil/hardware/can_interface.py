@@ -188,7 +188,7 @@ class CanHardwareInterface(HardwareInterface):
         targets = self.transmissions.joint_to_actuator_position(positions).tolist()
         speeds = self.transmissions.joint_to_actuator_velocity(velocities).tolist()
         hold = enabling or self._recovering
-        # one message per bus where the transport can (zenoh): a cycle's frames in one put
+        # one message for every bus where the transport can (zenoh): a cycle's frames in one put
         with sent_together(network.bus for network in self._networks.values()):
             for axis, target, speed in zip(self.axes, targets, speeds):
                 axis.begin_cycle(self._cycle)
