@@ -82,6 +82,13 @@ def test_quick_bench_reports_every_figure(tmp_path):
         assert row["speedup_over_floor"] == pytest.approx(
             row["speedup_over_real_time"] / row["floor"]["speedup_over_real_time"])
         assert set(row["cpu"]) == {"sim", "control"}
+    scale = report["scale"]
+    assert [(r["drives"], r["rate_hz"]) for r in scale] == [(6, 500.0), (12, 500.0)]
+    for row in scale:
+        assert row["cycles"] > 0 and row["buses"] >= row["drives"] // 4
+        assert row["cpu_us_per_cycle"]["sim"] > 0 and row["cpu_us_per_cycle"]["control"] > 0
+        assert row["holds"] == (row["faults"] == 0 and row["missed"] <= 0.001 * row["cycles"])
+    assert "largest that held: 500 Hz" in result.stdout
     assert "lock-step across processes" in result.stdout
     assert "control cycle, real time" in result.stdout and "tracking" in result.stdout
     assert "across processes" in result.stdout

@@ -28,7 +28,10 @@ Figures (each a list of rows; a figure that cannot be measured here says why):
   the controller reported it;
 * ``across_processes``: ``hil sim`` and ``hil control`` (and ``hil viz``) as separate
   processes over the Zenoh CAN transport, beside the floor of that transport measured in
-  the same run (:mod:`hil.bench.processes`).
+  the same run (:mod:`hil.bench.processes`);
+* ``lock_step_across_processes``: the same in lock-step, beside its floor;
+* ``scale``: the CPU a cycle costs the sim and the controller for robots of 6 to 34
+  drives, and whether each holds its rate across processes (:mod:`hil.bench.scale`).
 
 ``run_soak`` repeats a trajectory for a long time and reports drift, memory
 growth and missed cycles.
@@ -39,13 +42,16 @@ from __future__ import annotations
 
 import os
 import platform
+import tempfile
 from collections.abc import Callable
+from pathlib import Path
 
 import hil.drives.core as core_module
 from hil.bench.faults import fault_detection
 from hil.bench.lock_step import LOCK_STEP_WINDOW, bare_mujoco, bare_python_can, lock_step
 from hil.bench.processes import across_processes, lock_step_across_processes
 from hil.bench.real_time import real_time, socketcan, timing_floor, vcan_missing
+from hil.bench.scale import scale
 from hil.bench.settings import (
     ACROSS_PROCESSES, ACROSS_PROCESSES_QUICK, FIGURES, RATES, ROBOTS, BenchSettings,
     with_feed_forward, with_rate,
@@ -106,6 +112,8 @@ def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> di
     close_all()
     report["across_processes"] = across_processes(settings, say)
     report["lock_step_across_processes"] = lock_step_across_processes(settings, say)
+    with tempfile.TemporaryDirectory(prefix="hil-bench-scale-") as folder:
+        report["scale"] = scale(settings, Path(folder), say)
     absent = [name for name in FIGURES if not report.get(name)]
     if absent:
         raise RuntimeError(f"figures missing from the report: {', '.join(absent)}")

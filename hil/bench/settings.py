@@ -14,11 +14,14 @@ RATES = (250.0, 500.0, 1000.0)
 #: the figures every report has (a row list, or {"unavailable": why})
 FIGURES = ("control_cycle", "timing_floor", "socketcan", "lock_step", "overhead", "latency",
            "tracking", "bus_load", "fault_detection", "across_processes",
-           "lock_step_across_processes")
+           "lock_step_across_processes", "scale")
 #: across processes: (bus config, rate) pairs, each with and without the visualiser; the ur3
 #: at 1 kHz on its three-bus config (two buses would carry 109 % of 1 Mbit/s at 1 kHz)
 ACROSS_PROCESSES = (("ur3", 500.0), ("ur3_1khz", 1000.0), ("pigot", 500.0), ("pigot", 1000.0))
 ACROSS_PROCESSES_QUICK = (("ur3", 500.0),)
+#: scale: robots of this many drives (ur3 arms on one base), at these rates
+SCALE_DRIVES = (6, 12, 24, 34)
+SCALE_RATES = (500.0, 250.0)
 
 
 @dataclass(frozen=True)
@@ -28,11 +31,14 @@ class BenchSettings:
     bare_cycles: int = 5000
     config_dir: Path = field(default_factory=lambda: data_dir(BUS_CONFIGS))
     across_processes: tuple[tuple[str, float], ...] = ACROSS_PROCESSES
+    scale_drives: tuple[int, ...] = SCALE_DRIVES
+    scale_rates: tuple[float, ...] = SCALE_RATES
 
     @classmethod
     def quick(cls, config_dir: Path | None = None) -> BenchSettings:
         return cls(seconds=2.0, lock_step_cycles=600, bare_cycles=1000,
-                   across_processes=ACROSS_PROCESSES_QUICK,
+                   across_processes=ACROSS_PROCESSES_QUICK, scale_drives=(6, 12),
+                   scale_rates=(500.0,),
                    **({"config_dir": config_dir} if config_dir else {}))
 
 

@@ -11,6 +11,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from hil.bench import LOCK_STEP_WINDOW, BenchSettings, run_bench, run_soak
+from hil.bench.scale import HOLDS_MISSED, largest_holding
 from hil.errors import HilError
 
 
@@ -182,6 +183,30 @@ def _lock_step_across_process_lines(report: dict) -> list[str]:
     return lines
 
 
+def _scale_lines(report: dict) -> list[str]:
+    """CPU per cycle against the robot's size, and the largest that held each rate."""
+    lines = ["", "scale (ur3 arms on one base, hil init's buses; hil sim and hil control in real "
+                 "time across processes, no visualiser);", "  CPU us a cycle: each process' "
+                 "share of a CPU over the rate; holds: no fault and at most "
+                 f"{HOLDS_MISSED:.1%} of the cycles missed",
+             f"  {'drives':>6} {'Hz':>5} {'buses':>5} {'cycles':>7} {'missed':>7} "
+             f"{'busy p50':>9} {'p99':>6} {'rt p99':>7} {'sim us':>7} {'ctl us':>7} "
+             f"{'faults':>6}  holds"]
+    for row in report["scale"]:
+        per_cycle = row["cpu_us_per_cycle"]
+        lines.append(
+            f"  {row['drives']:>6} {row['rate_hz']:>5.0f} {row['buses']:>5} {row['cycles']:>7} "
+            f"{row['missed']:>7} {row['busy_p50_us']:>9.0f} {row['busy_p99_us']:>6.0f} "
+            f"{row['round_trip_p99_us']:>7.0f} {per_cycle.get('sim', math.nan):>7.0f} "
+            f"{per_cycle.get('control', math.nan):>7.0f} {row['faults']:>6}  "
+            f"{'yes' if row['holds'] else 'no'}")
+    largest = largest_holding(report["scale"])
+    lines.append("  largest that held: " + ", ".join(
+        f"{rate:g} Hz {drives if drives is not None else 'none'}"
+        + (" drives" if drives is not None else "") for rate, drives in largest.items()))
+    return lines
+
+
 def _bus_load_lines(report: dict) -> list[str]:
     """Each bus' measured and estimated load."""
     lines = ["", "bus load (measured nominal / worst-case stuffing; config estimate worst case)"]
@@ -197,5 +222,6 @@ def _bus_load_lines(report: dict) -> list[str]:
 def format_table(report: dict) -> str:
     """The report of ``hil bench`` as text tables, a section each."""
     sections = (_cycle_lines, _socketcan_lines, _lock_step_lines, _tracking_and_fault_lines,
-                _across_process_lines, _lock_step_across_process_lines, _bus_load_lines)
+                _across_process_lines, _lock_step_across_process_lines, _scale_lines,
+                _bus_load_lines)
     return "\n".join(line for section in sections for line in section(report))

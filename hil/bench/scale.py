@@ -1,0 +1,145 @@
+"""``hil bench``, scale: what a cycle costs the simulator and the controller as the robot
+grows, and the largest robot that holds a rate across processes on this machine.
+
+The robots are made here, so that every size is the same kind of machine: ⌈N/6⌉ copies of
+the shipped ur3 on one base (the last one cut short to make N joints), each joint a CiA 402
+drive, spread over the buses ``hil init`` gives them at the rate (four drives a bus at
+500 Hz, nine at 250 Hz). Each runs as ``hil bench``'s across-processes rows do (``hil sim``
++ ``hil control`` in real time, placed as ``hil up`` places them, no visualiser); the cost
+of a cycle is each process' share of a CPU over the measured window divided by the rate. A
+size holds a rate when its run had no fault and missed at most HOLDS_MISSED of its cycles.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import xml.etree.ElementTree as ET
+from collections.abc import Callable
+from pathlib import Path
+
+from hil.bench.processes import stack_across_processes
+from hil.bench.settings import BenchSettings
+from hil.commissioning.initial import initial_config
+from hil.description import load_description
+from hil.description.packages import PackagePath
+from hil.description.source import read_robot_source
+from hil.resources import ROBOTS, data_dir
+
+#: the arm the robots are made of (6 joints, each with its transmission)
+ARM = Path("ur3_description") / "urdf" / "ur3.xacro"
+JOINTS_PER_ARM = 6
+#: the arms stand on a grid this far apart (m), three in a row
+ARM_SPACING = 0.8
+#: a run holds its rate with at most this share of its cycles missed (and no fault)
+HOLDS_MISSED = 0.001
+#: the attributes that name a link, joint, transmission or actuator of the arm
+_NAME_ATTRIBUTES = ("name", "link", "joint", "reference")
+
+
+def scale(settings: BenchSettings, folder: Path, say: Callable[[str], None]) -> list[dict]:
+    """A row per (drives, rate) of ``settings``: the made robot's buses, each process' CPU
+    per cycle, the run's figures and whether it held the rate."""
+    rows = []
+    for rate in settings.scale_rates:
+        for drives in settings.scale_drives:
+            say(f"hil bench: scale, {drives} drives at {rate:g} Hz across processes ...")
+            config, buses = scale_bench(drives, rate, folder)
+            run = stack_across_processes(config, settings.seconds, False)
+            cycles = max(run.get("cycles", 0), 1)
+            # a CPU share over the measured window, at the rate's cycles a second
+            per_cycle = {name: share / rate * 1e6 for name, share in run["cpu"].items()}
+            missed = run.get("missed", 0)
+            rows.append({"drives": drives, "rate_hz": rate, "buses": buses,
+                         "cycles": run.get("cycles", 0), "missed": missed,
+                         "faults": run["faults"], "first_fault": run["first_fault"],
+                         "busy_p50_us": run.get("busy_p50_us", math.nan),
+                         "busy_p99_us": run.get("busy_p99_us", math.nan),
+                         "round_trip_p99_us": run.get("round_trip_p99_us", math.nan),
+                         "cpu": run["cpu"], "cpu_us_per_cycle": per_cycle,
+                         "holds": run["faults"] == 0 and missed <= HOLDS_MISSED * cycles})
+    return rows
+
+
+def largest_holding(rows: list[dict]) -> dict[float, int | None]:
+    """Per rate, the most drives of a run that held it (None: no size did)."""
+    return {rate: max((row["drives"] for row in rows if row["rate_hz"] == rate
+                       and row["holds"]), default=None)
+            for rate in dict.fromkeys(row["rate_hz"] for row in rows)}
+
+
+def scale_bench(drives: int, rate: float, folder: Path) -> tuple[Path, int]:
+    """A robot of ``drives`` joints made of ur3 arms, and the bus config ``hil init`` writes
+    for it at ``rate``, in ``folder``: the config's path and its number of buses."""
+    description = folder / f"arms_{drives}.urdf"
+    description.write_bytes(ET.tostring(arms_robot(drives), xml_declaration=True))
+    robot = load_description(description)
+    output = folder / f"arms_{drives}_{rate:g}hz.yaml"
+    written = initial_config(robot, description, output, "cia402", rate)
+    output.write_text(written.text)
+    return output, written.buses
+
+
+def arms_robot(drives: int) -> ET.Element:
+    """The URDF of ``drives`` joints: ⌈drives/6⌉ ur3 arms on a fixed base, named ``a<k>_``
+    each, the last arm's chain cut after its remaining joints."""
+    if drives < 1:
+        raise ValueError(f"a robot of {drives} drives")
+    arm = read_robot_source(data_dir(ROBOTS) / ARM, PackagePath.from_environment()).root
+    robot = ET.Element("robot", name=f"arms_{drives}")
+    base = ET.SubElement(robot, "link", name="base")
+    _box_inertial(base, mass=50.0, size=3.0)
+    for index in range((drives + JOINTS_PER_ARM - 1) // JOINTS_PER_ARM):
+        joints = min(JOINTS_PER_ARM, drives - index * JOINTS_PER_ARM)
+        prefix = f"a{index + 1}_"
+        for element in _arm_elements(arm, joints):
+            robot.append(_prefixed(element, prefix))
+        mount = ET.SubElement(robot, "joint", name=f"{prefix}mount", type="fixed")
+        ET.SubElement(mount, "parent", link="base")
+        ET.SubElement(mount, "child", link=f"{prefix}{_root_link(arm)}")
+        row, column = divmod(index, 3)
+        ET.SubElement(mount, "origin", xyz=f"{column * ARM_SPACING} {row * ARM_SPACING} 0",
+                      rpy="0 0 0")
+    return robot
+
+
+def _arm_elements(arm: ET.Element, joints: int) -> list[ET.Element]:
+    """The arm's links, joints and transmissions up to its ``joints``-th joint (in chain
+    order from the root)."""
+    chain = [j for j in arm.findall("joint") if j.get("type") != "fixed"][:joints]
+    kept_joints = {j.get("name") for j in chain}
+    links = {_root_link(arm)} | {j.find("child").get("link") for j in chain}
+    kept = []
+    for element in arm:
+        if element.tag == "link" and element.get("name") in links:
+            kept.append(element)
+        elif element.tag == "joint" and element.get("name") in kept_joints:
+            kept.append(element)
+        elif element.tag == "transmission" and all(
+                j.get("name") in kept_joints for j in element.findall("joint")):
+            kept.append(element)
+    return kept
+
+
+def _root_link(arm: ET.Element) -> str:
+    children = {j.find("child").get("link") for j in arm.findall("joint")}
+    return next(link.get("name") for link in arm.findall("link")
+                if link.get("name") not in children)
+
+
+def _prefixed(element: ET.Element, prefix: str) -> ET.Element:
+    """A copy of ``element`` with every name it gives or refers to prefixed."""
+    copied = copy.deepcopy(element)
+    for node in copied.iter():
+        for attribute in _NAME_ATTRIBUTES:
+            if attribute in node.attrib:
+                node.set(attribute, prefix + node.get(attribute))
+    return copied
+
+
+def _box_inertial(link: ET.Element, mass: float, size: float) -> None:
+    inertial = ET.SubElement(link, "inertial")
+    ET.SubElement(inertial, "mass", value=str(mass))
+    moment = mass * size * size / 6
+    ET.SubElement(inertial, "inertia", ixx=str(moment), iyy=str(moment), izz=str(moment),
+                  ixy="0", ixz="0", iyz="0")
