@@ -283,12 +283,14 @@ def test_a_tpdo_remapped_by_sdo_carries_its_new_objects_after_nmt_start(bench, m
     time.sleep(0.1)
     answered = threading.Event()
     tpdo.add_callback(lambda pdo: answered.set())
+    before = node.sdo[0x6064].raw
     bench.network.sync.transmit()
     assert answered.wait(1), "no TPDO2 answered the SYNC"
     assert len(tpdo.data) == sum(variable.length for variable in tpdo.map) // 8
-    position = node.sdo[0x6064].raw
+    after = node.sdo[0x6064].raw
     values = {variable.index: variable.raw for variable in tpdo.map}
-    assert values[0x6064] == pytest.approx(position, abs=2)     # a braked arm: standing
+    # the position at the SYNC: a braked arm may still settle by a few counts meanwhile
+    assert min(before, after) - 1 <= values[0x6064] <= max(before, after) + 1
     if 0x6061 in values:
         assert values[0x6061] == 8
     else:

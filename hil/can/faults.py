@@ -13,9 +13,10 @@ Specifications (repeatable options):
 ``kill:PROCESS@S``         ``hil up`` kills its child PROCESS (sim, control, viz)
 =========================  ===========================================================
 
-S is seconds after every drive was first enabled (drive faults, in ``hil sim``)
-or after every process is up (kills, in ``hil up``). The random choices come
-from one seeded generator, so a run can be repeated.
+S is seconds of the plant's time after every drive was first enabled (drive faults, in
+``hil sim``: in lock-step, the same moment of the run however fast it goes) or seconds
+after every process is up (kills, in ``hil up``). The random choices come from one seeded
+generator, so a run can be repeated.
 """
 
 from __future__ import annotations

@@ -26,6 +26,8 @@ from hil.realtime import IO_PRIORITY, enter_real_time, enter_side_work
 from hil.zenoh_session import close_all, session
 
 CLOCK_PERIOD = 0.05
+#: an injected drive fault waits for its moment of the plant's time looking this often (s)
+INJECT_POLL = 0.005
 #: how often /clock is published with --ros (s of wall time): rclcpp's time source moves in
 #: these steps
 ROS_CLOCK_PERIOD = 0.01
@@ -43,8 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="print the status every S seconds (0: never; default 2)")
     parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
                         help="inject a fault (repeatable): drop:BUS:FRACTION, "
-                             "delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, silence:BUS/NODE@S, restart:BUS/NODE@S, "
-                             "fault:BUS/NODE@S")
+                             "delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, silence:BUS/NODE@S, "
+                             "restart:BUS/NODE@S, fault:BUS/NODE@S (S: seconds of the plant's "
+                             "time after every drive is enabled)")
     parser.add_argument("--fault-seed", type=int, default=0, metavar="N",
                         help="seed of the fault injector's random choices (default 0)")
     parser.add_argument("--priority", type=int, default=IO_PRIORITY, metavar="N",
@@ -248,17 +251,19 @@ def _check_drive_faults(config, faults: list[DriveFault]) -> None:
 
 
 def _inject(simulator: Simulator, faults: list[DriveFault], stop: threading.Event) -> None:
-    """Each drive fault at its time: wall-clock seconds after every drive was first enabled
-    (the controller has the bench running)."""
+    """Each drive fault at its time: seconds of the plant's time after every drive was
+    first enabled (the controller has the bench running). In lock-step the plant's time is
+    the run's own, so a fault falls on the same moment of the run however fast it goes."""
     if not faults:
         return
     while not all(d.core.power is Power.ENABLED for d in simulator.drives):
         if stop.wait(0.01):
             return
-    started = time.monotonic()
+    started = simulator.now()
     for fault in sorted(faults, key=lambda f: f.at):
-        if stop.wait(max(0.0, started + fault.at - time.monotonic())):
-            return
+        while simulator.now() < started + fault.at:
+            if stop.wait(min(INJECT_POLL, started + fault.at - simulator.now())):
+                return
         if fault.kind == "silence":
             simulator.silence(fault.bus, fault.node_id)
         elif fault.kind == "restart":

@@ -110,7 +110,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
                         help="inject a fault (repeatable): the sim's (drop:BUS:FRACTION, "
                              "delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, silence:BUS/NODE@S, "
-                             "fault:BUS/NODE@S), or kill:sim|control|viz@S (seconds after all "
+                             "fault:BUS/NODE@S: S seconds of the plant's time after every "
+                             "drive is enabled), or kill:sim|control|viz@S (seconds after all "
                              "are up)")
     parser.add_argument("--viewer", metavar="URL", help="also stream to a running rerun viewer")
     parser.add_argument("--secure", type=Path, metavar="DIR",
