@@ -78,7 +78,16 @@ def drive_parameters(drive: DriveConfig, motor_inertia: float) -> DriveParameter
         profile_velocity=drive.max_velocity / 4,
         profile_acceleration=drive.quick_stop_deceleration / 4,
         profile_deceleration=drive.quick_stop_deceleration / 4,
-        no_load_speed=drive.effects.no_load_speed)
+        no_load_speed=drive.effects.no_load_speed,
+        velocity_filter=drive.effects.velocity_filter)
+
+
+def bench_plant(config: SystemConfig) -> Plant:
+    """The plant of a bus config: its robot at its plant rate, with its actuator effects, its
+    scene, its base and its start pose."""
+    return Plant(config.robot, timestep=1.0 / config.plant_rate_hz, effects=config.effects,
+                 scene=config.scene, floating_base=config.floating_base,
+                 start_pose=dict(config.start_pose))
 
 
 class PlantPresent:
@@ -127,8 +136,7 @@ class Simulator:
         self.config = config
         self.lock_step = lock_step
         self.lock = PlantPresent(self._advance)
-        self.plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz,
-                           effects=config.effects, scene=config.scene)
+        self.plant = bench_plant(config)
         self.steps_per_cycle = config.steps_per_cycle
         self.cycles = 0
         self.overruns = 0          # real time: gaps skipped (the process stalled)
@@ -278,16 +286,18 @@ class Simulator:
             self._torques[actuator] = drive.core.update(dt)
         self.plant.set_motor_torques(self._torques)
         self.plant.step()
-        self._measure()
+        self._measure(dt)
         for drive in self.drives:
             drive.after_update()
 
-    def _measure(self) -> None:
+    def _measure(self, dt: float = 0.0) -> None:
+        """Each drive's motor position and velocity now, ``dt`` after the last (0: the
+        first)."""
         # Python floats: numpy scalars would make every drive's loop arithmetic ~5x slower
         positions = self.plant.motor_positions().tolist()
         velocities = self.plant.motor_velocities().tolist()
         for drive, actuator in zip(self.drives, self._drive_actuators):
-            drive.core.measure(positions[actuator], velocities[actuator])
+            drive.core.measure(positions[actuator], velocities[actuator], dt)
 
     def _check_watchdogs(self) -> None:
         """Watchdogs and timed messages (heartbeats, cyclic rates), every WATCHDOG_PERIOD of

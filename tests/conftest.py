@@ -7,6 +7,7 @@ import queue
 import signal
 import socket
 import subprocess
+import sys
 import threading
 import time
 import uuid
@@ -14,11 +15,13 @@ from pathlib import Path
 
 import can
 import canopen
+import numpy as np
 import pytest
 import yaml
 
 from hil.bus_config import load_bus_config
 from hil.can import socketcan_missing as can_socketcan_missing
+from hil.cli import main
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.description import PackagePath, load_description
 from hil.messaging.zenoh_api import TrajectoryActionClient
@@ -320,3 +323,49 @@ def read_rrd(path):
         else:
             rows[chunk.entity_path] += chunk.num_rows
     return rows, static
+
+
+def rrd_series(path, entity: str) -> tuple[np.ndarray, np.ndarray]:
+    """An entity's scalar series in an .rrd file: its sim times (s) and its values (one row
+    per time, a column per series), in time order."""
+    import rerun.chunk      # noqa: PLC0415 (only the recording tests need rerun)
+
+    times, values = [], []
+    for chunk in rerun.chunk.RrdReader(path).store().stream():
+        if chunk.entity_path != entity or chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        times += [t / 1e9 for t in batch.column("sim_time").cast("int64").to_pylist()]
+        values += batch.column("Scalars:scalars").to_pylist()
+    order = np.argsort(times)
+    return np.asarray(times)[order], np.asarray(values, dtype=float)[order]
+
+
+def example_robot_data() -> Path | None:
+    """Where the test extra's example-robot-data keeps its share folder (robots under
+    ``example-robot-data/robots``), or None where it is not installed."""
+    from importlib.metadata import PackageNotFoundError, distribution  # noqa: PLC0415
+
+    try:
+        found = Path(distribution("example-robot-data").locate_file("cmeel.prefix/share"))
+    except PackageNotFoundError:
+        return None
+    return found if (found / "example-robot-data" / "robots").is_dir() else None
+
+
+def init_check_and_demo(description: Path, folder: Path, share: Path) -> tuple[Path, Path]:
+    """The README's "Adding a robot" commands, unedited, on a public description: ``hil init``,
+    ``hil check``, then ``hil up --demo`` in lock-step recording (CI's two shared CPUs are no
+    place to judge real time; ``hil bench`` is), which must succeed. The config's and the
+    recording's paths."""
+    config = folder / "robot.yaml"
+    found = ["--package-path", str(share)]
+    assert main(["init", str(description), "-o", str(config), *found]) == 0
+    assert main(["check", str(config), *found]) == 0
+    save = folder / "robot.rrd"
+    up = subprocess.run([sys.executable, "-m", "hil", "up", str(config), "--demo", "--lock-step",
+                         "--no-viewer", "--save", str(save), *found],
+                        capture_output=True, text=True, timeout=280, cwd=folder)
+    assert up.returncode == 0, up.stdout[-3000:] + up.stderr[-3000:]
+    assert "hil up: demo succeeded" in up.stdout
+    return config, save

@@ -46,6 +46,8 @@ def test_quick_bench_reports_every_figure(tmp_path):
         assert 0 < row["ideal_servo_rms"] and 0 < row["rms"] < 0.05
         assert row["feed_forward"]["result"] == "succeeded"
         assert 0 < row["feed_forward"]["rms"] < row["rms"]
+        assert row["gravity_feed_forward"]["result"] == "succeeded"
+        assert 0 < row["gravity_feed_forward"]["rms"]
     for row in report["bus_load"]:
         # measured worst-case stuffing never exceeds the config's worst-case estimate, but
         # for the cycles a master late at the window's start runs back to back inside it (up

@@ -116,8 +116,8 @@ def test_heavy_but_feasible_load_warns(tmp_path):
      "unknown option(s) kp for protocol 'cia402'"),
     (ALL_SIX.replace("joint: joint6}", "joint: joint6, options: {feed_forward: torque}}"),
      "'feed_forward' is one of none, velocity, not 'torque'"),
-    (ALL_SIX.replace("joint: joint2}", "joint: joint2, effects: {backlash: 0.01}}"),
-     "unknown key 'backlash'"),
+    (ALL_SIX.replace("joint: joint2}", "joint: joint2, effects: {cogging: 0.01}}"),
+     "unknown key 'cogging'"),
     (ALL_SIX.replace("joint: joint2}", "joint: joint2, effects: {delay: -0.001}}"),
      "effects: 'delay' must be >= 0 (0: off), not -0.001"),
 ])

@@ -131,7 +131,9 @@ def _pick(config, lock_step: bool, fingers: float):
             TrajectoryPoint(1.0, (arm_rot_3, fingers), (0.0, 0.0)),
             TrajectoryPoint(1.5, (arm_rot_3, fingers), (0.0, 0.0)),
             TrajectoryPoint(lifted_at, (arm_rot_3 + LIFT, fingers), (0.0, 0.0)),
-            TrajectoryPoint(lifted_at + HOLD + 0.5, (arm_rot_3 + LIFT, fingers), (0.0, 0.0))))
+            # held a second longer than is sampled: the samples are taken every 20 ms of
+            # wall time, a stretch of plant time that grows with lock-step's speed
+            TrajectoryPoint(lifted_at + HOLD + 1.0, (arm_rot_3 + LIFT, fingers), (0.0, 0.0))))
         client = TrajectoryActionClient(stack.zenoh, config.robot.name)
         samples = []                        # (plant time, cube xyz, finger midpoint)
         try:

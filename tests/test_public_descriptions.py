@@ -8,9 +8,6 @@ The few that do not load fail for reasons of their own, each named in EXPECTED_F
 
 from __future__ import annotations
 
-import subprocess
-import sys
-from importlib.metadata import PackageNotFoundError, distribution
 from pathlib import Path
 
 import pytest
@@ -19,18 +16,11 @@ from hil.cli import main
 from hil.description import PackagePath, load_description
 from hil.errors import HilError
 from hil.plant import Plant
+from conftest import example_robot_data, init_check_and_demo
 from test_init import mesh_entities
 
 
-def _share() -> Path | None:
-    try:
-        found = Path(distribution("example-robot-data").locate_file("cmeel.prefix/share"))
-    except PackageNotFoundError:
-        return None
-    return found if (found / "example-robot-data" / "robots").is_dir() else None
-
-
-SHARE = _share()
+SHARE = example_robot_data()
 pytestmark = [pytest.mark.skipif(SHARE is None, reason="example-robot-data is not installed "
                                  "(it comes with the test extra: pip install -e '.[test]')")]
 ROBOTS = SHARE / "example-robot-data" / "robots" if SHARE else Path()
@@ -84,16 +74,7 @@ BENCHES = ["panda_description/urdf/panda.urdf", "go1_description/urdf/go1.urdf",
 def test_init_check_and_demo_run_a_public_robot_and_record_its_meshes(name, tmp_path):
     """The README's "Adding a robot" commands, unedited (the demo in lock-step here: CI's
     two shared CPUs are no place to judge real time; `hil bench` is)."""
-    config = tmp_path / "robot.yaml"
-    share = ["--package-path", str(SHARE)]
-    assert main(["init", str(ROBOTS / name), "-o", str(config), *share]) == 0
-    assert main(["check", str(config), *share]) == 0
-    save = tmp_path / "robot.rrd"
-    up = subprocess.run([sys.executable, "-m", "hil", "up", str(config), "--demo", "--lock-step",
-                         "--no-viewer", "--save", str(save), *share],
-                        capture_output=True, text=True, timeout=280, cwd=tmp_path)
-    assert up.returncode == 0, up.stdout[-3000:] + up.stderr[-3000:]
-    assert "hil up: demo succeeded" in up.stdout
+    _, save = init_check_and_demo(ROBOTS / name, tmp_path, SHARE)
     meshes = mesh_entities(save)
     robot = load_description(ROBOTS / name, PackagePath((SHARE,)))
     with_meshes = {link.name for link in robot.links

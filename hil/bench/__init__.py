@@ -102,8 +102,11 @@ def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> di
             "ratio_to_mujoco": full / bare_physics})
         say(f"hil bench: {robot} tracking against MuJoCo's ideal position servo ...")
         fed = tracking(with_feed_forward(config))
-        report["tracking"].append({"robot": robot, **tracking(config), "feed_forward": {
-            key: fed[key] for key in ("result", "rms", "max", "rms_per_joint")}})
+        weighed = tracking(with_feed_forward(config, gravity=True))
+        keys = ("result", "rms", "max", "rms_per_joint")
+        report["tracking"].append({"robot": robot, **tracking(config),
+                                   "feed_forward": {key: fed[key] for key in keys},
+                                   "gravity_feed_forward": {key: weighed[key] for key in keys}})
     say("hil bench: fault detection (ur3, 500 Hz) ...")
     report["fault_detection"] = fault_detection(
         load_bus_config(settings.config_dir / "ur3.yaml"))

@@ -48,11 +48,14 @@ def with_rate(config: SystemConfig, rate: float) -> SystemConfig:
     return replace(config, buses=tuple(replace(bus, cycle_hz=rate) for bus in config.buses))
 
 
-def with_feed_forward(config: SystemConfig) -> SystemConfig:
+def with_feed_forward(config: SystemConfig, gravity: bool = False) -> SystemConfig:
     """The same bench with every CiA 402 drive's master sending velocity feed-forward (ODrive
-    and MIT masters always send theirs)."""
-    return replace(config, buses=tuple(
-        replace(bus, drives=tuple(replace(drive, options=Cia402Options("velocity"))
-                                  if drive.protocol == Cia402.name else drive
-                                  for drive in bus.drives))
-        for bus in config.buses))
+    and MIT masters always send theirs), and with ``gravity`` every master the torque that
+    holds its joints against gravity too."""
+    def fed(drive):
+        if drive.protocol == Cia402.name:
+            drive = replace(drive, options=Cia402Options("velocity"))
+        return replace(drive, torque_feed_forward="gravity") if gravity else drive
+
+    return replace(config, buses=tuple(replace(bus, drives=tuple(map(fed, bus.drives)))
+                                       for bus in config.buses))

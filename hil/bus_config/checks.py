@@ -46,6 +46,7 @@ def check_system(reader: Reader, config: SystemConfig, transmissions, top: LineM
                         f"number of plant steps ({1 / config.plant_rate_hz:g} s): the plant "
                         f"delays it {round(steps)} step(s)", drive.line,
                         hint="give a multiple of the plant step")
+        _check_gear(reader, drive, transmissions)
     for actuator, drives in by_actuator.items():
         if len(drives) > 1:
             reader.fail(f"actuator '{actuator}' has {len(drives)} drives "
@@ -56,6 +57,32 @@ def check_system(reader: Reader, config: SystemConfig, transmissions, top: LineM
                 reader.fail(f"actuator '{actuator}' (joint {', '.join(transmission.joints)}) "
                             "has no drive", top.key_lines.get("buses"),
                             hint="add a drive for it to one of the buses")
+    if config.floating_base and not any(not thing.movable for thing in config.scene):
+        reader.warn("base: floating, and nothing fixed in the scene to stand on: the robot "
+                    "falls for as long as the run lasts", top.key_lines.get("base", top.line),
+                    hint="add a floor to 'scene:', e.g. - {name: floor, shape: plane}")
+
+
+def _check_gear(reader: Reader, drive: DriveConfig, transmissions) -> None:
+    """Backlash and gear compliance need the one joint of a simple transmission, and one of
+    the two: a dead band with a spring beyond it is not modelled."""
+    effects = drive.effects
+    if not effects.gear_stage:
+        return
+    transmission = next((t for t in transmissions if drive.actuator in t.actuators), None)
+    if transmission is not None and len(transmission.joints) > 1:
+        reader.fail(f"{drive.label}: backlash and gear stiffness act between one motor and "
+                    f"one joint, not on a coupled transmission ({', '.join(transmission.joints)})",
+                    drive.line, hint="leave them out of this drive's effects")
+    if effects.backlash and (effects.gear_stiffness or effects.gear_damping):
+        reader.fail(f"{drive.label}: effects backlash and gear_stiffness/gear_damping together "
+                    "(a dead band with a spring beyond it) are not modelled", drive.line,
+                    hint="give one: backlash for a stiff gear with play, gear_stiffness and "
+                         "gear_damping for a compliant one without")
+    if effects.gear_damping and not effects.gear_stiffness:
+        reader.fail(f"{drive.label}: effects gear_damping without gear_stiffness: a damper "
+                    "alone would let the link drift from its motor", drive.line,
+                    hint="give the gear's stiffness too")
 
 
 def _check_ids(reader: Reader, bus: BusConfig) -> None:

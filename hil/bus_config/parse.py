@@ -3,6 +3,7 @@ read once, typed, with defaults derived from the robot's limits."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import yaml
@@ -10,6 +11,7 @@ import yaml
 from hil.bus_config.checks import check_system
 from hil.bus_config.joint_limits import apply_joint_limits
 from hil.bus_config.scene import read_scene
+from hil.bus_config.start_pose import read_start_pose
 from hil.bus_config.transmissions import add_transmissions
 from hil.bus_config.types import (
     NO_EFFECTS, ActuatorEffects, BusConfig, DriveConfig, Gains, SystemConfig,
@@ -21,14 +23,18 @@ from hil.protocols import names as protocol_names
 from hil.protocols import protocol
 from hil.transmissions import SimpleTransmission, Transmission, build_transmissions
 
-_TOP_KEYS = {"robot", "plant_rate_hz", "defaults", "joint_limits", "transmissions", "buses",
-             "scene"}
+_TOP_KEYS = {"robot", "plant_rate_hz", "base", "start_pose", "defaults", "joint_limits",
+             "transmissions", "buses", "scene"}
+#: the ``base:`` values: the root link welded to the world, or free (a free joint)
+BASES = {"fixed": False, "floating": True}
 _BUS_KEYS = {"name", "interface", "channel", "bitrate", "cycle_hz", "drives"}
 _DRIVE_KEYS = {"node_id", "joint", "actuator", "protocol", "encoder_counts_per_rev",
                "rated_torque", "peak_torque", "max_velocity", "following_error_limit",
                "following_error_timeout", "quick_stop_deceleration", "watchdog_timeout",
                "heartbeat_period", "holding_brake", "gains", "velocity_bandwidth_hz",
-               "options", "effects"}
+               "options", "effects", "torque_feed_forward"}
+#: what a master may add to each setpoint as torque feed-forward (``torque_feed_forward``)
+TORQUE_FEED_FORWARD = ("none", "gravity")
 _GAIN_KEYS = {"position_kp", "velocity_kp", "velocity_ki"}
 #: the default following-error window holds at least this long at the joint's top speed (s)
 FOLLOWING_ERROR_TIME = 0.02
@@ -78,14 +84,26 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
                   for index, raw in enumerate(raw_buses))
     scene = read_scene(reader, top)
     config = SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses,
-                          scene=scene)
+                          scene=scene, floating_base=_read_base(reader, top),
+                          start_pose=read_start_pose(reader, top, robot))
     check_system(reader, config, transmissions, top)
     errors = [d for d in reader.diagnostics if d.severity is Severity.ERROR]
     warnings = tuple(d for d in reader.diagnostics if d.severity is Severity.WARNING)
     if errors:
         raise HilError(errors + list(warnings))
-    return SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses,
-                        warnings=robot.warnings + warnings, scene=scene)
+    return replace(config, warnings=robot.warnings + warnings)
+
+
+def _read_base(reader: Reader, top: LineMapping) -> bool:
+    """``base:`` fixed (the default) or floating."""
+    base = top.get("base", "fixed")
+    if base not in BASES:
+        reader.fail(f"'base' must be {' or '.join(BASES)}, not {base!r}",
+                    top.key_lines.get("base", top.line),
+                    hint="floating: the robot's root is free and stands on the scene (a legged "
+                         "or mobile robot); fixed: it is welded to the world (an arm)")
+        return False
+    return BASES[base]
 
 
 def _read_bus(reader: Reader, raw, index: int, robot: RobotDescription,
@@ -166,7 +184,24 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
         position_limits=_motor_limits(robot, transmission),
         gains=gains,
         velocity_bandwidth_hz=float(reader.number(merged, "velocity_bandwidth_hz", what, 40.0)),
-        options=options, line=own.line, effects=_read_effects(reader, merged, what))
+        options=options, line=own.line, effects=_read_effects(reader, merged, what),
+        torque_feed_forward=_read_torque_feed_forward(reader, merged, what, spec))
+
+
+def _read_torque_feed_forward(reader: Reader, drive: LineMapping, what: str, spec) -> str:
+    value = drive.get("torque_feed_forward", "none")
+    line = drive.key_lines.get("torque_feed_forward", drive.line)
+    if value not in TORQUE_FEED_FORWARD:
+        reader.fail(f"{what}: torque_feed_forward is one of {', '.join(TORQUE_FEED_FORWARD)}, "
+                    f"not {value!r}", line,
+                    hint="gravity: the master adds the torque that holds the joints against "
+                         "gravity, from the description")
+        return "none"
+    if value != "none" and not spec.carries_torque_feed_forward:
+        reader.fail(f"{what}: protocol '{spec.name}' has no torque feed-forward", line,
+                    hint="leave torque_feed_forward out for this drive")
+        return "none"
+    return value
 
 
 def _read_protocol(reader: Reader, drive: LineMapping, what: str, name: str, node_id: int):

@@ -41,12 +41,33 @@ class ActuatorEffects:
     #: rad/s: the torque-speed line of a motor at its supply voltage: driving, |τ| is at most
     #: τ_peak (1 - |ω|/ω0), braking the full τ_peak; 0: no line (hil's drive applies it)
     no_load_speed: float = 0.0
+    #: rad (m) at the gear's output: its backlash, a dead band the output moves through
+    #: freely whenever the motor reverses: a second MuJoCo hinge on the joint's axis,
+    #: limited to ±width/2 with hard ends (simple transmissions)
+    backlash: float = 0.0
+    #: N·m/rad (N/m) and N·m·s/rad (N·s/m) at the gear's output: its torsional stiffness and
+    #: damping, a spring and damper between motor side and link: the same second hinge with
+    #: MuJoCo's joint stiffness and damping (simple transmissions; not with backlash)
+    gear_stiffness: float = 0.0
+    gear_damping: float = 0.0
+    #: s: the drive measures velocity from its encoder (the count difference over each
+    #: plant step, as a drive without a tachometer does) through a first-order low-pass of
+    #: this time constant; 0: the plant's exact velocity
+    velocity_filter: float = 0.0
 
-    KEYS = ("coulomb_friction", "viscous_friction", "delay", "no_load_speed")
+    KEYS = ("coulomb_friction", "viscous_friction", "delay", "no_load_speed", "backlash",
+            "gear_stiffness", "gear_damping", "velocity_filter")
+    #: the effects that put a stage between the motor and the link (a second hinge)
+    GEAR_KEYS = ("backlash", "gear_stiffness", "gear_damping")
 
     def in_force(self) -> dict[str, float]:
         """The effects set (not 0), by key."""
         return {key: getattr(self, key) for key in self.KEYS if getattr(self, key)}
+
+    @property
+    def gear_stage(self) -> bool:
+        """Whether the gear is more than a perfect ratio (backlash or compliance)."""
+        return any(getattr(self, key) for key in self.GEAR_KEYS)
 
 
 NO_EFFECTS = ActuatorEffects()
@@ -95,6 +116,10 @@ class DriveConfig:
     options: object | None = None     # the protocol's own settings (its profile's Options)
     line: int | None = None
     effects: ActuatorEffects = NO_EFFECTS
+    #: the master adds the torque that holds the joints against gravity at the target
+    #: (from the description: ``hil.hardware.gravity``) to each setpoint, in the protocol's
+    #: own field (CiA 402 0x60B2, ODrive's Torque_FF, MIT's t_ff): ``gravity``; or ``none``
+    torque_feed_forward: str = "none"
 
     @property
     def label(self) -> str:
@@ -121,8 +146,13 @@ class BusConfig:
 
     def frames(self, drive: DriveConfig) -> list[tuple[int, int, float]]:
         """(id, payload bytes, frames/s) of one drive's traffic, as its profile says."""
-        return protocol(drive.protocol).bus_frames(drive.node_id, self.cycle_hz,
-                                                   drive.heartbeat_period, drive.options)
+        spec = protocol(drive.protocol)
+        frames = spec.bus_frames(drive.node_id, self.cycle_hz, drive.heartbeat_period,
+                                 drive.options)
+        if drive.torque_feed_forward != "none":
+            frames += spec.torque_feed_forward_frames(drive.node_id, self.cycle_hz,
+                                                      drive.options)
+        return frames
 
     def load(self) -> BusLoad:
         """Worst-case traffic of every drive's cyclic exchange and timed messages (each
@@ -143,6 +173,11 @@ class SystemConfig:
     buses: tuple[BusConfig, ...]
     warnings: tuple[Diagnostic, ...] = field(default=(), compare=False)
     scene: tuple[SceneObject, ...] = ()
+    #: the robot's root free (MuJoCo's free joint: it stands on the scene, as a legged or
+    #: mobile robot does), not welded to the world (``base: floating``)
+    floating_base: bool = False
+    #: where joints start (``start_pose:``), (joint, position) pairs; the rest hil's way
+    start_pose: tuple[tuple[str, float], ...] = ()
 
     @property
     def effects(self) -> dict[str, ActuatorEffects]:

@@ -118,13 +118,15 @@ def _lock_step_lines(report: dict) -> list[str]:
 def _tracking_and_fault_lines(report: dict) -> list[str]:
     """Tracking against the ideal servo, and fault detection."""
     lines = ["", "tracking a fixed trajectory (rad/m): full stack (positions only; with the "
-                 "velocity feed-forward) vs MuJoCo's ideal position servo"]
+                 "velocity feed-forward; with velocity and gravity torque) vs MuJoCo's ideal "
+                 "position servo"]
     for row in report["tracking"]:
-        fed = row["feed_forward"]
+        fed, weighed = row["feed_forward"], row["gravity_feed_forward"]
         lines.append(f"  {row['robot']:<6} {row['result']:<10} rms {row['rms']:.4f} max "
-                     f"{row['max']:.4f}   feed-forward {fed['result']:<10} rms {fed['rms']:.4f} "
-                     f"max {fed['max']:.4f}   ideal rms {row['ideal_servo_rms']:.4f} max "
-                     f"{row['ideal_servo_max']:.4f}")
+                     f"{row['max']:.4f}   velocity {fed['result']:<10} rms {fed['rms']:.4f} "
+                     f"max {fed['max']:.4f}   + gravity {weighed['result']:<10} rms "
+                     f"{weighed['rms']:.4f} max {weighed['max']:.4f}   ideal rms "
+                     f"{row['ideal_servo_rms']:.4f} max {row['ideal_servo_max']:.4f}")
     lines += ["", "fault detection (ur3, 500 Hz: injected on bus 'arm')"]
     for row in report["fault_detection"]:
         when = f"{row['detection_ms']:6.1f} ms" if row["detected"] else "NOT DETECTED"

@@ -13,6 +13,7 @@ from hil.cli import common
 from hil.description import GeometryKind, PackagePath, RobotDescription, load_description
 from hil.errors import HilError, Severity
 from hil.plant import Plant
+from hil.simulator import bench_plant
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,8 +31,7 @@ def run(args: argparse.Namespace) -> int:
         args.path = common.config_path(str(args.path))
     if args.path.suffix in (".yaml", ".yml"):
         config = load_bus_config(args.path, package_path)
-        plant = Plant(config.robot, timestep=1.0 / config.plant_rate_hz,   # as hil sim builds it
-                      effects=config.effects, scene=config.scene)
+        plant = bench_plant(config)                     # as hil sim builds it
         config = replace(config, warnings=config.warnings + plant.warnings)
         if args.strict and config.warnings:
             raise HilError([replace(w, severity=Severity.ERROR) for w in config.warnings])
@@ -49,8 +49,10 @@ def run(args: argparse.Namespace) -> int:
 
 def bus_summary(config: SystemConfig) -> str:
     """The buses and drives of a bus config, with each bus' worst-case load."""
+    base = (f"base floating (root link '{config.robot.root_link}' free, standing on the scene)"
+            if config.floating_base else "base fixed")
     lines = [f"bus config {config.path}: robot '{config.robot.name}' ({config.robot.source}), "
-             f"plant {config.plant_rate_hz:g} Hz, control cycle {config.cycle_hz:g} Hz"]
+             f"plant {config.plant_rate_hz:g} Hz, control cycle {config.cycle_hz:g} Hz, {base}"]
     for bus in config.buses:
         load = bus.load()
         lines += ["", f"  bus '{bus.name}': {bus.interface} {bus.channel}, "
@@ -68,12 +70,15 @@ def bus_summary(config: SystemConfig) -> str:
     effects = config.effects
     options = {d.label: d.options for d in config.drives
                if getattr(d.options, "sends_velocity", False)}
-    if effects or options:
-        lines += ["", "  in force beyond the perfect motor and gear (motor side):"]
+    torques = [d for d in config.drives if d.torque_feed_forward != "none"]
+    if effects or options or torques:
+        lines += ["", "  in force beyond the perfect motor and gear (motor side; backlash and "
+                      "gear stiffness and damping at the gear's output):"]
         lines += [f"    {d.label}: " + ", ".join(f"{key} {value:g}" for key, value in
                                               d.effects.in_force().items())
                   for d in config.drives if d.actuator in effects]
         lines += [f"    {label}: feed_forward {o.feed_forward}" for label, o in options.items()]
+        lines += [f"    {d.label}: torque_feed_forward {d.torque_feed_forward}" for d in torques]
     lines += ["", f"  contacts: {collision_summary(config.robot)}"
                   + (", touching the scene:" if config.scene else "; no scene to touch")]
     lines += [f"    {scene_line(thing)}" for thing in config.scene]

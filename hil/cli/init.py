@@ -47,6 +47,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"hil init: wrote {output}: {written.drives} {args.protocol} drive(s) on "
           f"{written.buses} bus(es) at {args.rate:g} Hz for '{robot.name}'"
           f"{f'; {len(config.warnings)} warning(s), see hil check' if config.warnings else ''}")
+    if written.standing is not None:
+        print(f"  it stands ({written.standing.kind}, on {', '.join(written.standing.feet)}): a "
+              f"floating base on a floor, starting with each foot under its hip; the demo "
+              f"holds the {len(written.standing.carrying)} joint(s) it stands on")
     for joint in written.defaulted:
         print(f"  warning: joint '{joint.joint}': {joint.note}; review 'joint_limits:' in "
               f"{output}")

@@ -83,7 +83,8 @@ def run(args: argparse.Namespace) -> int:
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     clock = SimClockPublisher(session(zenoh), config.robot.name)
-    scene = ScenePublisher(session(zenoh), config.robot.name) if config.scene else None
+    scene = (ScenePublisher(session(zenoh), config.robot.name)
+             if config.scene or config.floating_base else None)
     stalls = StallPublisher(session(zenoh), config.robot.name)
     simulator.on_stall = stalls.publish
     if not args.lock_step:                  # the controller's messages delivered late
@@ -200,7 +201,8 @@ def _publish_clock(simulator: Simulator, publishers: tuple[SimClockPublisher,
                                                           ScenePublisher | None],
                    stop: threading.Event) -> None:
     """The plant's time against the wall clock, for placing samples on the sim-time timeline;
-    and its scene where it has one (moving objects and contacts, for the recording)."""
+    and its scene where it has one (moving objects, contacts and a floating base, for the
+    recording)."""
     clock, scene = publishers
     plant = simulator.plant
     moving = plant.moving_objects()
@@ -210,11 +212,12 @@ def _publish_clock(simulator: Simulator, publishers: tuple[SimClockPublisher,
             if scene is not None:
                 poses = [plant.object_pose(name) for name in moving]
                 points, forces = plant.contacts()
+                base = plant.base_pose() if plant.floating else None
         clock.publish(wall_time, sim_time)
         if scene is not None:
             scene.publish(SceneState(
                 wall_time, sim_time, moving, np.array([p for p, _ in poses]).reshape(-1, 3),
-                np.array([q for _, q in poses]).reshape(-1, 4), points, forces))
+                np.array([q for _, q in poses]).reshape(-1, 4), points, forces, base))
 
 
 def _ros_clock(args: argparse.Namespace, config):

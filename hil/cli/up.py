@@ -29,6 +29,7 @@ from hil.cli import common
 from hil.cli.run_progress import Progress
 from hil.controllers import GoalRejected, GoalStatus
 from hil.commissioning.demo_pace import MOTION_SHARE, paced_demo
+from hil.commissioning.stance import stance
 from hil.can.faults import ProcessFault, parse_fault
 from hil.errors import HilError
 from hil.hardware import BOOT_TIMEOUT
@@ -395,6 +396,15 @@ def _supervise(args, robots: list[_Robot], run: Run, zenoh: ZenohSettings) -> No
             run.wait(1.0)
 
 
+def _held(config: SystemConfig) -> tuple[str, ...]:
+    """The joints the demo holds where they are: on a floating base, those the robot stands
+    on (every joint, where it does not stand: moving them would push it over the floor)."""
+    if not config.floating_base:
+        return ()
+    found = stance(config.robot, dict(config.start_pose))
+    return found.carrying if found else tuple(j.name for j in config.robot.movable_joints)
+
+
 def _demo(robot: _Robot, run: Run, zenoh: ZenohSettings, real_time: bool) -> bool:
     """The robot's demo goal, followed to its end; whether it succeeded."""
     if real_time:
@@ -411,7 +421,7 @@ def _demo(robot: _Robot, run: Run, zenoh: ZenohSettings, real_time: bool) -> boo
             return False
     with progress.lock:
         names, positions = progress.joint_names, progress.positions.copy()
-    demo = paced_demo(robot.config.robot, names, positions)
+    demo = paced_demo(robot.config.robot, names, positions, _held(robot.config))
     goal = demo.goal
     client = TrajectoryActionClient(session(zenoh), robot.name)
     try:

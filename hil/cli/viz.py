@@ -16,7 +16,7 @@ from hil.can.monitor import BusMonitor
 from hil.cli import common
 from hil.errors import HilError
 from hil.realtime import enter_background
-from hil.visualisation import RunRecorder
+from hil.visualisation import BenchParts, RunRecorder
 from hil.visualisation.blueprint import run_blueprint
 from hil.visualisation.urdf_export import viewer_urdf
 from hil.visualisation.node import VizNode
@@ -108,8 +108,10 @@ def _recorder(recording: rr.RecordingStream, config: SystemConfig, folder: Path,
               namespaced: bool) -> RunRecorder:
     urdf = folder / f"{config.robot.name}.urdf"
     urdf.write_bytes(viewer_urdf(config.robot))
+    parts = BenchParts(config.scene, {d.actuator: d.peak_torque for d in config.drives},
+                       config.floating_base)
     return RunRecorder(recording, config.robot, urdf, _actuator_joints(config),
-                       tuple(b.name for b in config.buses), namespaced, config.scene)
+                       tuple(b.name for b in config.buses), namespaced, parts)
 
 
 def _open_sinks(recording: rr.RecordingStream, args: argparse.Namespace) -> str:

@@ -13,6 +13,7 @@ up --demo` runs it.
 
 from __future__ import annotations
 
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 
 import mujoco
@@ -50,19 +51,21 @@ class PacedDemo:
     notes: tuple[str, ...]        # joints that still need more than EFFORT_SHARE
 
 
-def paced_demo(robot: RobotDescription, joint_names, current=None) -> PacedDemo:
-    """The demo goal for ``joint_names`` from ``current`` (None: where the plant starts),
-    slowed (by at most MOST_SLOWER) until its motion takes every joint at most MOTION_SHARE
-    of its effort limit; joints that need more than EFFORT_SHARE of it even so are named in
-    the notes."""
-    plant = Plant(robot)
+def paced_demo(robot: RobotDescription, joint_names, current=None,
+               held: Collection[str] = (), start_pose: Mapping[str, float] | None = None
+               ) -> PacedDemo:
+    """The demo goal for ``joint_names`` from ``current`` (None: where the plant starts, at
+    ``start_pose`` over hil's own), ``held`` joints staying put, slowed (by at most
+    MOST_SLOWER) until its motion takes every joint at most MOTION_SHARE of its effort
+    limit; joints that need more than EFFORT_SHARE of it even so are named in the notes."""
+    plant = Plant(robot, start_pose=start_pose)
     if current is None:
         start = dict(zip(plant.joint_names, plant.joint_positions().tolist()))
         current = [start[name] for name in joint_names]
     effort = np.array([robot.joint(name).limits.effort for name in joint_names])
     slower = 1.0
     while True:
-        goal = demo_goal(robot, joint_names, current, slower)
+        goal = demo_goal(robot, joint_names, current, slower, held)
         loads = demo_loads(plant, goal, current)
         motion = np.array([loads.peak[n] - loads.holding[n] for n in joint_names])
         need = float(np.max(motion / np.maximum(MOTION_SHARE * effort, 1e-9)))

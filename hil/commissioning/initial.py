@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 
 from hil.commissioning.demo_pace import paced_demo
+from hil.commissioning.stance import Stance, stance, standing_pose
 from hil.commissioning.sizing import Sizing, default_limits, needs_default_limits, size_joint
 from hil.bus_config.joint_limits import KEYS as LIMIT_KEYS
 from hil.bus_config.transmissions import SIMPLE, actuator_of
@@ -38,6 +39,11 @@ HEARTBEAT_PERIOD = 0.1
 #: MIT motors hold position with the master's kp/kd: a critically damped loop at this
 #: bandwidth on the joint's inertia at the zero pose, reflected to the motor
 MIT_BANDWIDTH_HZ = 10.0
+#: the velocity loops of the joints a standing robot stands on (Hz): under the ground's own
+#: contact (a 4 ms time constant, hil.plant's CONTACT_SOLREF): at the default 40 Hz a Go1's
+#: calves chattered between their peak torques and it shuffled across the floor; at 20 Hz
+#: (and 10) it stood still, 0.1 of its peak torque, no drift (lock-step, measured)
+STANCE_BANDWIDTH_HZ = 20.0
 
 
 @dataclass(frozen=True)
@@ -49,6 +55,7 @@ class Drive:
     sizing: Sizing | None          # None: the description's own transmission
     rated_torque: float | None
     options: dict | None = None
+    velocity_bandwidth_hz: float | None = None     # None: the bus config's default
 
 
 @dataclass(frozen=True)
@@ -66,19 +73,26 @@ class InitialConfig:
     drives: int
     buses: int
     defaulted: tuple[DefaultedJoint, ...]
+    standing: Stance | None = None      # a floating base, standing so
 
 
 def initial_config(robot: RobotDescription, description: Path, output: Path,
                    protocol_name: str, rate: float) -> InitialConfig:
     """The YAML text of a bus config for ``robot`` (read from ``description``), to be
-    written at ``output``: a drive for every joint of ``robot.undriven_joints``."""
+    written at ``output``: a drive for every joint of ``robot.undriven_joints``; a robot
+    that stands (:mod:`hil.commissioning.stance`) gets a floating base, a standing start
+    pose and a floor, and drives that hold it standing."""
     worst = worst_gravity_loads(robot)
     defaulted = tuple(_defaulted(j, worst[j.name]) for j in robot.undriven_joints
                       if needs_default_limits(j))
     limited = {d.joint: d.limits for d in defaulted}
     robot = replace(robot, joints=tuple(replace(j, limits=limited[j.name]) if j.name in limited
                                         else j for j in robot.joints))
-    holding = demo_holding_loads(robot)
+    standing, pose = stands(robot)
+    holding = demo_holding_loads(robot, pose)
+    if standing is not None:
+        holding = {name: max(load, standing.loads.get(name, 0.0))
+                   for name, load in holding.items()}
     sizings = [size_joint(joint, holding[joint.name]) for joint in robot.undriven_joints]
     added = tuple(_transmission(s) for s in sizings)
     sized = replace(robot, transmissions=robot.transmissions + added)
@@ -89,21 +103,38 @@ def initial_config(robot: RobotDescription, description: Path, output: Path,
                for s in sizings]
     if protocol_name == "mit":
         drives = _with_mit_options(sized, drives)
+    if standing is not None:
+        carrying = set(standing.carrying)
+        drives = [replace(d, velocity_bandwidth_hz=STANCE_BANDWIDTH_HZ)
+                  if carrying & {j.strip() for j in d.joint.split(",")} else d for d in drives]
     per_bus = _drives_per_bus(protocol_name, rate)
     buses = [drives[i:i + per_bus] for i in range(0, len(drives), per_bus)]
     text = _yaml(robot, description, output, protocol_name, rate, sizings, buses, per_bus,
-                 defaulted)
-    return InitialConfig(text, len(drives), len(buses), defaulted)
+                 defaulted, standing, pose)
+    return InitialConfig(text, len(drives), len(buses), defaulted, standing)
 
 
-def demo_holding_loads(robot: RobotDescription) -> dict[str, float]:
+def stands(robot: RobotDescription) -> tuple[Stance | None, dict[str, float]]:
+    """How the robot stands, if it does, and the start pose it stands in: its feet under its
+    hips (:func:`~hil.commissioning.stance.standing_pose`) where it stands so too, else the
+    pose it starts in."""
+    found = stance(robot)
+    if found is None:
+        return None, {}
+    pose = standing_pose(robot, found)
+    again = stance(robot, pose)
+    return (again, pose) if again is not None else (found, {})
+
+
+def demo_holding_loads(robot: RobotDescription, start_pose: dict[str, float] | None = None
+                       ) -> dict[str, float]:
     """The largest gravity load each joint that gets a drive holds along the demo `hil up
-    --demo` runs from the start pose (N·m or N)."""
+    --demo` runs from the start pose (N·m or N), on a fixed base."""
     names = [j.name for t in robot.transmissions for j in t.joints]
     names += [j.name for j in robot.undriven_joints]
     if not names:
         return {}
-    return paced_demo(robot, names).loads.holding
+    return paced_demo(robot, names, start_pose=start_pose).loads.holding
 
 
 def worst_gravity_loads(robot: RobotDescription) -> dict[str, float]:
@@ -203,7 +234,8 @@ def _number(value: float) -> str:
 
 def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_name: str,
           rate: float, sizings: list[Sizing], buses: list[list[Drive]], per_bus: int,
-          defaulted: tuple[DefaultedJoint, ...]) -> str:
+          defaulted: tuple[DefaultedJoint, ...], standing: Stance | None,
+          pose: dict[str, float]) -> str:
     robot_path = os.path.relpath(description.resolve(), output.resolve().parent)
     if robot_path.startswith(os.pardir):          # not below the config's folder
         robot_path = str(description.resolve())
@@ -224,6 +256,18 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
             "# with the smallest such reduction. Replace them with your real drives' values.",
         ]
     lines += ["", f"robot: {robot_path}", "plant_rate_hz: 1000"]
+    if standing is not None:
+        lines += ["", f"# The robot stands ({standing.kind}, on {', '.join(standing.feet)}): its "
+                      "base is free and it", "# stands on a floor, in a pose with each foot under "
+                      "its hip; the joints that carry it", "# hold it on their brakes until "
+                      "the drives are enabled, and `hil up --demo` holds them;",
+                  f"# their velocity loops run at {STANCE_BANDWIDTH_HZ:g} Hz, under the "
+                  "contact with the ground.",
+                  "base: floating"]
+        if pose:
+            lines += ["start_pose:"] + [f"  {name}: {_number(value)}"
+                                        for name, value in pose.items()]
+        lines += ["scene:", "  - {name: floor, shape: plane}"]
     if defaulted:
         lines += ["", "# No effort or velocity limit in the description: hil's default class",
                   "# (hil/commissioning/sizing.py). Replace them with the joints' real limits.",
@@ -249,6 +293,8 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
             fields = [f"node_id: {node_id}", key]
             if drive.rated_torque is not None:
                 fields.append(f"rated_torque: {_number(drive.rated_torque)}")
+            if drive.velocity_bandwidth_hz is not None:
+                fields.append(f"velocity_bandwidth_hz: {_number(drive.velocity_bandwidth_hz)}")
             if drive.options:
                 fields.append("options: {" + ", ".join(f"{k}: {_number(v)}" for k, v in
                                                         drive.options.items()) + "}")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Collection
+
 import numpy as np
 
 from hil.controllers.goal import TrajectoryGoal, TrajectoryPoint
@@ -13,12 +15,15 @@ SWING, SWING_FRACTION = 0.5, 0.25
 SPEED_FRACTION, MIN_SEGMENT = 0.5, 1.5
 #: keep this fraction of the range away from the limits
 MARGIN = 0.05
+#: a demo that holds a standing robot's joints lasts at least this long (s)
+STAND = 10.0
 
 
-def demo_goal(robot: RobotDescription, joint_names, current, slower: float = 1.0
-              ) -> TrajectoryGoal:
+def demo_goal(robot: RobotDescription, joint_names, current, slower: float = 1.0,
+              held: Collection[str] = ()) -> TrajectoryGoal:
     """Rotary joints swing one way, the other way and back to the middle of their swing;
-    prismatic joints (grippers) open fully, close and open again.
+    prismatic joints (grippers) open fully, close and open again; ``held`` joints (those a
+    standing robot stands on) stay where they are, for STAND seconds at least.
 
     ``current`` are the joints' positions now; a joint resting outside its
     swing (e.g. hanging on a limit) is brought into it by the first segment.
@@ -26,18 +31,27 @@ def demo_goal(robot: RobotDescription, joint_names, current, slower: float = 1.0
     most SPEED_FRACTION of each joint's velocity limit; ``slower`` stretches every
     segment by that factor (see :func:`hil.commissioning.demo_pace.paced_demo`).
     """
-    waypoints = np.array([_waypoints(robot.joint(name), position)
+    waypoints = np.array([(_inside(robot.joint(name), position),) * 3 if name in held else
+                          _waypoints(robot.joint(name), position)
                           for name, position in zip(joint_names, current)]).T   # (3, joints)
     limits = np.array([robot.joint(name).limits.velocity for name in joint_names])
+    shortest = max(MIN_SEGMENT, STAND / len(waypoints)) if held else MIN_SEGMENT
     points, time, previous = [], 0.0, np.asarray(current, dtype=float)
     for positions in waypoints:
         # a cubic from rest to rest peaks at 1.5 x the mean speed
-        duration = slower * max(MIN_SEGMENT, float(np.max(1.5 * np.abs(positions - previous)
-                                                          / (SPEED_FRACTION * limits))))
+        duration = slower * max(shortest, float(np.max(1.5 * np.abs(positions - previous)
+                                                       / (SPEED_FRACTION * limits))))
         time += duration
         points.append(TrajectoryPoint(time, tuple(positions), (0.0,) * len(positions)))
         previous = positions
     return TrajectoryGoal(tuple(joint_names), tuple(points))
+
+
+def _inside(joint, position: float) -> float:
+    """``position``, or the nearer limit of a joint that rests beyond it (a loaded joint
+    sagged past its end): where it is held."""
+    lower, upper = joint.limits.lower, joint.limits.upper
+    return position if lower is None or upper is None else float(np.clip(position, lower, upper))
 
 
 def _waypoints(joint, position: float) -> tuple[float, float, float]:

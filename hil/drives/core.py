@@ -69,15 +69,25 @@ class DriveCore:
         self._move_target = 0.0
         self._halted = False
         self._offset = 0.0              # the drive's position scale against the encoder's
+        self._counts = 0                # the encoder's reading (counts, no offset)
         self._measured = False          # no position measured yet
 
     # --- commands from the profile ------------------------------------------
 
-    def measure(self, position: float, velocity: float) -> None:
-        """Latest motor position/velocity (quantised to encoder counts)."""
-        step = self.parameters.radians_per_count
+    def measure(self, position: float, velocity: float, dt: float = 0.0) -> None:
+        """Latest motor position (quantised to encoder counts) and velocity: as given, or
+        with ``velocity_filter`` the encoder's count difference over ``dt`` (the time since
+        the last measurement), low-passed (backward Euler: v += (raw - v) dt / (T + dt))."""
+        p = self.parameters
+        step = p.radians_per_count
         self._position = round((position + self._offset) / step) * step
-        self._velocity = velocity
+        counts = round(position / step)
+        if p.velocity_filter > 0.0 and self._measured and dt > 0.0:
+            raw = (counts - self._counts) * step / dt
+            self._velocity += (raw - self._velocity) * dt / (p.velocity_filter + dt)
+        else:
+            self._velocity = velocity
+        self._counts = counts
         if not self._measured:            # powered up: the brake holds where the axis is
             self._measured = True
             self._hold = self._position

@@ -89,6 +89,9 @@ class DriveParameters:
     profile_deceleration: float = 0.0  # rad/s^2
     #: the motor's torque-speed line (rad/s): driving, |torque| <= peak (1 - |w| / w0); 0: none
     no_load_speed: float = 0.0
+    #: velocity from the encoder's counts through a first-order low-pass of this time
+    #: constant (s); 0: the velocity measured as given (the plant's exact one)
+    velocity_filter: float = 0.0
 
     @functools.cached_property    # read several times per drive and plant step
     def radians_per_count(self) -> float:

@@ -103,9 +103,12 @@ class Axis(ABC):
 
     @abstractmethod
     def cycle_frames(self, target: float, velocity: float, stopping: bool,
-                     enabling: bool) -> list[Frame]:
+                     enabling: bool, torque: float = 0.0) -> list[Frame]:
         """This cycle's frames: walk toward following ``target`` (rad, motor) unless
-        ``stopping`` (then bring the axis to rest); while ``enabling`` hold where it is."""
+        ``stopping`` (then bring the axis to rest); while ``enabling`` hold where it is.
+        ``velocity`` (rad/s) goes with the target where the protocol carries it; ``torque``
+        (N·m, a torque feed-forward) is given only to axes of protocols that declare
+        ``carries_torque_feed_forward``, for drives whose config asks for it."""
 
     @property
     @abstractmethod

@@ -25,6 +25,7 @@ from hil.can import link_round_trip, link_unreached, sent_together, watch_delive
 from hil.errors import HilError
 from hil.hardware.axis import STANDSTILL, Axis, AxisFault, FaultKind
 from hil.hardware.feedback import JointFeedback, PlausibilityCheck
+from hil.hardware.gravity import GravityModel
 from hil.hardware.interface import HardwareInterface
 from hil.protocols import protocol
 from hil.realtime import PeriodStatistics, Ring
@@ -83,6 +84,10 @@ class CanHardwareInterface(HardwareInterface):
         # joints (joint_names order) <-> actuators (axes order) in one map
         self.transmissions = TransmissionStack(build_transmissions(config.robot),
                                                self.joint_names, self.actuator_names)
+        self._gravity_axes = [a.config.torque_feed_forward == "gravity" for a in self.axes]
+        self._gravity = (GravityModel(config.robot, self.joint_names)
+                         if any(self._gravity_axes) else None)
+        self._no_torques = [0.0] * len(self.axes)
         self._cycle = 0
         self._stopping = False
         self._recovering = False
@@ -187,18 +192,31 @@ class CanHardwareInterface(HardwareInterface):
         self._cycle += 1
         targets = self.transmissions.joint_to_actuator_position(positions).tolist()
         speeds = self.transmissions.joint_to_actuator_velocity(velocities).tolist()
+        torques = self._feed_forward_torques(positions)
         hold = enabling or self._recovering
         # one message for every bus where the transport can (zenoh): a cycle's frames in one put
         with sent_together(network.bus for network in self._networks.values()):
-            for axis, target, speed in zip(self.axes, targets, speeds):
+            for axis, target, speed, torque in zip(self.axes, targets, speeds, torques):
                 axis.begin_cycle(self._cycle)
                 network = self._networks[axis.bus_name]
-                for can_id, data, remote in axis.cycle_frames(target, speed, self._stopping,
-                                                              hold):
+                # a torque only for drives that ask (their protocol carries one): an axis of
+                # a protocol without one need not take it
+                frames = (axis.cycle_frames(target, speed, self._stopping, hold, torque)
+                          if torque else axis.cycle_frames(target, speed, self._stopping, hold))
+                for can_id, data, remote in frames:
                     network.send_message(can_id, data, remote)
             for name in self._sync_buses:
                 self._networks[name].send_message(SYNC_ID, b"")
         self._sync_sent = time.perf_counter()
+
+    def _feed_forward_torques(self, positions) -> list[float]:
+        """Each axis' torque feed-forward (N·m, motor side): what holds its joints against
+        gravity at ``positions``, for the drives whose config asks (0 for the others)."""
+        if self._gravity is None:
+            return self._no_torques
+        joint_torques = self._gravity.torques(np.asarray(positions, dtype=float).tolist())
+        torques = self.transmissions.joint_to_actuator_effort(joint_torques).tolist()
+        return [t if wanted else 0.0 for t, wanted in zip(torques, self._gravity_axes)]
 
     def _await_feedback(self, skip_silent: bool, deadline: float) -> bool:
         """Wait (up to ``deadline``, perf_counter) until every axis' answer of this cycle is

@@ -7,7 +7,7 @@ CancelGoal service) are registered from their .msg/.action field layouts;
 hil's own types are ``hil_msgs/GoalResult`` (a goal's terminal status),
 ``hil_msgs/ControlSamples`` (a batch of control cycles, for recording and
 plotting), ``hil_msgs/SimClock`` (the plant's time against the wall clock) and
-``hil_msgs/SceneState`` (the scene's moving objects and contacts).
+``hil_msgs/SceneState`` (the scene's moving objects, contacts and floating base).
 """
 
 from __future__ import annotations
@@ -72,11 +72,13 @@ DEFINITIONS = {
         "string[] actuator_names\nfloat64[] motor_torque\nuint8[] drive_state\n"
         "string[] state_names\nfloat64[] cycle_period\nfloat64[] round_trip",
     "hil_msgs/msg/SimClock": "float64 wall_time\nfloat64 sim_time",
-    # the plant's scene now: each moving object's pose (names x 3, names x 4: w x y z) and
-    # each contact's point and force on its first body (contacts x 3 each), world frame
+    # the plant's scene now: each moving object's pose (names x 3, names x 4: w x y z), each
+    # contact's point and force on its first body (contacts x 3 each), and a floating base's
+    # pose (3 and 4; none for a fixed one), world frame
     "hil_msgs/msg/SceneState":
         "float64 wall_time\nfloat64 sim_time\nstring[] names\nfloat64[] position\n"
-        "float64[] orientation\nfloat64[] contact_point\nfloat64[] contact_force",
+        "float64[] orientation\nfloat64[] contact_point\nfloat64[] contact_force\n"
+        "float64[] base_position\nfloat64[] base_orientation",
     # a real-time process' stall (hil.realtime.stalls.Stall): at in s since the epoch
     "hil_msgs/msg/Stall": "string process\nfloat64 at\nfloat64 length\nfloat64 steal\n"
                           "string where",

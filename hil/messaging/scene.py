@@ -1,5 +1,6 @@
 """The plant's scene as the simulator publishes it (``hil_msgs/SceneState``): where each
-moving object is and where things touch, a few dozen times a second, for the recording."""
+moving object is, where a floating base is, and where things touch, a few dozen times a
+second, for the recording."""
 
 from __future__ import annotations
 
@@ -21,13 +22,17 @@ class SceneState:
     orientations: np.ndarray         # quaternions w, x, y, z
     contact_points: np.ndarray       # m
     contact_forces: np.ndarray       # N, on each contact's first body
+    #: a floating base's position (m) and orientation (w, x, y, z); None for a fixed one
+    base: tuple[np.ndarray, np.ndarray] | None = None
 
     def encode(self) -> bytes:
+        position, orientation = self.base if self.base is not None else ((), ())
         return cdr.encode(cdr.msg(
             cdr.SCENE_STATE, wall_time=self.wall_time, sim_time=self.sim_time,
             names=list(self.names), position=self.positions.ravel(),
             orientation=self.orientations.ravel(), contact_point=self.contact_points.ravel(),
-            contact_force=self.contact_forces.ravel()))
+            contact_force=self.contact_forces.ravel(), base_position=np.asarray(position),
+            base_orientation=np.asarray(orientation)))
 
     @classmethod
     def decode(cls, data: bytes) -> SceneState:
@@ -43,6 +48,9 @@ class SceneState:
                                  f"values, {rows} x {width} expected")
             return values.reshape(rows, width)
 
+        base = ((table("base_position", 1, 3)[0], table("base_orientation", 1, 4)[0])
+                if len(message.base_position) or len(message.base_orientation) else None)
         return cls(message.wall_time, message.sim_time, tuple(message.names),
                    table("position", objects, 3), table("orientation", objects, 4),
-                   table("contact_point", contacts, 3), table("contact_force", contacts, 3))
+                   table("contact_point", contacts, 3), table("contact_force", contacts, 3),
+                   base)

@@ -45,6 +45,10 @@ from hil.errors import HilError
 from hil.transmissions import SimpleTransmission, Transmission
 
 DEFAULT_TIMESTEP = 0.001
+#: the free joint of a floating base (the bus config's ``base: floating``)
+FLOATING_BASE = "floating_base"
+#: the gear's own hinge beside a joint's (backlash, gear compliance): its name
+GEAR_STAGE = "{joint}_gear"
 _VISUAL_GROUP = 1
 #: MuJoCo's geom group of collision shapes (hidden in its viewer by default)
 COLLISION_GROUP = 3
@@ -85,19 +89,25 @@ STICTION_IMPEDANCE = (0.99, 0.999, 0.001, 0.5, 2.0)
 
 
 class ActuatorLosses(Protocol):
-    """What the plant models of a real motor and gear, motor side (a bus config's
-    ``ActuatorEffects`` is one): each 0 for none."""
+    """What the plant models of a real motor and gear (a bus config's ``ActuatorEffects`` is
+    one): each 0 for none. Motor side but for the gear's own, at its output."""
 
     coulomb_friction: float      # N·m
     viscous_friction: float      # N·m·s/rad
     delay: float                 # s
+    backlash: float              # rad (m), output side
+    gear_stiffness: float        # N·m/rad (N/m), output side
+    gear_damping: float          # N·m·s/rad (N·s/m), output side
 
 
 def build_spec(description: RobotDescription, transmissions: tuple[Transmission, ...],
                timestep: float = DEFAULT_TIMESTEP,
                losses: Mapping[str, ActuatorLosses] | None = None,
-               scene: tuple[ScenePart, ...] = (),
+               scene: tuple[ScenePart, ...] = (), floating_base: bool = False,
                ) -> tuple[mujoco.MjSpec, tuple[ActuatorBinding, ...]]:
+    """The robot's model; with ``floating_base`` its root body (or, under a ``world`` link,
+    each body on it) moves freely on a free joint named FLOATING_BASE instead of being
+    welded to the world."""
     spec = mujoco.MjSpec()
     spec.modelname = description.name
     spec.compiler.degree = False
@@ -109,10 +119,17 @@ def build_spec(description: RobotDescription, transmissions: tuple[Transmission,
 
     armature = _reflected_joint_armature(description, transmissions)
     if description.root_link == WORLD:        # MuJoCo's world body is that link
-        for child in description.children_of(WORLD):
-            _add_body(spec, spec.worldbody, description, child.child, child, armature)
+        tops = [_add_body(spec, spec.worldbody, description, child.child, child, armature)
+                for child in description.children_of(WORLD)]
     else:
-        _add_body(spec, spec.worldbody, description, description.root_link, None, armature)
+        tops = [_add_body(spec, spec.worldbody, description, description.root_link, None,
+                          armature)]
+    if floating_base:
+        for number, top in enumerate(tops):
+            if top.first_joint() is not None:          # a movable joint to the world: kept
+                continue
+            top.add_freejoint(name=FLOATING_BASE if number == 0
+                              else f"{FLOATING_BASE}_{number}")
     _add_scene(spec, scene)
     _add_mimic_constraints(spec, description)
     bindings = _add_actuators(spec, description, transmissions)
@@ -150,6 +167,29 @@ def _add_losses(spec: mujoco.MjSpec, transmission: Transmission, binding: Actuat
         actuator.delay = steps * timestep
         actuator.nsample = steps + 1
         actuator.interp = 0
+    if losses.backlash or losses.gear_stiffness:
+        _add_gear_stage(spec, transmission.joints[0], losses, timestep)
+
+
+def _add_gear_stage(spec: mujoco.MjSpec, joint_name: str, losses: ActuatorLosses,
+                    timestep: float) -> None:
+    """The gear between the motor and the link as a second hinge (or slide) on the joint's
+    axis, in the same body (MuJoCo's way to model backlash: it has no backlash or gear
+    compliance of its own). The motor turns the joint's own; the link sits at the sum of
+    the two; the second, GEAR_STAGE, turns freely within ±backlash/2 (ends as stiff as the
+    step allows), or against the gear's stiffness and damping."""
+    joint = spec.joint(joint_name)
+    stage = joint.parent.add_joint(name=GEAR_STAGE.format(joint=joint_name), type=joint.type,
+                                   axis=joint.axis, pos=joint.pos)
+    if losses.backlash:
+        stage.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+        stage.range = (-losses.backlash / 2, losses.backlash / 2)
+        stage.solref_limit = [2 * timestep, 1.0]
+        stage.solimp_limit = list(STICTION_IMPEDANCE)
+    else:
+        stage.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+        stage.stiffness = [losses.gear_stiffness, 0.0, 0.0]
+        stage.damping = [losses.gear_damping, 0.0, 0.0]
 
 
 def compile_model(spec: mujoco.MjSpec, description: RobotDescription) -> mujoco.MjModel:
@@ -177,7 +217,8 @@ def _reflected_joint_armature(description: RobotDescription,
 
 
 def _add_body(spec: mujoco.MjSpec, parent, description: RobotDescription, link_name: str,
-              joint: Joint | None, armature: dict[str, float]) -> None:
+              joint: Joint | None, armature: dict[str, float]):
+    """The link's body, its joint, geoms and the bodies below it; returns the body."""
     link = description.link(link_name)
     body = parent.add_body(name=link.name)
     if joint is not None:
@@ -190,6 +231,7 @@ def _add_body(spec: mujoco.MjSpec, parent, description: RobotDescription, link_n
     _add_collisions(spec, body, link)
     for child in description.children_of(link.name):
         _add_body(spec, body, description, child.child, child, armature)
+    return body
 
 
 def _add_joint(body, joint: Joint, armature: float) -> None:

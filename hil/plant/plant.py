@@ -15,13 +15,16 @@ from collections.abc import Mapping
 import mujoco
 import numpy as np
 
-from hil.description import RobotDescription
+from hil.description import GeometryKind, RobotDescription
 from hil.errors import Diagnostic, warning
 from hil.plant.builder import (
-    DEFAULT_TIMESTEP, MUJOCO_MESHES, ActuatorLosses, ScenePart, build_spec, compile_model,
-    unreadable_mesh,
+    DEFAULT_TIMESTEP, FLOATING_BASE, GEAR_STAGE, MUJOCO_MESHES, ROBOT_CONTACT, ActuatorLosses,
+    ScenePart, build_spec, compile_model, unreadable_mesh,
 )
 from hil.transmissions import Transmission, TransmissionStack, build_transmissions
+
+#: a shape rests on the ground when its bottom is this close to the robot's lowest point (m)
+RESTING = 0.005
 
 
 class Plant:
@@ -35,15 +38,18 @@ class Plant:
 
     def __init__(self, description: RobotDescription, timestep: float = DEFAULT_TIMESTEP,
                  effects: Mapping[str, ActuatorLosses] | None = None,
-                 scene: tuple[ScenePart, ...] = ()):
+                 scene: tuple[ScenePart, ...] = (), floating_base: bool = False,
+                 start_pose: Mapping[str, float] | None = None):
         """``effects``: the motor losses of actuators that have any, by actuator name;
-        ``scene``: the things in the robot's world."""
+        ``scene``: the things in the robot's world; ``floating_base``: the robot's root
+        moves freely and starts standing on the scene (:meth:`base_pose`); ``start_pose``:
+        where joints start, over :func:`initial_pose`."""
         _avoid_slow_clock()
         self.description = description
         self.scene = scene
         self.transmissions: tuple[Transmission, ...] = build_transmissions(description)
         self.spec, self.bindings = build_spec(description, self.transmissions, timestep,
-                                              effects, scene)
+                                              effects, scene, floating_base)
         self.model = compile_model(self.spec, description)
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)
@@ -52,12 +58,24 @@ class Plant:
         self.actuator_names = tuple(b.name for b in self.bindings)
         self._qpos = np.array([self.model.joint(n).qposadr[0] for n in self.joint_names])
         self._dof = np.array([self.model.joint(n).dofadr[0] for n in self.joint_names])
+        # joints with a gear stage (backlash, compliance): the link is at the sum of both
+        stages = [(k, mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT,
+                                        GEAR_STAGE.format(joint=name)))
+                  for k, name in enumerate(self.joint_names)]
+        stages = [(k, stage) for k, stage in stages if stage >= 0]
+        self._staged = np.array([k for k, _ in stages], dtype=int)
+        self._stage_qpos = np.array([self.model.jnt_qposadr[j] for _, j in stages], dtype=int)
+        self._stage_dof = np.array([self.model.jnt_dofadr[j] for _, j in stages], dtype=int)
         driven = [j for t in self.transmissions for j in t.joints]
         self._driven_qpos = np.array([self.model.joint(n).qposadr[0] for n in driven])
         self._driven_dof = np.array([self.model.joint(n).dofadr[0] for n in driven])
         self._motors = TransmissionStack(self.transmissions, tuple(driven), self.actuator_names)
         self._actuator_ids = np.array([self.model.actuator(n).id for n in self.actuator_names])
-        self.set_joint_positions(initial_pose(description))
+        base = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, FLOATING_BASE)
+        self._base = int(self.model.jnt_qposadr[base]) if base >= 0 else None
+        self.set_joint_positions({**initial_pose(description), **(start_pose or {})})
+        if self._base is not None:
+            self._stand_on_the_ground()
 
     def motor_inertias(self) -> dict[str, float]:
         """Each actuator's inertia seen from its motor shaft (rotor + reflected load) in the
@@ -69,10 +87,20 @@ class Plant:
         motors through large ratios (measured on a mobile manipulator's arm sized by `hil
         init`): velocity loops tuned on that ran at up to 5x their bandwidth when the other
         axis gave way, and a braked elbow beside an enabled shoulder oscillated at about
-        350 Hz, never at standstill."""
+        350 Hz, never at standstill.
+
+        A floating robot standing moves with the links that rest on the ground staying where
+        they are (its feet): the mobility is the one under that constraint, ``J qdot = 0``,
+        M^-1 - M^-1 J^T (J M^-1 J^T)^+ J M^-1. A leg then carries the body: tuned on the leg
+        alone, a standing quadruped's drives saw a hundred times the inertia they were tuned
+        for, their velocity loops far slower than their position loops, and it hopped."""
         mass = np.zeros((self.model.nv, self.model.nv))
         mujoco.mj_fullM(self.model, self.data, mass)
         mobility = np.linalg.inv(mass)
+        pinned = self._resting_jacobian()
+        if pinned is not None:
+            coupling = mobility @ pinned.T
+            mobility = mobility - coupling @ np.linalg.pinv(pinned @ coupling) @ coupling.T
         inertias = {}
         for transmission in self.transmissions:
             dofs = [self.model.joint(j).dofadr[0] for j in transmission.joints]
@@ -133,19 +161,29 @@ class Plant:
     # --- joint side ---------------------------------------------------------
 
     def joint_positions(self) -> np.ndarray:
-        return self.data.qpos[self._qpos].copy()
+        """Where the links are: a joint with a gear stage at the sum of its two hinges."""
+        positions = self.data.qpos[self._qpos]
+        positions[self._staged] += self.data.qpos[self._stage_qpos]
+        return positions
 
     def joint_velocities(self) -> np.ndarray:
-        return self.data.qvel[self._dof].copy()
+        velocities = self.data.qvel[self._dof]
+        velocities[self._staged] += self.data.qvel[self._stage_dof]
+        return velocities
 
     def joint_efforts(self) -> np.ndarray:
         """Actuator efforts at the joints (motor torques through the transmissions)."""
         return self.data.qfrc_actuator[self._dof].copy()
 
     def set_joint_positions(self, positions: Mapping[str, float]) -> None:
-        """Place joints (e.g. an initial pose) at rest, mimic joints following."""
+        """Place joints (e.g. an initial pose) at rest, mimic joints following, a gear stage
+        in the middle of its play."""
+        stages = dict(zip(self._staged, self._stage_qpos))
         for name, value in positions.items():
             self.data.qpos[self.model.joint(name).qposadr[0]] = value
+            stage = stages.get(self.joint_names.index(name)) if name in self.joint_names else None
+            if stage is not None:
+                self.data.qpos[stage] = 0.0
         for joint in self.description.joints:
             if joint.mimic is not None:
                 leader = self.data.qpos[self.model.joint(joint.mimic.joint).qposadr[0]]
@@ -153,6 +191,90 @@ class Plant:
                     joint.mimic.multiplier * leader + joint.mimic.offset)
         self.data.qvel[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
+
+    # --- a floating base ------------------------------------------------------
+
+    @property
+    def floating(self) -> bool:
+        """Whether the robot's root moves freely (``base: floating``)."""
+        return self._base is not None
+
+    def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Where a floating base is: its position (m) and orientation (quaternion w, x, y, z)
+        in the world; the world's origin for a fixed one."""
+        if self._base is None:
+            return np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
+        qpos = self.data.qpos[self._base:self._base + 7]
+        return qpos[:3].copy(), qpos[3:].copy()
+
+    def _stand_on_the_ground(self) -> None:
+        """Lower (or raise) the floating base until the robot's lowest point touches the
+        ground: the highest fixed plane of the scene, or z = 0."""
+        ground = max((part.pose.xyz[2] for part in self.scene
+                      if part.mass == 0 and part.geometry.kind is GeometryKind.PLANE),
+                     default=0.0)
+        self.data.qpos[self._base + 2] += ground - self.lowest_point()
+        mujoco.mj_forward(self.model, self.data)
+
+    @property
+    def base_body(self) -> int | None:
+        """The MuJoCo body id of a floating base (None: fixed)."""
+        if self._base is None:
+            return None
+        return int(self.model.jnt_bodyid[self.model.joint(FLOATING_BASE).id])
+
+    def resting_points(self, tolerance: float = RESTING) -> dict[int, list[np.ndarray]]:
+        """The robot's bodies whose shapes rest on the ground now (their bottom within
+        ``tolerance`` of the robot's lowest point), each with the corners of those bottoms
+        (world frame; MuJoCo body ids): its feet, or its wheels, or a base plate."""
+        model, data = self.model, self.data
+        lowest = self.lowest_point()
+        box = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        resting: dict[int, list[np.ndarray]] = {}
+        for geom in self.ground_shapes:
+            turn = data.geom_xmat[geom].reshape(3, 3)
+            centre, half = model.geom_aabb[geom][:3], model.geom_aabb[geom][3:]
+            corners = data.geom_xpos[geom] + (centre + box * half) @ turn.T
+            bottom = corners[corners[:, 2] <= lowest + tolerance]
+            if len(bottom):
+                resting.setdefault(int(model.geom_bodyid[geom]), []).extend(bottom)
+        return resting
+
+    def _resting_jacobian(self) -> np.ndarray | None:
+        """A floating robot's bodies resting on the ground: the translation Jacobian of each
+        at the middle of its bottom (3 rows a body), or None (a fixed base, or nothing
+        resting)."""
+        if self._base is None:
+            return None
+        resting = self.resting_points()
+        rows = []
+        for body, corners in resting.items():
+            jacobian = np.zeros((3, self.model.nv))
+            mujoco.mj_jac(self.model, self.data, jacobian, None, np.mean(corners, axis=0), body)
+            rows.append(jacobian)
+        return np.vstack(rows) if rows else None
+
+    def lowest_point(self) -> float:
+        """The height of the robot's lowest point now (m), of its :attr:`ground_shapes`
+        (each shape's box in its own frame, turned)."""
+        model, data = self.model, self.data
+        lowest = np.inf
+        for geom in self.ground_shapes:
+            turn = data.geom_xmat[geom].reshape(3, 3)
+            centre, half = model.geom_aabb[geom][:3], model.geom_aabb[geom][3:]
+            lowest = min(lowest, data.geom_xpos[geom][2] + turn[2] @ centre
+                         - np.abs(turn[2]) @ half)
+        return float(lowest)
+
+    @functools.cached_property
+    def ground_shapes(self) -> np.ndarray:
+        """The robot's shapes that may touch the ground (MuJoCo geom ids): its collision
+        shapes, or all its shapes where it has none."""
+        model = self.model
+        scene = [model.body(part.name).id for part in self.scene]
+        robot = (model.geom_bodyid >= 1) & np.isin(model.geom_bodyid, scene, invert=True)
+        colliding = robot & (model.geom_contype & ROBOT_CONTACT).astype(bool)
+        return np.flatnonzero(colliding if colliding.any() else robot)
 
     # --- the scene -----------------------------------------------------------
 

@@ -26,6 +26,9 @@ class Protocol(ABC):
     node_ids: ClassVar[range] = range(1, 128)
     #: whether its drives fault on a following error (MIT and ODrive firmware do not)
     has_following_error: ClassVar[bool] = True
+    #: whether its master can send a torque feed-forward with each setpoint (its axis'
+    #: ``cycle_frames`` takes ``torque``): a bus config's ``torque_feed_forward`` needs it
+    carries_torque_feed_forward: ClassVar[bool] = False
     #: the protocol's own settings in a bus config: a frozen dataclass with ``KEYS`` and
     #: ``from_mapping(values)`` raising ValueError; None if it has none
     Options: ClassVar[type | None] = None
@@ -40,6 +43,13 @@ class Protocol(ABC):
         """Every (arbitration id, payload bytes, frames per second) a drive of this protocol
         and its master use on the bus; rate 0 for ids used only on events. For bus load and
         for id collisions between drives."""
+
+    @classmethod
+    def torque_feed_forward_frames(cls, node_id: int, cycle_hz: float, options=None
+                                   ) -> list[tuple[int, int, float]]:
+        """The frames a master adds to :meth:`bus_frames` to send a torque feed-forward
+        (none where the setpoint's own frame carries one)."""
+        return []
 
     @classmethod
     def shared_ids(cls, options=None) -> set[int]:

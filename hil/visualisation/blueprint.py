@@ -10,9 +10,10 @@ from hil.description import RobotDescription
 
 
 def robot_view(robot: RobotDescription, actuator_joints: dict[str, tuple[str, ...]],
-               buses: tuple[str, ...], root: str = "") -> rrb.Container:
+               buses: tuple[str, ...], root: str = "", floating_base: bool = False
+               ) -> rrb.Container:
     """One robot's layout, its entities under ``root`` ("" or "/<robot>", as
-    ``RunRecorder.root``)."""
+    ``RunRecorder.root``); a floating base's position is plotted with the drive states."""
     joints = [j.name for j in robot.driven_joints]
     actuators_of = {j: [a for a, js in actuator_joints.items() if j in js] for j in joints}
 
@@ -24,14 +25,19 @@ def robot_view(robot: RobotDescription, actuator_joints: dict[str, tuple[str, ..
         grid("position", lambda j: [f"{root}/axes/{j}/position", f"{root}/axes/{j}/error"]),
         grid("velocity", lambda j: [f"{root}/axes/{j}/velocity"]),
         grid("effort", lambda j: [f"{root}/axes/{j}/effort"]
-             + [f"{root}/drives/{a}/torque" for a in actuators_of[j]]),
+             + [f"{root}/drives/{a}/{series}" for a in actuators_of[j]
+                for series in ("torque", "torque_limit")]),
     )
     model = ([f"{root}/visual_geometries/**", f"{root}/collision_geometries/**"] if root
              else ["/robot/**"])
+    states = rrb.StateTimelineView(name="drive states", origin=f"{root}/drives")
+    if floating_base:
+        states = rrb.Tabs(states, rrb.TimeSeriesView(
+            name="base position [m]", origin=f"{root}/base", contents=[f"{root}/base/position"]))
     side = rrb.Vertical(
-        rrb.Spatial3DView(name=robot.name, origin="/",
-                          contents=[*model, f"{root}/joints/**", f"{root}/scene/**"]),
-        rrb.StateTimelineView(name="drive states", origin=f"{root}/drives"),
+        rrb.Spatial3DView(name=robot.name, origin="/", contents=[
+            *model, f"{root}/joints/**", f"{root}/scene/**", f"{root}/base"]),
+        states,
         rrb.TimeSeriesView(name="bus load [%]", origin=f"{root}/bus",
                            contents=[f"{root}/bus/{b}/load" for b in buses]),
         rrb.TimeSeriesView(name="control loop [ms]: period, round trip, stalls",

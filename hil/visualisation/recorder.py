@@ -37,7 +37,8 @@ interpolation over wall time; absent while no sim has been heard).
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -99,15 +100,25 @@ class SimTimeMap:
         return mapped
 
 
+@dataclass(frozen=True)
+class BenchParts:
+    """What a bus config adds to its robot that the recording draws: the scene, each drive's
+    peak torque (by actuator, N·m) and whether the base floats."""
+
+    scene: tuple[SceneObject, ...] = ()
+    torque_limits: Mapping[str, float] = field(default_factory=dict)
+    floating_base: bool = False
+
+
 class RunRecorder:
     """Turns a robot's control samples and bus loads into rerun entities."""
 
     def __init__(self, recording: rr.RecordingStream, robot: RobotDescription,
                  urdf_path: Path, actuator_joints: dict[str, tuple[str, ...]],
                  buses: tuple[str, ...], namespaced: bool = False,
-                 scene: tuple[SceneObject, ...] = ()):
+                 bench: BenchParts = BenchParts()):
         """``namespaced``: one of several robots in the recording (see the module doc);
-        ``scene``: the bus config's scene objects."""
+        ``bench``: what the bus config adds to the robot."""
         self.recording = recording
         self.robot = robot
         self.sim_time = SimTimeMap()
@@ -129,7 +140,12 @@ class RunRecorder:
         self.monitor_names = {(f"{robot.name}/{bus}" if namespaced else bus): bus
                               for bus in buses}
         self._mimics = {j.name: j.mimic for j in robot.joints if j.mimic is not None}
-        self._scene = scene
+        self._scene = bench.scene
+        self._torque_limits = bench.torque_limits
+        self._floating = bench.floating_base
+        root_link = self._urdf.root_link().name
+        #: the frame a floating base poses in the world (the URDF's root link's)
+        self._base_frame = f"{robot.name}/{root_link}" if namespaced else root_link
 
     def log_static(self) -> None:
         """The robot model and series names; once, before any sample."""
@@ -151,6 +167,10 @@ class RunRecorder:
         for actuator in self._actuator_joints:
             rec.log(f"{root}/drives/{actuator}/torque", rr.SeriesLines(names=["motor torque [N·m]"]),
                     static=True)
+            if actuator in self._torque_limits:
+                rec.log(f"{root}/drives/{actuator}/torque_limit", rr.SeriesLines(
+                    names=["peak torque [N·m]", "-peak torque [N·m]"],
+                    colors=[[200, 60, 60], [200, 60, 60]], widths=[0.5, 0.5]), static=True)
         for process, words in PROCESS_WORDS.items():     # points: a stall is an event
             rec.log(f"{root}/loop/stalls/{process}", rr.SeriesPoints(
                 names=[f"{words} stalled [ms]"], markers=["cross"], marker_sizes=[6.0]),
@@ -168,7 +188,8 @@ class RunRecorder:
 
     def view(self) -> rrb.Container:
         """This robot's part of the viewer's layout (``hil.visualisation.blueprint``)."""
-        return robot_view(self.robot, self._actuator_joints, self._buses, self.root)
+        return robot_view(self.robot, self._actuator_joints, self._buses, self.root,
+                          self._floating)
 
     def log_clock(self, wall_time: float, sim_time: float) -> None:
         self.sim_time.add(wall_time, sim_time)
@@ -190,6 +211,7 @@ class RunRecorder:
             table.add(f"{self.root}/axes/{joint}/effort", batch.effort[:, i])
         for k, actuator in enumerate(batch.actuator_names):
             table.add(f"{self.root}/drives/{actuator}/torque", batch.motor_torque[:, k])
+        self._log_torque_limits(times)
         if not np.isnan(batch.cycle_period).all():       # real time: the loop's own timing
             table.add(f"{self.root}/loop/period_ms", 1e3 * batch.cycle_period)
             table.add(f"{self.root}/loop/round_trip_ms", 1e3 * batch.round_trip)
@@ -227,10 +249,20 @@ class RunRecorder:
         table.send(self.recording)
 
     def log_scene(self, state: SceneState) -> None:
-        """The moving objects' poses and the contacts, at the state's wall and sim time."""
+        """The moving objects' poses, the contacts and a floating base's pose, at the state's
+        wall and sim time."""
         times = _Times(np.array([state.wall_time]), None, np.array([state.sim_time]))
         indexes = times.columns()
         rec, root = self.recording, self.root
+        if state.base is not None:
+            position, orientation = state.base
+            # the robot's root frame, placed in the recording's own (its entities' root)
+            rec.send_columns(f"{root}/base", indexes=indexes, columns=rr.Transform3D.columns(
+                translation=[position], quaternion=[np.roll(orientation, -1)],
+                parent_frame=["tf#/"], child_frame=[self._base_frame]))
+            table = _ScalarTable(times)
+            table.add(f"{root}/base/position", *position.reshape(3, 1))
+            table.send(rec)
         for name, position, orientation in zip(state.names, state.positions,
                                                state.orientations):
             rec.send_columns(f"{root}/scene/{name}", indexes=indexes,
@@ -245,6 +277,17 @@ class RunRecorder:
                 len(state.contact_points)])])
 
     # --- helpers -----------------------------------------------------------------------
+
+    def _log_torque_limits(self, times: _Times) -> None:
+        """Each drive's peak torque, both ways, at a batch's first and last rows: a line
+        beside its torque, at a byte cost per batch, not per cycle."""
+        if not self._torque_limits:
+            return
+        table = _ScalarTable(times.at(np.array([0, len(times.wall) - 1])))
+        for actuator, limit in self._torque_limits.items():
+            table.add(f"{self.root}/drives/{actuator}/torque_limit", np.full(2, limit),
+                      np.full(2, -limit))
+        table.send(self.recording)
 
     def _times(self, wall: np.ndarray, control: np.ndarray | None = None) -> _Times:
         return _Times(wall, control, self.sim_time(wall))
@@ -319,6 +362,11 @@ class _Times:
     wall: np.ndarray
     control: np.ndarray | None
     sim: np.ndarray | None
+
+    def at(self, rows: np.ndarray) -> _Times:
+        """These times at ``rows`` only."""
+        return _Times(self.wall[rows], None if self.control is None else self.control[rows],
+                      None if self.sim is None else self.sim[rows])
 
     def named(self) -> list[tuple[str, np.ndarray]]:
         return [(name, values) for name, values in (("wall_time", self.wall),

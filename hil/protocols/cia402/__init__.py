@@ -63,6 +63,7 @@ class Cia402(Protocol):
 
     name = "cia402"
     uses_sync = True
+    carries_torque_feed_forward = True
     Options = Cia402Options
     drive = "hil.protocols.cia402.drive:Cia402Drive"
     axis = "hil.protocols.cia402.axis:Cia402Axis"
@@ -72,10 +73,19 @@ class Cia402(Protocol):
                    ) -> list[tuple[int, int, float]]:
         """(arbitration id, payload bytes, frames/s) of the default mapping's exchange:
         RPDO1 (controlword, target), TPDO1, TPDO2 per SYNC, and RPDO4 (velocity and torque
-        offsets) with feed-forward; heartbeat; EMCY and SDO only on events (their ids are
-        reserved)."""
+        offsets) with velocity feed-forward; heartbeat; EMCY and SDO only on events (their
+        ids are reserved)."""
         feed_forward = options is not None and options.sends_velocity
         return [(0x200 + node_id, 6, cycle_hz), (0x180 + node_id, 6, cycle_hz),
                 (0x280 + node_id, 6, cycle_hz), (0x700 + node_id, 1, 1.0 / heartbeat_period),
                 *([(0x500 + node_id, 6, cycle_hz)] if feed_forward else []),
                 (0x080 + node_id, 8, 0.0), (0x580 + node_id, 8, 0.0), (0x600 + node_id, 8, 0.0)]
+
+    @classmethod
+    def torque_feed_forward_frames(cls, node_id: int, cycle_hz: float, options=None
+                                   ) -> list[tuple[int, int, float]]:
+        """RPDO4 (the torque offset 0x60B2 beside the velocity offset), unless the velocity
+        feed-forward sends it already."""
+        if options is not None and options.sends_velocity:
+            return []
+        return [(0x500 + node_id, 6, cycle_hz)]

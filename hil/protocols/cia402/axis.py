@@ -65,8 +65,10 @@ class Cia402Axis(Axis):
         self.last_emcy: int | None = None
         self._emcy_cycle = 0          # the master's cycle when it arrived
         self._operational = False     # its heartbeat said OPERATIONAL since configure()
-        #: RPDO4 (velocity offset) beside each target: the trajectory's velocity
-        self.feed_forward = (config.options or Cia402Options()).sends_velocity
+        #: RPDO4 beside each target: the trajectory's velocity (velocity offset 0x60B1)
+        #: and a torque feed-forward (torque offset 0x60B2), either as the config asks
+        self.sends_velocity = (config.options or Cia402Options()).sends_velocity
+        self.feed_forward = self.sends_velocity or config.torque_feed_forward != "none"
 
     # --- network hooks ----------------------------------------------------------
 
@@ -181,15 +183,22 @@ class Cia402Axis(Axis):
         return self.state == "OPERATION ENABLED"
 
     def cycle_frames(self, target: float, velocity: float, stopping: bool,
-                     enabling: bool) -> list[Frame]:
+                     enabling: bool, torque: float = 0.0) -> list[Frame]:
         controlword = self.next_controlword(stopping)
         # until the axis follows setpoints, its setpoint is where it is (no jump on enable)
         following = self.enabled and not enabling
         frames = [(0x200 + self.node_id, self.rpdo(controlword, target if following
                                                     else self.feedback.position), False)]
         if self.feed_forward:
-            speed = velocity * self.counts_per_rad if following and not stopping else 0.0
-            frames.append((0x500 + self.node_id, _RPDO4.pack(_int32(speed), 0), False))
+            moving = following and not stopping
+            speed = velocity * self.counts_per_rad if moving and self.sends_velocity else 0.0
+            # the torque offset, per mille of the rated torque (0x6076; a drive whose rated
+            # torque rounds to 0 mN·m cannot be given one), INTEGER16: whenever enabled
+            # (holding too, so that the loops' integral never carries it twice)
+            offset = (max(-32768, min(32767, round(1000 * torque / self.rated_torque)))
+                      if torque and self.rated_torque > 0 and self.enabled and not stopping
+                      else 0)
+            frames.append((0x500 + self.node_id, _RPDO4.pack(_int32(speed), offset), False))
         return frames
 
     def disable_rounds(self) -> list[list[Frame]]:

@@ -142,6 +142,7 @@ class Mit(Protocol):
 
     name = "mit"
     Options = MitOptions
+    carries_torque_feed_forward = True
     has_following_error = False
     drive = "hil.protocols.mit.drive:MitDrive"
     axis = "hil.protocols.mit.axis:MitAxis"

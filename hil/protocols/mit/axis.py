@@ -55,7 +55,7 @@ class MitAxis(Axis):
         return self.motor_mode
 
     def cycle_frames(self, target: float, velocity: float, stopping: bool,
-                     enabling: bool) -> list[Frame]:
+                     enabling: bool, torque: float = 0.0) -> list[Frame]:
         if self._pending_special is not None:
             special, self._pending_special = self._pending_special, None
             return [(self.node_id, special, False)]
@@ -68,10 +68,11 @@ class MitAxis(Axis):
         elif stopping or enabling:
             if self._hold is None:
                 self._hold = self.feedback.position
-            command = MitCommand(self._hold, 0.0, self.options.kp, self.options.kd, 0.0)
+            command = MitCommand(self._hold, 0.0, self.options.kp, self.options.kd,
+                                 0.0 if stopping else torque)
         else:
             self._hold = None
-            command = MitCommand(target, velocity, self.options.kp, self.options.kd, 0.0)
+            command = MitCommand(target, velocity, self.options.kp, self.options.kd, torque)
         return [(self.node_id, pack_command(command, self.options.ranges), False)]
 
     def disable_rounds(self) -> list[list[Frame]]:

@@ -142,6 +142,7 @@ class ODrive(Protocol):
 
     name = "odrive"
     Options = ODriveOptions
+    carries_torque_feed_forward = True
     node_ids = range(0, 64)
     has_following_error = False
     drive = "hil.protocols.odrive.drive:ODriveDrive"

@@ -108,7 +108,7 @@ class ODriveAxis(Axis):
         return self.axis_state == AxisState.CLOSED_LOOP_CONTROL and not self.axis_error
 
     def cycle_frames(self, target: float, velocity: float, stopping: bool,
-                     enabling: bool) -> list[Frame]:
+                     enabling: bool, torque: float = 0.0) -> list[Frame]:
         frames, self._pending = self._pending, []
         if (not stopping and not self.axis_error and not self.enabled
                 and not self._requested_closed_loop and self.at_standstill()
@@ -120,10 +120,13 @@ class ODriveAxis(Axis):
             frames.append((self._id(Cmd.HEARTBEAT), b"", True))     # watch it come up
         if stopping or enabling or not self.enabled:
             target, velocity = self.feedback.position, 0.0           # hold where it is
+        if stopping or not self.enabled:
+            torque = 0.0
         feed_forward = max(-32768, min(32767, round(velocity / TURN * FF_SCALE)))
+        torque_ff = max(-32768, min(32767, round(torque * FF_SCALE)))
         frames += [
             (self._id(Cmd.SET_INPUT_POS),
-             LAYOUT[Cmd.SET_INPUT_POS].pack(target / TURN, feed_forward, 0), False),
+             LAYOUT[Cmd.SET_INPUT_POS].pack(target / TURN, feed_forward, torque_ff), False),
             (self._id(Cmd.GET_TORQUES), b"", True),
             (self._id(Cmd.GET_ENCODER_ESTIMATES), b"", True)]
         return frames
