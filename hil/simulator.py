@@ -37,6 +37,7 @@ import numpy as np
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig
 from hil.drives import DriveCore, DriveParameters, DriveProfile, Fault
+from hil.can import deliver_under
 from hil.can.network import start_network
 from hil.drives.profile import DriveNetwork
 from hil.drives.tuning import tuned_gains
@@ -179,6 +180,8 @@ class Simulator:
 
     def start(self) -> None:
         """Connect every drive to its bus: boot-up messages, heartbeats, SYNC handling."""
+        # a message of frames (a cycle's, over Zenoh) in one entry of the plant's lock
+        deliver_under((simulated.bus for simulated in self.buses), self.lock)
         for simulated in self.buses:
             simulated.network = start_network(simulated.bus, 0.2, DriveNetwork)
             for drive in simulated.drives:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import errno
 import socket
 from collections.abc import Callable, Iterable
-from contextlib import ExitStack
+from contextlib import AbstractContextManager, ExitStack
 
 import can
 
@@ -19,8 +19,9 @@ from hil.can.frames import BusLoad, bus_load, frame_bits
 from hil.errors import HilError
 from hil.realtime.stalls import Stall
 
-__all__ = ["BusLoad", "bus_load", "frame_bits", "link_round_trip", "link_unreached", "open_bus",
-           "sent_together", "socketcan_missing", "watch_deliveries"]
+__all__ = ["BusLoad", "bus_load", "deliver_under", "frame_bits", "link_round_trip",
+           "link_unreached", "open_bus", "sent_together", "socketcan_missing",
+           "watch_deliveries"]
 
 
 def sent_together(buses: Iterable[can.BusABC]) -> ExitStack:
@@ -33,6 +34,15 @@ def sent_together(buses: Iterable[can.BusABC]) -> ExitStack:
         if batch is not None:
             together.enter_context(batch())
     return together
+
+
+def deliver_under(buses: Iterable[can.BusABC], guard: AbstractContextManager) -> None:
+    """From now on the buses that deliver many frames at once (``zenoh``: a message) do so
+    inside ``guard``, entered once for them all; others deliver each frame as ever."""
+    for bus in buses:
+        hold = getattr(bus, "deliver_under", None)
+        if hold is not None:
+            hold(guard)
 
 
 def watch_deliveries(buses: Iterable[can.BusABC], on_stall: Callable[[Stall], None]) -> None:

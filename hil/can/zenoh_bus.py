@@ -83,7 +83,7 @@ import threading
 import time
 import weakref
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
@@ -128,6 +128,8 @@ class _Channels:
         self.buses: dict[str, list[ZenohBus]] = {}
         self.outbox = _Outbox()
         self.send_lock = threading.Lock()
+        #: entered around each message's delivery (None: nothing): see ZenohBus.deliver_under
+        self.guard: AbstractContextManager | None = None
         self._subscriber = session.declare_subscriber(
             KEY_PREFIX + "**", self._on_sample, allowed_origin=zenoh.Locality.REMOTE)
 
@@ -199,16 +201,18 @@ class _Channels:
                 bus._count_malformed(exc)
             return
         now = time.monotonic()
-        # what the listeners send in answer goes out together, in one message
+        # what the listeners send in answer goes out together, in one message, once the
+        # guard is left (the put never holds it)
         self.hold()
         try:
-            for message in messages:
-                buses = self.buses.get(KEY_PREFIX + message.channel)
-                if buses:
-                    for number, bus in enumerate(tuple(buses)):
-                        bus._on_message(message if number == 0 else message._replace(
-                            frames=[received_copy(msg, arrived, msg.channel, True)
-                                    for msg in message.frames]), arrived, now)
+            with self.guard or nullcontext():
+                for message in messages:
+                    buses = self.buses.get(KEY_PREFIX + message.channel)
+                    if buses:
+                        for number, bus in enumerate(tuple(buses)):
+                            bus._on_message(message if number == 0 else message._replace(
+                                frames=[received_copy(msg, arrived, msg.channel, True)
+                                        for msg in message.frames]), arrived, now)
         finally:
             self.release()
 
@@ -567,6 +571,13 @@ class ZenohBus(can.BusABC):
         the order they arrive: no queue, and no Notifier thread woken for every frame."""
         self._direct = DirectDelivery(listeners, accept, self._stop_delivery)
         return self._direct
+
+    def deliver_under(self, guard: AbstractContextManager | None) -> None:
+        """From now on each message for the buses of this bus' session is delivered inside
+        ``guard`` (entered once per message, whatever its frames; None: none): a simulator's
+        plant lock, so that the plant steps up to the present once a message, not once a
+        frame (12 entries a cycle of the ur3, each looking at the clock)."""
+        self._channels.guard = guard
 
     def _stop_delivery(self, delivery: DirectDelivery) -> None:
         if self._direct is delivery:
