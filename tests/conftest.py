@@ -312,12 +312,15 @@ class DelayingRelay:
             each.close()
 
 
-def read_rrd(path):
-    """Rows per entity (temporal) and the static entity paths of an .rrd file."""
+def read_rrd(path, whole: bool = True):
+    """Rows per entity (temporal) and the static entity paths of an .rrd file: ``whole``
+    (closed: read through rerun's manifest, which a file without one fails), or scanned up
+    to where it was cut off, as rerun's viewer scans a file without one."""
     import rerun.chunk      # noqa: PLC0415 (only the recording tests need rerun)
 
     rows, static = collections.Counter(), set()
-    for chunk in rerun.chunk.RrdReader(path).store().stream():
+    reader = rerun.chunk.RrdReader(path)
+    for chunk in (reader.store() if whole else reader).stream():
         if chunk.is_static:
             static.add(chunk.entity_path)
         else:

@@ -205,19 +205,41 @@ def recorded(tmp_path, pigot, package_path):
     return recorder, joints, rows, values, static
 
 
+def cycle_values(values) -> np.ndarray:
+    """The rows of ``/cycle`` as logged (cycles x series)."""
+    return np.concatenate([np.array(b.column("Scalars:scalars").to_pylist())
+                           for b in values["/cycle"]])
+
+
 def test_recorder_logs_every_cycle_of_every_axis_and_counts_the_lost_batch(recorded):
     recorder, joints, rows, values, _ = recorded
     assert (recorder.cycles_logged, recorder.cycles_lost) == (75, 25)
-    for joint in joints:
-        for quantity in ("position", "error", "velocity", "effort"):
-            assert rows[f"/axes/{joint}/{quantity}"] == 75, (joint, quantity)
-    positions = np.concatenate([
-        np.array(b.column("Scalars:scalars").to_pylist()) for b in values["/axes/arm_rot_1/position"]])
-    # [reference, measured] per cycle: cycles 1..50 and 76..100, none twice, none invented
-    measured = np.sort(positions[:, 1])
-    np.testing.assert_allclose(measured, np.r_[1:51, 76:101])
-    np.testing.assert_allclose(positions[:, 0] - positions[:, 1], 0.01)
-    assert rows["/drives/arm_rot_1_motor/torque"] == 75
+    assert rows["/cycle"] == 75
+    cycles = cycle_values(values)
+    series = recorder.series
+    assert cycles.shape == (75, len(series)) == (75, 6 * len(joints) + 7 + 2)
+    reference = cycles[:, series.joint("arm_rot_1", "reference")]
+    measured = cycles[:, series.joint("arm_rot_1", "measured")]
+    # cycles 1..50 and 76..100, none twice, none invented (4-byte floats: to their precision)
+    np.testing.assert_allclose(np.sort(measured), np.r_[1:51, 76:101], rtol=1e-7)
+    np.testing.assert_allclose(reference - measured, 0.01, atol=1e-5)
+    np.testing.assert_allclose(cycles[:, series.joint("arm_rot_1", "error")], 0.01, rtol=1e-5)
+    assert not np.isnan(cycles[:, series.torque("arm_rot_1_motor")]).any()
+
+
+def test_every_signal_of_a_cycle_shares_one_row_of_four_byte_floats(recorded):
+    """The layout's point: a cycle is one row of one entity (its row id and three times
+    once), its values 4-byte floats, its series named with their units."""
+    recorder, joints, _, values, static = recorded
+    (batch, *_) = values["/cycle"]
+    assert str(batch.schema.field("Scalars:scalars").type) == "list<item: float>"
+    assert {"wall_time", "control_time", "sim_time"} <= set(batch.schema.names)
+    names = recorder.series.names()
+    assert names[:3] == ["arm_rot_1 reference [rad]", "arm_rot_1 measured [rad]",
+                         "arm_rot_1 error [rad]"]
+    assert "finger_pri_1 effort [N]" in names and names[-2:] == ["period [ms]",
+                                                                "round trip [ms]"]
+    assert "/cycle" in static                               # the series' names and styles
 
 
 def test_recorder_logs_drive_states_only_when_they_change(recorded):
@@ -244,9 +266,13 @@ def test_recorder_puts_diagnostics_on_the_timelines_with_their_level(recorded):
 
 
 def test_recorder_poses_the_3d_robot_including_its_mimic_joint(recorded):
-    _, _, rows, _, static = recorded
-    assert rows["/joints/arm_rot_1"] >= 1
-    assert rows["/joints/finger_pri_2"] == rows["/joints/finger_pri_1"]
+    _, _, rows, values, static = recorded
+    children = [frame for batch in values["/joints"]
+                for frame in batch.column("Transform3D:child_frame").to_pylist()]
+    children = [c[0] if isinstance(c, list) else c for c in children]
+    assert children.count("arm_link_1") >= 1
+    assert children.count("finger_link_2") == children.count("finger_link_1")   # the mimic
+    assert rows["/joints"] == len(children)
     links = {"body_link", "arm_link_1", "arm_link_6", "finger_link_1", "finger_link_2"}
     drawn = {path.split("/")[4] for path in static
              if path.startswith("/robot/pigot/visual_geometries/")}
@@ -291,13 +317,12 @@ def test_robots_sharing_a_recording_each_keep_their_entities_frames_and_bus_load
                 frames.update(f for row in batch.column(name).to_pylist() for f in row)
             if "/bus/" in chunk.entity_path:
                 if name == "Scalars:scalars":
-                    load_logged[chunk.entity_path] = batch.column(name).to_pylist()[0][0]
-    assert rows["/pigot/axes/arm_rot_1/position"] == 20 and rows["/ur3/axes/joint1/position"] == 20
-    assert rows["/ur3/drives/joint1_motor/torque"] == 20
-    assert not any(p.startswith(("/axes", "/drives", "/joints")) for p in rows)
-    assert load_logged == pytest.approx({"/ur3/bus/arm/load": 10, "/ur3/bus/wrist/load": 20,
-                                         "/pigot/bus/arm/load": 30,
-                                         "/pigot/bus/wrist/load": 40})
+                    load_logged[chunk.entity_path] = batch.column(name).to_pylist()[0]
+    assert rows["/pigot/cycle"] == 20 and rows["/ur3/cycle"] == 20
+    assert not any(p.startswith(("/cycle", "/drives", "/joints")) for p in rows)
+    assert set(load_logged) == {"/ur3/bus/load", "/pigot/bus/load"}
+    assert load_logged["/ur3/bus/load"] == pytest.approx([10, 10, 20, 20])
+    assert load_logged["/pigot/bus/load"] == pytest.approx([30, 30, 40, 40])
     # each robot's model under its name, its frames named after it: no link shared
     assert any(p.startswith("/pigot/visual_geometries/arm_link_6") for p in static)
     assert any(p.startswith("/ur3/visual_geometries/") for p in static)

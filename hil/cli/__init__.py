@@ -26,6 +26,8 @@ COMMANDS = {
     "send": "send a joint trajectory to a running hil control and wait for the result",
     "reset": "reset drive faults (after a fault aborted a goal) and hold position",
     "viz": "show and record every axis of a running robot in rerun",
+    "review": "open a recorded run (whole or in segments): its faults with their times, then "
+              "the viewer",
     "up": "start sim, controller and visualiser together (optionally run a demo), record the run",
     "keys": "make the certificates of --secure (mutual TLS and rights by role)",
     "router": "run a Zenoh router with rmw_zenohd's settings (for --ros without ROS 2 installed)",

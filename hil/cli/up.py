@@ -36,6 +36,7 @@ from hil.hardware import BOOT_TIMEOUT
 from hil.messaging.zenoh_api import (
     ControllerGone, ProcessWatch, RunSubscriber, TrajectoryActionClient,
 )
+from hil.visualisation.segments import SegmentLimit, segment_files
 from hil.supervisor import (
     Child, ChildFailed, Run, cpus_argument, kill_later, viz_summary, wait_alive,
 )
@@ -44,6 +45,8 @@ from hil.zenoh_security import Identity
 from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
 
 
+#: the visualiser's status lines (cycles, losses, the recording's lag) in viz.log, every (s)
+VIZ_STATUS_PERIOD = 60
 #: the CAN log's format in words, by suffix
 CAN_LOG_FORMATS = {".blf": "Vector BLF", ".log": "candump", ".asc": "Vector ASC",
                    ".trc": "PEAK TRC", ".csv": "python-can CSV"}
@@ -85,6 +88,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--save", type=Path, default=Path("run.rrd"), metavar="FILE.rrd",
                         help="the rerun recording (default run.rrd); the CAN log "
                              "(FILE.can.blf) and the processes' logs (FILE.logs/) go beside it")
+    parser.add_argument("--segment", type=_segment_limit, metavar="LIMIT",
+                        help="record in segments FILE-0001.rrd, FILE-0002.rrd, ... each closed at "
+                             "LIMIT, a size (500MB) or a time (10m): a crash loses at most the "
+                             "last, and each opens alone (hil review finds them all)")
     parser.add_argument("--can-log", type=Path, metavar="FILE",
                         help="the CAN log instead of FILE.can.blf, in python-can's format by "
                              "suffix: .blf Vector's binary log (the default: about 12x smaller "
@@ -269,6 +276,9 @@ def _children(args: argparse.Namespace, robots: list[_Robot], faults: list, endp
     return Child("viz", ["viz", *(str(r.config_path) for r in robots),
                          *_can_options(args, robots[0].config), *shared, *lock_step,
                          *placed["viz"], "--connect", endpoint, "--save", str(args.save),
+                         *(["--segment", args.segment] if args.segment else []),
+                         # a line a minute in viz.log: the recording's lag over a long run
+                         "--status-period", str(VIZ_STATUS_PERIOD),
                          "--can-log", str(can_log), *_viewer_options(args)],
                  logs / "viz.log")
 
@@ -461,11 +471,23 @@ def _demo(robot: _Robot, run: Run, zenoh: ZenohSettings, real_time: bool) -> boo
         client.close()
 
 
+def _segment_limit(text: str) -> str:
+    """``--segment``'s value, checked here (hil viz takes it as given)."""
+    SegmentLimit.parse(text)
+    return text
+
+
 def _report_outputs(save: Path, can_log: Path, viz: Child) -> None:
     kind = CAN_LOG_FORMATS.get(can_log.suffix.lower(), can_log.suffix.lstrip("."))
-    for path, what in ((save, "rerun recording"), (can_log, f"CAN log ({kind})")):
-        if path.is_file():
-            print(f"hil up: {what}: {path} ({path.stat().st_size / 1e6:.1f} MB)")
+    segments = [path for path in segment_files(save) if path.is_file()]
+    size = sum(path.stat().st_size for path in segments) / 1e6
+    if segments == [save]:
+        print(f"hil up: rerun recording: {save} ({size:.1f} MB)")
+    elif segments:
+        print(f"hil up: rerun recording: {len(segments)} segment(s), {segments[0]} ... "
+              f"{segments[-1].name} ({size:.1f} MB)")
+    if can_log.is_file():
+        print(f"hil up: CAN log ({kind}): {can_log} ({can_log.stat().st_size / 1e6:.1f} MB)")
     if viz.process is not None:
         lines = [line.strip().removeprefix("hil viz: ") for line in viz.last_lines().splitlines()]
         for line in lines:
@@ -474,6 +496,6 @@ def _report_outputs(save: Path, can_log: Path, viz: Child) -> None:
         summary = viz_summary(viz)
         if summary:
             print(f"hil up: recorded {summary}")
-    if save.is_file():
-        beside = Path(sys.executable).with_name("rerun")      # the venv's viewer, if any
-        print(f"hil up: review with: {beside if beside.exists() else 'rerun'} {save}")
+    if segments:
+        beside = Path(sys.executable).with_name("hil")        # the venv's hil, if any
+        print(f"hil up: review with: {beside if beside.exists() else 'hil'} review {save}")

@@ -20,6 +20,7 @@ from hil.visualisation import BenchParts, RunRecorder
 from hil.visualisation.blueprint import run_blueprint
 from hil.visualisation.urdf_export import viewer_urdf
 from hil.visualisation.node import VizNode
+from hil.visualisation.segments import SegmentLimit, Segments
 from hil.zenoh_session import ZenohSettings, close_all, session
 
 
@@ -32,6 +33,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "rerun", "where the recording goes (several may be given); default: a spawned viewer "
                  "where a display exists, else --save run.rrd")
     sinks.add_argument("--save", type=Path, metavar="FILE.rrd", help="record to an .rrd file")
+    sinks.add_argument("--segment", type=SegmentLimit.parse, metavar="LIMIT",
+                       help="with --save, record in segments FILE-0001.rrd, FILE-0002.rrd, ... "
+                            "each closed at LIMIT, a size (500MB) or a time (10m): a crash "
+                            "loses at most the last, and each opens alone")
     sinks.add_argument("--spawn", action="store_true", help="spawn a rerun viewer")
     sinks.add_argument("--viewer", metavar="URL",
                        help="stream to a running viewer, e.g. rerun+http://HOST:9876/proxy")
@@ -50,6 +55,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "visualiser runs under SCHED_IDLE, never taking the drives' or "
                              "the controller's time; in lock-step nothing has a deadline, and "
                              "starved it would lose CAN frames from its sockets' buffers)")
+    parser.add_argument("--status-period", type=float, default=0.0, metavar="S",
+                        help="print a status line every S seconds (cycles, losses, the "
+                             "recording's lag since the last); default 0: never")
     common.add_cpus(parser)
     common.add_can_override(parser)
     common.add_package_path(parser)
@@ -72,18 +80,32 @@ def run(args: argparse.Namespace) -> int:
         os.sched_setaffinity(0, common.cpus(args))
     names = "+".join(c.robot.name for c in configs)
     recording = rr.RecordingStream("hil", recording_id=f"{names}-{os.getpid()}")
-    described = _open_sinks(recording, args)
+    sinks = _sinks(args)
+    sinks.attach(recording)
     with tempfile.TemporaryDirectory(prefix="hil-viz-") as folder:
         recorders = [_recorder(recording, config, Path(folder), len(configs) > 1)
                      for config in configs]
-        for recorder in recorders:
-            recorder.log_static()
-        recording.send_blueprint(run_blueprint([r.view() for r in recorders]))
+
+        def begin() -> None:
+            """What every segment starts with: the static data and the layout."""
+            for recorder in recorders:
+                recorder.log_static()
+            recording.send_blueprint(run_blueprint([r.view() for r in recorders]))
+
+        def roll() -> None:
+            """A full segment: flushed and closed, the next begun."""
+            if sinks.segments is not None and sinks.segments.full():
+                recording.flush()
+                sinks.next_segment(recording)
+                begin()
+
+        begin()
         monitor = None if args.no_can else _monitor(configs, recorders, zenoh, args)
-        node = VizNode(recorders, session(zenoh), monitor)
+        node = VizNode(recorders, session(zenoh), monitor, roll,
+                       status_period=args.status_period)
         previous = {s: signal.signal(s, lambda *_: node.stop())
                     for s in (signal.SIGINT, signal.SIGTERM)}
-        print(f"hil viz: {', '.join(c.robot.name for c in configs)}; {described}"
+        print(f"hil viz: {', '.join(c.robot.name for c in configs)}; {sinks.described}"
               + (f"; CAN log {args.can_log}" if args.can_log else ""), flush=True)
         buses = []
         try:
@@ -114,34 +136,62 @@ def _recorder(recording: rr.RecordingStream, config: SystemConfig, folder: Path,
                        tuple(b.name for b in config.buses), namespaced, parts)
 
 
-def _open_sinks(recording: rr.RecordingStream, args: argparse.Namespace) -> str:
-    """Attach the chosen sinks; return what was chosen, in words."""
+class _Sinks:
+    """Where the recording goes: live sinks (a viewer), and a file, whole or in segments."""
+
+    def __init__(self, live: list, save: Path | None, segments: Segments | None,
+                 described: str):
+        self.live, self.save, self.segments, self.described = live, save, segments, described
+
+    def attach(self, recording: rr.RecordingStream) -> None:
+        file = (self.segments.current if self.segments is not None else self.save)
+        sinks = [*self.live, *([rr.FileSink(str(file))] if file is not None else [])]
+        if sinks:
+            recording.set_sinks(*sinks)
+
+    def next_segment(self, recording: rr.RecordingStream) -> None:
+        """The file goes on in the next segment (the live sinks are set again with it)."""
+        self.segments.advance()
+        self.attach(recording)
+
+
+def _sinks(args: argparse.Namespace) -> _Sinks:
+    """The sinks the options ask for, in words too."""
     spawn, save = args.spawn, args.save
     if not (spawn or save or args.viewer or args.serve):
         if common.display_available():
             spawn = True
         else:
             save = Path("run.rrd")
-    sinks, words = [], []
+    if args.segment is not None and save is None:
+        raise HilError.single("--segment divides the file of --save: give --save FILE.rrd")
+    if args.segment is not None and args.serve:
+        # each segment sets the sinks anew: a client reconnects, a server would bind again
+        raise HilError.single("--segment and --serve together: the web viewer's server would "
+                              "start again with each segment",
+                              hint="stream to a viewer with --viewer URL, or --spawn")
+    live, words = [], []
     if spawn:
-        recording.spawn(connect=False)
-        sinks.append(rr.GrpcSink())
+        rr.spawn(connect=False)
+        live.append(rr.GrpcSink())
         words.append("viewer spawned")
     if args.viewer:
-        sinks.append(rr.GrpcSink(args.viewer))
+        live.append(rr.GrpcSink(args.viewer))
         words.append(f"streaming to {args.viewer}")
     if args.serve:
         server = rr.GrpcServerSink()
-        sinks.append(server)
+        live.append(server)
         rr.serve_web_viewer(connect_to=server.uri, open_browser=False)
         words.append(f"web viewer at http://localhost:9090 (data at {server.uri})")
+    segments = None
     if save:
         save.parent.mkdir(parents=True, exist_ok=True)
-        sinks.append(rr.FileSink(str(save)))
-        words.append(f"recording to {save}")
-    if sinks:
-        recording.set_sinks(*sinks)
-    return ", ".join(words)
+        if args.segment is not None:
+            segments = Segments(save, args.segment)
+            words.append(f"recording to {segments.current} and on, segments of {args.segment}")
+        else:
+            words.append(f"recording to {save}")
+    return _Sinks(live, save, segments, ", ".join(words))
 
 
 def _actuator_joints(config: SystemConfig) -> dict[str, tuple[str, ...]]:

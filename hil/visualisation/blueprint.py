@@ -1,49 +1,141 @@
 """The rerun layout of a run: the 3D robot, drive states, bus load and the control loop's
 timing beside one time-series view per axis (position, velocity, effort tabs), so that
-six axes read at a glance; several robots get a tab each."""
+six axes read at a glance; several robots get a tab each.
+
+Every control cycle of a robot is one row of one entity, ``cycle`` (:class:`CycleSeries`:
+rows shared by every signal cost their row id and times once, not once a signal); each
+per-axis view shows its own few of that entity's series (rerun's ``visible_series``,
+overridden per view, the others unnamed so that its legend lists only its own)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import rerun as rr
 import rerun.blueprint as rrb
 
 from hil.description import RobotDescription
 
+#: a joint's series in ``cycle``, in order, and their units by joint type
+JOINT_SERIES = ("reference", "measured", "error", "reference velocity", "velocity", "effort")
+#: the control loop's series after the joints' and the drives' (ms; NaN in lock-step)
+LOOP_SERIES = ("period [ms]", "round trip [ms]")
+#: the colours of the series in their views: reference grey, measured blue, error red;
+#: velocity the same; effort orange and the drive's torque purple; the loop's period blue,
+#: its round trip orange
+_COLOURS = {"reference": (150, 150, 150), "measured": (80, 160, 255), "error": (240, 80, 80),
+            "reference velocity": (150, 150, 150), "velocity": (80, 200, 120),
+            "effort": (255, 160, 40), "torque": (190, 110, 255),
+            "period [ms]": (80, 160, 255), "round trip [ms]": (255, 160, 40)}
 
-def robot_view(robot: RobotDescription, actuator_joints: dict[str, tuple[str, ...]],
-               buses: tuple[str, ...], root: str = "", floating_base: bool = False
+
+@dataclass(frozen=True)
+class CycleSeries:
+    """The series of a robot's ``cycle`` entity: per driven joint JOINT_SERIES, then per
+    actuator its motor torque, then LOOP_SERIES."""
+
+    joints: tuple[str, ...]
+    units: tuple[tuple[str, str], ...]       # per joint: position unit, effort unit
+    actuators: tuple[str, ...]
+
+    @classmethod
+    def of(cls, robot: RobotDescription, actuators: tuple[str, ...]) -> CycleSeries:
+        joints = robot.driven_joints
+        return cls(tuple(j.name for j in joints),
+                   tuple((j.type.unit, j.type.effort_unit) for j in joints), actuators)
+
+    def __len__(self) -> int:
+        return len(self.joints) * len(JOINT_SERIES) + len(self.actuators) + len(LOOP_SERIES)
+
+    def joint(self, joint: str, quantity: str) -> int:
+        return self.joints.index(joint) * len(JOINT_SERIES) + JOINT_SERIES.index(quantity)
+
+    def torque(self, actuator: str) -> int:
+        return len(self.joints) * len(JOINT_SERIES) + self.actuators.index(actuator)
+
+    def loop(self, quantity: str) -> int:
+        return len(self) - len(LOOP_SERIES) + LOOP_SERIES.index(quantity)
+
+    def names(self) -> list[str]:
+        """Each series' name, with its unit."""
+        names = []
+        for joint, (unit, effort) in zip(self.joints, self.units):
+            names += [f"{joint} reference [{unit}]", f"{joint} measured [{unit}]",
+                      f"{joint} error [{unit}]", f"{joint} reference velocity [{unit}/s]",
+                      f"{joint} velocity [{unit}/s]", f"{joint} effort [{effort}]"]
+        names += [f"{actuator} torque [N·m]" for actuator in self.actuators]
+        return names + list(LOOP_SERIES)
+
+    def showing(self, shown: dict[int, str]) -> rr.SeriesLines:
+        """The override that makes a view of ``cycle`` show the series ``shown`` (index:
+        colour key) and name only those."""
+        names = self.names()
+        return rr.SeriesLines(
+            visible_series=[k in shown for k in range(len(self))],
+            names=[names[k] if k in shown else "" for k in range(len(self))],
+            colors=[_COLOURS[shown[k]] if k in shown else (0, 0, 0) for k in range(len(self))])
+
+
+def robot_view(robot: RobotDescription, series: CycleSeries,
+               actuator_joints: dict[str, tuple[str, ...]], buses: tuple[str, ...],
+               root: str = "", floating_base: bool = False, limits: tuple[str, ...] = ()
                ) -> rrb.Container:
     """One robot's layout, its entities under ``root`` ("" or "/<robot>", as
-    ``RunRecorder.root``); a floating base's position is plotted with the drive states."""
-    joints = [j.name for j in robot.driven_joints]
-    actuators_of = {j: [a for a, js in actuator_joints.items() if j in js] for j in joints}
+    ``RunRecorder.root``); ``limits``: the actuators whose peak torque is drawn (in
+    ``drives/limits``, two series each, in that order); the diagnostics, and a floating
+    base's position, are tabs beside the drive states."""
+    cycle = f"{root}/cycle"
+    actuators_of = {j: [a for a, js in actuator_joints.items() if j in js]
+                    for j in series.joints}
 
-    def grid(name: str, contents_of) -> rrb.Grid:
-        return rrb.Grid(*(rrb.TimeSeriesView(name=joint, origin="/", contents=contents_of(joint))
-                          for joint in joints), name=name)
+    def grid(name: str, shown_of) -> rrb.Grid:
+        return rrb.Grid(*(rrb.TimeSeriesView(name=joint, origin="/", contents=contents,
+                                             overrides=overrides)
+                          for joint in series.joints
+                          for contents, overrides in [shown_of(joint)]), name=name)
+
+    def kinds(joint: str, quantities: tuple[str, ...]):
+        return [cycle], {cycle: series.showing({series.joint(joint, q): q
+                                                for q in quantities})}
+
+    def efforts(joint: str):
+        shown = {series.joint(joint, "effort"): "effort"}
+        shown.update({series.torque(a): "torque" for a in actuators_of[joint]
+                      if a in series.actuators})
+        overrides = {cycle: series.showing(shown)}
+        drawn = [a for a in actuators_of[joint] if a in limits]
+        if drawn:
+            overrides[f"{root}/drives/limits"] = rr.SeriesLines(
+                visible_series=[a in drawn for a in limits for _ in (1, -1)],
+                names=[f"{a} {'+' if sign > 0 else '-'}peak [N·m]" if a in drawn else ""
+                       for a in limits for sign in (1, -1)],
+                colors=[(200, 60, 60)] * 2 * len(limits))
+        return [cycle, f"{root}/drives/limits"], overrides
 
     axes = rrb.Tabs(
-        grid("position", lambda j: [f"{root}/axes/{j}/position", f"{root}/axes/{j}/error"]),
-        grid("velocity", lambda j: [f"{root}/axes/{j}/velocity"]),
-        grid("effort", lambda j: [f"{root}/axes/{j}/effort"]
-             + [f"{root}/drives/{a}/{series}" for a in actuators_of[j]
-                for series in ("torque", "torque_limit")]),
+        grid("position", lambda j: kinds(j, ("reference", "measured", "error"))),
+        grid("velocity", lambda j: kinds(j, ("reference velocity", "velocity"))),
+        grid("effort", efforts),
     )
     model = ([f"{root}/visual_geometries/**", f"{root}/collision_geometries/**"] if root
              else ["/robot/**"])
-    states = rrb.StateTimelineView(name="drive states", origin=f"{root}/drives")
+    # the controller's faults and resets beside the drive states: a click on one puts the
+    # timelines at it (a long run's fault in one step)
+    states = [rrb.StateTimelineView(name="drive states", origin=f"{root}/drives"),
+              rrb.TextLogView(name="diagnostics", origin=f"{root}/diagnostics")]
     if floating_base:
-        states = rrb.Tabs(states, rrb.TimeSeriesView(
-            name="base position [m]", origin=f"{root}/base", contents=[f"{root}/base/position"]))
+        states.append(rrb.TimeSeriesView(name="base position [m]", origin=f"{root}/base",
+                                         contents=[f"{root}/base/position"]))
+    loop = {series.loop(q): q for q in LOOP_SERIES}
     side = rrb.Vertical(
         rrb.Spatial3DView(name=robot.name, origin="/", contents=[
-            *model, f"{root}/joints/**", f"{root}/scene/**", f"{root}/base"]),
-        states,
+            *model, f"{root}/joints", f"{root}/scene/**", f"{root}/base"]),
+        rrb.Tabs(*states),
         rrb.TimeSeriesView(name="bus load [%]", origin=f"{root}/bus",
-                           contents=[f"{root}/bus/{b}/load" for b in buses]),
+                           contents=[f"{root}/bus/load"]),
         rrb.TimeSeriesView(name="control loop [ms]: period, round trip, stalls",
-                           origin=f"{root}/loop",
-                           contents=[f"{root}/loop/period_ms", f"{root}/loop/round_trip_ms",
-                                     f"{root}/loop/stalls/**"]),
+                           origin=f"{root}/loop", contents=[cycle, f"{root}/loop/stalls/**"],
+                           overrides={cycle: series.showing(loop)}),
         row_shares=[3, 1, 1, 1],
     )
     return rrb.Horizontal(side, axes, column_shares=[2, 3], name=robot.name)
@@ -53,3 +145,6 @@ def run_blueprint(views: list[rrb.Container]) -> rrb.Blueprint:
     """The whole layout: one robot's view, or a tab per robot."""
     return rrb.Blueprint(views[0] if len(views) == 1 else rrb.Tabs(*views),
                          rrb.SelectionPanel(state="collapsed"))
+
+
+__all__ = ["JOINT_SERIES", "LOOP_SERIES", "CycleSeries", "robot_view", "run_blueprint"]

@@ -2,7 +2,8 @@
 
 Zenoh callbacks only queue what arrives (with the recorder of its robot); one thread does
 all rerun logging, so batches are logged in arrival order and none is dropped. Each
-batch's lag (logged time minus its newest cycle's wall time) is kept for the summary.
+batch's lag (logged time minus its newest cycle's wall time) is kept, the last hour's in a
+ring allocated once (a soak's memory stays flat), for the summary and the status lines.
 """
 
 from __future__ import annotations
@@ -20,8 +21,12 @@ from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.messaging.scene import SceneState
 from hil.messaging.zenoh_api import RunSubscriber, key
+from hil.realtime import Ring
 from hil.realtime.stalls import Stall
 from hil.visualisation.recorder import RunRecorder
+
+#: batches whose lag and logging time are kept: an hour's at 10 batches a second
+KEEP = 36_000
 
 
 class VizNode:
@@ -30,12 +35,17 @@ class VizNode:
     ``monitor_names``."""
 
     def __init__(self, recorders: list[RunRecorder], session: zenoh.Session,
-                 monitor: BusMonitor | None = None, bus_load_hz: float = 10.0):
+                 monitor: BusMonitor | None = None, after_batch=lambda: None,
+                 bus_load_hz: float = 10.0, status_period: float = 0.0):
+        """``after_batch`` is called after each batch is logged (a file in segments rolls
+        over there); every ``status_period`` s (0: never) a status line is printed."""
         self.recorders = recorders
         self.monitor = monitor
         self.batches = 0
-        self.lags: list[float] = []
-        self.processing: list[float] = []
+        self.lags = Ring(KEEP)
+        self.processing = Ring(KEEP)
+        self._after_batch = after_batch
+        self._status_period = status_period
         self._session = session
         self._period = 1.0 / bus_load_hz
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
@@ -63,12 +73,19 @@ class VizNode:
         tokens = [self._session.liveliness().declare_token(key(r.robot.name, "viz"))
                   for r in self.recorders]
         next_load = time.monotonic() + self._period
+        started = next_status = time.monotonic()
+        counted = 0                               # batches at the last status line
         try:
             while not self._stop.is_set():
                 try:
                     self._handle(self._queue.get(timeout=self._period / 2))
                 except queue.Empty:
                     pass
+                if self._status_period and time.monotonic() >= next_status + self._status_period:
+                    next_status += self._status_period
+                    print(f"hil viz: [{next_status - started:7.0f} s] "
+                          f"{self._status(self.batches - counted)}", flush=True)
+                    counted = self.batches
                 if self.monitor is not None and time.monotonic() >= next_load:
                     next_load += self._period
                     now = time.time()
@@ -91,9 +108,10 @@ class VizNode:
         if isinstance(item, ControlSamples):
             started = time.perf_counter()
             recorder.log_samples(item)
-            self.processing.append(time.perf_counter() - started)
-            self.lags.append(time.time() - item.wall_time[-1])
+            self.processing.add(time.perf_counter() - started)
+            self.lags.add(time.time() - item.wall_time[-1])
             self.batches += 1
+            self._after_batch()
         elif isinstance(item, DiagnosticStatus):
             recorder.log_diagnostic(item)
         elif isinstance(item, Stall):
@@ -111,11 +129,26 @@ class VizNode:
         if len(recorders) > 1:
             text += " (" + ", ".join(f"{r.robot.name} {r.cycles_logged} cycles, {r.cycles_lost} "
                                      f"lost" for r in recorders) + ")"
-        if self.lags:
-            lags = np.array(self.lags) * 1e3
-            text += (f"; lag p50 {np.percentile(lags, 50):.1f} ms, p99 "
-                     f"{np.percentile(lags, 99):.1f} ms, max {lags.max():.1f} ms; logging "
-                     f"{np.mean(self.processing) * 1e3:.2f} ms per batch")
+        text += self._lag_words(self.lags.values, self.processing.values)
         if self._errors:
             text += f"; {self._errors} malformed payloads dropped"
         return text
+
+    def _status(self, recent: int) -> str:
+        """A status line: cycles and losses so far, and the lag of the last ``recent``
+        batches."""
+        recorders = self.recorders
+        lags = self.lags.values[-recent:] if recent else self.lags.values[:0]
+        spent = self.processing.values[-recent:] if recent else self.processing.values[:0]
+        return (f"{sum(r.cycles_logged for r in recorders)} cycles, "
+                f"{sum(r.cycles_lost for r in recorders)} lost; {recent} batches"
+                + self._lag_words(lags, spent))
+
+    @staticmethod
+    def _lag_words(lags: np.ndarray, spent: np.ndarray) -> str:
+        if not len(lags):
+            return ""
+        lags = lags * 1e3
+        return (f"; lag p50 {np.percentile(lags, 50):.1f} ms, p99 "
+                f"{np.percentile(lags, 99):.1f} ms, max {lags.max():.1f} ms; logging "
+                f"{np.mean(spent) * 1e3:.2f} ms per batch")
