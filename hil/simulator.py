@@ -255,6 +255,14 @@ class Simulator:
             with self.lock:
                 self._clock = self._last_step = None
 
+    def follow(self, clock: Callable[[], float]) -> None:
+        """Real time on another clock, without :meth:`run`: from now on plant time follows
+        ``clock`` (s) from its present reading, stepped whenever a frame or a call enters the
+        lock; no watchdog and no timed message runs (a replay on a log's own timestamps)."""
+        with self.lock:
+            self.wall_clock = clock
+            self._clock = (clock(), 0)
+
     def _note_stall(self, stall: Stall | None) -> None:
         if stall is not None and self.on_stall is not None:
             self.on_stall(stall)

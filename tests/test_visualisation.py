@@ -138,12 +138,13 @@ def test_bus_load_meter_counts_each_bus_in_bits_against_its_bitrate():
 
 
 @pytest.mark.parametrize("suffix, named", [(".blf", False), (".log", True)])
+@pytest.mark.parametrize("interface", ["virtual", "hil-virtual"])   # a Notifier; delivered as
 def test_the_can_log_holds_every_frame_as_sent_its_channels_numbered_where_the_format_does(
-        tmp_path, suffix, named):
+        tmp_path, suffix, named, interface):                         # they come (deliver_to)
     tag = f"{suffix[1:]}-{tmp_path.name}"
     channels = {"arm": f"log-arm-{tag}", "wrist": f"log-wrist-{tag}"}
-    senders = {name: can.Bus(interface="virtual", channel=c) for name, c in channels.items()}
-    watched = {name: can.Bus(interface="virtual", channel=c) for name, c in channels.items()}
+    senders = {name: can.Bus(interface=interface, channel=c) for name, c in channels.items()}
+    watched = {name: can.Bus(interface=interface, channel=c) for name, c in channels.items()}
     path = tmp_path / f"run.can{suffix}"
     monitor = BusMonitor(watched, channels, {"arm": 1_000_000, "wrist": 1_000_000}, path)
     sent = []
@@ -191,6 +192,7 @@ def recorded(tmp_path, pigot, package_path):
     recorder.log_diagnostic(DiagnosticStatus("ERROR", "drive node 2 (arm_rot_2) is in FAULT",
                                        *fault_at))
     recorder.log_diagnostic(DiagnosticStatus("OK", "fault reset", fault_at[0] + 1, None))
+    recorder.flush()                         # the poses waiting to be grouped
     recording.flush()
     recording.disconnect()
     rows = collections.Counter()
@@ -303,6 +305,7 @@ def test_robots_sharing_a_recording_each_keep_their_entities_frames_and_bus_load
              (("ur3/arm", 0.1), ("ur3/wrist", 0.2), ("pigot/arm", 0.3), ("pigot/wrist", 0.4))]
     for recorder in recorders.values():
         recorder.log_bus_load(1.0, loads)
+        recorder.flush()
     recording.flush()
     recording.disconnect()
     rows, static, frames, load_logged = collections.Counter(), set(), set(), {}

@@ -515,3 +515,25 @@ def test_a_slow_link_is_one_stall_per_stretch_not_one_per_message(bus_pair):
     assert all(s.process == "link" and s.length == pytest.approx(0.040) for s in stalls)
     assert master.counters.round_trips == 30
     assert master.counters.round_trip_floor == pytest.approx(0.040)
+
+
+def test_a_logging_bus_stamps_frames_with_their_senders_clock(endpoint):
+    """A monitor writing a log stamps a frame when it was on the bus (its sender's clock at
+    the put), not when a late monitor took it; a bus stamps arrival by default."""
+    channel = f"test/{time.monotonic_ns()}"
+    sender = can.Bus(interface="zenoh", channel=channel, listen=[endpoint])
+    logging = can.Bus(interface="zenoh", channel=channel, connect=[endpoint], timestamps="sent")
+    plain = can.Bus(interface="zenoh", channel=channel, connect=[endpoint])
+    try:
+        time.sleep(0.5)
+        with sender.batch():                      # one message: one sender's time
+            before = time.time()
+            sender.send(can.Message(arbitration_id=0x80, data=b"", is_extended_id=False))
+            time.sleep(0.05)                      # the put comes at the batch's end
+        stamped, arrived = logging.recv(2), plain.recv(2)
+        assert before + 0.05 <= stamped.timestamp <= arrived.timestamp
+        with pytest.raises(ValueError, match="'arrival' or 'sent'"):
+            can.Bus(interface="zenoh", channel=channel, connect=[endpoint], timestamps="bus")
+    finally:
+        for bus in (sender, logging, plain):
+            bus.shutdown()

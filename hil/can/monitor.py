@@ -110,11 +110,26 @@ class BusMonitor:
                 self.logger = NumberedChannels(self.logger, {
                     str(channels[name]): number for name, number in self.channel_numbers.items()})
         listeners = [self.meter] + ([self.logger] if self.logger is not None else [])
-        self._notifier = can.Notifier(list(buses.values()), listeners, timeout=0.1)
+        # a bus that delivers in its own thread (hil-virtual, zenoh) hands every frame to the
+        # log as it comes: a Notifier reads a bounded receive FIFO, which a controller's
+        # burst of SDO configuration (30,000 frames/s for a second) overran, the monitor
+        # running at idle priority, and the log lost frames
+        self._direct, queued = [], []
+        for bus in buses.values():
+            deliver_to = getattr(bus, "deliver_to", None)
+            if deliver_to is not None:
+                self._direct.append(deliver_to(listeners))
+            else:
+                queued.append(bus)
+        self._notifier = can.Notifier(queued, listeners, timeout=0.1) if queued else None
 
     def close(self) -> None:
-        """Stop listening, close the log (flushed: the notifier stops its listeners) and the
-        buses."""
-        self._notifier.stop(1.0)
+        """Stop listening, close the log (flushed) and the buses."""
+        for delivery in self._direct:
+            delivery.stop(1.0)
+        if self._notifier is not None:
+            self._notifier.stop(1.0)            # stops its listeners: the log among them
+        elif self.logger is not None:
+            self.logger.stop()
         for bus in self.buses.values():
             bus.shutdown()

@@ -424,17 +424,24 @@ class ZenohBus(can.BusABC):
     file, the bus joins the hil processes of this host at their meeting point:
     :func:`hil.zenoh_session.meeting_endpoint`), ``zenoh_config`` (path of a Zenoh config
     file), ``receive_own_messages``; ``settings`` (a :class:`ZenohSettings`, in place of the
-    three: how hil's own processes join their session, ``--secure`` included).
+    three: how hil's own processes join their session, ``--secure`` included);
+    ``timestamps``: what a received frame's timestamp is, ``"arrival"`` (this process'
+    clock when it came) or ``"sent"`` (its sender's clock when it was put: when it was on
+    the bus, as an interface on the bus stamps it; what a log of the bus wants, the logger
+    being a process that may be late).
     ``on_stall``, if set, is called (in Zenoh's delivering thread) with each late delivery.
     """
 
     def __init__(self, channel: str, listen=(), connect=(), zenoh_config=None,
                  receive_own_messages: bool = False, settings: ZenohSettings | None = None,
-                 **kwargs):
+                 timestamps: str = "arrival", **kwargs):
         self.channel_info = f"Zenoh {KEY_PREFIX}{channel}"
         self._channel = str(channel)
         if len(self._channel.encode()) > 255:
             raise ValueError(f"channel '{channel}': a name of at most 255 bytes (UTF-8)")
+        if timestamps not in ("arrival", "sent"):
+            raise ValueError(f"timestamps '{timestamps}': 'arrival' or 'sent'")
+        self._stamp_sent = timestamps == "sent"
         self._receive_own = receive_own_messages
         self._sender = random.getrandbits(63) ^ os.getpid()
         self._sequence = 0
@@ -497,6 +504,9 @@ class ZenohBus(can.BusABC):
         if self.on_stall is not None:
             for stall in filter(None, stalls):
                 self.on_stall(stall)
+        if self._stamp_sent:
+            for msg in frames:
+                msg.timestamp = message.sent_at
         for msg in frames:
             self._take(msg)
 

@@ -28,6 +28,8 @@ COMMANDS = {
     "viz": "show and record every axis of a running robot in rerun",
     "review": "open a recorded run (whole or in segments): its faults with their times, then "
               "the viewer",
+    "replay": "feed a CAN log's master frames to a bus config's drives and compare every "
+              "answer with the log's",
     "up": "start sim, controller and visualiser together (optionally run a demo), record the run",
     "keys": "make the certificates of --secure (mutual TLS and rights by role)",
     "router": "run a Zenoh router with rmw_zenohd's settings (for --ros without ROS 2 installed)",

@@ -95,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
         def roll() -> None:
             """A full segment: flushed and closed, the next begun."""
             if sinks.segments is not None and sinks.segments.full():
+                for recorder in recorders:
+                    recorder.flush()
                 recording.flush()
                 sinks.next_segment(recording)
                 begin()
@@ -116,6 +118,8 @@ def run(args: argparse.Namespace) -> int:
                 # what the CAN log and the bus-load plot missed: a visualiser that falls
                 # behind loses frames (the transport drops them rather than stall a sender)
                 buses = common.bus_report(monitor.buses, monitor.channel_numbers)
+            for recorder in recorders:
+                recorder.flush()
             recording.flush()
             close_all()
             for signum, handler in previous.items():
@@ -206,7 +210,7 @@ def _monitor(configs: list[SystemConfig], recorders: list[RunRecorder], zenoh: Z
     interface, channels = common.can_overrides(args)
     buses, channel_of, bitrates = {}, {}, {}
     for config, recorder in zip(configs, recorders):
-        opened = open_buses(config, zenoh, interface, channels)
+        opened = open_buses(config, zenoh, interface, channels, logging=True)
         for name, bus in recorder.monitor_names.items():
             buses[name] = opened[bus]
             config_bus = next(b for b in config.buses if b.name == bus)

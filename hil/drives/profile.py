@@ -22,6 +22,7 @@ import logging
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from contextlib import AbstractContextManager
+from dataclasses import dataclass
 from typing import ClassVar
 
 import can
@@ -56,6 +57,25 @@ class DriveNetwork(CanopenNetwork):
             if self.lost_frames % self.LOG_EVERY == 1:
                 log.warning("a drive's frame 0x%03X was lost (%d so far): %s", can_id,
                             self.lost_frames, exc)
+
+
+#: what a :class:`Reading` measures; None for what must match exactly (states, codes)
+QUANTITIES = ("position", "velocity", "torque", "derived")
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One value a drive's frame carries, decoded for a replay's comparison (:mod:`hil.replay`).
+
+    ``quantity`` says what it measures (one of QUANTITIES: the motor's position, velocity or
+    torque, or a value derived from them, such as a current or a power) or None for what
+    must match exactly; ``scale`` turns ``value`` (as the frame carries it) into SI units at
+    the motor (rad, rad/s, N·m)."""
+
+    name: str
+    value: float
+    quantity: str | None = None
+    scale: float = 1.0
 
 
 class DriveProfile(ABC):
@@ -146,3 +166,24 @@ class DriveProfile(ABC):
     def state_text(self) -> str:
         """The drive's state in its protocol's words."""
         return self.core.power.name
+
+    # --- what a replay compares (hil.replay) -------------------------------------------
+
+    def timed(self, can_id: int, data: bytes) -> bool:
+        """Whether this frame of the drive's is one it sends on its own clock (a heartbeat,
+        a timed message), not in answer to its master: a replay checks what it reports
+        against :meth:`timed_content`, not frame by frame."""
+        return False
+
+    def timed_ids(self) -> tuple[int, ...]:
+        """The ids of the timed frames whose content is the drive's state (its heartbeat)."""
+        return ()
+
+    def timed_content(self, can_id: int) -> bytes | None:
+        """What the drive would send now on one of :meth:`timed_ids` (its state)."""
+        return None
+
+    def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
+        """The values one of this drive's own frames carries, for a comparison within
+        tolerances; None: the frame is compared byte for byte (an SDO answer, an EMCY)."""
+        return None

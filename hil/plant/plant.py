@@ -175,9 +175,10 @@ class Plant:
         """Actuator efforts at the joints (motor torques through the transmissions)."""
         return self.data.qfrc_actuator[self._dof].copy()
 
-    def set_joint_positions(self, positions: Mapping[str, float]) -> None:
-        """Place joints (e.g. an initial pose) at rest, mimic joints following, a gear stage
-        in the middle of its play."""
+    def set_joint_positions(self, positions: Mapping[str, float],
+                            velocities: Mapping[str, float] | None = None) -> None:
+        """Place joints (e.g. an initial pose), at rest or moving at ``velocities``, mimic
+        joints following, a gear stage in the middle of its play."""
         stages = dict(zip(self._staged, self._stage_qpos))
         for name, value in positions.items():
             self.data.qpos[self.model.joint(name).qposadr[0]] = value
@@ -190,6 +191,8 @@ class Plant:
                 self.data.qpos[self.model.joint(joint.name).qposadr[0]] = (
                     joint.mimic.multiplier * leader + joint.mimic.offset)
         self.data.qvel[:] = 0.0
+        for name, value in (velocities or {}).items():
+            self.data.qvel[self.model.joint(name).dofadr[0]] = value
         mujoco.mj_forward(self.model, self.data)
 
     # --- a floating base ------------------------------------------------------

@@ -10,9 +10,33 @@ use: the controller process loads no simulated drive, the simulator no master.
 
 from __future__ import annotations
 
+import enum
 import importlib
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import ClassVar
+
+
+class Sender(enum.Enum):
+    """Which side of a bus sends a frame."""
+
+    MASTER = "master"
+    DRIVE = "drive"
+
+
+@dataclass(frozen=True)
+class FrameSource:
+    """Who sends a frame of a protocol, which drive it concerns and what it is."""
+
+    sender: Sender
+    #: the drive it comes from or is addressed to; None: every drive of the bus (a SYNC, a
+    #: broadcast NMT command)
+    node_id: int | None
+    #: the frame in the protocol's own words ("TPDO1", "SDO answer", "Set_Input_Pos")
+    what: str
+    #: the master's frame that makes the drive(s) answer a cycle (a SYNC, a cyclic request)
+    cycle: bool = False
 
 
 class Protocol(ABC):
@@ -50,6 +74,23 @@ class Protocol(ABC):
         """The frames a master adds to :meth:`bus_frames` to send a torque feed-forward
         (none where the setpoint's own frame carries one)."""
         return []
+
+    @classmethod
+    def frame_source(cls, can_id: int, data: bytes, remote: bool,
+                     drives: Mapping[int, object]) -> FrameSource | None:
+        """Who sent a frame seen on a bus whose drives of this protocol are ``drives`` (node
+        id -> the drive's options), told by the protocol's ids alone, as a bus monitor tells
+        them; None where it is no frame of theirs (another node, another protocol). What a
+        replay (:mod:`hil.replay`) feeds to the drives and what it compares. A protocol that
+        does not say cannot be replayed."""
+        raise NotImplementedError(f"protocol '{cls.name}' does not tell its master's frames "
+                                  "from its drives' (Protocol.frame_source)")
+
+    @classmethod
+    def source_reads_data(cls, can_id: int, drives: Mapping[int, object]) -> bool:
+        """Whether :meth:`frame_source` of ``can_id`` depends on the frame's bytes (else the
+        id and the remote flag tell it, and a reader may keep the answer)."""
+        return True
 
     @classmethod
     def shared_ids(cls, options=None) -> set[int]:

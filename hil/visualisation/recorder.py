@@ -70,6 +70,10 @@ from hil.visualisation.blueprint import CycleSeries, robot_view
 POSE_RATE = 20.0
 #: each drive's peak torque is logged this often (s): a line needs no more
 LIMITS_EVERY = 1.0
+#: the poses and the bus loads are sent in chunks of this many seconds: rerun's file sink
+#: keeps an index entry per chunk (and per column of it) until the file is closed, which
+#: grew the visualiser 3 MB a minute with a chunk of each every 100 ms
+GROUPED = 0.5
 #: contact force arrows: metres of arrow per newton (a 50 g object's weight: 25 mm)
 CONTACT_ARROW = 0.05
 #: a scene's plane is drawn as a square this wide (m): it is endless in the plant
@@ -161,6 +165,10 @@ class RunRecorder:
         self.series = CycleSeries.of(robot, tuple(actuator_joints))
         self._columns: dict[tuple, np.ndarray] = {}    # a batch's layout: where each goes
         self._poses = JointPoses(robot, prefix)
+        #: what waits to be sent in GROUPED chunks: (wall time, bus loads) rows, and poses
+        #: (times, translations, quaternions, parent and child frames)
+        self._loads: list[tuple[float, list[float]]] = []
+        self._poses_waiting: list[tuple] = []
 
     def log_static(self) -> None:
         """The robot model and series names: before any sample, and again at the start of
@@ -240,9 +248,24 @@ class RunRecorder:
                for value in (by_bus[bus].nominal, by_bus[bus].worst_case)]
         if len(row) != 2 * len(self._buses):          # a bus not measured: none this time
             return
-        table = _ScalarTable(self._times(np.array([wall_time])))
-        table.add_rows(f"{self.root}/bus/load", np.array([row], dtype=np.float32))
+        self._loads.append((wall_time, row))
+        if wall_time - self._loads[0][0] >= GROUPED:
+            self._send_loads()
+
+    def _send_loads(self) -> None:
+        if not self._loads:
+            return
+        times, rows = zip(*self._loads)
+        self._loads.clear()
+        table = _ScalarTable(self._times(np.array(times)))
+        table.add_rows(f"{self.root}/bus/load", np.array(rows, dtype=np.float32))
         table.send(self.recording)
+
+    def flush(self) -> None:
+        """Send what waits to be grouped (the poses, the bus loads): before the recording
+        is flushed, at a segment's end and at the end."""
+        self._send_loads()
+        self._send_poses()
 
     def log_scene(self, state: SceneState) -> None:
         """The moving objects' poses, the contacts and a floating base's pose, at the state's
@@ -335,10 +358,31 @@ class RunRecorder:
         positions = dict(zip(batch.joint_names, batch.position[rows].T))
         translations, quaternions, parents, children = self._poses.transforms(positions)
         count = len(translations) // len(rows)              # joints posed per row
+        self._poses_waiting.append((times.at(np.repeat(rows, count)), translations, quaternions,
+                                    parents, children))
+        if wall[rows[-1]] - self._poses_waiting[0][0].wall[0] >= GROUPED:
+            self._send_poses()
+
+    def _send_poses(self) -> None:
+        waiting = self._poses_waiting
+        if not waiting:
+            return
+        times = _Times(np.concatenate([t.wall for t, *_ in waiting]),
+                       _joined([t.control for t, *_ in waiting]),
+                       _joined([t.sim for t, *_ in waiting]))
         self.recording.send_columns(
-            f"{self.root}/joints", indexes=times.at(np.repeat(rows, count)).columns(),
-            columns=rr.Transform3D.columns(translation=translations, quaternion=quaternions,
-                                           parent_frame=parents, child_frame=children))
+            f"{self.root}/joints", indexes=times.columns(), columns=rr.Transform3D.columns(
+                translation=np.concatenate([w[1] for w in waiting]),
+                quaternion=np.concatenate([w[2] for w in waiting]),
+                parent_frame=[p for w in waiting for p in w[3]],
+                child_frame=[c for w in waiting for c in w[4]]))
+        waiting.clear()
+
+
+def _joined(parts: list[np.ndarray | None]) -> np.ndarray | None:
+    """Arrays of one timeline joined; None where any part lacks it (the first poses before
+    the sim's clock was heard have no sim time: their group then has none)."""
+    return None if any(p is None for p in parts) else np.concatenate(parts)
 
 
 class JointPoses:

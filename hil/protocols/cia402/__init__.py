@@ -7,12 +7,22 @@ their object dictionary from the EDS hil ships (:func:`hil.resources.eds_path`).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import Protocol
+from hil.protocols.base import FrameSource, Protocol, Sender
 
 SYNC_ID = 0x080          # CiA 301's SYNC COB-ID
 NMT_ID = 0x000
+TIME_ID = 0x100
+#: CiA 301's predefined connection set: function code (the id's top 4 bits) -> the sender and
+#: the frame's name; SYNC (0x080), NMT (0x000) and TIME (0x100) are the master's to all
+FUNCTION_CODES = {0x080: (Sender.DRIVE, "EMCY"), 0x180: (Sender.DRIVE, "TPDO1"),
+                  0x200: (Sender.MASTER, "RPDO1"), 0x280: (Sender.DRIVE, "TPDO2"),
+                  0x300: (Sender.MASTER, "RPDO2"), 0x380: (Sender.DRIVE, "TPDO3"),
+                  0x400: (Sender.MASTER, "RPDO3"), 0x480: (Sender.DRIVE, "TPDO4"),
+                  0x500: (Sender.MASTER, "RPDO4"), 0x580: (Sender.DRIVE, "SDO answer"),
+                  0x600: (Sender.MASTER, "SDO request"), 0x700: (Sender.DRIVE, "heartbeat")}
 
 #: EMCY error codes a hil CiA 402 drive sends (CiA 301 / 402), for messages
 EMCY_TEXT = {0x8611: "following error", 0x8612: "position limit exceeded",
@@ -80,6 +90,33 @@ class Cia402(Protocol):
                 (0x280 + node_id, 6, cycle_hz), (0x700 + node_id, 1, 1.0 / heartbeat_period),
                 *([(0x500 + node_id, 6, cycle_hz)] if feed_forward else []),
                 (0x080 + node_id, 8, 0.0), (0x580 + node_id, 8, 0.0), (0x600 + node_id, 8, 0.0)]
+
+    @classmethod
+    def frame_source(cls, can_id: int, data: bytes, remote: bool,
+                     drives: Mapping[int, object]) -> FrameSource | None:
+        """By CiA 301's predefined connection set (PDOs moved to other COB-IDs are not
+        told). A heartbeat of a node that is no drive is the master's own (or another
+        master's on the bus): it goes to the drives, which may consume it (0x1016)."""
+        if can_id == SYNC_ID:
+            return FrameSource(Sender.MASTER, None, "SYNC", cycle=True)
+        if can_id == TIME_ID:
+            return FrameSource(Sender.MASTER, None, "TIME")
+        if can_id == NMT_ID:
+            node = data[1] if len(data) == 2 else None
+            if node not in (0, None) and node not in drives:
+                return None
+            return FrameSource(Sender.MASTER, node or None, "NMT")
+        code, node = can_id & 0x780, can_id & 0x7F
+        sender, what = FUNCTION_CODES.get(code, (None, ""))
+        if sender is None:
+            return None
+        if node not in drives:
+            return FrameSource(Sender.MASTER, None, what) if code == 0x700 else None
+        return FrameSource(sender, node, what)
+
+    @classmethod
+    def source_reads_data(cls, can_id: int, drives: Mapping[int, object]) -> bool:
+        return can_id == NMT_ID            # the node addressed is the command's second byte
 
     @classmethod
     def torque_feed_forward_frames(cls, node_id: int, cycle_hz: float, options=None

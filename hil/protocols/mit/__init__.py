@@ -16,9 +16,10 @@ nibbles with per-motor ranges.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import Protocol
+from hil.protocols.base import FrameSource, Protocol, Sender
 
 ENTER_MOTOR_MODE = bytes([0xFF] * 7 + [0xFC])
 EXIT_MOTOR_MODE = bytes([0xFF] * 7 + [0xFD])
@@ -152,6 +153,22 @@ class Mit(Protocol):
                    options: MitOptions | None = None) -> list[tuple[int, int, float]]:
         options = options or MitOptions()
         return [(node_id, 8, cycle_hz), (options.reply_id, 6, cycle_hz)]
+
+    @classmethod
+    def frame_source(cls, can_id: int, data: bytes, remote: bool,
+                     drives: Mapping[int, object]) -> FrameSource | None:
+        """A command goes to the motor's id; a reply to the master's, naming the motor in
+        its first byte."""
+        if can_id in drives:
+            return FrameSource(Sender.MASTER, can_id, "command", cycle=True)
+        replies = {(options or MitOptions()).reply_id for options in drives.values()}
+        if can_id in replies and data and data[0] in drives:
+            return FrameSource(Sender.DRIVE, data[0], "reply")
+        return None
+
+    @classmethod
+    def source_reads_data(cls, can_id: int, drives: Mapping[int, object]) -> bool:
+        return can_id not in drives        # a reply names its motor in its first byte
 
     @classmethod
     def shared_ids(cls, options: MitOptions | None = None) -> set[int]:

@@ -7,10 +7,10 @@ from contextlib import AbstractContextManager
 
 from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power
-from hil.drives.profile import DriveProfile
+from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, Mit, MitOptions, MitReply, pack_reply,
-    unpack_command,
+    unpack_command, unpack_reply,
 )
 
 
@@ -67,6 +67,16 @@ class MitDrive(DriveProfile):
         if Fault.CONTROLLER_SILENT in events:
             # the firmware's CAN timeout: leave motor mode (no torque), nothing is reported
             self.core.disable()
+
+    def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
+        """A reply: the motor id exact, position (rad from the zero), velocity, torque."""
+        if can_id != self.options.reply_id or len(data) != 6:
+            return None
+        reply = unpack_reply(data, self.ranges)
+        return (Reading("motor id", reply.motor_id),
+                Reading("position", reply.position, "position"),
+                Reading("velocity", reply.velocity, "velocity"),
+                Reading("torque", reply.torque, "torque"))
 
     @property
     def state_text(self) -> str:

@@ -18,9 +18,10 @@ from __future__ import annotations
 import enum
 import math
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import Protocol
+from hil.protocols.base import FrameSource, Protocol, Sender
 
 TURN = 2 * math.pi
 
@@ -100,6 +101,13 @@ class ODriveError(enum.IntFlag):
     ESTOP_REQUESTED = 0x2000000
 
 
+#: the command ids whose data frames an axis sends (the answers to RTRs, the heartbeat); a
+#: master sends every other one, and the RTRs
+AXIS_SENDS = frozenset({Cmd.GET_VERSION, Cmd.HEARTBEAT, Cmd.GET_ERROR,
+                        Cmd.GET_ENCODER_ESTIMATES, Cmd.GET_IQ, Cmd.GET_TEMPERATURE,
+                        Cmd.GET_BUS_VOLTAGE_CURRENT, Cmd.GET_TORQUES, Cmd.GET_POWERS})
+
+
 def can_id(node_id: int, cmd: int) -> int:
     return (node_id << 5) | cmd
 
@@ -147,6 +155,22 @@ class ODrive(Protocol):
     has_following_error = False
     drive = "hil.protocols.odrive.drive:ODriveDrive"
     axis = "hil.protocols.odrive.axis:ODriveAxis"
+
+    @classmethod
+    def frame_source(cls, can_id: int, data: bytes, remote: bool,
+                     drives: Mapping[int, object]) -> FrameSource | None:
+        node, cmd = can_id >> 5, can_id & 0x1F
+        if node not in drives:
+            return None
+        name = Cmd(cmd).name.title() if cmd in Cmd.__members__.values() else f"cmd 0x{cmd:02X}"
+        if remote:       # the cyclic master's Get_Encoder_Estimates RTR is a cycle's request
+            return FrameSource(Sender.MASTER, node, f"{name} request",
+                               cycle=cmd == Cmd.GET_ENCODER_ESTIMATES)
+        return FrameSource(Sender.DRIVE if cmd in AXIS_SENDS else Sender.MASTER, node, name)
+
+    @classmethod
+    def source_reads_data(cls, can_id: int, drives: Mapping[int, object]) -> bool:
+        return False                       # the id is node and command
 
     @classmethod
     def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float,

@@ -14,7 +14,7 @@ from dataclasses import replace
 
 from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power
-from hil.drives.profile import DriveProfile
+from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.odrive import (
     LAYOUT, TURN, AxisState, Cmd, ControlMode, ODrive, ODriveError, ODriveOptions, can_id,
 )
@@ -206,6 +206,33 @@ class ODriveDrive(DriveProfile):
                 self._due[cmd] = max(due + periods[cmd], now)
                 self.send(can_id(self.node_id, cmd), self._payload(cmd))
 
+    # --- what a replay compares ---------------------------------------------------------
+
+    def timed(self, can_id: int, data: bytes) -> bool:
+        """The heartbeat and the messages sent at a configured rate (which also answer an
+        RTR: a replay cannot tell the two apart, and checks neither frame by frame)."""
+        cmd = can_id & 0x1F
+        return cmd == Cmd.HEARTBEAT or cmd in self.options.rates()
+
+    def timed_ids(self) -> tuple[int, ...]:
+        return (can_id(self.node_id, Cmd.HEARTBEAT),)
+
+    def timed_content(self, can_id: int) -> bytes | None:
+        if can_id & 0x1F == Cmd.HEARTBEAT:
+            return self._payload(Cmd.HEARTBEAT)
+        return None
+
+    def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
+        """Encoder estimates in turns and turns/s, torques in N·m, the other Get_* values
+        derived from them; None for what is exact (version, errors)."""
+        cmd = can_id & 0x1F
+        quantities = READINGS.get(cmd)
+        if quantities is None or len(data) < LAYOUT[cmd].size:
+            return None
+        values = LAYOUT[cmd].unpack_from(data)
+        return tuple(Reading(f"{Cmd(cmd).name.lower()}[{k}]", value, quantity, scale)
+                     for k, (value, (quantity, scale)) in enumerate(zip(values, quantities)))
+
     @property
     def state_text(self) -> str:
         errors = f" {self.active_errors!r}" if self.active_errors else ""
@@ -230,4 +257,15 @@ ANSWERS = {
                                                         abs(_power(status)) / BUS_VOLTAGE),
     Cmd.GET_TORQUES: lambda drive, status: (status.torque, status.torque),
     Cmd.GET_POWERS: lambda drive, status: (abs(_power(status)), _power(status)),
+}
+
+#: how a replay reads the Get_* answers that carry measured values: (quantity, scale to SI)
+#: per field (hil.drives.profile.Reading)
+READINGS = {
+    Cmd.GET_ENCODER_ESTIMATES: (("position", TURN), ("velocity", TURN)),
+    Cmd.GET_TORQUES: (("torque", 1.0), ("torque", 1.0)),
+    Cmd.GET_IQ: (("derived", 1.0), ("derived", 1.0)),
+    Cmd.GET_BUS_VOLTAGE_CURRENT: ((None, 1.0), ("derived", 1.0)),
+    Cmd.GET_POWERS: (("derived", 1.0), ("derived", 1.0)),
+    Cmd.GET_TEMPERATURE: ((None, 1.0), (None, 1.0)),
 }

@@ -1,0 +1,320 @@
+"""A CAN log as a replay reads it: each frame on a bus of the bus config, told the master's
+or a drive's by its protocol (:meth:`hil.protocols.base.Protocol.frame_source`).
+
+Any format python-can's ``LogReader`` opens (BLF, ASC, candump text, CSV, TRC, MF4 with
+asammdf): hil's own logs, or a candump of a real robot. A log's channels are matched to the
+config's buses by ``--channel`` (``LOGCHANNEL=BUS``), else by number (BLF and ASC number
+channels from 1, in the config's bus order, as ``hil viz`` writes them), else by name (the
+bus' python-can channel or its name), else one channel to a config of one bus.
+
+:func:`survey` reads a log once before anything is replayed and refuses one that does not
+fit the config (a node the bus has no drive of, a frame no protocol of the bus knows, a
+channel with no bus) with every misfit, each with its first place in the log.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import struct
+import time
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import can
+
+from hil.bus_config import BusConfig, SystemConfig
+from hil.errors import HilError, error
+from hil.protocols import FrameSource, Sender, protocol
+
+#: misfits listed in a refusal before "and N more"
+MISFITS_SHOWN = 8
+#: how far out of time order (s) a log's frames may be written: a monitor that reads each
+#: bus' queue in turn (python-can's Notifier, hil viz) writes a burst of one bus before
+#: the same moment's frames of another
+REORDER_WINDOW = 1.0
+#: how close to the config's period an interval between cycles is one of a real-time run
+PERIOD_TOLERANCE = 0.1
+
+
+@dataclass(frozen=True)
+class LoggedFrame:
+    """One frame of a log, placed on a bus and told whose it is."""
+
+    number: int               # its place in the log, from 1
+    time: float               # the log's timestamp (s)
+    bus: int                  # index of its bus in the config
+    can_id: int
+    data: bytes
+    remote: bool
+    source: FrameSource
+
+
+class BusFrames:
+    """Tells the frames of one bus of the config: by each of its protocols in turn."""
+
+    def __init__(self, bus: BusConfig):
+        self.name = bus.name
+        by_protocol: dict[str, dict[int, object]] = {}
+        for drive in bus.drives:
+            by_protocol.setdefault(drive.protocol, {})[drive.node_id] = drive.options
+        self._protocols = [(protocol(name), drives) for name, drives in by_protocol.items()]
+        self.node_ids = sorted(d.node_id for d in bus.drives)
+        #: (id, remote) -> its source, for the ids whose bytes do not matter
+        self._known: dict[tuple[int, bool], FrameSource | None] = {}
+
+    def source(self, can_id: int, data: bytes, remote: bool) -> FrameSource | None:
+        key = (can_id, remote)
+        if key in self._known:
+            return self._known[key]
+        found = self._told(can_id, data, remote)
+        if not any(spec.source_reads_data(can_id, drives) for spec, drives in self._protocols):
+            self._known[key] = found
+        return found
+
+    def _told(self, can_id: int, data: bytes, remote: bool) -> FrameSource | None:
+        for spec, drives in self._protocols:
+            try:
+                found = spec.frame_source(can_id, data, remote, drives)
+            except NotImplementedError as exc:
+                raise HilError.single(f"bus '{self.name}': {exc}; it cannot be replayed") \
+                    from None
+            if found is not None:
+                return found
+        return None
+
+
+@dataclass
+class Survey:
+    """What a whole log holds, per bus of the config."""
+
+    path: Path
+    channels: dict[object, int]          # the log's channel -> bus index
+    frames: int = 0
+    first_time: float | None = None
+    last_time: float | None = None
+    #: per bus: frames the master sent, and the drives' frames per node id
+    master_frames: list[int] = field(default_factory=list)
+    drive_frames: list[dict[int, int]] = field(default_factory=list)
+    #: per bus and node (None: all): the master's frames that start a cycle (SYNCs, cyclic
+    #: requests)
+    cycle_frames: list[dict[int | None, int]] = field(default_factory=list)
+    error_frames: int = 0
+    #: per bus: the time of the log's last frame from a drive (None: none)
+    last_drive_time: list[float | None] = field(default_factory=list)
+    #: the time of the log's first frame from the master
+    first_master_time: float | None = None
+    #: per bus and node (None: all) of the cycle frames: [the last one's time, the time
+    #: between them, the part of it in intervals of the config's period (within
+    #: PERIOD_TOLERANCE)]
+    cycle_timing: dict[tuple[int, int | None], list[float]] = field(default_factory=dict)
+    #: what reading the log took (s)
+    seconds: float = 0.0
+
+    @property
+    def duration(self) -> float:
+        if self.first_time is None or self.last_time is None:
+            return 0.0
+        return self.last_time - self.first_time
+
+    @property
+    def in_period(self) -> float:
+        """The share of the time between the master's cycles (on its busiest bus) spent in
+        intervals of the config's period: near 1 for a real-time run's or a robot's log,
+        near 0 for a lock-step run's (nan: too few cycles)."""
+        timing = max(self.cycle_timing.values(), key=lambda t: t[1], default=None)
+        if timing is None or not timing[1] > 0:
+            return math.nan
+        return timing[2] / timing[1]
+
+    @property
+    def cycles(self) -> int:
+        """The master's cycles in the log (on its busiest bus)."""
+        return max((max(counts.values(), default=0) for counts in self.cycle_frames),
+                   default=0)
+
+
+def read_log(path: Path) -> Iterator[can.Message]:
+    """The frames of a log file, as python-can reads it (a clear error where it cannot)."""
+    try:
+        reader = can.LogReader(str(path))
+    except (OSError, ValueError, ImportError, EOFError, struct.error) as exc:
+        raise HilError.single(f"cannot read CAN log '{path}': {exc}",
+                              hint="give a .blf, .asc, .log (candump), .csv, .trc or .mf4 "
+                                   "file") from None
+    try:
+        yield from reader
+    except (ValueError, OSError, EOFError, struct.error) as exc:
+        raise HilError.single(f"CAN log '{path}' is damaged: {exc}",
+                              hint="a log cut off mid-frame replays up to there only if its "
+                                   "format allows: cut it at a whole frame") from None
+    finally:
+        reader.stop()
+
+
+def parse_channels(pairs: list[str], config: SystemConfig) -> dict[str, int]:
+    """``--channel LOGCHANNEL=BUS`` pairs: the log's channel (as text) -> bus index."""
+    names = [bus.name for bus in config.buses]
+    mapping = {}
+    for pair in pairs:
+        channel, sep, bus = pair.partition("=")
+        if not sep or bus not in names:
+            raise HilError.single(f"--channel {pair}: give LOGCHANNEL=BUS with BUS one of "
+                                  f"{', '.join(names)}")
+        mapping[channel] = names.index(bus)
+    return mapping
+
+
+class ChannelMap:
+    """The log's channels -> bus index, each decided when it first comes (the rules in the
+    module's docstring), so that one pass over the log does."""
+
+    def __init__(self, config: SystemConfig, given: dict[str, int]):
+        self._given = given
+        self._count = len(config.buses)
+        self._by_name: dict[str, int] = {}
+        for index, bus in enumerate(config.buses):
+            self._by_name.setdefault(str(bus.channel), index)
+            self._by_name.setdefault(bus.name, index)
+        self.buses: dict[object, int] = {}
+        #: channels of no bus -> [first frame number, frames]
+        self.unmatched: dict[object, list[int]] = {}
+
+    def bus(self, channel: object, number: int) -> int | None:
+        """The bus of a frame's channel (None: none, counted among the unmatched)."""
+        found = self.buses.get(channel)
+        if found is None and channel not in self.unmatched:
+            found = self._decide(channel)
+            if found is not None:
+                self.buses[channel] = found
+        if found is None:
+            self.unmatched.setdefault(channel, [number, 0])[1] += 1
+        return found
+
+    def _decide(self, channel: object) -> int | None:
+        if self._given:
+            return self._given.get(str(channel))
+        if isinstance(channel, int) and 1 <= channel <= self._count:
+            return channel - 1
+        if str(channel) in self._by_name:
+            return self._by_name[str(channel)]
+        if self._count == 1 and not self.buses:
+            return 0
+        return None
+
+    def refusal(self, config: SystemConfig, path: Path) -> HilError:
+        listed = ", ".join(f"{c} ({n} frames from frame {first})"
+                           for c, (first, n) in self.unmatched.items())
+        if self._given:
+            return HilError.single(f"{path}: channel(s) {listed} of the log have no --channel",
+                                   hint="give LOGCHANNEL=BUS for each")
+        return HilError.single(
+            f"{path}: the log's channel(s) {listed} are not the config's buses "
+            f"({', '.join(f'{b.name} on {b.channel}' for b in config.buses)})",
+            hint="map them: --channel LOGCHANNEL=BUS for each (BLF and ASC number channels "
+                 "from 1 in the config's bus order)")
+
+
+def frames(path: Path, config: SystemConfig, channels: dict[object, int]
+           ) -> Iterator[LoggedFrame]:
+    """The log's frames told apart (after :func:`survey` accepted it), in time order (one
+    bus' frames in the log's order). Error frames are left out."""
+    tellers = [BusFrames(bus) for bus in config.buses]
+
+    def told() -> Iterator[LoggedFrame]:
+        for number, msg in enumerate(read_log(path), 1):
+            if msg.is_error_frame:
+                continue
+            bus = channels[msg.channel]
+            data = bytes(msg.data)
+            source = tellers[bus].source(msg.arbitration_id, data, msg.is_remote_frame)
+            yield LoggedFrame(number, msg.timestamp, bus, msg.arbitration_id, data,
+                              msg.is_remote_frame, source)
+    return in_time_order(told())
+
+
+def in_time_order(logged: Iterable[LoggedFrame], window: float = REORDER_WINDOW
+                  ) -> Iterator[LoggedFrame]:
+    """Frames by time (the log's order among equal times), for a log written up to
+    ``window`` seconds out of order."""
+    waiting: list[tuple[float, int, LoggedFrame]] = []
+    for frame in logged:
+        heapq.heappush(waiting, (frame.time, frame.number, frame))
+        while waiting[0][0] < frame.time - window:
+            yield heapq.heappop(waiting)[2]
+    while waiting:
+        yield heapq.heappop(waiting)[2]
+
+
+def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
+    """Read the whole log once: refuse it (HilError, every misfit) if it does not fit the
+    config, else count what it holds."""
+    begun = time.perf_counter()
+    period = 1.0 / config.cycle_hz
+    channels = ChannelMap(config, given)
+    tellers = [BusFrames(bus) for bus in config.buses]
+    result = Survey(path, channels.buses, master_frames=[0] * len(tellers),
+                    drive_frames=[{} for _ in tellers], cycle_frames=[{} for _ in tellers],
+                    last_drive_time=[None] * len(tellers))
+    misfits: dict[tuple[int, int], list] = {}
+    for number, msg in enumerate(read_log(path), 1):
+        if msg.is_error_frame:
+            result.error_frames += 1
+            continue
+        result.frames += 1
+        if result.first_time is None:
+            result.first_time = msg.timestamp
+        result.last_time = msg.timestamp
+        bus = channels.bus(msg.channel, number)
+        if bus is None:
+            continue
+        source = tellers[bus].source(msg.arbitration_id, bytes(msg.data), msg.is_remote_frame)
+        if source is None:
+            misfit = misfits.setdefault((bus, msg.arbitration_id), [number, msg.timestamp, 0])
+            misfit[2] += 1
+        elif source.sender is Sender.MASTER:
+            result.master_frames[bus] += 1
+            if result.first_master_time is None or msg.timestamp < result.first_master_time:
+                result.first_master_time = msg.timestamp
+            if source.cycle:
+                counts = result.cycle_frames[bus]
+                counts[source.node_id] = counts.get(source.node_id, 0) + 1
+                timing = result.cycle_timing.get((bus, source.node_id))
+                if timing is None:
+                    result.cycle_timing[bus, source.node_id] = [msg.timestamp, 0.0, 0.0]
+                else:
+                    interval = msg.timestamp - timing[0]
+                    timing[:] = [msg.timestamp, timing[1] + interval, timing[2] + (
+                        interval if abs(interval - period) < PERIOD_TOLERANCE * period
+                        else 0.0)]
+        else:
+            counts = result.drive_frames[bus]
+            counts[source.node_id] = counts.get(source.node_id, 0) + 1
+            last = result.last_drive_time[bus]
+            result.last_drive_time[bus] = msg.timestamp if last is None else max(last,
+                                                                                 msg.timestamp)
+    if not result.frames:
+        raise HilError.single(f"{path}: the log holds no CAN frame")
+    if channels.unmatched:
+        raise channels.refusal(config, path)
+    if misfits:
+        raise HilError(_refusal(misfits, tellers, result))
+    result.seconds = time.perf_counter() - begun
+    return result
+
+
+def _refusal(misfits: dict[tuple[int, int], list], tellers: list[BusFrames],
+             found: Survey) -> list:
+    start = found.first_time or 0.0
+    shown = sorted(misfits.items(), key=lambda item: item[1][0])
+    diagnostics = [error(
+        f"{found.path}: frame 0x{can_id:03X} on bus '{tellers[bus].name}' ({count} in all, the "
+        f"first at {time - start:.3f} s, frame {number} of the log) is no frame of the bus' "
+        f"drives (node ids {', '.join(map(str, tellers[bus].node_ids))}) nor of their master",
+        hint="a log of another robot or bus, a node the config lacks, or channels mapped to "
+             "the wrong buses (--channel LOGCHANNEL=BUS)")
+        for (bus, can_id), (number, time, count) in shown[:MISFITS_SHOWN]]
+    if len(shown) > MISFITS_SHOWN:
+        diagnostics.append(error(f"and {len(shown) - MISFITS_SHOWN} more ids that do not fit"))
+    return diagnostics
