@@ -87,8 +87,7 @@ def summary(report: Report, tolerances: Tolerances) -> list[str]:
                      f"{report.seeded} joint(s), once the master cycled; {report.before_seed} "
                      "measured values before it settled not compared")
     if not report.divergence_count:
-        exact = "bit for bit" if not any(tolerances.default.values()) and not tolerances.joints \
-            else "within the tolerances"
+        exact = "bit for bit" if tolerances.exact else "within the tolerances"
         lines.append(f"hil replay: 0 divergences: every answer as logged, {exact}")
     else:
         lines.append(f"hil replay: {report.divergence_count} divergence(s) ("

@@ -65,6 +65,12 @@ class Tolerances:
             (per_joint.setdefault(joint, {}) if joint else default)[quantity] = number
         return cls(default, per_joint)
 
+    @property
+    def exact(self) -> bool:
+        """Every tolerance 0: bit for bit."""
+        return not any(self.default.values()) and not any(
+            value for per_joint in self.joints.values() for value in per_joint.values())
+
     def of(self, drive: DriveConfig, quantity: str) -> float:
         """A drive's tolerance: the loosest its joints are given, else the default (0)."""
         given = [self.joints[j][quantity] for j in drive.joints

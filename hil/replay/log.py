@@ -94,13 +94,9 @@ class Survey:
     frames: int = 0
     first_time: float | None = None
     last_time: float | None = None
-    #: per bus: frames the master sent, and the drives' frames per node id
-    master_frames: list[int] = field(default_factory=list)
-    drive_frames: list[dict[int, int]] = field(default_factory=list)
     #: per bus and node (None: all): the master's frames that start a cycle (SYNCs, cyclic
     #: requests)
     cycle_frames: list[dict[int | None, int]] = field(default_factory=list)
-    error_frames: int = 0
     #: per bus: the time of the log's last frame from a drive (None: none)
     last_drive_time: list[float | None] = field(default_factory=list)
     #: the time of the log's first frame from the master
@@ -254,13 +250,11 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
     period = 1.0 / config.cycle_hz
     channels = ChannelMap(config, given)
     tellers = [BusFrames(bus) for bus in config.buses]
-    result = Survey(path, channels.buses, master_frames=[0] * len(tellers),
-                    drive_frames=[{} for _ in tellers], cycle_frames=[{} for _ in tellers],
+    result = Survey(path, channels.buses, cycle_frames=[{} for _ in tellers],
                     last_drive_time=[None] * len(tellers))
     misfits: dict[tuple[int, int], list] = {}
     for number, msg in enumerate(read_log(path), 1):
         if msg.is_error_frame:
-            result.error_frames += 1
             continue
         result.frames += 1
         if result.first_time is None:
@@ -274,7 +268,6 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
             misfit = misfits.setdefault((bus, msg.arbitration_id), [number, msg.timestamp, 0])
             misfit[2] += 1
         elif source.sender is Sender.MASTER:
-            result.master_frames[bus] += 1
             if result.first_master_time is None or msg.timestamp < result.first_master_time:
                 result.first_master_time = msg.timestamp
             if source.cycle:
@@ -289,8 +282,6 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
                         interval if abs(interval - period) < PERIOD_TOLERANCE * period
                         else 0.0)]
         else:
-            counts = result.drive_frames[bus]
-            counts[source.node_id] = counts.get(source.node_id, 0) + 1
             last = result.last_drive_time[bus]
             result.last_drive_time[bus] = msg.timestamp if last is None else max(last,
                                                                                  msg.timestamp)

@@ -131,8 +131,6 @@ class Replay:
         self.config = config
         self.survey = survey
         self.tolerances = tolerances
-        self.exact = not any(tolerances.default.values()) and not any(
-            v for per_joint in tolerances.joints.values() for v in per_joint.values())
         self.keep_values = keep_values
         self.report = Report(clock)
         tag = uuid.uuid4().hex[:8]
@@ -166,19 +164,23 @@ class Replay:
         self._rows: dict[int, list[float]] = {}
         self._width = len(actuators)
         self._now = 0.0                       # the log's time, for clock "log"
-        #: a lock-step run's log began with its plant: nothing to place. Else the first
-        #: logged positions and velocities per actuator (motor side, SI), until placed.
-        self._seeded = clock == "cycles"
+        #: the first logged positions and velocities per actuator (motor side, SI), until
+        #: the plant is placed (on the log's clock)
         self._first = np.full((2, self._width), math.nan)
         self._first_report: float | None = None
         #: on the log's clock: the plant's step (s), by which a position may be off times
         #: its speed; each drive's last logged speed (counts/s)
         self._step_slack = self.sim.plant.timestep if clock == "log" else 0.0
         self._speed: dict[tuple[int, int], float] = {}
-        self._bus_of = {bus.name: index for index, bus in enumerate(config.buses)}
-        #: the first cycle whose measured values are compared
-        self._measured_from = 0 if self._seeded else math.inf
+        #: the first cycle whose measured values are compared: a lock-step run's log began
+        #: with its plant (nothing to place), else once the plant is placed
+        self._measured_from = 0 if clock == "cycles" else math.inf
         self._next_tick = 0.0
+
+    @property
+    def _seeded(self) -> bool:
+        """Whether the plant is where the log's was (placed, or a lock-step log's)."""
+        return self._measured_from < math.inf
 
     # --- running ----------------------------------------------------------------------
 
@@ -252,9 +254,8 @@ class Replay:
     def _seed(self) -> None:
         """The replay's plant placed where the log's drives first reported their joints,
         moving as they reported (a real-time run's plant, or a robot, was running before the
-        log began: joints fell or were moved). Measured values are compared from the next
-        cycle on."""
-        self._seeded = True
+        log began: joints fell or were moved). Measured values are compared SETTLE cycles
+        later."""
         statistics = self.report.statistics
         positions = statistics.joint_values(0, self._first[0][:, None], absolute=True)[:, 0]
         velocities = statistics.joint_values(1, self._first[1][:, None], absolute=False)[:, 0]
@@ -346,15 +347,15 @@ class Replay:
                                                  logged.data.hex(" "), replayed.data.hex(" ")))
                 continue
             for a, b in zip(expected, got):
-                self._check(stream, logged, replayed, drive_config, a, b)
+                self._check(bus, stream, logged, replayed, drive_config, a, b)
 
-    def _check(self, stream, logged, replayed, drive_config, a, b) -> None:
+    def _check(self, bus, stream, logged, replayed, drive_config, a, b) -> None:
         if a.value == b.value:
             return
         if replayed.cycle < self._measured_from and a.quantity in UNITS:
             self.report.before_seed += 1   # the plant's state before the log: no one's
             return
-        if a.quantity is None or (a.quantity == "derived" and self.exact):
+        if a.quantity is None or (a.quantity == "derived" and self.tolerances.exact):
             self._diverged(stream.divergence(logged, replayed, a.name, f"{a.value:g}",
                                              f"{b.value:g}"))
         elif a.quantity == "derived":
@@ -365,8 +366,7 @@ class Replay:
             if a.quantity == "position" and self._step_slack:
                 # where in its step the run's plant was is not in the log: a plant step of
                 # the axis' motion (at its last logged speed) more
-                key = (self._bus_of[stream.bus], drive_config.node_id)
-                tolerance += self._speed.get(key, 0.0) * self._step_slack
+                tolerance += self._speed.get((bus, drive_config.node_id), 0.0) * self._step_slack
             if difference > tolerance:
                 unit = UNITS[a.quantity]
                 self._diverged(stream.divergence(
