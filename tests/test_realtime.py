@@ -82,6 +82,49 @@ def test_pacer_starts_afresh_after_a_stall_longer_than_resync_periods(fake):
     assert fake.now - stalled == pytest.approx(PERIOD, abs=1e-6)   # not a burst of cycles
 
 
+class LateWaker(FakeTime):
+    """A host whose sleeps end late: ``usual`` (s) late, and ``rare`` late every ``every``-th."""
+
+    def __init__(self, usual: float, rare: float, every: int):
+        super().__init__()
+        self.usual, self.rare, self.every = usual, rare, every
+
+    def sleep(self, seconds: float) -> None:
+        super().sleep(seconds + (self.rare if len(self.sleeps) % self.every == 0
+                                 else self.usual))
+
+
+def run_cycles(fake: FakeTime, pacer: CyclePacer, cycles: int) -> list[float]:
+    releases = []
+    for _ in range(cycles):
+        pacer.release()
+        releases.append(fake.now)
+        fake.work(0.3 * PERIOD)
+    return releases
+
+
+def test_pacer_spins_for_the_wake_up_lateness_it_measured_and_keeps_its_deadlines():
+    fake = LateWaker(usual=30e-6, rare=80e-6, every=50)    # 2 % of wake-ups 80 us late
+    statistics = PeriodStatistics(PERIOD)
+    pacer = pacer_for(fake, statistics)
+    assert pacer.spin == statistics.spin == CyclePacer.SPIN     # until it has measured
+    releases = run_cycles(fake, pacer, 3 * CyclePacer.SPIN_WINDOW)
+    assert pacer.spin == pytest.approx(80e-6, abs=1e-6)        # the 99th percentile
+    assert statistics.summary().startswith("normal scheduling, spin 80 us;")
+    gaps = [b - a for a, b in zip(releases, releases[1:])]
+    assert gaps == pytest.approx([PERIOD] * len(gaps), abs=1e-6)      # never late
+
+
+def test_pacer_spin_follows_the_host_between_its_least_and_its_most():
+    fake = LateWaker(usual=0.0, rare=0.0, every=1)          # wakes on time: the least spin
+    pacer = pacer_for(fake, PeriodStatistics(PERIOD))
+    run_cycles(fake, pacer, CyclePacer.SPIN_WINDOW + 1)
+    assert pacer.spin == CyclePacer.MIN_SPIN
+    fake.usual = fake.rare = 0.4e-3                          # then the host gets noisy
+    run_cycles(fake, pacer, CyclePacer.SPIN_WINDOW + 1)
+    assert pacer.spin == CyclePacer.SPIN                     # capped, however late it wakes
+
+
 def test_pacer_says_when_real_time_scheduling_is_refused(monkeypatch):
     def refuse(pid, policy, param):
         raise PermissionError(1, "Operation not permitted")

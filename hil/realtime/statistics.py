@@ -3,6 +3,8 @@ the latest values of a series for percentiles."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -60,6 +62,8 @@ class PeriodStatistics:
         self._busy = Ring(keep)
         self.missed = 0
         self.scheduling = "not started"    # what the loop's thread runs under (CyclePacer)
+        #: the busy-waited end of each wait now (s; CyclePacer)
+        self.spin = math.nan
 
     @property
     def count(self) -> int:
@@ -98,7 +102,7 @@ class PeriodStatistics:
                 "error_max_us": float(errors.max()), "missed": self.missed,
                 "busy_p50_us": float(np.percentile(busy, 50)),
                 "busy_p99_us": float(np.percentile(busy, 99)), "busy_max_us": float(busy.max()),
-                "scheduling": self.scheduling}
+                "scheduling": self.scheduling, "spin_us": self.spin * 1e6}
 
     def summary(self) -> str:
         if not self.count:
@@ -106,7 +110,8 @@ class PeriodStatistics:
         f = self.figures()
         kept = self._periods.keep
         latest = "" if self.count <= kept else f" (the latest {kept})"
-        return (f"{self.scheduling}; {self.count} cycles, missed {self.missed}; period "
+        spin = f", spin {self.spin * 1e6:.0f} us" if math.isfinite(self.spin) else ""
+        return (f"{self.scheduling}{spin}; {self.count} cycles, missed {self.missed}; period "
                 f"mean{latest} {f['period_mean_ms']:.3f} ms, |error| p50 {f['error_p50_us']:.0f} "
                 f"us, p99 {f['error_p99_us']:.0f} us, max {f['error_max_us']:.0f} us; busy p50 "
                 f"{f['busy_p50_us']:.0f} us, p99 {f['busy_p99_us']:.0f} us")
