@@ -7,10 +7,11 @@
 Each run is ``hil up TARGET --real-time --duration S --no-viewer`` (the visualiser
 recording, as a user runs it), the robots alternating run by run. ``--scale N@HZ`` runs the
 robot ``hil bench``'s scale section makes (N joints of ur3 arms on one base, the buses
-``hil init`` gives them at HZ). A run is told by ``hil up``'s exit status
-alone: 0 clean, 3 every fault explained by a stall of the bench (a flaky host), 1 a fault
-no stall explains. The controller's summary line of each run is kept beside it. Prints a
-table per target and writes every run to ``FOLDER/runs.json``.
+``hil init`` gives them at HZ). A run is told by ``hil up``'s exit status alone: 0 clean,
+3 every fault explained by a stall of the bench (a flaky host), 1 a fault no stall
+explains. The controller's summary line and ``hil up``'s line of the bench's stalls are
+kept beside each run. Prints a line per run and a tally per target, and writes every run
+to ``FOLDER/runs.json``.
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+from hil.bench.scale import scale_bench
 
 HIL = [sys.executable, "-m", "hil"]
 #: hil up's exit status, in words (hil up --help)
@@ -60,7 +63,6 @@ def main() -> int:
 
 
 def _scale_config(drives: int, rate: float, folder: Path) -> Path:
-    from hil.bench.scale import scale_bench
     config, buses = scale_bench(drives, rate, folder)
     print(f"{config}: {drives} drives on {buses} buses at {rate:g} Hz", flush=True)
     return config
@@ -80,10 +82,12 @@ def _run(target: str, index: int, seconds: float, folder: Path) -> dict:
     lines = control.read_text().splitlines() if control.exists() else []
     summary = next((line for line in lines if SUMMARY.search(line)), "")
     faults = [line for line in lines if "fault" in line.lower() or "silent" in line]
+    stalls = next((line for line in (where / "up.log").read_text().splitlines()
+                   if line.startswith("hil up: the bench's")), "")
     run = {"target": name, "run": index, "status": status,
            "verdict": VERDICTS.get(status, f"failed (exit {status})"),
            "wall_s": round(time.monotonic() - started, 1), "summary": summary,
-           "faults": faults[:8]}
+           "stalls": stalls, "faults": faults[:8]}
     match = SUMMARY.search(summary)
     if match:
         run.update(zip(("cycles", "missed", "busy_p50_us", "busy_p99_us", "round_trip_p50_us",

@@ -61,7 +61,7 @@ class TrajectoryActionServer:
 
     def _on_send_goal(self, query: zenoh.Query) -> None:
         try:
-            submit_goal_request(self.controller, self.clock, _payload(query))
+            submit_goal_request(self.controller.submit, self.clock, _payload(query))
         except (ValueError, GoalRejected) as exc:
             code = getattr(exc, "error_code", -1)
             query.reply_err(f"rejected ({code}): {exc}")
@@ -147,9 +147,10 @@ def feedback_message(state: ControllerState, types=cdr.TYPES):
                                              feedback=feedback)
 
 
-def submit_goal_request(controller: JointTrajectoryController, clock: Callable[[], float],
-                        payload: bytes) -> str:
-    """Decode a FollowJointTrajectory SendGoal request and hand its goal to ``controller``;
+def submit_goal_request(submit: Callable[[str, TrajectoryGoal], None],
+                        clock: Callable[[], float], payload: bytes) -> str:
+    """Decode a FollowJointTrajectory SendGoal request and hand its goal to ``submit`` (a
+    controller's :meth:`~JointTrajectoryController.submit`, or a server's wrapper of it);
     the goal's id. Raises GoalRejected (with the controller's reason) or ValueError.
 
     A large goal is a burst of Python objects in the calling (Zenoh) thread: decoded below
@@ -166,7 +167,7 @@ def submit_goal_request(controller: JointTrajectoryController, clock: Callable[[
         start = None if stamp == 0 else clock() + (stamp - time.time())
         goal = cdr.goal_from_msg(request.goal, start)
         release_gradually(request.goal.trajectory.points)
-        controller.submit(goal_id, goal)
+        submit(goal_id, goal)
         log.info("goal %s accepted: %d point(s) for %s, %.3g s", goal_id, len(goal.points),
                  ", ".join(goal.joint_names), goal.points[-1].time_from_start)
         return goal_id

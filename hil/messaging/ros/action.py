@@ -108,7 +108,7 @@ class RosTrajectoryActionServer:
 
     def _on_send_goal(self, request: ServiceRequest) -> None:
         try:
-            goal_id = submit_goal_request(self.controller, self.clock, request.payload)
+            goal_id = submit_goal_request(self._submit, self.clock, request.payload)
         except (ValueError, GoalRejected) as exc:
             # rcl's answer carries no reason: it goes to the log and to on_rejected
             log.warning("FollowJointTrajectory goal rejected: %s", exc)
@@ -117,14 +117,23 @@ class RosTrajectoryActionServer:
             request.reply(cdr.encode(cdr.msg(cdr.SEND_GOAL_RESPONSE, accepted=False,
                                              stamp=cdr.time_msg(self.ros_time()))))
             return
+        with self._lock:
+            accepted = self._goals[goal_id].accepted
+        request.reply(cdr.encode(cdr.msg(cdr.SEND_GOAL_RESPONSE, accepted=True,
+                                         stamp=cdr.time_msg(accepted))))
+
+    def _submit(self, goal_id: str, goal: TrajectoryGoal) -> None:
+        """The controller's submit, with the goal known to this server in the same breath:
+        under the lock that results are recorded under, so that a goal ending in its first
+        cycle (a path tolerance broken at once) is already this server's when its result
+        comes (it was dropped as another server's, and its get_result never answered)."""
         now = self.ros_time()
         with self._lock:
+            self.controller.submit(goal_id, goal)
             # rcl_action: ACCEPTED, then EXECUTING once the server runs it, which the
             # controller already does
             self._goals[goal_id] = _Goal(goal_id, now, RosGoalStatus.EXECUTING)
             self._publish_status_locked()
-        request.reply(cdr.encode(cdr.msg(cdr.SEND_GOAL_RESPONSE, accepted=True,
-                                         stamp=cdr.time_msg(now))))
 
     def _on_cancel(self, request: ServiceRequest) -> None:
         try:
