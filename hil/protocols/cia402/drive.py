@@ -133,6 +133,7 @@ class Cia402Drive(DriveProfile):
 
     def _boot(self) -> None:
         """Boot-up message, pre-operational, heartbeat (CiA 301 initialisation)."""
+        self.node.nmt.stop_heartbeat()      # no heartbeat of state 0 beside the boot-up
         self.node.nmt.send_command(0x81)   # reset node: state 0, sends the boot-up frame
         self.node.nmt.send_command(0x80)   # enter pre-operational: starts the heartbeat
 

@@ -53,6 +53,8 @@ NOT_VALID, EXTENDED_FRAME = 0x80000000, 0x20000000
 #: transmission types a PDO of this drive may have: synchronous (acyclic 0, every n-th SYNC
 #: 1-240) and event-driven (254, 255); 241-251 are reserved, 252-253 (RTR only) unsupported
 TRANSMISSION_TYPES = frozenset(range(241)) | {254, 255}
+#: NMT commands that reset a node (application, communication)
+RESETS = (0x81, 0x82)
 #: bits of the dummy entries (data types 0x0002-0x0007) an RPDO may map
 DUMMY_BITS = {0x0002: 8, 0x0003: 16, 0x0004: 32, 0x0005: 8, 0x0006: 16, 0x0007: 32}
 #: consumer heartbeat time (0x1016) entries: node id in bits 16-23, time (ms) in bits 0-15
@@ -181,6 +183,12 @@ class DriveNode(canopen.LocalNode):
         if len(data) != 2:
             self.refuse(can_id, f"an NMT command of {len(data)} bytes (CiA 301: 2)")
             return
+        if data[0] in RESETS and data[1] in (0, self.id):
+            # CiA 301: a reset ends the heartbeat until the boot-up. canopen keeps its timer
+            # running with the state INITIALISING (0), and a heartbeat of state 0 is a
+            # boot-up: one sent before the drive's own reset was done (a replay under load
+            # caught it) told the master the drive had rebooted twice
+            self.nmt.stop_heartbeat()
         self.nmt.on_command(can_id, data, timestamp)
 
     def refuse(self, can_id: int, why: str) -> None:
