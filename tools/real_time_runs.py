@@ -22,6 +22,7 @@ import re
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 from hil.bench.scale import scale_bench
@@ -80,15 +81,14 @@ def _run(target: str, index: int, seconds: float, folder: Path) -> dict:
                                 cwd=where).returncode
     control = where / "run.logs" / "control.log"
     lines = control.read_text().splitlines() if control.exists() else []
-    summary = next((line for line in lines if SUMMARY.search(line)), "")
+    match = next(filter(None, map(SUMMARY.search, lines)), None)
     faults = [line for line in lines if "fault" in line.lower() or "silent" in line]
     stalls = next((line for line in (where / "up.log").read_text().splitlines()
                    if line.startswith("hil up: the bench's")), "")
     run = {"target": name, "run": index, "status": status,
            "verdict": VERDICTS.get(status, f"failed (exit {status})"),
-           "wall_s": round(time.monotonic() - started, 1), "summary": summary,
-           "stalls": stalls, "faults": faults[:8]}
-    match = SUMMARY.search(summary)
+           "wall_s": round(time.monotonic() - started, 1),
+           "summary": match.string if match else "", "stalls": stalls, "faults": faults[:8]}
     if match:
         run.update(zip(("cycles", "missed", "busy_p50_us", "busy_p99_us", "round_trip_p50_us",
                         "round_trip_p99_us"), map(int, match.groups())))
@@ -103,8 +103,9 @@ def _row(run: dict) -> str:
 
 
 def _tally(runs: list[dict]) -> str:
-    counts = {verdict: sum(run["verdict"] == verdict for run in runs)
-              for verdict in dict.fromkeys([*VERDICTS.values(), *(r["verdict"] for r in runs)])}
+    counted = Counter(run["verdict"] for run in runs)
+    counts = {verdict: counted[verdict] for verdict in dict.fromkeys([*VERDICTS.values(),
+                                                                      *counted])}
     missed = [run["missed"] for run in runs if "missed" in run]
     spread = f"; missed {min(missed)}-{max(missed)} of each run's cycles" if missed else ""
     return (f"{runs[0]['target']}: {len(runs)} runs: "
