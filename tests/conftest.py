@@ -27,7 +27,7 @@ from hil.description import PackagePath, load_description
 from hil.messaging.zenoh_api import TrajectoryActionClient
 from hil.simulator import Simulator
 from hil.stack import Stack
-from hil.zenoh_session import free_loopback_port
+from hil.zenoh_session import MEETING_VARIABLE, free_loopback_port
 
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
@@ -90,6 +90,14 @@ TEST_MOTOR_DRIVE = dict(counts_per_rev=4096, rated_torque=1.0, peak_torque=2.0,
 
 
 free_port = free_loopback_port
+
+
+@pytest.fixture(autouse=True)
+def meeting_point_of_its_own(monkeypatch):
+    """Every test's hil processes meet at a loopback port of the test's own (the child
+    processes inherit $HIL_ZENOH_ENDPOINT), not at 7450, which a user's bench or a process
+    another test left behind may hold."""
+    monkeypatch.setenv(MEETING_VARIABLE, f"tcp/127.0.0.1:{free_port()}")
 
 
 def socketcan_missing() -> str | None:

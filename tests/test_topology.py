@@ -7,6 +7,7 @@ import re
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -24,8 +25,8 @@ class Processes:
         self.env = {**os.environ, MEETING_VARIABLE: f"tcp/127.0.0.1:{free_port()}"}
         self.started: list[subprocess.Popen] = []
 
-    def start(self, *args: str) -> subprocess.Popen:
-        process = subprocess.Popen([sys.executable, "-m", "hil", *args], env=self.env,
+    def start(self, *args: str, cwd: Path | None = None) -> subprocess.Popen:
+        process = subprocess.Popen([sys.executable, "-m", "hil", *args], env=self.env, cwd=cwd,
                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         self.started.append(process)
         return process
@@ -52,6 +53,32 @@ def test_fake_controller_and_send_meet_with_no_endpoints(processes):
     sent = processes.run("send", "ur3", "--joint", "joint2", "--to", "0.3", "--in", "1s")
     assert sent.returncode == 0, sent.stdout + sent.stderr
     assert "succeeded" in sent.stdout
+
+
+def _wait_for_line(process: subprocess.Popen, start: str, limit: int = 200) -> list[str]:
+    """The lines ``process`` printed up to the first that starts with ``start``."""
+    lines = []
+    while len(lines) < limit:
+        line = process.stdout.readline()
+        assert line, "".join(lines)
+        lines.append(line)
+        if line.startswith(start):
+            return lines
+    raise AssertionError("".join(lines))
+
+
+@pytest.mark.parametrize("client", [
+    ("send", "ur3", "--joint", "joint2", "--to", "0.3", "--in", "1s"),
+    ("reset", "ur3"),
+])
+def test_hil_up_and_a_client_meet_with_no_endpoints(processes, tmp_path, client):
+    """`hil up ur3` in one terminal, a client in another, both with their defaults (issue
+    46: hil up listened on a random port, the clients dialled the meeting point).
+    Lock-step: whether they meet is the point, not timing on a loaded host."""
+    up = processes.start("up", "ur3", "--lock-step", "--no-viewer", cwd=tmp_path)
+    _wait_for_line(up, "  [")            # the run's progress: every process is up
+    done = processes.run(*client)
+    assert done.returncode == 0, done.stdout + done.stderr
 
 
 def test_controller_started_before_its_sim_waits_for_the_drives(processes, ur3_100hz, tmp_path):

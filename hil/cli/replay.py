@@ -31,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="cycles: the plant one period per cycle, bit for bit (a lock-step "
                              "run's log); log: the plant on the log's timestamps (a real-time "
                              "run's or a robot's); auto: log where the master cycled in "
-                             f"the config's period over {REAL_TIME_SHARE:.0%} of the log's "
+                             f"the config's period over {REAL_TIME_SHARE * 100:.0f} %% of the log's "
                              "time, else cycles")
     parser.add_argument("--tolerance", action="append", default=[],
                         metavar="[JOINT:]QUANTITY=VALUE",

@@ -18,35 +18,22 @@ import argparse
 import signal
 import sys
 import threading
-import time
-from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
 from pathlib import Path
 
-
-from hil.bus_config import SystemConfig, check_together, load_bus_config
+from hil.bus_config import check_together, load_bus_config
+from hil.can.faults import ProcessFault, parse_fault
 from hil.cli import common
 from hil.cli.run_progress import Progress
-from hil.controllers import GoalRejected, GoalStatus
-from hil.commissioning.demo_pace import MOTION_SHARE, paced_demo
-from hil.commissioning.stance import stance
-from hil.can.faults import ProcessFault, parse_fault
+from hil.cli.up.children import make_children, start_in_order
+from hil.cli.up.demo import supervise
+from hil.cli.up.robots import RobotRun
 from hil.errors import HilError
-from hil.hardware import BOOT_TIMEOUT
-from hil.messaging.zenoh_api import (
-    ControllerGone, ProcessWatch, RunSubscriber, TrajectoryActionClient,
-)
+from hil.supervisor import ChildFailed, Child, Run, kill_later, viz_summary
 from hil.visualisation.segments import SegmentLimit, segment_files
-from hil.supervisor import (
-    Child, ChildFailed, Run, cpus_argument, kill_later, viz_summary, wait_alive,
-)
-from hil.realtime import enter_background, real_time_cpus
 from hil.zenoh_security import Identity
-from hil.zenoh_session import ZenohSettings, close_all, free_loopback_port, session
+from hil.zenoh_session import ZenohSettings, close_all, meeting_endpoint
 
 
-#: the visualiser's status lines (cycles, losses, the recording's lag) in viz.log, every (s)
-VIZ_STATUS_PERIOD = 60
 #: the CAN log's format in words, by suffix
 CAN_LOG_FORMATS = {".blf": "Vector BLF", ".log": "candump", ".asc": "Vector ASC",
                    ".trc": "PEAK TRC", ".csv": "python-can CSV"}
@@ -133,29 +120,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     common.add_package_path(parser)
 
 
-@dataclass
-class _Robot:
-    """One robot under ``hil up``: its config, its sim and controller, and what is followed
-    of its run."""
-
-    config_path: Path
-    config: SystemConfig
-    progress: Progress
-    children: dict[str, Child] = field(default_factory=dict)
-    #: whether its demo (if any) succeeded
-    demo_succeeded: bool = True
-
-    @property
-    def name(self) -> str:
-        return self.config.robot.name
-
-    @property
-    def label(self) -> str:
-        """Before what ``hil up`` says of this robot ("" with one robot, "ur3: " with
-        several)."""
-        return self.progress.label
-
-
 def run(args: argparse.Namespace) -> int:
     paths = [common.config_path(target) for target in args.target or ["pigot"]]
     configs = [load_bus_config(path, common.package_path(args)) for path in paths]
@@ -173,25 +137,23 @@ def run(args: argparse.Namespace) -> int:
     logs = save.with_name(save.stem + ".logs")
     logs.mkdir(parents=True, exist_ok=True)
     can_log = args.can_log or save.with_name(save.stem + ".can.blf")
-    endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
     timing = args.timing or "real-time"
     stop = threading.Event()
-    robots = [_Robot(path, config, Progress(args.max_stalls if timing == "real-time" else None,
+    robots = [RobotRun(path, config, Progress(args.max_stalls if timing == "real-time" else None,
                                             stop.set, f"{config.robot.name}: " if several else ""))
               for path, config in zip(paths, configs)]
-    viz = _children(args, robots, faults, endpoint, logs, can_log)
+    viz = make_children(args, robots, faults, logs, can_log)
     supervised = Run([], stop)
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT,
                                                                       signal.SIGTERM)}
     for robot in robots:
-        print(f"hil up: {robot.name} from {robot.config_path}; Zenoh {endpoint}; {timing}; "
+        print(f"hil up: {robot.name} from {robot.config_path}; Zenoh {meeting_endpoint()}; {timing}; "
               f"process logs in {logs}/", flush=True)
-    zenoh = ZenohSettings(connect=(endpoint,), identity=Identity.of(args.secure, "operator")
-                          if args.secure else None)
+    zenoh = ZenohSettings.meeting(Identity.of(args.secure, "operator") if args.secure else None)
     status = 0
     watchers: list = []
     try:
-        _start(robots, viz, supervised, zenoh, watchers)
+        start_in_order(robots, viz, supervised, zenoh, watchers)
         for robot in robots:
             robot.progress.count_stalls()
         if not stop.is_set():
@@ -199,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
                 child = viz if kill.process == "viz" else robots[0].children[kill.process]
                 threading.Thread(target=kill_later, args=(child, kill.at, stop),
                                  daemon=True).start()
-            _supervise(args, robots, supervised, zenoh)
+            supervise(args, robots, supervised, zenoh)
     except ChildFailed as exc:
         print(f"hil up: {exc}", file=sys.stderr, flush=True)
         status = 1
@@ -240,100 +202,7 @@ def run(args: argparse.Namespace) -> int:
     return status
 
 
-def _children(args: argparse.Namespace, robots: list[_Robot], faults: list, endpoint: str,
-              logs: Path, can_log: Path) -> Child:
-    """Each robot's sim and control (into its ``children``) and the one visualiser (returned)
-    as ``hil`` commands, placed on the CPUs in real time. The first robot's sim listens on
-    ``endpoint``; every other process connects there (Zenoh's gossip links the rest)."""
-    several = len(robots) > 1
-    sim_faults = [f"--fault={text}" for text, f in zip(args.fault, faults)
-                  if not isinstance(f, ProcessFault)]
-    shared = [*(["--secure", str(args.secure)] if args.secure else []),
-              *(f"--package-path={p}" for p in args.package_path)]
-    lock_step = ["--lock-step"] if args.timing == "lock-step" else []
-    # over TLS the processes are not pinned to a CPU each: pinned, every `hil up ur3 --secure`
-    # on 2 CPUs faulted within a second as soon as a third process took the traffic (the
-    # transport 40-107 ms late), unpinned 3 of 3 ran clean (docs/performance.md)
-    placed = {name: [] if lock_step or args.secure else cpus_argument(cpus)
-              for name, cpus in zip(("sim", "control", "viz"), real_time_cpus())}
-    for index, robot in enumerate(robots):
-        config = [str(robot.config_path), *_can_options(args, robot.config), *shared]
-        ros = _ros_options(args, robot.name, several)
-        tag = robot.name if several else ""         # in its messages and its logs' names
-        prefix = f"{tag}." if tag else ""
-        meet = ["--listen" if index == 0 else "--connect", endpoint]
-        robot.children = {
-            "sim": Child("sim", ["sim", *config, *lock_step, *placed["sim"], *meet,
-                                 "--status-period", "0", *sim_faults, *ros],
-                         logs / f"{prefix}sim.log", tag),
-            "control": Child("control", [
-                "control", *config, *lock_step, *placed["control"], "--connect", endpoint, *ros,
-                # the sim already runs: a drive silent at boot is a fault
-                "--boot-timeout", f"{BOOT_TIMEOUT:g}",
-                *(["--ros-use-sim-time"] if args.ros_use_sim_time else [])],
-                logs / f"{prefix}control.log", tag),
-        }
-    return Child("viz", ["viz", *(str(r.config_path) for r in robots),
-                         *_can_options(args, robots[0].config), *shared, *lock_step,
-                         *placed["viz"], "--connect", endpoint, "--save", str(args.save),
-                         *(["--segment", args.segment] if args.segment else []),
-                         # a line a minute in viz.log: the recording's lag over a long run
-                         "--status-period", str(VIZ_STATUS_PERIOD),
-                         "--can-log", str(can_log), *_viewer_options(args)],
-                 logs / "viz.log")
-
-
-def _ros_options(args: argparse.Namespace, robot: str, several: bool) -> list[str]:
-    """The ``--ros`` options of a robot's processes: with several robots each in a namespace
-    of its own under ``--ros-namespace`` (``/ur3``, ``/pigot``), as their topics and
-    services would otherwise be one robot's."""
-    options = common.ros_options(args)
-    if options and several:
-        namespace = f"{(args.ros_namespace or '').rstrip('/')}/{robot}"
-        options = [o for o in options if not o.startswith("--ros-namespace=")]
-        options.append(f"--ros-namespace={namespace}")
-    return options
-
-
-def _start(robots: list[_Robot], viz: Child, supervised: Run, zenoh: ZenohSettings,
-           watchers: list) -> None:
-    """Start the sims, the visualiser and the controllers in turn, each once the one before
-    is alive on Zenoh; the watchers it makes go into ``watchers`` (to be closed however the
-    start ends)."""
-    watches: dict[str, ProcessWatch] = {}
-
-    def started(child: Child, robot: _Robot) -> None:
-        child.start()
-        supervised.children.append(child)
-        if not watches:            # the first sim listens on the endpoint: now it can be reached
-            for each in robots:
-                watches[each.name] = ProcessWatch(session(zenoh), each.name)
-                progress = each.progress
-                watchers.extend([watches[each.name], RunSubscriber(
-                    session(zenoh), each.name, progress.on_samples, lambda wall, sim: None,
-                    progress.problems.append, progress.on_diagnostic, progress.on_stall)])
-        wait_alive(supervised, watches[robot.name].wait_alive, child)
-
-    # the visualiser starts before the controllers: its start-up (rerun, the robot models)
-    # is CPU-heavy, and must not starve the first real-time cycles
-    for robot in robots:
-        started(robot.children["sim"], robot)
-        if supervised.stop.is_set():
-            return
-    viz.start()
-    supervised.children.append(viz)
-    # the one visualiser declares itself for every robot
-    wait_alive(supervised, lambda name, timeout: all(
-        watches[robot.name].wait_alive(name, timeout) for robot in robots), viz)
-    if supervised.stop.is_set():
-        return
-    for robot in robots:
-        started(robot.children["control"], robot)
-        if supervised.stop.is_set():
-            return
-
-
-def _outcome(robots: list[_Robot]) -> int:
+def _outcome(robots: list[RobotRun]) -> int:
     """After a run no process failed, robot by robot: 0 without faults and with its demo
     (if any) succeeded; BENCH_FAULT_STATUS when the bench's own stalls explain every fault
     (a demo aborted by them too); else 1; says which. The worst of them: 1, then 3, then 0."""
@@ -356,119 +225,6 @@ def _outcome(robots: list[_Robot]) -> int:
                   f"drives were stopped ({story})", file=sys.stderr)
             statuses.append(1)
     return 1 if 1 in statuses else max(statuses)
-
-
-def _can_options(args: argparse.Namespace, config: SystemConfig) -> list[str]:
-    options = [f"--channel={c}" for c in args.channel]
-    if args.interface:
-        options.append(f"--interface={args.interface}")
-    if args.can:
-        if len(args.can) != len(config.buses):
-            raise HilError.single(
-                f"--can gave {len(args.can)} channel(s) for {len(config.buses)} bus(es) "
-                f"({', '.join(b.name for b in config.buses)})", config.path,
-                hint="give one --can CHANNEL per bus, in the config's order")
-        options = ["--interface=socketcan"] + [f"--channel={bus.name}={channel}" for bus, channel
-                                               in zip(config.buses, args.can)]
-    return options
-
-
-def _viewer_options(args: argparse.Namespace) -> list[str]:
-    options = []
-    if args.spawn or (not args.no_viewer and common.display_available()):
-        options.append("--spawn")
-    if args.viewer:
-        options += ["--viewer", args.viewer]
-    return options
-
-
-def _supervise(args, robots: list[_Robot], run: Run, zenoh: ZenohSettings) -> None:
-    """Run for ``--duration`` (or until stopped), or each robot's demo (``demo_succeeded``)."""
-    if not args.demo:
-        limit = args.duration if args.duration is not None else float("inf")
-        started = time.monotonic()
-        while not run.stop.is_set() and time.monotonic() - started < limit:
-            run.wait(min(1.0, limit - (time.monotonic() - started)))
-            for robot in robots:
-                print(f"  [{time.monotonic() - started:6.1f} s]  {robot.label}"
-                      f"{robot.progress.line()}", flush=True)
-        return
-    # the robots' demos run together, each in a thread of its own; a child that dies ends
-    # them all (ChildFailed, raised here from the thread that found it)
-    with ThreadPoolExecutor(len(robots), thread_name_prefix="demo") as pool:
-        demos = [pool.submit(_demo, robot, run, zenoh, args.timing != "lock-step")
-                 for robot in robots]
-        for robot, demo in zip(robots, demos):
-            robot.demo_succeeded = demo.result()
-    if args.keep_running and all(robot.demo_succeeded for robot in robots):
-        print("hil up: demo done; running until Ctrl-C", flush=True)
-        while not run.stop.is_set():
-            run.wait(1.0)
-
-
-def _held(config: SystemConfig) -> tuple[str, ...]:
-    """The joints the demo holds where they are: on a floating base, those the robot stands
-    on (every joint, where it does not stand: moving them would push it over the floor)."""
-    if not config.floating_base:
-        return ()
-    found = stance(config.robot, dict(config.start_pose))
-    return found.carrying if found else tuple(j.name for j in config.robot.movable_joints)
-
-
-def _demo(robot: _Robot, run: Run, zenoh: ZenohSettings, real_time: bool) -> bool:
-    """The robot's demo goal, followed to its end; whether it succeeded."""
-    if real_time:
-        # pacing the demo (MuJoCo's inverse dynamics along it) takes a CPU for a while just
-        # as the goal starts: at normal priority it starved the real-time processes' Zenoh
-        # threads, and 3 of 3 real-time pigot demos aborted on silent drives (under
-        # SCHED_IDLE 3 of 3 succeeded); in lock-step nothing has a deadline, and an idle
-        # thread beside two busy processes would hardly run
-        enter_background()
-    progress, say = robot.progress, f"hil up: {robot.label}"
-    while progress.positions is None:          # the first samples tell where the joints are
-        run.wait(0.05)
-        if run.stop.is_set():
-            return False
-    with progress.lock:
-        names, positions = progress.joint_names, progress.positions.copy()
-    demo = paced_demo(robot.config.robot, names, positions, _held(robot.config))
-    goal = demo.goal
-    client = TrajectoryActionClient(session(zenoh), robot.name)
-    try:
-        duration = goal.points[-1].time_from_start
-        slowed = (f", slowed {demo.slower:.2g}x to keep its motion within {MOTION_SHARE:.0%} of "
-                  "the joints' effort limits" if demo.slower > 1 else "")
-        print(f"{say}demo: {len(goal.points)} waypoints for {len(names)} joints over "
-              f"{duration:.1f} s{slowed}", flush=True)
-        for note in demo.notes:
-            print(f"{say}warning: {note}", file=sys.stderr, flush=True)
-        try:
-            goal_id = client.send_goal(goal)
-        except (GoalRejected, ControllerGone) as exc:
-            print(f"{say}the demo goal was refused: {exc}", file=sys.stderr, flush=True)
-            return False
-        started = progress.control_time     # progress on the controller's clock (lock-step!)
-        while True:
-            try:
-                result = client.wait_result(goal_id, 1.0)
-                break
-            except TimeoutError:
-                pass
-            except ControllerGone as exc:
-                run.check()
-                print(f"{say}{exc}", file=sys.stderr, flush=True)
-                return False
-            run.check()
-            if run.stop.is_set():
-                return False
-            elapsed = progress.control_time - started
-            print(f"  [{elapsed:6.1f} s]  {robot.label}demo "
-                  f"{min(100, 100 * elapsed / duration):3.0f} %   {progress.line()}", flush=True)
-        text = f" ({result.error_string})" if result.error_string else ""
-        print(f"{say}demo {result.status.name.lower()}{text}", flush=True)
-        return result.status is GoalStatus.SUCCEEDED
-    finally:
-        client.close()
 
 
 def _segment_limit(text: str) -> str:
