@@ -15,6 +15,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from hil.hardware.axis import AxisCommand
 from hil.bus_config import DriveConfig
 from hil.drives import DriveCore, DriveParameters, Power
 from hil.can.network import start_network
@@ -61,11 +62,10 @@ def test_every_frame_the_master_sends_decodes_to_what_it_meant(node_id):
     axis = ODriveAxis(drive_config(node_id), "bus")
     axis.reset()
     axis.configure()
-    frames = axis.cycle_frames(target=3 * TURN, velocity=0.5 * TURN, stopping=False,
-                               enabling=False)
+    frames = axis.cycle_frames(AxisCommand(target=3 * TURN, velocity=0.5 * TURN))
     axis.axis_state = AxisState.IDLE
     axis.feedback.cycle = axis._cycle = 1
-    frames += axis.cycle_frames(0.0, 0.0, stopping=False, enabling=True)
+    frames += axis.cycle_frames(AxisCommand(0.0, 0.0, holding=True))
     frames += axis.disable_rounds()[0]
     seen = {}
     for arbitration_id, data, remote in frames:
@@ -92,8 +92,7 @@ def test_every_frame_the_master_sends_decodes_to_what_it_meant(node_id):
 def test_velocity_feed_forward_is_scaled_as_the_dbc_says(node_id):
     axis = ODriveAxis(drive_config(node_id), "bus")
     axis.axis_state = AxisState.CLOSED_LOOP_CONTROL
-    frames = axis.cycle_frames(target=-1.25 * TURN, velocity=0.5 * TURN, stopping=False,
-                               enabling=False)
+    frames = axis.cycle_frames(AxisCommand(target=-1.25 * TURN, velocity=0.5 * TURN))
     values = next(decode(i, d) for i, d, r in frames if i & 0x1F == Cmd.SET_INPUT_POS)
     assert values["Input_Pos"] == pytest.approx(-1.25)
     assert values["Vel_FF"] == pytest.approx(0.5)

@@ -15,7 +15,8 @@ import canopen
 import pytest
 
 from hil.can import sent_together
-from hil.can.zenoh_bus import Echo, _Quickest, decode_frames, encode_frames
+from hil.can.link_statistics import Quickest as _Quickest
+from hil.can.zenoh_wire import Echo, decode_frames, encode_frames
 from hil.realtime.stalls import STALL_THRESHOLD
 from hil.zenoh_session import ZenohSettings, close, session
 from conftest import EDS, ROOT, DelayingRelay, FrameRecorder, free_port
@@ -415,7 +416,7 @@ def _four_from_a_remote(endpoint, bus, behind_last: float = 0.0, stall_before_la
 def test_a_message_stamped_on_time_that_arrives_late_is_a_transport_stall(bus_pair, endpoint):
     _, b = bus_pair
     stalls = []
-    b.on_stall = stalls.append
+    b.watch_stalls(stalls.append)
     got = _four_from_a_remote(endpoint, b, behind_last=0.040)   # held 40 ms on the way
     assert all(m is not None for m in got)
     # (a loaded host may delay a delivery over 5 ms besides: only the held one is 35 ms late)
@@ -428,7 +429,7 @@ def test_a_message_stamped_on_time_that_arrives_late_is_a_transport_stall(bus_pa
 def test_a_late_sender_stamps_late_and_is_no_transport_stall(bus_pair, endpoint):
     _, b = bus_pair
     stalls = []
-    b.on_stall = stalls.append
+    b.watch_stalls(stalls.append)
     got = _four_from_a_remote(endpoint, b, stall_before_last=0.05)
     assert all(m is not None for m in got)
     assert not [stall for stall in stalls if stall.length > 0.035], stalls   # not the 50 ms
@@ -479,7 +480,7 @@ def test_the_link_round_trip_comes_from_echoes_without_the_answers_hold_and_a_sl
                      connect=[f"tcp/127.0.0.1:{relay.port}"])
     drive.deliver_to([_SlowAnswer(drive, 0.03)])
     stalls = []
-    master.on_stall = stalls.append
+    master.watch_stalls(stalls.append)
     try:
         time.sleep(1.0)                                # the sessions meet through the relay
         answers = 0

@@ -10,6 +10,7 @@ from hil.can import BusLoad, bus_load
 from hil.description import Geometry, Pose, RobotDescription
 from hil.errors import Diagnostic
 from hil.protocols import protocol
+from hil.protocols.base import ProtocolOptions
 
 #: Bus load above which a bus has no room left for SDO, EMCY, heartbeats and retries.
 LOAD_WARNING = 0.8
@@ -113,7 +114,7 @@ class DriveConfig:
     position_limits: tuple[float, float] | None
     gains: Gains | None
     velocity_bandwidth_hz: float
-    options: object | None = None     # the protocol's own settings (its profile's Options)
+    options: ProtocolOptions | None = None     # the protocol's own settings
     line: int | None = None
     effects: ActuatorEffects = NO_EFFECTS
     #: the master adds the torque that holds the joints against gravity at the target

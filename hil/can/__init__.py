@@ -15,24 +15,23 @@ from contextlib import AbstractContextManager, ExitStack
 
 import can
 
+from hil.can.capabilities import BusCapabilities, capabilities
 from hil.can.frames import BusLoad, bus_load, frame_bits
 from hil.errors import HilError
 from hil.realtime.stalls import Stall
 
-__all__ = ["BusLoad", "bus_load", "deliver_under", "frame_bits", "link_round_trip",
+__all__ = ["BusCapabilities", "BusLoad", "capabilities", "bus_load", "deliver_under", "frame_bits", "link_round_trip",
            "link_unreached", "open_bus", "sent_together", "socketcan_missing",
            "watch_deliveries"]
 
 
 def sent_together(buses: Iterable[can.BusABC]) -> ExitStack:
     """A block (``with sent_together(buses):``) whose frames go out together where the bus
-    can do that (``zenoh``: ``batch``, one message for all the buses of a Zenoh session);
-    others send each frame as it is sent, as ever."""
+    can do that (``zenoh``: one message for all the buses of a Zenoh session); others send
+    each frame as it is sent, as ever."""
     together = ExitStack()
     for bus in buses:
-        batch = getattr(bus, "batch", None)
-        if batch is not None:
-            together.enter_context(batch())
+        together.enter_context(capabilities(bus).batch())
     return together
 
 
@@ -40,36 +39,32 @@ def deliver_under(buses: Iterable[can.BusABC], guard: AbstractContextManager) ->
     """From now on the buses that deliver many frames at once (``zenoh``: a message) do so
     inside ``guard``, entered once for them all; others deliver each frame as ever."""
     for bus in buses:
-        hold = getattr(bus, "deliver_under", None)
-        if hold is not None:
-            hold(guard)
+        capabilities(bus).deliver_under(guard)
 
 
 def watch_deliveries(buses: Iterable[can.BusABC], on_stall: Callable[[Stall], None]) -> None:
     """From now on ``on_stall`` gets each late delivery of the buses that time theirs
     (``zenoh``: it stamps its messages); others report none."""
     for bus in buses:
-        if hasattr(bus, "on_stall"):
-            bus.on_stall = on_stall
+        capabilities(bus).watch_stalls(on_stall)
 
 
 def link_round_trip(bus: can.BusABC) -> float | None:
     """The round trip (s) of the link under ``bus`` now (the least of its last few), for
     buses that measure it (``zenoh``: from the echoes of its messages), else None."""
-    counters = getattr(bus, "counters", None)
-    return counters.round_trip_floor if getattr(counters, "round_trips", 0) else None
+    counters = capabilities(bus).counters
+    return counters.round_trip_floor if counters is not None and counters.round_trips else None
 
 
 def link_unreached(bus: can.BusABC) -> str | None:
     """Why the link under ``bus`` reaches no other process, for buses that can tell
     (``zenoh``: its session has no peer), else None."""
-    unreached = getattr(bus, "unreached", None)
-    return unreached() if unreached is not None else None
+    return capabilities(bus).unreached()
 
 
 def socketcan_missing(channels: tuple[str, ...] = ("vcan0",)) -> str | None:
     """None if every SocketCAN channel can be opened here, else why not."""
-    if not hasattr(socket, "AF_CAN"):
+    if not hasattr(socket, "AF_CAN"):      # the platform's socket module, not a bus
         return "this Python has no AF_CAN"
     try:
         for channel in channels:

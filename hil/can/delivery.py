@@ -77,4 +77,5 @@ class DirectDelivery:
 
 def _receiver(listener: can.Listener | Callable[[can.Message], None]
               ) -> Callable[[can.Message], None]:
+    # a Listener or a plain callable, as python-can's Notifier takes either
     return getattr(listener, "on_message_received", listener)

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import can
 
+from hil.can.capabilities import BusCapabilities, capabilities
 from hil.errors import HilError
 
 FRAME_KINDS = ("drop", "delay", "corrupt")
@@ -88,7 +89,7 @@ def parse_fault(text: str) -> FrameFault | DriveFault | ProcessFault:
         raise HilError.single(f"--fault '{text}': {exc}", hint=hint) from None
 
 
-class FaultyBus(can.BusABC):
+class FaultyBus(can.BusABC, BusCapabilities):
     """Wraps a python-can bus: drops, delays and corrupts frames as its faults say.
 
     Drops and corruption apply to frames sent and received through this bus;
@@ -110,7 +111,7 @@ class FaultyBus(can.BusABC):
         self._worker = threading.Thread(target=self._send_delayed, daemon=True,
                                         name=f"delays on {inner.channel_info}")
         self._worker.start()
-        super().__init__(channel=getattr(inner, "channel", None))
+        super().__init__(channel=inner.channel_info)
 
     def add(self, fault: FrameFault) -> None:
         """Start injecting another fault (e.g. once a stack is up)."""
@@ -169,18 +170,31 @@ class FaultyBus(can.BusABC):
                 except can.CanError:
                     pass
 
+    # the wrapped bus' capabilities, through this one
+
+    @property
+    def counters(self):
+        return capabilities(self.inner).counters
+
     def deliver_to(self, listeners, accept=None):
         """Direct delivery (see hil.can.delivery) where the wrapped bus offers it, after this
-        bus' receive-side faults (then ``accept``); None where it does not (a Notifier then
-        reads ``recv``)."""
-        deliver_to = getattr(self.inner, "deliver_to", None)
-        if deliver_to is None:
-            return None
-
+        bus' receive-side faults (then ``accept``)."""
         def received(msg: can.Message) -> can.Message | None:
             msg = self._received(msg)
             return msg if msg is None or accept is None else accept(msg)
-        return deliver_to(listeners, received)
+        return capabilities(self.inner).deliver_to(listeners, received)
+
+    def batch(self):
+        return capabilities(self.inner).batch()
+
+    def deliver_under(self, guard) -> None:
+        capabilities(self.inner).deliver_under(guard)
+
+    def watch_stalls(self, on_stall) -> None:
+        capabilities(self.inner).watch_stalls(on_stall)
+
+    def unreached(self) -> str | None:
+        return capabilities(self.inner).unreached()
 
     def _received(self, msg: can.Message) -> can.Message | None:
         """A received frame after this bus' receive faults: dropped (None) or corrupted."""

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import can
 
+from hil.can.capabilities import capabilities
 from hil.can.frames import frame_bits
 
 
@@ -116,9 +117,9 @@ class BusMonitor:
         # running at idle priority, and the log lost frames
         self._direct, queued = [], []
         for bus in buses.values():
-            deliver_to = getattr(bus, "deliver_to", None)
-            if deliver_to is not None:
-                self._direct.append(deliver_to(listeners))
+            delivery = capabilities(bus).deliver_to(listeners)
+            if delivery is not None:
+                self._direct.append(delivery)
             else:
                 queued.append(bus)
         self._notifier = can.Notifier(queued, listeners, timeout=0.1) if queued else None

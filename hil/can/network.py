@@ -13,6 +13,7 @@ from collections.abc import Callable
 import can
 import canopen
 
+from hil.can.capabilities import capabilities
 from hil.can.messages import data_frame
 
 log = logging.getLogger(__name__)
@@ -64,6 +65,7 @@ class NetworkListener(can.Listener):
         if count % self.LOG_EVERY == 1:
             log.warning("frame 0x%03X [%s] refused by %s: %s: %s (%d from this id so far)",
                         msg.arbitration_id, bytes(msg.data).hex(" "),
+                        # a function's name where it has one, for the log only
                         getattr(callback, "__qualname__", callback), type(exc).__name__, exc,
                         count)
         log.debug("frame 0x%03X refused", msg.arbitration_id, exc_info=exc)
@@ -91,7 +93,6 @@ def start_network(bus: can.BusABC, timeout: float = 0.1,
     network = network_class(bus)
     network.frame_listener = NetworkListener(network)
     network.listeners = [network.frame_listener]     # canopen's MessageListener replaced
-    deliver_to = getattr(bus, "deliver_to", None)
-    direct = deliver_to(network.listeners) if deliver_to is not None else None
+    direct = capabilities(bus).deliver_to(network.listeners)
     network.notifier = direct or can.Notifier(bus, network.listeners, timeout)
     return network

@@ -26,6 +26,7 @@ from collections.abc import Callable, Iterable
 import can
 from can.interfaces import virtual
 
+from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
 from hil.can.messages import received_copy
 
@@ -34,7 +35,7 @@ _DIRECT: dict[queue.Queue, DirectDelivery] = {}
 _DIRECT_LOCK = threading.Lock()
 
 
-class VirtualBus(virtual.VirtualBus):
+class VirtualBus(virtual.VirtualBus, BusCapabilities):
     """python-can's VirtualBus, sending without ``copy.deepcopy``, with direct delivery."""
 
     def deliver_to(self, listeners: Iterable[can.Listener],

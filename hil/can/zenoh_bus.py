@@ -62,53 +62,40 @@ SLOW_LINK_ECHOES of them in a row over STALL_THRESHOLD are a
 :class:`~hil.realtime.stalls.Stall` of the link (``on_stall``), the cause of the silence a
 slow link makes of every drive on it.
 
-Wire format of one message (little-endian): one or more sections, each: the channel's
-length u8 and its name (UTF-8), sender id u64, the first frame's sequence number u32 (per
-sender, wrapping; the frames after it are numbered on), the sender's wall clock at the put
-f64 (s since the epoch), the echo: sender id u64 (0: none), first sequence number u32, time
-held f32 (s); frame count u16; then each frame: arbitration id u32, flags u8 (1 extended,
-2 remote, 4 error), DLC u8, the data bytes (none for a remote frame).
+The wire format is :mod:`hil.can.zenoh_wire`'s; what a bus counts, :mod:`hil.can.link_statistics`'.
 """
 
 from __future__ import annotations
 
 import collections
 import logging
-import math
 import os
 import queue
 import random
-import struct
 import threading
 import time
 import weakref
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import AbstractContextManager, contextmanager, nullcontext
-from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
 
 import can
 import zenoh
 
+from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
-from hil.can.messages import received_copy, received_frame
+from hil.can.link_statistics import FrameCounters, Quickest
+from hil.can.messages import received_copy
+from hil.can.zenoh_wire import KEY_PREFIX, NO_ECHO, Echo, Message, decode_frames, encode_frames
 from hil.realtime.stalls import STALL_THRESHOLD, Stall
 from hil.zenoh_session import ZenohSettings, session, why_unreached
 
 log = logging.getLogger(__name__)
 
-KEY_PREFIX = "hil/can/"
-_CHANNEL = struct.Struct("<B")
-_HEADER = struct.Struct("<QIdQIfH")
-_FRAME = struct.Struct("<IBB")
-_EXTENDED, _REMOTE, _ERROR = 1, 2, 4
 #: frames a bus holds for ``recv`` before it drops new ones (a CAN controller's RX FIFO)
 RECEIVE_FIFO = 8192
 #: a malformed payload is logged the first time, then every this many
 LOG_EVERY = 1000
-#: how long a sender's quickest delivery stands as the base of its lateness (s)
-QUICKEST_WINDOW = 10.0
 #: put times kept for echoes to be matched with (messages)
 PUTS_KEPT = 1024
 #: a link is slow when this many round trips in a row are over STALL_THRESHOLD
@@ -217,179 +204,6 @@ class _Channels:
             self.release()
 
 
-class Echo(NamedTuple):
-    """The message a sender heard last: its sender, its first sequence number, and how long
-    it was held before this message was put (s). (Named tuples: a frozen dataclass costs a
-    microsecond more a message to make.)"""
-
-    sender: int = 0
-    sequence: int = 0
-    held: float = 0.0
-
-
-NO_ECHO = Echo()
-
-
-def encode_frames(channel: str, sender: int, sequence: int, sent_at: float,
-                  frames: Sequence[can.Message], echo: Echo = NO_ECHO) -> bytes:
-    """One section of a message: ``frames`` of ``channel``, the first numbered ``sequence``,
-    put at ``sent_at``, echoing ``echo``. A message is one or more sections, joined."""
-    name = channel.encode()
-    parts = [_CHANNEL.pack(len(name)), name,
-             _HEADER.pack(sender, sequence & 0xFFFFFFFF, sent_at, echo.sender,
-                          echo.sequence & 0xFFFFFFFF, echo.held, len(frames))]
-    for msg in frames:
-        flags = ((_EXTENDED if msg.is_extended_id else 0)
-                 | (_REMOTE if msg.is_remote_frame else 0) | (_ERROR if msg.is_error_frame else 0))
-        parts.append(_FRAME.pack(msg.arbitration_id, flags, msg.dlc))
-        if not msg.is_remote_frame:
-            parts.append(bytes(msg.data or b""))
-    return b"".join(parts)
-
-
-class Message(NamedTuple):
-    """A decoded section: its channel, who put it, its first frame's sequence number, the
-    sender's clock at the put, what it echoes, and its frames."""
-
-    channel: str
-    sender: int
-    sequence: int
-    sent_at: float
-    echo: Echo
-    frames: list[can.Message]
-
-
-def decode_frames(payload: bytes, arrived: float) -> list[Message]:
-    """The sections of the message in ``payload``, their frames stamped ``arrived``; raise
-    ValueError for anything that is not a well-formed message, naming the section and
-    frame."""
-    sections, offset = [], 0
-    while True:
-        section, offset = _decode_section(payload, offset, arrived, len(sections) + 1)
-        sections.append(section)
-        if offset == len(payload):
-            return sections
-
-
-def _decode_section(payload: bytes, offset: int, arrived: float, number: int
-                    ) -> tuple[Message, int]:
-    """The section at ``offset``, and where the next one begins."""
-    where = f"section {number}: " if number > 1 else ""
-    if len(payload) < offset + 1:
-        raise ValueError(f"{where}no channel name: the message is empty")
-    length = payload[offset]
-    offset += 1
-    if len(payload) < offset + length:
-        raise ValueError(f"{where}the channel's name is cut short")
-    try:
-        channel = payload[offset:offset + length].decode()
-    except UnicodeDecodeError:
-        raise ValueError(f"{where}the channel's name is not UTF-8") from None
-    offset += length
-    where = f"{where}channel '{channel}': "
-    if len(payload) < offset + _HEADER.size:
-        raise ValueError(f"{where}{len(payload) - offset} bytes is shorter than a section "
-                         "header")
-    sender, sequence, sent_at, echo_sender, echo_sequence, held, count = \
-        _HEADER.unpack_from(payload, offset)
-    if count == 0:
-        raise ValueError(f"{where}a section of no frames")
-    if not math.isfinite(sent_at):
-        raise ValueError(f"{where}the sender's clock reads {sent_at}")
-    if not (math.isfinite(held) and held >= 0):
-        raise ValueError(f"{where}the echo was held {held} s")
-    frames = []
-    offset += _HEADER.size
-    for index in range(count):
-        if len(payload) < offset + _FRAME.size:
-            raise ValueError(f"{where}frame {index + 1} of {count} is cut short")
-        arbitration_id, flags, dlc = _FRAME.unpack_from(payload, offset)
-        offset += _FRAME.size
-        remote = bool(flags & _REMOTE)
-        length = 0 if remote else dlc
-        if dlc > 8 or len(payload) < offset + length:
-            raise ValueError(f"{where}frame {index + 1} of {count}: DLC {dlc} does not match "
-                             f"{min(len(payload) - offset, 8)} data bytes")
-        limit = 0x1FFFFFFF if flags & _EXTENDED else 0x7FF
-        if arbitration_id > limit:
-            raise ValueError(f"{where}frame {index + 1} of {count}: identifier "
-                             f"0x{arbitration_id:X} out of range")
-        frames.append(received_frame(arrived, arbitration_id, bool(flags & _EXTENDED), remote,
-                                     bool(flags & _ERROR), dlc, payload[offset:offset + length],
-                                     channel))
-        offset += length
-    return Message(channel, sender, sequence, sent_at, Echo(echo_sender, echo_sequence, held),
-                   frames), offset
-
-
-@dataclass
-class FrameCounters:
-    """What a bus sent and received, and what it lost."""
-
-    sent: int = 0
-    received: int = 0
-    #: frames other buses sent that never arrived here (gaps in their sequence numbers)
-    lost: int = 0
-    #: frames dropped because the receive FIFO was full (nobody read them in time)
-    overrun: int = 0
-    #: payloads on the channel that were not frames
-    malformed: int = 0
-    #: messages (frames sent together) put, and received
-    messages_sent: int = 0
-    messages_received: int = 0
-    #: messages delivered over STALL_THRESHOLD later than their sender's quickest
-    late: int = 0
-    #: the latest of them (s beyond the quickest)
-    latest: float = 0.0
-    #: the link's round trip, from the echoes of this bus' messages (s): how many, the
-    #: last, the least of the last SLOW_LINK_ECHOES (the link's floor now: one late echo
-    #: is a hiccup of either end, every one of them late is the link), the least and the
-    #: most
-    round_trips: int = 0
-    round_trip: float = math.nan
-    round_trip_floor: float = math.nan
-    round_trip_min: float = math.nan
-    round_trip_max: float = math.nan
-
-    def __str__(self) -> str:
-        late = f", {self.late} delivered late (up to {self.latest * 1e3:.0f} ms)" \
-            if self.late else ""
-        link = (f", link round trip {self.round_trip_min * 1e3:.2f}-"
-                f"{self.round_trip_max * 1e3:.2f} ms (last {self.round_trip * 1e3:.2f})"
-                if self.round_trips else "")
-        return (f"sent {self.sent} in {self.messages_sent} messages, received {self.received} "
-                f"in {self.messages_received}, lost on the way {self.lost}, "
-                f"overrun {self.overrun}, malformed {self.malformed}{late}{link}")
-
-    def add_round_trip(self, seconds: float, floor: float) -> None:
-        self.round_trips += 1
-        self.round_trip, self.round_trip_floor = seconds, floor
-        self.round_trip_min = min(self.round_trip_min, seconds) if self.round_trips > 1 \
-            else seconds
-        self.round_trip_max = max(self.round_trip_max, seconds) if self.round_trips > 1 \
-            else seconds
-
-
-class _Quickest:
-    """A sender's quickest arrival minus stamp (s): base latency plus the clocks' offset, which
-    each message's own is held against. A sliding minimum, renewed every QUICKEST_WINDOW:
-    unsynchronised clocks drift (50 ppm is 5 ms in 100 s), and an all-time minimum would
-    turn a slow drift into late deliveries."""
-
-    __slots__ = ("current", "next", "since")
-
-    def __init__(self, current: float, next_: float, since: float):
-        self.current, self.next, self.since = current, next_, since
-
-    def lateness(self, transit: float, arrived: float) -> float:
-        """How much later than the quickest this message came (s), the window updated."""
-        if arrived - self.since > QUICKEST_WINDOW:
-            self.current, self.next, self.since = self.next, transit, arrived
-        elif transit < self.next:
-            self.next = transit
-        return transit - min(self.current, self.next)
-
-
 class _Outbox(threading.local):
     """A thread's frames held for one message, per bus in the order the buses first sent,
     and how deep its holds nest."""
@@ -417,7 +231,7 @@ def _shut_down_at_exit() -> None:
 threading._register_atexit(_shut_down_at_exit)
 
 
-class ZenohBus(can.BusABC):
+class ZenohBus(can.BusABC, BusCapabilities):
     """python-can bus over Zenoh pub/sub on key ``hil/can/<channel>``.
 
     Options: ``listen`` / ``connect`` (lists of Zenoh endpoints; with neither, nor a config
@@ -429,7 +243,7 @@ class ZenohBus(can.BusABC):
     clock when it came) or ``"sent"`` (its sender's clock when it was put: when it was on
     the bus, as an interface on the bus stamps it; what a log of the bus wants, the logger
     being a process that may be late).
-    ``on_stall``, if set, is called (in Zenoh's delivering thread) with each late delivery.
+    ``watch_stalls`` sets who is told (in Zenoh's delivering thread) of each late delivery.
     """
 
     def __init__(self, channel: str, listen=(), connect=(), zenoh_config=None,
@@ -446,14 +260,14 @@ class ZenohBus(can.BusABC):
         self._sender = random.getrandbits(63) ^ os.getpid()
         self._sequence = 0
         self._heard: dict[int, int] = {}      # sender -> its last sequence number seen
-        self._quickest: dict[int, _Quickest] = {}
+        self._quickest: dict[int, Quickest] = {}
         # the last message heard (sender, first sequence, monotonic arrival): echoed
         self._last_heard: tuple[int, int, float] | None = None
         self._puts: dict[int, float] = {}    # first sequence -> monotonic put time
         self._recent_trips: collections.deque[float] = collections.deque(
             maxlen=SLOW_LINK_ECHOES)
         self._link_stall_end = 0.0            # when the link stall reported last ended
-        self.on_stall: Callable[[Stall], None] | None = None
+        self._on_stall: Callable[[Stall], None] | None = None
         self.counters = FrameCounters()
         self._count_lock = threading.Lock()   # Zenoh delivers from a thread per link
         self._queue: queue.Queue[can.Message] = queue.Queue(RECEIVE_FIFO)
@@ -478,6 +292,9 @@ class ZenohBus(can.BusABC):
         super().__init__(channel=channel, **kwargs)
         _open_buses.add(self)
 
+    def watch_stalls(self, on_stall: Callable[[Stall], None] | None) -> None:
+        self._on_stall = on_stall
+
     def unreached(self) -> str | None:
         """Why this bus' session reaches no other process, in words, if it reaches none
         (:func:`hil.zenoh_session.why_unreached`)."""
@@ -501,9 +318,10 @@ class ZenohBus(can.BusABC):
         stalls = (self._count_arrival(message.sender, message.sequence, len(frames),
                                       arrived - message.sent_at, arrived),
                   self._count_round_trip(message.echo, now, arrived))
-        if self.on_stall is not None:
+        on_stall = self._on_stall
+        if on_stall is not None:
             for stall in filter(None, stalls):
-                self.on_stall(stall)
+                on_stall(stall)
         if self._stamp_sent:
             for msg in frames:
                 msg.timestamp = message.sent_at
@@ -564,7 +382,7 @@ class ZenohBus(can.BusABC):
             self._heard[sender] = (sequence + frames - 1) & 0xFFFFFFFF
             quickest = self._quickest.get(sender)
             if quickest is None:
-                self._quickest[sender] = _Quickest(transit, transit, arrived)
+                self._quickest[sender] = Quickest(transit, transit, arrived)
                 return None
             late = quickest.lateness(transit, arrived)
             if not late > STALL_THRESHOLD:

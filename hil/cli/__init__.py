@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     args, extras = parser.parse_known_args(argv)
     # argparse cannot match positionals given after options (`hil send ur3 --connect EP
     # FILE`); commands with a variable `target` list take such leftovers
-    if extras and hasattr(args, "target") and not any(e.startswith("-") for e in extras):
+    if extras and "target" in vars(args) and not any(e.startswith("-") for e in extras):
         args.target += extras
     elif extras:
         parser.error(f"unrecognized arguments: {' '.join(extras)}")

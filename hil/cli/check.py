@@ -69,7 +69,7 @@ def bus_summary(config: SystemConfig) -> str:
                          f"{'yes' if d.holding_brake else 'no'}")
     effects = config.effects
     options = {d.label: d.options for d in config.drives
-               if getattr(d.options, "sends_velocity", False)}
+               if d.options is not None and d.options.sends_velocity}
     torques = [d for d in config.drives if d.torque_feed_forward != "none"]
     if effects or options or torques:
         lines += ["", "  in force beyond the perfect motor and gear (motor side; backlash and "

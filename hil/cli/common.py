@@ -10,6 +10,7 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+from hil.can.capabilities import capabilities
 from hil.description import PackagePath
 from hil.errors import HilError
 from hil.resources import BUS_CONFIGS, data_dir
@@ -209,7 +210,7 @@ def bus_report(buses: dict, channel_numbers: dict[str, int] | None = None) -> li
     its channel number in the CAN log where the log numbers them."""
     lines = []
     for name, bus in buses.items():
-        counters = getattr(getattr(bus, "inner", bus), "counters", None)
+        counters = capabilities(bus).counters
         number = (channel_numbers or {}).get(name)
         label = f"bus {name}" + (f" (log channel {number})" if number else "")
         if counters is not None:

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from hil.bus_config import load_bus_config, open_buses
+from hil.can.capabilities import capabilities
 from hil.cli import common
 from hil.control_node import ControlNode
 from hil.controllers import Defaults
@@ -107,8 +108,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"hil control: {node.summary()}")
     if args.report is not None:
         args.report.write_text(json.dumps({**node.figures(), "buses": {
-            name: dataclasses.asdict(bus.counters) for name, bus in buses.items()
-            if hasattr(bus, "counters")}}, indent=2))
+            name: dataclasses.asdict(capabilities(bus).counters) for name, bus in buses.items()
+            if capabilities(bus).counters is not None}}, indent=2))
     for line in common.bus_report(buses):
         print(f"hil control: {line}")
     print("hil control: stopped; drives disabled", flush=True)

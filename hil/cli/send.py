@@ -19,6 +19,7 @@ from hil.errors import HilError
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient
 from hil.zenoh_session import close_all, session
 
+# PyYAML's C loader where it was built with libyaml, its pure-Python one elsewhere
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 

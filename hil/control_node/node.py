@@ -25,7 +25,6 @@ from hil.control_node.fault_reset import RESET_TIMEOUT, FaultReset
 from hil.controllers import Defaults, JointTrajectoryController
 from hil.controllers.joint_state import JointStateBroadcaster
 from hil.hardware import AxisFault, HardwareInterface
-from hil.hardware.can_interface import MISSED_ANSWER_LIMIT
 from hil.hardware.feedback import JointFeedback
 from hil.messaging import cdr
 from hil.messaging.action import feedback_message
@@ -88,11 +87,8 @@ class ControlNode:
         #: every stall of the bench heard of since the loop cycles (the loop's own, the
         #: simulator's, the transport's), by process
         self.bench_stalls = StallTally()
-        config = getattr(hardware, "config", None)          # a CAN bench's drives
-        self._attribution = FaultAttribution(
-            self.period, MISSED_ANSWER_LIMIT + 1,
-            {} if config is None else {(bus.name, drive.node_id): drive.watchdog_timeout
-                                       for bus in config.buses for drive in bus.drives})
+        self._attribution = FaultAttribution(self.period, hardware.silence_cycles,
+                                             hardware.answer_deadlines())
         self._reported_stalls: queue.SimpleQueue[Stall] = queue.SimpleQueue()
         self._cycling_since = math.inf            # wall time; stalls before it are not counted
         self._stopped_cycling: float | None = None
@@ -115,7 +111,7 @@ class ControlNode:
             figures.update({"cycles": self._cycle, "cycling_seconds": cycling,
                             "speedup_over_real_time": self._cycle * self.period / cycling
                             if cycling > 0 else 0.0})
-        round_trips = getattr(self.hardware, "round_trips", None)
+        round_trips = self.hardware.round_trips
         if round_trips is not None:
             figures.update(round_trips.percentiles_us("round_trip"))
         figures["faults"] = [str(fault) for fault in self.faults]
@@ -127,7 +123,7 @@ class ControlNode:
         """One line of :meth:`figures`."""
         line = (f"{self.statistics.summary()}; {self.bench_stalls.summary()}"
                 if not self.lock_step else f"{self._cycle} cycles")
-        round_trips = getattr(self.hardware, "round_trips", None)
+        round_trips = self.hardware.round_trips
         if round_trips is not None and round_trips.count:
             trips = round_trips.percentiles_us("rt")
             line += f"; round trip p50 {trips['rt_p50_us']:.0f} us, p99 {trips['rt_p99_us']:.0f} us"
@@ -199,7 +195,7 @@ class ControlNode:
         hardware.write(command, velocity)
         self.samples.add(self._cycle, now, command, velocity, feedback,
                          pacer.last_period if pacer is not None else math.nan,
-                         getattr(hardware, "last_round_trip", math.nan))
+                         hardware.last_round_trip)
         self._publish(feedback)
 
     def _attribute(self, pacer: CyclePacer, released: float) -> None:

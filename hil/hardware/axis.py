@@ -39,6 +39,23 @@ class FaultKind(enum.Enum):
     REBOOTED = "rebooted"                 # booted again mid-run: it lost its configuration
 
 
+@dataclass(frozen=True, slots=True)
+class AxisCommand:
+    """What the master asks of one axis this cycle, in motor units."""
+
+    #: where to follow (rad)
+    target: float
+    #: the target's velocity (rad/s), where the protocol carries one
+    velocity: float
+    #: a torque feed-forward (N·m), for drives whose config asks for one; given only to axes
+    #: of protocols that declare ``carries_torque_feed_forward``
+    torque: float = 0.0
+    #: bring the axis to rest (a stop or a fault: the drives are being stopped)
+    stopping: bool = False
+    #: hold where it is (enabling, or recovering after a reset) instead of following
+    holding: bool = False
+
+
 @dataclass(frozen=True)
 class AxisFault:
     """A fault the master found: which drive (bus, node, joints), what kind, the drive's own
@@ -102,13 +119,9 @@ class Axis(ABC):
         """The ids this axis listens to, with their handlers (canopen Network callbacks)."""
 
     @abstractmethod
-    def cycle_frames(self, target: float, velocity: float, stopping: bool,
-                     enabling: bool, torque: float = 0.0) -> list[Frame]:
-        """This cycle's frames: walk toward following ``target`` (rad, motor) unless
-        ``stopping`` (then bring the axis to rest); while ``enabling`` hold where it is.
-        ``velocity`` (rad/s) goes with the target where the protocol carries it; ``torque``
-        (N·m, a torque feed-forward) is given only to axes of protocols that declare
-        ``carries_torque_feed_forward``, for drives whose config asks for it."""
+    def cycle_frames(self, command: AxisCommand) -> list[Frame]:
+        """This cycle's frames: walk toward following the command's target unless it is
+        stopping (then bring the axis to rest); while it is holding, hold where it is."""
 
     @property
     @abstractmethod

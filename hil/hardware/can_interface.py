@@ -23,7 +23,7 @@ import numpy as np
 from hil.bus_config.types import SystemConfig
 from hil.can import link_round_trip, link_unreached, sent_together, watch_deliveries
 from hil.errors import HilError
-from hil.hardware.axis import STANDSTILL, Axis, AxisFault, FaultKind
+from hil.hardware.axis import STANDSTILL, Axis, AxisCommand, AxisFault, FaultKind
 from hil.hardware.feedback import JointFeedback, PlausibilityCheck
 from hil.hardware.gravity import GravityModel
 from hil.hardware.interface import HardwareInterface
@@ -199,10 +199,9 @@ class CanHardwareInterface(HardwareInterface):
             for axis, target, speed, torque in zip(self.axes, targets, speeds, torques):
                 axis.begin_cycle(self._cycle)
                 network = self._networks[axis.bus_name]
-                # a torque only for drives that ask (their protocol carries one): an axis of
-                # a protocol without one need not take it
-                frames = (axis.cycle_frames(target, speed, self._stopping, hold, torque)
-                          if torque else axis.cycle_frames(target, speed, self._stopping, hold))
+                # a torque only for drives that ask (their protocol carries one)
+                frames = axis.cycle_frames(AxisCommand(target, speed, torque, self._stopping,
+                                                       hold))
                 for can_id, data, remote in frames:
                     network.send_message(can_id, data, remote)
             for name in self._sync_buses:
@@ -381,6 +380,12 @@ class CanHardwareInterface(HardwareInterface):
         # buses of one process share a session: one reason, said once
         reasons = dict.fromkeys(why for why in map(link_unreached, self._buses.values()) if why)
         return "".join(f"; the link reaches nobody: {why}" for why in reasons)
+
+    silence_cycles = MISSED_ANSWER_LIMIT + 1
+
+    def answer_deadlines(self) -> dict[tuple[str, int], float]:
+        return {(bus.name, drive.node_id): drive.watchdog_timeout
+                for bus in self.config.buses for drive in bus.drives}
 
     def watch_transport(self, on_stall: Callable[[Stall], None]) -> None:
         watch_deliveries(self._buses.values(), on_stall)

@@ -7,6 +7,7 @@ measurements, with no CAN and no physics.
 
 from __future__ import annotations
 
+import math
 import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable
@@ -16,11 +17,27 @@ import numpy as np
 from hil.description import RobotDescription
 from hil.hardware.axis import AxisFault
 from hil.hardware.feedback import JointFeedback
+from hil.realtime import Ring
 from hil.realtime.stalls import Stall
 
 
 class HardwareInterface(ABC):
-    """Joint-space access to a robot's actuated joints (``joint_names`` order)."""
+    """Joint-space access to a robot's actuated joints (``joint_names`` order).
+
+    What a control loop may read of it beyond the joints is declared here with the default
+    of hardware that has none of it (``round_trips``, ``last_round_trip``,
+    ``silence_cycles``, ``answer_deadlines``), as python-can's BusABC declares a bus'
+    optional capabilities."""
+
+    #: each cycle's round trip (s), from its commands out to the last answer in, where the
+    #: hardware measures them (None: it does not)
+    round_trips: Ring | None = None
+    #: cycles without an answer after which the hardware calls a drive silent (0: it never
+    #: does)
+    silence_cycles: int = 0
+    #: the round trip of the cycle :meth:`read` last took (s; NaN: not measured, or not every
+    #: answer came)
+    last_round_trip: float = math.nan
 
     def __init__(self, robot: RobotDescription):
         self.robot = robot
@@ -61,6 +78,12 @@ class HardwareInterface(ABC):
 
     def stop(self) -> None:
         """Leave every actuator disabled (brakes on where fitted)."""
+
+    def answer_deadlines(self) -> dict[tuple[str, int], float]:
+        """How long each drive (bus, node id) may go unanswered before it stops itself (its
+        watchdog, s): what tells a silence the bench caused from one the drive reacted to.
+        Empty where the hardware has no such drives."""
+        return {}
 
     def watch_transport(self, on_stall: Callable[[Stall], None]) -> None:
         """From now on call ``on_stall`` (from any thread) with each late delivery the

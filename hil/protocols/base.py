@@ -39,6 +39,17 @@ class FrameSource:
     cycle: bool = False
 
 
+class ProtocolOptions:
+    """A protocol's own settings in a bus config (``options:`` of a drive), with what hil
+    asks of every protocol's settings declared here with its default."""
+
+    @property
+    def sends_velocity(self) -> bool:
+        """Whether the master sends the trajectory's velocity beside each target (a
+        feed-forward the bus load and the tracking depend on)."""
+        return False
+
+
 class Protocol(ABC):
     """One drive protocol: its name in bus configs, its frames, its options."""
 
@@ -53,8 +64,8 @@ class Protocol(ABC):
     #: whether its master can send a torque feed-forward with each setpoint (its axis'
     #: ``cycle_frames`` takes ``torque``): a bus config's ``torque_feed_forward`` needs it
     carries_torque_feed_forward: ClassVar[bool] = False
-    #: the protocol's own settings in a bus config: a frozen dataclass with ``KEYS`` and
-    #: ``from_mapping(values)`` raising ValueError; None if it has none
+    #: the protocol's own settings in a bus config: a frozen dataclass, a ProtocolOptions,
+    #: with ``KEYS`` and ``from_mapping(values)`` raising ValueError; None if it has none
     Options: ClassVar[type | None] = None
     #: "module:Class" of the simulated drive and of the master-side axis
     drive: ClassVar[str]

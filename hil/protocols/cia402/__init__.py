@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import FrameSource, Protocol, Sender
+from hil.protocols.base import FrameSource, Protocol, ProtocolOptions, Sender
 
 SYNC_ID = 0x080          # CiA 301's SYNC COB-ID
 NMT_ID = 0x000
@@ -44,7 +44,7 @@ FEED_FORWARD = ("none", "velocity")
 
 
 @dataclass(frozen=True)
-class Cia402Options:
+class Cia402Options(ProtocolOptions):
     """A CiA 402 drive's settings in a bus config: ``feed_forward: velocity`` makes the
     master send the trajectory's velocity as the drive's velocity offset (0x60B1, RPDO4
     0x500+id on every SYNC, the torque offset 0x60B2 beside it at 0), which the drive then

@@ -17,7 +17,7 @@ from canopen.profiles.p402 import State402
 
 from hil.bus_config.types import DriveConfig
 from hil.errors import HilError
-from hil.hardware.axis import Axis, AxisFault, FaultKind, Frame
+from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind, Frame
 from hil.protocols.cia402 import FRAME_ERRORS, Cia402, Cia402Options, emcy_words
 from hil.resources import eds_path
 
@@ -182,8 +182,9 @@ class Cia402Axis(Axis):
     def enabled(self) -> bool:
         return self.state == "OPERATION ENABLED"
 
-    def cycle_frames(self, target: float, velocity: float, stopping: bool,
-                     enabling: bool, torque: float = 0.0) -> list[Frame]:
+    def cycle_frames(self, command: AxisCommand) -> list[Frame]:
+        target, velocity, torque = command.target, command.velocity, command.torque
+        stopping, enabling = command.stopping, command.holding
         controlword = self.next_controlword(stopping)
         # until the axis follows setpoints, its setpoint is where it is (no jump on enable)
         following = self.enabled and not enabling

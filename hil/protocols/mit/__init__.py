@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import FrameSource, Protocol, Sender
+from hil.protocols.base import FrameSource, Protocol, ProtocolOptions, Sender
 
 ENTER_MOTOR_MODE = bytes([0xFF] * 7 + [0xFC])
 EXIT_MOTOR_MODE = bytes([0xFF] * 7 + [0xFD])
@@ -38,7 +38,7 @@ class MitRanges:
 
 
 @dataclass(frozen=True)
-class MitOptions:
+class MitOptions(ProtocolOptions):
     """A MIT motor's settings in a bus config (``options:`` of the drive)."""
 
     ranges: MitRanges = MitRanges()

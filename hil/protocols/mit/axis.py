@@ -11,7 +11,7 @@ and a motor that stops answering is found silent.
 from __future__ import annotations
 
 from hil.bus_config.types import DriveConfig
-from hil.hardware.axis import Axis, Frame
+from hil.hardware.axis import Axis, AxisCommand, Frame
 from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitCommand, MitOptions, pack_command, unpack_reply,
 )
@@ -54,8 +54,9 @@ class MitAxis(Axis):
     def enabled(self) -> bool:
         return self.motor_mode
 
-    def cycle_frames(self, target: float, velocity: float, stopping: bool,
-                     enabling: bool, torque: float = 0.0) -> list[Frame]:
+    def cycle_frames(self, command: AxisCommand) -> list[Frame]:
+        target, velocity, torque = command.target, command.velocity, command.torque
+        stopping, enabling = command.stopping, command.holding
         if self._pending_special is not None:
             special, self._pending_special = self._pending_special, None
             return [(self.node_id, special, False)]
@@ -64,16 +65,16 @@ class MitAxis(Axis):
             self._hold = self.feedback.position
             return [(self.node_id, ENTER_MOTOR_MODE, False)]
         if not self.motor_mode:
-            command = MitCommand(self.feedback.position, 0.0, 0.0, 0.0, 0.0)
+            sent = MitCommand(self.feedback.position, 0.0, 0.0, 0.0, 0.0)
         elif stopping or enabling:
             if self._hold is None:
                 self._hold = self.feedback.position
-            command = MitCommand(self._hold, 0.0, self.options.kp, self.options.kd,
-                                 0.0 if stopping else torque)
+            sent = MitCommand(self._hold, 0.0, self.options.kp, self.options.kd,
+                              0.0 if stopping else torque)
         else:
             self._hold = None
-            command = MitCommand(target, velocity, self.options.kp, self.options.kd, torque)
-        return [(self.node_id, pack_command(command, self.options.ranges), False)]
+            sent = MitCommand(target, velocity, self.options.kp, self.options.kd, torque)
+        return [(self.node_id, pack_command(sent, self.options.ranges), False)]
 
     def disable_rounds(self) -> list[list[Frame]]:
         self.motor_mode = False

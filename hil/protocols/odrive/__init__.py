@@ -21,7 +21,7 @@ import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import FrameSource, Protocol, Sender
+from hil.protocols.base import FrameSource, Protocol, ProtocolOptions, Sender
 
 TURN = 2 * math.pi
 
@@ -113,7 +113,7 @@ def can_id(node_id: int, cmd: int) -> int:
 
 
 @dataclass(frozen=True)
-class ODriveOptions:
+class ODriveOptions(ProtocolOptions):
     """An ODrive axis' CAN settings (``axis.config.can.*``) in a bus config; rates in
     ms, 0 = only on request (RTR)."""
 

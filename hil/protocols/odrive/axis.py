@@ -14,7 +14,7 @@ from __future__ import annotations
 import time
 
 from hil.bus_config.types import DriveConfig
-from hil.hardware.axis import Axis, AxisFault, FaultKind, Frame
+from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind, Frame
 from hil.protocols.odrive import (
     LAYOUT, TURN, AxisState, Cmd, ControlMode, ODrive, ODriveError, ODriveOptions, can_id,
 )
@@ -107,8 +107,9 @@ class ODriveAxis(Axis):
     def enabled(self) -> bool:
         return self.axis_state == AxisState.CLOSED_LOOP_CONTROL and not self.axis_error
 
-    def cycle_frames(self, target: float, velocity: float, stopping: bool,
-                     enabling: bool, torque: float = 0.0) -> list[Frame]:
+    def cycle_frames(self, command: AxisCommand) -> list[Frame]:
+        target, velocity, torque = command.target, command.velocity, command.torque
+        stopping, enabling = command.stopping, command.holding
         frames, self._pending = self._pending, []
         if (not stopping and not self.axis_error and not self.enabled
                 and not self._requested_closed_loop and self.at_standstill()
