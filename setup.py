@@ -17,7 +17,8 @@ from setuptools.command.build_ext import build_ext
 from setuptools.command.build_py import build_py
 
 #: the modules mypyc compiles, together (each must type-check with mypy)
-COMPILED = ["hil/drives/definitions.py", "hil/drives/core.py", "hil/protocols/cia402/state.py"]
+COMPILED = ["hil/drives/definitions.py", "hil/drives/references.py", "hil/drives/core.py",
+            "hil/protocols/cia402/state.py"]
 
 
 class BuildExt(build_ext):

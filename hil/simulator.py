@@ -44,6 +44,7 @@ from hil.drives.tuning import tuned_gains
 from hil.plant import Plant
 from hil.protocols import protocol
 from hil.realtime.stalls import Stall, StallDetector
+from hil.realtime.timing import REAL_TIME, Timing
 
 log = logging.getLogger(__name__)
 
@@ -133,9 +134,11 @@ class SimulatedBus:
 class Simulator:
     """Plant + drives + buses. Start with :meth:`start`, end with :meth:`close`."""
 
-    def __init__(self, config: SystemConfig, buses: dict[str, can.BusABC], lock_step: bool = False):
+    def __init__(self, config: SystemConfig, buses: dict[str, can.BusABC],
+                 timing: Timing = REAL_TIME):
         self.config = config
-        self.lock_step = lock_step
+        self.timing = timing
+        self.lock_step = timing.lock_step       # read at every frame
         self.lock = PlantPresent(self._advance)
         self.plant = bench_plant(config)
         self.steps_per_cycle = config.steps_per_cycle
@@ -158,7 +161,7 @@ class Simulator:
             drives = []
             for drive_config in bus_config.drives:
                 parameters = drive_parameters(drive_config, inertias[drive_config.actuator])
-                if lock_step and parameters.watchdog_timeout > 0:
+                if timing.lock_step and parameters.watchdog_timeout > 0:
                     parameters = replace(parameters, watchdog_timeout=max(
                         parameters.watchdog_timeout, LOCK_STEP_WATCHDOG))
                 core = DriveCore(parameters)

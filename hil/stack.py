@@ -36,6 +36,7 @@ from hil.control_node import ControlNode, FaceFactory
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
 from hil.simulator import Simulator
 from hil.zenoh_session import ZenohSettings, close, free_loopback_port, session
+from hil.realtime.timing import REAL_TIME, Timing
 
 #: a real-time bring-up on a loaded machine can miss answers and fault: it is tried again
 START_ATTEMPTS = 3
@@ -49,7 +50,7 @@ class Stack:
     process. The sim's buses are wrapped in FaultyBus where faults are to be injected
     (``injectable``; only then: ``hil sim`` has no such layer)."""
 
-    def __init__(self, config: SystemConfig, lock_step: bool = False,
+    def __init__(self, config: SystemConfig, timing: Timing = REAL_TIME,
                  interface: str = IN_PROCESS, channels: dict[str, str] | None = None,
                  injectable: bool = False, faces: Sequence[FaceFactory] = ()):
         """``faces``: the control node's faces beyond hil's own keys (see ControlNode)."""
@@ -62,7 +63,7 @@ class Stack:
         #: bus name -> the sim's end of it
         self.sim_buses = {b.name: FaultyBus(self._opened[2 * i], []) if injectable
                           else self._opened[2 * i] for i, b in enumerate(config.buses)}
-        self.sim = Simulator(config, self.sim_buses, lock_step=lock_step)
+        self.sim = Simulator(config, self.sim_buses, timing)
         self.sim.start()
         self._sim_thread = threading.Thread(target=self.sim.run, daemon=True)
         self._sim_thread.start()
@@ -71,8 +72,8 @@ class Stack:
         self.zenoh = session(self.zenoh_settings)
         hardware = CanHardwareInterface(
             config, {b.name: self._opened[2 * i + 1] for i, b in enumerate(config.buses)},
-            reply_timeout=LOCK_STEP_REPLY_TIMEOUT if lock_step else None)
-        self.node = ControlNode(hardware, self.zenoh, config.cycle_hz, lock_step=lock_step,
+            reply_timeout=LOCK_STEP_REPLY_TIMEOUT if timing.lock_step else None)
+        self.node = ControlNode(hardware, self.zenoh, config.cycle_hz, timing,
                                 faces=faces)
         #: why the control node's bring-up failed, if it did
         self.error: Exception | None = None
@@ -112,14 +113,14 @@ class Stack:
 
 
 @contextmanager
-def running_stack(config: SystemConfig, lock_step: bool = False, interface: str = IN_PROCESS,
+def running_stack(config: SystemConfig, timing: Timing = REAL_TIME, interface: str = IN_PROCESS,
                   channels: dict[str, str] | None = None, injectable: bool = False,
                   faces: Sequence[FaceFactory] = ()) -> Iterator[Stack]:
     """A :class:`Stack` whose controller cycles (tried START_ATTEMPTS times; RuntimeError
     with every attempt's reason if none comes up), closed on exit."""
     failures = []
     for _ in range(START_ATTEMPTS):
-        stack = Stack(config, lock_step, interface, channels, injectable, faces)
+        stack = Stack(config, timing, interface, channels, injectable, faces)
         if stack.running():
             break
         failures.append(str(stack.error or "no bring-up within 30 s"))

@@ -28,6 +28,7 @@ from hil.messaging.zenoh_api import TrajectoryActionClient
 from hil.simulator import Simulator
 from hil.stack import Stack
 from hil.zenoh_session import MEETING_VARIABLE, free_loopback_port
+from hil.realtime import REAL_TIME, Timing
 
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
@@ -139,12 +140,12 @@ def patient(node):
 class Bench:
     """A Simulator of the ur3 fixture config plus a master-side bus and canopen network."""
 
-    def __init__(self, interface: str, channel: str, lock_step: bool = False):
+    def __init__(self, interface: str, channel: str, timing: Timing = REAL_TIME):
         self.interface, self.channel = interface, channel
         self.config = load_bus_config(UR3_VIRTUAL)
         self.sim_bus = can.Bus(interface=interface, channel=channel)
         self.master_bus = can.Bus(interface=interface, channel=channel)
-        self.sim = Simulator(self.config, {"arm": self.sim_bus}, lock_step=lock_step)
+        self.sim = Simulator(self.config, {"arm": self.sim_bus}, timing)
         self.network = canopen.Network(self.master_bus)
         self.network.notifier = can.Notifier(self.master_bus, self.network.listeners, 0.1)
         self._sync_running = False

@@ -22,6 +22,7 @@ from hil.messaging.scene import SceneState
 from hil.messaging.zenoh_api import TrajectoryActionClient
 from hil.plant import Plant
 from hil.stack import running_stack
+from hil.realtime import LOCK_STEP, REAL_TIME
 from conftest import ROOT, read_rrd, shipped_at_100hz
 
 PICK = ROOT / "bus_config" / "pigot_pick.yaml"
@@ -120,7 +121,7 @@ def _pick(config, lock_step: bool, fingers: float):
     """Run the pick goal (fingers to ``fingers``, arm raised by LIFT, held HOLD s) through
     the drives: the cube's resting place, (cube, finger midpoint) sampled through the hold,
     where the fingers ended, and how long the hold was sampled (plant time)."""
-    with running_stack(config, lock_step=lock_step) as stack:
+    with running_stack(config, LOCK_STEP if lock_step else REAL_TIME) as stack:
         plant = stack.sim.plant
         with stack.sim.lock:
             resting = plant.object_pose("cube")[0]

@@ -24,6 +24,7 @@ from hil.protocols.mit.axis import MitAxis
 from hil.protocols.odrive import LAYOUT, Cmd
 from hil.protocols.odrive.axis import ODriveAxis
 from hil.stack import running_stack
+from hil.realtime import LOCK_STEP
 from conftest import ROOT
 
 UR3 = ROOT / "bus_config" / "ur3.yaml"
@@ -113,7 +114,7 @@ def test_a_cia402_drive_with_torque_feed_forward_maps_rpdo4_and_counts_its_load(
 
 def integral_holding(config) -> list[float]:
     """Each ur3 drive's loop integral (N·m) after holding its start pose 1 s in lock-step."""
-    with running_stack(config, lock_step=True) as stack:
+    with running_stack(config, LOCK_STEP) as stack:
         cycles = stack.node.cycles
         while stack.node.cycles < cycles + round(config.cycle_hz):
             time.sleep(0.01)

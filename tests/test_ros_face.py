@@ -31,6 +31,7 @@ from hil.messaging.zenoh_api import SimClockPublisher
 from hil.messaging.ros.router import open_router
 from hil.stack import running_stack
 from hil.zenoh_session import ZenohSettings, close, free_loopback_port, session
+from hil.realtime import LOCK_STEP
 
 JOINT_STATE_JAZZY = "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e"
 ACTION = f"/{ACTION_NAME}/_action"
@@ -49,7 +50,7 @@ def router():
 def _stack(router, namespace: str = "/"):
     settings = RosSettings(router=router, namespace=namespace)
     return running_stack(
-        load_bus_config(config_path("ur3")), lock_step=True,
+        load_bus_config(config_path("ur3")), LOCK_STEP,
         faces=[lambda node: RosControlFace(settings, node.controller, node.clock,
                                            "<robot name='ur3'/>", node.reset_faults)])
 
@@ -330,7 +331,7 @@ def test_use_sim_time_stamps_joint_states_feedback_and_goals_on_the_plants_clock
     settings = RosSettings(router=router, namespace="/simtime")
     spec = SpecClient(router)
     try:
-        with running_stack(load_bus_config(config_path("ur3")), lock_step=True,
+        with running_stack(load_bus_config(config_path("ur3")), LOCK_STEP,
                            faces=[lambda node: RosControlFace(
                                settings, node.controller, node.clock, "<robot/>",
                                plant_clock=plant)]):
@@ -398,7 +399,7 @@ def test_a_kilted_client_receives_feedback_in_control_msgs_6s_layout_with_point_
     action = f"/kilted{ACTION}"
     got: list = []
     try:
-        with running_stack(load_bus_config(config_path("ur3")), lock_step=True,
+        with running_stack(load_bus_config(config_path("ur3")), LOCK_STEP,
                            faces=[lambda node: RosControlFace(
                                settings, node.controller, node.clock, "<robot/>")]):
             token = spec.find("MP", f"{action}/feedback")

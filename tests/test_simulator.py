@@ -22,6 +22,7 @@ from hil.cli.sim import status_lines
 from hil.drives import Fault
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FaultKind
 from hil.simulator import LOCK_STEP_WATCHDOG, MAX_CATCH_UP, Simulator
+from hil.realtime import LOCK_STEP, REAL_TIME
 
 REDUCTIONS = (120, 120, 120, 100, 100, 100)
 COUNTS = 131072
@@ -29,7 +30,7 @@ COUNTS = 131072
 
 def run_lock_step(channel: str, cycles: int = 120) -> tuple[np.ndarray, list[bytes]]:
     """Drive all six ur3 axes through a fixed setpoint sequence with a raw CAN master."""
-    bench = Bench("virtual", channel, lock_step=True)
+    bench = Bench("virtual", channel, LOCK_STEP)
     reader = can.BufferedReader()
     bench.network.notifier.add_listener(reader)
     send = bench.master_bus.send
@@ -75,7 +76,7 @@ def test_lock_step_runs_are_bit_identical():
 
 
 def test_lock_step_advances_one_control_period_per_sync():
-    bench = Bench("virtual", "hil-lockstep-period", lock_step=True)
+    bench = Bench("virtual", "hil-lockstep-period", LOCK_STEP)
     try:
         reader = can.BufferedReader()
         bench.network.notifier.add_listener(reader)
@@ -132,7 +133,7 @@ def master_and_sim(request):
     config = load_bus_config(UR3_VIRTUAL)
     channel = f"hil-stall-{uuid.uuid4().hex[:8]}"
     sim_bus, master_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
-    sim = Simulator(config, {"arm": sim_bus}, lock_step=lock_step)
+    sim = Simulator(config, {"arm": sim_bus}, LOCK_STEP if lock_step else REAL_TIME)
     sim.start()
     thread = threading.Thread(target=sim.run, daemon=True)
     thread.start()

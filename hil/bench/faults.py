@@ -8,6 +8,7 @@ import time
 from hil.bus_config import SystemConfig
 from hil.can.faults import FrameFault
 from hil.stack import running_stack
+from hil.realtime.timing import REAL_TIME
 
 
 def fault_detection(config: SystemConfig, timeout: float = 3.0) -> list[dict]:
@@ -26,7 +27,7 @@ def fault_detection(config: SystemConfig, timeout: float = 3.0) -> list[dict]:
     }
     rows = []
     for kind, inject in kinds.items():
-        with running_stack(config, lock_step=False, injectable=True) as stack:
+        with running_stack(config, REAL_TIME, injectable=True) as stack:
             time.sleep(0.2)
             reported = len(stack.node.faults)
             started = time.perf_counter()

@@ -14,6 +14,7 @@ from hil.bench.frames import cyclic_frames
 from hil.bus_config import SystemConfig
 from hil.plant import Plant
 from hil.stack import IN_PROCESS, running_stack
+from hil.realtime.timing import LOCK_STEP
 
 #: lock-step: the run is also timed in windows this long (s), for its quiet quartile
 LOCK_STEP_WINDOW = 0.02
@@ -24,7 +25,7 @@ def lock_step(config: SystemConfig, cycles: int) -> dict:
     quarter of LOCK_STEP_WINDOW windows: on a shared machine a busy neighbour slows every
     cycle for hundreds of ms at a time, and the quiet quartile is what the code does alone."""
     windows = []                    # (cycles, wall seconds) per window
-    with running_stack(config, lock_step=True) as stack:
+    with running_stack(config, LOCK_STEP) as stack:
         start_cycle, plant_start = stack.node.cycles, stack.sim.now()
         wall_start = time.perf_counter()
         last_cycle, last_wall = start_cycle, wall_start

@@ -29,7 +29,7 @@ from hil.bench.floor import floor_across_processes
 from hil.bench.settings import BenchSettings
 from hil.bus_config import load_bus_config
 from hil.supervisor import Child, Run, cpus_argument, viz_summary
-from hil.realtime import real_time_cpus
+from hil.realtime import LOCK_STEP, REAL_TIME, Timing, real_time_cpus
 from hil.zenoh_session import free_loopback_port
 
 #: how long after the controller's banner the measurement starts (bring-up, first goal)
@@ -83,7 +83,7 @@ def lock_step_across_processes(settings: BenchSettings, say: Callable[[str], Non
         say(f"hil bench: {robot} in lock-step across processes: the floor ...")
         floor = floor_across_processes(config, settings.seconds, paced=False)
         say(f"hil bench: {robot} in lock-step across processes ...")
-        stack = stack_across_processes(path, settings.seconds, False, lock_step=True)
+        stack = stack_across_processes(path, settings.seconds, False, LOCK_STEP)
         rows.append({"robot": robot, "rate_hz": config.cycle_hz, **stack, "floor": floor,
                      "speedup_over_floor": stack["speedup_over_real_time"]
                      / floor["speedup_over_real_time"]})
@@ -91,27 +91,27 @@ def lock_step_across_processes(settings: BenchSettings, say: Callable[[str], Non
 
 
 def stack_across_processes(config_path: Path, seconds: float, with_viz: bool,
-                           lock_step: bool = False) -> dict:
+                           timing: Timing = REAL_TIME) -> dict:
     """One run of ``hil sim`` + ``hil control`` (+ ``hil viz``) on the config: in real time,
     placed on the CPUs as ``hil up`` places them; or in lock-step, where ``hil up`` places
     nothing."""
-    sim_cpus, control_cpus, viz_cpus = (None, None, None) if lock_step else real_time_cpus()
-    timing = ["--lock-step"] if lock_step else []
+    sim_cpus, control_cpus, viz_cpus = (None, None, None) if timing.lock_step else real_time_cpus()
+    timing_options = ["--lock-step"] if timing.lock_step else []
     with tempfile.TemporaryDirectory(prefix="hil-bench-") as folder:
         folder = Path(folder)
         endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
         report = folder / "control.json"
         children = [Child("sim", ["sim", str(config_path), "--listen", endpoint,
-                                  "--status-period", "0", *timing, *cpus_argument(sim_cpus)],
+                                  "--status-period", "0", *timing_options, *cpus_argument(sim_cpus)],
                           folder / "sim.log")]
         if with_viz:
             children.append(Child("viz", ["viz", str(config_path), "--connect", endpoint, "--save",
                                           str(folder / "run.rrd"), "--can-log",
-                                          str(folder / "run.can.blf"), *timing,
+                                          str(folder / "run.can.blf"), *timing_options,
                                           *cpus_argument(viz_cpus)],
                                   folder / "viz.log"))
         children.append(Child("control", ["control", str(config_path), "--connect", endpoint,
-                                          "--report", str(report), *timing,
+                                          "--report", str(report), *timing_options,
                                           *cpus_argument(control_cpus)],
                               folder / "control.log"))
         run = Run(children)

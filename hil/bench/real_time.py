@@ -16,12 +16,12 @@ from hil.can.monitor import BusLoadMeter
 from hil.messaging import cdr
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import key
-from hil.realtime import CyclePacer, PeriodStatistics
+from hil.realtime import REAL_TIME, CyclePacer, PeriodStatistics
 from hil.stack import IN_PROCESS, running_stack
 
 
 def real_time(config: SystemConfig, seconds: float) -> tuple[dict, dict, list[dict]]:
-    with running_stack(config, lock_step=False) as stack:
+    with running_stack(config, REAL_TIME) as stack:
         meters = _listen(config, stack.channels)
         latency = _LatencyProbe(stack.zenoh, config.robot.name)
         stack.node.statistics.clear()

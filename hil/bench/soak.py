@@ -14,6 +14,7 @@ from hil.messaging import cdr
 from hil.messaging.zenoh_api import TrajectoryActionClient, key
 from hil.stack import running_stack
 from hil.zenoh_session import close_all
+from hil.realtime.timing import REAL_TIME
 
 
 def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
@@ -25,7 +26,7 @@ def run_soak(seconds: float, settings: BenchSettings, robot: str = "ur3",
     config = load_bus_config(settings.config_dir / f"{robot}.yaml")
     goal = tracking_goal(config)
     repetitions = []
-    with running_stack(config, lock_step=False) as stack:
+    with running_stack(config, REAL_TIME) as stack:
         client = TrajectoryActionClient(stack.zenoh, config.robot.name)
         latest: list = [None]     # only the last joint state: the soak measures the stack
         subscriber = stack.zenoh.declare_subscriber(key(config.robot.name, "joint_states"),

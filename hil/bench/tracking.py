@@ -14,6 +14,7 @@ from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import RunSubscriber, TrajectoryActionClient
 from hil.plant import Plant
 from hil.stack import running_stack
+from hil.realtime.timing import LOCK_STEP
 
 
 def tracking_goal(config: SystemConfig) -> TrajectoryGoal:
@@ -37,7 +38,7 @@ def tracking(config: SystemConfig) -> dict:
     """The full stack (lock-step) follows the goal; MuJoCo's position servo follows the
     same reference on the same model; both errors are measured at the joints."""
     goal = tracking_goal(config)
-    with running_stack(config, lock_step=True) as stack:
+    with running_stack(config, LOCK_STEP) as stack:
         samples: list[ControlSamples] = []
         subscriber = RunSubscriber(stack.zenoh, config.robot.name, samples.append, lambda *_: None,
                                    lambda *_: None)

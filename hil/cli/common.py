@@ -14,6 +14,7 @@ from hil.can.capabilities import capabilities
 from hil.description import PackagePath
 from hil.errors import HilError
 from hil.resources import BUS_CONFIGS, data_dir
+from hil.realtime import LOCK_STEP, REAL_TIME
 from hil.supervisor import parse_cpus
 from hil.zenoh_security import Identity
 from hil.zenoh_session import (DEFAULT_ENDPOINT, MEETING_VARIABLE, ZenohSettings, dials_peers,
@@ -218,6 +219,16 @@ def bus_report(buses: dict, channel_numbers: dict[str, int] | None = None) -> li
         elif number:
             lines.append(label)
     return lines
+
+
+def add_timing(parser: argparse.ArgumentParser, lock_step_help: str) -> None:
+    """``--lock-step`` and ``--real-time`` (the default), as ``args.timing``, a Timing."""
+    timing = parser.add_mutually_exclusive_group()
+    timing.add_argument("--lock-step", dest="timing", action="store_const", const=LOCK_STEP,
+                        help=lock_step_help)
+    timing.add_argument("--real-time", dest="timing", action="store_const", const=REAL_TIME,
+                        help="on the wall clock (the default)")
+    parser.set_defaults(timing=REAL_TIME)
 
 
 def add_cpus(parser: argparse.ArgumentParser) -> None:

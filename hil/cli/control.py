@@ -31,9 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                        "name (ur3, pigot)")
     parser.add_argument("--fake", action="store_true",
                         help="no CAN, no physics: echo the commands as the measured state")
-    parser.add_argument("--lock-step", action="store_true",
-                        help="run each cycle as soon as the drives answered (with hil sim "
-                             "--lock-step); the controller clock advances one period per cycle")
+    common.add_timing(parser, "run each cycle as soon as the drives answered (with hil sim "
+                              "--lock-step); the controller clock advances one period per cycle")
     parser.add_argument("--joint-state-rate", type=float, default=100.0, metavar="HZ",
                         help="joint state publication rate (default 100)")
     parser.add_argument("--priority", type=int, default=REAL_TIME_PRIORITY, metavar="N",
@@ -64,7 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     config = load_bus_config(common.config_path(args.config), common.package_path(args))
     zenoh = common.zenoh_settings(args)
-    if not args.lock_step:         # the frame handling just below the loop (its own priority)
+    if not args.timing.lock_step:  # the frame handling just below the loop (its own priority)
         enter_real_time(max(0, args.priority - 1), common.cpus(args))
     # after the scheduling: Zenoh's runtime threads, started with the session, inherit it
     common.refuse_a_second(zenoh, config.robot.name, "control")
@@ -75,11 +74,11 @@ def run(args: argparse.Namespace) -> int:
         interface, channels = common.can_overrides(args)
         buses = open_buses(config, zenoh, interface, channels)
         hardware = CanHardwareInterface(
-            config, buses, reply_timeout=LOCK_STEP_REPLY_TIMEOUT if args.lock_step else None,
+            config, buses, reply_timeout=LOCK_STEP_REPLY_TIMEOUT if args.timing.lock_step else None,
             boot_timeout=args.boot_timeout)
     try:
         node = ControlNode(hardware, session(zenoh), config.cycle_hz,
-                           lock_step=args.lock_step, joint_state_hz=args.joint_state_rate,
+                           args.timing, joint_state_hz=args.joint_state_rate,
                            defaults=Defaults(goal_position_tolerance=args.goal_tolerance),
                            priority=args.priority, faces=_ros_faces(args, config))
     except BaseException:        # e.g. no Zenoh router for --ros: no bus may keep us alive
@@ -91,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
                                                                       signal.SIGTERM)}
     mode = "fake hardware" if args.fake else f"{len(config.drives)} drive(s)"
     print(f"hil control: {config.robot.name}, {mode}, {config.cycle_hz:g} Hz, "
-          f"{'lock-step' if args.lock_step else 'real-time'}; goals on "
+          f"{args.timing}; goals on "
           f"hil/{config.robot.name}/follow_joint_trajectory", flush=True)
     gc.collect()
     gc.freeze()     # start-up's objects out of the collector's way: shorter passes in the loop
@@ -134,7 +133,7 @@ def _ros_faces(args: argparse.Namespace, config) -> list:
                               viewer_urdf(config.robot).decode(), node.reset_faults,
                               plant_clock, facts={
                                   "robot": config.robot.name, "cycle_hz": float(config.cycle_hz),
-                                  "lock_step": bool(args.lock_step),
+                                  "lock_step": args.timing.lock_step,
                                   "fake_hardware": bool(args.fake)})
         action = f"{settings.namespace.rstrip('/')}/{ACTION_NAME}"
         print(f"hil control: ROS 2 node {settings.namespace.rstrip('/')}/hil_control on "

@@ -36,9 +36,8 @@ ROS_CLOCK_PERIOD = 0.01
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
                                        "name (ur3, pigot)")
-    parser.add_argument("--lock-step", action="store_true",
-                        help="advance the plant one control period per SYNC (reproducible, "
-                             "as fast as the controller) instead of following the wall clock")
+    common.add_timing(parser, "advance the plant one control period per SYNC (reproducible, "
+                              "as fast as the controller) instead of following the wall clock")
     parser.add_argument("--duration", type=float, metavar="S",
                         help="stop after S seconds of plant time")
     parser.add_argument("--status-period", type=float, default=2.0, metavar="S",
@@ -69,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         print(warning, file=sys.stderr)
     zenoh = common.zenoh_settings(args)
     frame_faults, drive_faults = _faults(args, config)
-    scheduling = ("lock-step" if args.lock_step
+    scheduling = ("lock-step" if args.timing.lock_step
                   else enter_real_time(args.priority, common.cpus(args)))
     # after the scheduling: Zenoh's runtime threads, started with the session, inherit it
     common.refuse_a_second(zenoh, config.robot.name, "sim")
@@ -87,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
              if config.scene or config.floating_base else None)
     stalls = StallPublisher(session(zenoh), config.robot.name)
     simulator.on_stall = stalls.publish
-    if not args.lock_step:                  # the controller's messages delivered late
+    if not args.timing.lock_step:           # the controller's messages delivered late
         watch_deliveries((simulated.bus for simulated in simulator.buses), stalls.publish)
     side_work = [(_print_status, args.status_period), (_publish_clock, (clock, scene)),
                  (_inject, drive_faults)] + ([(_publish_ros_clock, ros_clock)] if ros_clock else [])
@@ -99,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
         gc.freeze()     # start-up's objects out of the collector's way: shorter passes in the loop
         print(f"hil sim: {config.robot.name}, {len(config.drives)} drive(s) on "
               f"{', '.join(f'{b.name} ({buses[b.name].channel_info})' for b in config.buses)}, "
-              f"{'lock-step' if args.lock_step else 'real-time'}, plant {config.plant_rate_hz:g} Hz, "
+              f"{args.timing}, plant {config.plant_rate_hz:g} Hz, "
               f"cycle {config.cycle_hz:g} Hz; {scheduling}", flush=True)
         for thread in threads:
             thread.start()
@@ -121,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(signum, handler)
     for line in common.bus_report(buses) + frame_report(simulator):
         print(f"hil sim: {line}")
-    if not args.lock_step:
+    if not args.timing.lock_step:
         print(f"hil sim: {simulator.stalls.summary()}")
     print("hil sim: stopped; all drives disabled", flush=True)
     return 0
@@ -144,7 +143,7 @@ def _open(args: argparse.Namespace, config, zenoh, frame_faults: list[FrameFault
     buses = with_frame_faults(open_buses(config, zenoh, interface, channels), frame_faults,
                               args.fault_seed)
     try:
-        simulator = Simulator(config, buses, lock_step=args.lock_step)
+        simulator = Simulator(config, buses, args.timing)
         # after hil's own session: Zenoh's runtime threads, which every session of the
         # process shares, are made by the first one, and must be made under the real-time
         # settings above (made first by the ROS session, the frames' threads ran under the
@@ -173,7 +172,7 @@ def status_lines(simulator: Simulator) -> list[str]:
     with simulator.lock:
         plant = simulator.plant
         lines = [f"t = {plant.time:8.3f} s   cycles {simulator.cycles}   "
-                 f"{'lock-step' if simulator.lock_step else 'real-time'}"]
+                 f"{simulator.timing}"]
         joints = dict(zip(plant.joint_names, plant.joint_positions()))
         for simulated in simulator.buses:
             name = simulated.config.name
@@ -228,7 +227,7 @@ def _ros_clock(args: argparse.Namespace, config):
     from hil.messaging.ros.face import RosClockFace     # noqa: PLC0415 (only with --ros)
     face = RosClockFace(settings, facts={
         "robot": config.robot.name, "plant_rate_hz": float(config.plant_rate_hz),
-        "cycle_hz": float(config.cycle_hz), "lock_step": bool(args.lock_step)})
+        "cycle_hz": float(config.cycle_hz), "lock_step": args.timing.lock_step})
     print(f"hil sim: ROS 2 node hil_sim on domain {settings.domain_id} via {settings.router}: "
           "/clock", flush=True)
     return face

@@ -50,11 +50,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-can", action="store_true",
                         help="do not open the CAN buses (no bus load, no CAN log): for a host "
                              "that cannot reach them")
-    parser.add_argument("--lock-step", action="store_true",
-                        help="following a lock-step run: schedule normally (in real time the "
-                             "visualiser runs under SCHED_IDLE, never taking the drives' or "
-                             "the controller's time; in lock-step nothing has a deadline, and "
-                             "starved it would lose CAN frames from its sockets' buffers)")
+    common.add_timing(parser, "following a lock-step run: schedule normally (in real time the "
+                              "visualiser runs under SCHED_IDLE, never taking the drives' or "
+                              "the controller's time; in lock-step nothing has a deadline, and "
+                              "starved it would lose CAN frames from its sockets' buffers)")
     parser.add_argument("--status-period", type=float, default=0.0, metavar="S",
                         help="print a status line every S seconds (cycles, losses, the "
                              "recording's lag since the last); default 0: never")
@@ -74,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
         raise HilError.single("--channel and --interface are for one robot's buses",
                               hint="give the robots' channels in their bus configs")
     zenoh = common.zenoh_settings(args)
-    if not args.lock_step:
+    if not args.timing.lock_step:
         enter_background()      # never the real-time processes' time (its threads inherit it)
     if common.cpus(args):
         os.sched_setaffinity(0, common.cpus(args))

@@ -33,7 +33,7 @@ from hil.messaging.face import ControlFace, ZenohControlFace
 from hil.messaging.keys import key
 from hil.messaging.samples import ControlSampleBuffer
 from hil.messaging.zenoh_api import StallPublisher, StallSubscriber
-from hil.realtime import REAL_TIME_PRIORITY, CyclePacer, PeriodStatistics
+from hil.realtime import REAL_TIME, REAL_TIME_PRIORITY, CyclePacer, PeriodStatistics, Timing
 from hil.realtime.stalls import Stall, StallDetector, StallTally
 
 log = logging.getLogger(__name__)
@@ -46,7 +46,7 @@ class ControlNode:
     """Runs the control loop until :meth:`stop`."""
 
     def __init__(self, hardware: HardwareInterface, session: zenoh.Session, cycle_hz: float,
-                 lock_step: bool = False, joint_state_hz: float = 100.0,
+                 timing: Timing = REAL_TIME, joint_state_hz: float = 100.0,
                  feedback_hz: float = 20.0, samples_hz: float = 10.0,
                  defaults: Defaults = Defaults(), priority: int = REAL_TIME_PRIORITY,
                  faces: Sequence[FaceFactory] = ()):
@@ -56,7 +56,8 @@ class ControlNode:
         self.hardware = hardware
         robot = hardware.robot
         self.period = 1.0 / cycle_hz
-        self.lock_step = lock_step
+        self.timing = timing
+        self.lock_step = timing.lock_step
         self.priority = priority
         self.controller = JointTrajectoryController(robot, defaults)
         self.broadcaster = JointStateBroadcaster(robot, hardware.joint_names)
@@ -95,7 +96,7 @@ class ControlNode:
         # one path for every stall, this process' own too: published (for hil up and the
         # recording) and heard back with the others'
         self._stall_publisher = self._stall_subscriber = None
-        if not lock_step:
+        if not timing.lock_step:
             self._stall_publisher = StallPublisher(session, robot.name)
             self._stall_subscriber = StallSubscriber(
                 session, robot.name, self._reported_stalls.put, log.warning)

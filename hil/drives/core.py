@@ -1,16 +1,13 @@
-"""The protocol-free core of a virtual servo drive.
+"""The protocol-free core of a virtual servo drive: everything a servo drive does between
+its CAN frames and its motor. The power stage (disabled with holding brake, enabled, quick
+stop, fault), the position -> velocity -> torque cascade with feed-forward and anti-windup,
+setpoint interpolation, torque and velocity saturation, following-error and position-limit
+faults, the controller-silence watchdog with its configured reaction; the references it
+follows are :mod:`hil.drives.references`'. A drive profile (CiA 402, ...) only
+turns frames into calls on this class and its state into frames.
 
-Everything a servo drive does between its CAN frames and its motor lives
-here: the power stage (disabled with holding brake, enabled, quick stop,
-fault), the position -> velocity -> torque cascade with feed-forward and
-anti-windup, setpoint interpolation, the drive's own trapezoidal moves and
-velocity ramps (profile modes), torque and velocity saturation,
-following-error and position-limit faults, and the controller-silence
-watchdog with its configured reaction. A drive profile (CiA 402, ...) only turns frames into calls on
-this class and its state into frames.
-
-All quantities are on the motor side in SI units: rad, rad/s, N·m.
-The core is not thread-safe; its owner serialises access.
+All quantities are on the motor side in SI units: rad, rad/s, N·m. The core is not
+thread-safe; its owner serialises access.
 """
 
 from __future__ import annotations
@@ -21,10 +18,9 @@ from dataclasses import replace
 from hil.drives.definitions import (
     DriveParameters, DriveStatus, Fault, Mode, Power, SilenceReaction,
 )
+from hil.drives.references import InterpolatedSetpoint, ProfileReference
 
 
-# Over 350 lines (issue 26's bound): one class whose every method acts on one drive's state
-# at every plant step, compiled by mypyc as a unit; split, that state would be split too.
 class DriveCore:
     """One axis' drive electronics between setpoints and motor torque."""
 
@@ -44,10 +40,7 @@ class DriveCore:
         self._torque = 0.0
         self._integral = 0.0
         self._hold = 0.0                # position held by brake / quick stop
-        self._segment_start = 0.0       # CSP interpolation: previous target
-        self._segment_end = 0.0         # CSP interpolation: latest target
-        self._segment_elapsed = 0.0
-        self._cycle = 1e-3
+        self._setpoint = InterpolatedSetpoint()
         self._target_velocity = 0.0
         self._target_torque = 0.0
         self._velocity_ff = 0.0          # velocity offset: see new_setpoint
@@ -64,10 +57,7 @@ class DriveCore:
         self._internal_limit = False
         self._last_setpoint: float | None = None
         # profile modes: the drive's own reference (position, velocity) and where it goes
-        self._reference = 0.0
-        self._reference_velocity = 0.0
-        self._move_target = 0.0
-        self._halted = False
+        self._profile = ProfileReference()
         self._offset = 0.0              # the drive's position scale against the encoder's
         self._counts = 0                # the encoder's reading (counts, no offset)
         self._measured = False          # no position measured yet
@@ -91,19 +81,19 @@ class DriveCore:
         if not self._measured:            # powered up: the brake holds where the axis is
             self._measured = True
             self._hold = self._position
-            self._hold_reference()
+            self._profile.hold(self._position)
 
     def enable(self) -> None:
         if self.power is Power.FAULT:
             return
         if self.power is not Power.ENABLED:
             self._integral = 0.0
-            self._segment_start = self._segment_end = self._position
-            self._segment_elapsed = self._cycle
+            self._setpoint.hold(self._position)
+            self._setpoint.elapsed = self._setpoint.cycle
             self._target_velocity = self._target_torque = 0.0
             self._velocity_ff = self._torque_ff = self._stiffness = self._damping = 0.0
             self._velocity_ff_given = False
-            self._hold_reference()
+            self._profile.hold(self._position)
         self.power = Power.ENABLED
 
     def disable(self) -> None:
@@ -131,33 +121,32 @@ class DriveCore:
     def set_mode(self, mode: Mode) -> None:
         if mode is not self.mode:
             self.mode = mode
-            self._segment_start = self._segment_end = self._position
-            self._hold_reference()
+            self._setpoint.hold(self._position)
+            self._profile.hold(self._position)
             self._integral_from_torque()
 
     def hold_position(self) -> None:
         """Hold where the axis is now (profile modes: the reference starts here, at rest)."""
-        self._segment_start = self._segment_end = self._position
-        self._hold_reference()
+        self._setpoint.hold(self._position)
+        self._profile.hold(self._position)
 
     def move_to(self, position: float) -> None:
         """Profile position mode: a new target; the move to it starts from where the drive's
         reference is now (a move in progress blends into it)."""
-        self._move_target = self._clamp_to_limits(position)
-        self._halted = False
+        self._profile.target = self._clamp_to_limits(position)
+        self._profile.halted = False
 
     def halt(self, halted: bool) -> None:
         """Profile modes: decelerate to standstill (and hold) while ``halted``; a halted
         move does not resume by itself."""
-        if halted and not self._halted:
-            self._move_target = math.nan      # the halted move is abandoned
-        self._halted = halted
+        if halted and not self._profile.halted:
+            self._profile.target = math.nan      # the halted move is abandoned
+        self._profile.halted = halted
 
     @property
     def move_done(self) -> bool:
         """Profile position mode: the reference has reached the target (or halted) and rests."""
-        return self._reference_velocity == 0.0 and (
-            self._halted or math.isnan(self._move_target) or self._reference == self._move_target)
+        return self._profile.done
 
     @property
     def offset(self) -> float:
@@ -170,11 +159,11 @@ class DriveCore:
         self._offset += offset
         self._position += offset
         self._hold += offset
-        self._segment_start += offset
-        self._segment_end += offset
-        self._reference += offset
-        if not math.isnan(self._move_target):
-            self._move_target += offset
+        self._setpoint.start += offset
+        self._setpoint.end += offset
+        self._profile.position += offset
+        if not math.isnan(self._profile.target):
+            self._profile.target += offset
         limits = self.parameters.position_limits
         if limits is not None:
             self.parameters = replace(self.parameters,
@@ -182,12 +171,12 @@ class DriveCore:
 
     def set_cycle(self, cycle: float) -> None:
         """The control cycle (SYNC period) over which position targets are interpolated."""
-        self._cycle = cycle
+        self._setpoint.cycle = cycle
 
     @property
     def cycle(self) -> float:
         """The interpolation period (s)."""
-        return self._cycle
+        return self._setpoint.cycle
 
     def new_setpoint(self, position: float | None = None, velocity: float | None = None,
                      torque: float | None = None, now: float | None = None, *,
@@ -210,9 +199,7 @@ class DriveCore:
         if damping is not None:
             self._damping = damping
         if position is not None:
-            self._segment_start = self._interpolated_target()
-            self._segment_end = self._clamp_to_limits(position)
-            self._segment_elapsed = 0.0
+            self._setpoint.new(self._clamp_to_limits(position))
         if velocity is not None:
             limit = self.parameters.max_velocity
             self._target_velocity = max(-limit, min(limit, velocity))
@@ -292,27 +279,23 @@ class DriveCore:
                     + self._torque_ff)
         if self.mode is Mode.IMPEDANCE:
             # no interpolation, no following-error check: the firmware of MIT motors has none
-            self._following_error = self._segment_end - self._position
+            self._following_error = self._setpoint.end - self._position
             return (self._stiffness * self._following_error
                     + self._damping * (self._target_velocity - self._velocity)
                     + self._target_torque)
         if self.mode is Mode.PROFILE_VELOCITY:
             self._following_error = 0.0
-            self._ramp_velocity(0.0 if self._halted else self._target_velocity, dt)
-            return self._velocity_loop(self._reference_velocity, dt) + self._torque_ff
+            self._profile.ramp(p, 0.0 if self._profile.halted else self._target_velocity, dt)
+            return self._velocity_loop(self._profile.velocity, dt) + self._torque_ff
         if self.mode is Mode.PROFILE_POSITION or self.mode is Mode.HOMING:
-            self._profile_step(dt)
-            self._following_error = self._reference - self._position
+            self._profile.step(p, dt)
+            self._following_error = self._profile.position - self._position
             self._check_following_error(dt)
-            velocity = self._reference_velocity + p.position_kp * self._following_error
+            velocity = self._profile.velocity + p.position_kp * self._following_error
             return self._velocity_loop(velocity, dt)
-        self._segment_elapsed = min(self._segment_elapsed + dt, self._cycle)
-        target = self._interpolated_target()
-        if self._velocity_ff_given:
-            feed_forward = self._velocity_ff
-        else:
-            feed_forward = ((self._segment_end - self._segment_start) / self._cycle
-                            if self._segment_elapsed < self._cycle else 0.0)
+        self._setpoint.advance(dt)
+        target = self._setpoint.target()
+        feed_forward = self._velocity_ff if self._velocity_ff_given else self._setpoint.velocity()
         self._following_error = target - self._position
         self._check_following_error(dt)
         velocity = feed_forward + p.position_kp * self._following_error
@@ -327,46 +310,6 @@ class DriveCore:
             return self._velocity_loop(self._stop_velocity, dt)
         self._stop_velocity = 0.0
         return self._velocity_loop(p.position_kp * (self._hold - self._position), dt)
-
-    def _profile_step(self, dt: float) -> None:
-        """Advance the reference of a trapezoidal move by ``dt``: toward the target at up to
-        the profile velocity, accelerating and decelerating at the profile's rates, slowing
-        so as to stop on the target (a halt or an abandoned move stops where it can)."""
-        p = self.parameters
-        remaining = self._move_target - self._reference
-        if self._halted or math.isnan(remaining):
-            desired = 0.0
-        else:
-            top = min(p.profile_velocity, p.max_velocity)
-            stopping = math.sqrt(2.0 * max(p.profile_deceleration, 0.0) * abs(remaining))
-            desired = math.copysign(min(top, stopping), remaining)
-        self._ramp_velocity(desired, dt)
-        step = self._reference_velocity * dt
-        if not math.isnan(remaining) and not self._halted and (
-                remaining == 0.0 or (remaining - step) * remaining <= 0.0):
-            self._reference = self._move_target         # arrives (a step would overshoot)
-            self._reference_velocity = 0.0
-        else:
-            self._reference += step
-
-    def _ramp_velocity(self, desired: float, dt: float) -> None:
-        """Bring the reference velocity toward ``desired`` at the profile acceleration
-        (speeding up) or deceleration (slowing down or reversing)."""
-        p = self.parameters
-        desired = max(-p.max_velocity, min(p.max_velocity, desired))
-        velocity = self._reference_velocity
-        speeding_up = desired * velocity >= 0.0 and abs(desired) > abs(velocity)
-        step = (p.profile_acceleration if speeding_up else p.profile_deceleration) * dt
-        if velocity < desired:
-            self._reference_velocity = min(desired, velocity + step)
-        else:
-            self._reference_velocity = max(desired, velocity - step)
-
-    def _hold_reference(self) -> None:
-        """Profile modes start from rest where the axis is."""
-        self._reference = self._move_target = self._position
-        self._reference_velocity = 0.0
-        self._halted = False
 
     def _brake_torque(self, dt: float) -> float:
         """A holding brake: a stiff position hold that slips above its torque."""
@@ -387,12 +330,6 @@ class DriveCore:
         integral = max(-room, min(room, integral)) if room > 0 else 0.0
         self._integral = integral
         return proportional + integral
-
-    def _interpolated_target(self) -> float:
-        if self._cycle <= 0 or self._segment_elapsed >= self._cycle:
-            return self._segment_end
-        fraction = self._segment_elapsed / self._cycle
-        return self._segment_start + (self._segment_end - self._segment_start) * fraction
 
     def _clamp_to_limits(self, position: float) -> float:
         limits = self.parameters.position_limits
@@ -438,14 +375,16 @@ class DriveCore:
     def status(self) -> DriveStatus:
         p = self.parameters
         if self.mode is Mode.VELOCITY or self.mode is Mode.PROFILE_VELOCITY:
-            target = 0.0 if self._halted and self.mode is Mode.PROFILE_VELOCITY \
+            target = 0.0 if self._profile.halted and self.mode is Mode.PROFILE_VELOCITY \
                 else self._target_velocity
             reached = abs(self._velocity - target) < 0.01 * p.max_velocity
         elif self.mode is Mode.PROFILE_POSITION or self.mode is Mode.HOMING:
-            reached = self.move_done and (self._halted or math.isnan(self._move_target) or abs(
-                self._move_target - self._position) <= 10 * p.radians_per_count)
+            profile = self._profile
+            reached = self.move_done and (
+                profile.halted or math.isnan(profile.target)
+                or abs(profile.target - self._position) <= 10 * p.radians_per_count)
         else:
-            reached = abs(self._segment_end - self._position) <= 10 * p.radians_per_count
+            reached = abs(self._setpoint.end - self._position) <= 10 * p.radians_per_count
         return DriveStatus(
             power=self.power, mode=self.mode, position=self._position, velocity=self._velocity,
             torque=self._torque, following_error=self._following_error,

@@ -21,11 +21,12 @@ import can
 import numpy as np
 
 from hil.bus_config.types import SystemConfig
-from hil.can import link_round_trip, link_unreached, sent_together, watch_deliveries
+from hil.can import sent_together, watch_deliveries
 from hil.errors import HilError
-from hil.hardware.axis import STANDSTILL, Axis, AxisCommand, AxisFault, FaultKind
+from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind
 from hil.hardware.feedback import JointFeedback, PlausibilityCheck
 from hil.hardware.gravity import GravityModel
+from hil.hardware.hold_ups import not_enabled, slow_links, unreached_links
 from hil.hardware.interface import HardwareInterface
 from hil.protocols import protocol
 from hil.realtime import PeriodStatistics, Ring
@@ -133,7 +134,7 @@ class CanHardwareInterface(HardwareInterface):
             if now - began > self.boot_timeout:
                 raise HilError.single(
                     f"{'; '.join(silent)}: not heard within {self.boot_timeout:g} s after "
-                    "reset" + self._unreached_links(),
+                    "reset" + unreached_links(self._buses),
                     hint="is `hil sim` (or the real drive) running on this bus, with the same "
                          "node id and protocol?")
             if cancel is not None and cancel.is_set():
@@ -163,8 +164,8 @@ class CanHardwareInterface(HardwareInterface):
             if faults or time.monotonic() > deadline:
                 raise HilError.single(
                     "drives did not enable: " + "; ".join(
-                        [str(f) for f in faults] or [_not_enabled(a) for a in waiting])
-                    + self._slow_links())
+                        [str(f) for f in faults] or [not_enabled(a) for a in waiting])
+                    + slow_links(self._buses, self.reply_timeout))
         self._pending.clear()
         return feedback
 
@@ -364,23 +365,6 @@ class CanHardwareInterface(HardwareInterface):
         for network in self._networks.values():
             network.notifier.stop(1.0)
 
-    def _slow_links(self) -> str:
-        """What the buses' links say, where a round trip outlasts the reply window (the
-        drives' answers cannot come in their cycle over it): '' if none does."""
-        slow = [(name, trip) for name, trip in ((n, link_round_trip(b))
-                                                for n, b in self._buses.items())
-                if trip is not None and trip > self.reply_timeout]
-        return "".join(f"; the link of bus '{name}' takes {trip * 1e3:.1f} ms a round trip, "
-                       f"over the {self.reply_timeout * 1e3:.1f} ms the answers have: a slow "
-                       "link (the network, or a Zenoh end falling behind), not the drives"
-                       for name, trip in slow)
-
-    def _unreached_links(self) -> str:
-        """What the buses' links say, where one reaches no other process: '' if all do."""
-        # buses of one process share a session: one reason, said once
-        reasons = dict.fromkeys(why for why in map(link_unreached, self._buses.values()) if why)
-        return "".join(f"; the link reaches nobody: {why}" for why in reasons)
-
     silence_cycles = MISSED_ANSWER_LIMIT + 1
 
     def answer_deadlines(self) -> dict[tuple[str, int], float]:
@@ -395,16 +379,6 @@ class CanHardwareInterface(HardwareInterface):
             self._networks[bus].send_message(can_id, data, remote)
         except can.CanError:
             pass
-
-
-def _not_enabled(axis: Axis) -> str:
-    """Why ``axis`` is not enabled yet, in words: its state, and its motion where that is
-    what holds it back (the master enables only at standstill)."""
-    if axis.at_standstill() or not axis.feedback.heard:
-        return f"{axis.label} is {axis.state}"
-    return (f"{axis.label} is {axis.state}, never at standstill (moving at "
-            f"{axis.feedback.velocity:.3g} rad/s on the motor, standstill below "
-            f"{STANDSTILL * axis.config.max_velocity:.3g}): the joint is not held still")
 
 
 def _missed_too_many(axis: Axis, cycle: int) -> bool:

@@ -19,6 +19,7 @@ import math
 from collections.abc import Sequence
 
 from hil.description import JointType, RobotDescription
+from hil.description.rotations import rpy_matrix
 
 Vec = tuple[float, float, float]
 Mat = tuple[float, float, float, float, float, float, float, float, float]   # row-major
@@ -67,7 +68,7 @@ class GravityModel:
                 self._bias.append(0.0)
                 continue
             self._parent.append(slot[joint.parent])
-            self._turn.append(_rpy(joint.origin.rpy))
+            self._turn.append(rpy_matrix(joint.origin.rpy))
             self._shift.append(tuple(joint.origin.xyz))
             self._axis.append(_unit(joint.axis))
             leader = joint.mimic.joint if joint.mimic is not None else joint.name
@@ -147,16 +148,6 @@ def _links_from_root(robot: RobotDescription) -> list[str]:
 def _unit(v) -> Vec:
     norm = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) or 1.0
     return (v[0] / norm, v[1] / norm, v[2] / norm)
-
-
-def _rpy(rpy) -> Mat:
-    """URDF roll-pitch-yaw (fixed axes X, Y, Z): Rz(yaw) Ry(pitch) Rx(roll)."""
-    cr, sr = math.cos(rpy[0]), math.sin(rpy[0])
-    cp, sp = math.cos(rpy[1]), math.sin(rpy[1])
-    cy, sy = math.cos(rpy[2]), math.sin(rpy[2])
-    return (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr,
-            sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr,
-            -sp, cp * sr, cp * cr)
 
 
 def _about(axis: Vec, angle: float) -> Mat:

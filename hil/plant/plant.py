@@ -18,9 +18,9 @@ import numpy as np
 from hil.description import GeometryKind, RobotDescription
 from hil.errors import Diagnostic, warning
 from hil.plant.builder import (
-    DEFAULT_TIMESTEP, FLOATING_BASE, GEAR_STAGE, MUJOCO_MESHES, ROBOT_CONTACT, ActuatorLosses,
-    ScenePart, build_spec, compile_model, unreadable_mesh,
+    DEFAULT_TIMESTEP, FLOATING_BASE, GEAR_STAGE, ActuatorLosses, build_spec, compile_model,
 )
+from hil.plant.shapes import MUJOCO_MESHES, ROBOT_CONTACT, ScenePart, unreadable_mesh
 from hil.transmissions import Transmission, TransmissionStack, build_transmissions
 
 #: a shape rests on the ground when its bottom is this close to the robot's lowest point (m)

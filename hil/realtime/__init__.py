@@ -1,5 +1,6 @@
 """Real-time loops on a stock kernel: scheduling (:mod:`~hil.realtime.scheduling`), pacing
-(:mod:`~hil.realtime.pacing`), what they achieved (:mod:`~hil.realtime.statistics`), the
+(:mod:`~hil.realtime.pacing`), what they achieved (:mod:`~hil.realtime.statistics`), the clock a run keeps
+(:mod:`~hil.realtime.timing`), the
 garbage collector around them (:mod:`~hil.realtime.collector`) and the work they hand to a
 thread of its own (:mod:`~hil.realtime.side_work`)."""
 
@@ -11,7 +12,8 @@ from hil.realtime.scheduling import (
 )
 from hil.realtime.side_work import SideWorkQueue
 from hil.realtime.statistics import PeriodStatistics, Ring
+from hil.realtime.timing import LOCK_STEP, REAL_TIME, Timing
 
-__all__ = ["IO_PRIORITY", "REAL_TIME_PRIORITY", "SIDE_PRIORITY", "CyclePacer", "PeriodStatistics",
-           "Ring", "SideWorkQueue", "enter_background", "enter_real_time", "enter_side_work",
+__all__ = ["IO_PRIORITY", "LOCK_STEP", "REAL_TIME", "REAL_TIME_PRIORITY", "SIDE_PRIORITY",
+           "CyclePacer", "PeriodStatistics", "Ring", "SideWorkQueue", "Timing", "enter_background", "enter_real_time", "enter_side_work",
            "paused_collection", "real_time_cpus", "release_gradually", "use_fifo"]

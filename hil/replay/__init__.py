@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from hil.replay.compare import Divergence, JointStatistics, Tolerances
 from hil.replay.log import LoggedFrame, Survey, frames, parse_channels, survey
-from hil.replay.replay import Replay, Report
+from hil.replay.replay import Replay
+from hil.replay.report import Report
 
 #: a log whose master cycled in the config's period this much of its time is a real-time
 #: run's or a robot's (a controller may cycle faster while it brings drives up); a lock-step

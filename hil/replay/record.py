@@ -11,7 +11,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from hil.replay.replay import Report
+from hil.replay.report import Report
 
 SIDES = ("logged", "replayed")
 #: (report.values column of the logged side, the quantity's name)

@@ -34,7 +34,6 @@ import math
 import time
 import uuid
 from collections.abc import Iterable
-from dataclasses import dataclass, field
 
 import can
 import numpy as np
@@ -48,10 +47,10 @@ from hil.replay.compare import (
     drive_units,
 )
 from hil.replay.log import BusFrames, LoggedFrame, Survey
+from hil.replay.report import KEPT, Report
 from hil.simulator import WATCHDOG_PERIOD, Simulator
+from hil.realtime.timing import LOCK_STEP, REAL_TIME
 
-#: divergences kept in the report beside the first (the count goes on)
-KEPT = 20
 #: the quantities a replay's plant is placed by (position, velocity of each actuator)
 SEEDED = {"position": 0, "velocity": 1}
 #: cycles after the plant is placed before measured values are compared
@@ -62,55 +61,6 @@ SEED_WAIT = 1.0
 QUANTITY_INDEX = {q: i for i, q in enumerate(JointStatistics.QUANTITIES)}
 #: cycles summed up at a time (the statistics are numpy's work, a batch at a time)
 BATCH = 512
-
-
-@dataclass
-class Report:
-    """What a replay found."""
-
-    clock: str
-    cycles: int = 0                       # the replayed plant's control cycles
-    wall_seconds: float = 0.0             # what the replay took
-    compared: int = 0                     # answers compared one for one
-    states_checked: int = 0               # timed states (heartbeats) found in order
-    derived_unchecked: int = 0            # derived values not held to a tolerance
-    after_the_log: int = 0                # replayed answers after the log's end
-    divergences: list[Divergence] = field(default_factory=list)
-    divergence_count: int = 0
-    #: drive label -> its divergences
-    by_drive: dict[str, int] = field(default_factory=dict)
-    statistics: JointStatistics | None = None
-    #: --record: batches of compared cycles (cycles, then the logged and the replayed joint
-    #: positions and torques: 4 arrays of the statistics' joints x those cycles)
-    values: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = \
-        field(default_factory=list)
-
-    @property
-    def first(self) -> Divergence | None:
-        """The earliest divergence (by cycle), the largest of its cycle."""
-        if not self.divergences:
-            return None
-        return min(self.divergences, key=lambda d: (d.cycle, -d.size))
-
-    def first_cycle(self) -> list[Divergence]:
-        """Every kept divergence of the first divergent cycle, largest first."""
-        first = self.first
-        if first is None:
-            return []
-        return sorted((d for d in self.divergences if d.cycle == first.cycle),
-                      key=lambda d: -d.size)
-
-    seeded: int = 0                       # joints placed where the log first had them
-    before_seed: int = 0                  # measured values before that, not compared
-    plant_seconds: float = 0.0            # the replayed plant's time
-    survey_seconds: float = 0.0           # what reading the log first took
-
-    @property
-    def speed(self) -> float:
-        """The plant's time replayed per second of wall time (the survey's included): how
-        much faster than real time the log was replayed."""
-        wall = self.wall_seconds + self.survey_seconds
-        return self.plant_seconds / wall if wall > 0 else math.nan
 
 
 class _Answers(can.Listener):
@@ -145,7 +95,7 @@ class Replay:
             self._feeders.append(feeder)
             self._answers.append(answers)
             self._buses += [sim_buses[bus.name], feeder]
-        self.sim = Simulator(config, sim_buses, lock_step=clock == "cycles")
+        self.sim = Simulator(config, sim_buses, LOCK_STEP if clock == "cycles" else REAL_TIME)
         self._tellers = [BusFrames(bus) for bus in config.buses]
         # (bus index, node id) -> (its config, its simulated drive)
         self._drives: dict[tuple[int, int], tuple] = {}

@@ -1,5 +1,6 @@
 """Visualisation: a run's control samples, drive states and bus load, logged to rerun."""
 
-from hil.visualisation.recorder import BenchParts, RunRecorder, SimTimeMap
+from hil.visualisation.columns import SimTimeMap
+from hil.visualisation.recorder import BenchParts, RunRecorder
 
 __all__ = ["BenchParts", "RunRecorder", "SimTimeMap"]

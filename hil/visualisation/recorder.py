@@ -5,9 +5,7 @@ A recording's bytes go to the rows of its entities (each row its row id and thre
 its values. So every signal of a control cycle shares one row of one entity, ``cycle``,
 as 4-byte floats (a 17-bit encoder's count is 5e-5 rad: a float's 24-bit mantissa holds a
 joint's position to 4e-7 rad), one chunk per batch of cycles; and every joint's transform
-shares the rows of ``joints``. Measured on 20 s of a synthetic pigot (7 joints, 500 Hz,
-incompressible noise): an entity per signal (as up to 2026-11-26), 2.3 KB a cycle; an
-entity per joint, 0.43; one entity, 0.23 (0.44 as 8-byte floats).
+shares the rows of ``joints`` (docs/performance.md has what each layout cost).
 
 ======================================  ==============================================
 ``cycle``                               every control cycle: per driven joint its
@@ -46,25 +44,26 @@ interpolation over wall time; absent while no sim has been heard).
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
 import rerun as rr
 import rerun.blueprint as rrb
 from rerun.urdf import UrdfTree
 
 from hil.bus_config.types import SceneObject
 from hil.can.monitor import MeasuredLoad
-from hil.description import GeometryKind, JointType, RobotDescription
+from hil.description import GeometryKind, RobotDescription
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.messaging.scene import SceneState
 from hil.realtime.stalls import PROCESS_WORDS, Stall
+from hil.description.rotations import rpy_quaternion
 from hil.visualisation.blueprint import CycleSeries, robot_view
+from hil.visualisation.columns import ScalarTable, SimTimeMap, Times
+from hil.visualisation.kinematics import JointPoses
 
 #: the 3D robot is posed at most this often (Hz): the eye needs no more
 POSE_RATE = 20.0
@@ -81,39 +80,6 @@ PLANE_DRAWN = 4.0
 #: diagnostic levels as rerun's text log levels
 _TEXT_LOG_LEVELS = {"OK": rr.TextLogLevel.INFO, "WARN": rr.TextLogLevel.WARN,
                     "ERROR": rr.TextLogLevel.ERROR, "STALE": rr.TextLogLevel.WARN}
-
-
-class SimTimeMap:
-    """The plant's time at given wall-clock times, from (wall, sim) pairs the sim publishes.
-
-    Inside the pairs: linear interpolation. After the last: extrapolated with
-    the latest rate (1 in real time; the speed-up in lock-step).
-    """
-
-    def __init__(self, keep: int = 400):
-        self._wall: deque[float] = deque(maxlen=keep)
-        self._sim: deque[float] = deque(maxlen=keep)
-
-    def add(self, wall: float, sim: float) -> None:
-        if self._wall and wall <= self._wall[-1]:
-            return
-        if self._sim and sim < self._sim[-1]:       # the sim restarted: forget the old run
-            self._wall.clear()
-            self._sim.clear()
-        self._wall.append(wall)
-        self._sim.append(sim)
-
-    def __call__(self, wall_times: np.ndarray) -> np.ndarray | None:
-        if not self._wall:
-            return None
-        wall, sim = np.array(self._wall), np.array(self._sim)
-        rate = 1.0 if len(wall) < 2 else (sim[-1] - sim[-2]) / (wall[-1] - wall[-2])
-        mapped = np.interp(wall_times, wall, sim)
-        after = wall_times > wall[-1]
-        mapped[after] = sim[-1] + rate * (wall_times[after] - wall[-1])
-        before = wall_times < wall[0]
-        mapped[before] = sim[0] + (wall_times[before] - wall[0])
-        return mapped
 
 
 @dataclass(frozen=True)
@@ -196,7 +162,7 @@ class RunRecorder:
             if not thing.movable:       # a moving one is posed by each SceneState
                 rec.log(f"{root}/scene/{thing.name}", rr.Transform3D(
                     translation=thing.pose.xyz,
-                    quaternion=rr.Quaternion(xyzw=_quaternion(thing.pose.rpy))), static=True)
+                    quaternion=rr.Quaternion(xyzw=rpy_quaternion(thing.pose.rpy))), static=True)
 
     def view(self) -> rrb.Container:
         """This robot's part of the viewer's layout (``hil.visualisation.blueprint``)."""
@@ -213,7 +179,7 @@ class RunRecorder:
         self._next_cycle = batch.next_cycle
         self.cycles_logged += len(batch)
         times = self._times(batch.wall_time, batch.control_time)
-        table = _ScalarTable(times)
+        table = ScalarTable(times)
         table.add_rows(f"{self.root}/cycle", self._cycle_rows(batch))
         table.send(self.recording)
         self._log_torque_limits(times)
@@ -232,7 +198,7 @@ class RunRecorder:
 
     def log_stall(self, stall: Stall) -> None:
         """A stall of a real-time process on the wall and sim timelines, where it began."""
-        table = _ScalarTable(self._times(np.array([stall.at])))
+        table = ScalarTable(self._times(np.array([stall.at])))
         table.add(f"{self.root}/loop/stalls/{stall.process}", np.array([stall.length * 1e3]))
         table.send(self.recording)
         self.stalls_logged += 1
@@ -257,7 +223,7 @@ class RunRecorder:
             return
         times, rows = zip(*self._loads)
         self._loads.clear()
-        table = _ScalarTable(self._times(np.array(times)))
+        table = ScalarTable(self._times(np.array(times)))
         table.add_rows(f"{self.root}/bus/load", np.array(rows, dtype=np.float32))
         table.send(self.recording)
 
@@ -270,7 +236,7 @@ class RunRecorder:
     def log_scene(self, state: SceneState) -> None:
         """The moving objects' poses, the contacts and a floating base's pose, at the state's
         wall and sim time."""
-        times = _Times(np.array([state.wall_time]), None, np.array([state.sim_time]))
+        times = Times(np.array([state.wall_time]), None, np.array([state.sim_time]))
         indexes = times.columns()
         rec, root = self.recording, self.root
         if state.base is not None:
@@ -279,7 +245,7 @@ class RunRecorder:
             rec.send_columns(f"{root}/base", indexes=indexes, columns=rr.Transform3D.columns(
                 translation=[position], quaternion=[np.roll(orientation, -1)],
                 parent_frame=["tf#/"], child_frame=[self._base_frame]))
-            table = _ScalarTable(times)
+            table = ScalarTable(times)
             table.add(f"{root}/base/position", *position.reshape(3, 1))
             table.send(rec)
         for name, position, orientation in zip(state.names, state.positions,
@@ -314,23 +280,23 @@ class RunRecorder:
                           1e3 * batch.cycle_period[:, None],
                           1e3 * batch.round_trip[:, None])).astype(np.float32)
 
-    def _log_torque_limits(self, times: _Times) -> None:
+    def _log_torque_limits(self, times: Times) -> None:
         """Each drive's peak torque, both ways, a row every LIMITS_EVERY s (at the batch's
         first cycle): a line beside its torque, at the bytes of a few rows a minute."""
         if not self._torque_limits or times.wall[0] - self._limits_logged < LIMITS_EVERY:
             return
         self._limits_logged = times.wall[0]
-        table = _ScalarTable(times.at(np.array([0])))
+        table = ScalarTable(times.at(np.array([0])))
         table.add_rows(f"{self.root}/drives/limits", np.array(
             [[sign * limit for limit in self._torque_limits.values() for sign in (1, -1)]],
             dtype=np.float32))
         table.send(self.recording)
 
-    def _times(self, wall: np.ndarray, control: np.ndarray | None = None) -> _Times:
-        return _Times(wall, control, self.sim_time(wall))
+    def _times(self, wall: np.ndarray, control: np.ndarray | None = None) -> Times:
+        return Times(wall, control, self.sim_time(wall))
 
     def _log_state_changes(self, actuator: str, batch: ControlSamples, column: int,
-                           times: _Times) -> None:
+                           times: Times) -> None:
         codes = batch.drive_state[:, column]
         if not len(codes):
             return
@@ -343,7 +309,7 @@ class RunRecorder:
                 f"{self.root}/drives/{actuator}/state", indexes=times.columns(rows),
                 columns=rr.StateChange.columns(state=[batch.state_names[c] for c in codes[rows]]))
 
-    def _log_pose(self, batch: ControlSamples, times: _Times) -> None:
+    def _log_pose(self, batch: ControlSamples, times: Times) -> None:
         """Joint transforms for the 3D robot, decimated to POSE_RATE, every joint's in the
         rows of one entity (each row a parent-to-child transform, as rerun's tf reads it)."""
         wall = batch.wall_time
@@ -367,7 +333,7 @@ class RunRecorder:
         waiting = self._poses_waiting
         if not waiting:
             return
-        times = _Times(np.concatenate([t.wall for t, *_ in waiting]),
+        times = Times(np.concatenate([t.wall for t, *_ in waiting]),
                        _joined([t.control for t, *_ in waiting]),
                        _joined([t.sim for t, *_ in waiting]))
         self.recording.send_columns(
@@ -385,64 +351,6 @@ def _joined(parts: list[np.ndarray | None]) -> np.ndarray | None:
     return None if any(p is None for p in parts) else np.concatenate(parts)
 
 
-class JointPoses:
-    """Each joint's transform from its parent link's frame to its child's, at joint values,
-    as rerun's URDF loader computes it (the joint's origin, then its axis' rotation or
-    slide), for every joint of the robot at once: mimic joints from their leaders, the
-    others at zero. Frames are named by link, after ``prefix``."""
-
-    def __init__(self, robot: RobotDescription, prefix: str = ""):
-        self._joints = [j for j in robot.joints if j.is_movable]
-        self._origins = np.array([_quaternion(j.origin.rpy) for j in self._joints])
-        self._turns = np.array([_rotation(j.origin.rpy) for j in self._joints])
-        self._shifts = np.array([j.origin.xyz for j in self._joints], dtype=float)
-        axes = np.array([j.axis for j in self._joints], dtype=float)
-        self._axes = axes / np.linalg.norm(axes, axis=1)[:, None]
-        self._sliding = np.array([j.type is JointType.PRISMATIC for j in self._joints])
-        self._parents = [prefix + j.parent for j in self._joints]
-        self._children = [prefix + j.child for j in self._joints]
-
-    def transforms(self, positions: Mapping[str, np.ndarray]):
-        """Translations (rows x joints, 3), quaternions (xyzw), parent and child frames: for
-        each time (``positions``: joint -> a value a time), every joint's transform."""
-        times = len(next(iter(positions.values())))
-        values = np.zeros((times, len(self._joints)))
-        for k, joint in enumerate(self._joints):
-            if joint.name in positions:
-                values[:, k] = positions[joint.name]
-            elif joint.mimic is not None and joint.mimic.joint in positions:
-                values[:, k] = (joint.mimic.multiplier * positions[joint.mimic.joint]
-                                + joint.mimic.offset)
-        turning = np.where(self._sliding, 0.0, values)
-        half = turning[:, :, None] / 2
-        motion = np.concatenate((self._axes[None] * np.sin(half), np.cos(half)), axis=2)
-        quaternions = _product(np.broadcast_to(self._origins, motion.shape), motion)
-        slides = np.where(self._sliding, values, 0.0)[:, :, None] * self._axes[None]
-        translations = self._shifts[None] + np.einsum("jab,tjb->tja", self._turns, slides)
-        return (translations.reshape(-1, 3), quaternions.reshape(-1, 4),
-                self._parents * times, self._children * times)
-
-
-def _rotation(rpy) -> np.ndarray:
-    """Roll-pitch-yaw (fixed X, Y, Z) as a rotation matrix: Rz(yaw) Ry(pitch) Rx(roll)."""
-    roll, pitch, yaw = rpy
-    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
-                              np.cos(yaw), np.sin(yaw))
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
-
-
-def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products of quaternions (x, y, z, w), over the last axis."""
-    ax, ay, az, aw = np.moveaxis(a, -1, 0)
-    bx, by, bz, bw = np.moveaxis(b, -1, 0)
-    return np.stack((aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz), axis=-1)
-
-
 def _shape(thing: SceneObject) -> rr.AsComponents:
     """The rerun archetype that draws a scene object's shape, in its own frame."""
     geometry = thing.geometry
@@ -457,78 +365,3 @@ def _shape(thing: SceneObject) -> rr.AsComponents:
         return rr.Asset3D(path=geometry.mesh)
     return rr.Boxes3D(half_sizes=[[PLANE_DRAWN / 2, PLANE_DRAWN / 2, 0.0005]],
                       centers=[[0.0, 0.0, -0.0005]], colors=[[128, 128, 128, 96]])
-
-
-def _quaternion(rpy) -> np.ndarray:
-    """Roll-pitch-yaw (fixed X, Y, Z) as a quaternion x, y, z, w (rerun's order)."""
-    roll, pitch, yaw = (angle / 2 for angle in rpy)
-    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
-                              np.cos(yaw), np.sin(yaw))
-    return np.array([sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
-                     cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy])
-
-
-@dataclass(frozen=True)
-class _Times:
-    """The times of a batch's rows on each timeline (sim time may be unknown)."""
-
-    wall: np.ndarray
-    control: np.ndarray | None
-    sim: np.ndarray | None
-
-    def at(self, rows: np.ndarray) -> _Times:
-        """These times at ``rows`` only."""
-        return _Times(self.wall[rows], None if self.control is None else self.control[rows],
-                      None if self.sim is None else self.sim[rows])
-
-    def named(self) -> list[tuple[str, np.ndarray]]:
-        return [(name, values) for name, values in (("wall_time", self.wall),
-                                                    ("control_time", self.control),
-                                                    ("sim_time", self.sim))
-                if values is not None]
-
-    def columns(self, rows: np.ndarray | slice = slice(None)) -> list[rr.TimeColumn]:
-        columns = [rr.TimeColumn("wall_time", timestamp=self.wall[rows])]
-        if self.control is not None:
-            columns.append(rr.TimeColumn("control_time", duration=self.control[rows]))
-        if self.sim is not None:
-            columns.append(rr.TimeColumn("sim_time", duration=self.sim[rows]))
-        return columns
-
-
-class _ScalarTable:
-    """Scalar series of many entities on the same rows, sent as one Arrow record batch.
-
-    The ``rerun:*`` field metadata is rerun's documented column classification
-    (``Chunk.from_record_batch``): which columns are timelines, and which entity
-    and component every other column is.
-    """
-
-    def __init__(self, times: _Times):
-        self._fields, self._columns = [], []
-        for name, values in times.named():
-            kind = pa.timestamp("ns") if name == "wall_time" else pa.duration("ns")
-            self._fields.append(pa.field(name, kind, metadata={
-                "rerun:kind": "index", "rerun:index_name": name}))
-            self._columns.append(pa.array(np.round(values * 1e9).astype(np.int64), kind))
-
-    def add(self, entity: str, *series: np.ndarray) -> None:
-        """One row per time, one scalar per series (as many series as lines on the plot)."""
-        self.add_rows(entity, np.column_stack(series))
-
-    def add_rows(self, entity: str, rows: np.ndarray) -> None:
-        """One row per time of ``rows`` (times x series), its values as they are typed (4-byte
-        floats where they are)."""
-        kind = pa.float32() if rows.dtype == np.float32 else pa.float64()
-        self._fields.append(pa.field("Scalars:scalars", pa.list_(kind), metadata={
-            "rerun:kind": "data", "rerun:entity_path": entity,
-            "rerun:archetype": "rerun.archetypes.Scalars", "rerun:component": "Scalars:scalars",
-            "rerun:component_type": "rerun.components.Scalar"}))
-        offsets = np.arange(0, rows.size + 1, max(rows.shape[1], 1), dtype=np.int32)
-        self._columns.append(pa.ListArray.from_arrays(pa.array(offsets),
-                                                      pa.array(rows.ravel(), kind)))
-
-    def send(self, recording: rr.RecordingStream) -> None:
-        rr.send_record_batch(pa.RecordBatch.from_arrays(self._columns,
-                                                        schema=pa.schema(self._fields)),
-                             recording=recording)

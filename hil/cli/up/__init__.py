@@ -85,11 +85,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "than candump's text), channels numbered in the config's bus "
                              "order (printed at the end); .log candump's text, channels named; "
                              ".asc, .trc, .csv")
-    timing = parser.add_mutually_exclusive_group()
-    timing.add_argument("--lock-step", dest="timing", action="store_const", const="lock-step",
-                        help="sim and controller in lock-step (reproducible, as fast as they go)")
-    timing.add_argument("--real-time", dest="timing", action="store_const", const="real-time",
-                        help="sim and controller on the wall clock (the default)")
+    common.add_timing(parser, "sim and controller in lock-step (reproducible, as fast as they go)")
     parser.add_argument("--can", action="append", default=[], metavar="CHANNEL",
                         help="use SocketCAN: one channel per bus of the config, in its order "
                              "(e.g. --can vcan0 --can vcan1)")
@@ -137,9 +133,9 @@ def run(args: argparse.Namespace) -> int:
     logs = save.with_name(save.stem + ".logs")
     logs.mkdir(parents=True, exist_ok=True)
     can_log = args.can_log or save.with_name(save.stem + ".can.blf")
-    timing = args.timing or "real-time"
+    timing = args.timing
     stop = threading.Event()
-    robots = [RobotRun(path, config, Progress(args.max_stalls if timing == "real-time" else None,
+    robots = [RobotRun(path, config, Progress(None if timing.lock_step else args.max_stalls,
                                             stop.set, f"{config.robot.name}: " if several else ""))
               for path, config in zip(paths, configs)]
     viz = make_children(args, robots, faults, logs, can_log)
@@ -192,7 +188,7 @@ def run(args: argparse.Namespace) -> int:
         status = 1
     if status == 0:
         status = _outcome(robots)
-    if timing == "real-time":
+    if not timing.lock_step:
         for robot in robots:
             with robot.progress.lock:
                 print(f"hil up: {robot.label}the bench's {robot.progress.stalls.summary()} "

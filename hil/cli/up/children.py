@@ -32,7 +32,7 @@ def make_children(args: argparse.Namespace, robots: list[RobotRun], faults: list
                   if not isinstance(f, ProcessFault)]
     shared = [*(["--secure", str(args.secure)] if args.secure else []),
               *(f"--package-path={p}" for p in args.package_path)]
-    lock_step = ["--lock-step"] if args.timing == "lock-step" else []
+    lock_step = ["--lock-step"] if args.timing.lock_step else []
     # over TLS the processes are not pinned to a CPU each: pinned, every `hil up ur3 --secure`
     # on 2 CPUs faulted within a second as soon as a third process took the traffic (the
     # transport 40-107 ms late), unpinned 3 of 3 ran clean (docs/performance.md)

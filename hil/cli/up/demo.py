@@ -13,7 +13,7 @@ from hil.commissioning.demo_pace import MOTION_SHARE, paced_demo
 from hil.commissioning.stance import stance
 from hil.controllers import GoalRejected, GoalStatus
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient
-from hil.realtime import enter_background
+from hil.realtime import Timing, enter_background
 from hil.supervisor import Run
 from hil.zenoh_session import ZenohSettings, session
 
@@ -32,7 +32,7 @@ def supervise(args, robots: list[RobotRun], run: Run, zenoh: ZenohSettings) -> N
     # the robots' demos run together, each in a thread of its own; a child that dies ends
     # them all (ChildFailed, raised here from the thread that found it)
     with ThreadPoolExecutor(len(robots), thread_name_prefix="demo") as pool:
-        demos = [pool.submit(_demo, robot, run, zenoh, args.timing != "lock-step")
+        demos = [pool.submit(_demo, robot, run, zenoh, args.timing)
                  for robot in robots]
         for robot, demo in zip(robots, demos):
             robot.demo_succeeded = demo.result()
@@ -51,9 +51,9 @@ def _held(config: SystemConfig) -> tuple[str, ...]:
     return found.carrying if found else tuple(j.name for j in config.robot.movable_joints)
 
 
-def _demo(robot: RobotRun, run: Run, zenoh: ZenohSettings, real_time: bool) -> bool:
+def _demo(robot: RobotRun, run: Run, zenoh: ZenohSettings, timing: Timing) -> bool:
     """The robot's demo goal, followed to its end; whether it succeeded."""
-    if real_time:
+    if not timing.lock_step:
         # pacing the demo (MuJoCo's inverse dynamics along it) takes a CPU for a while just
         # as the goal starts: at normal priority it starved the real-time processes' Zenoh
         # threads, and 3 of 3 real-time pigot demos aborted on silent drives (under

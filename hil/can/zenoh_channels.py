@@ -1,0 +1,131 @@
+"""A Zenoh session's CAN channels (the fan-out under :class:`hil.can.zenoh_bus.ZenohBus`):
+one subscriber per session for every channel, feeding the process' buses on each, and the
+frames a thread sends held for one message."""
+
+from __future__ import annotations
+
+import threading
+import time
+from contextlib import AbstractContextManager, nullcontext
+from typing import TYPE_CHECKING
+
+import can
+import zenoh
+
+from hil.can.messages import received_copy
+from hil.can.zenoh_wire import KEY_PREFIX, decode_frames
+
+if TYPE_CHECKING:
+    from hil.can.zenoh_bus import ZenohBus
+
+
+class Outbox(threading.local):
+    """A thread's frames held for one message, per bus in the order the buses first sent,
+    and how deep its holds nest."""
+
+    depth = 0
+
+    def __init__(self):
+        self.held: dict[ZenohBus, list[can.Message]] = {}
+
+
+class Channels:
+    """A session's CAN channels: the buses of this process on each key, fed by the one
+    subscriber of the session (and by each other), and what their threads send: held for
+    one message (:class:`Outbox`) and put under one lock, so that every sender's messages
+    keep the order of their sequence numbers."""
+
+    _of_session: dict[int, Channels] = {}
+    _lock = threading.Lock()
+
+    def __init__(self, session: zenoh.Session):
+        self.buses: dict[str, list[ZenohBus]] = {}
+        self.outbox = Outbox()
+        self.send_lock = threading.Lock()
+        #: entered around each message's delivery (None: nothing): see ZenohBus.deliver_under
+        self.guard: AbstractContextManager | None = None
+        self._subscriber = session.declare_subscriber(
+            KEY_PREFIX + "**", self._on_sample, allowed_origin=zenoh.Locality.REMOTE)
+
+    @classmethod
+    def join(cls, session: zenoh.Session, key: str, bus: ZenohBus
+             ) -> tuple[Channels, list[ZenohBus]]:
+        """Add ``bus`` on ``key``; returns the session's channels and the buses of this
+        process on ``key`` (kept current)."""
+        with cls._lock:
+            channels = cls._of_session.get(id(session))
+            if channels is None:
+                channels = cls._of_session[id(session)] = Channels(session)
+            on_key = channels.buses.setdefault(key, [])
+            on_key.append(bus)
+            return channels, on_key
+
+    @classmethod
+    def leave(cls, session: zenoh.Session, key: str, bus: ZenohBus) -> None:
+        with cls._lock:
+            channels = cls._of_session[id(session)]
+            channels.buses[key].remove(bus)
+            if not channels.buses[key]:
+                del channels.buses[key]
+            if not channels.buses:
+                del cls._of_session[id(session)]
+                channels._subscriber.undeclare()
+
+    def hold(self) -> None:
+        """What this thread sends on the session's buses from now on waits for
+        :meth:`release` (nested: the outermost)."""
+        self.outbox.depth += 1
+
+    def release(self) -> None:
+        outbox = self.outbox
+        outbox.depth -= 1
+        if outbox.depth == 0 and outbox.held:
+            held, outbox.held = outbox.held, {}
+            self.put(held)
+
+    def put(self, held: dict[ZenohBus, list[can.Message]]) -> None:
+        """One message of each bus' ``held`` frames (a section each, in the order the buses
+        first sent), on the first bus' key; copies to this process' buses on each channel.
+        Buses shut down meanwhile send nothing and raise CanOperationError, after the rest
+        went out."""
+        firsts = []
+        with self.send_lock:
+            live = [(bus, frames) for bus, frames in held.items() if not bus._is_shutdown]
+            if live:
+                sent_at, now = time.time(), time.monotonic()
+                sections = []
+                for bus, frames in live:
+                    first, section = bus._section(frames, sent_at, now)
+                    firsts.append(first)
+                    sections.append(section)
+                live[0][0]._publisher.put(b"".join(sections))
+        for (bus, frames), first in zip(live, firsts):
+            bus._to_neighbours(first, frames)
+        if len(live) < len(held):
+            shut = ", ".join(bus.channel_info for bus in held if bus._is_shutdown)
+            raise can.CanOperationError(f"{shut}: the bus is shut down")
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        payload = sample.payload.to_bytes()
+        arrived = time.time()
+        try:
+            messages = decode_frames(payload, arrived)
+        except ValueError as exc:
+            for bus in tuple(self.buses.get(str(sample.key_expr), ())):
+                bus._count_malformed(exc)
+            return
+        now = time.monotonic()
+        # what the listeners send in answer goes out together, in one message, once the
+        # guard is left (the put never holds it)
+        self.hold()
+        try:
+            with self.guard or nullcontext():
+                for message in messages:
+                    buses = self.buses.get(KEY_PREFIX + message.channel)
+                    if buses:
+                        for number, bus in enumerate(tuple(buses)):
+                            bus._on_message(message if number == 0 else message._replace(
+                                frames=[received_copy(msg, arrived, msg.channel, True)
+                                        for msg in message.frames]), arrived, now)
+        finally:
+            self.release()

@@ -1,0 +1,67 @@
+"""The README and the guides in docs/ stay true: every `hil` command they show exists (its
+`--help` runs), every file they link or name exists, and the README's pytest example passes
+as it stands."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT
+from hil.cli import COMMANDS, main
+
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+#: a `hil SUBCOMMAND` in backticks, or at the start of a shell line (after a prompt)
+COMMAND = re.compile(r"`hil ([a-z]+)\b|^(?:\w*\$ +)?(?:\.venv/bin/)?hil ([a-z]+)\b", re.MULTILINE)
+#: a markdown link's target
+LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
+#: a repository path in backticks: a top folder of the repository, then a file
+PATH = re.compile(r"`((?:hil|tools|tests|bus_config|robots|docs)/[\w./-]+\.\w+)`")
+
+
+def _pages_and(pattern: re.Pattern) -> list[tuple[Path, str]]:
+    return sorted({(page, "".join(found) if isinstance(found, tuple) else found)
+                   for page in PAGES for found in pattern.findall(page.read_text())})
+
+
+@pytest.mark.parametrize("page, command", _pages_and(COMMAND),
+                         ids=lambda v: v.name if isinstance(v, Path) else v)
+def test_every_command_the_docs_show_exists_and_its_help_runs(page, command, capsys):
+    assert command in COMMANDS, f"{page.name} shows `hil {command}`, which hil does not have"
+    with pytest.raises(SystemExit) as ended:
+        main([command, "--help"])
+    assert ended.value.code == 0
+
+
+@pytest.mark.parametrize("page, target", _pages_and(LINK),
+                         ids=lambda v: v.name if isinstance(v, Path) else v)
+def test_every_link_of_the_docs_reaches_a_file(page, target):
+    if target.startswith(("http://", "https://", "mailto:")):
+        pytest.skip("a web address: not fetched (no network here)")
+    assert (page.parent / target).exists(), f"{page.name} links {target}, which does not exist"
+
+
+@pytest.mark.parametrize("page, path", _pages_and(PATH),
+                         ids=lambda v: v.name if isinstance(v, Path) else v)
+def test_every_repository_path_the_docs_name_exists(page, path):
+    assert (ROOT / path).exists(), f"{page.name} names {path}, which does not exist"
+
+
+def test_the_readme_is_one_screen_of_front_door():
+    assert len((ROOT / "README.md").read_text().splitlines()) <= 200
+
+
+@pytest.mark.slow
+def test_the_readmes_pytest_example_passes_as_it_stands(tmp_path):
+    readme = (ROOT / "README.md").read_text()
+    example = next(block for block in re.findall(r"```python\n(.*?)```", readme, re.DOTALL)
+                   if "def test_" in block)
+    (tmp_path / "test_readme_example.py").write_text(example)
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                           str(tmp_path / "test_readme_example.py")], cwd=ROOT,
+                          capture_output=True, text=True, timeout=240)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
