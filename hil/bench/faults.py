@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 
 from hil.bus_config import SystemConfig
-from hil.can.faults import FrameFault
+from hil.can.faults import FrameFault, FrameFaultKind
 from hil.stack import running_stack
 from hil.realtime.timing import REAL_TIME
 
@@ -17,9 +17,9 @@ def fault_detection(config: SystemConfig, timeout: float = 3.0) -> list[dict]:
     node_id = first.drives[1].node_id
     kinds = {
         "drop every frame": lambda sim, buses: buses[first.name].add(
-            FrameFault("drop", first.name, 1.0)),
+            FrameFault(FrameFaultKind.DROP, first.name, 1.0)),
         "delay answers 200 ms": lambda sim, buses: buses[first.name].add(
-            FrameFault("delay", first.name, 1.0, 0.2)),
+            FrameFault(FrameFaultKind.DELAY, first.name, 1.0, 0.2)),
         "corrupt payload bits": lambda sim, buses: buses[first.name].add(
             FrameFault("corrupt", first.name, 1.0)),
         "silence a drive": lambda sim, buses: sim.silence(first.name, node_id),

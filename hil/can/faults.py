@@ -21,6 +21,7 @@ generator, so a run can be repeated.
 
 from __future__ import annotations
 
+import enum
 import heapq
 import random
 import re
@@ -33,25 +34,49 @@ import can
 from hil.can.capabilities import BusCapabilities, capabilities
 from hil.errors import HilError
 
-FRAME_KINDS = ("drop", "delay", "corrupt")
-DRIVE_KINDS = ("silence", "fault", "restart")
 PROCESSES = ("sim", "control", "viz")
+
+
+class FrameFaultKind(enum.Enum):
+    """What happens to a fraction of a bus' frames."""
+
+    DROP = "drop"
+    DELAY = "delay"
+    CORRUPT = "corrupt"
+
+
+class DriveFaultKind(enum.Enum):
+    """What happens to one drive at a moment of the run."""
+
+    SILENCE = "silence"     # it leaves the bus
+    FAULT = "fault"         # it faults as on a following error
+    RESTART = "restart"     # it restarts as after a power cycle
 
 
 @dataclass(frozen=True)
 class FrameFault:
-    kind: str               # drop | delay | corrupt
+    kind: FrameFaultKind    # or its word ("drop"), made the kind
     bus: str
     fraction: float
     delay: float = 0.0      # s (delay only)
 
+    def __post_init__(self):
+        object.__setattr__(self, "kind", FrameFaultKind(self.kind))
+
 
 @dataclass(frozen=True)
 class DriveFault:
-    kind: str               # silence | fault | restart
+    kind: DriveFaultKind    # or its word ("silence"), made the kind
     bus: str
     node_id: int
     at: float               # s after start
+
+    def __post_init__(self):
+        object.__setattr__(self, "kind", DriveFaultKind(self.kind))
+
+
+FRAME_FAULT_WORDS = tuple(kind.value for kind in FrameFaultKind)
+DRIVE_FAULT_WORDS = tuple(kind.value for kind in DriveFaultKind)
 
 
 @dataclass(frozen=True)
@@ -65,24 +90,26 @@ def parse_fault(text: str) -> FrameFault | DriveFault | ProcessFault:
     hint = ("forms: drop:BUS:FRACTION, delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, "
             "silence:BUS/NODE@S, fault:BUS/NODE@S, restart:BUS/NODE@S, "
             "kill:sim|control|viz@S")
-    kind, _, rest = text.partition(":")
+    word, _, rest = text.partition(":")
     try:
-        if kind in FRAME_KINDS:
+        if word in FRAME_FAULT_WORDS:
+            kind = FrameFaultKind(word)
             parts = rest.split(":")
-            if len(parts) != (3 if kind == "delay" else 2):
+            if len(parts) != (3 if kind is FrameFaultKind.DELAY else 2):
                 raise ValueError("wrong number of fields")
             fraction = float(parts[1])
             if not 0.0 < fraction <= 1.0:
                 raise ValueError(f"fraction {fraction} is not in (0, 1]")
-            delay = float(parts[2]) / 1000 if kind == "delay" else 0.0
+            delay = float(parts[2]) / 1000 if kind is FrameFaultKind.DELAY else 0.0
             if delay < 0:
                 raise ValueError("a delay cannot be negative")
             return FrameFault(kind, parts[0], fraction, delay)
         match = re.fullmatch(r"(\w[\w/-]*)/(\d+)@([\d.]+)s?", rest)
-        if kind in DRIVE_KINDS and match:
-            return DriveFault(kind, match.group(1), int(match.group(2)), float(match.group(3)))
+        if word in DRIVE_FAULT_WORDS and match:
+            return DriveFault(DriveFaultKind(word), match.group(1), int(match.group(2)),
+                              float(match.group(3)))
         match = re.fullmatch(r"(\w+)@([\d.]+)s?", rest)
-        if kind == "kill" and match and match.group(1) in PROCESSES:
+        if word == "kill" and match and match.group(1) in PROCESSES:
             return ProcessFault(match.group(1), float(match.group(2)))
         raise ValueError("not a known fault")
     except ValueError as exc:
@@ -100,8 +127,9 @@ class FaultyBus(can.BusABC, BusCapabilities):
         self.inner = inner
         self.faults = list(faults)
         self.channel_info = f"{inner.channel_info} with faults " + ", ".join(
-            f"{f.kind} {f.fraction:g}" for f in self.faults)
-        self.injected = {kind: 0 for kind in FRAME_KINDS}
+            f"{f.kind.value} {f.fraction:g}" for f in self.faults)
+        #: frames each kind of fault took, by its word
+        self.injected = {kind.value: 0 for kind in FrameFaultKind}
         self._random = random.Random(seed)
         self._lock = threading.Lock()
         self._delayed: list[tuple[float, int, can.Message]] = []
@@ -118,16 +146,16 @@ class FaultyBus(can.BusABC, BusCapabilities):
         with self._lock:
             self.faults.append(fault)
 
-    def _chance(self, kind: str) -> FrameFault | None:
+    def _chance(self, kind: FrameFaultKind) -> FrameFault | None:
         with self._lock:
             for fault in self.faults:
                 if fault.kind == kind and self._random.random() < fault.fraction:
-                    self.injected[kind] += 1
+                    self.injected[kind.value] += 1
                     return fault
         return None
 
     def _corrupted(self, msg: can.Message) -> can.Message:
-        if msg.dlc == 0 or msg.is_remote_frame or self._chance("corrupt") is None:
+        if msg.dlc == 0 or msg.is_remote_frame or self._chance(FrameFaultKind.CORRUPT) is None:
             return msg
         data = bytearray(msg.data)
         with self._lock:
@@ -141,10 +169,10 @@ class FaultyBus(can.BusABC, BusCapabilities):
         if not self.faults:                      # the usual case: a plain pass-through
             self.inner.send(msg, timeout)
             return
-        if self._chance("drop"):
+        if self._chance(FrameFaultKind.DROP):
             return
         msg = self._corrupted(msg)
-        delay = self._chance("delay")
+        delay = self._chance(FrameFaultKind.DELAY)
         if delay is None:
             self.inner.send(msg, timeout)
             return
@@ -200,7 +228,7 @@ class FaultyBus(can.BusABC, BusCapabilities):
         """A received frame after this bus' receive faults: dropped (None) or corrupted."""
         if not self.faults:
             return msg
-        return None if self._chance("drop") else self._corrupted(msg)
+        return None if self._chance(FrameFaultKind.DROP) else self._corrupted(msg)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         if not self.faults:

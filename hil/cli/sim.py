@@ -16,7 +16,7 @@ from hil.cli import common
 from hil.can import watch_deliveries
 from hil.simulator import Simulator
 from hil.can.faults import (
-    DriveFault, FrameFault, ProcessFault, parse_fault, with_frame_faults,
+    DriveFault, DriveFaultKind, FrameFault, ProcessFault, parse_fault, with_frame_faults,
 )
 from hil.drives import Power
 from hil.errors import HilError
@@ -246,10 +246,16 @@ def _check_drive_faults(config, faults: list[DriveFault]) -> None:
     known = {(bus.name, drive.node_id) for bus in config.buses for drive in bus.drives}
     for fault in faults:
         if (fault.bus, fault.node_id) not in known:
-            raise HilError.single(f"--fault {fault.kind}:{fault.bus}/{fault.node_id}: no such "
+            raise HilError.single(f"--fault {fault.kind.value}:{fault.bus}/{fault.node_id}: no such "
                                   "drive", config.path,
                                   hint="drives: " + ", ".join(f"{b}/{n}" for b, n in
                                                               sorted(known)))
+
+
+#: what the simulator does for each kind of drive fault
+INJECTIONS = {DriveFaultKind.SILENCE: Simulator.silence,
+              DriveFaultKind.FAULT: Simulator.raise_fault,
+              DriveFaultKind.RESTART: Simulator.restart}
 
 
 def _inject(simulator: Simulator, faults: list[DriveFault], stop: threading.Event) -> None:
@@ -266,10 +272,5 @@ def _inject(simulator: Simulator, faults: list[DriveFault], stop: threading.Even
         while simulator.now() < started + fault.at:
             if stop.wait(min(INJECT_POLL, started + fault.at - simulator.now())):
                 return
-        if fault.kind == "silence":
-            simulator.silence(fault.bus, fault.node_id)
-        elif fault.kind == "restart":
-            simulator.restart(fault.bus, fault.node_id)
-        else:
-            simulator.raise_fault(fault.bus, fault.node_id)
-        print(f"hil sim: injected {fault.kind} on {fault.bus}/{fault.node_id}", flush=True)
+        INJECTIONS[fault.kind](simulator, fault.bus, fault.node_id)
+        print(f"hil sim: injected {fault.kind.value} on {fault.bus}/{fault.node_id}", flush=True)
