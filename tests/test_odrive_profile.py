@@ -164,7 +164,7 @@ def test_dbc_encoded_commands_drive_the_axis_and_answers_decode(odrive):
     assert estimates["Pos_Estimate"] == pytest.approx(2.0, abs=1e-5)
     assert estimates["Vel_Estimate"] == pytest.approx(0.25)
     odrive.command("Set_Input_Pos", Input_Pos=2.5, Vel_FF=1.0, Torque_FF=0.125)
-    assert odrive.core._segment_end == pytest.approx(2.5 * TURN, abs=1e-5)
+    assert odrive.core._setpoint.end == pytest.approx(2.5 * TURN, abs=1e-5)
     assert odrive.core._velocity_ff == pytest.approx(1.0 * TURN)
     assert odrive.core._torque_ff == pytest.approx(0.125)
     odrive.command("Set_Limits", Velocity_Limit=10.0, Current_Limit=4.0)

@@ -148,12 +148,15 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
     joint_limits = [robot.joint(j).limits for j in transmission.joints]
     motor_torque = transmission.actuator_effort_limits([lim.effort for lim in joint_limits])[k]
     motor_speed = abs(transmission.position_matrix[k]) @ [lim.velocity for lim in joint_limits]
-    peak = reader.number(merged, "peak_torque", what, float(motor_torque))
-    rated = reader.number(merged, "rated_torque", what, peak / 2)
+    product = options.drive_defaults() if options is not None else {}   # a motor model's
+    peak = reader.number(merged, "peak_torque", what,
+                         product.get("peak_torque", float(motor_torque)))
+    rated = reader.number(merged, "rated_torque", what, product.get("rated_torque", peak / 2))
     if peak < rated:
         reader.fail(f"{what}: peak_torque {peak} is below rated_torque {rated}",
                     merged.key_lines.get("peak_torque", merged.line))
-    max_velocity = reader.number(merged, "max_velocity", what, float(motor_speed))
+    max_velocity = reader.number(merged, "max_velocity", what,
+                                 product.get("max_velocity", float(motor_speed)))
     # default following-error window at the joint: 0.1 rad (revolute) or 5 mm (prismatic),
     # or FOLLOWING_ERROR_TIME at the joint's top speed where that is more (a fast axis lags
     # its setpoint by a bus cycle and its loops' delay)
@@ -162,7 +165,7 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
                     for j in transmission.joints]
     window = float(abs(transmission.position_matrix[k]) @ joint_window)
     gains = _read_gains(reader, merged, what)
-    brake = merged.get("holding_brake", True)
+    brake = merged.get("holding_brake", product.get("holding_brake", True))
     if not isinstance(brake, bool):
         reader.fail(f"{what}: holding_brake must be true or false",
                     merged.key_lines.get("holding_brake", merged.line))

@@ -11,13 +11,18 @@ from hil.commissioning.initial import initial_config
 from hil.cli import common
 from hil.description import load_description
 from hil.errors import HilError
-from hil.protocols import BUILTIN
+from hil.protocols import BUILTIN, protocol
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("description", type=Path, help="robot description (.xacro or .urdf)")
     parser.add_argument("--protocol", choices=sorted(BUILTIN), default="cia402",
                         help="the drives' protocol (default cia402)")
+    parser.add_argument("--motor", metavar="MODEL",
+                        help="the product every drive is, for a protocol that knows its "
+                             "makers' models (damiao: DM4310, DM4340, DM8009, ...): its "
+                             "ranges, torques and speed size the drives (default: the "
+                             "smallest model that fits each joint)")
     parser.add_argument("--rate", type=float, default=500.0, metavar="HZ",
                         help="control cycle rate of every bus (default 500)")
     parser.add_argument("-o", "--output", type=Path, metavar="FILE.yaml",
@@ -29,6 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     if not args.rate > 0 or args.rate > 10_000:
         raise HilError.single(f"--rate {args.rate:g}: give a control rate in Hz, e.g. 500")
+    motor = _motor(args.protocol, args.motor)
     package_path = common.package_path(args)
     robot = load_description(args.description, package_path)
     output = args.output or Path(f"{robot.name}.yaml")
@@ -36,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
         raise HilError.single(f"-o {output}: a bus config is a .yaml file")
     if output.exists() and not args.force:
         raise HilError.single(f"{output} exists already", hint="give another -o, or --force")
-    written = initial_config(robot, args.description, output, args.protocol, args.rate)
+    written = initial_config(robot, args.description, output, args.protocol, args.rate, motor)
     if written.drives == 0:
         raise HilError.single(f"'{robot.name}' has no joint hil can drive: no movable joint "
                               "that is not a mimic", args.description,
@@ -44,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
                                    "check that this is the robot's main file, not an include")
     output.write_text(written.text)
     config = load_bus_config(output, package_path)      # as `hil check` and `hil up` will
-    print(f"hil init: wrote {output}: {written.drives} {args.protocol} drive(s) on "
+    print(f"hil init: wrote {output}: {written.drives} {args.protocol} drive(s)"
+          f"{f' ({motor})' if motor else ''} on "
           f"{written.buses} bus(es) at {args.rate:g} Hz for '{robot.name}'"
           f"{f'; {len(config.warnings)} warning(s), see hil check' if config.warnings else ''}")
     if written.standing is not None:
@@ -57,3 +64,23 @@ def run(args: argparse.Namespace) -> int:
     where = "".join(f" --package-path {folder}" for folder in args.package_path)
     print(f"next: hil check {output}{where} && hil up {output} --demo{where}")
     return 0
+
+
+def _motor(protocol_name: str, name: str | None) -> str | None:
+    """``--motor``'s model, as the protocol names it; HilError listing the known ones."""
+    models = protocol(protocol_name).models
+    if name is None:
+        return None
+    if not models:
+        raise HilError.single(f"--motor {name}: protocol '{protocol_name}' knows no makers' "
+                              "models", hint="give the drives' limits in the bus config")
+    found = next((key for key in models if _plain(key) == _plain(name)
+                  or _plain(key) == "DM" + _plain(name)), None)
+    if found is None:
+        raise HilError.single(f"--motor {name}: no {protocol_name} model of that name",
+                              hint=f"one of: {', '.join(models)}")
+    return found
+
+
+def _plain(name: str) -> str:
+    return name.upper().replace("-J", "").replace("-", "_")

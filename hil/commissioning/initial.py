@@ -22,7 +22,10 @@ import numpy as np
 
 from hil.commissioning.demo_pace import paced_demo
 from hil.commissioning.stance import Stance, stance, standing_pose
-from hil.commissioning.sizing import Sizing, default_limits, needs_default_limits, size_joint
+from hil.commissioning.sizing import (
+    MOTOR_CLASSES, MotorClass, Sizing, default_limits, fitting, models_catalogue,
+    needs_default_limits, size_joint,
+)
 from hil.bus_config.joint_limits import KEYS as LIMIT_KEYS
 from hil.bus_config.transmissions import SIMPLE, actuator_of
 from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD
@@ -33,6 +36,7 @@ from hil.description import (
 )
 from hil.plant import Plant
 from hil.protocols import protocol
+from hil.protocols.base import DriveSetting
 
 BITRATE = 1_000_000
 HEARTBEAT_PERIOD = 0.1
@@ -77,11 +81,12 @@ class InitialConfig:
 
 
 def initial_config(robot: RobotDescription, description: Path, output: Path,
-                   protocol_name: str, rate: float) -> InitialConfig:
+                   protocol_name: str, rate: float, motor: str | None = None) -> InitialConfig:
     """The YAML text of a bus config for ``robot`` (read from ``description``), to be
     written at ``output``: a drive for every joint of ``robot.undriven_joints``; a robot
     that stands (:mod:`hil.commissioning.stance`) gets a floating base, a standing start
-    pose and a floor, and drives that hold it standing."""
+    pose and a floor, and drives that hold it standing. ``motor``: the product every drive
+    is (a key of the protocol's ``models``), else the smallest of them that fits each."""
     worst = worst_gravity_loads(robot)
     defaulted = tuple(_defaulted(j, worst[j.name]) for j in robot.undriven_joints
                       if needs_default_limits(j))
@@ -93,7 +98,11 @@ def initial_config(robot: RobotDescription, description: Path, output: Path,
     if standing is not None:
         holding = {name: max(load, standing.loads.get(name, 0.0))
                    for name, load in holding.items()}
-    sizings = [size_joint(joint, holding[joint.name]) for joint in robot.undriven_joints]
+    spec = protocol(protocol_name)
+    catalogue = (models_catalogue(spec.models[m] for m in (motor,) if m) if motor
+                 else models_catalogue(spec.models.values()) if spec.models else MOTOR_CLASSES)
+    sizings = [size_joint(joint, holding[joint.name], catalogue)
+               for joint in robot.undriven_joints]
     added = tuple(_transmission(s) for s in sizings)
     sized = replace(robot, transmissions=robot.transmissions + added)
     drives = [Drive(t.joints[0].name if len(t.joints) == 1 else ", ".join(j.name for j in t.joints),
@@ -101,8 +110,7 @@ def initial_config(robot: RobotDescription, description: Path, output: Path,
     drives += [Drive(s.joint, actuator_of(s.joint), s,
                      min(s.motor.rated_torque, sized.joint(s.joint).limits.effort / s.reduction))
                for s in sizings]
-    if protocol_name == "mit":
-        drives = _with_mit_options(sized, drives)
+    drives = _with_options(sized, drives, spec, catalogue)
     if standing is not None:
         carrying = set(standing.carrying)
         drives = [replace(d, velocity_bandwidth_hz=STANCE_BANDWIDTH_HZ)
@@ -191,38 +199,32 @@ def _drives_per_bus(protocol_name: str, rate: float) -> int:
     return max(1, min(int(budget // per_drive), len(spec.node_ids) - 1))
 
 
-def _with_mit_options(robot: RobotDescription, drives: list[Drive]) -> list[Drive]:
-    """MIT motors pack every value into a range of their own: ranges that cover the motor
-    side of each joint, and the master's gains (see MIT_BANDWIDTH_HZ)."""
+def _with_options(robot: RobotDescription, drives: list[Drive], spec,
+                  catalogue: tuple[MotorClass, ...]) -> list[Drive]:
+    """Each drive with the options its protocol writes (``Protocol.initial_options``): from
+    the motor side of its joint, the master's gains (see MIT_BANDWIDTH_HZ) and, where the
+    protocol knows its products, the model sized for it."""
     inertias = Plant(robot).motor_inertias()       # at the start pose
     omega = 2 * math.pi * MIT_BANDWIDTH_HZ
     result = []
     for drive in drives:
         joint = robot.joint(drive.joint.split(", ")[0])
-        spec = next(t for t in robot.transmissions
-                    if drive.actuator in (a.name for a in t.actuators))
-        reduction = abs(spec.actuators[0].reduction * spec.joints[0].reduction)
+        found = next(t for t in robot.transmissions
+                     if drive.actuator in (a.name for a in t.actuators))
+        reduction = abs(found.actuators[0].reduction * found.joints[0].reduction)
         inertia = inertias[drive.actuator]
-        kp, kd = inertia * omega ** 2, 2 * inertia * omega
         limits = joint.limits
         reach = (max(abs(limits.lower), abs(limits.upper)) if limits.lower is not None
                  else 2 * math.pi)                           # unlimited: two turns each way
-        peak = limits.effort / reduction
-        options = {"p_max": _round_up(1.2 * reach * reduction),
-                   "v_max": _round_up(1.2 * limits.velocity * reduction),
-                   "t_max": _round_up(1.2 * peak), "kp_max": _round_up(2 * kp),
-                   "kd_max": _round_up(2 * kd), "kp": float(f"{kp:.4g}"),
-                   "kd": float(f"{kd:.4g}")}
-        result.append(replace(drive, options=options))
+        peak, speed = limits.effort / reduction, limits.velocity * reduction
+        model = None
+        if spec.models:
+            model = (drive.sizing.motor if drive.sizing is not None
+                     else fitting(catalogue, peak, speed)).name
+        setting = DriveSetting(reach * reduction, speed, peak, inertia * omega ** 2,
+                               2 * inertia * omega, model)
+        result.append(replace(drive, options=spec.initial_options(setting)))
     return result
-
-
-def _round_up(value: float) -> float:
-    """Up to two significant digits (a range written by hand would look so)."""
-    if value <= 0:
-        return 1.0
-    scale = 10 ** (math.floor(math.log10(value)) - 1)
-    return float(f"{math.ceil(value / scale) * scale:.6g}")
 
 
 def _number(value: float) -> str:
@@ -296,8 +298,9 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
             if drive.velocity_bandwidth_hz is not None:
                 fields.append(f"velocity_bandwidth_hz: {_number(drive.velocity_bandwidth_hz)}")
             if drive.options:
-                fields.append("options: {" + ", ".join(f"{k}: {_number(v)}" for k, v in
-                                                        drive.options.items()) + "}")
+                fields.append("options: {" + ", ".join(
+                    f"{k}: {v if isinstance(v, str) else _number(v)}"
+                    for k, v in drive.options.items()) + "}")
             lines.append(f"      - {{{', '.join(fields)}}}")
             node_id += 1
     return "\n".join(lines) + "\n"

@@ -31,6 +31,7 @@ centre from its axis; for a prismatic joint the weight), at least
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 
 from hil.description import Joint, JointLimits, JointType
@@ -102,24 +103,26 @@ def reductions_for(joint: Joint) -> tuple[float, ...]:
     return tuple(float(n) for n in ROTARY_REDUCTIONS)
 
 
-def size_joint(joint: Joint, static_load: float = 0.0) -> Sizing:
+def size_joint(joint: Joint, static_load: float = 0.0,
+               catalogue: Sequence[MotorClass] = MOTOR_CLASSES) -> Sizing:
     """Motor class and reduction for ``joint`` by the rule of this module; its limits must
     give effort and velocity (> 0); ``static_load`` is the gravity load it holds at rest
-    (N·m or N)."""
+    (N·m or N); ``catalogue``: the motors to choose from, smallest first (a protocol's own
+    models, :func:`models_catalogue`)."""
     effort, velocity = joint.limits.effort, joint.limits.velocity
     holding = HOLDING_MARGIN * abs(static_load)
     unit = "N" if joint.type is JointType.PRISMATIC else "N·m"
     speed_unit = "m/s" if joint.type is JointType.PRISMATIC else "rad/s"
     limits = (f"joint limits {effort:g} {unit}, {velocity:g} {speed_unit}"
               + (f", gravity load up to {abs(static_load):.3g} {unit}" if static_load else ""))
-    for motor in MOTOR_CLASSES:
+    for motor in catalogue:
         for reduction in reductions_for(joint):
             if (motor.peak_torque * reduction >= effort and motor.top_speed / reduction >= velocity
                     and motor.rated_torque * reduction >= holding):
                 return Sizing(joint.name, motor, reduction, f"{motor.name} motor class "
                               f"(peak {motor.peak_torque:g} N·m, {motor.top_speed:g} rad/s) "
                               f"x {reduction:.4g}; {limits}")
-    largest = MOTOR_CLASSES[-1]
+    largest = catalogue[-1]
     candidates = reductions_for(joint)
     reduction = next((n for n in candidates if largest.peak_torque * n >= effort),
                      candidates[-1])
@@ -127,3 +130,19 @@ def size_joint(joint: Joint, static_load: float = 0.0) -> Sizing:
                   f"{reduction:.4g}: no class covers both {limits} (reaches "
                   f"{largest.peak_torque * reduction:.4g} {unit}, "
                   f"{largest.top_speed / reduction:.4g} {speed_unit})")
+
+
+def models_catalogue(models: Iterable) -> tuple[MotorClass, ...]:
+    """A protocol's products (``Protocol.models``' values) as motor classes, smallest peak
+    torque first: their figures at the output the drive commands (a geared motor's own gear
+    inside: its rotor's inertia as the output feels it)."""
+    return tuple(MotorClass(m.name, m.rated_torque, m.peak_torque, m.no_load_speed,
+                            m.reflected_inertia)
+                 for m in sorted(models, key=lambda m: (m.peak_torque, m.no_load_speed)))
+
+
+def fitting(catalogue: Sequence[MotorClass], peak_torque: float, speed: float) -> MotorClass:
+    """The smallest motor of ``catalogue`` that gives ``peak_torque`` and ``speed`` itself
+    (a drive whose transmission is the description's), else the largest."""
+    return next((m for m in catalogue if m.peak_torque >= peak_torque and m.top_speed >= speed),
+                catalogue[-1])

@@ -18,7 +18,7 @@ from hil.protocols.base import FrameSource, Protocol, Sender, load
 
 #: hil's own protocols: name -> "module:Class" of their Protocol
 BUILTIN = {"cia402": "hil.protocols.cia402:Cia402", "odrive": "hil.protocols.odrive:ODrive",
-           "mit": "hil.protocols.mit:Mit"}
+           "mit": "hil.protocols.mit:Mit", "damiao": "hil.protocols.damiao:Damiao"}
 ENTRY_POINT_GROUP = "hil.protocols"
 
 

@@ -15,7 +15,7 @@ import importlib
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 
 class Sender(enum.Enum):
@@ -39,6 +39,19 @@ class FrameSource:
     cycle: bool = False
 
 
+@dataclass(frozen=True)
+class DriveSetting:
+    """What ``hil init`` knows of one drive when it writes the protocol's options, all at
+    the drive (motor side, after the transmission)."""
+
+    reach: float           # rad (m): the largest |position| the joint's range asks of it
+    speed: float           # rad/s: the joint's velocity limit
+    peak_torque: float     # N·m: the joint's effort limit
+    kp: float              # N·m/rad: a critically damped position loop on its inertia
+    kd: float              # N·m·s/rad
+    model: str | None      # the product sized for it (a key of Protocol.models), if any
+
+
 class ProtocolOptions:
     """A protocol's own settings in a bus config (``options:`` of a drive), with what hil
     asks of every protocol's settings declared here with its default."""
@@ -48,6 +61,12 @@ class ProtocolOptions:
         """Whether the master sends the trajectory's velocity beside each target (a
         feed-forward the bus load and the tracking depend on)."""
         return False
+
+    def drive_defaults(self) -> dict[str, float | bool]:
+        """Drive keys of the bus config (``peak_torque``, ``rated_torque``,
+        ``max_velocity``, ``holding_brake``) that the product these settings name sets where
+        the config does not: a motor model's published figures. None by default."""
+        return {}
 
 
 class Protocol(ABC):
@@ -67,6 +86,10 @@ class Protocol(ABC):
     #: the protocol's own settings in a bus config: a frozen dataclass, a ProtocolOptions,
     #: with ``KEYS`` and ``from_mapping(values)`` raising ValueError; None if it has none
     Options: ClassVar[type | None] = None
+    #: the products its drives can be, by name (``hil init --motor``), each with ``name``,
+    #: ``rated_torque``, ``peak_torque`` (N·m), ``no_load_speed`` (rad/s) and
+    #: ``reflected_inertia`` (kg·m²) at the drive; none by default
+    models: ClassVar[Mapping[str, Any]] = {}
     #: "module:Class" of the simulated drive and of the master-side axis
     drive: ClassVar[str]
     axis: ClassVar[str]
@@ -107,6 +130,11 @@ class Protocol(ABC):
     def shared_ids(cls, options=None) -> set[int]:
         """Ids that several drives of this protocol on one bus may use at once."""
         return set()
+
+    @classmethod
+    def initial_options(cls, setting: DriveSetting) -> dict | None:
+        """The ``options:`` ``hil init`` writes for a drive (None: none)."""
+        return None
 
     @classmethod
     def drive_class(cls) -> type:

@@ -19,7 +19,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import FrameSource, Protocol, ProtocolOptions, Sender
+import math
+
+from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender
 
 ENTER_MOTOR_MODE = bytes([0xFF] * 7 + [0xFC])
 EXIT_MOTOR_MODE = bytes([0xFF] * 7 + [0xFD])
@@ -155,6 +157,15 @@ class Mit(Protocol):
         return [(node_id, 8, cycle_hz), (options.reply_id, 6, cycle_hz)]
 
     @classmethod
+    def initial_options(cls, setting: DriveSetting) -> dict:
+        """Ranges covering the drive's side of its joint with a margin (1.2x; an unlimited
+        joint two turns each way), and the master's gains."""
+        return {"p_max": _round_up(1.2 * setting.reach), "v_max": _round_up(1.2 * setting.speed),
+                "t_max": _round_up(1.2 * setting.peak_torque),
+                "kp_max": _round_up(2 * setting.kp), "kd_max": _round_up(2 * setting.kd),
+                "kp": float(f"{setting.kp:.4g}"), "kd": float(f"{setting.kd:.4g}")}
+
+    @classmethod
     def frame_source(cls, can_id: int, data: bytes, remote: bool,
                      drives: Mapping[int, object]) -> FrameSource | None:
         """A command goes to the motor's id; a reply to the master's, naming the motor in
@@ -174,3 +185,11 @@ class Mit(Protocol):
     def shared_ids(cls, options: MitOptions | None = None) -> set[int]:
         """Every motor replies to the master's one id (telling itself by the first byte)."""
         return {(options or MitOptions()).reply_id}
+
+
+def _round_up(value: float) -> float:
+    """Up to two significant digits (a range written by hand would look so)."""
+    if value <= 0:
+        return 1.0
+    scale = 10 ** (math.floor(math.log10(value)) - 1)
+    return float(f"{math.ceil(value / scale) * scale:.6g}")

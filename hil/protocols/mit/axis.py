@@ -13,7 +13,8 @@ from __future__ import annotations
 from hil.bus_config.types import DriveConfig
 from hil.hardware.axis import Axis, AxisCommand, Frame
 from hil.protocols.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitCommand, MitOptions, pack_command, unpack_reply,
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitCommand, MitOptions, MitRanges, pack_command,
+    unpack_reply,
 )
 
 
@@ -22,19 +23,25 @@ class MitAxis(Axis):
 
     def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
         super().__init__(config, bus_name, on_feedback)
-        self.options: MitOptions = config.options     # kp > 0: checked with the bus config
+        self.ranges, self.kp, self.kd, self.reply_id = self.command_settings(config)
         self.motor_mode = False
         self._pending_special: bytes | None = None
         self._hold: float | None = None
 
+    @staticmethod
+    def command_settings(config: DriveConfig) -> tuple[MitRanges, float, float, int]:
+        """The commands' ranges, the master's gains and the id the motor answers on."""
+        options: MitOptions = config.options          # kp > 0: checked with the bus config
+        return options.ranges, options.kp, options.kd, options.reply_id
+
     def subscriptions(self):
         # every motor answers on the master's id; each axis keeps the answers with its id
-        return {self.options.reply_id: self._on_reply}
+        return {self.reply_id: self._on_reply}
 
     def _on_reply(self, can_id, data, timestamp) -> None:
         if len(data) != 6 or data[0] != self.node_id:
             return
-        reply = unpack_reply(bytes(data), self.options.ranges)
+        reply = unpack_reply(bytes(data), self.ranges)
         self.feedback.position, self.feedback.velocity = reply.position, reply.velocity
         self.feedback.torque = reply.torque
         self.booted.set()
@@ -69,12 +76,11 @@ class MitAxis(Axis):
         elif stopping or enabling:
             if self._hold is None:
                 self._hold = self.feedback.position
-            sent = MitCommand(self._hold, 0.0, self.options.kp, self.options.kd,
-                              0.0 if stopping else torque)
+            sent = MitCommand(self._hold, 0.0, self.kp, self.kd, 0.0 if stopping else torque)
         else:
             self._hold = None
-            sent = MitCommand(target, velocity, self.options.kp, self.options.kd, torque)
-        return [(self.node_id, pack_command(sent, self.options.ranges), False)]
+            sent = MitCommand(target, velocity, self.kp, self.kd, torque)
+        return [(self.node_id, pack_command(sent, self.ranges), False)]
 
     def disable_rounds(self) -> list[list[Frame]]:
         self.motor_mode = False

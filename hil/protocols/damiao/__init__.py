@@ -1,0 +1,236 @@
+"""Damiao DM-J motors (DM4310, DM4340, DM8009, ...) on CAN, as the maker's firmware speaks.
+
+From the maker's documents (the DM-J manuals' CAN protocol; Damiao's sample code
+``DM_CAN.py``) and as python ``damiao-motor`` and OpenArm's ``openarm_can`` implement them:
+
+* Commands, 8 bytes, by control mode (register 10, CTRL_MODE): MIT (1) on the motor's id
+  (ESC_ID), packed as the mini-cheetah firmware packs them (:mod:`hil.protocols.mit`) with
+  the motor's PMAX/VMAX/TMAX and kp 0..500, kd 0..5; position-velocity (2) on 0x100 + id
+  (float32 position, float32 velocity limit); velocity (3) on 0x200 + id (float32
+  velocity); force-position (4) on 0x300 + id (float32 position, uint16 velocity limit x
+  100, uint16 torque limit as a fraction of TMAX x 10000). A command on the id of another
+  mode than CTRL_MODE's moves nothing.
+* Special frames on the motor's id: ``FF FF FF FF FF FF FF`` then ``FC`` enable, ``FD``
+  disable, ``FE`` save the position zero, ``FB`` clear the error. None of them moves the
+  motor (a clear-error frame is never a command).
+* Every frame is answered with the feedback, 8 bytes, on the master's id (MST_ID): D0 the
+  motor id (low nibble) and its state (high nibble: :class:`State`), D1-D2 position (16
+  bit), D3-D5 velocity and torque (12 bit each), D6 the MOSFETs' and D7 the rotor's
+  temperature (°C).
+* Registers on 0x7FF (:mod:`hil.protocols.damiao.registers`): ``[id lo, id hi, op, register,
+  value (4 bytes, little-endian)]``, op 0x33 read, 0x55 write, 0xAA save, 0xCC refresh; a
+  read and a write are answered on the master's id with the same layout and the register's
+  value (uint32 or float32 by register).
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender
+from hil.protocols.damiao.models import MODELS, DamiaoModel, model
+from hil.protocols.damiao.registers import REGISTER_ID, REGISTERS, TIMEOUT_UNIT, Op
+from hil.protocols.mit import MitRanges, float_to_uint, uint_to_float
+
+SPECIAL_PREFIX = bytes([0xFF] * 7)
+ENABLE, DISABLE, SAVE_ZERO, CLEAR_ERROR = (SPECIAL_PREFIX + bytes([last])
+                                           for last in (0xFC, 0xFD, 0xFE, 0xFB))
+#: kp and kd ranges of an MIT command on every model (the maker's sample code)
+KP_MAX, KD_MAX = 500.0, 5.0
+
+
+class ControlMode(enum.IntEnum):
+    """CTRL_MODE (register 10), and the id offset of its commands."""
+
+    MIT = 1
+    POSITION_VELOCITY = 2
+    VELOCITY = 3
+    FORCE_POSITION = 4
+
+    @property
+    def id_offset(self) -> int:
+        return 0x100 * (self.value - 1)
+
+
+class State(enum.IntEnum):
+    """The feedback's state nibble (the maker's error codes)."""
+
+    DISABLED = 0x0
+    ENABLED = 0x1
+    OVER_VOLTAGE = 0x8
+    UNDER_VOLTAGE = 0x9
+    OVER_CURRENT = 0xA
+    MOS_OVER_TEMPERATURE = 0xB
+    ROTOR_OVER_TEMPERATURE = 0xC
+    LOST_COMMUNICATION = 0xD
+    OVERLOAD = 0xE
+
+    @property
+    def is_error(self) -> bool:
+        return self >= State.OVER_VOLTAGE
+
+
+@dataclass(frozen=True)
+class DamiaoOptions(ProtocolOptions):
+    """A Damiao motor's settings in a bus config (``options:`` of the drive)."""
+
+    model: DamiaoModel = MODELS["DM4310"]
+    #: MST_ID: the id the motor answers on (default: its own id + 0x10, as the maker's
+    #: guides recommend)
+    master_id: int | None = None
+    #: the mapping ranges (PMAX, VMAX, TMAX registers; default: the model's)
+    p_max: float | None = None
+    v_max: float | None = None
+    t_max: float | None = None
+    control_mode: ControlMode = ControlMode.MIT
+    #: the gains hil's own master sends in MIT commands (output side; 0: the drive's
+    #: tuning, see hil.protocols.damiao.axis)
+    kp: float = 0.0
+    kd: float = 0.0
+
+    KEYS = ("model", "master_id", "p_max", "v_max", "t_max", "control_mode", "kp", "kd")
+
+    @classmethod
+    def from_mapping(cls, values: dict) -> DamiaoOptions:
+        """Raise ValueError naming the key for anything out of range."""
+        try:
+            found = model(str(values["model"])) if "model" in values else MODELS["DM4310"]
+        except KeyError as exc:
+            raise ValueError(exc.args[0]) from None
+        ranges = {key: float(values[key]) for key in ("p_max", "v_max", "t_max")
+                  if key in values}
+        for key, value in ranges.items():
+            if not value > 0:
+                raise ValueError(f"'{key}' must be > 0")
+        mode = values.get("control_mode", "MIT")
+        try:
+            mode = ControlMode[str(mode).upper()] if not isinstance(mode, int) \
+                else ControlMode(mode)
+        except (KeyError, ValueError):
+            raise ValueError(f"'control_mode' {mode!r} is not one of "
+                             f"{', '.join(m.name for m in ControlMode)}") from None
+        master = values.get("master_id")
+        if master is not None and not 0 <= int(master) <= 0x7FF:
+            raise ValueError(f"'master_id' {master} is not an 11-bit CAN id")
+        options = cls(found, None if master is None else int(master), control_mode=mode,
+                      kp=float(values.get("kp", 0.0)), kd=float(values.get("kd", 0.0)),
+                      **ranges)
+        if not (0 <= options.kp <= KP_MAX and 0 <= options.kd <= KD_MAX):
+            raise ValueError(f"'kp' must be in [0, {KP_MAX:g}] and 'kd' in [0, {KD_MAX:g}]")
+        return options
+
+    def drive_defaults(self) -> dict[str, float | bool]:
+        """The model's output-shaft figures: peak and rated torque, no-load speed; no
+        holding brake (the DM-J manuals list none)."""
+        return {"peak_torque": self.model.peak_torque, "rated_torque": self.model.rated_torque,
+                "max_velocity": self.model.no_load_speed, "holding_brake": False}
+
+    def reply_id(self, node_id: int) -> int:
+        return self.master_id if self.master_id is not None else node_id + 0x10
+
+    def ranges(self) -> MitRanges:
+        """The MIT mapping the motor starts with (its PMAX/VMAX/TMAX registers)."""
+        return MitRanges(self.p_max or self.model.p_max, self.v_max or self.model.v_max,
+                         KP_MAX, KD_MAX, self.t_max or self.model.t_max)
+
+
+@dataclass(frozen=True)
+class Feedback:
+    motor_id: int          # the low nibble of the motor's id
+    state: State
+    position: float
+    velocity: float
+    torque: float
+    mos_temperature: int = 25
+    rotor_temperature: int = 25
+
+
+def pack_feedback(feedback: Feedback, ranges: MitRanges) -> bytes:
+    p = float_to_uint(feedback.position, -ranges.p_max, ranges.p_max, 16)
+    v = float_to_uint(feedback.velocity, -ranges.v_max, ranges.v_max, 12)
+    t = float_to_uint(feedback.torque, -ranges.t_max, ranges.t_max, 12)
+    return bytes([(feedback.state << 4) | (feedback.motor_id & 0x0F), p >> 8, p & 0xFF, v >> 4,
+                  ((v & 0xF) << 4) | (t >> 8), t & 0xFF, feedback.mos_temperature & 0xFF,
+                  feedback.rotor_temperature & 0xFF])
+
+
+def unpack_feedback(data: bytes, ranges: MitRanges) -> Feedback:
+    """ValueError for a state code the maker does not define."""
+    p = (data[1] << 8) | data[2]
+    v = (data[3] << 4) | (data[4] >> 4)
+    t = ((data[4] & 0xF) << 8) | data[5]
+    return Feedback(data[0] & 0x0F, State(data[0] >> 4),
+                    uint_to_float(p, -ranges.p_max, ranges.p_max, 16),
+                    uint_to_float(v, -ranges.v_max, ranges.v_max, 12),
+                    uint_to_float(t, -ranges.t_max, ranges.t_max, 12), data[6], data[7])
+
+
+def is_register_answer(data: bytes) -> bool:
+    """Whether a frame on the master's id answers a register request, not feedback: byte 1
+    an id's high byte (at most 7), byte 2 0x33 or 0x55, byte 3 a register, as the maker's
+    sample code and python ``damiao-motor`` tell them apart (feedback can look so only
+    with the position within a few per mille of -PMAX)."""
+    return (len(data) == 8 and data[1] <= 0x07 and data[2] in (Op.READ, Op.WRITE)
+            and data[3] in REGISTERS)
+
+
+class Damiao(Protocol):
+    """Damiao DM-J motors: a command and its feedback per motor per cycle."""
+
+    name = "damiao"
+    Options = DamiaoOptions
+    carries_torque_feed_forward = True
+    has_following_error = False
+    node_ids = range(1, 0x100)          # the mode offsets 0x100..0x300 must not collide
+    models = MODELS
+    drive = "hil.protocols.damiao.drive:DamiaoDrive"
+    axis = "hil.protocols.damiao.axis:DamiaoAxis"
+
+    @classmethod
+    def initial_options(cls, setting: DriveSetting) -> dict:
+        """The model (sized for the drive, else the DM4310) with its ranges, and the
+        master's MIT gains within the command's ranges."""
+        found = MODELS[setting.model or "DM4310"]
+        return {"model": found.name, "p_max": found.p_max, "v_max": found.v_max,
+                "t_max": found.t_max, "kp": float(f"{min(setting.kp, KP_MAX):.4g}"),
+                "kd": float(f"{min(setting.kd, KD_MAX):.4g}")}
+
+    @classmethod
+    def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float,
+                   options: DamiaoOptions | None = None) -> list[tuple[int, int, float]]:
+        options = options or DamiaoOptions()
+        command = node_id + options.control_mode.id_offset
+        return [(command, 8, cycle_hz), (options.reply_id(node_id), 8, cycle_hz)]
+
+    @classmethod
+    def frame_source(cls, can_id: int, data: bytes, remote: bool,
+                     drives: Mapping[int, object]) -> FrameSource | None:
+        """Commands go to a motor's id (plus its mode's offset), register requests to 0x7FF
+        naming the motor in bytes 0-1; answers come on its master id."""
+        if can_id == REGISTER_ID and len(data) >= 2:
+            node = data[0] | (data[1] << 8)
+            return FrameSource(Sender.MASTER, node, "register") if node in drives else None
+        node = can_id & 0xFF
+        if node in drives and can_id - node in (m.id_offset for m in ControlMode):
+            return FrameSource(Sender.MASTER, node, "command", cycle=True)
+        for node, options in drives.items():
+            if can_id == (options or DamiaoOptions()).reply_id(node) and data and (
+                    (data[0] & 0x0F) == (node & 0x0F)):
+                return FrameSource(Sender.DRIVE, node, "feedback")
+        return None
+
+    @classmethod
+    def source_reads_data(cls, can_id: int, drives: Mapping[int, object]) -> bool:
+        return True          # register requests and feedback name their motor in the data
+
+    @classmethod
+    def shared_ids(cls, options: DamiaoOptions | None = None) -> set[int]:
+        """Every motor takes register requests on 0x7FF (telling its own by bytes 0-1)."""
+        return {REGISTER_ID}
+
+
+__all__ = ["CLEAR_ERROR", "DISABLE", "ENABLE", "SAVE_ZERO", "ControlMode", "Damiao",
+           "DamiaoOptions", "Feedback", "Op", "REGISTER_ID", "State", "TIMEOUT_UNIT",
+           "is_register_answer", "pack_feedback", "unpack_feedback"]

@@ -1,0 +1,291 @@
+"""Damiao DM-J motors as the maker's firmware speaks: the codec against the maker's layout,
+the special frames (none of them moves a motor), the registers, the lost-communication
+state, and published client libraries driving a simulated motor through their README's
+sequence (python ``damiao-motor``, pinned in the test extra).
+
+Sources: the DM-J manuals' CAN protocol as Damiao's sample code ``DM_CAN.py`` implements it
+(special frames FF x 7 + FC/FD/FE/FB, mode ids 0x100/0x200/0x300 + id, registers on 0x7FF,
+``Limit_Param``), and the feedback layout python ``damiao-motor`` documents (its
+communication-protocol page: D0 state << 4 | id, D6 MOSFET and D7 rotor temperature)."""
+
+from __future__ import annotations
+
+import struct
+import threading
+import time
+import uuid
+
+import can
+import pytest
+
+from conftest import TESTS, socketcan_missing
+from hil.bus_config import load_bus_config, open_buses
+from hil.drives import Power
+from hil.protocols.damiao import (
+    CLEAR_ERROR, DISABLE, ENABLE, SAVE_ZERO, ControlMode, DamiaoOptions, Feedback, State,
+    pack_feedback, unpack_feedback,
+)
+from hil.protocols.damiao.models import MODELS, model
+from hil.protocols.mit import MitCommand, MitRanges, pack_command
+from hil.realtime import REAL_TIME
+from hil.simulator import Simulator
+from hil.zenoh_session import ZenohSettings
+
+CONFIG = TESTS / "fixtures" / "damiao_one_axis.yaml"
+DM4310 = MitRanges(12.5, 30.0, 500.0, 5.0, 10.0)
+#: one LSB of the feedback's position: 16 bits over [-PMAX, PMAX]
+POSITION_LSB = 25.0 / 65535
+
+
+# --- the codec ------------------------------------------------------------------------
+
+def test_feedback_carries_state_and_id_in_d0_and_the_temperatures_last():
+    # position 0 -> 32767 (7FFF), velocity 0 -> 2047 (7FF), torque 0 -> 2047: the
+    # mini-cheetah packing of the maker's sample code, state ENABLED (1), motor 1
+    data = pack_feedback(Feedback(1, State.ENABLED, 0.0, 0.0, 0.0, 31, 40), DM4310)
+    assert data.hex().upper() == "117FFF7FF7FF1F28"
+    lost = unpack_feedback(bytes.fromhex("D37FFF7FF7FF1F28"), DM4310)
+    assert (lost.motor_id, lost.state, lost.mos_temperature) == (3, State.LOST_COMMUNICATION, 31)
+
+
+def test_the_special_frames_are_the_makers():
+    assert [frame.hex().upper() for frame in (ENABLE, DISABLE, SAVE_ZERO, CLEAR_ERROR)] == [
+        "FFFFFFFFFFFFFF" + last for last in ("FC", "FD", "FE", "FB")]
+
+
+def test_each_model_maps_with_the_makers_limit_param():
+    # Damiao's DM_CAN.py: 4310 [12.5, 30, 10], 4310_48 [12.5, 50, 10], 4340 [12.5, 8, 28],
+    # 4340_48 [12.5, 10, 28], 6006 [12.5, 45, 20], 8006 [12.5, 45, 40], 8009 [12.5, 45, 54],
+    # 10010L [12.5, 25, 200], 10010 [12.5, 20, 200]
+    expected = {"DM4310": (12.5, 30, 10), "DM4310_48V": (12.5, 50, 10), "DM4340": (12.5, 8, 28),
+                "DM4340_48V": (12.5, 10, 28), "DM6006": (12.5, 45, 20),
+                "DM8006": (12.5, 45, 40), "DM8009": (12.5, 45, 54),
+                "DM10010L": (12.5, 25, 200), "DM10010": (12.5, 20, 200)}
+    for name, ranges in expected.items():
+        found = MODELS[name]
+        assert (found.p_max, found.v_max, found.t_max) == ranges, name
+    assert model("dm-j4340") is MODELS["DM4340"] and model("4310") is MODELS["DM4310"]
+
+
+def test_options_name_the_model_and_refuse_an_unknown_one():
+    options = DamiaoOptions.from_mapping({"model": "DM4340", "control_mode": "velocity"})
+    assert options.ranges().v_max == 8 and options.control_mode is ControlMode.VELOCITY
+    assert options.drive_defaults()["peak_torque"] == 27
+    with pytest.raises(ValueError, match="no Damiao model 'DM9999'"):
+        DamiaoOptions.from_mapping({"model": "DM9999"})
+
+
+# --- a simulated motor on a bus -------------------------------------------------------
+
+class DamiaoBench:
+    """tests/fixtures/damiao_one_axis.yaml's DM4310 in a real-time Simulator, on a Zenoh
+    channel of its own (or SocketCAN ``vcan0``); a master's python-can bus on the same
+    channel."""
+
+    def __init__(self, interface: str = "zenoh", channel: str | None = None):
+        self.channel = channel or f"damiao-{uuid.uuid4().hex[:8]}"
+        config = load_bus_config(CONFIG)
+        self.sim_buses = open_buses(config, ZenohSettings.meeting(), interface,
+                                    channels={"arm": self.channel})
+        self.sim = Simulator(config, self.sim_buses, REAL_TIME)
+        self.drive = self.sim.drives[0]
+        self.sim.start()
+        self._thread = threading.Thread(target=self.sim.run, daemon=True)
+        self._thread.start()
+        self.master = can.Bus(interface=interface, channel=self.channel)
+
+    def ask(self, can_id: int, data: bytes, timeout: float = 2.0) -> can.Message | None:
+        """Send a frame; the next frame the motor sends."""
+        while self.master.recv(0) is not None:
+            pass
+        self.master.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False))
+        return self.master.recv(timeout)
+
+    def joint(self) -> float:
+        with self.sim.lock:
+            return float(self.sim.plant.joint_positions()[0])
+
+    def close(self):
+        self.master.shutdown()
+        self.sim.stop()
+        self._thread.join(5)
+        self.sim.close()
+        for bus in self.sim_buses.values():
+            bus.shutdown()
+
+
+@pytest.fixture
+def bench():
+    made = DamiaoBench()
+    yield made
+    made.close()
+
+
+def test_every_frame_is_answered_with_8_bytes_of_feedback_on_the_master_id(bench):
+    reply = bench.ask(0x001, ENABLE)
+    assert reply.arbitration_id == 0x11 and len(reply.data) == 8
+    assert reply.data[0] == (State.ENABLED << 4) | 1
+    assert reply.data[6] == reply.data[7] == 25                     # °C: no heating modelled
+
+
+@pytest.mark.parametrize("special", [CLEAR_ERROR, SAVE_ZERO, DISABLE, ENABLE],
+                         ids=["clear-error", "save-zero", "disable", "enable"])
+def test_no_special_frame_moves_an_enabled_motor(bench, special):
+    """Issue 42: hil took FF x 7 FB for an MIT command at full scale (1.0 -> 4.6 rad in
+    20 ms). The maker: FB clears an error, FE saves the zero, FD disables, FC enables; none
+    is a setpoint."""
+    bench.ask(0x001, ENABLE)
+    hold = pack_command(MitCommand(bench.joint(), 0.0, 20.0, 0.5, 0.0), DM4310)
+    bench.ask(0x001, hold)
+    time.sleep(0.2)
+    before = bench.joint()
+    for _ in range(10):
+        bench.ask(0x001, special)
+    time.sleep(0.3)
+    assert bench.joint() == pytest.approx(before, abs=0.01)
+
+
+def test_a_command_of_another_mode_moves_nothing(bench):
+    bench.ask(0x001, ENABLE)
+    before = bench.joint()
+    reply = bench.ask(0x201, struct.pack("<f", 5.0) + bytes(4))      # VEL, CTRL_MODE is MIT
+    time.sleep(0.3)
+    assert reply is not None and bench.joint() == pytest.approx(before, abs=0.01)
+
+
+def test_registers_read_write_and_the_control_mode_takes_effect(bench):
+    read = bench.ask(0x7FF, bytes([1, 0, 0x33, 10, 0, 0, 0, 0]))
+    assert bytes(read.data) == bytes([1, 0, 0x33, 10]) + struct.pack("<I", 1)   # MIT
+    assert read.arbitration_id == 0x11
+    pmax = bench.ask(0x7FF, bytes([1, 0, 0x33, 21, 0, 0, 0, 0]))
+    assert struct.unpack("<f", bytes(pmax.data[4:]))[0] == pytest.approx(12.5)
+    wrote = bench.ask(0x7FF, bytes([1, 0, 0x55, 10]) + struct.pack("<I", 3))   # VEL
+    assert bytes(wrote.data) == bytes([1, 0, 0x55, 10]) + struct.pack("<I", 3)
+    bench.ask(0x001, ENABLE)
+    bench.ask(0x201, struct.pack("<f", 2.0) + bytes(4))
+    time.sleep(0.4)
+    assert bench.drive.core.status().velocity == pytest.approx(2.0, abs=0.2)
+    bench.ask(0x201, struct.pack("<f", 0.0) + bytes(4))
+
+
+def test_a_register_write_it_cannot_take_leaves_it_and_answers_what_it_kept(bench):
+    wrote = bench.ask(0x7FF, bytes([1, 0, 0x55, 10]) + struct.pack("<I", 9))
+    assert struct.unpack("<I", bytes(wrote.data[4:]))[0] == 1
+    other = bench.ask(0x7FF, bytes([2, 0, 0x33, 10, 0, 0, 0, 0]), timeout=0.3)
+    assert other is None                                      # motor 2 is not on this bus
+
+
+def test_silence_past_the_timeout_is_lost_communication_until_cleared(bench):
+    bench.ask(0x7FF, bytes([1, 0, 0x55, 9]) + struct.pack("<I", 2000))     # 2000 x 50 us
+    bench.ask(0x001, ENABLE)
+    bench.ask(0x001, pack_command(MitCommand(bench.joint(), 0, 10.0, 0.3, 0), DM4310))
+    time.sleep(0.4)                                            # the watchdog: 0.1 s
+    reply = bench.ask(0x7FF, bytes([1, 0, 0xCC, 0, 0, 0, 0, 0]))           # refresh
+    assert reply.data[0] >> 4 == State.LOST_COMMUNICATION
+    assert bench.drive.core.power is not Power.ENABLED
+    assert bench.ask(0x001, ENABLE).data[0] >> 4 == State.LOST_COMMUNICATION   # not cleared
+    assert bench.ask(0x001, CLEAR_ERROR).data[0] >> 4 == State.DISABLED
+    assert bench.ask(0x001, ENABLE).data[0] >> 4 == State.ENABLED
+
+
+# --- published client libraries ---------------------------------------------------------
+
+def test_damiao_motor_drives_the_motor_through_its_readme_sequence(bench):
+    """python ``damiao-motor`` 1.0.6's README: a controller on the bus, add_motor, enable_all,
+    ensure_control_mode("MIT"), send_cmd_mit, get_states, shutdown (its controller reads
+    the bus itself, here the ``zenoh`` interface)."""
+    from damiao_motor import DaMiaoController
+
+    controller = DaMiaoController(channel=bench.channel, bustype="zenoh")
+    try:
+        motor = controller.add_motor(motor_id=0x01, feedback_id=0x11, motor_type="4310")
+        controller.enable_all()
+        motor.ensure_control_mode("MIT")
+        deadline = time.monotonic() + 3.0
+        while time.monotonic() < deadline:        # its README sends one; a loop holds it
+            motor.send_cmd_mit(target_position=1.0, target_velocity=0.0, stiffness=20.0,
+                               damping=0.5, feedforward_torque=0.0)
+            time.sleep(0.01)
+        state = motor.get_states()
+        assert state["status"] == "ENABLED"
+        assert state["pos"] == pytest.approx(1.0, abs=0.02)
+        assert state["pos"] == pytest.approx(bench.joint(), abs=2 * POSITION_LSB)
+        controller.disable_all()
+        time.sleep(0.1)
+        assert bench.drive.core.power is Power.DISABLED
+    finally:
+        controller.shutdown()
+
+
+@pytest.mark.socketcan
+def test_motorbridge_drives_the_motor_through_its_readme_sequence_over_socketcan():
+    """``motorbridge`` 0.5.6 (a Rust core behind a Python SDK, SocketCAN only on Linux: run
+    inside User-Mode Linux's vcan0): Controller, add_damiao_motor, enable_all, ensure_mode
+    MIT, send_mit, get_state, disable_all."""
+    missing = socketcan_missing()
+    if missing:
+        pytest.skip(missing)
+    from motorbridge import Controller, Mode
+
+    bench = DamiaoBench("socketcan", "vcan0")
+    try:
+        with Controller("vcan0") as controller:
+            motor = controller.add_damiao_motor(0x01, 0x11, "4310")
+            controller.enable_all()
+            motor.ensure_mode(Mode.MIT, 2000)
+            deadline = time.monotonic() + 3.0
+            while time.monotonic() < deadline:
+                motor.send_mit(-0.8, 0.0, 20.0, 0.5, 0.0)
+                controller.poll_feedback_once()
+                time.sleep(0.01)
+            state = motor.get_state()
+            assert state is not None and state.status_code == State.ENABLED
+            assert state.pos == pytest.approx(-0.8, abs=0.02)
+            assert state.pos == pytest.approx(bench.joint(), abs=2 * POSITION_LSB)
+            controller.disable_all()
+            time.sleep(0.1)
+            assert bench.drive.core.power is Power.DISABLED
+    finally:
+        bench.close()
+
+
+# --- hil's own side: hil init with a model, hil's master ----------------------------------
+
+def test_hil_init_with_a_model_writes_the_models_ranges_and_figures(tmp_path):
+    """Issue 42: `hil init ROBOT --protocol damiao --motor DM4340` writes a config whose
+    ranges are the model's (the maker's Limit_Param: 12.5 rad, 8 rad/s, 28 N·m) and whose
+    drives have its torques (27 N·m peak, 9 rated)."""
+    from hil.cli import main
+
+    output = tmp_path / "one.yaml"
+    assert main(["init", str(TESTS / "fixtures" / "damiao_one_axis.urdf"), "--protocol",
+                 "damiao", "--motor", "DM-J4340", "-o", str(output)]) == 0
+    drive = load_bus_config(output).drives[0]
+    ranges = drive.options.ranges()
+    assert (ranges.p_max, ranges.v_max, ranges.t_max) == (12.5, 8, 28)
+    assert drive.options.model is MODELS["DM4340"]
+    assert (drive.peak_torque, drive.holding_brake) == (27, False)
+
+
+def test_hil_init_refuses_a_model_the_protocol_does_not_know(tmp_path, capsys):
+    from hil.cli import main
+
+    assert main(["init", str(TESTS / "fixtures" / "damiao_one_axis.urdf"), "--protocol",
+                 "damiao", "--motor", "DM9999", "-o", str(tmp_path / "x.yaml")]) == 1
+    assert "one of: DM3507, DM4310" in capsys.readouterr().err
+
+
+def test_hils_master_drives_damiao_motors_in_mit_mode_lock_step():
+    from hil.controllers import GoalStatus, TrajectoryGoal, TrajectoryPoint
+    from hil.messaging.zenoh_api import TrajectoryActionClient
+    from hil.realtime import LOCK_STEP
+    from hil.stack import running_stack
+
+    config = load_bus_config(CONFIG)
+    with running_stack(config, LOCK_STEP) as stack:
+        client = TrajectoryActionClient(stack.zenoh, config.robot.name)
+        goal = TrajectoryGoal(("yaw",), (TrajectoryPoint(1.0, (0.5,), (0.0,)),))
+        result = client.wait_result(client.send_goal(goal), timeout=60)
+        client.close()
+        assert result.status is GoalStatus.SUCCEEDED, result
+        assert stack.sim.plant.joint_positions()[0] == pytest.approx(0.5, abs=0.01)
