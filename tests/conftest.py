@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import yaml
 
-from hil.bus_config import load_bus_config
+from hil.bus_config import load_bus_config, open_buses
 from hil.can import socketcan_missing as can_socketcan_missing
 from hil.cli import main
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
@@ -27,7 +27,7 @@ from hil.description import PackagePath, load_description
 from hil.messaging.zenoh_api import TrajectoryActionClient
 from hil.simulator import Simulator
 from hil.stack import Stack
-from hil.zenoh_session import MEETING_VARIABLE, free_loopback_port
+from hil.zenoh_session import MEETING_VARIABLE, ZenohSettings, free_loopback_port
 from hil.realtime import REAL_TIME, Timing
 
 TESTS = Path(__file__).resolve().parent
@@ -185,6 +185,51 @@ def bench(transport):
     made = Bench(*transport)
     yield made
     made.close()
+
+
+class ClientBench:
+    """A bus config's drives in a real-time Simulator of this process, on a Zenoh channel of
+    their own (or a SocketCAN channel), for a client library to drive; a master's
+    python-can bus beside them (:meth:`ask`). One bus configs only."""
+
+    def __init__(self, config_path: Path, interface: str = "zenoh", channel: str | None = None):
+        self.config = load_bus_config(config_path)
+        self.channel = channel or f"bench-{uuid.uuid4().hex[:8]}"
+        name = self.config.buses[0].name
+        self.sim_buses = open_buses(self.config, ZenohSettings.meeting(), interface,
+                                    channels={name: self.channel})
+        self.sim = Simulator(self.config, self.sim_buses, REAL_TIME)
+        self.drive = self.sim.drives[0]
+        self.sim.start()
+        self._thread = threading.Thread(target=self.sim.run, daemon=True)
+        self._thread.start()
+        self.master = can.Bus(interface=interface, channel=self.channel)
+
+    def ask(self, can_id: int, data: bytes = b"", timeout: float = 2.0, remote: bool = False,
+            answer_id: int | None = None) -> can.Message | None:
+        """Send a frame; the next frame the drives send (on ``answer_id`` if given)."""
+        while self.master.recv(0) is not None:
+            pass
+        self.master.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False,
+                                     is_remote_frame=remote))
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            reply = self.master.recv(max(0.0, deadline - time.monotonic()))
+            if reply is not None and (answer_id is None or reply.arbitration_id == answer_id):
+                return reply
+        return None
+
+    def joint(self) -> float:
+        with self.sim.lock:
+            return float(self.sim.plant.joint_positions()[0])
+
+    def close(self):
+        self.master.shutdown()
+        self.sim.stop()
+        self._thread.join(5)
+        self.sim.close()
+        for bus in self.sim_buses.values():
+            bus.shutdown()
 
 
 # --- an in-process controller stack --------------------------------------------

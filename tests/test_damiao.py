@@ -11,15 +11,12 @@ communication-protocol page: D0 state << 4 | id, D6 MOSFET and D7 rotor temperat
 from __future__ import annotations
 
 import struct
-import threading
 import time
-import uuid
 
-import can
 import pytest
 
-from conftest import TESTS, socketcan_missing
-from hil.bus_config import load_bus_config, open_buses
+from conftest import TESTS, ClientBench, socketcan_missing
+from hil.bus_config import load_bus_config
 from hil.drives import Power
 from hil.protocols.damiao import (
     CLEAR_ERROR, DISABLE, ENABLE, SAVE_ZERO, ControlMode, DamiaoOptions, Feedback, State,
@@ -27,9 +24,6 @@ from hil.protocols.damiao import (
 )
 from hil.protocols.damiao.models import MODELS, model
 from hil.protocols.mit import MitCommand, MitRanges, pack_command
-from hil.realtime import REAL_TIME
-from hil.simulator import Simulator
-from hil.zenoh_session import ZenohSettings
 
 CONFIG = TESTS / "fixtures" / "damiao_one_axis.yaml"
 DM4310 = MitRanges(12.5, 30.0, 500.0, 5.0, 10.0)
@@ -77,46 +71,10 @@ def test_options_name_the_model_and_refuse_an_unknown_one():
 
 # --- a simulated motor on a bus -------------------------------------------------------
 
-class DamiaoBench:
-    """tests/fixtures/damiao_one_axis.yaml's DM4310 in a real-time Simulator, on a Zenoh
-    channel of its own (or SocketCAN ``vcan0``); a master's python-can bus on the same
-    channel."""
-
-    def __init__(self, interface: str = "zenoh", channel: str | None = None):
-        self.channel = channel or f"damiao-{uuid.uuid4().hex[:8]}"
-        config = load_bus_config(CONFIG)
-        self.sim_buses = open_buses(config, ZenohSettings.meeting(), interface,
-                                    channels={"arm": self.channel})
-        self.sim = Simulator(config, self.sim_buses, REAL_TIME)
-        self.drive = self.sim.drives[0]
-        self.sim.start()
-        self._thread = threading.Thread(target=self.sim.run, daemon=True)
-        self._thread.start()
-        self.master = can.Bus(interface=interface, channel=self.channel)
-
-    def ask(self, can_id: int, data: bytes, timeout: float = 2.0) -> can.Message | None:
-        """Send a frame; the next frame the motor sends."""
-        while self.master.recv(0) is not None:
-            pass
-        self.master.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False))
-        return self.master.recv(timeout)
-
-    def joint(self) -> float:
-        with self.sim.lock:
-            return float(self.sim.plant.joint_positions()[0])
-
-    def close(self):
-        self.master.shutdown()
-        self.sim.stop()
-        self._thread.join(5)
-        self.sim.close()
-        for bus in self.sim_buses.values():
-            bus.shutdown()
-
-
 @pytest.fixture
 def bench():
-    made = DamiaoBench()
+    """The DM4310 of tests/fixtures/damiao_one_axis.yaml, and a master's bus beside it."""
+    made = ClientBench(CONFIG)
     yield made
     made.close()
 
@@ -227,7 +185,7 @@ def test_motorbridge_drives_the_motor_through_its_readme_sequence_over_socketcan
         pytest.skip(missing)
     from motorbridge import Controller, Mode
 
-    bench = DamiaoBench("socketcan", "vcan0")
+    bench = ClientBench(CONFIG, "socketcan", "vcan0")
     try:
         with Controller("vcan0") as controller:
             motor = controller.add_damiao_motor(0x01, 0x11, "4310")

@@ -181,7 +181,7 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
                                                     0.01)),
         quick_stop_deceleration=float(reader.number(merged, "quick_stop_deceleration", what,
                                                     max_velocity / 0.1)),
-        watchdog_timeout=float(reader.number(merged, "watchdog_timeout", what, 0.1)),
+        watchdog_timeout=_watchdog_timeout(reader, merged, what, product),
         heartbeat_period=float(reader.number(merged, "heartbeat_period", what, 0.1)),
         holding_brake=bool(brake),
         position_limits=_motor_limits(robot, transmission),
@@ -189,6 +189,16 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
         velocity_bandwidth_hz=float(reader.number(merged, "velocity_bandwidth_hz", what, 40.0)),
         options=options, line=own.line, effects=_read_effects(reader, merged, what),
         torque_feed_forward=_read_torque_feed_forward(reader, merged, what, spec))
+
+
+def _watchdog_timeout(reader: Reader, drive: LineMapping, what: str, product: dict) -> float:
+    """``watchdog_timeout`` (s; 0: off), by default the product's, else 0.1."""
+    value = float(reader.number(drive, "watchdog_timeout", what,
+                                product.get("watchdog_timeout", 0.1), positive=False))
+    if value < 0:
+        reader.fail(f"{what}: 'watchdog_timeout' must be >= 0 (0: no watchdog), not {value:g}",
+                    drive.key_lines.get("watchdog_timeout", drive.line))
+    return value
 
 
 def _read_torque_feed_forward(reader: Reader, drive: LineMapping, what: str, spec) -> str:

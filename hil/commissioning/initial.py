@@ -283,6 +283,7 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
                   f"{_number(s.motor.rotor_inertia)}}}   # {s.note}" for s in sizings]
     lines += ["", "defaults:", f"  protocol: {protocol_name}",
               "  encoder_counts_per_rev: 131072   # 17-bit encoder on the motor",
+              "  watchdog_timeout: 0.1            # s without commands before a drive stops",
               f"  heartbeat_period: {HEARTBEAT_PERIOD:g}", "", "buses:"]
     for number, drives in enumerate(buses, 1):
         node_id = 1

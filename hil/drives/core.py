@@ -133,8 +133,7 @@ class DriveCore:
     def move_to(self, position: float) -> None:
         """Profile position mode: a new target; the move to it starts from where the drive's
         reference is now (a move in progress blends into it)."""
-        self._profile.target = self._clamp_to_limits(position)
-        self._profile.halted = False
+        self._profile.move_to(self._clamp_to_limits(position), self.parameters)
 
     def halt(self, halted: bool) -> None:
         """Profile modes: decelerate to standstill (and hold) while ``halted``; a halted
@@ -161,9 +160,7 @@ class DriveCore:
         self._hold += offset
         self._setpoint.start += offset
         self._setpoint.end += offset
-        self._profile.position += offset
-        if not math.isnan(self._profile.target):
-            self._profile.target += offset
+        self._profile.shift(offset)
         limits = self.parameters.position_limits
         if limits is not None:
             self.parameters = replace(self.parameters,

@@ -21,7 +21,7 @@ import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import FrameSource, Protocol, ProtocolOptions, Sender
+from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender
 
 TURN = 2 * math.pi
 
@@ -40,11 +40,17 @@ class Cmd(enum.IntEnum):
     SET_INPUT_VEL = 0x0D
     SET_INPUT_TORQUE = 0x0E
     SET_LIMITS = 0x0F
+    SET_TRAJ_VEL_LIMIT = 0x11
+    SET_TRAJ_ACCEL_LIMITS = 0x12
+    SET_TRAJ_INERTIA = 0x13
     GET_IQ = 0x14
     GET_TEMPERATURE = 0x15
     REBOOT = 0x16
     GET_BUS_VOLTAGE_CURRENT = 0x17
     CLEAR_ERRORS = 0x18
+    SET_ABSOLUTE_POSITION = 0x19
+    SET_POS_GAIN = 0x1A
+    SET_VEL_GAINS = 0x1B
     GET_TORQUES = 0x1C
     GET_POWERS = 0x1D
 
@@ -61,6 +67,12 @@ LAYOUT = {
     Cmd.SET_INPUT_VEL: struct.Struct("<ff"),       # vel (rev/s), torque ff (N·m)
     Cmd.SET_INPUT_TORQUE: struct.Struct("<f4x"),
     Cmd.SET_LIMITS: struct.Struct("<ff"),          # velocity limit (rev/s), current limit (A)
+    Cmd.SET_TRAJ_VEL_LIMIT: struct.Struct("<f4x"),     # rev/s
+    Cmd.SET_TRAJ_ACCEL_LIMITS: struct.Struct("<ff"),   # accel, decel (rev/s^2)
+    Cmd.SET_TRAJ_INERTIA: struct.Struct("<f4x"),       # N·m / (rev/s^2)
+    Cmd.SET_ABSOLUTE_POSITION: struct.Struct("<f4x"),  # rev
+    Cmd.SET_POS_GAIN: struct.Struct("<f4x"),           # (rev/s) / rev
+    Cmd.SET_VEL_GAINS: struct.Struct("<ff"),           # N·m / (rev/s), N·m / rev
     Cmd.GET_IQ: struct.Struct("<ff"),              # setpoint, measured (A)
     Cmd.GET_TEMPERATURE: struct.Struct("<ff"),     # FET, motor (deg C)
     Cmd.REBOOT: struct.Struct("<B"),
@@ -89,6 +101,20 @@ class ControlMode(enum.IntEnum):
     POSITION_CONTROL = 3
 
 
+class InputMode(enum.IntEnum):
+    """``controller.config.input_mode``: how an input becomes the controller's setpoint."""
+
+    INACTIVE = 0
+    PASSTHROUGH = 1
+    VEL_RAMP = 2
+    POS_FILTER = 3
+    MIX_CHANNELS = 4
+    TRAP_TRAJ = 5
+    TORQUE_RAMP = 6
+    MIRROR = 7
+    TUNING = 8
+
+
 class ODriveError(enum.IntFlag):
     """ODrive 0.6 axis errors (the subset a simulated axis can raise)."""
 
@@ -112,19 +138,31 @@ def can_id(node_id: int, cmd: int) -> int:
     return (node_id << 5) | cmd
 
 
+#: each cyclic message's rate option (``axis.config.can.*_msg_rate_ms``) and its message
+RATE_OPTIONS = {"encoder_msg_rate_ms": Cmd.GET_ENCODER_ESTIMATES,
+                "torques_msg_rate_ms": Cmd.GET_TORQUES, "error_msg_rate_ms": Cmd.GET_ERROR,
+                "iq_msg_rate_ms": Cmd.GET_IQ, "temperature_msg_rate_ms": Cmd.GET_TEMPERATURE,
+                "bus_voltage_msg_rate_ms": Cmd.GET_BUS_VOLTAGE_CURRENT,
+                "powers_msg_rate_ms": Cmd.GET_POWERS}
+
+
 @dataclass(frozen=True)
 class ODriveOptions(ProtocolOptions):
     """An ODrive axis' CAN settings (``axis.config.can.*``) in a bus config; rates in
-    ms, 0 = only on request (RTR)."""
+    ms, 0 = only on request (RTR). Defaults as firmware 0.6 ships (ODrive's CAN protocol
+    page: "cyclic messages ... encoder estimates every 10 ms, the others disabled"; the
+    heartbeat is the drive's ``heartbeat_period``)."""
 
-    encoder_msg_rate_ms: int = 0
+    encoder_msg_rate_ms: int = 10
     torques_msg_rate_ms: int = 0
     error_msg_rate_ms: int = 0
     iq_msg_rate_ms: int = 0
+    temperature_msg_rate_ms: int = 0
+    bus_voltage_msg_rate_ms: int = 0
+    powers_msg_rate_ms: int = 0
     torque_constant: float = 0.0827   # N·m/A (8.27 / KV, KV 100)
 
-    KEYS = ("encoder_msg_rate_ms", "torques_msg_rate_ms", "error_msg_rate_ms",
-            "iq_msg_rate_ms", "torque_constant")
+    KEYS = (*RATE_OPTIONS, "torque_constant")
 
     @classmethod
     def from_mapping(cls, values: dict) -> ODriveOptions:
@@ -132,17 +170,19 @@ class ODriveOptions(ProtocolOptions):
                          for k, v in values.items()})
         if options.torque_constant <= 0:
             raise ValueError("'torque_constant' must be > 0")
-        rates = [getattr(options, k) for k in cls.KEYS[:4]]
-        if any(r < 0 for r in rates):
+        if any(getattr(options, k) < 0 for k in RATE_OPTIONS):
             raise ValueError("message rates must be >= 0 ms")
         return options
 
+    def drive_defaults(self) -> dict[str, float | bool]:
+        """The watchdog off, as the firmware ships (``axis.config.enable_watchdog`` false):
+        a bus config's ``watchdog_timeout`` turns it on."""
+        return {"watchdog_timeout": 0.0}
+
     def rates(self) -> dict[Cmd, float]:
         """Cyclic messages (besides the heartbeat) and their periods in s."""
-        return {cmd: ms / 1000 for cmd, ms in (
-            (Cmd.GET_ENCODER_ESTIMATES, self.encoder_msg_rate_ms),
-            (Cmd.GET_TORQUES, self.torques_msg_rate_ms), (Cmd.GET_ERROR, self.error_msg_rate_ms),
-            (Cmd.GET_IQ, self.iq_msg_rate_ms)) if ms > 0}
+        return {cmd: getattr(self, key) / 1000 for key, cmd in RATE_OPTIONS.items()
+                if getattr(self, key) > 0}
 
 
 class ODrive(Protocol):
@@ -155,6 +195,12 @@ class ODrive(Protocol):
     has_following_error = False
     drive = "hil.protocols.odrive.drive:ODriveDrive"
     axis = "hil.protocols.odrive.axis:ODriveAxis"
+
+    @classmethod
+    def initial_options(cls, setting: DriveSetting) -> dict:
+        """No cyclic encoder estimates: hil's master asks for them with an RTR each cycle
+        (the firmware's 10 ms ones would arrive mid-cycle)."""
+        return {"encoder_msg_rate_ms": 0}
 
     @classmethod
     def frame_source(cls, can_id: int, data: bytes, remote: bool,
@@ -182,11 +228,9 @@ class ODrive(Protocol):
         frames = {cmd: (can_id(node_id, cmd), 0, 0.0) for cmd in Cmd}
         frames[Cmd.SET_INPUT_POS] = (can_id(node_id, Cmd.SET_INPUT_POS), 8, cycle_hz)
         frames[Cmd.HEARTBEAT] = (can_id(node_id, Cmd.HEARTBEAT), 8, 1.0 / heartbeat_period)
-        cyclic = [(cmd, 8, cycle_hz) for cmd in (Cmd.GET_TORQUES, Cmd.GET_ENCODER_ESTIMATES)]
-        cyclic += [(cmd, 8, 1.0 / period) for cmd, period in options.rates().items()]
         result = list(frames.values())
-        for cmd, payload, rate in cyclic:
-            result.append((can_id(node_id, cmd), payload, rate))
-            if cmd in (Cmd.GET_TORQUES, Cmd.GET_ENCODER_ESTIMATES):
-                result.append((can_id(node_id, cmd), 0, rate))      # the master's RTR
+        for cmd in (Cmd.GET_TORQUES, Cmd.GET_ENCODER_ESTIMATES):     # the master's RTR + answer
+            result += [(can_id(node_id, cmd), 8, cycle_hz), (can_id(node_id, cmd), 0, cycle_hz)]
+        result += [(can_id(node_id, cmd), 8, 1.0 / period)
+                   for cmd, period in options.rates().items()]
         return result

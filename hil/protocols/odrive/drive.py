@@ -3,6 +3,14 @@
 Errors as an ODrive reports them: a violated limit, an expired watchdog or an
 estop disarms the axis (IDLE) with the error in ``active_errors`` and as the
 ``disarm_reason``, in every heartbeat, until ``Clear_Errors``.
+
+Frames as the firmware takes them (ODrive's ``can_simple.cpp``, the open firmware's
+``CANSimple::do_command``): every frame to the axis feeds its watchdog; a command is decoded
+from the frame's 8-byte buffer whatever its length (a client's 1- or 4-byte Set_Axis_State
+works: the bytes past the length read as 0 here, the hardware's are unspecified); a Get_*
+message is requested by an RTR or by a data frame of length 0. Input modes: PASSTHROUGH
+and TRAP_TRAJ (a trapezoidal move at the Set_Traj_* limits); the others (VEL_RAMP,
+POS_FILTER, ...) are taken as PASSTHROUGH, which hil's docs say.
 """
 
 from __future__ import annotations
@@ -16,7 +24,8 @@ from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power
 from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.odrive import (
-    LAYOUT, TURN, AxisState, Cmd, ControlMode, ODrive, ODriveError, ODriveOptions, can_id,
+    LAYOUT, TURN, AxisState, Cmd, ControlMode, InputMode, ODrive, ODriveError, ODriveOptions,
+    can_id,
 )
 
 CONTROL_MODES = {ControlMode.TORQUE_CONTROL: Mode.TORQUE,
@@ -61,13 +70,22 @@ class ODriveDrive(DriveProfile):
                     Cmd.SET_INPUT_POS: self._set_input_pos, Cmd.SET_INPUT_VEL: self._set_input_vel,
                     Cmd.SET_INPUT_TORQUE: self._set_input_torque,
                     Cmd.SET_LIMITS: self._set_limits, Cmd.REBOOT: self._reboot,
-                    Cmd.CLEAR_ERRORS: self._clear_errors}
+                    Cmd.CLEAR_ERRORS: self._clear_errors,
+                    Cmd.SET_TRAJ_VEL_LIMIT: self._set_traj_vel_limit,
+                    Cmd.SET_TRAJ_ACCEL_LIMITS: self._set_traj_accel_limits,
+                    Cmd.SET_TRAJ_INERTIA: self._set_traj_inertia,
+                    Cmd.SET_ABSOLUTE_POSITION: self._set_absolute_position,
+                    Cmd.SET_POS_GAIN: self._set_pos_gain, Cmd.SET_VEL_GAINS: self._set_vel_gains}
         self._receivers = {can_id(node_id, cmd): self._receiver(cmd, handler)
                            for cmd, handler in handlers.items()}
-        self._requests = {can_id(node_id, cmd): self._on_request for cmd in (
-            Cmd.GET_VERSION, Cmd.HEARTBEAT, Cmd.GET_ERROR, Cmd.GET_ENCODER_ESTIMATES,
-            Cmd.GET_IQ, Cmd.GET_TEMPERATURE, Cmd.GET_BUS_VOLTAGE_CURRENT, Cmd.GET_TORQUES,
-            Cmd.GET_POWERS)}
+        self._requests = {can_id(node_id, cmd): self._on_request for cmd in ANSWERS}
+        self._receivers.update({can_id(node_id, cmd): self._data_request for cmd in ANSWERS
+                                if cmd is not Cmd.HEARTBEAT})
+        #: Set_Traj_* (turns/s, turns/s², N·m/(turns/s²)), gains as sent: the firmware's
+        #: config values; TRAP_TRAJ moves at the limits
+        self.traj_vel_limit, self.traj_accel_limit, self.traj_decel_limit = 2.0, 0.5, 0.5
+        self.traj_inertia = 0.0
+        self.pos_gain, self.vel_gain, self.vel_integrator_gain = 20.0, 0.16, 0.32
 
     # --- bus ----------------------------------------------------------------------
 
@@ -82,17 +100,21 @@ class ODriveDrive(DriveProfile):
         self._due = {Cmd.HEARTBEAT: 0.0, **{cmd: 0.0 for cmd in self.options.rates()}}
 
     def _receiver(self, cmd: Cmd, handler):
-        """A frame handler: check the length against the layout, take the lock, handle."""
+        """A frame handler: the frame's 8-byte buffer decoded by the layout (the module
+        doc), the watchdog fed, under the lock."""
         layout = LAYOUT.get(cmd)
-        size = layout.size if layout is not None else 0
 
         def receive(arbitration_id: int, data: bytes, timestamp: float) -> None:
-            if len(data) < size:
-                self.malformed += 1           # the firmware drops short frames too
-                return
+            buffer = bytes(data).ljust(8, b"\0")
             with self.lock:
-                handler(layout.unpack_from(data) if layout is not None else ())
+                self.core.new_setpoint(now=time.monotonic())       # the watchdog's feed
+                handler(layout.unpack_from(buffer) if layout is not None else ())
         return receive
+
+    def _data_request(self, arbitration_id: int, data: bytes, timestamp: float) -> None:
+        """A data frame on a Get_* id: of length 0, a request as an RTR is."""
+        if len(data) == 0:
+            self._on_request(arbitration_id)
 
     # --- commands -----------------------------------------------------------------
 
@@ -106,7 +128,7 @@ class ODriveDrive(DriveProfile):
             if self.active_errors:
                 self.disarm_reason = self.active_errors    # refused: the errors stand
                 return
-            self.core.set_mode(CONTROL_MODES.get(self.control_mode, Mode.POSITION))
+            self.core.set_mode(self._core_mode())
             self.core.enable()
             self.axis_state = AxisState.CLOSED_LOOP_CONTROL
         elif requested == AxisState.IDLE:
@@ -117,14 +139,56 @@ class ODriveDrive(DriveProfile):
         control, self.input_mode = values
         if control in CONTROL_MODES:
             self.control_mode = ControlMode(control)
-            self.core.set_mode(CONTROL_MODES[self.control_mode])
+            self.core.set_mode(self._core_mode())
+
+    def _core_mode(self) -> Mode:
+        if self.control_mode is ControlMode.POSITION_CONTROL \
+                and self.input_mode == InputMode.TRAP_TRAJ:
+            return Mode.PROFILE_POSITION
+        return CONTROL_MODES.get(self.control_mode, Mode.POSITION)
 
     def _set_input_pos(self, values) -> None:
         position, velocity_ff, torque_ff = values
-        if math.isfinite(position):
+        if not math.isfinite(position):
+            return
+        if self.core.mode is Mode.PROFILE_POSITION:          # TRAP_TRAJ
+            self._trajectory_limits()
+            self.core.move_to(position * TURN)
+        else:
             self.core.new_setpoint(position=position * TURN, now=time.monotonic(),
                                    velocity_ff=velocity_ff * 0.001 * TURN,
                                    torque_ff=torque_ff * 0.001)
+
+    def _trajectory_limits(self) -> None:
+        self.core.parameters = replace(
+            self.core.parameters, profile_velocity=self.traj_vel_limit * TURN,
+            profile_acceleration=self.traj_accel_limit * TURN,
+            profile_deceleration=self.traj_decel_limit * TURN)
+
+    def _set_traj_vel_limit(self, values) -> None:
+        if math.isfinite(values[0]) and values[0] >= 0:
+            self.traj_vel_limit = values[0]
+
+    def _set_traj_accel_limits(self, values) -> None:
+        if all(math.isfinite(v) and v > 0 for v in values):
+            self.traj_accel_limit, self.traj_decel_limit = values
+
+    def _set_traj_inertia(self, values) -> None:
+        if math.isfinite(values[0]):
+            self.traj_inertia = values[0]
+
+    def _set_absolute_position(self, values) -> None:
+        """The position estimate becomes the value (turns); nothing moves."""
+        if math.isfinite(values[0]):
+            self.core.rebase(values[0] * TURN - self.core.status().position)
+
+    def _set_pos_gain(self, values) -> None:
+        if math.isfinite(values[0]):
+            self.pos_gain = values[0]
+
+    def _set_vel_gains(self, values) -> None:
+        if all(math.isfinite(v) for v in values):
+            self.vel_gain, self.vel_integrator_gain = values
 
     def _set_input_vel(self, values) -> None:
         velocity, torque_ff = values
@@ -171,6 +235,7 @@ class ODriveDrive(DriveProfile):
     def _on_request(self, arbitration_id: int) -> None:
         cmd = Cmd(arbitration_id & 0x1F)
         with self.lock:
+            self.core.new_setpoint(now=time.monotonic())           # the watchdog's feed
             data = self._payload(cmd)
             if cmd is Cmd.GET_ENCODER_ESTIMATES:
                 self._reply = data
@@ -233,6 +298,13 @@ class ODriveDrive(DriveProfile):
         return tuple(Reading(f"{Cmd(cmd).name.lower()}[{k}]", value, quantity, scale)
                      for k, (value, (quantity, scale)) in enumerate(zip(values, quantities)))
 
+    def trajectory_done(self, status) -> bool:
+        """The heartbeat's Trajectory_Done_Flag: in TRAP_TRAJ, the trajectory has reached
+        its end (not the axis: the firmware's trap_traj_.done_); else the target reached."""
+        if self.core.mode is Mode.PROFILE_POSITION:
+            return self.core.move_done
+        return status.target_reached
+
     @property
     def state_text(self) -> str:
         errors = f" {self.active_errors!r}" if self.active_errors else ""
@@ -247,7 +319,7 @@ def _power(status) -> float:
 ANSWERS = {
     Cmd.GET_VERSION: lambda drive, status: (2, 4, 0, 0, *FIRMWARE, 0),
     Cmd.HEARTBEAT: lambda drive, status: (int(drive.active_errors), int(drive.axis_state), 0,
-                                          int(status.target_reached)),
+                                          int(drive.trajectory_done(status))),
     Cmd.GET_ERROR: lambda drive, status: (int(drive.active_errors), int(drive.disarm_reason)),
     Cmd.GET_ENCODER_ESTIMATES: lambda drive, status: (status.position / TURN,
                                                       status.velocity / TURN),
