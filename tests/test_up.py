@@ -20,6 +20,8 @@ import rerun.chunk
 from hil.bus_config import load_bus_config
 from hil.cli import up
 from hil.cli.run_progress import Progress
+from hil.cli.up.children import make_children
+from hil.cli.up.robots import RobotRun
 from hil.messaging.zenoh_api import RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
 from conftest import ROOT, free_port, read_rrd
@@ -262,9 +264,9 @@ def test_up_puts_each_of_several_robots_in_a_ros_namespace_of_its_own(tmp_path):
     parser = argparse.ArgumentParser()
     up.add_arguments(parser)
     args = parser.parse_args(["ur3", "pigot", "--ros", "--ros-namespace", "/lab"])
-    robots = [up._Robot(ROOT / "bus_config" / f"{name}.yaml", load_bus_config(
+    robots = [RobotRun(ROOT / "bus_config" / f"{name}.yaml", load_bus_config(
         ROOT / "bus_config" / f"{name}.yaml"), Progress()) for name in ("ur3", "pigot")]
-    up._children(args, robots, [], "tcp/127.0.0.1:7", tmp_path, tmp_path / "run.can.log")
+    make_children(args, robots, [], tmp_path, tmp_path / "run.can.log")
     for robot in robots:
         for child in robot.children.values():
             assert f"--ros-namespace=/lab/{robot.name}" in child.argv, child.argv
