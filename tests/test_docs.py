@@ -14,7 +14,7 @@ import pytest
 from conftest import ROOT
 from hil.cli import COMMANDS, main
 
-PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 #: a `hil SUBCOMMAND` in backticks, or at the start of a shell line of a code block (after a
 #: prompt)
 COMMAND = re.compile(r"`hil ([a-z]+)\b|^(?:\w*\$ +)?(?:\.venv/bin/)?hil ([a-z]+)\b", re.MULTILINE)
