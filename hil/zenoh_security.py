@@ -7,20 +7,24 @@ certificate and accepts only peers whose certificate the same CA signed (mutual 
 client of another CA cannot connect).
 
 Every process enforces the policy on what it receives (Zenoh's access control, ingress,
-subjects by certificate Common Name), so a frame is refused by the process that would act
-on it: the drives' own process refuses a CAN frame from an operator or an observer, the
-controller refuses an observer's goal or fault reset. Peers link directly (no relay,
-``hil.zenoh_session``), so the certificate a process checks is the sender's own. A
-certificate of the CA with any other name matches no policy and is refused everything
-(default deny).
+subjects by certificate Common Name), so a message is refused by the process that would act
+on it. Peers link directly (no relay, ``hil.zenoh_session``), so the certificate a process
+checks is the sender's own. The rights are allow-lists, deny by default: Zenoh applies a rule
+to a message whose key expression the rule's key expressions include, so a wider expression
+or a wildcard (``**``, ``hil/**``, ``<key>$*``, ``hil/<robot>/*``) is inside no allow rule of
+a narrower right and is denied (a deny rule on an exact key would let it through: issue 43).
+A certificate of the CA with any other name matches no subject and is refused everything.
 
 - ``drives`` (``hil sim``) and ``controller`` (``hil control``): everything;
-- ``operator`` (``hil send``, ``hil reset``): everything but CAN frames;
-- ``observer`` (``hil viz``): subscribes and reads only: no frame, no goal, no cancel, no
-  reset, nothing published.
+- ``operator`` (``hil send``, ``hil reset``, ``hil up``'s own session): the controller's
+  commands (an action's goals, cancels and results, the fault reset) as queries of those
+  keys, subscriptions and liveliness under ``hil/``; no CAN frame, nothing published;
+- ``observer`` (``hil viz``): subscriptions, liveliness and goal results under ``hil/``, its
+  own liveliness token; no frame, no goal, no cancel, no reset, nothing published.
 
-The certificates carry no host names, and names are not verified on connect: a peer is
-whoever holds a key the CA signed, wherever it connects from.
+docs/security.md has the threat model. The certificates carry no host names, and names are
+not verified on connect: a peer is whoever holds a key the CA signed, wherever it connects
+from.
 """
 
 from __future__ import annotations
@@ -46,8 +50,13 @@ FRAME_KEYS = ["hil/can/**"]
 #: namespace puts it, and the fault reset; tests/test_secure.py holds them against the keys
 #: the controller serves)
 COMMAND_KEYS = ["hil/*/**/send_goal", "hil/*/**/cancel_goal", "hil/*/reset_faults"]
+#: the results of an action's goals: a read, queried
+RESULT_KEYS = ["hil/*/**/get_result"]
+#: what every role may read: subscriptions and liveliness anywhere under hil/
+READ_KEYS = ["hil/**"]
 EVERY_MESSAGE = ["put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
                  "liveliness_token", "liveliness_query", "declare_liveliness_subscriber"]
+READ_MESSAGES = ["declare_subscriber", "liveliness_query", "declare_liveliness_subscriber"]
 
 
 @dataclass(frozen=True)
@@ -85,26 +94,29 @@ class Identity:
 
 
 def access_policy() -> dict:
-    """Zenoh's access_control section: the roles' rights (module doc), enforced on what a
-    process receives."""
-    def rule(rule_id, permission, messages, keys, flows=("ingress",)):
-        return {"id": rule_id, "permission": permission, "messages": messages,
+    """Zenoh's access_control section: the roles' rights as allow-lists (module doc),
+    enforced on what a process receives; what it sends is the receiver's to judge."""
+    def rule(rule_id, messages, keys, flows=("ingress",)):
+        return {"id": rule_id, "permission": "allow", "messages": messages,
                 "key_exprs": keys, "flows": list(flows)}
 
     return {
         "enabled": True,
         "default_permission": "deny",
         "rules": [
-            rule("anything", "allow", EVERY_MESSAGE, ["**"], ("ingress", "egress")),
-            rule("no frames", "deny", ["put", "delete"], FRAME_KEYS),
-            rule("no commands", "deny", ["query"], COMMAND_KEYS),
-            rule("no publishing", "deny", ["put", "delete"], ["hil/**"]),
+            rule("send anything", EVERY_MESSAGE, ["**"], ("egress",)),
+            rule("anything", EVERY_MESSAGE, ["**"]),
+            rule("read", READ_MESSAGES, READ_KEYS),
+            rule("results", ["query"], RESULT_KEYS),
+            rule("commands", ["query"], COMMAND_KEYS),
+            rule("viewer's token", ["liveliness_token"], ["hil/*/viz"]),
         ],
         "subjects": [{"id": role, "cert_common_names": [role]} for role in ROLES],
         "policies": [
-            {"rules": ["anything"], "subjects": list(ROLES)},
-            {"rules": ["no frames"], "subjects": ["operator"]},
-            {"rules": ["no frames", "no commands", "no publishing"], "subjects": ["observer"]},
+            {"rules": ["send anything"], "subjects": list(ROLES)},
+            {"rules": ["anything"], "subjects": ["drives", "controller"]},
+            {"rules": ["read", "results", "commands"], "subjects": ["operator"]},
+            {"rules": ["read", "results", "viewer's token"], "subjects": ["observer"]},
         ],
     }
 

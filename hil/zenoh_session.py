@@ -45,6 +45,27 @@ DROP_WAIT_US = 150
 SOCKET_BUFFER = 65536
 
 
+#: what a name that becomes part of a key expression may not contain: Zenoh's wildcards
+#: and reserved characters (a robot named ``**`` would address every robot)
+_NOT_IN_NAMES = set("*$?#")
+
+
+def key_name_problem(name: str, slashes: bool = False) -> str | None:
+    """Why ``name`` cannot be a plain part of a Zenoh key expression (a robot's name; with
+    ``slashes``, a CAN channel's, which may have several chunks), or None where it can."""
+    if not name:
+        return "it is empty"
+    bad = sorted(set(name) & (_NOT_IN_NAMES | (set() if slashes else {"/"})))
+    if bad:
+        return f"it holds {' '.join(repr(c) for c in bad)}, which Zenoh reads as wildcards " \
+               "or separators"
+    try:
+        zenoh.KeyExpr(f"hil/{name}")
+    except zenoh.ZError as exc:
+        return f"it is not a Zenoh key expression ({exc})"
+    return None
+
+
 def meeting_endpoint() -> str:
     """Where the hil processes of this host meet when given no endpoints: $HIL_ZENOH_ENDPOINT,
     else DEFAULT_ENDPOINT."""

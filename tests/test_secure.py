@@ -234,3 +234,85 @@ def test_up_secure_runs_the_demo_and_records_it_each_process_in_its_role(keys, t
     assert result.returncode == 0, result.stdout + result.stderr
     assert "demo succeeded" in result.stdout
     assert save.stat().st_size > 100_000       # the observer (hil viz) received the run
+
+
+# --- side doors: wildcard and wider key expressions reach nothing a role may not touch ---
+# (issue 43: an observer's query on `<goal key>$*` moved joint2 and reset faults; CAN frames
+# put on `**` by an observer and on `hil/**` by an operator reached the drives)
+
+GOAL_KEY = f"{key('ur3', ACTION)}/send_goal"
+WIDER = ["**", "hil/**", "hil/ur3/*", "hil/ur3/**", f"{GOAL_KEY}$*",
+         f"{key('ur3', 'reset_faults')}$*", "hil/*/**"]
+
+
+def _goal_request() -> bytes:
+    import uuid
+    return cdr.encode(cdr.msg(cdr.SEND_GOAL_REQUEST, goal_id=cdr.uuid_msg(uuid.uuid4().hex),
+                              goal=cdr.goal_msg(GOAL, 0.0)))
+
+
+@pytest.mark.parametrize("role", ["observer", "operator"])
+def test_no_wider_query_of_a_role_reaches_the_controllers_commands(
+        keys, secure_controller, peers, role):
+    peer = peers(keys, role, secure_controller)
+    states = _joint_states(peer)
+    assert TrajectoryActionClient(peer.session, "ur3").wait_for_controller(10)
+    time.sleep(0.5)
+
+    def joint2() -> float:
+        assert states, "the peer receives no joint states"
+        return states[-1].position[list(states[-1].name).index("joint2")]
+
+    before = joint2()                  # where an earlier test's goal left it
+    for expression in WIDER:
+        replies = list(peer.session.get(expression, payload=_goal_request(), timeout=1.0))
+        assert not replies, f"{role}'s query on {expression} was answered: {replies}"
+    time.sleep(1.0)
+    assert joint2() == before, "a goal reached the controller"
+
+
+@pytest.mark.parametrize("role", ["observer", "operator"])
+def test_no_frame_put_on_a_wider_key_reaches_the_drives(keys, secure_sim, peers, role):
+    from hil.can.zenoh_wire import decode_frames, encode_frames
+
+    peer = peers(keys, role, secure_sim)
+    assert peer.linked()
+    answers: list = []
+
+    def on_sample(sample) -> None:          # the drives' SDO answers (not the peer's own puts)
+        for message in decode_frames(sample.payload.to_bytes(), time.time()):
+            answers.extend(f for f in message.frames if f.arbitration_id == SDO_ANSWER)
+    peer.session.declare_subscriber("hil/can/**", on_sample)
+    message = encode_frames("ur3/arm", 12345, 1, time.time(), [SDO_REQUEST])
+    for expression in ("**", "hil/**", "hil/can/**", "hil/can/ur3/*", "hil/can/ur3/arm",
+                       "hil/can/ur3/arm$*"):
+        peer.session.put(expression, message)
+    time.sleep(2.0)
+    assert not answers, f"the drives answered a frame the {role} put"
+
+
+def test_the_operator_and_observer_may_not_serve_or_publish(keys, secure_controller, peers):
+    """A role that may not answer queries cannot pose as the controller: its queryable on a
+    command key is never asked, its replies and puts are not taken."""
+    impostor = peers(keys, "observer", secure_controller)
+    asked = []
+    impostor.session.declare_queryable(GOAL_KEY, lambda query: asked.append(query))
+    operator = peers(keys, "operator", secure_controller)
+    client = TrajectoryActionClient(operator.session, "ur3")
+    assert client.wait_for_controller(10)
+    result = client.wait_result(client.send_goal(GOAL), timeout=10)
+    assert result.error_code == 0
+    client.close()
+
+
+def test_the_policy_gives_operators_and_observers_allow_lists_only():
+    policy = access_policy()
+    rules = {r["id"]: r for r in policy["rules"]}
+    assert all(r["permission"] == "allow" for r in rules.values())
+    granted = {role: [name for p in policy["policies"] if role in p["subjects"]
+                      for name in p["rules"]] for role in ("operator", "observer")}
+    for role, names in granted.items():
+        ingress = [rules[n] for n in names if "ingress" in rules[n]["flows"]]
+        keys_of = {k for r in ingress for k in r["key_exprs"]}
+        assert "**" not in keys_of, f"{role} may do anything somewhere"
+        assert not any("put" in r["messages"] for r in ingress), f"{role} may publish"

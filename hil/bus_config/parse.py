@@ -19,6 +19,7 @@ from hil.bus_config.types import (
 from hil.bus_config.yaml_reader import LineLoader, LineMapping, Reader
 from hil.description import JointType, PackagePath, RobotDescription, load_description
 from hil.errors import HilError, Severity
+from hil.zenoh_session import key_name_problem
 from hil.protocols import names as protocol_names
 from hil.protocols import protocol
 from hil.transmissions import SimpleTransmission, Transmission, build_transmissions
@@ -68,6 +69,11 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
                     hint="'robot' is a .xacro/.urdf path relative to the config file")
         raise HilError(reader.diagnostics)
     robot = load_description(robot_path, package_path)
+    problem = key_name_problem(robot.name)
+    if problem:
+        raise HilError.single(f"robot name {robot.name!r}: {problem}", robot_path,
+                              hint="name the robot with letters, digits, '_', '-' or '.' "
+                                   "(<robot name=\"...\">): its keys are hil/<name>/...")
     robot = add_transmissions(reader, top, apply_joint_limits(reader, top, robot))
     if any(d.severity is Severity.ERROR for d in reader.diagnostics):
         raise HilError(reader.diagnostics + list(robot.warnings))
@@ -122,7 +128,7 @@ def _read_bus(reader: Reader, raw, index: int, robot: RobotDescription,
     return BusConfig(
         name=name,
         interface=reader.text(bus, "interface", what, "zenoh"),
-        channel=reader.text(bus, "channel", what, f"{robot.name}/{name}"),
+        channel=_channel(reader, bus, what, f"{robot.name}/{name}"),
         bitrate=int(reader.number(bus, "bitrate", what, 1_000_000, integer=True)),
         cycle_hz=float(reader.number(bus, "cycle_hz", what)),
         drives=drives, line=bus.line)
@@ -189,6 +195,18 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
         velocity_bandwidth_hz=float(reader.number(merged, "velocity_bandwidth_hz", what, 40.0)),
         options=options, line=own.line, effects=_read_effects(reader, merged, what),
         torque_feed_forward=_read_torque_feed_forward(reader, merged, what, spec))
+
+
+def _channel(reader: Reader, bus: LineMapping, what: str, default: str) -> str:
+    """The bus' channel: a key expression's chunks on the ``zenoh`` interface, so no
+    wildcards (``hil/can/<channel>``)."""
+    channel = reader.text(bus, "channel", what, default)
+    problem = key_name_problem(channel, slashes=True)
+    if problem:
+        reader.fail(f"{what}: channel {channel!r}: {problem}",
+                    bus.key_lines.get("channel", bus.line),
+                    hint="e.g. channel: ur3/arm (or vcan0 for SocketCAN)")
+    return channel
 
 
 def _watchdog_timeout(reader: Reader, drive: LineMapping, what: str, product: dict) -> float:

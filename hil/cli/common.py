@@ -18,7 +18,7 @@ from hil.realtime import LOCK_STEP, REAL_TIME
 from hil.supervisor import parse_cpus
 from hil.zenoh_security import Identity
 from hil.zenoh_session import (DEFAULT_ENDPOINT, MEETING_VARIABLE, ZenohSettings, dials_peers,
-                                session, why_unreached)
+                                key_name_problem, session, why_unreached)
 
 #: how a loopback listener's endpoint reads (anything else is reachable from elsewhere)
 LOOPBACK_HOSTS = ("/127.", "/[::1]", "/localhost:")
@@ -37,6 +37,16 @@ def config_path(name: str) -> Path:
     shipped = sorted(p.stem for p in data_dir(BUS_CONFIGS).glob("*.yaml"))
     raise HilError.single(f"no bus config for robot '{name}'",
                           hint=f"give a bus config path, or one of: {', '.join(shipped)}")
+
+
+def robot_name(name: str) -> str:
+    """A robot's name as given on the command line, checked: HilError where it cannot
+    address one robot's keys (``**`` would address every robot's)."""
+    problem = key_name_problem(name)
+    if problem:
+        raise HilError.single(f"robot name {name!r}: {problem}",
+                              hint="give one robot's name, e.g. ur3")
+    return name
 
 
 def add_package_path(parser: argparse.ArgumentParser) -> None:

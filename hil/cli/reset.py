@@ -31,6 +31,7 @@ def run(args: argparse.Namespace) -> int:
         return _reset_ros(args, settings)
     if args.robot is None:
         raise HilError.single("give the robot's name", hint="hil reset ur3")
+    common.robot_name(args.robot)
     zenoh = common.zenoh_settings(args)
     client = TrajectoryActionClient(session(zenoh), args.robot)
     try:

@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
                               if not args.target else
                               f"too many arguments: {' '.join(args.target[2:])}",
                               hint="hil send ROBOT [FILE] [--joint NAME --to POS ...]")
-    args.robot = args.target[0]
+    args.robot = common.robot_name(args.target[0])
     args.file = Path(args.target[1]) if len(args.target) == 2 else None
     goal = _goal(args)
     zenoh = common.zenoh_settings(args)

@@ -1,9 +1,11 @@
 """Reading a robot's XML: xacro expansion and well-formedness, with errors
 that name the file, the line and what to do.
 
-xacro (the PyPI package, ROS 2's xacro) does the expansion; this module only
-translates its failures into :class:`~hil.errors.HilError` and records which
-files took part, so later checks can point at lines in them.
+xacro (the PyPI package, ROS 2's xacro) does the expansion, guarded so that a description
+runs no code and reads nothing outside what the user allowed
+(:mod:`hil.description.xacro_guard`); this module translates its failures into
+:class:`~hil.errors.HilError` and records which files took part, so later checks can point
+at lines in them.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hil.description.packages import AmentPrefix, PackagePath
+from hil.description.xacro_guard import Allowed, guarded
 from hil.errors import Diagnostic, HilError, error, warning
 
 
@@ -139,8 +142,10 @@ def _expand_xacro(path: Path, package_path: PackagePath, corrected: str | None,
     import xacro  # imported here: its import is slow and plain URDF does not need it
 
     known_includes = len(xacro.all_includes)
-    # Paths are resolved inside the block: the prefix's package links vanish after it.
-    with AmentPrefix(package_path):
+    # Paths are resolved inside the block: the prefix's package links vanish after it. No
+    # expression runs code and no file outside the description's folder and the package
+    # path is read (hil.description.xacro_guard).
+    with AmentPrefix(package_path), guarded(Allowed.of(path, package_path.roots)):
         try:
             if corrected is None:
                 doc = xacro.process_file(str(path))

@@ -1,0 +1,102 @@
+"""A description runs no code and reads nothing outside what the user allowed (issue 43:
+`hil check` of a .xacro ran a shell command through a comprehension's code object; `$(env)`
+and includes of any file, /dev/zero among them, were honoured)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from hil.description import PackagePath, load_description
+from hil.description.xacro_guard import ALLOWED_ENV_VARIABLE, Refused, evaluate
+from hil.errors import HilError
+
+HEADER = '<?xml version="1.0"?>\n<robot name="probe" xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
+LINK = ('<link name="{name}"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" '
+        'iyy="1" iyz="0" izz="1"/></inertial></link>\n')
+
+
+def _load(tmp_path, body: str, name: str = "probe.xacro"):
+    path = tmp_path / name
+    path.write_text(HEADER + body + "</robot>\n")
+    return load_description(path, PackagePath(()))
+
+
+def test_the_comprehension_escape_runs_nothing(tmp_path):
+    marker = tmp_path / "PWNED"
+    payload = ("[c for c in ().__class__.__base__.__subclasses__() if c.__name__ == "
+               "'catch_warnings'][0]()._module.__builtins__['__import__']('os')"
+               f".system('touch {marker}')")
+    with pytest.raises(HilError, match="ListComp is not allowed"):
+        _load(tmp_path, f'<xacro:property name="x" value="${{{payload}}}"/>\n'
+                        + LINK.format(name="${x}"))
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("expression", [
+    "().__class__", "(1).real.__class__", "'{0.__class__}'.format(1)", "f'{1}'",
+    "(lambda: 1)()", "[x for x in [1]]", "python.type(1)", "python.vars()",
+    "9 ** 9 ** 9", "'a' * 10 ** 9", "1 << 10 ** 9",
+])
+def test_an_expression_beyond_arithmetic_is_refused(expression):
+    import xacro
+    with pytest.raises(Refused):
+        evaluate(expression, xacro._global_symbols)
+
+
+@pytest.mark.parametrize("expression, expected", [
+    ("radians(90)", math.pi / 2), ("math.sqrt(16) + pi", 4 + math.pi),
+    ("1 if 2 > 1 else 0", 1), ("[1, 2, 3][-1] * 2", 6), ("max(1, 5) - min(2, 3)", 3),
+    ("len('abc') + python.abs(-1) + round(2.6)", 7), ("not (1 == 2) and 3 in [3]", True),
+    ("{'a': 1}['a']", 1), ("str(1) + 'x'", "1x"), ("2 ** 10", 1024),
+])
+def test_the_arithmetic_public_descriptions_use_still_evaluates(expression, expected):
+    import xacro
+    assert evaluate(expression, xacro._global_symbols) == pytest.approx(expected) \
+        if isinstance(expected, float) else evaluate(expression, xacro._global_symbols) \
+        == expected
+
+
+@pytest.mark.parametrize("include", ["/dev/zero", "/etc/hostname", "../outside.xacro"])
+def test_an_include_outside_the_allowed_folders_is_refused(tmp_path, include):
+    (tmp_path / "outside.xacro").write_text(HEADER + "</robot>\n")
+    inner = tmp_path / "robot"
+    inner.mkdir()
+    with pytest.raises(HilError, match="outside the description's folder"):
+        _load(inner, f'<xacro:include filename="{include}"/>\n' + LINK.format(name="base"))
+
+
+def test_an_include_inside_the_descriptions_folder_is_read(tmp_path):
+    (tmp_path / "part.xacro").write_text(
+        HEADER.replace("probe", "part") + '<xacro:property name="w" value="2"/>\n</robot>\n')
+    robot = _load(tmp_path, '<xacro:include filename="part.xacro"/>\n'
+                            + LINK.format(name="base_${w}"))
+    assert robot.root_link == "base_2"
+
+
+def test_load_yaml_outside_the_allowed_folders_is_refused(tmp_path):
+    with pytest.raises(HilError, match="outside the description's folder"):
+        _load(tmp_path, '<xacro:property name="y" value="${xacro.load_yaml(\'/etc/passwd\')}"/>\n'
+                        + LINK.format(name="${y}"))
+
+
+def test_env_reads_only_the_variables_the_user_names(tmp_path, monkeypatch):
+    monkeypatch.setenv("HIL_PROBE_SECRET", "s3cret")
+    monkeypatch.delenv(ALLOWED_ENV_VARIABLE, raising=False)
+    with pytest.raises(HilError, match="HIL_PROBE_SECRET is not set"):
+        _load(tmp_path, LINK.format(name="$(env HIL_PROBE_SECRET)"))
+    robot = _load(tmp_path, LINK.format(name="x$(optenv HIL_PROBE_SECRET none)"), "opt.xacro")
+    assert robot.root_link == "xnone"                  # not named: as if unset
+    monkeypatch.setenv(ALLOWED_ENV_VARIABLE, "HIL_PROBE_SECRET")
+    assert _load(tmp_path, LINK.format(name="$(env HIL_PROBE_SECRET)"),
+                 "named.xacro").root_link == "s3cret"
+
+
+def test_eval_substitution_is_arithmetic_only(tmp_path):
+    robot = _load(tmp_path, '<xacro:arg name="n" default="2"/>\n'
+                            + LINK.format(name="l$(eval 1 + n * 3)"))
+    assert robot.root_link == "l7"
+    with pytest.raises(HilError, match="not allowed"):
+        _load(tmp_path, '<xacro:arg name="n" default="2"/>\n'
+                        + LINK.format(name="l$(eval n.__class__)"), "evil.xacro")
