@@ -19,6 +19,7 @@ from hil.bus_config.types import (
 from hil.bus_config.yaml_reader import LineLoader, LineMapping, Reader
 from hil.description import JointType, PackagePath, RobotDescription, load_description
 from hil.errors import HilError, Severity
+from hil.input_files import read_input_file
 from hil.zenoh_session import key_name_problem
 from hil.protocols import names as protocol_names
 from hil.protocols import protocol
@@ -47,13 +48,12 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
     Raises :class:`HilError` with every error found (warnings travel along).
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise HilError.single(f"cannot read bus config '{path}': {exc.strerror}",
-                              hint="give the path of a bus_config/*.yaml file") from None
+    text = read_input_file(path, "bus config", hint="give the path of a bus_config/*.yaml file")
     try:
         document = yaml.load(text, Loader=LineLoader)
+    except RecursionError:
+        raise HilError.single("YAML nested too deeply to read", path,
+                              hint="a bus config nests a few levels") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         raise HilError.single(f"YAML syntax: {getattr(exc, 'problem', exc)}", path,
@@ -63,7 +63,7 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
     top = reader.mapping(document, "the bus config", 1)
     reader.unknown_keys(top, _TOP_KEYS, "the bus config")
     robot_path = path.parent / reader.text(top, "robot", "the bus config", "")
-    if not robot_path.is_file():
+    if not _is_file(robot_path):
         reader.fail(f"robot description '{robot_path}' does not exist",
                     top.key_lines.get("robot", 1),
                     hint="'robot' is a .xacro/.urdf path relative to the config file")
@@ -195,6 +195,14 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
         velocity_bandwidth_hz=float(reader.number(merged, "velocity_bandwidth_hz", what, 40.0)),
         options=options, line=own.line, effects=_read_effects(reader, merged, what),
         torque_feed_forward=_read_torque_feed_forward(reader, merged, what, spec))
+
+
+def _is_file(path: Path) -> bool:
+    """Whether ``path`` is a file; False for a name the system cannot take (too long)."""
+    try:
+        return path.is_file()
+    except OSError:
+        return False
 
 
 def _channel(reader: Reader, bus: LineMapping, what: str, default: str) -> str:

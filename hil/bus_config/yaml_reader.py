@@ -23,7 +23,54 @@ class LineMapping(dict):
         self.key_lines: dict[str, int] = {}
 
 
+#: the most nodes a config may expand to with its aliases expanded (a 2 KB alias bomb
+#: expands to billions, and printing one value of it took 1 GB), and its deepest nesting
+MAX_NODES = 100_000
+MAX_DEPTH = 100
+#: a diagnostic quotes at most this much of a value
+MAX_MESSAGE = 500
+
+
+class ConfigTooLarge(yaml.YAMLError):
+    """A YAML document whose aliases or nesting go beyond what a config needs."""
+
+    def __init__(self, problem: str, mark):
+        super().__init__(problem)
+        self.problem, self.problem_mark = problem, mark
+
+
+def _check_expansion(root) -> None:
+    """ConfigTooLarge if the node graph under ``root``, aliases expanded, has more than
+    MAX_NODES nodes or is nested deeper than MAX_DEPTH (counted once per node: no
+    expansion is made)."""
+    sizes: dict[int, int] = {}
+    stack = [(root, 1, False)]
+    while stack:
+        node, depth, children_done = stack.pop()
+        if depth > MAX_DEPTH:
+            raise ConfigTooLarge(f"nested more than {MAX_DEPTH} deep", node.start_mark)
+        if id(node) in sizes:
+            continue
+        children = ([item for pair in node.value for item in pair]
+                    if isinstance(node, yaml.MappingNode) else
+                    node.value if isinstance(node, yaml.SequenceNode) else [])
+        if children_done or not children:
+            sizes[id(node)] = 1 + sum(sizes[id(child)] for child in children)
+            if sizes[id(node)] > MAX_NODES:
+                raise ConfigTooLarge(f"its aliases expand it to over {MAX_NODES} values (an "
+                                     "alias bomb?)", node.start_mark)
+            continue
+        stack.append((node, depth, True))
+        stack.extend((child, depth + 1, False) for child in children
+                     if id(child) not in sizes)
+
+
 class LineLoader(yaml.SafeLoader):
+    def compose_document(self):
+        document = super().compose_document()
+        _check_expansion(document)
+        return document
+
     def construct_mapping(self, node, deep=False):
         mapping = LineMapping(super().construct_mapping(node, deep=True))
         mapping.line = node.start_mark.line + 1
@@ -36,6 +83,12 @@ LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
                         LineLoader.construct_mapping)
 
 
+def _bounded(message: str) -> str:
+    """A diagnostic's text, a value it quotes cut to MAX_MESSAGE characters."""
+    return message if len(message) <= MAX_MESSAGE else \
+        f"{message[:MAX_MESSAGE]}... ({len(message) - MAX_MESSAGE} more characters)"
+
+
 class Reader:
     """Typed access to YAML mappings, collecting diagnostics with lines."""
 
@@ -44,10 +97,10 @@ class Reader:
         self.diagnostics: list[Diagnostic] = []
 
     def fail(self, message: str, line: int | None, hint: str | None = None) -> None:
-        self.diagnostics.append(error(message, self.path, line, hint))
+        self.diagnostics.append(error(_bounded(message), self.path, line, hint))
 
     def warn(self, message: str, line: int | None, hint: str | None = None) -> None:
-        self.diagnostics.append(warning(message, self.path, line, hint))
+        self.diagnostics.append(warning(_bounded(message), self.path, line, hint))
 
     def mapping(self, value, what: str, line: int | None) -> LineMapping:
         if isinstance(value, LineMapping):

@@ -93,6 +93,9 @@ from hil.zenoh_session import ZenohSettings, session, why_unreached
 
 log = logging.getLogger(__name__)
 
+#: senders a bus remembers (sequence numbers, quickest delivery) before it forgets the
+#: oldest: a bus has a handful; a flood of made-up sender ids must not grow the memory
+MAX_SENDERS = 1024
 #: frames a bus holds for ``recv`` before it drops new ones (a CAN controller's RX FIFO)
 RECEIVE_FIFO = 8192
 #: a malformed payload is logged the first time, then every this many
@@ -268,6 +271,12 @@ class ZenohBus(can.BusABC, BusCapabilities):
                 gap = (sequence - last - 1) & 0xFFFFFFFF
                 if gap < 0x80000000:
                     counters.lost += gap
+            if sender not in self._heard and len(self._heard) >= MAX_SENDERS:
+                # a bounded memory of senders (each message may claim a new one): the
+                # oldest is forgotten, and counted afresh if it is heard again
+                oldest = next(iter(self._heard))
+                del self._heard[oldest]
+                self._quickest.pop(oldest, None)
             self._heard[sender] = (sequence + frames - 1) & 0xFFFFFFFF
             quickest = self._quickest.get(sender)
             if quickest is None:

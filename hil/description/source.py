@@ -19,6 +19,7 @@ from pathlib import Path
 from hil.description.packages import AmentPrefix, PackagePath
 from hil.description.xacro_guard import Allowed, guarded
 from hil.errors import Diagnostic, HilError, error, warning
+from hil.input_files import read_input_file
 
 
 @dataclass(frozen=True)
@@ -88,11 +89,8 @@ def _markup(text: str) -> str:
 def read_robot_source(path: Path, package_path: PackagePath) -> RobotSource:
     """Expand ``path`` (.xacro, or plain .urdf) into URDF text."""
     path = Path(path)
-    if not path.is_file():
-        raise HilError.single(f"robot description '{path}' does not exist",
-                              hint="give the path of a .urdf or .xacro file")
-    text, corrections = lenient_text(path.resolve(),
-                                     path.read_text(encoding="utf-8", errors="replace"))
+    text, corrections = lenient_text(path.resolve(), read_input_file(
+        path, "robot description", hint="give the path of a .urdf or .xacro file"))
     if path.suffix == ".urdf":
         try:
             root = ET.fromstring(text)

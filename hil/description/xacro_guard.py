@@ -37,10 +37,10 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from hil.input_files import MAX_FILE_BYTES
+
 #: the environment variable naming the variables a description may read
 ALLOWED_ENV_VARIABLE = "HIL_XACRO_ENV"
-#: an included or loaded file larger than this is refused (bytes)
-MAX_FILE_BYTES = 16 * 1024 * 1024
 #: the longest sequence an expression may build, and the largest integer (bits)
 MAX_ITEMS = 1_000_000
 MAX_INT_BITS = 100_000

@@ -28,6 +28,9 @@ log = logging.getLogger(__name__)
 #: (the controller takes at most MAX_POINTS of them)
 MAX_GOAL_BYTES = 16 * 2 ** 20
 
+#: finished goals' results a server keeps for get_result (the oldest go first)
+KEPT_RESULTS = 1000
+
 
 class TrajectoryActionServer:
     """Serves a JointTrajectoryController's FollowJointTrajectory action on Zenoh."""
@@ -106,10 +109,14 @@ class TrajectoryActionServer:
         self._feedback.put(payload)
 
     def publish_results(self, finished: list[tuple[str, GoalResult]]) -> None:
-        """Publish (and keep for get_result) the results of goals that ended."""
+        """Publish (and keep for get_result) the results of goals that ended: the last
+        KEPT_RESULTS, as a ROS action server keeps its results for a bounded time (rcl_action's
+        result_timeout; a count here, as goals come at any rate)."""
         for goal_id, result in finished:
             with self._lock:
                 self._results[goal_id] = result
+                while len(self._results) > KEPT_RESULTS:
+                    del self._results[next(iter(self._results))]      # the oldest
             self._result.put(cdr.encode(cdr.result_msg(goal_id, result)))
 
     def close(self) -> None:

@@ -1,0 +1,84 @@
+"""Every input surface bounded (issue 43): a YAML alias bomb, a config nested without end,
+a FIFO or a device named as a file, a flood of made-up Zenoh senders, goals without end:
+each answered with a clear error or a bounded memory, never a hang or a traceback."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import can
+import pytest
+
+from hil.bus_config import load_bus_config
+from hil.can.zenoh_bus import MAX_SENDERS
+from hil.can.zenoh_wire import Echo, Message
+from hil.controllers import GoalResult, GoalStatus
+from hil.errors import HilError
+from hil.input_files import read_input_file
+
+
+def _alias_bomb(levels: int = 9) -> str:
+    lines = ["a0: &a0 [x, x, x, x, x, x, x, x, x]"]
+    lines += [f"a{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * 9) + "]" for i in range(1, levels)]
+    return "\n".join(lines) + "\nrobot: 1\n"
+
+
+def test_a_yaml_alias_bomb_is_refused_before_it_expands(tmp_path):
+    config = tmp_path / "bomb.yaml"
+    config.write_text(_alias_bomb())
+    with pytest.raises(HilError, match="alias bomb") as raised:
+        load_bus_config(config)
+    assert len(str(raised.value)) < 2000
+
+
+def test_a_config_nested_without_end_is_refused(tmp_path):
+    config = tmp_path / "deep.yaml"
+    config.write_text("a: " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(HilError, match="nested"):
+        load_bus_config(config)
+
+
+def test_a_fifo_or_a_device_is_no_input_file(tmp_path):
+    fifo = tmp_path / "config.yaml"
+    os.mkfifo(fifo)
+    with pytest.raises(HilError, match="not a regular file"):
+        load_bus_config(fifo)                  # a read of a FIFO would wait for a writer
+    with pytest.raises(HilError, match="not a regular file"):
+        read_input_file("/dev/zero", "robot description", "give a file")
+
+
+def test_a_long_value_in_a_diagnostic_is_cut(tmp_path):
+    config = tmp_path / "long.yaml"
+    config.write_text("robot: " + "x" * 100_000 + ".xacro\n")
+    with pytest.raises(HilError) as raised:
+        load_bus_config(config)
+    assert len(str(raised.value)) < 2000
+
+
+def test_a_bus_remembers_a_bounded_number_of_senders(tmp_path):
+    bus = can.Bus(interface="zenoh", channel=f"senders-{time.monotonic_ns()}")
+    try:
+        frame = can.Message(arbitration_id=0x123, data=b"\x01", is_extended_id=False)
+        for sender in range(1, 3 * MAX_SENDERS):
+            bus._on_message(Message(bus._channel, sender, 1, time.time(), Echo(), [frame]),
+                            time.time(), time.monotonic())
+        assert len(bus._heard) <= MAX_SENDERS and len(bus._quickest) <= MAX_SENDERS
+    finally:
+        bus.shutdown()
+
+
+def test_a_servers_results_are_bounded(monkeypatch):
+    from hil.messaging import action
+
+    class Publisher:
+        def put(self, payload):
+            pass
+
+    server = action.TrajectoryActionServer.__new__(action.TrajectoryActionServer)
+    server._results, server._result = {}, Publisher()
+    server._lock = __import__("threading").Lock()
+    monkeypatch.setattr(action, "KEPT_RESULTS", 10)
+    result = GoalResult(GoalStatus.SUCCEEDED, 0, "")
+    server.publish_results([(f"{n:032x}", result) for n in range(25)])
+    assert list(server._results) == [f"{n:032x}" for n in range(15, 25)]
