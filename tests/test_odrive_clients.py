@@ -173,3 +173,21 @@ def test_a_trap_traj_move_takes_the_time_its_limits_imply():
         sim.close()
         bus.shutdown()
         master.shutdown()
+
+
+@pytest.mark.parametrize("command, data", [
+    (Cmd.CLEAR_ERRORS, bytes(1)), (Cmd.ESTOP, b""),
+    (Cmd.SET_ABSOLUTE_POSITION, struct.pack("<f4x", 5.0)),
+    (Cmd.SET_TRAJ_VEL_LIMIT, struct.pack("<f4x", 9.0)),
+    (Cmd.SET_POS_GAIN, struct.pack("<f4x", 80.0))], ids=lambda v: getattr(v, "name", ""))
+def test_no_frame_but_a_setpoint_moves_an_enabled_axis(bench, command, data):
+    """Issue 42: a frame moves a motor only where the product moves on it. Estop disarms
+    (the axis coasts, here at rest); Set_Absolute_Position moves the position scale, not the
+    axis (the setpoint moves with it)."""
+    bench.ask(can_id(0, Cmd.SET_AXIS_STATE), struct.pack("<I", 8), timeout=0.2)
+    bench.ask(can_id(0, Cmd.SET_INPUT_POS), struct.pack("<fhh", 0.2, 0, 0), timeout=0.2)
+    time.sleep(0.6)
+    before = bench.joint()
+    bench.ask(can_id(0, command), data, timeout=0.2)
+    time.sleep(0.5)
+    assert bench.joint() == pytest.approx(before, abs=2e-3)
