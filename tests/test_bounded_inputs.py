@@ -5,7 +5,9 @@ each answered with a clear error or a bounded memory, never a hang or a tracebac
 from __future__ import annotations
 
 import os
+import shutil
 import time
+from pathlib import Path
 
 import can
 import pytest
@@ -16,6 +18,7 @@ from hil.can.zenoh_wire import Echo, Message
 from hil.controllers import GoalResult, GoalStatus
 from hil.errors import HilError
 from hil.input_files import read_input_file
+from hil.protocols.odrive import ODriveOptions
 
 
 def _alias_bomb(levels: int = 9) -> str:
@@ -54,6 +57,43 @@ def test_a_long_value_in_a_diagnostic_is_cut(tmp_path):
     with pytest.raises(HilError) as raised:
         load_bus_config(config)
     assert len(str(raised.value)) < 2000
+
+
+@pytest.mark.parametrize("cycle_hz, said", [
+    ("fast", "must be a number, not 'fast'"),
+    ("9" * 400, "must be > 0, not 999"),              # an int no float can hold
+    ("9" * 5000, "a number of 5000 characters"),      # an int PyYAML cannot convert
+])
+def test_a_number_no_float_holds_is_an_error_not_a_traceback(tmp_path, cycle_hz, said):
+    fixtures = Path(__file__).parent / "fixtures"
+    shutil.copy(fixtures / "damiao_one_axis.urdf", tmp_path)
+    config = tmp_path / "bus.yaml"
+    config.write_text((fixtures / "damiao_one_axis.yaml").read_text()
+                      .replace("cycle_hz: 500", f"cycle_hz: {cycle_hz}"))
+    with pytest.raises(HilError, match="bus.yaml:12") as raised:
+        load_bus_config(config)
+    assert said in str(raised.value)
+
+
+@pytest.mark.parametrize("option, said", [
+    ("kd: " + "9" * 400, "int too large"),
+    ("kd: fast", "could not convert"),
+])
+def test_a_drive_option_no_float_holds_is_an_error_not_a_traceback(tmp_path, option, said):
+    fixtures = Path(__file__).parent / "fixtures"
+    shutil.copy(fixtures / "damiao_one_axis.urdf", tmp_path)
+    config = tmp_path / "bus.yaml"
+    config.write_text((fixtures / "damiao_one_axis.yaml").read_text()
+                      .replace("kd: 0.3", option))
+    with pytest.raises(HilError, match="bus.yaml:14.*options") as raised:
+        load_bus_config(config)
+    assert said in str(raised.value)
+
+
+def test_an_odrive_message_rate_is_a_uint32_as_in_the_firmware():
+    assert ODriveOptions.from_mapping({"encoder_msg_rate_ms": 2**32 - 1})
+    with pytest.raises(ValueError, match="0..4294967295"):
+        ODriveOptions.from_mapping({"encoder_msg_rate_ms": 2**32})
 
 
 def test_a_bus_remembers_a_bounded_number_of_senders(tmp_path):

@@ -16,7 +16,7 @@ from hil.bus_config.transmissions import add_transmissions
 from hil.bus_config.types import (
     NO_EFFECTS, ActuatorEffects, BusConfig, DriveConfig, Gains, SystemConfig,
 )
-from hil.bus_config.yaml_reader import LineLoader, LineMapping, Reader
+from hil.bus_config.yaml_reader import ConfigTooLarge, LineLoader, LineMapping, Reader
 from hil.description import JointType, PackagePath, RobotDescription, load_description
 from hil.errors import HilError, Severity
 from hil.input_files import read_input_file
@@ -54,6 +54,10 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
     except RecursionError:
         raise HilError.single("YAML nested too deeply to read", path,
                               hint="a bus config nests a few levels") from None
+    except ConfigTooLarge as exc:
+        raise HilError.single(f"YAML too large: {exc.problem}", path, exc.problem_mark.line + 1,
+                              hint="a bus config is a few hundred small values: "
+                                   "remove what is not one") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         raise HilError.single(f"YAML syntax: {getattr(exc, 'problem', exc)}", path,
@@ -306,7 +310,7 @@ def _read_options(reader: Reader, drive: LineMapping, what: str, spec) -> object
         return None
     try:
         return spec.Options.from_mapping(dict(raw))
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, OverflowError) as exc:     # Overflow: a 400-digit int
         reader.fail(f"{what}: options: {exc}", line,
                     hint=f"{spec.name} options: {', '.join(spec.Options.KEYS)}")
         return None

@@ -71,6 +71,14 @@ class LineLoader(yaml.SafeLoader):
         _check_expansion(document)
         return document
 
+    def construct_yaml_int(self, node):
+        # PyYAML's int() of a scalar over 4300 digits raises a bare ValueError
+        try:
+            return super().construct_yaml_int(node)
+        except ValueError:
+            raise ConfigTooLarge(f"a number of {len(node.value)} characters is no value a "
+                                 "config takes", node.start_mark) from None
+
     def construct_mapping(self, node, deep=False):
         mapping = LineMapping(super().construct_mapping(node, deep=True))
         mapping.line = node.start_mark.line + 1
@@ -81,6 +89,15 @@ class LineLoader(yaml.SafeLoader):
 
 LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
                         LineLoader.construct_mapping)
+LineLoader.add_constructor("tag:yaml.org,2002:int", LineLoader.construct_yaml_int)
+
+
+def _fits_a_float(value: int | float) -> bool:
+    """Whether a YAML number is a finite float: an integer of 400 digits is not."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def _bounded(message: str) -> str:
@@ -124,15 +141,18 @@ class Reader:
                 return 1        # placeholder: the error above fails the load
             return default
         value = mapping[key]
+        # What a failed value gives back: the error already fails the load, but the
+        # parse goes on to find the file's other errors and must not crash on None.
+        placeholder = 1 if default is None else default
         if isinstance(value, bool) or not isinstance(value, (int, float)) or (
                 integer and not isinstance(value, int)):
             kind = "a whole number" if integer else "a number"
             self.fail(f"{what}: '{key}' must be {kind}, not {value!r}", line)
-            return default
-        if not math.isfinite(value) or (positive and value <= 0):
-            self.fail(f"{what}: '{key}' must be {'> 0' if positive else 'finite'}, not {value}",
-                      line)
-            return default
+            return placeholder
+        if not _fits_a_float(value) or (positive and value <= 0):
+            self.fail(f"{what}: '{key}' must be {'> 0' if positive else 'finite'}, "
+                      f"not {value}", line)
+            return placeholder
         return value
 
     def text(self, mapping: LineMapping, key: str, what: str, default: str | None = None) -> str:

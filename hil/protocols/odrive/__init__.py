@@ -170,8 +170,9 @@ class ODriveOptions(ProtocolOptions):
                          for k, v in values.items()})
         if options.torque_constant <= 0:
             raise ValueError("'torque_constant' must be > 0")
-        if any(getattr(options, k) < 0 for k in RATE_OPTIONS):
-            raise ValueError("message rates must be >= 0 ms")
+        if any(not 0 <= getattr(options, k) < 2**32 for k in RATE_OPTIONS):
+            # the firmware's axis.config.can.*_msg_rate_ms are uint32 (odrive-interface.yaml)
+            raise ValueError("message rates must be 0..4294967295 ms")
         return options
 
     def drive_defaults(self) -> dict[str, float | bool]:
