@@ -13,7 +13,7 @@ from pathlib import Path
 
 from hil.cli import common
 from hil.errors import HilError
-from hil.visualisation.review import diagnostics
+from hil.visualisation.review import review
 from hil.visualisation.segments import segment_files
 
 
@@ -34,7 +34,15 @@ def run(args: argparse.Namespace) -> int:
     size = sum(path.stat().st_size for path in files)
     print(f"hil review: {args.recording}: {len(files)} file(s), {size / 1e6:.1f} MB"
           + (f" ({files[0].name} ... {files[-1].name})" if len(files) > 1 else ""))
-    found = diagnostics(files)
+    reviewed = review(files)
+    for damage in reviewed.damaged:
+        print(f"hil review: {damage.segment.name} damaged: {damage.reason}")
+    unreadable = {damage.segment for damage in reviewed.damaged if not damage.is_recording}
+    viewable = [path for path in files if path not in unreadable]
+    if not viewable:
+        raise HilError.single(f"{args.recording}: no file of it is a rerun recording",
+                              hint="give the --save of hil up or hil viz (default run.rrd)")
+    found = reviewed.diagnostics
     faults = [d for d in found if d.level == "ERROR"]
     print(f"hil review: {len(faults)} fault(s), {len(found) - len(faults)} other diagnostic(s)")
     for diagnostic in found:
@@ -45,9 +53,9 @@ def run(args: argparse.Namespace) -> int:
     if args.no_viewer:
         return 0
     if not common.display_available():
-        print(f"hil review: no display here; on one: rerun {' '.join(map(str, files))}")
+        print(f"hil review: no display here; on one: rerun {' '.join(map(str, viewable))}")
         return 0
     viewer = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
     print("hil review: in the viewer, the 'diagnostics' view lists them: a click puts the "
           "timelines at one", flush=True)
-    return subprocess.call([viewer, *map(str, files)])
+    return subprocess.call([viewer, *map(str, viewable)])

@@ -18,11 +18,13 @@ import heapq
 import math
 import struct
 import time
+import zlib
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import can
+from can.io.blf import BLFParseError
 
 from hil.bus_config import BusConfig, SystemConfig
 from hil.errors import HilError, error
@@ -131,17 +133,22 @@ class Survey:
                    default=0)
 
 
+#: what python-can's readers raise on a damaged file (BLF: a bad header or object, a
+#: container whose zlib stream is corrupt)
+_DAMAGED = (ValueError, OSError, EOFError, struct.error, BLFParseError, zlib.error)
+
+
 def read_log(path: Path) -> Iterator[can.Message]:
     """The frames of a log file, as python-can reads it (a clear error where it cannot)."""
     try:
         reader = can.LogReader(str(path))
-    except (OSError, ValueError, ImportError, EOFError, struct.error) as exc:
+    except (*_DAMAGED, ImportError) as exc:
         raise HilError.single(f"cannot read CAN log '{path}': {exc}",
                               hint="give a .blf, .asc, .log (candump), .csv, .trc or .mf4 "
                                    "file") from None
     try:
         yield from reader
-    except (ValueError, OSError, EOFError, struct.error) as exc:
+    except _DAMAGED as exc:
         raise HilError.single(f"CAN log '{path}' is damaged: {exc}",
                               hint="a log cut off mid-frame replays up to there only if its "
                                    "format allows: cut it at a whole frame") from None

@@ -5,7 +5,9 @@ view jumps there on a click).
 
 Only the diagnostics' chunks are read: a segment closed properly has rerun's manifest
 (its footer), and the store loads the chunks the filter asks for; one cut off by a crash
-has none and is scanned whole, up to its last flush, as rerun's viewer scans it.
+has none and is scanned whole, up to its last flush, as rerun's viewer scans it. A segment
+rerun cannot read (cut in the middle of a message, or not a recording at all) is named with
+rerun's reason, which gives the offset, and the others are read all the same.
 """
 
 from __future__ import annotations
@@ -30,30 +32,66 @@ class Diagnostic:
     segment: Path
 
 
-def diagnostics(files: list[Path]) -> list[Diagnostic]:
-    """Every fault and reset logged in ``files`` (a recording's segments), oldest first."""
-    found = []
+@dataclass(frozen=True)
+class DamagedSegment:
+    """A segment read in part or not at all: which, and rerun's reason (with the offset)."""
+
+    segment: Path
+    reason: str
+    is_recording: bool        # False: not an .rrd at all, so no viewer should be given it
+
+
+@dataclass(frozen=True)
+class Review:
+    """What a recording's segments hold: its diagnostics, oldest first, and the damage."""
+
+    diagnostics: list[Diagnostic]
+    damaged: list[DamagedSegment]
+
+
+def review(files: list[Path]) -> Review:
+    """Every fault and reset logged in ``files`` (a recording's segments), and every
+    segment that could not be read whole."""
+    found, damaged = [], []
     for path in files:
-        with warnings.catch_warnings():          # a crashed segment: rerun warns, then scans
-            warnings.simplefilter("ignore")
-            reader = rerun.chunk.RrdReader(path)
+        try:
+            chunks = _diagnostic_chunks(path, damaged)
+        except RuntimeError as exc:              # the reason names the file and the offset
+            damaged.append(DamagedSegment(path, str(exc), is_recording=False))
+            continue
+        found += [row for chunk in chunks for row in _rows(chunk, path)]
+    return Review(sorted(found, key=lambda d: d.wall_time), damaged)
+
+
+def _diagnostic_chunks(path: Path, damaged: list[DamagedSegment]) -> list:
+    with warnings.catch_warnings():              # a crashed segment: rerun warns, then scans
+        warnings.simplefilter("ignore")
+        reader = rerun.chunk.RrdReader(path)     # RuntimeError: not a recording
+        try:
+            stream = reader.store().stream()
+        except RuntimeError:                     # no footer: cut off by a crash
             try:
-                stream = reader.store().stream()
-            except RuntimeError:                 # no footer: cut off by a crash
                 stream = reader.stream()
-            # one robot's at the root, several robots' each under its name
-            chunks = stream.filter(content=["/diagnostics", "/*/diagnostics"],
-                                   is_static=False).to_chunks()
-        for chunk in chunks:
-            batch = chunk.to_record_batch()
-            names = batch.schema.names
-            walls = [datetime.datetime.fromtimestamp(ns / 1e9, datetime.timezone.utc)
-                     for ns in batch.column("wall_time").cast("int64").to_pylist()]
-            controls = (batch.column("control_time").cast("int64").to_pylist()
-                        if "control_time" in names else [None] * batch.num_rows)
-            texts = batch.column("TextLog:text").to_pylist()
-            levels = batch.column("TextLog:level").to_pylist()
-            for wall, control, text, level in zip(walls, controls, texts, levels):
-                found.append(Diagnostic(wall, None if control is None else control / 1e9,
-                                        (level or [""])[0], (text or [""])[0], path))
-    return sorted(found, key=lambda d: d.wall_time)
+            except RuntimeError as exc:          # cut inside a message: rerun reads none
+                damaged.append(DamagedSegment(path, str(exc), is_recording=True))
+                return []
+            damaged.append(DamagedSegment(path, "no footer: the run did not close it (a "
+                                          "crash?); read up to its last whole message",
+                                          is_recording=True))
+        # one robot's at the root, several robots' each under its name
+        return stream.filter(content=["/diagnostics", "/*/diagnostics"],
+                             is_static=False).to_chunks()
+
+
+def _rows(chunk, path: Path) -> list[Diagnostic]:
+    batch = chunk.to_record_batch()
+    names = batch.schema.names
+    walls = [datetime.datetime.fromtimestamp(ns / 1e9, datetime.timezone.utc)
+             for ns in batch.column("wall_time").cast("int64").to_pylist()]
+    controls = (batch.column("control_time").cast("int64").to_pylist()
+                if "control_time" in names else [None] * batch.num_rows)
+    texts = batch.column("TextLog:text").to_pylist()
+    levels = batch.column("TextLog:level").to_pylist()
+    return [Diagnostic(wall, None if control is None else control / 1e9,
+                       (level or [""])[0], (text or [""])[0], path)
+            for wall, control, text, level in zip(walls, controls, texts, levels)]
