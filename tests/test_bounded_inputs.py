@@ -5,6 +5,7 @@ each answered with a clear error or a bounded memory, never a hang or a tracebac
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import time
 from pathlib import Path
@@ -122,3 +123,20 @@ def test_a_servers_results_are_bounded(monkeypatch):
     result = GoalResult(GoalStatus.SUCCEEDED, 0, "")
     server.publish_results([(f"{n:032x}", result) for n in range(25)])
     assert list(server._results) == [f"{n:032x}" for n in range(15, 25)]
+
+
+@pytest.mark.parametrize("setting, value, field", [
+    ("heartbeat_period", "100", "0x1017"),             # UNSIGNED16 ms: 65.535 s at most
+    ("watchdog_timeout", "70", "0x2010"),
+    ("encoder_counts_per_rev", str(2**32), "0x608F:01"),
+])
+def test_hil_check_refuses_a_setting_the_drives_object_cannot_hold(tmp_path, setting, value,
+                                                                   field):
+    """What hil check accepts, hil sim can encode: a CiA 402 drive keeps these settings in
+    objects of its EDS, whose types bound them."""
+    config = tmp_path / "ur3.yaml"
+    shipped = (Path(__file__).parents[1] / "bus_config" / "ur3.yaml").read_text()
+    config.write_text(re.sub(rf"{setting}: [0-9.]+", f"{setting}: {value}", shipped)
+                      .replace("../robots/", f"{Path(__file__).parents[1]}/robots/"))
+    with pytest.raises(HilError, match=f"'{setting}' {value} does not fit the drive's {field}"):
+        load_bus_config(config)

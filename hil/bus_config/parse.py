@@ -179,7 +179,7 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
     if not isinstance(brake, bool):
         reader.fail(f"{what}: holding_brake must be true or false",
                     merged.key_lines.get("holding_brake", merged.line))
-    return DriveConfig(
+    config = DriveConfig(
         node_id=node_id, actuator=transmission.actuators[k], joints=transmission.joints,
         protocol=name,
         encoder_counts_per_rev=int(reader.number(merged, "encoder_counts_per_rev", what, 131072,
@@ -199,6 +199,20 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
         velocity_bandwidth_hz=float(reader.number(merged, "velocity_bandwidth_hz", what, 40.0)),
         options=options, line=own.line, effects=_read_effects(reader, merged, what),
         torque_feed_forward=_read_torque_feed_forward(reader, merged, what, spec))
+    _check_setting_fields(reader, merged, what, spec, config)
+    return config
+
+
+def _check_setting_fields(reader: Reader, merged: LineMapping, what: str, spec,
+                          config: DriveConfig) -> None:
+    """Refuse a setting the product's own field cannot hold (hil sim could not encode it)."""
+    for name, field in spec.setting_fields.items():
+        value = getattr(config, name)
+        if not field.holds(value):
+            reader.fail(f"{what}: '{name}' {value:.12g} does not fit the drive's {field.field}",
+                        merged.key_lines.get(name, merged.line),
+                        hint=f"{spec.name} takes {field.low / field.scale:.12g} to "
+                             f"{field.high / field.scale:.12g} there")
 
 
 def _is_file(path: Path) -> bool:

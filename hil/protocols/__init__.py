@@ -14,7 +14,7 @@ from __future__ import annotations
 import functools
 from importlib.metadata import entry_points
 
-from hil.protocols.base import FrameSource, Protocol, Sender, load
+from hil.protocols.base import FrameSource, Protocol, Sender, SettingField, load
 
 #: hil's own protocols: name -> "module:Class" of their Protocol
 BUILTIN = {"cia402": "hil.protocols.cia402:Cia402", "odrive": "hil.protocols.odrive:ODrive",
@@ -43,5 +43,5 @@ def protocol(name: str) -> type[Protocol]:
     return found
 
 
-__all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "FrameSource", "Protocol", "Sender", "names",
-           "protocol"]
+__all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "FrameSource", "Protocol", "Sender", "SettingField",
+           "names", "protocol"]

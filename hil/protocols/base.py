@@ -52,6 +52,21 @@ class DriveSetting:
     model: str | None      # the product sized for it (a key of Protocol.models), if any
 
 
+@dataclass(frozen=True)
+class SettingField:
+    """Where a drive setting of the bus config travels in the product: a field holding
+    ``round(value * scale)`` in ``low..high`` (named, with its source, for the message that
+    refuses a value it cannot hold)."""
+
+    scale: float
+    low: int
+    high: int
+    field: str
+
+    def holds(self, value: float) -> bool:
+        return self.low <= round(value * self.scale) <= self.high
+
+
 class ProtocolOptions:
     """A protocol's own settings in a bus config (``options:`` of a drive), with what hil
     asks of every protocol's settings declared here with its default."""
@@ -90,6 +105,9 @@ class Protocol(ABC):
     #: ``rated_torque``, ``peak_torque`` (N·m), ``no_load_speed`` (rad/s) and
     #: ``reflected_inertia`` (kg·m²) at the drive; none by default
     models: ClassVar[Mapping[str, Any]] = {}
+    #: the DriveConfig settings the product keeps in a field of its own (an object, a
+    #: register), and that field's range: a bus config's value outside it is refused
+    setting_fields: ClassVar[Mapping[str, SettingField]] = {}
     #: "module:Class" of the simulated drive and of the master-side axis
     drive: ClassVar[str]
     axis: ClassVar[str]

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import FrameSource, Protocol, ProtocolOptions, Sender
+from hil.protocols.base import FrameSource, Protocol, ProtocolOptions, Sender, SettingField
 
 SYNC_ID = 0x080          # CiA 301's SYNC COB-ID
 NMT_ID = 0x000
@@ -75,6 +75,22 @@ class Cia402(Protocol):
     uses_sync = True
     carries_torque_feed_forward = True
     Options = Cia402Options
+    # the objects the drive keeps them in, with the types of hil's EDS (CiA 301 for 0x1017,
+    # CiA 402 for 0x6066, 0x6076 and 0x608F; 0x2010 is hil's own)
+    setting_fields = {
+        "heartbeat_period": SettingField(1000, 1, 0xFFFF, "0x1017 producer heartbeat time, "
+                                                          "UNSIGNED16 ms"),
+        "watchdog_timeout": SettingField(1000, 0, 0xFFFF, "0x2010 watchdog timeout, "
+                                                          "UNSIGNED16 ms"),
+        "following_error_timeout": SettingField(1000, 0, 0xFFFF, "0x6066 following error "
+                                                                 "time out, UNSIGNED16 ms"),
+        # a rated torque under 0.5 mN·m is 0 there (the pigot's finger): its master then
+        # gives it no torque offset (Cia402Axis), so 0 is let through
+        "rated_torque": SettingField(1000, 0, 0xFFFFFFFF, "0x6076 motor rated torque, "
+                                                          "UNSIGNED32 mN·m"),
+        "encoder_counts_per_rev": SettingField(1, 1, 0xFFFFFFFF, "0x608F:01 encoder "
+                                                                 "increments, UNSIGNED32"),
+    }
     drive = "hil.protocols.cia402.drive:Cia402Drive"
     axis = "hil.protocols.cia402.axis:Cia402Axis"
 

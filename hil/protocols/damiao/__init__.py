@@ -29,7 +29,8 @@ import enum
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender
+from hil.protocols.base import (DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender,
+                                SettingField)
 from hil.protocols.damiao.models import MODELS, DamiaoModel, model
 from hil.protocols.damiao.registers import REGISTER_ID, REGISTERS, TIMEOUT_UNIT, Op
 from hil.protocols.mit import MitRanges, float_to_uint, uint_to_float
@@ -185,6 +186,8 @@ class Damiao(Protocol):
     has_following_error = False
     node_ids = range(1, 0x100)          # the mode offsets 0x100..0x300 must not collide
     models = MODELS
+    setting_fields = {"watchdog_timeout": SettingField(1 / TIMEOUT_UNIT, 0, 0xFFFFFFFF,
+                                                       "register 9 TIMEOUT, uint32 of 50 us")}
     drive = "hil.protocols.damiao.drive:DamiaoDrive"
     axis = "hil.protocols.damiao.axis:DamiaoAxis"
 

@@ -21,7 +21,8 @@ import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender
+from hil.protocols.base import (DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender,
+                                SettingField)
 
 TURN = 2 * math.pi
 
@@ -194,6 +195,8 @@ class ODrive(Protocol):
     carries_torque_feed_forward = True
     node_ids = range(0, 64)
     has_following_error = False
+    setting_fields = {"heartbeat_period": SettingField(
+        1000, 1, 0xFFFFFFFF, "axis.config.can.heartbeat_msg_rate_ms, uint32 ms")}
     drive = "hil.protocols.odrive.drive:ODriveDrive"
     axis = "hil.protocols.odrive.axis:ODriveAxis"
 
