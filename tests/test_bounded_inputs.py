@@ -125,6 +125,31 @@ def test_a_servers_results_are_bounded(monkeypatch):
     assert list(server._results) == [f"{n:032x}" for n in range(15, 25)]
 
 
+def test_a_goal_the_controller_fails_on_still_gets_an_answer(monkeypatch):
+    """A defect in the controller's goal handling answers the client at once (rejected, with
+    the error), where it used to log a traceback and leave it 'no controller answered'."""
+    from hil.messaging import action
+
+    class Query:
+        payload, key_expr = None, "k"
+
+        def __init__(self):
+            self.answers = []
+
+        def reply_err(self, text):
+            self.answers.append(text)
+
+    def fails(*_):
+        raise AttributeError("'NoneType' object has no attribute 'copy'")
+
+    server = action.TrajectoryActionServer.__new__(action.TrajectoryActionServer)
+    server.controller, server.clock = None, time.monotonic
+    monkeypatch.setattr(action, "submit_goal_request", fails)
+    query = Query()
+    server._on_send_goal(query)
+    assert query.answers and query.answers[0].startswith("rejected (-1): the controller failed")
+
+
 @pytest.mark.parametrize("setting, value, field", [
     ("heartbeat_period", "100", "0x1017"),             # UNSIGNED16 ms: 65.535 s at most
     ("watchdog_timeout", "70", "0x2010"),

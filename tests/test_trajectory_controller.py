@@ -158,6 +158,11 @@ def test_goal_tolerance_violation_after_goal_time(ur3_jtc):
     (goal(["joint1"], (0.1, [0.5])), INVALID_GOAL, "point 0 joint 'joint1' needs 5 on average"),
     (goal(["joint1"], (1.0, [0.1, 0.2])), INVALID_GOAL, "point 0 has 2 positions for 1 joints"),
     (goal(["joint1"]), INVALID_GOAL, "no points"),
+    (goal(["joint1"], (1.0, [0.1], (), [0.0])), INVALID_GOAL,
+     "point 0 gives accelerations without velocities"),
+    (TrajectoryGoal(("joint1",), TrajectoryPoints(np.array([1.0]), np.array([[0.1]]),
+                                                  accelerations=np.array([[0.0]]))),
+     INVALID_GOAL, "the goal gives accelerations without velocities"),
 ])
 def test_bad_goals_are_rejected_before_any_motion(ur3_jtc, bad, code, words):
     follower = Follower(ur3_jtc)

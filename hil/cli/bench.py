@@ -12,13 +12,14 @@ from pathlib import Path
 
 from hil.bench import LOCK_STEP_WINDOW, BenchSettings, run_bench, run_soak
 from hil.bench.scale import HOLDS_MISSED, largest_holding
+from hil.cli import common
 from hil.errors import HilError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true",
                         help="short runs (about a minute; what CI runs)")
-    parser.add_argument("--seconds", type=float, metavar="S",
+    parser.add_argument("--seconds", type=common.positive, metavar="S",
                         help="length of each real-time run (default 10; --quick 2)")
     parser.add_argument("--json", type=Path, default=Path("bench.json"), metavar="FILE",
                         help="write the report here (default bench.json)")

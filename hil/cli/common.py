@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shutil
 import sys
@@ -22,6 +23,26 @@ from hil.zenoh_session import (DEFAULT_ENDPOINT, MEETING_VARIABLE, ZenohSettings
 
 #: how a loopback listener's endpoint reads (anything else is reachable from elsewhere)
 LOOPBACK_HOSTS = ("/127.", "/[::1]", "/localhost:")
+
+
+def positive(text: str) -> float:
+    """An argparse type: a finite number > 0 (a time, a rate, a tolerance)."""
+    return _finite(text, lambda value: value > 0, "a number > 0")
+
+
+def non_negative(text: str) -> float:
+    """An argparse type: a finite number >= 0 (0: off, where the option says so)."""
+    return _finite(text, lambda value: value >= 0, "a number >= 0")
+
+
+def _finite(text: str, holds, what: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or not holds(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not {what}")
+    return value
 
 
 def config_path(name: str) -> Path:

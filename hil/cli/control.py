@@ -33,15 +33,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="no CAN, no physics: echo the commands as the measured state")
     common.add_timing(parser, "run each cycle as soon as the drives answered (with hil sim "
                               "--lock-step); the controller clock advances one period per cycle")
-    parser.add_argument("--joint-state-rate", type=float, default=100.0, metavar="HZ",
+    parser.add_argument("--joint-state-rate", type=common.positive, default=100.0, metavar="HZ",
                         help="joint state publication rate (default 100)")
     parser.add_argument("--priority", type=int, default=REAL_TIME_PRIORITY, metavar="N",
                         help="real time: run the control loop under SCHED_FIFO priority N "
                              f"where the OS allows it (default {REAL_TIME_PRIORITY}; 0: the "
                              "normal scheduler)")
-    parser.add_argument("--goal-tolerance", type=float, default=Defaults.goal_position_tolerance,
+    parser.add_argument("--goal-tolerance", type=common.positive, default=Defaults.goal_position_tolerance,
                         metavar="RAD", help="default goal position tolerance")
-    parser.add_argument("--boot-timeout", type=float, default=CONTROL_BOOT_TIMEOUT, metavar="S",
+    parser.add_argument("--boot-timeout", type=common.positive, default=CONTROL_BOOT_TIMEOUT, metavar="S",
                         help="how long to wait for every drive to boot (default "
                              f"{CONTROL_BOOT_TIMEOUT:g}: start hil sim before or after)")
     parser.add_argument("--report", type=Path, metavar="FILE.json",

@@ -23,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "makers' models (damiao: DM4310, DM4340, DM8009, ...): its "
                              "ranges, torques and speed size the drives (default: the "
                              "smallest model that fits each joint)")
-    parser.add_argument("--rate", type=float, default=500.0, metavar="HZ",
+    parser.add_argument("--rate", type=common.positive, default=500.0, metavar="HZ",
                         help="control cycle rate of every bus (default 500)")
     parser.add_argument("-o", "--output", type=Path, metavar="FILE.yaml",
                         help="where to write it (default: ROBOT.yaml in this folder)")

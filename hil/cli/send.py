@@ -16,6 +16,7 @@ from hil.controllers import (
     GoalRejected, GoalStatus, JointTolerance, TrajectoryGoal, TrajectoryPoint,
 )
 from hil.errors import HilError
+from hil.input_files import read_input_file
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient
 from hil.zenoh_session import close_all, session
 
@@ -35,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="its target position, one per --joint")
     parser.add_argument("--in", dest="duration", default="2s",
                         help="time to get there, e.g. 2s or 500ms (default 2s)")
-    parser.add_argument("--timeout", type=float, default=60.0, help="seconds to wait (60)")
+    parser.add_argument("--timeout", type=common.positive, default=60.0, help="seconds to wait (60)")
     parser.add_argument("--quiet", action="store_true", help="print the result only")
     common.add_zenoh(parser, "operator")
     common.add_ros(parser, "send to a FollowJointTrajectory action server on ROS 2 "
@@ -143,10 +144,11 @@ def _duration(text: str) -> float:
 
 def goal_from_file(path: Path) -> TrajectoryGoal:
     """Read a trajectory file (YAML or JSON), with errors naming the file."""
+    text = read_input_file(path, "trajectory", hint="give a YAML or JSON trajectory file")
     try:
         # libyaml's loader where PyYAML has it: a 10,000-point goal parses in a fraction
-        data = (yaml.load(path.read_text(), Loader=_YAML_LOADER) if path.suffix != ".json"
-                else json.loads(path.read_text()))
+        data = (yaml.load(text, Loader=_YAML_LOADER) if path.suffix != ".json"
+                else json.loads(text))
         names = tuple(data["joint_names"])
         points = tuple(TrajectoryPoint(float(p["time_from_start"]),
                                        tuple(float(x) for x in p["positions"]),
@@ -158,9 +160,8 @@ def goal_from_file(path: Path) -> TrajectoryGoal:
         goal = TrajectoryGoal(names, points, None, tolerance("path_tolerance"),
                               tolerance("goal_tolerance"),
                               float(data.get("goal_time_tolerance", 0.0)))
-    except OSError as exc:
-        raise HilError.single(f"cannot read '{path}': {exc.strerror}") from None
-    except (yaml.YAMLError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+    except (yaml.YAMLError, json.JSONDecodeError, KeyError, TypeError, ValueError,
+            AttributeError, OverflowError, RecursionError) as exc:   # what bad data raises
         raise HilError.single(f"'{path}' is not a trajectory: {exc!r}", path,
                               hint="needs joint_names and points with positions and "
                                    "time_from_start") from None

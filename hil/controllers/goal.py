@@ -130,6 +130,12 @@ def check_tolerances(goal: TrajectoryGoal) -> None:
     if goal.start_time is not None and not math.isfinite(goal.start_time):
         raise GoalRejected(f"the start time {goal.start_time} is not a time")
 
+#: ros2_controllers' trajectory interpolates linearly (positions), cubically (and
+#: velocities) or quinticly (and accelerations); accelerations without velocities fit none,
+#: and hil guesses no velocity: refused
+_ACCELERATIONS_ALONE = "{} gives accelerations without velocities: give both, or neither"
+
+
 def goal_arrays(goal: TrajectoryGoal):
     """The points as arrays (times; positions, velocities, accelerations: points x
     joints, zeros where the order does not use them) and the interpolation order, after
@@ -139,6 +145,8 @@ def goal_arrays(goal: TrajectoryGoal):
     if isinstance(points, TrajectoryPoints):
         return _arrays_given(names, points)
     for p, point in enumerate(points):
+        if point.accelerations and not point.velocities:
+            raise GoalRejected(_ACCELERATIONS_ALONE.format(f"point {p}"))
         if len(point.positions) != n:
             raise GoalRejected(f"point {p} has {len(point.positions)} positions for "
                                f"{n} joints")
@@ -168,6 +176,8 @@ def _arrays_given(names: tuple[str, ...], points: TrajectoryPoints):
         if values is not None and not shaped(values):
             raise GoalRejected(f"the goal's {what} are {' x '.join(map(str, values.shape))}"
                                f" for {len(points)} points of {n} joints")
+    if points.accelerations is not None and points.velocities is None:
+        raise GoalRejected(_ACCELERATIONS_ALONE.format("the goal"))
     order = (5 if shaped(points.accelerations) else 3 if shaped(points.velocities) else 1)
     zeros = np.zeros((len(points), n))
     return _checked(

@@ -69,6 +69,11 @@ class TrajectoryActionServer:
             code = getattr(exc, "error_code", -1)
             query.reply_err(f"rejected ({code}): {exc}")
             return
+        except Exception as exc:        # a hil defect: the client still hears why, at once
+            log.exception("goal refused on an unexpected error")
+            query.reply_err(f"rejected (-1): the controller failed on this goal ({exc!r}): a "
+                            "hil defect; its log has the traceback")
+            return
         query.reply(query.key_expr, cdr.encode(cdr.msg(cdr.SEND_GOAL_RESPONSE, accepted=True,
                                                      stamp=cdr.time_msg(time.time()))))
 

@@ -70,7 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "then stop")
     parser.add_argument("--keep-running", action="store_true",
                         help="after the demo, keep running until Ctrl-C")
-    parser.add_argument("--duration", type=float, metavar="S",
+    parser.add_argument("--duration", type=common.positive, metavar="S",
                         help="without --demo: stop after S seconds (default: run until Ctrl-C)")
     parser.add_argument("--save", type=Path, default=Path("run.rrd"), metavar="FILE.rrd",
                         help="the rerun recording (default run.rrd); the CAN log "
