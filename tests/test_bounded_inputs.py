@@ -165,3 +165,15 @@ def test_hil_check_refuses_a_setting_the_drives_object_cannot_hold(tmp_path, set
                       .replace("../robots/", f"{Path(__file__).parents[1]}/robots/"))
     with pytest.raises(HilError, match=f"'{setting}' {value} does not fit the drive's {field}"):
         load_bus_config(config)
+
+
+def test_a_flood_of_malformed_payloads_is_a_count_and_a_few_lines():
+    """100,000 malformed stall reports used to be 100,000 log lines (issue 43)."""
+    from hil.messaging.zenoh_api import MalformedPayloads
+
+    lines: list[str] = []
+    malformed = MalformedPayloads(lines.append)
+    for _ in range(5000):
+        malformed("hil/ur3/stalls", ValueError("not a hil_msgs/Stall"))
+    assert malformed.count == 5000
+    assert len(lines) == 5 and "(4001 so far)" in lines[-1] and "hil/ur3/stalls" in lines[0]

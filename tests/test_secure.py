@@ -316,3 +316,41 @@ def test_the_policy_gives_operators_and_observers_allow_lists_only():
         keys_of = {k for r in ingress for k in r["key_exprs"]}
         assert "**" not in keys_of, f"{role} may do anything somewhere"
         assert not any("put" in r["messages"] for r in ingress), f"{role} may publish"
+
+
+def test_a_stall_report_counts_only_from_the_benchs_own_roles(keys, peers):
+    """hil up blames the bench (exit 3) or a drive (exit 1) on its stall count: a stall put
+    by an operator or an observer, on the stall key or a wider one, is not counted; one of
+    the drives' process is (issue 43)."""
+    from hil.messaging.zenoh_api import StallPublisher, StallSubscriber
+    from hil.realtime.stalls import Stall
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    listening = ZenohSettings(listen=(endpoint,), identity=Identity.of(keys, "operator"))
+    counted: list = []
+    subscriber = StallSubscriber(session(listening), "ur3", counted.append,
+                                 lambda error: counted.append(error))
+    try:
+        payload = cdr.encode(cdr.msg(cdr.STALL, process="sim", at=time.time(), length=0.5,
+                                     steal=0.0, where=""))
+        for role in ("operator", "observer"):
+            peer = peers(keys, role, endpoint)
+            assert peer.linked()
+            for expression in (key("ur3", "stalls"), "hil/ur3/*", "hil/**", "**"):
+                peer.session.put(expression, payload)
+        time.sleep(1.0)
+        assert not counted, "a stall from a role outside the bench was counted"
+        drives = peers(keys, "drives", endpoint)
+        assert drives.linked()
+        publisher = StallPublisher(drives.session, "ur3")
+        try:
+            publisher.publish(Stall("sim", time.time(), 0.5, 0.0))
+            deadline = time.monotonic() + 5.0
+            while not counted and time.monotonic() < deadline:
+                time.sleep(0.05)
+        finally:
+            publisher.close()
+        assert [stall.process for stall in counted] == ["sim"]
+    finally:
+        subscriber.close()
+        close(listening)

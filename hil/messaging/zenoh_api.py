@@ -128,17 +128,40 @@ def decode_stall(data: bytes) -> Stall:
     return Stall(got.process, got.at, got.length, got.steal, where=got.where)
 
 
+class MalformedPayloads:
+    """A subscriber's malformed payloads: counted, and the first and every REPORT_EVERY-th
+    told through ``on_error`` (key, count, reason), so that a flood of them is a count and
+    a few lines, not a line each."""
+
+    REPORT_EVERY = 1000
+
+    def __init__(self, on_error: Callable[[str], None]):
+        self.count = 0
+        self._on_error = on_error
+        self._lock = threading.Lock()      # Zenoh delivers on several threads
+
+    def __call__(self, key_expr, problem: ValueError) -> None:
+        with self._lock:
+            self.count += 1
+            count = self.count
+        if count % self.REPORT_EVERY == 1:
+            self._on_error(f"{key_expr}: dropped a malformed payload ({count} so far): "
+                           f"{problem}")
+
+
 class StallSubscriber:
     """Receives the stalls of a robot's real-time processes (this process' own among them);
     a malformed payload is reported through ``on_error`` (key and reason), never passed on."""
 
     def __init__(self, session: zenoh.Session, robot: str, on_stall: Callable[[Stall], None],
                  on_error: Callable[[str], None]):
+        malformed = MalformedPayloads(on_error)
+
         def on_sample(sample: zenoh.Sample) -> None:
             try:
                 stall = decode_stall(sample.payload.to_bytes())
             except ValueError as exc:
-                on_error(f"{sample.key_expr}: dropped a malformed payload: {exc}")
+                malformed(sample.key_expr, exc)
                 return
             on_stall(stall)
 
@@ -168,8 +191,8 @@ class RunSubscriber:
     """Receives a robot's recorded cycles, sim clock and (given ``on_diagnostic``,
     ``on_stall`` and ``on_scene``) the controller's diagnostics, the real-time processes'
     stalls and the plant's scene;
-    malformed payloads are counted and reported (key and reason) through ``on_error``, never
-    passed on."""
+    malformed payloads are counted (``malformed.count``) and reported through ``on_error``
+    (:class:`MalformedPayloads`), never passed on.""" 
 
     def __init__(self, session: zenoh.Session, robot: str,
                  on_samples: Callable[[ControlSamples], None],
@@ -178,8 +201,7 @@ class RunSubscriber:
                  on_diagnostic: Callable[[DiagnosticStatus], None] | None = None,
                  on_stall: Callable[[Stall], None] | None = None,
                  on_scene: Callable[[SceneState], None] | None = None):
-        self.malformed = 0
-        self._on_error = on_error
+        self.malformed = MalformedPayloads(on_error)
         self._subscribers: list[zenoh.Subscriber] = []
         self._subscribe(session, key(robot, "control/samples"), ControlSamples.decode,
                         on_samples)
@@ -203,8 +225,7 @@ class RunSubscriber:
             try:
                 decoded = decode(sample.payload.to_bytes())
             except ValueError as exc:
-                self.malformed += 1
-                self._on_error(f"{sample.key_expr}: dropped a malformed payload: {exc}")
+                self.malformed(sample.key_expr, exc)
                 return
             deliver(decoded)
 

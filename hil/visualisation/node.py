@@ -50,7 +50,6 @@ class VizNode:
         self._period = 1.0 / bus_load_hz
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._stop = threading.Event()
-        self._errors = 0
         self.subscribers = [self._subscribe(recorder) for recorder in recorders]
 
     def _subscribe(self, recorder: RunRecorder) -> RunSubscriber:
@@ -60,10 +59,10 @@ class VizNode:
         return RunSubscriber(self._session, recorder.robot.name, put,
                              lambda wall, sim: put((wall, sim)), self._report, put, put, put)
 
-    def _report(self, text: str) -> None:
-        self._errors += 1
-        if self._errors == 1 or self._errors % 100 == 0:
-            print(f"hil viz: {text} ({self._errors} so far)", file=sys.stderr, flush=True)
+    @staticmethod
+    def _report(text: str) -> None:
+        # RunSubscriber tells the first malformed payload and every thousandth
+        print(f"hil viz: {text}", file=sys.stderr, flush=True)
 
     def stop(self) -> None:
         self._stop.set()
@@ -130,8 +129,9 @@ class VizNode:
             text += " (" + ", ".join(f"{r.robot.name} {r.cycles_logged} cycles, {r.cycles_lost} "
                                      f"lost" for r in recorders) + ")"
         text += self._lag_words(self.lags.values, self.processing.values)
-        if self._errors:
-            text += f"; {self._errors} malformed payloads dropped"
+        malformed = sum(subscriber.malformed.count for subscriber in self.subscribers)
+        if malformed:
+            text += f"; {malformed} malformed payloads dropped"
         return text
 
     def _status(self, recent: int) -> str:
