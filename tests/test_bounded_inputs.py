@@ -14,6 +14,7 @@ import can
 import pytest
 
 from hil.bus_config import load_bus_config
+from hil.description import PackagePath, load_description
 from hil.can.zenoh_bus import MAX_SENDERS
 from hil.can.zenoh_wire import Echo, Message
 from hil.controllers import GoalResult, GoalStatus
@@ -177,3 +178,36 @@ def test_a_flood_of_malformed_payloads_is_a_count_and_a_few_lines():
         malformed("hil/ur3/stalls", ValueError("not a hil_msgs/Stall"))
     assert malformed.count == 5000
     assert len(lines) == 5 and "(4001 so far)" in lines[-1] and "hil/ur3/stalls" in lines[0]
+
+
+def _chain(joints: int) -> str:
+    link = ('<link name="l{}"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" '
+            'izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>')
+    joint = ('<joint name="j{0}" type="revolute"><parent link="l{0}"/><child link="l{1}"/>'
+             '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>')
+    return ('<robot name="chain">' + "".join(link.format(i) for i in range(joints + 1))
+            + "".join(joint.format(i, i + 1) for i in range(joints)) + "</robot>")
+
+
+@pytest.mark.parametrize("name, text, said", [
+    ("chain.urdf", _chain(1000), "more than 200 joints deep"),
+    ("macro.xacro", '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+                    '<xacro:macro name="m"><xacro:m/></xacro:macro><xacro:m/></robot>',
+     "nests without end"),
+    ("self.xacro", '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+                   '<xacro:include filename="self.xacro"/></robot>', "nests without end"),
+])
+def test_a_description_without_end_is_an_error_not_a_traceback(tmp_path, name, text, said):
+    description = tmp_path / name
+    description.write_text(text)
+    with pytest.raises(HilError, match=said):
+        load_description(description, PackagePath(()))
+
+
+def test_a_mesh_path_the_system_cannot_take_is_a_missing_mesh(tmp_path):
+    description = tmp_path / "long.urdf"
+    description.write_text(_chain(1).replace(
+        '<link name="l0">', f'<link name="l0"><visual><geometry><mesh filename="{"x" * 300}'
+                            '.stl"/></geometry></visual>'))
+    robot = load_description(description, PackagePath(()))
+    assert any("not found" in warning.message for warning in robot.warnings)

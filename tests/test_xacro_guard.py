@@ -5,6 +5,8 @@ and includes of any file, /dev/zero among them, were honoured)."""
 from __future__ import annotations
 
 import math
+import shutil
+from pathlib import Path
 
 import pytest
 
@@ -100,3 +102,38 @@ def test_eval_substitution_is_arithmetic_only(tmp_path):
     with pytest.raises(HilError, match="not allowed"):
         _load(tmp_path, '<xacro:arg name="n" default="2"/>\n'
                         + LINK.format(name="l$(eval n.__class__)"), "evil.xacro")
+
+
+#: a mesh of the test corpus
+STL = Path(__file__).parent / "corpus" / "real_world" / "arm_folder" / "meshes" / "base.stl"
+
+
+def _robot_with_mesh(filename: str) -> str:
+    inertial = ('<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" '
+                'ixz="0" iyz="0"/></inertial>')
+    return (f'<robot name="m"><link name="a"><visual><geometry><mesh filename="{filename}"/>'
+            f'</geometry></visual>{inertial}</link><link name="b">{inertial}</link>'
+            '<joint name="j" type="revolute"><parent link="a"/><child link="b"/>'
+            '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+            '</robot>')
+
+
+def test_a_mesh_is_read_inside_the_descriptions_package_and_refused_outside(tmp_path):
+    """Meshes, like includes, only inside the description's folder (its package's, so that
+    ../meshes beside urdf/ is read) and the package path (issue 43)."""
+    package = tmp_path / "my_robot"
+    (package / "urdf").mkdir(parents=True)
+    (package / "meshes").mkdir()
+    (package / "package.xml").write_text("<package><name>my_robot</name></package>")
+    shutil.copy(STL, package / "meshes" / "a.stl")
+    outside = tmp_path / "elsewhere.stl"
+    shutil.copy(STL, outside)
+    inside = package / "urdf" / "inside.urdf"
+    inside.write_text(_robot_with_mesh("../meshes/a.stl"))
+    found = load_description(inside, PackagePath(())).link("a").visuals[0].geometry.mesh
+    assert found.resolve() == package / "meshes" / "a.stl"
+    refused = package / "urdf" / "refused.urdf"
+    refused.write_text(_robot_with_mesh(f"file://{outside}"))
+    robot = load_description(refused, PackagePath(()))
+    assert robot.link("a").visuals[0].geometry.mesh is None
+    assert any("hil reads no file there" in warning.message for warning in robot.warnings)

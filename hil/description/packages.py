@@ -38,6 +38,15 @@ _MAX_DEPTH = 3
 _RESOURCE_DIR = Path("share") / "ament_index" / "resource_index" / "packages"
 
 
+def own_package(path: Path) -> Path | None:
+    """The ROS package folder holding ``path``: the nearest folder above it with a
+    package.xml (None: in no package)."""
+    for folder in Path(path).resolve().parents:
+        if (folder / "package.xml").is_file():
+            return folder
+    return None
+
+
 def project_robots_dir() -> Path:
     """The ``robots/`` folder shipped with hil."""
     return data_dir(ROBOTS)

@@ -11,6 +11,7 @@ from pathlib import Path
 from hil.description.model import Pose
 from hil.description.packages import PackagePath
 from hil.description.source import RobotSource
+from hil.description.xacro_guard import Allowed
 from hil.errors import Diagnostic, error, warning
 
 
@@ -42,6 +43,10 @@ class SourceIndex:
         return self.files[0], None
 
 
+#: the largest mesh file hil reads (hil's limit: a robot's meshes are a few MB each)
+MAX_MESH_BYTES = 256 * 1024 * 1024
+
+
 class ElementReader:
     """One pass over a URDF tree, collecting diagnostics instead of stopping."""
 
@@ -54,6 +59,10 @@ class ElementReader:
         self.ignored_axes: list[str] = []
         #: mesh URIs reported missing
         self.missing_meshes: set[str] = set()
+        #: mesh URIs found but not read, and why (outside the allowed folders, too large)
+        self.refused_meshes: dict[str, str] = {}
+        # what a description may reach: its folder or package, the package path
+        self._mesh_folders = Allowed.of(source.path, package_path.roots).folders
 
     def report(self, make, message: str, tag: str, name: str, hint: str | None = None) -> None:
         file, line = self.index.locate(tag, name)
@@ -72,7 +81,28 @@ class ElementReader:
         else:
             writers = [f for f, text in self.index.texts.items() if uri in text]
             candidates = [f.parent / uri for f in (*writers, self.source.path)]
-        return next((c for c in candidates if c.is_file()), None)
+        for candidate in candidates:
+            if self._readable_mesh(uri, candidate):
+                return candidate
+        return None
+
+    def _readable_mesh(self, uri: str, candidate: Path) -> bool:
+        """Whether ``candidate`` is a mesh file hil may read; a refusal's reason is kept in
+        refused_meshes."""
+        try:
+            if not candidate.is_file():
+                return False
+            resolved, size = candidate.resolve(), candidate.stat().st_size
+        except OSError:                       # a name the system cannot take (too long)
+            return False
+        if not any(resolved.is_relative_to(folder) for folder in self._mesh_folders):
+            self.refused_meshes[uri] = ("it is outside the description's folder and the "
+                                        "package path: hil reads no file there")
+            return False
+        if size > MAX_MESH_BYTES:
+            self.refused_meshes[uri] = f"it is {size} bytes, over hil's {MAX_MESH_BYTES}"
+            return False
+        return True
 
     def number(self, text: str | None, what: str, tag: str, name: str,
                default: float | None = None) -> float | None:

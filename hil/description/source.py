@@ -158,6 +158,11 @@ def _expand_xacro(path: Path, package_path: PackagePath, corrected: str | None,
         except xacro.XacroException as exc:
             current = Path(xacro.filestack[-1] or path).resolve() if xacro.filestack else path
             raise _xacro_error(exc, current, package_path) from None
+        except RecursionError:
+            raise HilError.single("xacro expansion nests without end (a macro that calls "
+                                  "itself, or includes that include each other?)", path,
+                                  hint="give each recursive macro a condition that ends "
+                                       "it") from None
         includes = [Path(p).resolve() for p in xacro.all_includes[known_includes:]]
     files = tuple(dict.fromkeys((path.resolve(), *includes)))
     return RobotSource(path, ET.fromstring(doc.toxml()), files, corrections)

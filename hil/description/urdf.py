@@ -168,7 +168,13 @@ def _read_geometry(reader: ElementReader, link: str, shape: ET.Element, role: st
 
 def _report_missing_mesh(reader: ElementReader, link: str, uri: str, role: str) -> None:
     package = uri[len("package://"):].partition("/")[0] if uri.startswith("package://") else None
-    if package and reader.package_path.find(package) is None:
+    if uri in reader.refused_meshes:
+        reader.report(
+            warning, f"link '{link}' mesh '{uri}' not read: {reader.refused_meshes[uri]}; "
+            f"{role} as a box of the link's equivalent inertia instead", "link", link,
+            hint="add the mesh's folder with --package-path DIR, or keep meshes beside the "
+                 "description")
+    elif package and reader.package_path.find(package) is None:
         reader.report(
             warning, f"link '{link}' mesh '{uri}' not found: package '{package}' is not on "
             f"the package path ({reader.package_path.describe()}); {role} as a box of the "

@@ -9,7 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from hil.description.model import Joint, Link
-from hil.description.packages import PackagePath
+from hil.description.packages import PackagePath, own_package
 from hil.description.reader import ElementReader, start_tag
 from hil.errors import error, warning
 
@@ -45,6 +45,29 @@ def check_tree(reader: ElementReader, links: tuple[Link, ...], joints: tuple[Joi
         reader.diagnostics.append(error(
             f"the robot has {len(roots)} unconnected root links ({', '.join(roots)})",
             reader.source.path, hint="connect every link to one tree with joints"))
+    elif roots and _depth(roots[0], joints) > MAX_DEPTH:
+        reader.diagnostics.append(error(
+            f"the tree is more than {MAX_DEPTH} joints deep, hil's limit",
+            reader.source.path, hint="a robot's chains are tens of joints deep: check that "
+                                     "the description is the robot's"))
+
+
+#: joints from the root to the deepest link that hil builds (its plant and kinematics walk
+#: the tree recursively; the limit is hil's, far above any robot's)
+MAX_DEPTH = 200
+
+
+def _depth(root: str, joints: tuple[Joint, ...]) -> int:
+    """Joints on the longest path down from ``root``, counted up to MAX_DEPTH + 1 (a tree:
+    check_tree's other checks)."""
+    children: dict[str, list[str]] = defaultdict(list)
+    for joint in joints:
+        children[joint.parent].append(joint.child)
+    deepest, level = 0, [root]
+    while level and deepest <= MAX_DEPTH:
+        level = [child for link in level for child in children[link]]
+        deepest += bool(level)
+    return deepest
 
 
 def _missing_link_hint(reader: ElementReader, link: str, role: str) -> str:
@@ -71,11 +94,8 @@ def _missing_link_hint(reader: ElementReader, link: str, role: str) -> str:
 def _package_files(path: Path) -> list[Path]:
     """The files of the ROS package holding ``path`` (below the nearest folder with a
     package.xml), else those beside ``path`` (a file in no package may lie in a home folder)."""
-    folder = path.resolve().parent
-    for candidate in (folder, *folder.parents):
-        if (candidate / "package.xml").is_file():
-            return sorted(candidate.rglob("*"))
-    return sorted(folder.iterdir())
+    package = own_package(path)
+    return sorted(package.rglob("*")) if package else sorted(path.resolve().parent.iterdir())
 
 
 def _find_form(file: Path, package_path: PackagePath) -> str:

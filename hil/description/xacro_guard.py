@@ -37,6 +37,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from hil.description.packages import own_package
 from hil.input_files import MAX_FILE_BYTES
 
 #: the environment variable naming the variables a description may read
@@ -79,7 +80,10 @@ class Allowed:
 
     @classmethod
     def of(cls, description: Path, package_folders) -> Allowed:
-        folders = (Path(description).resolve().parent,
+        """The description's folder (its package's, where it is in one: ``../meshes``
+        beside ``urdf/``), the package path's folders, and $HIL_XACRO_ENV's variables."""
+        package = own_package(description)
+        folders = (package or Path(description).resolve().parent,
                    *(Path(f).resolve() for f in package_folders))
         names = os.environ.get(ALLOWED_ENV_VARIABLE, "")
         return cls(folders, frozenset(n.strip() for n in names.split(",") if n.strip()))
