@@ -333,6 +333,10 @@ def _read_options(reader: Reader, drive: LineMapping, what: str, spec) -> object
 def _find_actuator(reader: Reader, drive: LineMapping, what: str, robot: RobotDescription,
                    transmissions: tuple[Transmission, ...]) -> tuple[Transmission, int] | None:
     line = drive.key_lines.get("joint", drive.key_lines.get("actuator", drive.line))
+    for name_key in ("actuator", "joint"):
+        if name_key in drive and not isinstance(drive[name_key], str):
+            reader.fail(f"{what}: '{name_key}' must be a name, not {drive[name_key]!r}", line)
+            return None
     if "actuator" in drive:
         for transmission in transmissions:
             if drive["actuator"] in transmission.actuators:

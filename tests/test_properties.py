@@ -1,0 +1,154 @@
+"""Property-based checks at every input surface (issue 43), bounded so that CI runs them:
+whatever bytes or values arrive, a surface answers with its own error (ValueError for a
+payload, GoalRejected for a goal, HilError for a file) and never a traceback or a hang.
+Drives under random frames are pinned per protocol (test_odrive_profile, test_mit_profile,
+test_damiao)."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import time
+import uuid
+from pathlib import Path
+
+import can
+import pytest
+import yaml
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
+
+from hil.bus_config import load_bus_config
+from hil.can.zenoh_wire import decode_frames, encode_frames
+from hil.cli.send import goal_from_file
+from hil.controllers import GoalRejected, TrajectoryGoal, TrajectoryPoint
+from hil.errors import HilError
+from hil.messaging import cdr
+from hil.messaging.diagnostics import DiagnosticStatus
+from hil.messaging.zenoh_api import decode_stall
+from hil.replay.log import read_log
+
+FIXTURES = Path(__file__).parent / "fixtures"
+#: examples per property: 200 in CI; more for a longer search (HIL_PROPERTY_EXAMPLES=5000)
+BOUNDED = settings(max_examples=int(os.environ.get("HIL_PROPERTY_EXAMPLES", "200")),
+                   deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+
+#: a valid payload of each kind, for mutations that get past the first byte
+FRAMES = encode_frames("ur3/arm", 1, 1, 0.0, [can.Message(
+    arbitration_id=0x601, data=bytes([0x40, 0x00, 0x10, 0, 0, 0, 0, 0]), is_extended_id=False)])
+GOAL = cdr.encode(cdr.msg(cdr.SEND_GOAL_REQUEST, goal_id=cdr.uuid_msg(uuid.uuid4().hex),
+                          goal=cdr.goal_msg(TrajectoryGoal(
+                              ("joint2",), (TrajectoryPoint(0.5, (0.3,), (0.0,)),)), 0.0)))
+DIAGNOSTIC = DiagnosticStatus("ERROR", "drive node 2 in FAULT", 1.0, 2.0).encode()
+
+
+@st.composite
+def mutated(draw, valid: bytes):
+    """``valid`` with bytes changed, cut short or grown."""
+    data = bytearray(valid)
+    for at, value in draw(st.lists(st.tuples(st.integers(0, len(data) - 1),
+                                             st.integers(0, 255)), max_size=6)):
+        data[at] = value
+    cut = draw(st.integers(0, len(data)))
+    return bytes(data[:cut]) + draw(st.binary(max_size=16))
+
+
+def _payload(valid: bytes):
+    return st.one_of(st.binary(max_size=300), mutated(valid))
+
+
+@BOUNDED
+@given(_payload(FRAMES))
+def test_a_zenoh_frame_payload_decodes_or_is_a_value_error(payload):
+    try:
+        sections = decode_frames(payload, time.time())
+    except ValueError:
+        return
+    assert all(len(frame.data) <= 64 for section in sections for frame in section.frames)
+
+
+@BOUNDED
+@given(_payload(GOAL))
+def test_a_goal_payload_decodes_to_a_goal_or_is_refused(payload):
+    try:
+        request = cdr.decode(payload, cdr.SEND_GOAL_REQUEST)
+        cdr.goal_from_msg(request.goal, None)
+    except (ValueError, GoalRejected):
+        pass
+
+
+@BOUNDED
+@given(_payload(DIAGNOSTIC))
+def test_a_diagnostic_or_stall_payload_decodes_or_is_a_value_error(payload):
+    for decode in (DiagnosticStatus.decode, decode_stall):
+        try:
+            decode(payload)
+        except ValueError:
+            pass
+
+
+#: YAML values of every kind a hand-edited config can hold
+YAML_VALUES = st.recursive(
+    st.one_of(st.none(), st.booleans(), st.integers(), st.floats(), st.text(max_size=20)),
+    lambda inner: st.one_of(st.lists(inner, max_size=3),
+                            st.dictionaries(st.text(max_size=8), inner, max_size=3)),
+    max_leaves=8)
+#: the keys of the Damiao fixture a value is put at (bus, drive, options, defaults)
+CONFIG_KEYS = ["cycle_hz", "channel", "interface", "node_id", "joint", "model", "master_id",
+               "kp", "watchdog_timeout", "reduction", "rotor_inertia", "protocol", "robot"]
+
+
+@pytest.fixture
+def damiao_folder(tmp_path):
+    shutil.copy(FIXTURES / "damiao_one_axis.urdf", tmp_path)
+    return tmp_path
+
+
+@BOUNDED
+@given(st.sampled_from(CONFIG_KEYS), YAML_VALUES)
+@example("joint", [])                                # once a TypeError in the parser
+def test_any_value_at_any_config_key_is_loaded_or_a_config_error(damiao_folder, key, value):
+    text = (FIXTURES / "damiao_one_axis.yaml").read_text()
+    flow = yaml.safe_dump(value, default_flow_style=True, width=10_000).strip()
+    if flow.endswith("..."):                         # PyYAML's end of a bare scalar document
+        flow = flow[:-3].strip()
+    config = damiao_folder / "bus.yaml"
+    config.write_text(re.sub(rf"\b{key}: [^,}}\n]+", lambda _: f"{key}: {flow}", text,
+                             count=1))
+    try:
+        load_bus_config(config)
+    except HilError:
+        pass
+
+
+@BOUNDED
+@given(st.recursive(st.one_of(st.none(), st.booleans(), st.integers(), st.floats(),
+                              st.text(max_size=10)),
+                    lambda inner: st.one_of(st.lists(inner, max_size=4),
+                                            st.dictionaries(st.sampled_from(
+                                                ["joint_names", "points", "positions",
+                                                 "velocities", "accelerations",
+                                                 "time_from_start", "goal_tolerance"]),
+                                                inner, max_size=4)),
+                    max_leaves=12))
+def test_any_trajectory_file_is_a_goal_or_a_clear_error(tmp_path_factory, data):
+    path = tmp_path_factory.mktemp("goal") / "goal.json"
+    path.write_text(json.dumps(data))
+    try:
+        goal_from_file(path)
+    except HilError:
+        pass
+
+
+@BOUNDED
+@given(st.binary(max_size=2000), st.sampled_from(["blf", "asc", "log", "csv", "trc"]))
+def test_any_bytes_as_a_can_log_give_frames_or_a_clear_error(tmp_path_factory, data, suffix):
+    path = tmp_path_factory.mktemp("log") / f"run.{suffix}"
+    path.write_bytes(data)
+    try:
+        for _ in read_log(path):
+            pass
+    except HilError:
+        pass
