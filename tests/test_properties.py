@@ -24,10 +24,12 @@ from hil.bus_config import load_bus_config
 from hil.can.zenoh_wire import decode_frames, encode_frames
 from hil.cli.send import goal_from_file
 from hil.controllers import GoalRejected, TrajectoryGoal, TrajectoryPoint
+from hil.description import PackagePath, load_description
 from hil.errors import HilError
 from hil.messaging import cdr
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.zenoh_api import decode_stall
+from hil.plant import Plant
 from hil.replay.log import read_log
 
 FIXTURES = Path(__file__).parent / "fixtures"
@@ -150,5 +152,33 @@ def test_any_bytes_as_a_can_log_give_frames_or_a_clear_error(tmp_path_factory, d
     try:
         for _ in read_log(path):
             pass
+    except HilError:
+        pass
+
+
+#: the attribute values of the one-axis description, each a place for any text
+DESCRIPTION = (FIXTURES / "damiao_one_axis.urdf").read_text()
+ATTRIBUTES = [match.span(1) for match in re.finditer(r'="([^"]*)"', DESCRIPTION)]
+JOINT_NAME = next(span for span in ATTRIBUTES if DESCRIPTION[span[0]:span[1]] == "yaw")
+ATTRIBUTE_TEXT = st.one_of(
+    st.text(alphabet=st.characters(blacklist_categories=("Cs",),
+                                   blacklist_characters='"<>&'), max_size=30),
+    st.sampled_from(["nan", "inf", "-1e308", "1e308", "0", "-0", "1 2", "1 2 3 4",
+                     "${1/0}", "$(env HOME)", "package://x/y.stl", "file:///dev/zero"]))
+
+
+@BOUNDED
+@given(st.lists(st.tuples(st.sampled_from(ATTRIBUTES), ATTRIBUTE_TEXT), min_size=1,
+                max_size=3))
+@example([(JOINT_NAME, "")])                         # a joint without a name: once a KeyError
+def test_any_attribute_of_a_description_gives_a_plant_or_a_clear_error(tmp_path_factory,
+                                                                       changes):
+    text = DESCRIPTION
+    for (start, end), value in sorted(changes, reverse=True):   # from the end: spans hold
+        text = text[:start] + value + text[end:]
+    path = tmp_path_factory.mktemp("robot") / "robot.urdf"
+    path.write_text(text)
+    try:
+        Plant(load_description(path, PackagePath(())))      # as hil check builds it
     except HilError:
         pass

@@ -207,6 +207,9 @@ def _check_links(reader: ElementReader, links: tuple[Link, ...]) -> None:
 
 def _read_joint(reader: ElementReader, element: ET.Element) -> Joint:
     name = element.get("name", "")
+    if not name:
+        reader.diagnostics.append(error("a <joint> has no name", reader.source.path,
+                                        hint="URDF names every joint"))
     type_text = element.get("type", "")
     try:
         joint_type = JointType(type_text)
