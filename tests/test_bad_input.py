@@ -139,7 +139,7 @@ def test_an_include_fragment_given_alone_is_called_one_not_sent_to_another_robot
 
 
 @pytest.mark.parametrize("name, line, message", [
-    ("reduction_zero.urdf", 16, "actuator 'shoulder_motor' has mechanical reduction 0"),
+    ("reduction_zero.urdf", 16, "actuator 'shoulder_motor' has mechanical reduction 0, not within"),
     ("limits_inverted.urdf", 10, "joint 'shoulder' limits lower=1.5 > upper=-1.5"),
 ])
 def test_semantic_errors_name_the_element_and_line(name, line, message, package_path):

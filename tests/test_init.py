@@ -166,9 +166,11 @@ def test_init_does_not_replace_a_file(tmp_path, capsys):
     ("transmissions", "nope: {reduction: 10}", "transmissions: joint 'nope' is not in the robot"),
     ("transmissions", "base_joint: {reduction: 10}",
      "transmissions: joint 'base_joint' is fixed and cannot move"),
-    ("transmissions", "shoulder: {reduction: 0}", "'reduction' must not be 0"),
+    ("transmissions", "shoulder: {reduction: 0}", "'reduction' 0 is not within"),
+    ("transmissions", "shoulder: {reduction: 1.0e+308}",         # overflowed the inertia
+     "'reduction' 1e+308 is not within +-1e-05 to +-100000"),
     ("transmissions", "shoulder: {reduction: 10, rotor_inertia: -1.0}",
-     "'rotor_inertia' must be >= 0"),
+     "'rotor_inertia' must be 0 to 100"),
     ("transmissions", "shoulder: {reduction: 10, gear: 3}", "unknown key 'gear'"),
     ("joint_limits", "nope: {max_effort: 1}", "joint_limits: joint 'nope' is not in the robot"),
     ("joint_limits", "base_joint: {max_effort: 1}",

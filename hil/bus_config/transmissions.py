@@ -16,8 +16,11 @@ from hil.bus_config.yaml_reader import LineMapping, Reader
 from hil.description import (
     RobotDescription, TransmissionActuator, TransmissionJoint, TransmissionSpec,
 )
+from hil.description.urdf_transmissions import MAX_REDUCTION
 
 _KEYS = {"reduction", "rotor_inertia", "offset"}
+#: hil's bound on a rotor's inertia, far beyond any servo's (a large one's is 0.01 kg m^2)
+MAX_ROTOR_INERTIA = 100.0
 SIMPLE = "transmission_interface/SimpleTransmission"
 
 
@@ -60,14 +63,16 @@ def add_transmissions(reader: Reader, top: LineMapping, robot: RobotDescription
         entry = reader.mapping(raw, what, at)
         reader.unknown_keys(entry, _KEYS, what)
         reduction = reader.number(entry, "reduction", what, positive=False)
-        if reduction == 0:
-            reader.fail(f"{what}: 'reduction' must not be 0", entry.key_lines.get("reduction", at),
+        if not 1 / MAX_REDUCTION <= abs(reduction) <= MAX_REDUCTION:
+            reader.fail(f"{what}: 'reduction' {reduction:g} is not within +-{1 / MAX_REDUCTION:g}"
+                        f" to +-{MAX_REDUCTION:g}", entry.key_lines.get("reduction", at),
                         hint="motor turns per joint turn (rad per m for a prismatic joint)")
             reduction = 1.0
         rotor = reader.number(entry, "rotor_inertia", what, 0.0, positive=False)
-        if rotor < 0:
-            reader.fail(f"{what}: 'rotor_inertia' must be >= 0 (kg m^2)",
+        if not 0 <= rotor <= MAX_ROTOR_INERTIA:
+            reader.fail(f"{what}: 'rotor_inertia' must be 0 to {MAX_ROTOR_INERTIA:g} (kg m^2)",
                         entry.key_lines.get("rotor_inertia", at))
+            rotor = 0.0
         added.append(TransmissionSpec(
             name=f"{name}_transmission", type=SIMPLE,
             joints=(TransmissionJoint(name=name, offset=float(reader.number(

@@ -19,6 +19,10 @@ from hil.errors import error, warning
 
 _BY_LAST_PART = {name.rpartition("/")[2]: name for name in TRANSMISSION_TYPES}
 _ARITY = {"simple": 1, "differential": 2, "four_bar": 2}
+#: hil's bound on a reduction's size, far beyond any drive train (a harmonic drive is
+#: 30-160:1, a 0.5 mm lead screw 12,566 rad/m): past it is a typo, and 1e308 overflowed the
+#: reflected inertia
+MAX_REDUCTION = 1e5
 
 
 def canonical_type(text: str) -> str:
@@ -55,10 +59,12 @@ def read_transmission(reader: ElementReader, element: ET.Element) -> Transmissio
         text = reduction_text(part, default)
         value = reader.number(text, f"transmission '{name}' {what} reduction", "transmission",
                               name, 1.0)
-        if value == 0:
-            reader.report(error, f"transmission '{name}' {what} has mechanical reduction 0",
-                          "transmission", name,
+        if not 1 / MAX_REDUCTION <= abs(value) <= MAX_REDUCTION:
+            reader.report(error, f"transmission '{name}' {what} has mechanical reduction "
+                          f"{value:g}, not within +-{1 / MAX_REDUCTION:g} to "
+                          f"+-{MAX_REDUCTION:g}", "transmission", name,
                           hint="a reduction is motor turns per joint turn, e.g. 100")
+            return 1.0
         return value
 
     def role(part: ET.Element) -> str | None:
