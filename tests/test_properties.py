@@ -10,6 +10,8 @@ import json
 import os
 import re
 import shutil
+import subprocess
+import sys
 import time
 import uuid
 from pathlib import Path
@@ -182,3 +184,18 @@ def test_any_attribute_of_a_description_gives_a_plant_or_a_clear_error(tmp_path_
         Plant(load_description(path, PackagePath(())))      # as hil check builds it
     except HilError:
         pass
+
+
+def test_the_property_suite_stays_under_a_gigabyte():
+    """Issue 43: no surface's input takes a process over 1 GB. The suite runs in a process
+    of its own that reports its peak resident memory (ru_maxrss, KiB on Linux)."""
+    measure = ("import resource, sys, pytest\n"
+               "code = pytest.main([sys.argv[1], '-q', '-p', 'no:cacheprovider',\n"
+               "                    '-k', 'not gigabyte'])\n"
+               "print('peak', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n"
+               "sys.exit(code)\n")
+    run = subprocess.run([sys.executable, "-c", measure, __file__], capture_output=True,
+                         text=True, timeout=280, cwd=Path(__file__).parents[1])
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    peak_kib = int(run.stdout.rsplit("peak ", 1)[1].split()[0])
+    assert peak_kib < 1024 * 1024, f"the property suite peaked at {peak_kib / 1024:.0f} MiB"
