@@ -15,6 +15,7 @@ import pytest
 import rerun as rr
 
 from hil.errors import HilError
+from hil.replay import not_whole
 from hil.replay.log import read_log
 
 
@@ -106,3 +107,16 @@ def test_a_damaged_can_log_gives_its_frames_or_a_clear_error(tmp_path, suffix):
             assert "damaged" in str(exc) or "cannot read" in str(exc), exc
         else:
             assert 0 <= frames <= 2100, (trial, frames)
+
+
+def test_a_cut_blf_is_named_not_whole_and_a_closed_one_is_not(tmp_path):
+    """python-can reads a cut BLF up to its last whole frame without a word; its header's
+    file size (written at close) tells hil replay to say so."""
+    log = tmp_path / "run.blf"
+    with can.Logger(str(log)) as writer:
+        for n in range(3000):
+            writer.on_message_received(can.Message(timestamp=1.0 + n * 0.002,
+                                                   arbitration_id=0x181, data=bytes(8)))
+    assert not_whole(log) is None
+    log.write_bytes(log.read_bytes()[:len(log.read_bytes()) // 2])
+    assert "cut off, or never closed" in not_whole(log)

@@ -12,7 +12,8 @@ from pathlib import Path
 from hil.bus_config import load_bus_config
 from hil.cli import common
 from hil.replay import (
-    LOG_CLOCK_TOLERANCES, REAL_TIME_SHARE, Replay, Report, Tolerances, frames, log_clock, parse_channels, survey,
+    LOG_CLOCK_TOLERANCES, REAL_TIME_SHARE, Replay, Report, Tolerances, frames, log_clock, not_whole,
+    parse_channels, survey,
 )
 from hil.replay.compare import UNITS
 
@@ -59,6 +60,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"hil replay: {args.log}: {found.frames} frames over {found.duration:.2f} s, "
           f"{found.cycles} cycles on {len(config.buses)} bus(es) ({buses}); replayed {kind} "
           f"(--clock {clock})", flush=True)
+    cut = not_whole(args.log)
+    if cut:
+        print(f"hil replay: {args.log} is not whole: {cut}", flush=True)
     report = Replay(config, found, clock, tolerances,
                     keep_values=args.record is not None).run(frames(args.log, config,
                                                                     found.channels))

@@ -156,6 +156,24 @@ def read_log(path: Path) -> Iterator[can.Message]:
         reader.stop()
 
 
+def not_whole(path: Path) -> str | None:
+    """Why a log is not whole, where its format can tell (a BLF's header gives the file's
+    size, written when the log is closed): None where it is whole or its format cannot say.
+    python-can reads such a log up to its last whole frame without a word."""
+    if path.suffix.lower() != ".blf":
+        return None
+    try:
+        reader = can.BLFReader(str(path))
+    except _DAMAGED:
+        return None                           # read_log names what is wrong with it
+    said, size = reader.file_size, path.stat().st_size
+    reader.stop()
+    if said == size:
+        return None
+    return (f"its header gives {said} bytes and it has {size}: cut off, or never closed (a "
+            "crash?); replayed up to its last whole frame")
+
+
 def parse_channels(pairs: list[str], config: SystemConfig) -> dict[str, int]:
     """``--channel LOGCHANNEL=BUS`` pairs: the log's channel (as text) -> bus index."""
     names = [bus.name for bus in config.buses]
