@@ -61,17 +61,22 @@ def test_a_long_value_in_a_diagnostic_is_cut(tmp_path):
     assert len(str(raised.value)) < 2000
 
 
+def _damiao_config(folder: Path, old: str, new: str) -> Path:
+    """The one-axis Damiao config in ``folder``, ``old`` written as ``new``."""
+    fixtures = Path(__file__).parent / "fixtures"
+    shutil.copy(fixtures / "damiao_one_axis.urdf", folder)
+    config = folder / "bus.yaml"
+    config.write_text((fixtures / "damiao_one_axis.yaml").read_text().replace(old, new))
+    return config
+
+
 @pytest.mark.parametrize("cycle_hz, said", [
     ("fast", "must be a number, not 'fast'"),
     ("9" * 400, "must be > 0, not 999"),              # an int no float can hold
     ("9" * 5000, "a number of 5000 characters"),      # an int PyYAML cannot convert
 ])
 def test_a_number_no_float_holds_is_an_error_not_a_traceback(tmp_path, cycle_hz, said):
-    fixtures = Path(__file__).parent / "fixtures"
-    shutil.copy(fixtures / "damiao_one_axis.urdf", tmp_path)
-    config = tmp_path / "bus.yaml"
-    config.write_text((fixtures / "damiao_one_axis.yaml").read_text()
-                      .replace("cycle_hz: 500", f"cycle_hz: {cycle_hz}"))
+    config = _damiao_config(tmp_path, "cycle_hz: 500", f"cycle_hz: {cycle_hz}")
     with pytest.raises(HilError, match="bus.yaml:12") as raised:
         load_bus_config(config)
     assert said in str(raised.value)
@@ -82,11 +87,7 @@ def test_a_number_no_float_holds_is_an_error_not_a_traceback(tmp_path, cycle_hz,
     ("kd: fast", "could not convert"),
 ])
 def test_a_drive_option_no_float_holds_is_an_error_not_a_traceback(tmp_path, option, said):
-    fixtures = Path(__file__).parent / "fixtures"
-    shutil.copy(fixtures / "damiao_one_axis.urdf", tmp_path)
-    config = tmp_path / "bus.yaml"
-    config.write_text((fixtures / "damiao_one_axis.yaml").read_text()
-                      .replace("kd: 0.3", option))
+    config = _damiao_config(tmp_path, "kd: 0.3", option)
     with pytest.raises(HilError, match="bus.yaml:14.*options") as raised:
         load_bus_config(config)
     assert said in str(raised.value)

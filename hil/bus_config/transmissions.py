@@ -16,7 +16,7 @@ from hil.bus_config.yaml_reader import LineMapping, Reader
 from hil.description import (
     RobotDescription, TransmissionActuator, TransmissionJoint, TransmissionSpec,
 )
-from hil.description.urdf_transmissions import MAX_REDUCTION
+from hil.description.urdf_transmissions import REDUCTION_RANGE, reduction_fits
 
 _KEYS = {"reduction", "rotor_inertia", "offset"}
 #: hil's bound on a rotor's inertia, far beyond any servo's (a large one's is 0.01 kg m^2)
@@ -63,9 +63,9 @@ def add_transmissions(reader: Reader, top: LineMapping, robot: RobotDescription
         entry = reader.mapping(raw, what, at)
         reader.unknown_keys(entry, _KEYS, what)
         reduction = reader.number(entry, "reduction", what, positive=False)
-        if not 1 / MAX_REDUCTION <= abs(reduction) <= MAX_REDUCTION:
-            reader.fail(f"{what}: 'reduction' {reduction:g} is not within +-{1 / MAX_REDUCTION:g}"
-                        f" to +-{MAX_REDUCTION:g}", entry.key_lines.get("reduction", at),
+        if not reduction_fits(reduction):
+            reader.fail(f"{what}: 'reduction' {reduction:g} is not {REDUCTION_RANGE}",
+                        entry.key_lines.get("reduction", at),
                         hint="motor turns per joint turn (rad per m for a prismatic joint)")
             reduction = 1.0
         rotor = reader.number(entry, "rotor_inertia", what, 0.0, positive=False)

@@ -23,6 +23,13 @@ _ARITY = {"simple": 1, "differential": 2, "four_bar": 2}
 #: 30-160:1, a 0.5 mm lead screw 12,566 rad/m): past it is a typo, and 1e308 overflowed the
 #: reflected inertia
 MAX_REDUCTION = 1e5
+#: the bound in a message's words
+REDUCTION_RANGE = f"within +-{1 / MAX_REDUCTION:g} to +-{MAX_REDUCTION:g}"
+
+
+def reduction_fits(value: float) -> bool:
+    """Whether a reduction's size is within hil's bounds (0 is not)."""
+    return 1 / MAX_REDUCTION <= abs(value) <= MAX_REDUCTION
 
 
 def canonical_type(text: str) -> str:
@@ -59,10 +66,9 @@ def read_transmission(reader: ElementReader, element: ET.Element) -> Transmissio
         text = reduction_text(part, default)
         value = reader.number(text, f"transmission '{name}' {what} reduction", "transmission",
                               name, 1.0)
-        if not 1 / MAX_REDUCTION <= abs(value) <= MAX_REDUCTION:
+        if not reduction_fits(value):
             reader.report(error, f"transmission '{name}' {what} has mechanical reduction "
-                          f"{value:g}, not within +-{1 / MAX_REDUCTION:g} to "
-                          f"+-{MAX_REDUCTION:g}", "transmission", name,
+                          f"{value:g}, not {REDUCTION_RANGE}", "transmission", name,
                           hint="a reduction is motor turns per joint turn, e.g. 100")
             return 1.0
         return value

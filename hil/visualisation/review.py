@@ -55,32 +55,35 @@ def review(files: list[Path]) -> Review:
     found, damaged = [], []
     for path in files:
         try:
-            chunks = _diagnostic_chunks(path, damaged)
+            chunks, damage = _diagnostic_chunks(path)
         except RuntimeError as exc:              # the reason names the file and the offset
             damaged.append(DamagedSegment(path, str(exc), is_recording=False))
             continue
+        if damage is not None:
+            damaged.append(DamagedSegment(path, damage, is_recording=True))
         found += [row for chunk in chunks for row in _rows(chunk, path)]
     return Review(sorted(found, key=lambda d: d.wall_time), damaged)
 
 
-def _diagnostic_chunks(path: Path, damaged: list[DamagedSegment]) -> list:
+def _diagnostic_chunks(path: Path) -> tuple[list, str | None]:
+    """The diagnostics' chunks of a segment, and why it was not read whole (None: it
+    was); RuntimeError where it is no recording."""
+    damage = None
     with warnings.catch_warnings():              # a crashed segment: rerun warns, then scans
         warnings.simplefilter("ignore")
-        reader = rerun.chunk.RrdReader(path)     # RuntimeError: not a recording
+        reader = rerun.chunk.RrdReader(path)
         try:
             stream = reader.store().stream()
         except RuntimeError:                     # no footer: cut off by a crash
             try:
                 stream = reader.stream()
             except RuntimeError as exc:          # cut inside a message: rerun reads none
-                damaged.append(DamagedSegment(path, str(exc), is_recording=True))
-                return []
-            damaged.append(DamagedSegment(path, "no footer: the run did not close it (a "
-                                          "crash?); read up to its last whole message",
-                                          is_recording=True))
+                return [], str(exc)
+            damage = ("no footer: the run did not close it (a crash?); read up to its last "
+                      "whole message")
         # one robot's at the root, several robots' each under its name
         return stream.filter(content=["/diagnostics", "/*/diagnostics"],
-                             is_static=False).to_chunks()
+                             is_static=False).to_chunks(), damage
 
 
 def _rows(chunk, path: Path) -> list[Diagnostic]:
