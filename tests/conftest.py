@@ -101,9 +101,9 @@ def meeting_point_of_its_own(monkeypatch):
     monkeypatch.setenv(MEETING_VARIABLE, f"tcp/127.0.0.1:{free_port()}")
 
 
-def socketcan_missing() -> str | None:
-    """None if vcan0 can be opened, else why not."""
-    missing = can_socketcan_missing()
+def socketcan_missing(*channels: str) -> str | None:
+    """None if the SocketCAN channels (vcan0 unless named) can be opened, else why not."""
+    missing = can_socketcan_missing(channels or ("vcan0",))
     return missing and (f"{missing}; tools/uml_run.py runs these tests inside User-Mode Linux "
                         "(test_socketcan_in_uml.py)")
 
@@ -230,6 +230,21 @@ class ClientBench:
         self.sim.close()
         for bus in self.sim_buses.values():
             bus.shutdown()
+
+
+def hils_master_moves(config_path: Path, joint: str, target: float):
+    """hil's own master (a lock-step stack of the config) moves ``joint`` to ``target`` in
+    one second: (the goal's result, where the plant's first joint ends)."""
+    from hil.realtime import LOCK_STEP
+    from hil.stack import running_stack
+
+    config = load_bus_config(config_path)
+    with running_stack(config, LOCK_STEP) as stack:
+        client = TrajectoryActionClient(stack.zenoh, config.robot.name)
+        goal = TrajectoryGoal((joint,), (TrajectoryPoint(1.0, (target,), (0.0,)),))
+        result = client.wait_result(client.send_goal(goal), timeout=60)
+        client.close()
+        return result, float(stack.sim.plant.joint_positions()[0])
 
 
 # --- an in-process controller stack --------------------------------------------

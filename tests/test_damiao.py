@@ -15,7 +15,7 @@ import time
 
 import pytest
 
-from conftest import TESTS, ClientBench, socketcan_missing
+from conftest import TESTS, ClientBench, hils_master_moves, socketcan_missing
 from hil.bus_config import load_bus_config
 from hil.drives import Power
 from hil.protocols.damiao import (
@@ -234,16 +234,8 @@ def test_hil_init_refuses_a_model_the_protocol_does_not_know(tmp_path, capsys):
 
 
 def test_hils_master_drives_damiao_motors_in_mit_mode_lock_step():
-    from hil.controllers import GoalStatus, TrajectoryGoal, TrajectoryPoint
-    from hil.messaging.zenoh_api import TrajectoryActionClient
-    from hil.realtime import LOCK_STEP
-    from hil.stack import running_stack
+    from hil.controllers import GoalStatus
 
-    config = load_bus_config(CONFIG)
-    with running_stack(config, LOCK_STEP) as stack:
-        client = TrajectoryActionClient(stack.zenoh, config.robot.name)
-        goal = TrajectoryGoal(("yaw",), (TrajectoryPoint(1.0, (0.5,), (0.0,)),))
-        result = client.wait_result(client.send_goal(goal), timeout=60)
-        client.close()
-        assert result.status is GoalStatus.SUCCEEDED, result
-        assert stack.sim.plant.joint_positions()[0] == pytest.approx(0.5, abs=0.01)
+    result, position = hils_master_moves(CONFIG, "yaw", 0.5)
+    assert result.status is GoalStatus.SUCCEEDED, result
+    assert position == pytest.approx(0.5, abs=0.01)

@@ -28,7 +28,10 @@ def test_socketcan_suite_passes_inside_user_mode_linux():
         pytest.skip(f"User-Mode Linux unavailable: {missing}")
     result = subprocess.run(
         [sys.executable, str(ROOT / "tools" / "uml_run.py"), "--timeout", "900",
-         "--vcan", "vcan0", "--vcan", "vcan1", "--",
+         "--vcan", "vcan0", "--vcan", "vcan1",
+         # can0: the name client libraries that open SocketCAN hard-wire (TMotorCANControl,
+         # motor-python), a vxcan pair whose other end hil-can0 the simulated drives take
+         "--vcan", "can0:hil-can0", "--",
          sys.executable, "-m", "pytest", "-m", "socketcan", "-p", "no:cacheprovider",
          "-q", "-rfEs", "--tb=short", "--color=no", str(ROOT / "tests")],
         cwd=ROOT, capture_output=True, text=True, timeout=960)

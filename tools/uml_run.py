@@ -5,7 +5,7 @@ This machine's kernel has no AF_CAN. Debian's ``user-mode-linux`` package
 ships a Linux kernel that runs as an ordinary process and has the CAN
 modules, so real SocketCAN can be tested without root on the host kernel:
 
-    tools/uml_run.py [--vcan vcan0 ...] [--timeout S] -- COMMAND [ARGS...]
+    tools/uml_run.py [--vcan vcan0 ...] [--vcan can0:hil-can0] [--timeout S] -- COMMAND ...
     tools/uml_run.py --check        # boots a trivial command: can UML run here?
 
 UML boots with the host's own filesystem as its root (hostfs), runs an init
@@ -49,7 +49,8 @@ from pathlib import Path
 KERNEL = "linux.uml"
 MODULES = Path("/usr/lib/uml/modules")
 CAN_MODULES = ("net/can/can.ko", "net/can/can-raw.ko", "net/can/can-bcm.ko",
-               "drivers/net/can/dev/can-dev.ko", "drivers/net/can/vcan.ko")
+               "drivers/net/can/dev/can-dev.ko", "drivers/net/can/vcan.ko",
+               "drivers/net/can/vxcan.ko")
 XSTATE_WRAPPER_SOURCE = Path(__file__).resolve().with_name("uml_xstate_ptrace.c")
 #: a trial boot takes about 2-3 s; this bound is for a heavily loaded machine
 TRIAL_BOOT_TIMEOUT = 60.0
@@ -142,7 +143,7 @@ def inner_environment() -> dict[str, str]:
 def init_script(command: list[str], vcans: list[str], status_file: Path, cwd: Path) -> str:
     modules = next(p for p in sorted(MODULES.iterdir()) if p.is_dir()) / "kernel"
     exports = "\n".join(f"export {k}={shlex.quote(v)}" for k, v in inner_environment().items())
-    links = "\n".join(f"ip link add dev {v} type vcan && ip link set up {v}" for v in vcans)
+    links = "\n".join(_link(v) for v in vcans)
     loads = "\n".join(f"insmod {modules / m}" for m in CAN_MODULES)
     return f"""#!/bin/sh
 {exports}
@@ -158,6 +159,17 @@ cd {shlex.quote(str(cwd))}
 echo $? > {shlex.quote(str(status_file))}
 poweroff -f
 """
+
+
+def _link(name: str) -> str:
+    """``NAME``: a vcan; ``NAME:PEER``: a vxcan pair, whose frames cross from one end to the
+    other as a wire's do (a vcan's reach its other sockets as this host's own: python-can
+    marks them ``is_rx=False``, and a client that drops its own frames drops them too)."""
+    name, _, peer = name.partition(":")
+    if peer:
+        return (f"ip link add dev {name} type vxcan peer name {peer} && ip link set up {name}"
+                f" && ip link set up {peer}")
+    return f"ip link add dev {name} type vcan && ip link set up {name}"
 
 
 def _boot(command: list[str], vcans: list[str], timeout: float, memory: str,
@@ -243,7 +255,8 @@ def main() -> int:
     parser.add_argument("--check", action="store_true",
                         help="boot a trivial command: exit 0 if UML runs here, else 3 and why")
     parser.add_argument("--vcan", action="append", default=[],
-                        help="vcan interface to create (repeatable; default vcan0)")
+                        help="vcan interface to create (repeatable; default vcan0); "
+                             "NAME:PEER creates a vxcan pair instead")
     parser.add_argument("--timeout", type=float, default=600, help="seconds (default 600)")
     parser.add_argument("--memory", default="2G", help="UML memory (default 2G)")
     parser.add_argument("command", nargs=argparse.REMAINDER)

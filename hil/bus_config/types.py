@@ -160,7 +160,9 @@ class BusConfig:
         profile's own frames and lengths), plus SYNC where a CANopen drive needs it."""
         streams = [(SYNC_PAYLOAD, self.cycle_hz)] if self.uses_sync else []
         for drive in self.drives:
-            streams += [(payload, rate) for _, payload, rate in self.frames(drive) if rate > 0]
+            # an id above 0x7FF (or carrying hil.can.messages.EXTENDED) is an extended one
+            streams += [(payload, rate, can_id > 0x7FF)
+                        for can_id, payload, rate in self.frames(drive) if rate > 0]
         return bus_load(self.bitrate, streams)
 
 

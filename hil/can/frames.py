@@ -37,11 +37,11 @@ class BusLoad:
         return self.nominal_bits_per_second / self.bitrate
 
 
-def bus_load(bitrate: int, streams: list[tuple[int, float]]) -> BusLoad:
-    """Load of ``streams`` = [(payload bytes, frames per second), ...]."""
+def bus_load(bitrate: int, streams: list[tuple]) -> BusLoad:
+    """Load of ``streams`` = [(payload bytes, frames per second[, extended id]), ...]."""
     frames = nominal = worst = 0.0
-    for payload, rate in streams:
-        bits = frame_bits(payload)
+    for payload, rate, *kind in streams:
+        bits = frame_bits(payload, bool(kind and kind[0]))
         frames += rate
         nominal += bits[0] * rate
         worst += bits[1] * rate

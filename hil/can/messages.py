@@ -13,16 +13,38 @@ import can
 
 _new_message = can.Message.__new__
 
+#: marks an extended (29-bit) id in an id used as a key, as SocketCAN's ``CAN_EFF_FLAG``
+#: does in its ``can_id``: a drive that listens on extended ids below 0x800 (a CubeMars
+#: servo command, ``mode << 8 | id``) must not hear the standard frame of the same number
+EXTENDED = 0x80000000
+_ID_BITS = 0x1FFFFFFF
+
+
+def frame_key(msg: can.Message) -> int:
+    """The id frames are dispatched by: the arbitration id, with :data:`EXTENDED` set for an
+    extended frame whose id a standard frame could carry (above 0x7FF the id says it)."""
+    if msg.is_extended_id and msg.arbitration_id <= 0x7FF:
+        return msg.arbitration_id | EXTENDED
+    return msg.arbitration_id
+
+
+def extended(can_id: int) -> int:
+    """The dispatch key of the extended frame of id ``can_id``."""
+    return can_id | EXTENDED if can_id <= 0x7FF else can_id
+
 
 def data_frame(arbitration_id: int, data: bytes | bytearray, remote: bool = False
                ) -> can.Message:
     """What ``can.Message(arbitration_id=..., data=..., is_extended_id=arbitration_id >
-    0x7FF, is_remote_frame=remote)`` builds: canopen's frames."""
+    0x7FF, is_remote_frame=remote)`` builds: canopen's frames; an id that carries
+    :data:`EXTENDED` is sent as that extended id."""
     if remote:
         data = bytearray()
     elif not isinstance(data, bytearray):
         data = bytearray(data)
-    return _filled(_new_message(can.Message), 0.0, arbitration_id, arbitration_id > 0x7FF,
+    is_extended = arbitration_id > 0x7FF
+    arbitration_id &= _ID_BITS
+    return _filled(_new_message(can.Message), 0.0, arbitration_id, is_extended,
                    remote, False, None, len(data), data, False, True, False, False)
 
 

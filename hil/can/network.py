@@ -14,7 +14,7 @@ import can
 import canopen
 
 from hil.can.capabilities import capabilities
-from hil.can.messages import data_frame
+from hil.can.messages import data_frame, frame_key
 
 log = logging.getLogger(__name__)
 
@@ -52,9 +52,10 @@ class NetworkListener(can.Listener):
             if handler is not None:
                 handler(msg.arbitration_id)
         elif not msg.is_error_frame:
-            for callback in self.subscribers.get(msg.arbitration_id, ()):
+            key = frame_key(msg)
+            for callback in self.subscribers.get(key, ()):
                 try:
-                    callback(msg.arbitration_id, msg.data, msg.timestamp)
+                    callback(key, msg.data, msg.timestamp)
                 except Exception as exc:
                     self._refuse(msg, callback, exc)
 

@@ -191,7 +191,7 @@ def _transmission(sizing: Sizing) -> TransmissionSpec:
 def _drives_per_bus(protocol_name: str, rate: float) -> int:
     """How many drives of the protocol fit on one bus at ``rate`` under LOAD_WARNING."""
     spec = protocol(protocol_name)
-    one = [(payload, hz) for _, payload, hz in
+    one = [(payload, hz, can_id > 0x7FF) for can_id, payload, hz in
            spec.bus_frames(spec.node_ids.start or 1, rate, HEARTBEAT_PERIOD, None) if hz > 0]
     sync = bus_load(BITRATE, [(SYNC_PAYLOAD, rate)] if spec.uses_sync else [])
     per_drive = bus_load(BITRATE, one).worst_bits_per_second

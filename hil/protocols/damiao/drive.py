@@ -35,6 +35,7 @@ from hil.protocols.damiao.registers import (
     AMBIENT, REGISTERS, TIMEOUT_UNIT, initial_values,
 )
 from hil.protocols.mit import MitRanges, unpack_command
+from hil.protocols.mit.drive import enter_motor_mode, follow
 
 #: the core's mode for each control mode
 CORE_MODES = {ControlMode.MIT: Mode.IMPEDANCE, ControlMode.POSITION_VELOCITY:
@@ -132,11 +133,8 @@ class DamiaoDrive(DriveProfile):
         if self.error is not None:
             return                       # an error stands until it is cleared (FB)
         self.core.set_mode(CORE_MODES[self.control_mode])
-        self.core.enable()
-        # MIT: zero gains until the first command; the other modes hold where they are
-        self.core.new_setpoint(position=self.core.status().position, velocity=0.0,
-                               torque=0.0, stiffness=0.0, damping=0.0)
-        self.core.hold_position()
+        enter_motor_mode(self.core)
+        self.core.hold_position()        # the modes other than MIT hold where they are
 
     def _disable(self) -> None:
         self.core.disable()
@@ -155,9 +153,7 @@ class DamiaoDrive(DriveProfile):
         command = unpack_command(data, self.ranges)
         if self.core.parameters.peak_torque != self._peak:          # after force-position
             self.core.parameters = replace(self.core.parameters, peak_torque=self._peak)
-        self.core.new_setpoint(position=command.position + self._zero,
-                               velocity=command.velocity, torque=command.torque,
-                               stiffness=command.kp, damping=command.kd, now=time.monotonic())
+        follow(self.core, command, self._zero)
 
     def _position_velocity(self, data: bytes) -> None:
         position, velocity = _TWO_FLOATS.unpack(data)

@@ -9,9 +9,25 @@ from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power
 from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, Mit, MitOptions, MitReply, pack_reply,
-    unpack_command, unpack_reply,
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, Mit, MitCommand, MitOptions, MitReply,
+    pack_reply, unpack_command, unpack_reply,
 )
+
+
+def enter_motor_mode(core: DriveCore) -> None:
+    """Motor mode on, with zero gains until the first command (an MIT motor's firmware
+    holds no position of its own)."""
+    core.enable()
+    core.new_setpoint(position=core.status().position, velocity=0.0, torque=0.0,
+                      stiffness=0.0, damping=0.0)
+
+
+def follow(core: DriveCore, command: MitCommand, zero: float) -> None:
+    """An MIT command: ``t = kp (p - q) + kd (v - q') + t_ff``, its position from the motor's
+    zero; the watchdog's sign of life."""
+    core.new_setpoint(position=command.position + zero, velocity=command.velocity,
+                      torque=command.torque, stiffness=command.kp, damping=command.kd,
+                      now=time.monotonic())
 
 
 class MitDrive(DriveProfile):
@@ -39,19 +55,13 @@ class MitDrive(DriveProfile):
         with self.lock:
             data = bytes(data)
             if data == ENTER_MOTOR_MODE:
-                self.core.enable()          # with zero gains until the first command
-                self.core.new_setpoint(position=self.core.status().position, velocity=0.0,
-                                       torque=0.0, stiffness=0.0, damping=0.0)
+                enter_motor_mode(self.core)
             elif data == EXIT_MOTOR_MODE:
                 self.core.disable()
             elif data == SET_ZERO:
                 self._zero = self.core.status().position
             elif self.core.power is Power.ENABLED:
-                command = unpack_command(data, self.ranges)
-                self.core.new_setpoint(position=command.position + self._zero,
-                                       velocity=command.velocity, torque=command.torque,
-                                       stiffness=command.kp, damping=command.kd,
-                                       now=time.monotonic())
+                follow(self.core, unpack_command(data, self.ranges), self._zero)
             status = self.core.status()
             self._reply = pack_reply(MitReply(self.node_id, status.position - self._zero,
                                               status.velocity, status.torque), self.ranges)

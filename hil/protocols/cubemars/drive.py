@@ -1,0 +1,250 @@
+"""A simulated CubeMars AK actuator (the protocol: :mod:`hil.protocols.cubemars`), around a
+DriveCore at the output shaft (the built-in gear folded in, as the motor's frames are).
+
+MIT mode: motor mode is entered and left by the special frames; a command moves the motor
+only in motor mode; every frame is answered. Servo mode: the manual knows no enable, so
+the first command powers the motor in its mode, as the product does; the status is
+uploaded at the configured rate whatever the motor does. In both, a silence beyond the bus
+config's ``watchdog_timeout`` (0: none) releases the motor (hil's choice: the manual
+documents no CAN timeout). A fault hil injects (``hil sim --fault``) is reported with
+the error code OVER_CURRENT, the manual's nearest (hil's choice), the motor released,
+until motor mode is entered again (MIT) or the next command (servo).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import time
+from contextlib import AbstractContextManager
+from dataclasses import replace
+
+from hil.drives.core import DriveCore
+from hil.drives.definitions import Fault, Mode, Power, SilenceReaction
+from hil.drives.profile import DriveProfile, Reading
+from hil.protocols.cubemars import (
+    DEFAULT_ERPM, DEFAULT_ERPM_PER_S, SPECIAL_FRAMES, Answer, Control, CubeMars,
+    CubeMarsOptions, ErrorCode, Firmware, ServoMode, command_id, pack_mit_answer, pack_status,
+    status_id, unpack_mit_answer, unpack_v3_command,
+)
+from hil.protocols.mit import ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, unpack_command
+from hil.protocols.mit.drive import enter_motor_mode, follow
+
+#: the driver board's temperature (°C): no heating is modelled
+AMBIENT = 25
+_INT32 = struct.Struct(">i")
+_POSITION_SPEED = struct.Struct(">ihh")
+#: servo-mode field lengths (bytes) each mode reads
+_SERVO_LENGTH = {ServoMode.ORIGIN: 1, ServoMode.POSITION_SPEED: 8}
+
+
+class CubeMarsDrive(DriveProfile):
+    """One AK actuator on a bus."""
+
+    protocol = CubeMars
+
+    def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager,
+                 rated_torque: float, heartbeat_period: float = 0.1,
+                 options: CubeMarsOptions | None = None):
+        super().__init__(node_id, core, lock)
+        self.options = options or CubeMarsOptions()
+        self.model = self.options.model
+        self.ranges = self.options.ranges()
+        self.error = ErrorCode.NONE
+        self._zero = 0.0                 # output position at "set zero" / "set origin"
+        self._peak = core.parameters.peak_torque
+        self._reply: tuple[int, bytes] | None = None
+        self._next_status = 0.0
+        core.silence_reaction = SilenceReaction.DISABLE
+
+    # --- bus ----------------------------------------------------------------------------
+
+    def subscriptions(self):
+        if self.options.control is Control.SERVO:
+            return {command_id(self.node_id, mode): self._servo_handler(mode)
+                    for mode in ServoMode if mode is not ServoMode.MIT}
+        if self.options.firmware is Firmware.V3:
+            return {command_id(self.node_id, ServoMode.MIT): self._on_mit_v3,
+                    command_id(self.node_id, ServoMode.DUTY): self._on_v3_special}
+        return {self.node_id: self._on_mit_v2}
+
+    def send_replies(self) -> None:
+        reply, self._reply = self._reply, None
+        if reply is not None:
+            self.send(*reply)
+
+    # --- MIT mode --------------------------------------------------------------------------
+
+    def _on_mit_v2(self, can_id: int, data: bytes, timestamp: float) -> None:
+        if len(data) != 8:
+            self.malformed += 1          # the firmware takes 8-byte frames only
+            return
+        with self.lock:
+            self._on_mit_frame(bytes(data), unpack_command)
+            self._reply = (self.options.reply_id, pack_mit_answer(self._answer(), self.ranges))
+            self.on_command(self)
+
+    def _on_mit_v3(self, can_id: int, data: bytes, timestamp: float) -> None:
+        if len(data) != 8:
+            self.malformed += 1
+            return
+        with self.lock:
+            self._on_mit_frame(bytes(data), unpack_v3_command)
+            self._reply = (status_id(self.node_id), pack_status(self._answer(), self.model))
+            self.on_command(self)
+
+    def _on_v3_special(self, can_id: int, data: bytes, timestamp: float) -> None:
+        """V3: the special frames come on the id ``id`` (mode 0); a duty frame to a motor in
+        MIT mode moves nothing and is not answered."""
+        if bytes(data) in SPECIAL_FRAMES:
+            self._on_mit_v3(can_id, data, timestamp)
+
+    def _on_mit_frame(self, data: bytes, unpack) -> None:
+        if data == ENTER_MOTOR_MODE:
+            self.error = ErrorCode.NONE
+            if self.core.power is Power.FAULT:
+                self.core.reset_fault()
+            if self.core.power is not Power.ENABLED:
+                self.core.set_mode(Mode.IMPEDANCE)
+                enter_motor_mode(self.core)
+        elif data == EXIT_MOTOR_MODE:
+            self.core.disable()
+        elif data == SET_ZERO:
+            self._zero = self.core.status().position
+        elif self.core.power is Power.ENABLED:
+            follow(self.core, unpack(data, self.ranges), self._zero)
+        # else: a command outside motor mode moves nothing; it is answered all the same
+
+    # --- servo mode --------------------------------------------------------------------
+
+    def _servo_handler(self, mode: ServoMode):
+        def receive(can_id: int, data: bytes, timestamp: float) -> None:
+            if len(data) < _SERVO_LENGTH.get(mode, 4):
+                self.malformed += 1      # too short for the mode's field
+                return
+            with self.lock:
+                SERVO[mode](self, bytes(data))
+                self.on_command(self)
+        return receive
+
+    def _powered(self, mode: Mode) -> None:
+        """Servo mode: a command powers the motor in the core mode it needs."""
+        self.error = ErrorCode.NONE
+        if self.core.power is Power.FAULT:
+            self.core.reset_fault()
+        if self.core.mode is not mode or self.core.power is not Power.ENABLED:
+            self.core.set_mode(mode)
+            self.core.enable()
+            self.core.hold_position()
+
+    def _duty(self, data: bytes) -> None:
+        """hil models no PWM: a duty sets the winding voltage, so the unloaded speed follows
+        it, duty 1 the model's top speed (hil's choice)."""
+        duty = max(-1.0, min(1.0, _INT32.unpack_from(data)[0] / 100000))
+        self._speed(duty * (self.model.no_load_speed or self.ranges.v_max))
+
+    def _current(self, data: bytes) -> None:
+        self._powered(Mode.TORQUE)
+        self._limit_torque(self._peak)
+        amperes = _INT32.unpack_from(data)[0] / 1000
+        self.core.new_setpoint(torque=amperes * self.model.torque_constant, now=time.monotonic())
+
+    def _current_brake(self, data: bytes) -> None:
+        """Held where it is with at most the brake current's torque."""
+        amperes = abs(_INT32.unpack_from(data)[0] / 1000)
+        if self.core.mode is not Mode.PROFILE_POSITION or self.core.power is not Power.ENABLED:
+            self._powered(Mode.PROFILE_POSITION)
+        self._limit_torque(min(self._peak, amperes * self.model.torque_constant))
+        self.core.new_setpoint(now=time.monotonic())
+
+    def _erpm(self, data: bytes) -> None:
+        self._speed(self.model.output_speed(_INT32.unpack_from(data)[0]))
+
+    def _speed(self, speed: float) -> None:
+        self._powered(Mode.PROFILE_VELOCITY)
+        # the manual gives the speed loop no ramp: the reference steps (hil's reading)
+        self._profile(abs(speed) or 1.0, 1e9)
+        self.core.new_setpoint(velocity=speed, now=time.monotonic())
+
+    def _position(self, data: bytes) -> None:
+        degrees = _INT32.unpack_from(data)[0] / 10000
+        self._move(degrees, DEFAULT_ERPM, DEFAULT_ERPM_PER_S)
+
+    def _position_speed(self, data: bytes) -> None:
+        degrees, speed, acceleration = _POSITION_SPEED.unpack_from(data)
+        self._move(degrees / 10000, abs(speed) * 10.0, abs(acceleration) * 10.0)
+
+    def _move(self, degrees: float, erpm: float, erpm_per_s: float) -> None:
+        self._powered(Mode.PROFILE_POSITION)
+        self._profile(self.model.output_speed(erpm), self.model.output_speed(erpm_per_s))
+        self.core.move_to(math.radians(degrees) + self._zero)
+        self.core.new_setpoint(now=time.monotonic())            # the watchdog's sign of life
+
+    def _origin(self, data: bytes) -> None:
+        """0 a temporary, 1 a permanent origin here; 2 the default origin back (§5.1.6).
+        Nothing moves."""
+        if data[0] in (0, 1):
+            self._zero = self.core.status().position
+        elif data[0] == 2:
+            self._zero = 0.0
+
+    def _profile(self, speed: float, acceleration: float) -> None:
+        self.core.parameters = replace(self.core.parameters, profile_velocity=speed,
+                                       profile_acceleration=acceleration or 1e9,
+                                       profile_deceleration=acceleration or 1e9,
+                                       peak_torque=self._peak)
+
+    def _limit_torque(self, limit: float) -> None:
+        self.core.parameters = replace(self.core.parameters, peak_torque=limit)
+
+    # --- what the motor reports ----------------------------------------------------------
+
+    def _answer(self) -> Answer:
+        status = self.core.status()
+        return Answer(self.node_id, status.position - self._zero, status.velocity,
+                      status.torque, AMBIENT, self.error)
+
+    def tick(self, now: float) -> None:
+        """Servo mode: the status upload at its rate."""
+        if not self.attached or self.options.control is not Control.SERVO:
+            return
+        if now >= self._next_status:
+            self._next_status = max(self._next_status + 1 / self.options.status_rate, now)
+            self.send(status_id(self.node_id), pack_status(self._answer(), self.model))
+
+    def after_update(self) -> None:
+        for fault in self.take_events():
+            if fault is not Fault.CONTROLLER_SILENT:     # silence releases, reporting nothing
+                self.error = ErrorCode.OVER_CURRENT
+            self.core.disable()
+
+    def restart(self) -> None:
+        super().restart()
+        self.error = ErrorCode.NONE
+        self._zero = 0.0                 # a temporary origin is lost with the power
+
+    def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
+        """A V2 MIT answer: id and error exact, position, velocity, torque."""
+        if (not self.options.mit_on_standard_id or can_id != self.options.reply_id
+                or len(data) != 8):
+            return None
+        answer = unpack_mit_answer(data, self.ranges)
+        return (Reading("motor id", answer.motor_id), Reading("error", answer.error),
+                Reading("position", answer.position, "position"),
+                Reading("velocity", answer.velocity, "velocity"),
+                Reading("torque", answer.torque, "torque"))
+
+    @property
+    def state_text(self) -> str:
+        if self.error is not ErrorCode.NONE:
+            return self.error.name.replace("_", " ")
+        if self.options.control is Control.SERVO:
+            return "SERVO " + ("RUNNING" if self.core.power is Power.ENABLED else "RELEASED")
+        return "MOTOR MODE" if self.core.power is Power.ENABLED else "REST MODE"
+
+
+SERVO = {ServoMode.DUTY: CubeMarsDrive._duty, ServoMode.CURRENT: CubeMarsDrive._current,
+         ServoMode.CURRENT_BRAKE: CubeMarsDrive._current_brake,
+         ServoMode.SPEED: CubeMarsDrive._erpm, ServoMode.POSITION: CubeMarsDrive._position,
+         ServoMode.ORIGIN: CubeMarsDrive._origin,
+         ServoMode.POSITION_SPEED: CubeMarsDrive._position_speed}
