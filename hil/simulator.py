@@ -329,8 +329,16 @@ class Simulator:
             drive.send_replies()
             return
         self._waiting.discard(drive)
-        if self._waiting:
-            return                  # other drives have not had this cycle's command yet
+        if not self._waiting:       # else other drives have not had this cycle's command
+            self._complete_cycle()
+
+    def close_cycle(self) -> None:
+        """Lock-step: end this cycle now, whichever drives have had their command: the plant
+        steps one control period and every drive sends its answers (a test's own step)."""
+        with self.lock:
+            self._complete_cycle()
+
+    def _complete_cycle(self) -> None:
         for _ in range(self.steps_per_cycle):
             self._step()
         self.cycles += 1

@@ -1,13 +1,15 @@
 """The README and the guides in docs/ stay true: every `hil` command they show exists (its
-`--help` runs), every file they link or name exists, and the README's pytest example passes
-as it stands."""
+`--help` runs), every file they link or name exists, and their pytest examples pass as
+they stand."""
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
 from pathlib import Path
+from xml.etree import ElementTree
 
 import pytest
 
@@ -66,12 +68,22 @@ def test_the_readme_is_one_screen_of_front_door():
 
 
 @pytest.mark.slow
-def test_the_readmes_pytest_example_passes_as_it_stands(tmp_path):
-    readme = (ROOT / "README.md").read_text()
-    example = next(block for block in re.findall(r"```python\n(.*?)```", readme, re.DOTALL)
-                   if "def test_" in block)
-    (tmp_path / "test_readme_example.py").write_text(example)
+@pytest.mark.parametrize("page", ["README.md", "docs/testing.md"])
+def test_the_pytest_examples_pass_as_they_stand_from_an_empty_folder(page, tmp_path):
+    """Every test a page shows, pasted into a file in an empty folder and run with pytest and
+    --junitxml as a user would (hil's pytest plugin loaded as installed, ``hil`` on PATH)."""
+    examples = [block for block in re.findall(r"```python\n(.*?)```",
+                                              (ROOT / page).read_text(), re.DOTALL)
+                if "def test_" in block]
+    assert examples, f"{page} shows no pytest example"
+    for number, example in enumerate(examples):
+        (tmp_path / f"test_example_{number}.py").write_text(example)
+    report = tmp_path / "report.xml"
+    path = f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"
     done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
-                           str(tmp_path / "test_readme_example.py")], cwd=ROOT,
-                          capture_output=True, text=True, timeout=240)
+                           f"--junitxml={report}", str(tmp_path)], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=280,
+                          env={**os.environ, "PATH": path})
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+    cases = ElementTree.parse(report).getroot().iter("testcase")
+    assert len(list(cases)) == len(examples)

@@ -21,7 +21,7 @@ import zenoh.ext
 from conftest import ROOT
 from ros_spec_client import ATTACHMENT, SpecClient
 from hil.bus_config import load_bus_config
-from hil.cli.common import config_path
+from hil.bus_config.locate import config_path
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.messaging import cdr
 from hil.messaging.ros.face import (

@@ -21,7 +21,8 @@ from hil.lazy import lazy_exports
 
 __getattr__ = lazy_exports(__name__, {"load_bus_config": "hil.bus_config.parse",
                                       "open_buses": "hil.bus_config.buses",
-                                      "check_together": "hil.bus_config.checks"})
+                                      "check_together": "hil.bus_config.checks",
+                                      "config_path": "hil.bus_config.locate"})
 
 __all__ = ["BusConfig", "DriveConfig", "Gains", "LOAD_WARNING", "SystemConfig",
-           "check_together", "load_bus_config", "open_buses"]
+           "check_together", "config_path", "load_bus_config", "open_buses"]

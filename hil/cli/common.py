@@ -14,7 +14,7 @@ from pathlib import Path
 from hil.can.capabilities import capabilities
 from hil.description import PackagePath
 from hil.errors import HilError
-from hil.resources import BUS_CONFIGS, data_dir
+from hil.bus_config.locate import config_path  # noqa: F401  (the commands call common.config_path)
 from hil.realtime import LOCK_STEP, REAL_TIME
 from hil.supervisor import parse_cpus
 from hil.zenoh_security import Identity
@@ -43,21 +43,6 @@ def _finite(text: str, holds, what: str) -> float:
     if not math.isfinite(value) or not holds(value):
         raise argparse.ArgumentTypeError(f"{text!r} is not {what}")
     return value
-
-
-def config_path(name: str) -> Path:
-    """A bus config: a path, or a robot's name (bus_config/<name>.yaml here, else the one
-    hil ships)."""
-    path = Path(name)
-    if path.suffix in (".yaml", ".yml") or path.exists():
-        return path
-    for folder in (Path("bus_config"), data_dir(BUS_CONFIGS)):
-        candidate = folder / f"{name}.yaml"
-        if candidate.is_file():
-            return candidate
-    shipped = sorted(p.stem for p in data_dir(BUS_CONFIGS).glob("*.yaml"))
-    raise HilError.single(f"no bus config for robot '{name}'",
-                          hint=f"give a bus config path, or one of: {', '.join(shipped)}")
 
 
 def robot_name(name: str) -> str:
@@ -125,14 +110,12 @@ PEER_WAIT = 2.0
 PEER_SETTLE = 0.3
 
 
-def refuse_a_second(zenoh: ZenohSettings, robot: str, process: str) -> None:
-    """HilError if a ``hil <process>`` for ``robot`` already runs on this Zenoh network: two
-    simulators would both answer every frame (two nodes of one id on a CAN bus), two
-    controllers would both command the drives. With no endpoints every process of the host
-    meets every other, so a forgotten one in another terminal is found here."""
+def tokens(zenoh: ZenohSettings, key_expr: str, timeout: float = PEER_WAIT) -> list[str]:
+    """The liveliness tokens under ``key_expr`` that the hil processes reachable now hold,
+    once this process has met them: the first peer (the meeting point's), then those its
+    gossip names, until no new one came for PEER_SETTLE (a token is heard from the peer
+    that holds it, not relayed)."""
     opened = session(zenoh)
-    # the first peer (the meeting point's), then those its gossip names, until no new one
-    # came for PEER_SETTLE: a token is heard from the peer that holds it, not relayed
     start = settled = time.monotonic()
     peers = 0
     while dials_peers(zenoh) and time.monotonic() < start + PEER_WAIT and (
@@ -141,8 +124,16 @@ def refuse_a_second(zenoh: ZenohSettings, robot: str, process: str) -> None:
         if now_peers != peers:
             peers, settled = now_peers, time.monotonic()
         time.sleep(0.02)
-    found = [reply for reply in opened.liveliness().get(f"hil/{robot}/{process}",
-                                                        timeout=PEER_WAIT) if reply.ok]
+    return sorted(str(reply.ok.key_expr) for reply in
+                  opened.liveliness().get(key_expr, timeout=timeout) if reply.ok)
+
+
+def refuse_a_second(zenoh: ZenohSettings, robot: str, process: str) -> None:
+    """HilError if a ``hil <process>`` for ``robot`` already runs on this Zenoh network: two
+    simulators would both answer every frame (two nodes of one id on a CAN bus), two
+    controllers would both command the drives. With no endpoints every process of the host
+    meets every other, so a forgotten one in another terminal is found here."""
+    found = tokens(zenoh, f"hil/{robot}/{process}")
     if found:
         raise HilError.single(
             f"a hil {process} for robot '{robot}' already runs on this Zenoh network",

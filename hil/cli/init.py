@@ -12,15 +12,19 @@ from hil.cli import common
 from hil.description import load_description
 from hil.errors import HilError
 from hil.protocols import BUILTIN, protocol
+from hil.resources import BUS_CONFIGS, data_dir
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("description", type=Path, help="robot description (.xacro or .urdf)")
+    parser.add_argument("description", type=Path,
+                        help="robot description (.xacro or .urdf), or the name of a robot "
+                             "hil ships (ur3, pigot): its description")
     parser.add_argument("--protocol", choices=sorted(BUILTIN), default="cia402",
                         help="the drives' protocol (default cia402)")
     parser.add_argument("--motor", metavar="MODEL",
                         help="the product every drive is, for a protocol that knows its "
-                             "makers' models (damiao: DM4310, DM4340, DM8009, ...): its "
+                             "makers' models (damiao: DM4310, DM4340, DM8009, ...; "
+                             "cubemars: AK60-6_V3.0, AK80-6, ...): its "
                              "ranges, torques and speed size the drives (default: the "
                              "smallest model that fits each joint)")
     parser.add_argument("--rate", type=common.positive, default=500.0, metavar="HZ",
@@ -36,6 +40,8 @@ def run(args: argparse.Namespace) -> int:
         raise HilError.single(f"--rate {args.rate:g}: give a control rate in Hz, e.g. 500")
     motor = _motor(args.protocol, args.motor)
     package_path = common.package_path(args)
+    if not args.description.exists() and args.description.suffix not in (".urdf", ".xacro"):
+        args.description = _shipped_description(str(args.description), package_path)
     robot = load_description(args.description, package_path)
     output = args.output or Path(f"{robot.name}.yaml")
     if output.suffix not in (".yaml", ".yml"):
@@ -64,6 +70,18 @@ def run(args: argparse.Namespace) -> int:
     where = "".join(f" --package-path {folder}" for folder in args.package_path)
     print(f"next: hil check {output}{where} && hil up {output} --demo{where}")
     return 0
+
+
+def _shipped_description(name: str, package_path) -> Path:
+    """A robot's name: the description its bus config names."""
+    try:
+        config = common.config_path(name)
+    except HilError:
+        shipped = sorted(p.stem for p in data_dir(BUS_CONFIGS).glob("*.yaml"))
+        raise HilError.single(f"robot description '{name}' does not exist",
+                              hint="give the path of a .urdf or .xacro file, or a robot hil "
+                                   f"ships: {', '.join(shipped)}") from None
+    return load_bus_config(config, package_path).robot.source
 
 
 def _motor(protocol_name: str, name: str | None) -> str | None:

@@ -1,0 +1,200 @@
+"""A drives-only bench in the test's own process: the simulated drives and plant of a bus
+config, and a python-can bus per CAN bus for the master under test.
+
+What ``hil sim`` runs, without a process, a port or a host: the user's master (canopen, an
+ODrive or MIT client library, their own code) joins the bench's buses and drives the
+joints as it would drive the real ones::
+
+    with DrivesBench("ur3", lock_step=True) as bench:
+        network = canopen.Network(bench.bus("arm"))
+        ...                               # the master's own bring-up and commands
+        bench.step(500)                   # lock-step: one second of the plant
+        assert bench.joint("shoulder_lift_joint") == pytest.approx(-1.0, abs=1e-3)
+
+Real time (the default): the plant follows the wall clock, as on a bench. Lock-step: the
+plant advances one cycle when every drive of the config has had its cycle's frame (the
+master's SYNC on every CiA 402 bus, a command to every other drive), or when the test calls
+:meth:`DrivesBench.step`, which closes the cycle whatever the master sent; answers to a
+cycle's frames leave after its step, as on the real bus they follow the SYNC.
+"""
+
+from __future__ import annotations
+
+import threading
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+import can
+
+from hil.bus_config import DriveConfig, SystemConfig, config_path, load_bus_config, open_buses
+from hil.description import PackagePath
+from hil.errors import HilError
+from hil.realtime import LOCK_STEP, REAL_TIME
+from hil.resources import BUS_CONFIGS, data_dir
+from hil.simulator import Simulator
+from hil.zenoh_session import ZenohSettings
+
+#: python-can's in-process interface: a master joins with ``can.Bus(interface="virtual",
+#: channel=bench.channel(name))`` or takes :meth:`DrivesBench.bus`
+INTERFACE = "virtual"
+#: the fault kinds :meth:`DrivesBench.fault` injects, as ``hil sim --fault`` names them
+FAULT_KINDS = ("fault", "silence", "restart")
+
+
+@dataclass(frozen=True)
+class DriveInfo:
+    """What a master needs of one joint's drive: where it is and its units."""
+
+    bus: str
+    channel: str
+    node_id: int
+    protocol: str
+    #: joint to motor: the motor turns ``reduction`` radians per radian of the joint
+    reduction: float
+    #: encoder counts per motor revolution (CiA 402 positions are in these)
+    counts_per_rev: int
+    config: DriveConfig
+
+
+class DrivesBench:
+    """A bus config's drives and plant in this process, for a master to drive.
+
+    ``config``: a bus config path or a robot's name (``ur3``: ``bus_config/ur3.yaml`` here,
+    else the one hil ships). Every bus is python-can's ``virtual`` interface on a channel
+    of its own (:meth:`channel`), whatever the config says."""
+
+    def __init__(self, config: str | Path | SystemConfig, *, lock_step: bool = False,
+                 package_path: PackagePath | None = None):
+        if not isinstance(config, SystemConfig):
+            config = load_bus_config(config_path(str(config)), package_path)
+        self.config = config
+        tag = uuid.uuid4().hex[:8]
+        self.channels = {bus.name: f"hil-bench-{tag}-{bus.name}" for bus in config.buses}
+        self._sim_buses = open_buses(config, ZenohSettings.meeting(), INTERFACE, self.channels)
+        self.sim = Simulator(config, self._sim_buses, LOCK_STEP if lock_step else REAL_TIME)
+        self.sim.start()
+        self._thread = threading.Thread(target=self.sim.run, name="hil-drives-bench",
+                                        daemon=True)
+        self._thread.start()
+        self._masters: list[can.BusABC] = []
+        self._logs: list[tuple[can.Notifier, can.BusABC]] = []
+        self._closed = False
+
+    # --- the master's side --------------------------------------------------------------
+
+    def channel(self, bus: str) -> str:
+        """The python-can ``virtual`` channel of a bus of the config."""
+        try:
+            return self.channels[bus]
+        except KeyError:
+            raise HilError.single(f"no bus '{bus}' in {self.config.path}",
+                                  hint=f"buses: {', '.join(self.channels)}") from None
+
+    def bus(self, name: str | None = None) -> can.BusABC:
+        """A python-can bus on a bus of the config (the only one if ``name`` is None), for
+        the master; shut down with the bench."""
+        if name is None:
+            if len(self.channels) != 1:
+                raise HilError.single(f"{self.config.path} has buses "
+                                      f"{', '.join(self.channels)}", hint="name one")
+            name = next(iter(self.channels))
+        opened = can.Bus(interface=INTERFACE, channel=self.channel(name))
+        self._masters.append(opened)
+        return opened
+
+    def drive(self, joint: str) -> DriveInfo:
+        """Where the drive of ``joint`` is and its units."""
+        for bus in self.config.buses:
+            for drive in bus.drives:
+                if joint in drive.joints:
+                    found = next(t for t in self.config.robot.transmissions
+                                 if drive.actuator in (a.name for a in t.actuators))
+                    reduction = found.actuators[0].reduction * found.joints[0].reduction
+                    return DriveInfo(bus.name, self.channels[bus.name], drive.node_id,
+                                     drive.protocol, reduction, drive.encoder_counts_per_rev,
+                                     drive)
+        raise HilError.single(f"no drive moves joint '{joint}' in {self.config.path}",
+                              hint=f"joints: {', '.join(self.joints())}")
+
+    def log_to(self, folder: Path) -> list[Path]:
+        """Log every frame of every bus, from now until :meth:`close`, to ``folder/BUS.blf``
+        (python-can's BLF, as ``hil replay`` reads); the files' paths."""
+        folder.mkdir(parents=True, exist_ok=True)
+        paths = []
+        for name, channel in self.channels.items():
+            listener = can.Bus(interface=INTERFACE, channel=channel)
+            path = folder / f"{name}.blf"
+            self._logs.append((can.Notifier(listener, [can.Logger(path)]), listener))
+            paths.append(path)
+        return paths
+
+    @staticmethod
+    def eds() -> Path:
+        """The EDS of hil's CiA 402 drives (object dictionary and default PDO mapping)."""
+        return data_dir(BUS_CONFIGS) / "cia402_drive.eds"
+
+    # --- the plant ---------------------------------------------------------------------
+
+    def joints(self) -> dict[str, float]:
+        """Every joint's position (rad or m) by name, now."""
+        with self.sim.lock:
+            positions = self.sim.plant.joint_positions().tolist()
+        return dict(zip(self.sim.plant.joint_names, positions))
+
+    def joint(self, name: str) -> float:
+        """One joint's position (rad or m), now."""
+        joints = self.joints()
+        if name not in joints:
+            raise HilError.single(f"no joint '{name}' in {self.config.path}",
+                                  hint=f"joints: {', '.join(joints)}")
+        return joints[name]
+
+    def step(self, cycles: int = 1) -> None:
+        """Lock-step: close ``cycles`` cycles now, each one control period of the plant, and
+        send the drives' answers; HilError in real time (the wall clock steps it)."""
+        if not self.sim.lock_step:
+            raise HilError.single("step() advances a lock-step bench",
+                                  hint="DrivesBench(config, lock_step=True)")
+        for _ in range(cycles):
+            self.sim.close_cycle()
+
+    def fault(self, joint: str, kind: str = "fault") -> None:
+        """Inject a fault into the drive of ``joint``, as ``hil sim --fault KIND:...``: a
+        drive fault (a following error, reported in the drive's protocol), ``silence`` (it
+        leaves the bus) or ``restart`` (a power cycle)."""
+        if kind not in FAULT_KINDS:
+            raise HilError.single(f"no fault kind '{kind}'",
+                                  hint=f"one of: {', '.join(FAULT_KINDS)}")
+        drive = self.drive(joint)
+        inject = {"fault": self.sim.raise_fault, "silence": self.sim.silence,
+                  "restart": self.sim.restart}[kind]
+        inject(drive.bus, drive.node_id)
+
+    def state(self, joint: str) -> str:
+        """The drive's state in its protocol's words (``OPERATION ENABLED``, ``FAULT``, ...)."""
+        drive = self.drive(joint)
+        with self.sim.lock:
+            return self.sim.drive(drive.bus, drive.node_id).state_text
+
+    # --- life cycle -------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Drives disabled, the plant stopped, every bus shut down (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        self.sim.stop()
+        self._thread.join(5)
+        self.sim.close()
+        for notifier, _ in self._logs:
+            notifier.stop()                # and its log: the file closed, its header written
+        for bus in self._masters + [bus for _, bus in self._logs] + list(
+                self._sim_buses.values()):
+            bus.shutdown()
+
+    def __enter__(self) -> DrivesBench:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
