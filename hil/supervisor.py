@@ -145,6 +145,41 @@ class Run:
         return problems
 
 
+def run_foreground(command: list[str]) -> int:
+    """Run a program (a viewer) until it ends or this process is told to stop (Ctrl-C,
+    SIGTERM); then it and every process it started are stopped (SIGTERM to its session's
+    group, SIGKILL past STOP_TIMEOUT): a viewer's launcher often hands over to a binary of
+    its own, which killing the launcher alone would leave running. Its exit status; 0 when
+    stopped so."""
+    process = subprocess.Popen(command, start_new_session=True)
+    previous = signal.signal(signal.SIGTERM, _interrupted)
+    try:
+        return process.wait()
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        _stop_group(process)
+
+
+def _interrupted(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
+def _stop_group(process: subprocess.Popen) -> None:
+    for stop, wait in ((signal.SIGTERM, STOP_TIMEOUT), (signal.SIGKILL, 5.0)):
+        try:
+            os.killpg(process.pid, stop)
+        except ProcessLookupError:
+            break                        # the group is gone: nothing was left running
+        try:
+            process.wait(wait)
+        except subprocess.TimeoutExpired:
+            continue
+        if stop is signal.SIGTERM:
+            time.sleep(0.2)              # its own children's turn to go, then SIGKILL any left
+
+
 def kill_later(child: Child, delay: float, stop: threading.Event) -> None:
     """Fault injection: SIGKILL a child; the supervision then reports it as crashed."""
     if not stop.wait(delay) and child.exited() is None:

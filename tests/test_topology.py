@@ -70,6 +70,7 @@ def _wait_for_line(process: subprocess.Popen, start: str, limit: int = 200) -> l
 @pytest.mark.parametrize("client", [
     ("send", "ur3", "--joint", "joint2", "--to", "0.3", "--in", "1s"),
     ("reset", "ur3"),
+    ("ls",),
 ])
 def test_hil_up_and_a_client_meet_with_no_endpoints(processes, tmp_path, client):
     """`hil up ur3` in one terminal, a client in another, both with their defaults (issue
@@ -79,6 +80,37 @@ def test_hil_up_and_a_client_meet_with_no_endpoints(processes, tmp_path, client)
     _wait_for_line(up, "  [")            # the run's progress: every process is up
     done = processes.run(*client)
     assert done.returncode == 0, done.stdout + done.stderr
+    if client == ("ls",):
+        assert re.search(r"ur3\n(\s+(sim|control|viz) .*\n){3}", done.stdout), done.stdout
+
+
+def test_hil_up_and_a_second_viewer_meet_with_no_endpoints(processes, tmp_path):
+    up = processes.start("up", "ur3", "--lock-step", "--no-viewer", cwd=tmp_path)
+    _wait_for_line(up, "  [")
+    viz = processes.start("viz", "ur3", "--lock-step", "--save", str(tmp_path / "second.rrd"),
+                          "--status-period", "1")
+    lines = _wait_for_line(viz, "hil viz:")
+    time.sleep(3.0)
+    assert viz.poll() is None, "".join(lines)
+    outputs = processes.stop()
+    assert (tmp_path / "second.rrd").stat().st_size > 0, outputs[0]
+
+
+def test_ls_with_nothing_running_says_so_and_what_to_do(processes):
+    done = processes.run("ls", "--timeout", "0.5")
+    assert done.returncode == 1
+    assert "no hil process is reachable" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_viewer_sim_and_controller_started_in_that_order_meet(processes, ur3_100hz, tmp_path):
+    viz = processes.start("viz", ur3_100hz, "--save", str(tmp_path / "run.rrd"))
+    sim = processes.start("sim", ur3_100hz, "--status-period", "0")
+    assert "hil sim:" in sim.stdout.readline()
+    control = processes.start("control", ur3_100hz)
+    assert "hil control:" in control.stdout.readline()
+    sent = processes.run("send", "ur3", "--joint", "joint2", "--to", "0.3", "--in", "1s")
+    assert sent.returncode == 0, sent.stdout + sent.stderr
+    assert viz.poll() is None
 
 
 def test_controller_started_before_its_sim_waits_for_the_drives(processes, ur3_100hz, tmp_path):

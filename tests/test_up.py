@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import json
 import os
 import re
 import signal
@@ -11,6 +12,7 @@ import subprocess
 import sys
 import threading
 import time
+import urllib.request
 
 import can
 import numpy as np
@@ -24,7 +26,7 @@ from hil.cli.up.children import make_children
 from hil.cli.up.robots import RobotRun
 from hil.messaging.zenoh_api import RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
-from conftest import ROOT, free_port, read_rrd
+from conftest import ROOT, free_port, read_rrd, stop_process
 
 PIGOT_CONFIG = str(ROOT / "bus_config" / "pigot.yaml")
 #: the entity with a row for every cycle recorded (hil.visualisation.recorder)
@@ -358,6 +360,27 @@ def test_review_lists_a_runs_faults_with_their_times(tmp_path):
     assert "drive node 2 (arm_rot_2) on bus 'arm' is in FAULT" in line
     assert re.search(r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d+, control \d+\.\d+ s", line)
     assert "[run.rrd]" in line
+    assert re.search(r"cycles over \d+\.\d+ s of control time", reviewed.stdout)
+
+    as_json = subprocess.run([sys.executable, "-m", "hil", "review", str(save), "--json"],
+                             capture_output=True, text=True, timeout=120)
+    document = json.loads(as_json.stdout)
+    assert document["faults"] == 1
+    (run,) = document["runs"]
+    assert run["cycles"] > 1000 and run["duration_s"] > 2
+    assert set(run["joints"]) >= {"arm_rot_1", "arm_rot_2"}
+    assert all(j["rms"] <= j["max"] for j in run["joints"].values())
+
+    port = free_port()
+    web = subprocess.Popen([sys.executable, "-m", "hil", "review", str(save), "--web",
+                            "--web-port", str(port)], stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True)
+    try:
+        assert f"http://127.0.0.1:{port}/" in _line_with(web, "web viewer at")
+        page = _fetch_when_up(f"http://127.0.0.1:{port}/")
+        assert "rerun" in page.lower()
+    finally:
+        stop_process(web)
 
 
 def test_review_of_nothing_says_what_it_looked_for(tmp_path):
@@ -399,3 +422,24 @@ def test_a_recording_holds_every_cycle_of_every_signal_in_its_byte_budget(tmp_pa
     print(f"{save.stat().st_size / 1e6:.2f} MB for {recorded} cycles: "
           f"{per_second / 1e6:.3f} MB a second of run")
     assert per_second <= RECORDING_BYTES_PER_SECOND
+
+
+def _fetch_when_up(url: str, within: float = 30.0) -> str:
+    """The page at ``url`` once its server answers."""
+    deadline = time.monotonic() + within
+    while True:
+        try:
+            with urllib.request.urlopen(url, timeout=5) as answer:
+                return answer.read().decode(errors="replace")
+        except OSError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.2)
+
+
+def _line_with(process: subprocess.Popen, text: str) -> str:
+    """The first line ``process`` prints that holds ``text``."""
+    for line in process.stdout:
+        if text in line:
+            return line
+    raise AssertionError(f"{process.args} ended without a line with {text!r}")

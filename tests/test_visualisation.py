@@ -366,3 +366,52 @@ def test_viz_refuses_can_log_without_can(tmp_path):
     from hil.cli import main
     assert main(["viz", str(PIGOT_CONFIG), "--no-can", "--can-log", str(tmp_path / "x.log"),
                  "--save", str(tmp_path / "x.rrd")]) == 1
+
+
+@pytest.mark.slow
+def test_review_gives_each_joints_tracking_as_the_controllers_samples_of_the_run(
+        tmp_path, ur3, package_path):
+    """Issue 46: `hil review --json`'s per-joint tracking is the run's: the same figures as
+    computed (as hil bench computes them) from the samples the controller published."""
+    from hil.bus_config import load_bus_config
+    from hil.controllers import TrajectoryGoal, TrajectoryPoint
+    from hil.messaging.zenoh_api import RunSubscriber, TrajectoryActionClient
+    from hil.realtime import LOCK_STEP
+    from hil.stack import running_stack
+    from hil.visualisation.review import review
+
+    config = load_bus_config(ROOT / "bus_config" / "ur3.yaml", package_path)
+    samples: list[ControlSamples] = []
+    with running_stack(config, LOCK_STEP) as stack:
+        subscriber = RunSubscriber(stack.zenoh, "ur3", samples.append, lambda *_: None,
+                                   lambda *_: None)
+        client = TrajectoryActionClient(stack.zenoh, "ur3")
+        goal = TrajectoryGoal(("joint2", "joint3"), (TrajectoryPoint(1.0, (0.3, -0.2),
+                                                                     (0.0, 0.0)),))
+        client.wait_result(client.send_goal(goal), timeout=60)
+        time.sleep(0.3)
+        subscriber.close()
+        client.close()
+    urdf = tmp_path / "ur3.urdf"
+    urdf.write_bytes(ET.tostring(read_robot_source(UR3_XACRO, package_path).root))
+    recording = rr.RecordingStream("hil-test")
+    path = tmp_path / "run.rrd"
+    recording.save(str(path))
+    actuators = {a.name: tuple(j.name for j in t.joints)
+                 for t in ur3.transmissions for a in t.actuators}
+    recorder = RunRecorder(recording, ur3, urdf, actuators, ("arm", "wrist"))
+    recorder.log_static()
+    for batch in samples:
+        recorder.log_samples(batch)
+    recorder.flush()
+    recording.flush()
+    recording.disconnect()
+
+    (run,) = review([path]).runs
+    error = np.concatenate([s.reference - s.position for s in samples])
+    assert run.cycles == len(error)
+    for k, joint in enumerate(samples[0].joint_names):
+        found = run.joints[joint]
+        assert found.rms == pytest.approx(np.sqrt(np.mean(error[:, k] ** 2)), rel=1e-5, abs=1e-9)
+        assert found.max == pytest.approx(np.abs(error[:, k]).max(), rel=1e-5, abs=1e-9)
+    assert run.joints["joint2"].max > 1e-4                 # the move's error, not nothing

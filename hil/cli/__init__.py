@@ -25,6 +25,7 @@ COMMANDS = {
     "control": "run the CAN master, joint state publisher and joint trajectory controller",
     "send": "send a joint trajectory to a running hil control and wait for the result",
     "reset": "reset drive faults (after a fault aborted a goal) and hold position",
+    "ls": "list the robots and hil processes reachable from here (sim, control, viz)",
     "viz": "show and record every axis of a running robot in rerun",
     "review": "open a recorded run (whole or in segments): its faults with their times, then "
               "the viewer",

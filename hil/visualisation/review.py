@@ -1,7 +1,8 @@
 """What a recorded run holds, read back for review without opening a viewer: its segments,
-and every fault and reset the controller reported, with its time, so that the moment worth
+every fault and reset the controller reported, with its time, so that the moment worth
 looking at in an hour's recording is known before the viewer opens (whose "diagnostics"
-view jumps there on a click).
+view jumps there on a click), and per robot a summary: cycles, duration, each joint's
+tracking error (RMS, largest and when) and the control loop's period.
 
 Only the diagnostics' chunks are read: a segment closed properly has rerun's manifest
 (its footer), and the store loads the chunks the filter asks for; one cut off by a crash
@@ -13,11 +14,17 @@ rerun's reason, which gives the offset, and the others are read all the same.
 from __future__ import annotations
 
 import datetime
+import math
+import re
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import rerun.chunk
+
+#: a ``cycle`` series of a joint's tracking error (hil.visualisation.blueprint.CycleSeries)
+_ERROR_SERIES = re.compile(r"^(?P<joint>.+) error \[(?P<unit>[^\]]+)\]$")
 
 
 @dataclass(frozen=True)
@@ -41,33 +48,114 @@ class DamagedSegment:
     is_recording: bool        # False: not an .rrd at all, so no viewer should be given it
 
 
+@dataclass
+class JointTracking:
+    """One joint's tracking error over a run: reference minus measured position."""
+
+    joint: str
+    unit: str
+    column: int                      # its series in the ``cycle`` rows
+    rms: float = 0.0
+    max: float = 0.0
+    #: the controller's clock (s) at the largest error
+    max_at: float | None = None
+    _squares: float = 0.0
+    _count: int = 0
+
+    def add(self, errors: np.ndarray, times: np.ndarray) -> None:
+        finite = np.isfinite(errors)
+        errors, times = errors[finite], times[finite]
+        if not len(errors):
+            return
+        self._squares += float(np.sum(np.square(errors, dtype=np.float64)))
+        self._count += len(errors)
+        self.rms = math.sqrt(self._squares / self._count)
+        largest = int(np.argmax(np.abs(errors)))
+        if abs(errors[largest]) > self.max:
+            self.max, self.max_at = float(abs(errors[largest])), float(times[largest])
+
+
+@dataclass
+class RunSummary:
+    """One robot's run in a recording (its ``cycle`` entity): cycles recorded, the span of
+    the controller's clock, each joint's tracking, the loop's period (ms; None in lock-step,
+    which records none)."""
+
+    robot: str                       # "" for a recording of one robot
+    cycles: int = 0
+    first: float | None = None       # the controller's clock, s
+    last: float | None = None
+    joints: dict[str, JointTracking] = field(default_factory=dict)
+    period_mean_ms: float | None = None
+    period_max_ms: float | None = None
+
+    @property
+    def duration(self) -> float:
+        return 0.0 if self.first is None else self.last - self.first
+
+
 @dataclass(frozen=True)
 class Review:
-    """What a recording's segments hold: its diagnostics, oldest first, and the damage."""
+    """What a recording's segments hold: its diagnostics, oldest first, the damage, and a
+    summary per robot."""
 
     diagnostics: list[Diagnostic]
     damaged: list[DamagedSegment]
+    runs: list[RunSummary] = field(default_factory=list)
 
 
 def review(files: list[Path]) -> Review:
-    """Every fault and reset logged in ``files`` (a recording's segments), and every
-    segment that could not be read whole."""
+    """Every fault and reset logged in ``files`` (a recording's segments), every segment
+    that could not be read whole, and each robot's run summary."""
     found, damaged = [], []
+    runs: dict[str, RunSummary] = {}
     for path in files:
         try:
-            chunks, damage = _diagnostic_chunks(path)
+            chunks, damage = _chunks(path)
         except RuntimeError as exc:              # the reason names the file and the offset
             damaged.append(DamagedSegment(path, str(exc), is_recording=False))
             continue
         if damage is not None:
             damaged.append(DamagedSegment(path, damage, is_recording=True))
-        found += [row for chunk in chunks for row in _rows(chunk, path)]
-    return Review(sorted(found, key=lambda d: d.wall_time), damaged)
+        for chunk in chunks:
+            if chunk.entity_path.endswith("/diagnostics"):
+                found += _rows(chunk, path)
+            else:
+                robot = chunk.entity_path.removesuffix("/cycle").strip("/")
+                _summarise(runs.setdefault(robot, RunSummary(robot)), chunk)
+    return Review(sorted(found, key=lambda d: d.wall_time), damaged,
+                  [run for _, run in sorted(runs.items()) if run.cycles])
 
 
-def _diagnostic_chunks(path: Path) -> tuple[list, str | None]:
-    """The diagnostics' chunks of a segment, and why it was not read whole (None: it
-    was); RuntimeError where it is no recording."""
+def _summarise(run: RunSummary, chunk) -> None:
+    """Adds a ``cycle`` chunk (its series' names, or its rows) to the run's figures."""
+    batch = chunk.to_record_batch()
+    if chunk.is_static:
+        for k, name in enumerate(batch.column("SeriesLines:names").to_pylist()[-1] or []):
+            matched = _ERROR_SERIES.match(name)
+            if matched and matched["joint"] not in run.joints:
+                run.joints[matched["joint"]] = JointTracking(matched["joint"], matched["unit"], k)
+        return
+    if "control_time" not in batch.schema.names or not run.joints:
+        return
+    times = np.array(batch.column("control_time").cast("int64").to_pylist()) / 1e9
+    values = np.array(batch.column("Scalars:scalars").to_pylist(), dtype=np.float32)
+    run.cycles += len(times)
+    run.first = float(times.min()) if run.first is None else min(run.first, float(times.min()))
+    run.last = float(times.max()) if run.last is None else max(run.last, float(times.max()))
+    for tracking in run.joints.values():
+        tracking.add(values[:, tracking.column], times)
+    periods = values[:, -2][np.isfinite(values[:, -2])]     # LOOP_SERIES: period, round trip
+    if len(periods):
+        count = run.cycles - len(times)
+        run.period_mean_ms = float(((run.period_mean_ms or 0.0) * count + periods.sum())
+                                   / (count + len(periods)))
+        run.period_max_ms = max(run.period_max_ms or 0.0, float(periods.max()))
+
+
+def _chunks(path: Path) -> tuple[list, str | None]:
+    """The diagnostics' and the cycles' chunks of a segment, and why it was not read whole
+    (None: it was); RuntimeError where it is no recording."""
     damage = None
     with warnings.catch_warnings():              # a crashed segment: rerun warns, then scans
         warnings.simplefilter("ignore")
@@ -82,8 +170,12 @@ def _diagnostic_chunks(path: Path) -> tuple[list, str | None]:
             damage = ("no footer: the run did not close it (a crash?); read up to its last "
                       "whole message")
         # one robot's at the root, several robots' each under its name
-        return stream.filter(content=["/diagnostics", "/*/diagnostics"],
-                             is_static=False).to_chunks(), damage
+        chunks = stream.filter(content=["/diagnostics", "/*/diagnostics", "/cycle",
+                                        "/*/cycle"]).to_chunks()
+    # the series' names (static) before the rows they name; no static diagnostic
+    return sorted((chunk for chunk in chunks if not (
+        chunk.is_static and chunk.entity_path.endswith("/diagnostics"))),
+        key=lambda chunk: not chunk.is_static), damage
 
 
 def _rows(chunk, path: Path) -> list[Diagnostic]:
