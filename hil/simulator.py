@@ -142,7 +142,10 @@ class Simulator:
         self.lock = PlantPresent(self._advance)
         self.plant = bench_plant(config)
         self.steps_per_cycle = config.steps_per_cycle
+        #: cycles run: lock-step, the plant's; real time, the most cycle frames (SYNCs,
+        #: commands) any drive has had from its master, whoever the master is
         self.cycles = 0
+        self._commands: dict[DriveProfile, int] = {}
         self.overruns = 0          # real time: gaps skipped (the process stalled)
         #: real time: the process' own stalls, found from the watchdog's wake-ups
         self.stalls = StallDetector("sim", WATCHDOG_PERIOD)
@@ -327,6 +330,8 @@ class Simulator:
         """A drive has its command of this cycle (called with the lock held)."""
         if not self.lock_step:
             drive.send_replies()
+            count = self._commands[drive] = self._commands.get(drive, 0) + 1
+            self.cycles = max(self.cycles, count)
             return
         self._waiting.discard(drive)
         if not self._waiting:       # else other drives have not had this cycle's command

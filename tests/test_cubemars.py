@@ -94,8 +94,11 @@ def test_options_refuse_an_unknown_model_and_a_rate_outside_the_manual():
 
 # --- a simulated motor on a bus: MIT mode, firmware V2 ------------------------------------
 
-def _bench(tmp_path, options: str, node_id: int = 1, interface="zenoh", channel=None):
-    text = CONFIG.read_text().replace(
+def _bench(tmp_path, options: str, node_id: int = 1, interface="zenoh", channel=None,
+           watchdog: float = 0.5):
+    """A bench of the fixture's config with the drive's options (and watchdog) replaced."""
+    text = CONFIG.read_text().replace("watchdog_timeout: 0.5", f"watchdog_timeout: {watchdog}")
+    text = text.replace(
         "{node_id: 1, joint: yaw, options: {model: AK80-9, kp: 5.0, kd: 0.3}}",
         f"{{node_id: {node_id}, joint: yaw, options: {options}}}")
     path = tmp_path / "bench.yaml"
@@ -249,19 +252,24 @@ def can0(tmp_path, monkeypatch):
 
 
 @pytest.mark.socketcan
-def test_tmotorcancontrol_drives_the_motor_through_its_readme_sequence(can0):
+def test_tmotorcancontrol_drives_the_motor_through_its_readme_sequence(can0, tmp_path):
     """TMotorCANControl 1.2.6's README: a TMotorManager_mit_can in a ``with`` block (power
     on, 10 FC frames each answered), impedance gains, position commands with ``update()``,
     power off on leaving (its README imports ``TMotorCANControl.TMotorManager_mit_can``,
     a module its own 1.2.6 wheel names ``mit_can``)."""
     from TMotorCANControl.mit_can import TMotorManager_mit_can
 
-    bench = ClientBench(CONFIG, "socketcan", "hil-can0")
+    bench = _bench(tmp_path, "{model: AK80-9}", interface="socketcan", channel="hil-can0",
+                   watchdog=0)           # UML's stalls are not the client's silence
     try:
         with TMotorManager_mit_can(motor_type="AK80-9", motor_ID=1) as dev:
             dev.set_impedance_gains_real_unit(K=20, B=0.5)
-            deadline = time.monotonic() + 3.0
-            while time.monotonic() < deadline:
+            deadline = time.monotonic() + 20.0
+            while time.monotonic() < deadline and abs(bench.joint() - 1.0) > 0.005:
+                dev.position = 1.0
+                dev.update()
+                time.sleep(0.01)
+            for _ in range(20):          # settled: a last few commands and answers
                 dev.position = 1.0
                 dev.update()
                 time.sleep(0.01)
@@ -283,7 +291,7 @@ def test_motor_python_drives_an_ak60_6_v3_through_its_readme_sequence(can0, tmp_
     from motor_python import Motor
 
     bench = _bench(tmp_path, "{model: AK60-6 V3, firmware: v3}", node_id=3,
-                   interface="socketcan", channel="hil-can0")
+                   interface="socketcan", channel="hil-can0", watchdog=0)
     try:
         with Motor(motor_can_id=0x03) as motor:
             motor.enable_mit_mode()
@@ -292,7 +300,10 @@ def test_motor_python_drives_an_ak60_6_v3_through_its_readme_sequence(can0, tmp_
             time.sleep(0.5)
             assert bench.drive.core.status().velocity > 0.5
             motor.set_position(90.0)
-            time.sleep(3.0)
+            deadline = time.monotonic() + 20.0          # its refresh thread holds the command
+            while time.monotonic() < deadline and abs(bench.joint() - math.pi / 2) > 0.01:
+                time.sleep(0.1)
+            time.sleep(0.5)
             status = motor.get_status()
             assert status is not None and status.error_code == 0
             assert status.position_degrees == pytest.approx(90.0, abs=1.5)

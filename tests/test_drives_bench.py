@@ -1,0 +1,65 @@
+"""The drives-only bench (hil.testing.DrivesBench) a user's master is tested against: what
+it says of the drives, how time runs, and its errors; its pytest examples are in
+docs/testing.md (run by tests/test_docs.py)."""
+
+from __future__ import annotations
+
+import time
+
+import can
+import pytest
+
+from hil.errors import HilError
+from hil.testing import DrivesBench
+
+
+@pytest.fixture
+def ur3_bench():
+    bench = DrivesBench("ur3")
+    yield bench
+    bench.close()
+
+
+def test_a_joints_drive_is_named_with_its_units(ur3_bench):
+    joint = ur3_bench.drive("joint2")
+    assert (joint.bus, joint.node_id, joint.protocol) == ("arm", 2, "cia402")
+    assert joint.reduction == pytest.approx(120) and joint.counts_per_rev == 131072
+    assert ur3_bench.eds().is_file()
+
+
+def test_real_time_counts_the_cycles_of_any_master_by_its_syncs(ur3_bench):
+    """Issue 46: hil sim's status printed `cycles 0` while the user's master sent SYNCs."""
+    bus = ur3_bench.bus("arm")
+    for _ in range(20):
+        bus.send(can.Message(arbitration_id=0x080, is_extended_id=False, data=b""))
+        time.sleep(0.005)
+    deadline = time.monotonic() + 5
+    while ur3_bench.sim.cycles < 20 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert ur3_bench.sim.cycles == 20
+
+
+def test_lock_step_advances_by_the_tests_step_only_where_no_master_runs():
+    with DrivesBench("ur3", lock_step=True) as bench:
+        before = bench.sim.now()
+        time.sleep(0.2)
+        assert bench.sim.now() == before                     # nothing steps it by itself
+        bench.step(50)
+        assert bench.sim.now() == pytest.approx(before + 50 * 0.002)
+
+
+@pytest.mark.parametrize("call, said", [
+    (lambda bench: bench.step(), r"step\(\) advances a lock-step bench"),
+    (lambda bench: bench.drive("elbow"), "no drive moves joint 'elbow'"),
+    (lambda bench: bench.fault("joint2", "melt"), "no fault kind 'melt'"),
+    (lambda bench: bench.bus(), "has buses arm, wrist"),
+    (lambda bench: bench.joint("elbow"), "no joint 'elbow'"),
+])
+def test_a_wrong_call_says_what_to_do(ur3_bench, call, said):
+    with pytest.raises(HilError, match=said):
+        call(ur3_bench)
+
+
+def test_an_injected_fault_is_the_drives_state(ur3_bench):
+    ur3_bench.fault("joint3")
+    assert ur3_bench.state("joint3").endswith("FAULT")         # CiA 402 state, NMT first
