@@ -21,6 +21,8 @@ from hil.supervisor import end_with_parent_if_asked
 COMMANDS = {
     "check": "validate a robot (.xacro/.urdf) or a bus config (.yaml) and print a summary",
     "init": "write a bus config for a robot description (drives, transmissions, buses)",
+    "describe": "print what a master needs to drive a config's drives: how to join each bus, "
+                "node ids, frames, units, the EDS and its PDO mapping",
     "sim": "run the plant and all virtual drives of a bus config",
     "control": "run the CAN master, joint state publisher and joint trajectory controller",
     "send": "send a joint trajectory to a running hil control and wait for the result",

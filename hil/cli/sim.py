@@ -100,6 +100,8 @@ def run(args: argparse.Namespace) -> int:
               f"{', '.join(f'{b.name} ({buses[b.name].channel_info})' for b in config.buses)}, "
               f"{args.timing}, plant {config.plant_rate_hz:g} Hz, "
               f"cycle {config.cycle_hz:g} Hz; {scheduling}", flush=True)
+        print(f"hil sim: your own master's node ids, frames, units and PDO maps: hil describe "
+              f"{args.config}", flush=True)
         for thread in threads:
             thread.start()
         simulator.run(args.duration)

@@ -30,7 +30,7 @@ import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.can.messages import extended
+from hil.can.messages import EXTENDED, extended
 from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender
 from hil.protocols.cubemars.models import MODELS, SIZED, CubeMarsModel, model
 from hil.protocols.mit import (
@@ -279,13 +279,26 @@ class CubeMars(Protocol):
     @classmethod
     def frame_source(cls, can_id: int, data: bytes, remote: bool,
                      drives: Mapping[int, object]) -> FrameSource | None:
-        """V2 MIT only: a command goes to the motor's id, an answer to the reply id naming
-        the motor in byte 0. Extended frames are not told apart here (a replay of a servo-
-        mode or V3 bus is refused)."""
+        """An extended frame (its id above 0x7FF or carrying hil.can.messages.EXTENDED):
+        ``mode << 8 | id``, a status upload or a command of that mode. A standard one: V2 MIT,
+        a command to the motor's id or an answer on the reply id naming the motor in byte 0;
+        on a bus with servo-mode or V3 drives a standard id alone cannot tell a frame (a
+        CAN log's ids lose the flag), and a replay of it is refused."""
+        if can_id & EXTENDED or can_id > 0x7FF:
+            ident = can_id & ~EXTENDED
+            node, mode = ident & 0xFF, ident >> 8
+            if node not in drives:
+                return None
+            if mode == STATUS_MODE:
+                return FrameSource(Sender.DRIVE, node, "status")
+            if mode in tuple(ServoMode):
+                return FrameSource(Sender.MASTER, node, f"{ServoMode(mode).name.lower()} "
+                                   "command", cycle=True)
+            return None
         if any(not (options or CubeMarsOptions()).mit_on_standard_id
                for options in drives.values()):
-            raise NotImplementedError("protocol 'cubemars' replays MIT mode on firmware V2 "
-                                      "only (servo mode and V3 use extended ids)")
+            raise NotImplementedError("protocol 'cubemars' tells servo-mode and V3 frames by "
+                                      "their extended ids, which this log's ids do not flag")
         if can_id in drives:
             return FrameSource(Sender.MASTER, can_id, "command", cycle=True)
         replies = {(options or CubeMarsOptions()).reply_id for options in drives.values()}

@@ -1,0 +1,102 @@
+"""``hil describe CONFIG``: what a master needs to drive a config's simulated drives (``hil
+sim CONFIG``): per bus how to join it; per drive its node id, protocol, joint, units and
+every frame it and its master use, each named as the protocol names it; for CiA 402 drives
+the EDS and its PDO mapping."""
+
+from __future__ import annotations
+
+import argparse
+
+from hil.bus_config import BusConfig, DriveConfig, SystemConfig, load_bus_config
+from hil.cli import common
+from hil.protocols import protocol
+from hil.resources import BUS_CONFIGS, data_dir
+from hil.zenoh_session import meeting_endpoint
+
+EDS = "cia402_drive.eds"
+#: the PDO mapping objects of the EDS and the PDO each maps
+PDO_MAPS = {0x1600: "RPDO1", 0x1601: "RPDO2", 0x1602: "RPDO3", 0x1603: "RPDO4",
+            0x1A00: "TPDO1", 0x1A01: "TPDO2", 0x1A02: "TPDO3", 0x1A03: "TPDO4"}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
+                                       "name (ur3, pigot)")
+    common.add_package_path(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    config = load_bus_config(common.config_path(args.config), common.package_path(args))
+    print(f"hil describe: {config.path}: robot '{config.robot.name}', {len(config.buses)} "
+          f"bus(es); positions at the motor (after the gear), SI units unless said")
+    for bus in config.buses:
+        _describe_bus(config, bus)
+    if any(d.protocol == "cia402" for d in config.drives):
+        _describe_eds()
+    return 0
+
+
+def _describe_bus(config: SystemConfig, bus: BusConfig) -> None:
+    print(f"\nbus '{bus.name}': {bus.interface} channel {bus.channel}, "
+          f"{bus.bitrate // 1000} kbit/s, cycle {bus.cycle_hz:g} Hz")
+    if bus.interface == "zenoh":
+        print(f"  join it: can.Bus(interface=\"zenoh\", channel=\"{bus.channel}\") (python-can; "
+              f"this host's hil processes meet at {meeting_endpoint()}; from another host add "
+              "connect=[\"tcp/HOST:PORT\"], the endpoint hil sim --listen's)")
+    else:
+        print(f"  join it: can.Bus(interface=\"{bus.interface}\", channel=\"{bus.channel}\")"
+              + (f"; candump {bus.channel}" if bus.interface == "socketcan" else ""))
+    if bus.uses_sync:
+        print(f"  the master's: NMT 0x000 (node id in byte 1), SYNC 0x080 every cycle "
+              f"({bus.cycle_hz:g}/s): the CiA 402 drives answer each SYNC with their TPDOs")
+    for drive in bus.drives:
+        _describe_drive(config, bus, drive)
+
+
+def _describe_drive(config: SystemConfig, bus: BusConfig, drive: DriveConfig) -> None:
+    spec = protocol(drive.protocol)
+    found = next(t for t in config.robot.transmissions
+                 if drive.actuator in (a.name for a in t.actuators))
+    reduction = found.actuators[0].reduction * found.joints[0].reduction
+    print(f"  node {drive.node_id}: {', '.join(drive.joints)} ({drive.protocol}); the motor "
+          f"turns {reduction:.6g} rad per joint rad; {drive.encoder_counts_per_rev} counts a "
+          f"motor turn; rated {drive.rated_torque:.4g} N·m, peak {drive.peak_torque:.4g} N·m")
+    options = {drive.node_id: drive.options}
+    for can_id, size, rate in bus.frames(drive):
+        what = _what(spec, can_id, size, options)
+        when = f"{rate:g}/s" if rate > 0 else "on events"
+        print(f"    0x{can_id & 0x1FFFFFFF:03X}{' ext' if can_id > 0x7FF else ''}  "
+              f"{size} B  {when:>9s}  {what}")
+
+
+def _what(spec, can_id: int, size: int, drives: dict) -> str:
+    """The frame as its protocol names it, told as a bus monitor tells it."""
+    node = next(iter(drives))
+    for data in (bytes([node]) + bytes(max(0, size - 1)), bytes(size)):
+        try:
+            found = spec.frame_source(can_id, data, False, drives)
+        except NotImplementedError:
+            return ""
+        if found is not None:
+            return f"{found.sender.value}: {found.what}"
+    return ""
+
+
+def _describe_eds() -> None:
+    import canopen                                    # noqa: PLC0415 (CiA 402 buses only)
+
+    path = data_dir(BUS_CONFIGS) / EDS
+    od = canopen.import_od(str(path))
+    print(f"\nCiA 402 drives: object dictionary and default PDO mapping {path} (canopen, "
+          "ros2_canopen and PLCs read it); units: positions in encoder counts, velocities in "
+          "counts/s, torques in per mille of the rated torque (0x6076)")
+    for index, pdo in PDO_MAPS.items():
+        if index not in od:
+            continue
+        record = od[index]
+        mapped = []
+        for sub in range(1, (record[0].default or 0) + 1):
+            entry = record[sub].default
+            target = od.get_variable(entry >> 16, (entry >> 8) & 0xFF)
+            mapped.append(f"0x{entry >> 16:04X} {target.name if target else '?'}")
+        print(f"  {pdo}: {', '.join(mapped) or '(none mapped)'}")
