@@ -8,7 +8,7 @@ import time
 import pytest
 
 from hil.can.faults import FrameFault
-from hil.controllers import GoalRejected, GoalStatus
+from hil.controllers import HARDWARE_FAULT, GoalRejected, GoalStatus
 from hil.hardware import FaultKind
 from hil.messaging.zenoh_api import RunSubscriber
 
@@ -19,8 +19,9 @@ def test_reset_brings_a_faulted_drive_back_and_goals_are_accepted_again(controll
     assert (fault.kind, fault.bus, fault.node_id, fault.joints) == (
         FaultKind.FAULT, "arm", 2, ("joint2",))
     assert fault.code == 0x8611 and "drive node 2 (joint2)" in str(fault)
-    with pytest.raises(GoalRejected, match="hardware is faulted"):
+    with pytest.raises(GoalRejected, match="hardware is faulted") as refused:
         controlled.move("joint2", 0.1)
+    assert refused.value.error_code == HARDWARE_FAULT           # the server's code, kept
     succeeded, message = controlled.client.reset_faults()
     assert succeeded, message
     assert all(axis.state == "OPERATION ENABLED" for axis in controlled.hardware.axes)
@@ -120,3 +121,15 @@ def test_a_fault_and_its_reset_are_published_as_diagnostics_on_the_controllers_c
     assert before <= fault.control_time <= reset.control_time <= controlled.node.clock()
     assert reset.level == "OK" and "every drive follows commands again" in reset.message
 
+
+
+def test_send_says_to_reset_after_a_drive_fault(capsys):
+    import argparse
+
+    from hil.cli.send import _hint_after_a_fault
+
+    _hint_after_a_fault(HARDWARE_FAULT, argparse.Namespace(ros=False, robot="ur3"))
+    said = capsys.readouterr().err
+    assert "`hil reset ur3` clears the drives' faults" in said and "--lock-step" in said
+    _hint_after_a_fault(0, argparse.Namespace(ros=False, robot="ur3"))
+    assert capsys.readouterr().err == ""

@@ -13,7 +13,8 @@ import yaml
 
 from hil.cli import common
 from hil.controllers import (
-    GoalRejected, GoalStatus, JointTolerance, TrajectoryGoal, TrajectoryPoint,
+    HARDWARE_FAULT, GoalRejected, GoalStatus, JointTolerance, TrajectoryGoal,
+    TrajectoryPoint,
 )
 from hil.errors import HilError
 from hil.input_files import read_input_file
@@ -98,10 +99,21 @@ def _follow(client, goal: TrajectoryGoal, args: argparse.Namespace,
         result = client.wait_result(goal_id, args.timeout, _feedback_printer(args))
     except failures as exc:
         print(f"hil send: {exc}", file=sys.stderr)
+        _hint_after_a_fault(exc.error_code if isinstance(exc, GoalRejected) else None, args)
         return 1
     text = f" ({result.error_string})" if result.error_string else ""
     print(f"hil send: {result.status.name.lower()}, error_code {result.error_code}{text}")
+    _hint_after_a_fault(result.error_code, args)
     return 0 if result.status is GoalStatus.SUCCEEDED else 1
+
+
+def _hint_after_a_fault(error_code: int | None, args: argparse.Namespace) -> None:
+    """After a drive fault: what to do next (the controller refuses goals until a reset)."""
+    if error_code == HARDWARE_FAULT:
+        reset = "hil reset --ros" if args.ros else f"hil reset {args.robot}"
+        print(f"hil send: what to do: `{reset}` clears the drives' faults, then send "
+              "again; a bench fault on a loaded host (hil up exit 3) is real time missed: CI "
+              "runs --lock-step (docs/real-time.md)", file=sys.stderr)
 
 
 def _is_trajectory_file(text: str) -> bool:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import logging
 import queue
+import re
 import threading
 import time
 import uuid
@@ -15,8 +16,8 @@ import numpy as np
 import zenoh
 
 from hil.controllers import (
-    ControllerState, GoalRejected, GoalResult, GoalStatus, JointTrajectoryController,
-    TrajectoryGoal,
+    INVALID_GOAL, ControllerState, GoalRejected, GoalResult, GoalStatus,
+    JointTrajectoryController, TrajectoryGoal,
 )
 from hil.messaging import cdr
 from hil.messaging.keys import ACTION, direct, key
@@ -276,7 +277,8 @@ class TrajectoryActionClient:
         reply = replies[0]
         if reply.err is not None:
             text = reply.err.payload.to_bytes().decode(errors="replace")
-            raise GoalRejected(text)
+            code = re.match(r"rejected \((-?\d+)\): ", text)     # the server's own words
+            raise GoalRejected(text, int(code[1]) if code else INVALID_GOAL)
         return goal_id
 
     def cancel(self, goal_id: str, timeout: float = 5.0) -> bool:
