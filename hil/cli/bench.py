@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -13,30 +12,27 @@ from pathlib import Path
 from hil.bench import LOCK_STEP_WINDOW, BenchSettings, run_bench, run_soak
 from hil.bench.scale import HOLDS_MISSED, largest_holding
 from hil.cli import common
-from hil.errors import HilError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true",
                         help="short runs (about a minute; what CI runs)")
-    parser.add_argument("--seconds", type=common.positive, metavar="S",
-                        help="length of each real-time run (default 10; --quick 2)")
+    parser.add_argument("--seconds", type=common.duration, metavar="TIME",
+                        help="length of each real-time run, e.g. 10s (default 10s; --quick 2s)")
     parser.add_argument("--json", type=Path, default=Path("bench.json"), metavar="FILE",
                         help="write the report here (default bench.json)")
-    parser.add_argument("--soak", metavar="DURATION",
-                        help="instead: repeat a trajectory for DURATION (e.g. 10m, 90s) and "
+    parser.add_argument("--soak", type=common.duration, metavar="TIME",
+                        help="instead: repeat a trajectory for TIME (e.g. 10min, 90s) and "
                              "report drift, memory growth and missed cycles")
 
 
 def run(args: argparse.Namespace) -> int:
     settings = BenchSettings.quick() if args.quick else BenchSettings()
     if args.seconds is not None:
-        if args.seconds <= 0:
-            raise HilError.single(f"--seconds {args.seconds:g}: a run needs a positive length")
         settings = replace(settings, seconds=args.seconds)
     say = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
     if args.soak:
-        soak = run_soak(_seconds(args.soak), settings, say=say)
+        soak = run_soak(args.soak, settings, say=say)
         args.json.write_text(json.dumps({"soak": soak}, indent=2))
         print(f"soak {soak['seconds']:g} s, {soak['robot']}: {soak['repetitions']} repetitions, "
               f"{soak['failed']} failed; final position error first {soak['final_error_first']:.5f}"
@@ -51,13 +47,6 @@ def run(args: argparse.Namespace) -> int:
     print(format_table(report))
     print(f"\nhil bench: report in {args.json}")
     return 0
-
-
-def _seconds(text: str) -> float:
-    match = re.fullmatch(r"\s*([0-9.]+)\s*(s|m|h)?\s*", text)
-    if not match:
-        raise HilError.single(f"--soak '{text}' is not a duration", hint="e.g. 10m, 90s, 1h")
-    return float(match.group(1)) * {"s": 1, "m": 60, "h": 3600}[match.group(2) or "s"]
 
 
 def _cycle_columns(name: str, row: dict) -> str:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from hil.can.capabilities import capabilities
 from hil.description import PackagePath
+from hil.durations import parse_duration
 from hil.errors import HilError
 from hil.bus_config.locate import config_path  # noqa: F401  (the commands call common.config_path)
 from hil.realtime import LOCK_STEP, REAL_TIME
@@ -33,6 +34,26 @@ def positive(text: str) -> float:
 def non_negative(text: str) -> float:
     """An argparse type: a finite number >= 0 (0: off, where the option says so)."""
     return _finite(text, lambda value: value >= 0, "a number >= 0")
+
+
+def duration(text: str) -> float:
+    """An argparse type: a duration > 0 in seconds (hil.durations: ``2s``, ``500ms``)."""
+    return _duration(text, lambda seconds: seconds > 0, "a duration > 0")
+
+
+def duration_or_zero(text: str) -> float:
+    """An argparse type: a duration >= 0 in seconds (0: off, where the option says so)."""
+    return _duration(text, lambda seconds: seconds >= 0, "a duration >= 0")
+
+
+def _duration(text: str, holds, what: str) -> float:
+    try:
+        seconds = parse_duration(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if not holds(seconds):
+        raise argparse.ArgumentTypeError(f"{text!r} is not {what}")
+    return seconds
 
 
 def _finite(text: str, holds, what: str) -> float:

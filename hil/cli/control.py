@@ -41,7 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "normal scheduler)")
     parser.add_argument("--goal-tolerance", type=common.positive, default=Defaults.goal_position_tolerance,
                         metavar="RAD", help="default goal position tolerance")
-    parser.add_argument("--boot-timeout", type=common.positive, default=CONTROL_BOOT_TIMEOUT, metavar="S",
+    parser.add_argument("--boot-timeout", type=common.duration, default=CONTROL_BOOT_TIMEOUT,
+                        metavar="TIME",
                         help="how long to wait for every drive to boot (default "
                              f"{CONTROL_BOOT_TIMEOUT:g}: start hil sim before or after)")
     parser.add_argument("--report", type=Path, metavar="FILE.json",

@@ -15,9 +15,8 @@ PROCESSES = {"sim": ("hil sim: drives and plant", "drives"),
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--timeout", type=common.positive, default=2.0, metavar="SECONDS",
-                        help="how long to wait for the processes' answers, in seconds "
-                             "(default 2)")
+    parser.add_argument("--timeout", type=common.duration, default=2.0, metavar="TIME",
+                        help="how long to wait for the processes' answers, e.g. 2s (default 2s)")
     common.add_zenoh(parser, "observer")
 
 

@@ -13,7 +13,8 @@ from hil.zenoh_session import close_all, session
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("robot", nargs="?", help="robot name, e.g. ur3 (none with --ros)")
-    parser.add_argument("--timeout", type=common.positive, default=15.0, help="seconds to wait (15)")
+    parser.add_argument("--timeout", type=common.duration, default=15.0, metavar="TIME",
+                        help="how long to wait, e.g. 15s (default 15s)")
     common.add_zenoh(parser, "operator")
     common.add_ros(parser, "call a std_srvs/Trigger service on ROS 2 (rmw_zenoh) instead: "
                            "hil control --ros serves <namespace>/hil_control/reset_faults")

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import sys
 from pathlib import Path
 
@@ -33,11 +32,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "accelerations, time_from_start), optional path_tolerance / "
                              "goal_tolerance {joint: rad}, goal_time_tolerance")
     parser.add_argument("--joint", action="append", default=[], help="joint to move (short form)")
-    parser.add_argument("--to", action="append", type=float, default=[],
-                        help="its target position, one per --joint")
-    parser.add_argument("--in", dest="duration", default="2s",
-                        help="time to get there, e.g. 2s or 500ms (default 2s)")
-    parser.add_argument("--timeout", type=common.positive, default=60.0, help="seconds to wait (60)")
+    parser.add_argument("--to", action="append", type=float, default=[], metavar="POSITION",
+                        help="its target position at the joint, in rad (revolute) or m "
+                             "(prismatic), one per --joint")
+    parser.add_argument("--in", dest="duration", type=common.duration, default=2.0,
+                        metavar="TIME", help="time to get there, e.g. 2s, 500ms (default 2s)")
+    parser.add_argument("--timeout", type=common.duration, default=60.0, metavar="TIME",
+                        help="how long to wait for the result, e.g. 60s (default 60s)")
     parser.add_argument("--quiet", action="store_true", help="print the result only")
     common.add_zenoh(parser, "operator")
     common.add_ros(parser, "send to a FollowJointTrajectory action server on ROS 2 "
@@ -142,16 +143,7 @@ def _goal(args: argparse.Namespace) -> TrajectoryGoal:
     if not args.joint or len(args.joint) != len(args.to):
         raise HilError.single("give a trajectory file, or --joint NAME --to POSITION pairs",
                               hint="e.g. hil send ur3 --joint joint2 --to 0.5 --in 2s")
-    seconds = _duration(args.duration)
-    return TrajectoryGoal(tuple(args.joint), (TrajectoryPoint(seconds, tuple(args.to)),))
-
-
-def _duration(text: str) -> float:
-    match = re.fullmatch(r"\s*([0-9.]+)\s*(ms|s)?\s*", text)
-    if not match:
-        raise HilError.single(f"--in '{text}' is not a duration", hint="e.g. 2s, 1.5, 500ms")
-    value = float(match.group(1))
-    return value / 1000 if match.group(2) == "ms" else value
+    return TrajectoryGoal(tuple(args.joint), (TrajectoryPoint(args.duration, tuple(args.to)),))
 
 
 def goal_from_file(path: Path) -> TrajectoryGoal:

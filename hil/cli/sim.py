@@ -38,10 +38,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                        "name (ur3, pigot)")
     common.add_timing(parser, "advance the plant one control period per SYNC (reproducible, "
                               "as fast as the controller) instead of following the wall clock")
-    parser.add_argument("--duration", type=common.positive, metavar="S",
-                        help="stop after S seconds of plant time")
-    parser.add_argument("--status-period", type=common.non_negative, default=2.0, metavar="S",
-                        help="print the status every S seconds (0: never; default 2)")
+    parser.add_argument("--duration", type=common.duration, metavar="TIME",
+                        help="stop after TIME of plant time, e.g. 30s, 2min")
+    parser.add_argument("--status-period", type=common.duration_or_zero, default=2.0,
+                        metavar="TIME", help="print the status every TIME (0: never; default 2s)")
     parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
                         help="inject a fault (repeatable): drop:BUS:FRACTION, "
                              "delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, silence:BUS/NODE@S, "

@@ -54,8 +54,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                               "visualiser runs under SCHED_IDLE, never taking the drives' or "
                               "the controller's time; in lock-step nothing has a deadline, and "
                               "starved it would lose CAN frames from its sockets' buffers)")
-    parser.add_argument("--status-period", type=common.non_negative, default=0.0, metavar="S",
-                        help="print a status line every S seconds (cycles, losses, the "
+    parser.add_argument("--status-period", type=common.duration_or_zero, default=0.0,
+                        metavar="TIME",
+                        help="print a status line every TIME, e.g. 5s (cycles, losses, the "
                              "recording's lag since the last); default 0: never")
     common.add_cpus(parser)
     common.add_can_override(parser)

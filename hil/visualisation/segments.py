@@ -12,9 +12,10 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-#: --segment's units: bytes, and seconds
+from hil.durations import parse_duration
+
+#: --segment's sizes (a duration is written as every time option's: hil.durations)
 _SIZES = {"kb": 1e3, "mb": 1e6, "gb": 1e9}
-_TIMES = {"s": 1.0, "m": 60.0, "h": 3600.0}
 
 
 @dataclass(frozen=True)
@@ -26,18 +27,22 @@ class SegmentLimit:
 
     @classmethod
     def parse(cls, text: str) -> SegmentLimit:
-        """``500MB``, ``1GB``, ``10m``, ``90s``, ``1h``; an ArgumentTypeError saying the forms
-        else (an option's type: argparse reports it with the option's name)."""
+        """``500MB``, ``1GB``, or a duration (``10min``, ``90s``, ``1h``); an
+        ArgumentTypeError saying the forms else (an option's type: argparse reports it with
+        the option's name)."""
         match = re.fullmatch(r"\s*([0-9]+(?:\.[0-9]+)?)\s*([a-zA-Z]+)\s*", text)
         unit = match.group(2).lower() if match else ""
-        if match is None or (unit not in _SIZES and unit not in _TIMES) or not float(
-                match.group(1)) > 0:
+        if match is not None and unit in _SIZES and float(match.group(1)) > 0:
+            return cls(bytes=float(match.group(1)) * _SIZES[unit])
+        try:
+            seconds = parse_duration(text) if unit else 0.0      # a bare number: no unit given
+        except ValueError:
+            seconds = 0.0
+        if not seconds > 0:
             raise argparse.ArgumentTypeError(
                 f"{text!r} is neither a size nor a duration: give e.g. 500MB, 1GB (bytes) or "
-                "10m, 90s, 1h (time)")
-        value = float(match.group(1))
-        return cls(bytes=value * _SIZES[unit]) if unit in _SIZES else cls(
-            seconds=value * _TIMES[unit])
+                "10min, 90s, 1h (time)")
+        return cls(seconds=seconds)
 
     def __str__(self) -> str:
         return (f"{self.bytes / 1e6:g} MB" if self.bytes is not None

@@ -70,8 +70,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "then stop")
     parser.add_argument("--keep-running", action="store_true",
                         help="after the demo, keep running until Ctrl-C")
-    parser.add_argument("--duration", type=common.positive, metavar="S",
-                        help="without --demo: stop after S seconds (default: run until Ctrl-C)")
+    parser.add_argument("--duration", type=common.duration, metavar="TIME",
+                        help="without --demo: stop after TIME, e.g. 30s, 10min (default: run "
+                             "until Ctrl-C)")
     parser.add_argument("--save", type=Path, default=Path("run.rrd"), metavar="FILE.rrd",
                         help="the rerun recording (default run.rrd); the CAN log "
                              "(FILE.can.blf) and the processes' logs (FILE.logs/) go beside it")
