@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Build hil's wheel, install it into a fresh virtual environment and run `hil check ur3`,
-# `hil up pigot --demo --no-viewer --lock-step` and `hil bench --quick` from an empty folder: what a
-# user gets from `pip install`, with no checkout in reach. Run from the repository root.
+# `hil up pigot --demo --no-viewer --lock-step`, `hil bench --quick` and the pytest examples of
+# docs/testing.md (with JUnit) from an empty folder: what a user gets from `pip install`, with
+# no checkout in reach. Run from the repository root.
 set -euo pipefail
+root=$(pwd)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 python3 -m venv "$work/venv"
@@ -18,4 +20,17 @@ echo "wheel check: $(ls "$work"/dist) in a fresh environment, from an empty fold
 # shared 2-CPU VM a hypervisor stall mid-demo is a silent drive, issue 18)
 "$work/venv/bin/hil" up pigot --demo --no-viewer --lock-step
 "$work/venv/bin/hil" bench --quick
+# a user's own tests, as docs/testing.md shows them, with hil's pytest plugin from the wheel
+"$work/venv/bin/pip" install --quiet pytest
+"$work/venv/bin/python" - "$root/docs/testing.md" <<'PY'
+import pathlib, re, sys
+page = pathlib.Path(sys.argv[1]).read_text()
+examples = [b for b in re.findall(r"```python\n(.*?)```", page, re.DOTALL) if "def test_" in b]
+for number, example in enumerate(examples):
+    pathlib.Path(f"test_docs_example_{number}.py").write_text(example)
+print(f"wheel check: {len(examples)} pytest example(s) of docs/testing.md")
+PY
+PATH="$work/venv/bin:$PATH" "$work/venv/bin/python" -m pytest -q -p no:cacheprovider \
+    --junitxml=report.xml .
+grep -q 'failures="0"' report.xml && grep -q 'errors="0"' report.xml
 echo "wheel check: passed"
