@@ -169,18 +169,30 @@ def test_the_can_log_holds_every_frame_as_sent_its_channels_numbered_where_the_f
             (f.arbitration_id, bytes(f.data), f.is_extended_id, f.dlc) for f in mine]
 
 
-@pytest.fixture
-def recorded(tmp_path, pigot, package_path):
-    """A pigot run of 4 batches (one lost in transit), recorded to an .rrd and read back."""
-    urdf = tmp_path / "pigot.urdf"
-    urdf.write_bytes(ET.tostring(read_robot_source(PIGOT_XACRO, package_path).root))
+def recorder_actuators(robot) -> dict[str, tuple[str, ...]]:
+    """Each actuator of the robot and the joints it moves, as the recorder takes them."""
+    return {a.name: tuple(j.name for j in t.joints)
+            for t in robot.transmissions for a in t.actuators}
+
+
+def saved_recorder(tmp_path, robot, xacro, package_path):
+    """A recording saved to tmp_path/run.rrd and a RunRecorder of ``robot`` on it, its static
+    data logged: (recording, recorder, path)."""
+    urdf = tmp_path / f"{robot.name}.urdf"
+    urdf.write_bytes(ET.tostring(read_robot_source(xacro, package_path).root))
     recording = rr.RecordingStream("hil-test")
     path = tmp_path / "run.rrd"
     recording.save(str(path))
-    actuators = {a.name: tuple(j.name for j in t.joints)
-                 for t in pigot.transmissions for a in t.actuators}
-    recorder = RunRecorder(recording, pigot, urdf, actuators, ("arm", "wrist"))
+    recorder = RunRecorder(recording, robot, urdf, recorder_actuators(robot), ("arm", "wrist"))
     recorder.log_static()
+    return recording, recorder, path
+
+
+@pytest.fixture
+def recorded(tmp_path, pigot, package_path):
+    """A pigot run of 4 batches (one lost in transit), recorded to an .rrd and read back."""
+    recording, recorder, path = saved_recorder(tmp_path, pigot, PIGOT_XACRO, package_path)
+    actuators = recorder_actuators(pigot)
     recorder.log_clock(0.0, 0.0)
     joints = tuple(j.name for j in pigot.driven_joints)
     batches = make_batches(joints, tuple(actuators), 4, 25,
@@ -392,15 +404,7 @@ def test_review_gives_each_joints_tracking_as_the_controllers_samples_of_the_run
         time.sleep(0.3)
         subscriber.close()
         client.close()
-    urdf = tmp_path / "ur3.urdf"
-    urdf.write_bytes(ET.tostring(read_robot_source(UR3_XACRO, package_path).root))
-    recording = rr.RecordingStream("hil-test")
-    path = tmp_path / "run.rrd"
-    recording.save(str(path))
-    actuators = {a.name: tuple(j.name for j in t.joints)
-                 for t in ur3.transmissions for a in t.actuators}
-    recorder = RunRecorder(recording, ur3, urdf, actuators, ("arm", "wrist"))
-    recorder.log_static()
+    recording, recorder, path = saved_recorder(tmp_path, ur3, UR3_XACRO, package_path)
     for batch in samples:
         recorder.log_samples(batch)
     recorder.flush()
