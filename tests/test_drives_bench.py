@@ -63,3 +63,28 @@ def test_a_wrong_call_says_what_to_do(ur3_bench, call, said):
 def test_an_injected_fault_is_the_drives_state(ur3_bench):
     ur3_bench.fault("joint3")
     assert ur3_bench.state("joint3").endswith("FAULT")         # CiA 402 state, NMT first
+
+
+def test_vcan_must_name_every_bus():
+    with pytest.raises(HilError, match="give every bus of the config a SocketCAN interface"):
+        DrivesBench("ur3", vcan={"arm": "vcan0"})
+
+
+@pytest.mark.socketcan
+def test_a_master_on_socketcan_reaches_the_drives_of_a_vcan_bench():
+    """A master that opens SocketCAN itself (canopen over socketcan vcan0), inside UML."""
+    import canopen
+
+    from conftest import socketcan_missing
+
+    missing = socketcan_missing("vcan0", "vcan1")
+    if missing:
+        pytest.skip(missing)
+    with DrivesBench("ur3", lock_step=True, vcan={"arm": "vcan0", "wrist": "vcan1"}) as bench:
+        network = canopen.Network()
+        network.connect(interface="socketcan", channel="vcan0")
+        try:
+            node = network.add_node(2, str(bench.eds()))
+            assert node.sdo[0x1000].raw == 0x00020192           # CiA 402 servo drive
+        finally:
+            network.disconnect()

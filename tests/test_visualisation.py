@@ -318,8 +318,14 @@ def test_robots_sharing_a_recording_each_keep_their_entities_frames_and_bus_load
     for recorder in recorders.values():
         recorder.log_bus_load(1.0, loads)
         recorder.flush()
+    recorders["ur3"].log_diagnostic(DiagnosticStatus("ERROR", "drive node 2 is in FAULT", 1.0,
+                                                     0.5))
     recording.flush()
     recording.disconnect()
+    from hil.visualisation.review import review
+    reviewed = review([path])                     # each robot's run, and its diagnostics
+    assert [run.robot for run in reviewed.runs] == ["pigot", "ur3"]
+    assert [d.text for d in reviewed.diagnostics] == ["drive node 2 is in FAULT"]
     rows, static, frames, load_logged = collections.Counter(), set(), set(), {}
     for chunk in rerun.chunk.RrdReader(path).store().stream():
         if chunk.is_static:
@@ -419,3 +425,21 @@ def test_review_gives_each_joints_tracking_as_the_controllers_samples_of_the_run
         assert found.rms == pytest.approx(np.sqrt(np.mean(error[:, k] ** 2)), rel=1e-5, abs=1e-9)
         assert found.max == pytest.approx(np.abs(error[:, k]).max(), rel=1e-5, abs=1e-9)
     assert run.joints["joint2"].max > 1e-4                 # the move's error, not nothing
+
+
+def test_review_counts_each_processes_stalls_and_their_longest(tmp_path, pigot, package_path):
+    from hil.realtime.stalls import Stall
+    from hil.visualisation.review import review
+
+    recording, recorder, path = saved_recorder(tmp_path, pigot, PIGOT_XACRO, package_path)
+    joints = tuple(j.name for j in pigot.driven_joints)
+    for batch in make_batches(joints, tuple(recorder_actuators(pigot)), 1, 10):
+        recorder.log_samples(batch)
+    for process, length in (("sim", 0.007), ("control", 0.012), ("sim", 0.031)):
+        recorder.log_stall(Stall(process, 1.0, length))
+    recorder.flush()
+    recording.flush()
+    recording.disconnect()
+    (run,) = review([path]).runs
+    assert run.stalls["sim"] == (2, pytest.approx(31.0))
+    assert run.stalls["control"] == (1, pytest.approx(12.0))

@@ -89,6 +89,9 @@ def _print_run(run: RunSummary) -> None:
     for joint in run.joints.values():
         at = f"{joint.max_at:.3f} s" if joint.max_at is not None else "-"
         print(f"  {joint.joint:24s} {joint.rms:12.3g} {joint.max:12.3g}  {at}  [{joint.unit}]")
+    stalls = ", ".join(f"{process} {count} (longest {longest:.1f} ms)"
+                       for process, (count, longest) in sorted(run.stalls.items()))
+    print(f"  stalls: {stalls or 'none recorded'}")
 
 
 def _document(recording: Path, files: list[Path], reviewed) -> dict:
@@ -98,6 +101,8 @@ def _document(recording: Path, files: list[Path], reviewed) -> dict:
         "damaged": [{"file": str(d.segment), "reason": d.reason} for d in reviewed.damaged],
         "runs": [{"robot": run.robot, "cycles": run.cycles, "duration_s": run.duration,
                   "period_mean_ms": run.period_mean_ms, "period_max_ms": run.period_max_ms,
+                  "stalls": {process: {"count": count, "longest_ms": longest}
+                             for process, (count, longest) in run.stalls.items()},
                   "joints": {j.joint: {"unit": j.unit, "rms": j.rms, "max": j.max,
                                        "max_at_control_time_s": j.max_at}
                              for j in run.joints.values()}} for run in reviewed.runs],

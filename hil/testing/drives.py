@@ -62,16 +62,25 @@ class DrivesBench:
 
     ``config``: a bus config path or a robot's name (``ur3``: ``bus_config/ur3.yaml`` here,
     else the one hil ships). Every bus is python-can's ``virtual`` interface on a channel
-    of its own (:meth:`channel`), whatever the config says."""
+    of its own (:meth:`channel`), whatever the config says; or, with ``vcan`` (bus name ->
+    SocketCAN interface, e.g. ``{"arm": "vcan0"}``), those SocketCAN interfaces, for a
+    master that opens SocketCAN itself."""
 
     def __init__(self, config: str | Path | SystemConfig, *, lock_step: bool = False,
-                 package_path: PackagePath | None = None):
+                 package_path: PackagePath | None = None, vcan: dict[str, str] | None = None):
         if not isinstance(config, SystemConfig):
             config = load_bus_config(config_path(str(config)), package_path)
         self.config = config
         tag = uuid.uuid4().hex[:8]
-        self.channels = {bus.name: f"hil-bench-{tag}-{bus.name}" for bus in config.buses}
-        self._sim_buses = open_buses(config, ZenohSettings.meeting(), INTERFACE, self.channels)
+        if vcan is not None and set(vcan) != {bus.name for bus in config.buses}:
+            raise HilError.single(f"vcan names {', '.join(sorted(vcan)) or 'no bus'}",
+                                  hint="give every bus of the config a SocketCAN interface: "
+                                       f"{', '.join(bus.name for bus in config.buses)}")
+        self.interface = INTERFACE if vcan is None else "socketcan"
+        self.channels = dict(vcan) if vcan is not None else {
+            bus.name: f"hil-bench-{tag}-{bus.name}" for bus in config.buses}
+        self._sim_buses = open_buses(config, ZenohSettings.meeting(), self.interface,
+                                     self.channels)
         self.sim = Simulator(config, self._sim_buses, LOCK_STEP if lock_step else REAL_TIME)
         self.sim.start()
         self._thread = threading.Thread(target=self.sim.run, name="hil-drives-bench",
@@ -84,7 +93,7 @@ class DrivesBench:
     # --- the master's side --------------------------------------------------------------
 
     def channel(self, bus: str) -> str:
-        """The python-can ``virtual`` channel of a bus of the config."""
+        """The channel of a bus of the config (python-can ``virtual``, or its vcan)."""
         try:
             return self.channels[bus]
         except KeyError:
@@ -99,7 +108,7 @@ class DrivesBench:
                 raise HilError.single(f"{self.config.path} has buses "
                                       f"{', '.join(self.channels)}", hint="name one")
             name = next(iter(self.channels))
-        opened = can.Bus(interface=INTERFACE, channel=self.channel(name))
+        opened = can.Bus(interface=self.interface, channel=self.channel(name))
         self._masters.append(opened)
         return opened
 
@@ -123,7 +132,7 @@ class DrivesBench:
         folder.mkdir(parents=True, exist_ok=True)
         paths = []
         for name, channel in self.channels.items():
-            listener = can.Bus(interface=INTERFACE, channel=channel)
+            listener = can.Bus(interface=self.interface, channel=channel)
             path = folder / f"{name}.blf"
             self._logs.append((can.Notifier(listener, [can.Logger(path)]), listener))
             paths.append(path)

@@ -2,8 +2,9 @@
 
 Fixtures, each a factory whose products are closed when the test ends:
 
-* ``hil_drives(config, lock_step=False)``: a :class:`~hil.testing.drives.DrivesBench`
-  (the config's drives and plant, a python-can bus per CAN bus for your master);
+* ``hil_drives(config, lock_step=False, vcan=None)``: a
+  :class:`~hil.testing.drives.DrivesBench` (the config's drives and plant, a python-can bus
+  per CAN bus for your master; ``vcan={"arm": "vcan0"}``: on SocketCAN interfaces);
 * ``hil_stack(config, lock_step=True)``: hil's whole stack in the test's process
   (:class:`hil.stack.Stack`: drives, plant, hil's master and controllers, the joint
   trajectory action on ``stack.zenoh``).
@@ -31,8 +32,8 @@ def hil_drives(request, tmp_path):
 
     opened = []
 
-    def make(config, *, lock_step: bool = False, package_path=None) -> DrivesBench:
-        bench = DrivesBench(config, lock_step=lock_step, package_path=package_path)
+    def make(config, *, lock_step: bool = False, package_path=None, vcan=None) -> DrivesBench:
+        bench = DrivesBench(config, lock_step=lock_step, package_path=package_path, vcan=vcan)
         opened.append(bench)
         folder = tmp_path / f"hil-can-{len(opened)}"
         for path in bench.log_to(folder):

@@ -23,6 +23,9 @@ from pathlib import Path
 import numpy as np
 import rerun.chunk
 
+#: the entities a review reads, at the root or under a robot's name
+_WANTED = re.compile(r"^(/[^/]+)?/(diagnostics|cycle|loop/stalls/[^/]+)$")
+_COMPONENTS = ("TextLog:text", "TextLog:level", "Scalars:scalars", "SeriesLines:names")
 #: a ``cycle`` series of a joint's tracking error (hil.visualisation.blueprint.CycleSeries)
 _ERROR_SERIES = re.compile(r"^(?P<joint>.+) error \[(?P<unit>[^\]]+)\]$")
 
@@ -88,6 +91,8 @@ class RunSummary:
     joints: dict[str, JointTracking] = field(default_factory=dict)
     period_mean_ms: float | None = None
     period_max_ms: float | None = None
+    #: per real-time process (sim, control, transport): its stalls' count and the longest (ms)
+    stalls: dict[str, tuple[int, float]] = field(default_factory=dict)
 
     @property
     def duration(self) -> float:
@@ -118,10 +123,15 @@ def review(files: list[Path]) -> Review:
         if damage is not None:
             damaged.append(DamagedSegment(path, damage, is_recording=True))
         for chunk in chunks:
-            if chunk.entity_path.endswith("/diagnostics"):
+            entity = chunk.entity_path
+            if entity.endswith("/diagnostics"):
                 found += _rows(chunk, path)
+            elif "/loop/stalls/" in entity:
+                robot, _, process = entity.strip("/").rpartition("loop/stalls/")
+                _count_stalls(runs.setdefault(robot.strip("/"), RunSummary(robot.strip("/"))),
+                              process, chunk)
             else:
-                robot = chunk.entity_path.removesuffix("/cycle").strip("/")
+                robot = entity.removesuffix("/cycle").strip("/")
                 _summarise(runs.setdefault(robot, RunSummary(robot)), chunk)
     return Review(sorted(found, key=lambda d: d.wall_time), damaged,
                   [run for _, run in sorted(runs.items()) if run.cycles])
@@ -153,6 +163,15 @@ def _summarise(run: RunSummary, chunk) -> None:
         run.period_max_ms = max(run.period_max_ms or 0.0, float(periods.max()))
 
 
+def _count_stalls(run: RunSummary, process: str, chunk) -> None:
+    if chunk.is_static:
+        return
+    lengths = [values[0] for values in
+               chunk.to_record_batch().column("Scalars:scalars").to_pylist() if values]
+    count, longest = run.stalls.get(process, (0, 0.0))
+    run.stalls[process] = (count + len(lengths), max([longest, *lengths]))
+
+
 def _chunks(path: Path) -> tuple[list, str | None]:
     """The diagnostics' and the cycles' chunks of a segment, and why it was not read whole
     (None: it was); RuntimeError where it is no recording."""
@@ -169,11 +188,12 @@ def _chunks(path: Path) -> tuple[list, str | None]:
                 return [], str(exc)
             damage = ("no footer: the run did not close it (a crash?); read up to its last "
                       "whole message")
-        # one robot's at the root, several robots' each under its name
-        chunks = stream.filter(content=["/diagnostics", "/*/diagnostics", "/cycle",
-                                        "/*/cycle"]).to_chunks()
-    # the series' names (static) before the rows they name; no static diagnostic
-    return sorted((chunk for chunk in chunks if not (
+        # by component (an entity path filter has no wildcard for one robot's name): the
+        # text logs and scalar series, not the poses and geometry that make most of a run
+        chunks = stream.filter(components=list(_COMPONENTS)).to_chunks()
+    # one robot's at the root, several robots' each under its name; the series' names
+    # (static) before the rows they name
+    return sorted((chunk for chunk in chunks if _WANTED.match(chunk.entity_path) and not (
         chunk.is_static and chunk.entity_path.endswith("/diagnostics"))),
         key=lambda chunk: not chunk.is_static), damage
 
