@@ -137,6 +137,41 @@ def test_a_pre_operational_node_ignores_pdos_without_emcy(bench):
     assert node.sdo[0x6041].raw & 0x4F == 0x40              # still SWITCH ON DISABLED
 
 
+@pytest.mark.parametrize("command", [0x81, 0x82], ids=["reset node", "reset communication"])
+def test_the_boot_up_is_the_first_frame_a_node_sends_after_a_reset(bench, command):
+    """CiA 301 7.2.8.3.2.1: after a reset the node sends its boot-up (0x700 + id, 00), then
+    heartbeats; issue 44 saw a heartbeat 0x7F 3 ms before it (the heartbeat now follows the
+    drive's clock under its lock, so no frame can slip in between)."""
+    node = pre_operational(bench)
+    node.sdo[0x1017].raw = 10                       # a heartbeat every 10 ms: many chances
+    for _ in range(10):
+        with FrameTap(bench) as tap:
+            # the drive sends under the simulator's lock: held here, no frame of the drive
+            # leaves between the reset's sending and its arrival, and one stamped before
+            # ``sent`` went out before the reset
+            with bench.sim.lock:
+                sent = time.time()
+                node.nmt.send_command(command)
+            assert wait_until(lambda: len(tap.of(0x701)) >= 3, 2)
+        after = [bytes(m.data) for m in tap.of(0x701) if m.timestamp >= sent]
+        assert after[:2] == [b"\x00", b"\x7f"], after
+
+
+def test_reset_node_restores_the_application_parameters(bench):
+    """CiA 301 7.2.8.3.2.1: reset node (0x81) sets the application area to its power-on
+    values (issue 44: 0x6065 written before the reset read the written value after)."""
+    node = pre_operational(bench)
+    default = node.sdo[0x6065].raw
+    node.sdo[0x6065].raw = default + 1234
+    node.sdo[0x6007].raw = 3 if node.sdo[0x6007].raw != 3 else 1
+    option = node.sdo[0x6007].raw
+    with FrameTap(bench) as tap:
+        node.nmt.send_command(0x81)
+        assert wait_until(lambda: any(bytes(m.data) == b"\0" for m in tap.of(0x701)), 2)
+    assert node.sdo[0x6065].raw == default
+    assert node.sdo[0x6007].raw != option
+
+
 def test_reset_communication_restores_the_communication_parameters(bench):
     node = pre_operational(bench)
     node.sdo[0x1017].raw = 40
@@ -186,6 +221,35 @@ def test_an_sdo_segment_without_a_transfer_is_aborted(bench):
     for answer in tap.of(0x581):
         command, _, _, code = struct.unpack("<BHBL", answer.data)
         assert (command, code) == (0x80, 0x05040001)
+
+
+def test_an_expedited_download_without_size_takes_the_objects_size(bench):
+    """CiA 301 7.2.4.3.3: e=1, s=0 (0x22): the data is the object's; CANopenNode takes it
+    (issue 44: hil aborted it)."""
+    node = pre_operational(bench)
+    with FrameTap(bench) as tap:
+        raw(bench, 0x601, bytes([0x22, 0x65, 0x60, 0x00]) + struct.pack("<I", 4321))
+        assert wait_until(lambda: tap.of(0x581), 2)
+    assert tap.of(0x581)[0].data[0] == 0x60                 # download response, no abort
+    assert node.sdo[0x6065].raw == 4321                      # following error window, UNSIGNED32
+    with FrameTap(bench) as tap:
+        raw(bench, 0x601, bytes([0x22, 0x60, 0x60, 0x00, 0x01, 0, 0, 0]))   # INTEGER8, mode 1
+        assert wait_until(lambda: tap.of(0x581), 2)
+    assert tap.of(0x581)[0].data[0] == 0x60
+    assert node.sdo[0x6060].raw == 1
+
+
+def test_the_device_name_and_versions_come_by_segmented_upload(bench):
+    """CiA 301 0x1008-0x100A (VISIBLE_STRING, const): longer than 4 bytes, so uploaded in
+    segments (issue 44: no object was larger than 4 bytes); a write is refused as to any
+    constant (0x06010002)."""
+    node = pre_operational(bench)
+    with FrameTap(bench) as tap:
+        name = node.sdo[0x1008].raw
+    assert name == "hil virtual CiA 402 servo drive"
+    assert tap.of(0x581)[0].data[0] & 0xE3 == 0x41          # initiate upload: segmented, sized
+    assert node.sdo[0x1009].raw and node.sdo[0x100A].raw
+    assert abort_code(lambda: node.sdo[0x1008].__setattr__("raw", "x")) == 0x06010002
 
 
 def test_sdo_requests_of_the_wrong_length_are_not_answered(bench):
@@ -529,3 +593,52 @@ def test_repeated_disable_commands_do_not_let_a_braked_axis_creep(bench, how):
             node.sdo[0x6040].raw = 0x00
     after = bench.sim.plant.joint_positions()[1]
     assert after == pytest.approx(before, abs=1e-3)
+
+
+@pytest.mark.parametrize("mode", [8, 9, 10], ids=["CSP", "CSV", "CST"])
+def test_statusword_bit_12_says_the_drive_follows_the_target_in_every_cyclic_mode(bench, mode):
+    """CiA 402 (IEC 61800-7-201) 0x6041 bit 12 in CSP, CSV and CST: 1, the drive follows the
+    target value (issue 44: 0 in CST while following)."""
+    node = pre_operational(bench)
+    node.sdo[0x6060].raw = mode
+    for controlword in (0x06, 0x07, 0x0F):
+        node.sdo[0x6040].raw = controlword
+    statusword = node.sdo[0x6041].raw
+    assert state_of(statusword) == "OPERATION ENABLED"
+    assert statusword & 0x1000
+    node.sdo[0x6040].raw = 0x06
+
+
+# --- EMCY, the error register 0x1001 and the error history 0x1003 ---------------------------
+
+def test_a_silence_emcy_and_0x1001_agree_and_an_error_reset_emcy_follows_re_enabling(bench):
+    """CiA 301 7.2.7.3.2: an EMCY carries 0x1001 as it is with the error in, and an EMCY
+    0x0000 (error reset) follows when the last error goes (issue 44: the watchdog's EMCY
+    carried 0x11 while 0x1001 read 0, and no error reset came)."""
+    node = enable_csp(bench)
+    node.sdo[0x6007].raw = 3                         # silence: quick stop, not a fault
+    node.rpdo[1].stop()                              # the setpoints stop: the watchdog fires
+    emcy = node.emcy.wait(0x8250, timeout=5)
+    assert emcy is not None and emcy.register & 0x11 == 0x11
+    assert node.sdo[0x1001].raw == emcy.register
+    assert node.sdo[0x1003][0].raw >= 1 and node.sdo[0x1003][1].raw == 0x8250
+    for controlword in (0x06, 0x07, 0x0F):            # the master takes over again
+        node.sdo[0x6040].raw = controlword
+    assert emcy_logged_after(node, 0x0000, 0x8250)
+    assert node.emcy.log[-1].register == 0 and node.sdo[0x1001].raw == 0
+
+
+def test_the_error_history_0x1003_lists_the_newest_first_and_clears_on_0(bench):
+    """CiA 301 7.5.2.3: sub-index 0 counts the errors, sub-index 1 is the newest; writing 0
+    to sub-index 0 deletes the history, any other value is refused (0x06090030)."""
+    node = pre_operational(bench)
+    bench.sim.raise_fault("arm", 1)
+    assert node.emcy.wait(0x8611, timeout=5) is not None
+    assert node.sdo[0x1001].raw & 0x21 == 0x21
+    assert (node.sdo[0x1003][0].raw, node.sdo[0x1003][1].raw) == (1, 0x8611)
+    assert abort_code(lambda: node.sdo[0x1003][0].__setattr__("raw", 3)) == 0x06090030
+    node.sdo[0x1003][0].raw = 0
+    assert (node.sdo[0x1003][0].raw, node.sdo[0x1003][1].raw) == (0, 0)
+    node.sdo[0x6040].raw = 0x80                       # fault reset: the error goes
+    assert emcy_logged_after(node, 0x0000, 0x8611)
+    assert node.sdo[0x1001].raw == 0

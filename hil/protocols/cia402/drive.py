@@ -43,9 +43,10 @@ from pathlib import Path
 import canopen
 
 from hil.drives.core import DriveCore
-from hil.drives.definitions import Fault
+from hil.drives.definitions import Fault, Power
 from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.cia402 import NMT_ID, SYNC_ID, Cia402
+from hil.protocols.cia402.errors import ErrorRecord
 from hil.protocols.cia402.node import DriveNode
 from hil.protocols.cia402.objects import PROFILE_PARAMETERS, DriveObjects
 from hil.protocols.cia402.pdo import PdoLayout, TpdoSchedule
@@ -88,7 +89,7 @@ class Cia402Drive(DriveProfile):
         self.machine = Cia402StateMachine(core)
         self.node = DriveNode(node_id, eds or eds_path(), self._refused)
         self._latched: dict[int, bytes] = {}
-        self._fault_reported = False
+        self.errors = ErrorRecord()
         self._pending: list[tuple[int, bytes]] = []
         # from the PDO maps at each (re)configuration: RPDO number -> layout, and the
         # TPDOs with their schedules
@@ -96,8 +97,10 @@ class Cia402Drive(DriveProfile):
         self._rpdo_handlers: list[tuple[int, Callable]] = []     # (COB-ID, subscribed)
         self._tpdos: list[TpdoSchedule] = []
         self.objects = DriveObjects(self.node, self.machine, core, lock, rated_torque,
-                                    heartbeat_ms, self._configure_pdos)
+                                    heartbeat_ms, self._configure_pdos, self.errors)
         self._counts_per_rad = self.objects.counts_per_rad
+        #: the bus config's parameters: the application area's values after a reset node
+        self._configured = (core.parameters, core.silence_reaction)
         self.objects.store_configuration()
 
     # --- network life cycle ---------------------------------------------------
@@ -158,10 +161,16 @@ class Cia402Drive(DriveProfile):
         self._reset(communication_only=False)
 
     def _reset(self, communication_only: bool) -> None:
+        self.errors.history.clear()              # 0x1003 is in the communication area
         if not communication_only:
+            self.errors.active.clear()
+            self.machine.error_register = 0
+            # CiA 301 7.2.8.3.2.1: reset node sets the application area (and the rest) to
+            # its power-on values: the config's, not what SDO writes made of them
             self.machine.controlword(0x0000)
             self.core.reset_fault()
             self.machine.reset_homing()
+            self.core.parameters, self.core.silence_reaction = self._configured
             self.node.data_store.clear()
             self.objects.store_configuration()
         else:    # the communication area (0x1000-0x1FFF) takes its defaults again
@@ -285,7 +294,11 @@ class Cia402Drive(DriveProfile):
             self.send(cob_id, data)
 
     def tick(self, now: float) -> None:
-        """Event-driven TPDOs (254, 255) and the heartbeat consumer (caller holds the lock)."""
+        """The heartbeat, event-driven TPDOs (254, 255) and the heartbeat consumer (caller
+        holds the lock)."""
+        beat = self.node.nmt.heartbeat_due(now)
+        if beat is not None:
+            self.send(0x700 + self.node_id, beat)
         for producer in self.node.lost_heartbeats(now):
             log.warning("node %d: the heartbeat of node %d stopped", self.node_id, producer)
             self.core.lose_connection(Fault.HEARTBEAT_LOST)
@@ -371,7 +384,14 @@ class Cia402Drive(DriveProfile):
         if not self.attached:
             return
         for fault in events:
-            self.node.emcy.send(fault.code, ERROR_REGISTER[fault])
-        if self._fault_reported and self.core.fault is None:
-            self.node.emcy.send(EMCY_NO_ERROR, 0)       # error reset
-        self._fault_reported = self.core.fault is not None
+            self.errors.enter(fault.code, ERROR_REGISTER[fault])
+            self._error_changed(fault.code)
+        if self.errors.over(self.core.fault is not None, self.core.power is Power.ENABLED):
+            self.errors.active.clear()
+            self._error_changed(EMCY_NO_ERROR)
+
+    def _error_changed(self, code: int) -> None:
+        """0x1001 and 0x1003 as the error record has them, and the EMCY that says so."""
+        self.machine.error_register = self.errors.register
+        self.objects.store_errors()
+        self.node.emcy.send(code, self.errors.register)

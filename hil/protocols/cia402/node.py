@@ -8,9 +8,10 @@ NMT or SDO frame is a Python exception), follows no segmented-transfer state, an
 heartbeat consumer. :class:`DriveNode` adds these as CiA 301 (and lely-core, the CANopen
 stack under ros2_canopen) has them:
 
-* NMT: only 2-byte commands; in STOPPED no SDO, EMCY or PDO (the profile drops PDOs);
-* SDO: only 8-byte requests; a segment without a transfer in progress is aborted
-  (0x05040001);
+* NMT: only 2-byte commands; in STOPPED no SDO, EMCY or PDO (the profile drops PDOs); the
+  heartbeat on the drive's clock, never between a reset and its boot-up;
+* SDO (:mod:`.sdo`): only 8-byte requests; a segment without a transfer in progress is
+  aborted (0x05040001); an expedited download without size takes the object's;
 * PDO communication (0x1400.., 0x1800..) and mapping (0x1600.., 0x1A00..) parameters:
   the CiA 301 order of a remapping (make the PDO not valid, mapping count 0, entries,
   count, valid again) is enforced, and every entry is checked when the count is written:
@@ -29,20 +30,19 @@ A frame refused for its form is counted in :attr:`DriveNode.refused` and reporte
 from __future__ import annotations
 
 import logging
-import struct
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import canopen
 from canopen.emcy import EmcyProducer
-from canopen.sdo import SdoAbortedError, SdoServer
+from canopen.nmt import NmtSlave
+
+from hil.protocols.cia402.sdo import DriveSdoServer
+from canopen.sdo import SdoAbortedError
 from canopen.sdo.constants import (
-    ABORT_INVALID_COMMAND_SPECIFIER, ABORT_INVALID_VALUE, ABORT_NO_SUBINDEX, ABORT_NOT_IN_OD,
-    ABORT_PARAMETER_INCOMPATIBLE, ABORT_PDO_CANNOT_MAP, ABORT_PDO_LENGTH_EXCEEDED,
-    ABORT_VALUE_TOO_HIGH, NO_MORE_DATA, REQUEST_ABORTED, REQUEST_BLOCK_DOWNLOAD,
-    REQUEST_BLOCK_UPLOAD, REQUEST_DOWNLOAD, REQUEST_SEGMENT_DOWNLOAD, REQUEST_SEGMENT_UPLOAD,
-    REQUEST_UPLOAD, RESPONSE_ABORTED,
+    ABORT_INVALID_VALUE, ABORT_NO_SUBINDEX, ABORT_NOT_IN_OD, ABORT_PARAMETER_INCOMPATIBLE,
+    ABORT_PDO_CANNOT_MAP, ABORT_PDO_LENGTH_EXCEEDED, ABORT_VALUE_TOO_HIGH,
 )
 
 log = logging.getLogger(__name__)
@@ -77,54 +77,6 @@ class PdoParameter:
         return PdoParameter(index) if 0x1400 <= index < 0x1C00 else None
 
 
-class DriveSdoServer(SdoServer):
-    """canopen's SDO server, with the checks of a real one: 8-byte requests only, silent in
-    STOPPED, segments only within a segmented transfer (canopen keeps no such state)."""
-
-    def __init__(self, rx_cobid: int, tx_cobid: int, node: DriveNode):
-        super().__init__(rx_cobid, tx_cobid, node)
-        self._segmented: int | None = None     # REQUEST_SEGMENT_UPLOAD/_DOWNLOAD in progress
-
-    def on_request(self, can_id: int, data: bytes, timestamp: float) -> None:
-        node = self._node
-        if len(data) != 8:
-            node.refuse(can_id, f"an SDO request of {len(data)} bytes (CiA 301: 8)")
-            return
-        if node.nmt.state == STOPPED:
-            return
-        specifier = data[0] & 0xE0
-        if specifier in (REQUEST_SEGMENT_UPLOAD, REQUEST_SEGMENT_DOWNLOAD):
-            if specifier != self._segmented:
-                self.abort(ABORT_INVALID_COMMAND_SPECIFIER)
-                return
-        elif specifier == REQUEST_BLOCK_DOWNLOAD:
-            # not supported, as canopen's (whose refusal logs an error for a valid request)
-            _, self._index, self._subindex = struct.unpack_from("<BHB", data)
-            self.abort(ABORT_INVALID_COMMAND_SPECIFIER)
-            return
-        elif specifier in (REQUEST_UPLOAD, REQUEST_DOWNLOAD, REQUEST_BLOCK_UPLOAD,
-                           REQUEST_ABORTED):
-            self._segmented = None            # a new request ends any transfer in progress
-        buffer = self._buffer
-        super().on_request(can_id, data, timestamp)
-        if self._buffer is not buffer and specifier in (REQUEST_UPLOAD, REQUEST_DOWNLOAD):
-            # canopen started a segmented transfer (it made a new buffer)
-            self._segmented = (REQUEST_SEGMENT_UPLOAD if specifier == REQUEST_UPLOAD
-                               else REQUEST_SEGMENT_DOWNLOAD)
-        elif specifier == REQUEST_SEGMENT_UPLOAD and not self._buffer:
-            self._segmented = None            # the last segment went out
-        elif specifier == REQUEST_SEGMENT_DOWNLOAD and data[0] & NO_MORE_DATA:
-            self._segmented = None
-
-    def abort(self, abort_code: int = 0x08000000) -> None:
-        self._segmented = None
-        # canopen's abort, but a segment request carries no index: it names the transfer's
-        # (0 before any), where canopen's would fail to pack None
-        data = struct.pack("<BHBL", RESPONSE_ABORTED, self._index or 0, self._subindex or 0,
-                           abort_code)
-        self.send_response(data)
-
-
 class DriveEmcyProducer(EmcyProducer):
     """canopen's EMCY producer, silent while its node is STOPPED (CiA 301)."""
 
@@ -137,6 +89,38 @@ class DriveEmcyProducer(EmcyProducer):
             super().send(code, register, data)
 
 
+class ClockedNmtSlave(NmtSlave):
+    """canopen's NMT slave, its heartbeat sent by the drive's clock (:meth:`heartbeat_due`,
+    under the drive's lock) instead of by a sending thread of its own: such a thread could
+    put out a heartbeat between a reset command's arrival and the boot-up it answers with
+    (CiA 301 7.2.8.3.2.1: the boot-up is the first frame a node sends after a reset, and
+    masters start configuring on it)."""
+
+    def __init__(self, node_id: int, local_node):
+        super().__init__(node_id, local_node)
+        self._period = 0.0
+        self._due: float | None = None
+
+    def start_heartbeat(self, heartbeat_time_ms: int) -> None:
+        self._heartbeat_time_ms = heartbeat_time_ms
+        self._period = heartbeat_time_ms / 1000
+        self._due = time.monotonic() if heartbeat_time_ms > 0 else None
+
+    def stop_heartbeat(self) -> None:
+        self._due = None
+
+    def update_heartbeat(self) -> None:
+        """Nothing to do: each heartbeat carries the state it is sent in."""
+
+    def heartbeat_due(self, now: float) -> bytes | None:
+        """The heartbeat to send at ``now``, if one is due; never in INITIALISING (a
+        heartbeat of state 0 is a boot-up)."""
+        if self._due is None or now < self._due or self._state == 0:
+            return None
+        self._due = max(self._due + self._period, now)
+        return bytes([self._state])
+
+
 class DriveNode(canopen.LocalNode):
     """A canopen LocalNode that refuses what a real CiA 301 slave refuses (module doc)."""
 
@@ -145,6 +129,10 @@ class DriveNode(canopen.LocalNode):
         super().__init__(node_id, str(eds))
         self.sdo = DriveSdoServer(0x600 + self.id, 0x580 + self.id, self)
         self.emcy = DriveEmcyProducer(0x80 + self.id, self)
+        # LocalNode registered its own NMT slave for 0x1017 writes: this one takes its place
+        self._write_callbacks.remove(self.nmt.on_write)
+        self.nmt = ClockedNmtSlave(self.id, self)
+        self.add_write_callback(self.nmt.on_write)
         #: frames refused for their form (a wrong length)
         self.refused = 0
         self._on_refused = on_refused

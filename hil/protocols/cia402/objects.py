@@ -15,6 +15,7 @@ from canopen.sdo.constants import ABORT_INVALID_VALUE, ABORT_VALUE_TOO_LOW
 
 from hil.drives.core import DriveCore
 from hil.drives.definitions import SilenceReaction
+from hil.protocols.cia402.errors import ErrorRecord
 from hil.protocols.cia402.node import DriveNode
 from hil.protocols.cia402.state import (HOMING_METHODS, LIVE_OBJECTS, MODE_CODES,
                                         Cia402StateMachine, int32, live_value, uint32)
@@ -26,8 +27,9 @@ class DriveObjects:
 
     def __init__(self, node: DriveNode, machine: Cia402StateMachine, core: DriveCore,
                  lock: AbstractContextManager, rated_torque: float, heartbeat_ms: int,
-                 on_pdo_parameters: Callable[[], None]):
+                 on_pdo_parameters: Callable[[], None], errors: ErrorRecord):
         self.node, self.machine, self.core, self.lock = node, machine, core, lock
+        self.errors = errors
         self.rated_torque = rated_torque
         self.heartbeat_ms = heartbeat_ms
         #: called (under ``lock``) when a PDO's stored communication parameters change
@@ -48,7 +50,12 @@ class DriveObjects:
         value = od.decode_raw(data)
         cpr = self.counts_per_rad
         with self.lock:
-            if index == 0x6040:
+            if index == 0x1003:
+                if subindex != 0 or value != 0:
+                    raise SdoAbortedError(ABORT_INVALID_VALUE)   # CiA 301: only 0, to clear
+                self.errors.history.clear()
+                self.store_errors()
+            elif index == 0x6040:
                 self.machine.controlword(value)
             elif index == 0x6060:
                 self.set_mode(value)
@@ -147,6 +154,13 @@ class DriveObjects:
 
     def store_communication(self) -> None:
         self._put(0x1017, None, self.heartbeat_ms)
+        self.store_errors()
+
+    def store_errors(self) -> None:
+        """0x1003 as the error record has it (its count, then the newest first)."""
+        self._put(0x1003, 0, len(self.errors.history))
+        for subindex, entry in enumerate(self.errors.fields(), start=1):
+            self._put(0x1003, subindex, entry)
 
     def _put(self, index: int, subindex: int | None, value) -> None:
         od = self.node.object_dictionary

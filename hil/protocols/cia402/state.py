@@ -61,6 +61,8 @@ class Cia402StateMachine:
 
     def __init__(self, core: DriveCore, quick_stop_option: int = 6):
         self.core = core
+        #: 0x1001, kept by the drive's error record (hil.protocols.cia402.errors)
+        self.error_register = 0
         self.quick_stop_option = quick_stop_option
         self._disabled_state = State.SWITCH_ON_DISABLED
         self._last_controlword = 0
@@ -172,7 +174,7 @@ class Cia402StateMachine:
                     | (0x2000 if self.homing_error else 0))
         if self.state is not State.OPERATION_ENABLED:
             return 0
-        bits = 0x1000 if mode is not Mode.TORQUE else 0      # bit 12: following targets
+        bits = 0x1000              # bit 12 in CSP, CSV and CST: the drive follows the target
         if status.following_error_exceeded and mode is Mode.POSITION:
             bits |= 0x2000
         return bits
@@ -237,7 +239,7 @@ def live_value(index: int, machine: Cia402StateMachine, status: DriveStatus,
     if index == 0x603F:
         return fault.code if fault is not None else 0
     if index == 0x1001:
-        return ERROR_REGISTER[fault] if fault is not None else 0
+        return machine.error_register
     raise KeyError(f"0x{index:04X} is not a live object")
 
 

@@ -1,0 +1,54 @@
+"""A CANopen drive's errors as CiA 301 keeps them: the error register (0x1001), the
+pre-defined error field (0x1003, newest first) and the EMCY each change sends.
+
+CiA 301 7.2.7 and 7.5.2.2/7.5.2.3: an EMCY carries the error code and the error register as
+it is with the error in; when the last error goes, an EMCY "error reset or no error"
+(0x0000) with the register as it then is (0); bit 0 (generic) of 0x1001 is set while any
+error is; 0x1003 sub-index 0 counts the entries, writing 0 there deletes them (anything
+else: abort 0x06090030). When an error goes is hil's reading for a drive: a fault at its
+reset (controlword bit 7), a silence that did not fault the drive (0x6007 2 or 3) once the
+master has enabled it again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from hil.drives.definitions import Fault
+
+#: 0x1003's standard error fields in hil's EDS
+HISTORY = 8
+GENERIC = 0x01
+#: errors of the master's silence, which a drive may survive without a fault (0x6007 2, 3)
+SILENCE = frozenset({Fault.CONTROLLER_SILENT.code, Fault.HEARTBEAT_LOST.code})
+
+
+@dataclass
+class ErrorRecord:
+    """The errors in force (code -> their error register bits) and the history."""
+
+    active: dict[int, int] = field(default_factory=dict)
+    history: list[int] = field(default_factory=list)
+
+    @property
+    def register(self) -> int:
+        """0x1001 now."""
+        bits = 0
+        for each in self.active.values():
+            bits |= each
+        return bits | GENERIC if self.active else 0
+
+    def enter(self, code: int, bits: int) -> None:
+        """An error occurred: in force, and first in the history."""
+        self.active[code] = bits
+        self.history.insert(0, code)
+        del self.history[HISTORY:]
+
+    def over(self, faulted: bool, enabled: bool) -> bool:
+        """Whether the errors in force are gone (the module doc): none is left to the
+        drive's fault, and a silence the drive survived has been followed by its enabling."""
+        return bool(self.active) and not faulted and (enabled or not self.active.keys() & SILENCE)
+
+    def fields(self) -> list[int]:
+        """0x1003 sub-indices 1..HISTORY (0 where no entry)."""
+        return self.history + [0] * (HISTORY - len(self.history))
