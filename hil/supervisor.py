@@ -145,12 +145,16 @@ class Run:
         return problems
 
 
+#: how long a viewer may take to go after SIGTERM before it is killed (s): it holds no state
+VIEWER_STOP_TIMEOUT = 2.0
+
+
 def run_foreground(command: list[str]) -> int:
     """Run a program (a viewer) until it ends or this process is told to stop (Ctrl-C,
     SIGTERM); then it and every process it started are stopped (SIGTERM to its session's
-    group, SIGKILL past STOP_TIMEOUT): a viewer's launcher often hands over to a binary of
-    its own, which killing the launcher alone would leave running. Its exit status; 0 when
-    stopped so."""
+    group, SIGKILL past VIEWER_STOP_TIMEOUT): a viewer's launcher often hands over to a
+    binary of its own, which killing the launcher alone would leave running. Its exit
+    status; 0 when stopped so."""
     process = subprocess.Popen(command, start_new_session=True)
     previous = signal.signal(signal.SIGTERM, _interrupted)
     try:
@@ -167,7 +171,7 @@ def _interrupted(signum, frame) -> None:
 
 
 def _stop_group(process: subprocess.Popen) -> None:
-    for stop, wait in ((signal.SIGTERM, STOP_TIMEOUT), (signal.SIGKILL, 5.0)):
+    for stop, wait in ((signal.SIGTERM, VIEWER_STOP_TIMEOUT), (signal.SIGKILL, 5.0)):
         try:
             os.killpg(process.pid, stop)
         except ProcessLookupError:

@@ -26,7 +26,7 @@ from hil.cli.up.children import make_children
 from hil.cli.up.robots import RobotRun
 from hil.messaging.zenoh_api import RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
-from conftest import ROOT, free_port, read_rrd, stop_process
+from conftest import ROOT, free_port, read_rrd
 
 PIGOT_CONFIG = str(ROOT / "bus_config" / "pigot.yaml")
 #: the entity with a row for every cycle recorded (hil.visualisation.recorder)
@@ -372,15 +372,23 @@ def test_review_lists_a_runs_faults_with_their_times(tmp_path):
     assert all(j["rms"] <= j["max"] for j in run["joints"].values())
 
     port = free_port()
-    web = subprocess.Popen([sys.executable, "-m", "hil", "review", str(save), "--web",
-                            "--web-port", str(port)], stdout=subprocess.PIPE,
-                           stderr=subprocess.STDOUT, text=True)
+    log = tmp_path / "web.log"           # a file, not a pipe: a viewer left running would
+    with open(log, "w") as output:       # hold a pipe open and hang the reader
+        web = subprocess.Popen([sys.executable, "-m", "hil", "review", str(save), "--web",
+                                "--web-port", str(port)], stdout=output,
+                               stderr=subprocess.STDOUT, text=True)
     try:
-        assert f"http://127.0.0.1:{port}/" in _line_with(web, "web viewer at")
         page = _fetch_when_up(f"http://127.0.0.1:{port}/")
         assert "rerun" in page.lower()
+        assert f"web viewer at http://127.0.0.1:{port}/" in log.read_text()
     finally:
-        stop_process(web)
+        web.send_signal(signal.SIGINT)   # Ctrl-C: hil review stops the viewer it started
+        ended = web.wait(60)
+        left = subprocess.run(["pgrep", "-f", f"--web-viewer-port {port}"],
+                              capture_output=True, text=True).stdout.split()
+        for pid in left:
+            os.kill(int(pid), signal.SIGKILL)
+    assert ended == 0 and not left, (ended, left, log.read_text()[-2000:])
 
 
 def test_review_of_nothing_says_what_it_looked_for(tmp_path):
@@ -436,10 +444,3 @@ def _fetch_when_up(url: str, within: float = 30.0) -> str:
                 raise
             time.sleep(0.2)
 
-
-def _line_with(process: subprocess.Popen, text: str) -> str:
-    """The first line ``process`` prints that holds ``text``."""
-    for line in process.stdout:
-        if text in line:
-            return line
-    raise AssertionError(f"{process.args} ended without a line with {text!r}")
