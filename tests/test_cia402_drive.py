@@ -194,29 +194,6 @@ def test_heartbeat_reports_the_nmt_state(bench):
     assert _heartbeat_state(node, "STOPPED") == "STOPPED"
 
 
-@pytest.mark.parametrize("command", [0x81, 0x82])
-def test_a_reset_stops_the_heartbeat_before_the_node_is_initialising(bench, command):
-    # a heartbeat sent while the node is INITIALISING carries state 0: a second boot-up
-    nmt = bench.sim.drive("arm", 1).node.nmt
-    running_at_reset = []
-    apply = nmt.on_command
-    nmt.on_command = lambda *frame: (running_at_reset.append(nmt._send_task is not None),
-                                     apply(*frame))
-    boot = can.BufferedReader()
-    bench.network.notifier.add_listener(boot)
-    try:
-        _raw(bench, 0x000, bytes([command, 1]))
-        deadline, states = time.monotonic() + 2.0, []
-        while time.monotonic() < deadline and len(states) < 3:
-            msg = boot.get_message(0.1)
-            if msg is not None and msg.arbitration_id == 0x701:
-                states.append(bytes(msg.data))
-    finally:
-        bench.network.notifier.remove_listener(boot)
-    assert running_at_reset == [False]
-    assert states[0] == b"\0" and b"\0" not in states[1:], states     # one boot-up, then 0x7F
-
-
 def test_pdo_mapping_is_the_documented_default(bench):
     node = bench.node402(3)
     node.nmt.state = "PRE-OPERATIONAL"
