@@ -95,6 +95,11 @@ class Cia402Axis(Axis):
     def _on_emcy(self, can_id, data, timestamp) -> None:
         if len(data) >= 2:
             code = struct.unpack_from("<H", data)[0]
+            if code == 0x0000:
+                # "error reset or no error" (CiA 301): the error it ends is still this
+                # master's to report (a quick stop the next ENABLE undid); a fault reset
+                # forgets it
+                return
             self.last_emcy = code
             self._emcy_cycle = self._cycle
 
