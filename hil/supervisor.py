@@ -156,13 +156,16 @@ def run_foreground(command: list[str]) -> int:
     binary of its own, which killing the launcher alone would leave running. Its exit
     status; 0 when stopped so."""
     process = subprocess.Popen(command, start_new_session=True)
-    previous = signal.signal(signal.SIGTERM, _interrupted)
+    # both signals handled here: a process started in the background of a shell inherits
+    # SIGINT ignored, and Python then raises no KeyboardInterrupt for it
+    previous = {s: signal.signal(s, _interrupted) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         return process.wait()
     except KeyboardInterrupt:
         return 0
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for number, handler in previous.items():
+            signal.signal(number, handler)
         _stop_group(process)
 
 

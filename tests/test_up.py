@@ -383,7 +383,11 @@ def test_review_lists_a_runs_faults_with_their_times(tmp_path):
         assert f"web viewer at http://127.0.0.1:{port}/" in log.read_text()
     finally:
         web.send_signal(signal.SIGINT)   # Ctrl-C: hil review stops the viewer it started
-        ended = web.wait(60)
+        try:
+            ended = web.wait(60)
+        except subprocess.TimeoutExpired:
+            web.kill()
+            ended = web.wait()
         left = subprocess.run(["pgrep", "-f", f"--web-viewer-port {port}"],
                               capture_output=True, text=True).stdout.split()
         for pid in left:

@@ -15,8 +15,8 @@ from pathlib import Path
 OUTPUT = Path(__file__).resolve().parents[1] / "bus_config" / "cia402_drive.eds"
 
 # CiA 301 data types
-BOOLEAN, INT8, INT16, INT32, UINT8, UINT16, UINT32, REAL32 = (
-    0x0001, 0x0002, 0x0003, 0x0004, 0x0005, 0x0006, 0x0007, 0x0008)
+BOOLEAN, INT8, INT16, INT32, UINT8, UINT16, UINT32, REAL32, VISIBLE_STRING = (
+    0x0001, 0x0002, 0x0003, 0x0004, 0x0005, 0x0006, 0x0007, 0x0008, 0x0009)
 VAR, ARRAY, RECORD = 0x7, 0x8, 0x9
 
 HEADER = """\
@@ -47,11 +47,12 @@ def var(name, data_type, access, default, mappable=False):
             "AccessType": access, "DefaultValue": default, "PDOMapping": int(mappable)}
 
 
-def compound(name, object_type, entries):
-    """entries: {subindex: var(...)}; sub-index 0 is the highest sub-index supported."""
+def compound(name, object_type, entries, first=None):
+    """entries: {subindex: var(...)}; sub-index 0 is the highest sub-index supported, or
+    ``first`` where it is something else (0x1003's number of errors)."""
     return {"ParameterName": name, "ObjectType": hex(object_type),
             "SubNumber": len(entries) + 1,
-            "_subs": {0: var("Highest sub-index supported", UINT8, "ro", max(entries)),
+            "_subs": {0: first or var("Highest sub-index supported", UINT8, "ro", max(entries)),
                       **entries}}
 
 
@@ -93,7 +94,17 @@ def pdo_objects():
 OBJECTS = {
     0x1000: var("Device type", UINT32, "ro", "0x00020192"),
     0x1001: var("Error register", UINT8, "ro", 0, mappable=True),
+    # CiA 301 7.5.2.3: the last errors, newest first; writing 0 to sub-index 0 clears them
+    0x1003: compound("Pre-defined error field", ARRAY,
+                     {k: var(f"Standard error field {k}", UINT32, "ro", 0) for k in range(1, 9)},
+                     first=var("Number of errors", UINT8, "rw", 0)),
     0x1005: var("COB-ID SYNC", UINT32, "rw", "0x00000080"),
+    0x1008: var("Manufacturer device name", VISIBLE_STRING, "const",
+                "hil virtual CiA 402 servo drive"),
+    0x1009: var("Manufacturer hardware version", VISIBLE_STRING, "const",
+                "simulated (MuJoCo plant)"),
+    0x100A: var("Manufacturer software version", VISIBLE_STRING, "const",
+                "hil CiA 402 drive, EDS FileVersion 2"),
     0x1014: var("COB-ID EMCY", UINT32, "ro", "$NODEID+0x80"),
     0x1016: compound("Consumer heartbeat time", ARRAY,
                      {k: var(f"Consumer heartbeat time {k}", UINT32, "rw", 0)
