@@ -55,9 +55,7 @@ def _describe_bus(config: SystemConfig, bus: BusConfig) -> None:
 
 def _describe_drive(config: SystemConfig, bus: BusConfig, drive: DriveConfig) -> None:
     spec = protocol(drive.protocol)
-    found = next(t for t in config.robot.transmissions
-                 if drive.actuator in (a.name for a in t.actuators))
-    reduction = found.actuators[0].reduction * found.joints[0].reduction
+    reduction = config.robot.reduction(drive.actuator)
     print(f"  node {drive.node_id}: {', '.join(drive.joints)} ({drive.protocol}); the motor "
           f"turns {reduction:.6g} rad per joint rad; {drive.encoder_counts_per_rev} counts a "
           f"motor turn; rated {drive.rated_torque:.4g} N·m, peak {drive.peak_torque:.4g} N·m")

@@ -209,9 +209,7 @@ def _with_options(robot: RobotDescription, drives: list[Drive], spec,
     result = []
     for drive in drives:
         joint = robot.joint(drive.joint.split(", ")[0])
-        found = next(t for t in robot.transmissions
-                     if drive.actuator in (a.name for a in t.actuators))
-        reduction = abs(found.actuators[0].reduction * found.joints[0].reduction)
+        reduction = abs(robot.reduction(drive.actuator))
         inertia = inertias[drive.actuator]
         limits = joint.limits
         reach = (max(abs(limits.lower), abs(limits.upper)) if limits.lower is not None

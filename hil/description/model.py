@@ -270,6 +270,14 @@ class RobotDescription:
     def actuators(self) -> tuple[TransmissionActuator, ...]:
         return tuple(a for t in self.transmissions for a in t.actuators)
 
+    def reduction(self, actuator: str) -> float:
+        """Joint to motor of ``actuator``'s transmission: the radians its motor turns per
+        radian (or metre) of its first joint; KeyError for an actuator no transmission has."""
+        for transmission in self.transmissions:
+            if actuator in (a.name for a in transmission.actuators):
+                return transmission.actuators[0].reduction * transmission.joints[0].reduction
+        raise KeyError(actuator)
+
     @property
     def total_mass(self) -> float:
         return sum(link.inertial.mass for link in self.links if link.inertial)

@@ -117,12 +117,9 @@ class DrivesBench:
         for bus in self.config.buses:
             for drive in bus.drives:
                 if joint in drive.joints:
-                    found = next(t for t in self.config.robot.transmissions
-                                 if drive.actuator in (a.name for a in t.actuators))
-                    reduction = found.actuators[0].reduction * found.joints[0].reduction
                     return DriveInfo(bus.name, self.channels[bus.name], drive.node_id,
-                                     drive.protocol, reduction, drive.encoder_counts_per_rev,
-                                     drive)
+                                     drive.protocol, self.config.robot.reduction(drive.actuator),
+                                     drive.encoder_counts_per_rev, drive)
         raise HilError.single(f"no drive moves joint '{joint}' in {self.config.path}",
                               hint=f"joints: {', '.join(self.joints())}")
 
