@@ -6,12 +6,13 @@ import argparse
 
 from hil.cli import common
 from hil.errors import HilError
+from hil.zenoh_security import ROLES
 from hil.zenoh_session import close_all, why_unreached
 
-#: what each process' token stands for, and its role under --secure (hil.zenoh_security)
-PROCESSES = {"sim": ("hil sim: drives and plant", "drives"),
-             "control": ("hil control: CAN master and controllers", "controller"),
-             "viz": ("hil viz: visualiser and recorder", "observer")}
+#: what each process' token stands for
+PROCESSES = {"sim": "hil sim: drives and plant",
+             "control": "hil control: CAN master and controllers",
+             "viz": "hil viz: visualiser and recorder"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,6 +42,12 @@ def run(args: argparse.Namespace) -> int:
     for robot, processes in sorted(robots.items()):
         print(f"  {robot}")
         for process in processes:
-            what, role = PROCESSES.get(process, (process, "?"))
-            print(f"    {process:8s} {what} (role {role})")
+            print(f"    {process:8s} {PROCESSES.get(process, process)} "
+                  f"(role {_role(process)})")
     return 0
+
+
+def _role(process: str) -> str:
+    """The role ``hil <process>`` takes under --secure (hil.zenoh_security.ROLES)."""
+    return next((role for role, commands in ROLES.items()
+                 if f"hil {process}" in commands.split(", ")), "?")

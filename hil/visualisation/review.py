@@ -24,7 +24,8 @@ import numpy as np
 import rerun.chunk
 
 #: the entities a review reads, at the root or under a robot's name
-_WANTED = re.compile(r"^(/[^/]+)?/(diagnostics|cycle|loop/stalls/[^/]+)$")
+_WANTED = re.compile(r"^(?:/(?P<robot>[^/]+))?/(?P<what>diagnostics|cycle|loop/stalls/"
+                     r"(?P<process>[^/]+))$")
 _COMPONENTS = ("TextLog:text", "TextLog:level", "Scalars:scalars", "SeriesLines:names")
 #: a ``cycle`` series of a joint's tracking error (hil.visualisation.blueprint.CycleSeries)
 _ERROR_SERIES = re.compile(r"^(?P<joint>.+) error \[(?P<unit>[^\]]+)\]$")
@@ -58,12 +59,15 @@ class JointTracking:
     joint: str
     unit: str
     column: int                      # its series in the ``cycle`` rows
-    rms: float = 0.0
     max: float = 0.0
     #: the controller's clock (s) at the largest error
     max_at: float | None = None
     _squares: float = 0.0
     _count: int = 0
+
+    @property
+    def rms(self) -> float:
+        return math.sqrt(self._squares / self._count) if self._count else 0.0
 
     def add(self, errors: np.ndarray, times: np.ndarray) -> None:
         finite = np.isfinite(errors)
@@ -72,7 +76,6 @@ class JointTracking:
             return
         self._squares += float(np.sum(np.square(errors, dtype=np.float64)))
         self._count += len(errors)
-        self.rms = math.sqrt(self._squares / self._count)
         largest = int(np.argmax(np.abs(errors)))
         if abs(errors[largest]) > self.max:
             self.max, self.max_at = float(abs(errors[largest])), float(times[largest])
@@ -89,14 +92,19 @@ class RunSummary:
     first: float | None = None       # the controller's clock, s
     last: float | None = None
     joints: dict[str, JointTracking] = field(default_factory=dict)
-    period_mean_ms: float | None = None
     period_max_ms: float | None = None
     #: per real-time process (sim, control, transport): its stalls' count and the longest (ms)
     stalls: dict[str, tuple[int, float]] = field(default_factory=dict)
+    _period_sum: float = 0.0          # ms, over the cycles that recorded a period
+    _periods: int = 0
 
     @property
     def duration(self) -> float:
         return 0.0 if self.first is None else self.last - self.first
+
+    @property
+    def period_mean_ms(self) -> float | None:
+        return self._period_sum / self._periods if self._periods else None
 
 
 @dataclass(frozen=True)
@@ -123,15 +131,13 @@ def review(files: list[Path]) -> Review:
         if damage is not None:
             damaged.append(DamagedSegment(path, damage, is_recording=True))
         for chunk in chunks:
-            entity = chunk.entity_path
-            if entity.endswith("/diagnostics"):
+            wanted = _WANTED.match(chunk.entity_path)
+            robot = wanted["robot"] or ""
+            if wanted["what"] == "diagnostics":
                 found += _rows(chunk, path)
-            elif "/loop/stalls/" in entity:
-                robot, _, process = entity.strip("/").rpartition("loop/stalls/")
-                _count_stalls(runs.setdefault(robot.strip("/"), RunSummary(robot.strip("/"))),
-                              process, chunk)
+            elif wanted["process"]:
+                _count_stalls(runs.setdefault(robot, RunSummary(robot)), wanted["process"], chunk)
             else:
-                robot = entity.removesuffix("/cycle").strip("/")
                 _summarise(runs.setdefault(robot, RunSummary(robot)), chunk)
     return Review(sorted(found, key=lambda d: d.wall_time), damaged,
                   [run for _, run in sorted(runs.items()) if run.cycles])
@@ -157,9 +163,8 @@ def _summarise(run: RunSummary, chunk) -> None:
         tracking.add(values[:, tracking.column], times)
     periods = values[:, -2][np.isfinite(values[:, -2])]     # LOOP_SERIES: period, round trip
     if len(periods):
-        count = run.cycles - len(times)
-        run.period_mean_ms = float(((run.period_mean_ms or 0.0) * count + periods.sum())
-                                   / (count + len(periods)))
+        run._period_sum += float(periods.sum(dtype=np.float64))
+        run._periods += len(periods)
         run.period_max_ms = max(run.period_max_ms or 0.0, float(periods.max()))
 
 

@@ -64,9 +64,9 @@ class CubeMarsDrive(DriveProfile):
             return {command_id(self.node_id, mode): self._servo_handler(mode)
                     for mode in ServoMode if mode is not ServoMode.MIT}
         if self.options.firmware is Firmware.V3:
-            return {command_id(self.node_id, ServoMode.MIT): self._on_mit_v3,
+            return {command_id(self.node_id, ServoMode.MIT): self._on_mit,
                     command_id(self.node_id, ServoMode.DUTY): self._on_v3_special}
-        return {self.node_id: self._on_mit_v2}
+        return {self.node_id: self._on_mit}
 
     def send_replies(self) -> None:
         reply, self._reply = self._reply, None
@@ -75,31 +75,28 @@ class CubeMarsDrive(DriveProfile):
 
     # --- MIT mode --------------------------------------------------------------------------
 
-    def _on_mit_v2(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_mit(self, can_id: int, data: bytes, timestamp: float) -> None:
         if len(data) != 8:
             self.malformed += 1          # the firmware takes 8-byte frames only
             return
         with self.lock:
-            self._on_mit_frame(bytes(data), unpack_command)
-            self._reply = (self.options.reply_id, pack_mit_answer(self._answer(), self.ranges))
-            self.on_command(self)
-
-    def _on_mit_v3(self, can_id: int, data: bytes, timestamp: float) -> None:
-        if len(data) != 8:
-            self.malformed += 1
-            return
-        with self.lock:
-            self._on_mit_frame(bytes(data), unpack_v3_command)
-            self._reply = (status_id(self.node_id), pack_status(self._answer(), self.model))
+            self._on_mit_frame(bytes(data))
+            self._reply = self._mit_answer()
             self.on_command(self)
 
     def _on_v3_special(self, can_id: int, data: bytes, timestamp: float) -> None:
         """V3: the special frames come on the id ``id`` (mode 0); a duty frame to a motor in
         MIT mode moves nothing and is not answered."""
         if bytes(data) in SPECIAL_FRAMES:
-            self._on_mit_v3(can_id, data, timestamp)
+            self._on_mit(can_id, data, timestamp)
 
-    def _on_mit_frame(self, data: bytes, unpack) -> None:
+    def _mit_answer(self) -> tuple[int, bytes]:
+        """V2: the 8-byte MIT answer on the reply id; V3: the status frame."""
+        if self.options.firmware is Firmware.V3:
+            return status_id(self.node_id), pack_status(self._answer(), self.model)
+        return self.options.reply_id, pack_mit_answer(self._answer(), self.ranges)
+
+    def _on_mit_frame(self, data: bytes) -> None:
         if data == ENTER_MOTOR_MODE:
             self.error = ErrorCode.NONE
             if self.core.power is Power.FAULT:
@@ -112,6 +109,7 @@ class CubeMarsDrive(DriveProfile):
         elif data == SET_ZERO:
             self._zero = self.core.status().position
         elif self.core.power is Power.ENABLED:
+            unpack = unpack_v3_command if self.options.firmware is Firmware.V3 else unpack_command
             follow(self.core, unpack(data, self.ranges), self._zero)
         # else: a command outside motor mode moves nothing; it is answered all the same
 
