@@ -140,9 +140,10 @@ def patient(node):
 class Bench:
     """A Simulator of the ur3 fixture config plus a master-side bus and canopen network."""
 
-    def __init__(self, interface: str, channel: str, timing: Timing = REAL_TIME):
+    def __init__(self, interface: str, channel: str, timing: Timing = REAL_TIME,
+                 config: Path = UR3_VIRTUAL):
         self.interface, self.channel = interface, channel
-        self.config = load_bus_config(UR3_VIRTUAL)
+        self.config = load_bus_config(config)
         self.sim_bus = can.Bus(interface=interface, channel=channel)
         self.master_bus = can.Bus(interface=interface, channel=channel)
         self.sim = Simulator(self.config, {"arm": self.sim_bus}, timing)

@@ -26,6 +26,7 @@ HEADER = """\
 ; acceleration in increments/s^2, torque in per mille of the motor rated torque 0x6076
 ; (which is in mN m).
 ; Modes (0x6502): profile position 1, profile velocity 3, homing 6 (methods 35/37),
+; interpolated position 7 (0x60C1:01 each SYNC while controlword bit 4 is set),
 ; cyclic synchronous position 8, velocity 9, torque 10.
 ; Default PDOs (all on every SYNC, transmission type 1), COB-IDs relative to $NODEID:
 ;   RPDO1 0x200+id: controlword 0x6040 + target position 0x607A   (CSP, PP)
@@ -154,12 +155,16 @@ OBJECTS = {
     0x609A: var("Homing acceleration", UINT32, "rw", 0),
     0x60B1: var("Velocity offset", INT32, "rw", 0, mappable=True),
     0x60B2: var("Torque offset", INT16, "rw", 0, mappable=True),
+    # interpolated position (mode 7): linear interpolation (sub mode 0) of one record a SYNC
+    0x60C0: var("Interpolation sub mode select", INT16, "rw", 0),
+    0x60C1: compound("Interpolation data record", ARRAY, {
+        1: var("Interpolation position", INT32, "rw", 0, mappable=True)}),
     0x60C2: compound("Interpolation time period", RECORD, {
         1: var("Interpolation time period value", UINT8, "rw", 2),
         2: var("Interpolation time index", INT8, "rw", -3)}),
     0x60F4: var("Following error actual value", INT32, "ro", 0, mappable=True),
     0x60FF: var("Target velocity", INT32, "rw", 0, mappable=True),
-    0x6502: var("Supported drive modes", UINT32, "ro", "0x000003A5"),
+    0x6502: var("Supported drive modes", UINT32, "ro", "0x000003E5"),
 }
 
 DEVICE_INFO = {

@@ -322,8 +322,12 @@ def _read_options(reader: Reader, drive: LineMapping, what: str, spec) -> object
                     f"'{spec.name}'", line,
                     hint=f"{spec.name} options: {', '.join(spec.Options.KEYS)}")
         return None
+    values = dict(raw)
+    for key in spec.Options.PATH_KEYS:
+        if isinstance(values.get(key), str):
+            values[key] = str(reader.path.parent / values[key])
     try:
-        return spec.Options.from_mapping(dict(raw))
+        return spec.Options.from_mapping(values)
     except (ValueError, TypeError, OverflowError) as exc:     # Overflow: a 400-digit int
         reader.fail(f"{what}: options: {exc}", line,
                     hint=f"{spec.name} options: {', '.join(spec.Options.KEYS)}")

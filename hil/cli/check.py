@@ -79,6 +79,9 @@ def bus_summary(config: SystemConfig) -> str:
                   for d in config.drives if d.actuator in effects]
         lines += [f"    {label}: feed_forward {o.feed_forward}" for label, o in options.items()]
         lines += [f"    {d.label}: torque_feed_forward {d.torque_feed_forward}" for d in torques]
+    notes = [(d.label, d.options.check_notes()) for d in config.drives if d.options is not None]
+    for label, lines_of_drive in notes:
+        lines += [""] * bool(lines_of_drive) + [f"  {label}: {line}" for line in lines_of_drive]
     lines += ["", f"  contacts: {collision_summary(config.robot)}"
                   + (", touching the scene:" if config.scene else "; no scene to touch")]
     lines += [f"    {scene_line(thing)}" for thing in config.scene]

@@ -71,11 +71,20 @@ class ProtocolOptions:
     """A protocol's own settings in a bus config (``options:`` of a drive), with what hil
     asks of every protocol's settings declared here with its default."""
 
+    #: keys whose values are files: the bus config parser makes them relative to the
+    #: config's own directory before :meth:`from_mapping` sees them
+    PATH_KEYS: ClassVar[tuple[str, ...]] = ()
+
     @property
     def sends_velocity(self) -> bool:
         """Whether the master sends the trajectory's velocity beside each target (a
         feed-forward the bus load and the tracking depend on)."""
         return False
+
+    def check_notes(self) -> list[str]:
+        """What ``hil check`` says of these settings beyond the drive's table (the objects a
+        vendor's EDS has that hil stores without acting on them). None by default."""
+        return []
 
     def drive_defaults(self) -> dict[str, float | bool]:
         """Drive keys of the bus config (``peak_torque``, ``rated_torque``,

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 from hil.protocols.base import FrameSource, Protocol, ProtocolOptions, Sender, SettingField
 
@@ -48,23 +49,49 @@ class Cia402Options(ProtocolOptions):
     """A CiA 402 drive's settings in a bus config: ``feed_forward: velocity`` makes the
     master send the trajectory's velocity as the drive's velocity offset (0x60B1, RPDO4
     0x500+id on every SYNC, the torque offset 0x60B2 beside it at 0), which the drive then
-    uses as its velocity feed-forward in place of its setpoints' difference."""
+    uses as its velocity feed-forward in place of its setpoints' difference.
+
+    ``eds: FILE`` (relative to the bus config) makes the simulated drive present a vendor's
+    EDS/DCF: its identity, objects and default PDOs (:mod:`.personality`)."""
 
     feed_forward: str = "none"
+    eds: Path | None = None
 
-    KEYS = ("feed_forward",)
+    KEYS = ("feed_forward", "eds")
+    PATH_KEYS = ("eds",)
 
     @property
     def sends_velocity(self) -> bool:
         """Whether the master sends RPDO4 (the velocity offset) every cycle."""
         return self.feed_forward == "velocity"
 
+    def check_notes(self) -> list[str]:
+        """The vendor EDS's identity and the objects hil stores and reads back but gives no
+        meaning to."""
+        if self.eds is None:
+            return []
+        from hil.protocols.cia402.eds import objects_without_meaning, read_dictionary
+        od = read_dictionary(self.eds)
+        info = od.device_information
+        stored = objects_without_meaning(od)
+        return [f"personality {self.eds.name}: {info.vendor_name or 'vendor unnamed'} "
+                f"{info.product_name or ''}".rstrip() + f"; {len(stored)} object(s) stored and "
+                f"read back without meaning in hil:",
+                *(f"  0x{index:04X} {name}" for index, name in stored),
+                "hil's own master (hil control, hil up) expects hil's default PDO mapping: "
+                "bring this drive up with your master and its DCF"]
+
     @classmethod
     def from_mapping(cls, values: dict) -> Cia402Options:
-        options = cls(**{k: str(v) for k, v in values.items()})
+        eds = values.get("eds")
+        options = cls(feed_forward=str(values.get("feed_forward", "none")),
+                      eds=Path(eds) if eds is not None else None)
         if options.feed_forward not in FEED_FORWARD:
             raise ValueError(f"'feed_forward' is one of {', '.join(FEED_FORWARD)}, not "
                              f"'{options.feed_forward}'")
+        if options.eds is not None:
+            from hil.protocols.cia402.eds import read_dictionary    # canopen: lazily
+            read_dictionary(options.eds)
         return options
 
 

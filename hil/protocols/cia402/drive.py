@@ -38,20 +38,21 @@ import struct
 import time
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from pathlib import Path
-
 import canopen
 
 from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Power
-from hil.drives.profile import DriveProfile, Reading
+from hil.drives.profile import DriveProfile
 from hil.protocols.cia402 import NMT_ID, SYNC_ID, Cia402
 from hil.protocols.cia402.errors import ErrorRecord
 from hil.protocols.cia402.node import DriveNode
 from hil.protocols.cia402.objects import PROFILE_PARAMETERS, DriveObjects
 from hil.protocols.cia402.pdo import PdoLayout, TpdoSchedule
-from hil.protocols.cia402.state import ERROR_REGISTER, LIVE_OBJECTS, Cia402StateMachine, live_values
-from hil.resources import eds_path
+from hil.protocols.cia402.personality import Personality
+from hil.protocols.cia402.replay_view import ReplayView
+from hil.protocols.cia402.eds import LIVE_OBJECTS
+from hil.protocols.cia402.state import (ERROR_REGISTER, INTERPOLATED_POSITION,
+                                        Cia402StateMachine, live_values)
 
 log = logging.getLogger(__name__)
 
@@ -66,28 +67,21 @@ EMCY_NO_ERROR = 0x0000
 COMMUNICATION_ERROR = 0x11
 #: a refused frame is logged the first time, then every this many
 LOG_REFUSED_EVERY = 1000
-#: the heartbeat's NMT state codes (CiA 301)
-NMT_CODES = {name: code for code, name in canopen.nmt.NMT_STATES.items()}
-#: what each live object measures (hil.drives.profile.QUANTITIES; None: exact), by index
-MEASURES = {0x6064: "position", 0x60F4: "position", 0x606C: "velocity", 0x6077: "torque"}
-#: statusword bits the drive sets from what it measures (target reached, internal limit
-#: active, following error): they flip with the timing of a run
-MEASURED_STATUS = 0x2C00
 
 
-class Cia402Drive(DriveProfile):
+class Cia402Drive(ReplayView, DriveProfile):
     """A CiA 402 servo drive on a CANopen network, around a :class:`DriveCore`."""
 
     protocol = Cia402
 
     def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager,
-                 rated_torque: float, heartbeat_period: float = 0.1, options=None,
-                 eds: Path | None = None):
+                 rated_torque: float, heartbeat_period: float = 0.1, options=None):
         super().__init__(node_id, core, lock)
         self.rated_torque = rated_torque
         heartbeat_ms = round(heartbeat_period * 1000)
         self.machine = Cia402StateMachine(core)
-        self.node = DriveNode(node_id, eds or eds_path(), self._refused)
+        self.personality = Personality.of(options.eds if options is not None else None)
+        self.node = DriveNode(node_id, self.personality.eds, self._refused)
         self._latched: dict[int, bytes] = {}
         self.errors = ErrorRecord()
         self._pending: list[tuple[int, bytes]] = []
@@ -97,7 +91,8 @@ class Cia402Drive(DriveProfile):
         self._rpdo_handlers: list[tuple[int, Callable]] = []     # (COB-ID, subscribed)
         self._tpdos: list[TpdoSchedule] = []
         self.objects = DriveObjects(self.node, self.machine, core, lock, rated_torque,
-                                    heartbeat_ms, self._configure_pdos, self.errors)
+                                    heartbeat_ms, self._configure_pdos, self.errors,
+                                    self.personality)
         self._counts_per_rad = self.objects.counts_per_rad
         #: the bus config's parameters: the application area's values after a reset node
         self._configured = (core.parameters, core.silence_reaction)
@@ -315,44 +310,6 @@ class Cia402Drive(DriveProfile):
                 schedule.last_data, schedule.last_sent = data, now
                 self.send(schedule.pdo.cob_id, data)
 
-    # --- what a replay compares ---------------------------------------------------------
-
-    def timed(self, can_id: int, data: bytes) -> bool:
-        """The heartbeat (not the boot-up, which answers a reset) and event-driven TPDOs."""
-        if can_id == 0x700 + self.node_id:
-            return bytes(data[:1]) != b"\x00"
-        return any(s.event_driven and s.pdo.cob_id == can_id for s in self._tpdos)
-
-    def timed_ids(self) -> tuple[int, ...]:
-        return (0x700 + self.node_id,)
-
-    def timed_content(self, can_id: int) -> bytes | None:
-        if can_id == 0x700 + self.node_id:
-            return bytes([NMT_CODES[self.node.nmt.state]])
-        return None
-
-    def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
-        """A TPDO's live objects (as mapped now): positions and velocities in counts,
-        torque in per mille of the rated torque, the rest exact."""
-        for schedule in self._tpdos:
-            if schedule.pdo.cob_id != can_id or schedule.codec is None:
-                continue
-            if len(data) != schedule.codec.size:
-                return None
-            scales = {"position": 1 / self._counts_per_rad, "velocity": 1 / self._counts_per_rad,
-                      "torque": self.rated_torque / 1000}
-            found = []
-            for index, value in zip(schedule.indices, schedule.codec.unpack(data)):
-                if index == 0x6041:      # the state exact; what the position loop sets, derived
-                    found += [Reading("0x6041", value & ~MEASURED_STATUS, None),
-                              Reading("0x6041 bits 10, 11, 13", value & MEASURED_STATUS,
-                                      "derived")]
-                else:
-                    found.append(Reading(f"0x{index:04X}", value, MEASURES.get(index),
-                                         scales.get(MEASURES.get(index), 1.0)))
-            return tuple(found)
-        return None
-
     def _apply(self, number: int) -> None:
         pdo = self.node.rpdo.map[number]
         pdo.data = self._latched.get(number, pdo.data)
@@ -366,15 +323,20 @@ class Cia402Drive(DriveProfile):
         for index, value in fields.items():
             if index in PROFILE_PARAMETERS:
                 self.objects.set_profile_parameter(index, value)
-        if 0x607A in fields:
-            self.machine.target_position = fields[0x607A] / self._counts_per_rad
+        # the controlword after the targets (profile position's new set-point takes the
+        # target of its own PDO), but in ip mode before them: bit 4 gates its own PDO's record
+        interpolated = self.machine.mode_code == INTERPOLATED_POSITION
+        if 0x6040 in fields and interpolated:
+            self.machine.controlword(fields[0x6040])
+        for index in (0x607A, 0x60C1):
+            if index in fields:
+                self.objects.set_target_position(index, fields[index])
         self.core.new_setpoint(
-            position=self.machine.target_position if 0x607A in fields else None,
             velocity=fields[0x60FF] / self._counts_per_rad if 0x60FF in fields else None,
             torque=fields[0x6071] * self.rated_torque / 1000 if 0x6071 in fields else None,
             velocity_ff=fields[0x60B1] / self._counts_per_rad if 0x60B1 in fields else None,
             torque_ff=fields[0x60B2] * self.rated_torque / 1000 if 0x60B2 in fields else None)
-        if 0x6040 in fields:
+        if 0x6040 in fields and not interpolated:
             self.machine.controlword(fields[0x6040])
 
     def after_update(self) -> None:

@@ -42,8 +42,9 @@ from hil.protocols.cia402.sdo import DriveSdoServer
 from canopen.sdo import SdoAbortedError
 from canopen.sdo.constants import (
     ABORT_INVALID_VALUE, ABORT_NO_SUBINDEX, ABORT_NOT_IN_OD, ABORT_PARAMETER_INCOMPATIBLE,
-    ABORT_PDO_CANNOT_MAP, ABORT_PDO_LENGTH_EXCEEDED, ABORT_VALUE_TOO_HIGH,
+    ABORT_PDO_CANNOT_MAP, ABORT_PDO_LENGTH_EXCEEDED, ABORT_VALUE_TOO_HIGH, ABORT_VALUE_TOO_LOW,
 )
+from canopen.objectdictionary import NUMBER_TYPES
 
 log = logging.getLogger(__name__)
 
@@ -57,8 +58,19 @@ TRANSMISSION_TYPES = frozenset(range(241)) | {254, 255}
 RESETS = (0x81, 0x82)
 #: bits of the dummy entries (data types 0x0002-0x0007) an RPDO may map
 DUMMY_BITS = {0x0002: 8, 0x0003: 16, 0x0004: 32, 0x0005: 8, 0x0006: 16, 0x0007: 32}
+#: SDO abort "resource not available" (canopen: an object without a value)
+ABORT_NO_DATA = 0x060A0023
 #: consumer heartbeat time (0x1016) entries: node id in bits 16-23, time (ms) in bits 0-15
 CONSUMER_HEARTBEAT = 0x1016
+
+
+def normalise_access_types(od: canopen.ObjectDictionary) -> None:
+    """Access types in canopen's lower case: vendors write "RW" (and a stray blank), which
+    canopen, comparing as written, takes for neither readable nor writable."""
+    for obj in od.values():
+        entries = [obj] if isinstance(obj, canopen.objectdictionary.ODVariable) else obj.values()
+        for entry in entries:
+            entry.access_type = entry.access_type.strip().lower()
 
 
 class PdoParameter:
@@ -127,6 +139,7 @@ class DriveNode(canopen.LocalNode):
     def __init__(self, node_id: int, eds: Path,
                  on_refused: Callable[[int, str], None] = lambda can_id, why: None):
         super().__init__(node_id, str(eds))
+        normalise_access_types(self.object_dictionary)
         self.sdo = DriveSdoServer(0x600 + self.id, 0x580 + self.id, self)
         self.emcy = DriveEmcyProducer(0x80 + self.id, self)
         # LocalNode registered its own NMT slave for 0x1017 writes: this one takes its place
@@ -193,7 +206,15 @@ class DriveNode(canopen.LocalNode):
 
     def get_data(self, index: int, subindex: int, check_readable: bool = False) -> bytes:
         self._check_exists(index, subindex)
-        return super().get_data(index, subindex, check_readable)
+        try:
+            return super().get_data(index, subindex, check_readable)
+        except SdoAbortedError as exc:
+            if exc.code != ABORT_NO_DATA:
+                raise
+        # an object a vendor's EDS gives no DefaultValue and nothing wrote yet: hil's reading
+        # is the zero of its type (a device has some value; canopen aborts 0x060A0023)
+        entry = self._find_object(index, subindex)
+        return entry.encode_raw(0) if entry.data_type in NUMBER_TYPES else b""
 
     def set_data(self, index: int, subindex: int, data: bytes,
                  check_writable: bool = False) -> None:
@@ -212,16 +233,27 @@ class DriveNode(canopen.LocalNode):
             raise SdoAbortedError(ABORT_NO_SUBINDEX)
 
     def value(self, index: int, subindex: int = 0) -> int:
-        """The object's value as stored (or its default)."""
-        entry = self.object_dictionary[index]
-        if not isinstance(entry, canopen.objectdictionary.ODVariable):
-            entry = entry[subindex]
+        """The object's value as stored (or its default); 0 where the object dictionary (a
+        vendor's) lacks the object or sub-index, the CiA 301 default of the communication
+        parameters read this way (inhibit time, event timer, heartbeat consumer entries)."""
+        entry = self.object_dictionary.get(index)
+        if entry is not None and not isinstance(entry, canopen.objectdictionary.ODVariable):
+            entry = entry.subindices.get(subindex)
+        if entry is None:
+            return 0
         return entry.decode_raw(self.get_data(index, subindex))
 
     def pdo_valid(self, communication_index: int) -> bool:
         return not self.value(communication_index, 1) & NOT_VALID
 
     def _check_write(self, index: int, subindex: int, od, data: bytes, **_) -> None:
+        if od.data_type in NUMBER_TYPES:
+            # the object's LowLimit/HighLimit (canopen's encoder only logs them)
+            value = od.decode_raw(data)
+            if od.min is not None and value < od.min:
+                raise SdoAbortedError(ABORT_VALUE_TOO_LOW)
+            if od.max is not None and value > od.max:
+                raise SdoAbortedError(ABORT_VALUE_TOO_HIGH)
         parameter = PdoParameter.of(index)
         if parameter is not None:
             value = od.decode_raw(data)
@@ -309,7 +341,8 @@ class DriveNode(canopen.LocalNode):
         for can_id, handler in self._heartbeat_handlers.items():
             network.unsubscribe(can_id, handler)
         self._heartbeat_handlers, self._consumers = {}, {}
-        for sub in self.object_dictionary[CONSUMER_HEARTBEAT].subindices:
+        consumers = self.object_dictionary.get(CONSUMER_HEARTBEAT)
+        for sub in consumers.subindices if consumers is not None else ():
             value = self.value(CONSUMER_HEARTBEAT, sub) if sub else 0
             producer, period = (value >> 16) & 0xFF, value & 0xFFFF
             if producer and period:

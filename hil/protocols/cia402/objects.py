@@ -10,6 +10,7 @@ from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import replace
 
+import canopen
 from canopen.sdo import SdoAbortedError
 from canopen.sdo.constants import ABORT_INVALID_VALUE, ABORT_VALUE_TOO_LOW
 
@@ -17,7 +18,9 @@ from hil.drives.core import DriveCore
 from hil.drives.definitions import SilenceReaction
 from hil.protocols.cia402.errors import ErrorRecord
 from hil.protocols.cia402.node import DriveNode
-from hil.protocols.cia402.state import (HOMING_METHODS, LIVE_OBJECTS, MODE_CODES,
+from hil.protocols.cia402.personality import Personality
+from hil.protocols.cia402.eds import LIVE_OBJECTS
+from hil.protocols.cia402.state import (HOMING_METHODS, INTERPOLATED_POSITION, MODE_CODES,
                                         Cia402StateMachine, int32, live_value, uint32)
 
 
@@ -27,9 +30,11 @@ class DriveObjects:
 
     def __init__(self, node: DriveNode, machine: Cia402StateMachine, core: DriveCore,
                  lock: AbstractContextManager, rated_torque: float, heartbeat_ms: int,
-                 on_pdo_parameters: Callable[[], None], errors: ErrorRecord):
+                 on_pdo_parameters: Callable[[], None], errors: ErrorRecord,
+                 personality: Personality):
         self.node, self.machine, self.core, self.lock = node, machine, core, lock
         self.errors = errors
+        self.personality = personality
         self.rated_torque = rated_torque
         self.heartbeat_ms = heartbeat_ms
         #: called (under ``lock``) when a PDO's stored communication parameters change
@@ -60,16 +65,18 @@ class DriveObjects:
             elif index == 0x6060:
                 self.set_mode(value)
             elif index == 0x605A:
-                if value not in (1, 2, 5, 6):
+                # CiA 402 0-8; hil stops on the quick stop ramp for the current and voltage
+                # limits (3, 4, 7, 8) and for 0 (its own reading: the plant has no coasting
+                # amplifier to switch off)
+                if not 0 <= value <= 8:
                     raise SdoAbortedError(ABORT_INVALID_VALUE)
                 self.machine.quick_stop_option = value
             elif index == 0x6007:
                 if value not in _SILENCE_REACTIONS:
                     raise SdoAbortedError(ABORT_INVALID_VALUE)
                 self.core.silence_reaction = _SILENCE_REACTIONS[value]
-            elif index == 0x607A:
-                self.machine.target_position = value / cpr
-                self.core.new_setpoint(position=value / cpr)
+            elif index == 0x607A or index == 0x60C1:
+                self.set_target_position(index, value)
             elif index == 0x60FF:
                 self.core.new_setpoint(velocity=value / cpr)
             elif index == 0x6071:
@@ -81,14 +88,14 @@ class DriveObjects:
             elif index == 0x607C:
                 self.machine.home_offset = value / cpr
             elif index == 0x6098:
-                if value not in HOMING_METHODS:
+                if value not in HOMING_METHODS and value != 0:     # 0: no homing method
                     raise SdoAbortedError(ABORT_INVALID_VALUE)
                 self.machine.homing_method = value
             elif index == 0x60C2:
                 self._set_interpolation_period(subindex, value)
             elif index in PROFILE_PARAMETERS:
                 self.set_profile_parameter(index, value)
-            elif index in _PARAMETER_WRITERS:
+            elif index in _PARAMETER_WRITERS and (self.personality.own or index >= 0x6000):
                 self.core.parameters = _PARAMETER_WRITERS[index](
                     self.core.parameters, subindex, value, cpr)
 
@@ -100,13 +107,34 @@ class DriveObjects:
                 self.on_pdo_parameters()
 
     def set_mode(self, code: int) -> None:
-        if code not in MODE_CODES:
+        """0x6060: a mode the drive offers (its personality's 0x6502); 0 ("no mode",
+        a vendor file's usual default) leaves the mode as it is."""
+        if code == 0:
+            return
+        if code not in self.personality.modes:
             raise SdoAbortedError(ABORT_INVALID_VALUE)   # value range of parameter exceeded
+        self.machine.mode_code = code
         self.core.set_mode(MODE_CODES[code])
 
+    def set_target_position(self, index: int, counts: int) -> None:
+        """0x607A (profile and cyclic synchronous position) or 0x60C1:01 (interpolated
+        position: taken while ip mode is active)."""
+        interpolated = self.machine.mode_code == INTERPOLATED_POSITION
+        if (index == 0x60C1) != interpolated:
+            if index == 0x607A:
+                self.machine.target_position = counts / self.counts_per_rad
+            return
+        if interpolated and not self.machine.following_setpoints():
+            return
+        self.machine.target_position = counts / self.counts_per_rad
+        self.core.new_setpoint(position=self.machine.target_position)
+
     def set_profile_parameter(self, index: int, value: int) -> None:
-        if index != 0x6081 and value <= 0:
-            raise SdoAbortedError(ABORT_VALUE_TOO_LOW)   # a move needs an acceleration
+        """A profile velocity, acceleration or deceleration. hil's own drive refuses a zero
+        acceleration; a vendor's takes what its file's limits allow (with 0 a move does
+        not start)."""
+        if self.personality.own and index != 0x6081 and value <= 0:
+            raise SdoAbortedError(ABORT_VALUE_TOO_LOW)
         self.core.parameters = replace(self.core.parameters, **{
             PROFILE_PARAMETERS[index]: value / self.counts_per_rad})
 
@@ -141,10 +169,11 @@ class DriveObjects:
         put(0x6065, None, uint32(p.following_error_limit * cpr))
         put(0x6066, None, round(p.following_error_timeout * 1000))
         put(0x6007, None, self.core.silence_reaction.value)
-        put(0x2010, None, round(p.watchdog_timeout * 1000))
-        put(0x2000, 1, p.position_kp)
-        put(0x2000, 2, p.velocity_kp)
-        put(0x2000, 3, p.velocity_ki)
+        if self.personality.own:
+            put(0x2010, None, round(p.watchdog_timeout * 1000))
+            put(0x2000, 1, p.position_kp)
+            put(0x2000, 2, p.velocity_kp)
+            put(0x2000, 3, p.velocity_ki)
         value, exponent = interpolation_period(self.core.cycle)
         put(0x60C2, 1, value)
         put(0x60C2, 2, exponent)
@@ -163,8 +192,13 @@ class DriveObjects:
             self._put(0x1003, subindex, entry)
 
     def _put(self, index: int, subindex: int | None, value) -> None:
-        od = self.node.object_dictionary
-        entry = od[index] if subindex is None else od[index][subindex]
+        """Store a value, where the object dictionary (a vendor's may not) has the object."""
+        entry = self.node.object_dictionary.get(index)
+        if subindex is not None and entry is not None:
+            entry = (entry.subindices.get(subindex)
+                     if not isinstance(entry, canopen.objectdictionary.ODVariable) else None)
+        if entry is None:
+            return
         self.node.data_store.setdefault(index, {})[subindex or 0] = entry.encode_raw(value)
 
 

@@ -14,10 +14,13 @@ from hil.drives.core import DriveCore
 from hil.drives.definitions import DriveStatus, Fault, Mode, Power
 
 #: CiA 402 modes of operation (0x6060/0x6061) this drive supports: profile position (1),
-#: profile velocity (3), homing (6), cyclic synchronous position/velocity/torque (8, 9, 10)
+#: profile velocity (3), homing (6), interpolated position (7: the position of each SYNC's
+#: interpolation data record 0x60C1:01, followed as in CSP while controlword bit 4 "enable ip
+#: mode" is set), cyclic synchronous position/velocity/torque (8, 9, 10)
 MODE_CODES = {1: Mode.PROFILE_POSITION, 3: Mode.PROFILE_VELOCITY, 6: Mode.HOMING,
-              8: Mode.POSITION, 9: Mode.VELOCITY, 10: Mode.TORQUE}
-CODE_OF_MODE = {mode: code for code, mode in MODE_CODES.items()}
+              7: Mode.POSITION, 8: Mode.POSITION, 9: Mode.VELOCITY, 10: Mode.TORQUE}
+INTERPOLATED_POSITION = 7
+CODE_OF_MODE = {mode: code for code, mode in MODE_CODES.items() if code != INTERPOLATED_POSITION}
 #: 0x6502, supported drive modes: bit (code - 1) of each mode above
 SUPPORTED_MODES = sum(1 << (code - 1) for code in MODE_CODES)
 #: homing methods (0x6098) this drive runs: 35 and 37 (its newer number), "current position
@@ -33,9 +36,9 @@ ERROR_REGISTER = {Fault.FOLLOWING_ERROR: 0x21, Fault.POSITION_LIMIT: 0x21,
 # controlword bits of the operation modes (CiA 402): profile position's new set-point,
 # change set immediately and relative target; homing's start (the same bit 4); halt
 NEW_SETPOINT, CHANGE_IMMEDIATELY, RELATIVE, HALT = 0x0010, 0x0020, 0x0040, 0x0100
+#: interpolated position mode's controlword bit 4 (the new set-point bit of profile position)
+ENABLE_IP = 0x0010
 
-#: objects read from the drive's state, not stored in its object dictionary
-LIVE_OBJECTS = frozenset({0x6041, 0x6061, 0x6064, 0x606C, 0x6077, 0x60F4, 0x603F, 0x1001})
 
 
 class State(enum.Enum):
@@ -71,6 +74,8 @@ class Cia402StateMachine:
         #: homing: home offset 0x607C (rad, motor): the position where homing leaves the axis
         self.home_offset = 0.0
         self.homing_method = 35
+        #: 0x6060 as last set (0: none yet): interpolated position shares CSP's core mode
+        self.mode_code = 0
         self.setpoint_acknowledged = False
         self._buffered: float | None = None     # profile position: the next set-point
         self._last_target = 0.0                 # profile position: the latest set-point taken
@@ -174,10 +179,19 @@ class Cia402StateMachine:
                     | (0x2000 if self.homing_error else 0))
         if self.state is not State.OPERATION_ENABLED:
             return 0
+        if not self.following_setpoints():
+            return 0               # interpolated position, bit 4 clear: ip mode not active
         bits = 0x1000              # bit 12 in CSP, CSV and CST: the drive follows the target
+        # (in interpolated position: ip mode active)
         if status.following_error_exceeded and mode is Mode.POSITION:
             bits |= 0x2000
         return bits
+
+    def following_setpoints(self) -> bool:
+        """Whether cyclic setpoints are taken: always, but in interpolated position mode
+        only while controlword bit 4 is set (CiA 402 "enable ip mode")."""
+        return (self.mode_code != INTERPOLATED_POSITION
+                or bool(self._last_controlword & ENABLE_IP))
 
     def after_update(self) -> None:
         """Quick stop option 1-4: once stopped, fall to switch on disabled. A drive that
@@ -234,6 +248,8 @@ def live_value(index: int, machine: Cia402StateMachine, status: DriveStatus,
     if index == 0x60F4:
         return int32(status.following_error * counts_per_rad)
     if index == 0x6061:
+        if MODE_CODES.get(machine.mode_code) is status.mode:
+            return machine.mode_code
         return CODE_OF_MODE[status.mode]
     fault = status.fault
     if index == 0x603F:

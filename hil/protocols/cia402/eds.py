@@ -1,0 +1,60 @@
+"""A vendor's EDS or DCF read as a CiA 402 drive's: checked, and what in it hil gives no
+meaning to. No simulated drive here: the bus config parser and ``hil check`` read it (the
+drive's side is :mod:`.personality`)."""
+
+from __future__ import annotations
+
+import configparser
+from pathlib import Path
+
+import canopen
+from canopen.objectdictionary import ODVariable
+
+#: objects read from the drive's state, not stored in its object dictionary
+LIVE_OBJECTS = frozenset({0x6041, 0x6061, 0x6064, 0x606C, 0x6077, 0x60F4, 0x603F, 0x1001})
+#: the objects hil gives a meaning to in any personality (:mod:`.objects`, :mod:`.state`,
+#: the communication objects of :mod:`.node` and :mod:`.drive`); hil's own manufacturer
+#: objects 0x2000 and 0x2010 only in hil's own EDS
+MEANINGFUL = frozenset({
+    0x1000, 0x1001, 0x1003, 0x1008, 0x1009, 0x100A, 0x1016, 0x1017, 0x1018, 0x1200,
+    *range(0x1400, 0x1404), *range(0x1600, 0x1604), *range(0x1800, 0x1804),
+    *range(0x1A00, 0x1A04),
+    0x6007, 0x6040, 0x605A, 0x6060, 0x6065, 0x6066, 0x6071, 0x6072, 0x6076, 0x607A,
+    0x607C, 0x607D, 0x607F, 0x6081, 0x6083, 0x6084, 0x6085, 0x608F, 0x6098, 0x60B1,
+    0x60B2, 0x60C1, 0x60C2, 0x60FF, 0x6502, *LIVE_OBJECTS})
+#: CiA 402 0x1000: device profile number in the low word
+PROFILE_402 = 402
+
+
+def read_dictionary(eds: Path) -> canopen.ObjectDictionary:
+    """The object dictionary of an EDS/DCF, checked to be a CiA 402 drive's: it has a
+    controlword and a statusword, and 0x1000 (where the file gives it) names profile 402;
+    a ValueError that names the file and what is wrong otherwise."""
+    if not eds.is_file():
+        raise ValueError(f"eds: {eds} is not a file (give the drive vendor's EDS or DCF, "
+                         f"relative to the bus config)")
+    try:
+        od = canopen.import_od(str(eds), 1)
+    except (OSError, configparser.Error, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"eds: {eds} is not a readable EDS/DCF ({exc})") from None
+    device_type = file_value(od, 0x1000)
+    missing = [f"0x{i:04X}" for i in (0x6040, 0x6041) if i not in od]
+    if missing or (device_type and device_type & 0xFFFF != PROFILE_402):
+        why = (f"it has no {' or '.join(missing)}" if missing
+               else f"its device type 0x1000 is 0x{device_type:08X}")
+        raise ValueError(f"eds: {eds} is not a CiA 402 drive's EDS ({why})")
+    return od
+
+
+def objects_without_meaning(od: canopen.ObjectDictionary) -> list[tuple[int, str]]:
+    """(index, name) of each object hil stores and reads back but does not act on."""
+    return [(index, od[index].name) for index in sorted(od.indices)
+            if index >= 0x1000 and index not in MEANINGFUL]     # below: data types
+
+
+def file_value(od: canopen.ObjectDictionary, index: int) -> int | None:
+    """What the file says a variable holds: a DCF's ParameterValue, else its DefaultValue."""
+    entry = od.get(index)
+    if not isinstance(entry, ODVariable):
+        return None
+    return entry.value if entry.value is not None else entry.default
