@@ -246,3 +246,17 @@ def test_hil_check_lists_the_objects_a_personality_stores_without_meaning(tmp_pa
     assert "personality yiyou_euservo.eds: Yiyou Technology EuServo" in summary
     assert "0x2001 " in summary                # a manufacturer-specific object of the file
     assert "0x6040 " not in summary            # the controlword has its meaning
+
+
+@pytest.mark.parametrize("given, said", [
+    ("/etc/passwd", "is not a readable EDS/DCF (ValueError)"),
+    ("5", "'eds' is the path of an EDS or DCF file, not 5"),
+    ("missing.eds", "is not a file"),
+])
+def test_an_eds_option_that_names_no_eds_is_refused_without_echoing_the_file(tmp_path, given,
+                                                                              said):
+    config = _config(tmp_path)
+    config.write_text(config.read_text().replace(str(EDS_DIR / VENDORS[1]), given))
+    with pytest.raises(HilError) as refused:
+        load_bus_config(config)
+    assert said in str(refused.value) and "root:" not in str(refused.value)

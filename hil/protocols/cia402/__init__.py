@@ -84,6 +84,8 @@ class Cia402Options(ProtocolOptions):
     @classmethod
     def from_mapping(cls, values: dict) -> Cia402Options:
         eds = values.get("eds")
+        if eds is not None and not isinstance(eds, str):
+            raise ValueError(f"'eds' is the path of an EDS or DCF file, not {eds!r}")
         options = cls(feed_forward=str(values.get("feed_forward", "none")),
                       eds=Path(eds) if eds is not None else None)
         if options.feed_forward not in FEED_FORWARD:

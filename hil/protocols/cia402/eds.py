@@ -36,7 +36,11 @@ def read_dictionary(eds: Path) -> canopen.ObjectDictionary:
     try:
         od = canopen.import_od(str(eds), 1)
     except (OSError, configparser.Error, ValueError, KeyError, TypeError) as exc:
-        raise ValueError(f"eds: {eds} is not a readable EDS/DCF ({exc})") from None
+        # the error's kind and line, never the file's text (it may be any file)
+        line = getattr(exc, "lineno", None)
+        where = f" at line {line}" if line else ""
+        raise ValueError(f"eds: {eds} is not a readable EDS/DCF ({type(exc).__name__}"
+                         f"{where})") from None
     device_type = file_value(od, 0x1000)
     missing = [f"0x{i:04X}" for i in (0x6040, 0x6041) if i not in od]
     if missing or (device_type and device_type & 0xFFFF != PROFILE_402):
