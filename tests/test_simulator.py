@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import signal
 import struct
 import subprocess
@@ -18,6 +19,7 @@ import pytest
 from conftest import ROOT, UR3_VIRTUAL, Bench, free_port
 
 from hil.bus_config import load_bus_config
+from hil.cli import common
 from hil.cli.sim import status_lines
 from hil.drives import Fault
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FaultKind
@@ -112,6 +114,25 @@ def test_hil_sim_process_starts_and_stops_cleanly_on_sigterm(tmp_path):
     assert process.returncode == 0, err
     assert "all drives disabled" in out
     assert "Traceback" not in err
+
+
+def test_a_stop_signal_stops_from_a_thread_of_its_own_not_inside_the_interrupted_wait():
+    """The handler never sets an Event in the main thread, which may hold that Event's lock
+    when the signal lands (a `hil sim` hung so on SIGTERM)."""
+    stopped, threads = threading.Event(), []
+
+    def stop():
+        threads.append(threading.current_thread().name)
+        stopped.set()
+
+    previous = common.on_stop_signals(stop)
+    try:
+        os.kill(os.getpid(), signal.SIGTERM)
+        assert stopped.wait(5)          # the main thread waits on the Event stop() sets
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    assert threads == ["stop-signal"]
 
 
 def test_hil_sim_reports_a_bad_config_without_traceback(tmp_path):

@@ -6,7 +6,9 @@ import argparse
 import math
 import os
 import shutil
+import signal
 import sys
+import threading
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -301,3 +303,16 @@ def display_available() -> bool:
     has_display = sys.platform == "darwin" or bool(os.environ.get("DISPLAY")
                                                    or os.environ.get("WAYLAND_DISPLAY"))
     return has_display and shutil.which("rerun") is not None
+
+
+def on_stop_signals(stop) -> dict:
+    """Make SIGINT and SIGTERM call ``stop()``; the handlers they had (to restore).
+
+    ``stop`` runs in a thread of its own: a handler runs in the main thread between two
+    bytecodes, possibly while that thread holds the lock of the very Event ``stop`` sets
+    (Event.wait re-acquires it on each wake-up), and the set would then wait for it forever
+    (`hil sim` hung on a SIGTERM in a CI run of 2026-11-27)."""
+    def handler(signum, frame) -> None:
+        threading.Thread(target=stop, name="stop-signal", daemon=True).start()
+    return {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+

@@ -87,8 +87,7 @@ def run(args: argparse.Namespace) -> int:
             bus.shutdown()
         close_all()
         raise
-    previous = {s: signal.signal(s, lambda *_: node.stop()) for s in (signal.SIGINT,
-                                                                      signal.SIGTERM)}
+    previous = common.on_stop_signals(node.stop)
     mode = "fake hardware" if args.fake else f"{len(config.drives)} drive(s)"
     print(f"hil control: {config.robot.name}, {mode}, {config.cycle_hz:g} Hz, "
           f"{args.timing}; goals on "

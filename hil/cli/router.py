@@ -8,6 +8,7 @@ import threading
 
 import zenoh
 
+from hil.cli import common
 from hil.errors import HilError
 from hil.messaging.ros.router import DEFAULT_LISTEN, open_router
 
@@ -27,8 +28,7 @@ def run(args: argparse.Namespace) -> int:
                               hint="is a router (rmw_zenohd, zenohd, hil router) already "
                                    "running there? choose another with --listen") from None
     stop = threading.Event()
-    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT,
-                                                                     signal.SIGTERM)}
+    previous = common.on_stop_signals(stop.set)
     print(f"hil router: Zenoh router {router.zid()} listening on {', '.join(listen)} "
           "(rmw_zenohd's settings); Ctrl-C stops it", flush=True)
     try:

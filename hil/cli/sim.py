@@ -76,11 +76,11 @@ def run(args: argparse.Namespace) -> int:
     token = session(zenoh).liveliness().declare_token(f"hil/{config.robot.name}/sim")
     stop = threading.Event()
 
-    def on_signal(signum, frame):
+    def on_signal():
         stop.set()
         simulator.stop()
 
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = common.on_stop_signals(on_signal)
     clock = SimClockPublisher(session(zenoh), config.robot.name)
     scene = (ScenePublisher(session(zenoh), config.robot.name)
              if config.scene or config.floating_base else None)

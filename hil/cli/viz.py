@@ -105,8 +105,7 @@ def run(args: argparse.Namespace) -> int:
         monitor = None if args.no_can else _monitor(configs, recorders, zenoh, args)
         node = VizNode(recorders, session(zenoh), monitor, roll,
                        status_period=args.status_period)
-        previous = {s: signal.signal(s, lambda *_: node.stop())
-                    for s in (signal.SIGINT, signal.SIGTERM)}
+        previous = common.on_stop_signals(node.stop)
         print(f"hil viz: {', '.join(c.robot.name for c in configs)}; {sinks.described}"
               + (f"; CAN log {args.can_log}" if args.can_log else ""), flush=True)
         buses = []

@@ -141,8 +141,7 @@ def run(args: argparse.Namespace) -> int:
               for path, config in zip(paths, configs)]
     viz = make_children(args, robots, faults, logs, can_log)
     supervised = Run([], stop)
-    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT,
-                                                                      signal.SIGTERM)}
+    previous = common.on_stop_signals(stop.set)
     for robot in robots:
         print(f"hil up: {robot.name} from {robot.config_path}; Zenoh {meeting_endpoint()}; {timing}; "
               f"process logs in {logs}/", flush=True)
