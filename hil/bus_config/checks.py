@@ -20,6 +20,8 @@ def check_system(reader: Reader, config: SystemConfig, transmissions, top: LineM
         seen: dict[tuple[str, int], DriveConfig] = {}     # node ids are per protocol
         for drive in bus.drives:
             key = (drive.protocol, drive.node_id)
+            if drive.node_id == protocol(drive.protocol).unconfigured_node_id:
+                continue            # several may wait for a master to assign theirs (LSS)
             if key in seen:
                 reader.fail(f"bus '{bus.name}': node id {drive.node_id} is used by "
                             f"{seen[key].label} (line {seen[key].line}) and "

@@ -151,6 +151,9 @@ def _read_drive(reader: Reader, raw, bus: str, robot: RobotDescription,
     if spec is None:
         return None
     options = _read_options(reader, merged, what, spec)
+    problem = spec.drive_problem(node_id, options)
+    if problem:
+        reader.fail(f"{what}: {problem}", merged.key_lines.get("node_id", merged.line))
     found = _find_actuator(reader, merged, what, robot, transmissions)
     if found is None:
         return None
@@ -270,7 +273,7 @@ def _read_protocol(reader: Reader, drive: LineMapping, what: str, name: str, nod
                     hint=f"use one of: {', '.join(protocol_names())}")
         return None
     spec = protocol(name)
-    if node_id not in spec.node_ids:
+    if node_id not in spec.node_ids and node_id != spec.unconfigured_node_id:
         ids = spec.node_ids
         reader.fail(f"{what}: node id {node_id} is outside {ids.start}..{ids.stop - 1}",
                     drive.key_lines.get("node_id", drive.line),

@@ -102,6 +102,9 @@ class Protocol(ABC):
     uses_sync: ClassVar[bool] = False
     #: the node ids the protocol can address
     node_ids: ClassVar[range] = range(1, 128)
+    #: a node id with which a drive boots without one, for a master to assign it (CiA 305
+    #: LSS: 255); None where the protocol has none
+    unconfigured_node_id: ClassVar[int | None] = None
     #: whether its drives fault on a following error (MIT and ODrive firmware do not)
     has_following_error: ClassVar[bool] = True
     #: whether its master can send a torque feed-forward with each setpoint (its axis'
@@ -152,6 +155,12 @@ class Protocol(ABC):
         """Whether :meth:`frame_source` of ``can_id`` depends on the frame's bytes (else the
         id and the remote flag tell it, and a reader may keep the answer)."""
         return True
+
+    @classmethod
+    def drive_problem(cls, node_id: int, options=None) -> str | None:
+        """What a drive's node id and options miss together (None: nothing), for the bus
+        config's reader to report."""
+        return None
 
     @classmethod
     def shared_ids(cls, options=None) -> set[int]:

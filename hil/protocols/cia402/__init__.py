@@ -14,6 +14,9 @@ from pathlib import Path
 from hil.protocols.base import FrameSource, Protocol, ProtocolOptions, Sender, SettingField
 
 SYNC_ID = 0x080          # CiA 301's SYNC COB-ID
+#: CiA 305 LSS: the master's requests, the slaves' answers, the node id of a drive that
+#: boots without one
+LSS_REQUEST_ID, LSS_ANSWER_ID, UNCONFIGURED = 0x7E5, 0x7E4, 255
 NMT_ID = 0x000
 TIME_ID = 0x100
 #: CiA 301's predefined connection set: function code (the id's top 4 bits) -> the sender and
@@ -56,8 +59,10 @@ class Cia402Options(ProtocolOptions):
 
     feed_forward: str = "none"
     eds: Path | None = None
+    #: 0x1018:04, the identity an LSS master tells drives apart by (None: the EDS's)
+    serial_number: int | None = None
 
-    KEYS = ("feed_forward", "eds")
+    KEYS = ("feed_forward", "eds", "serial_number")
     PATH_KEYS = ("eds",)
 
     @property
@@ -86,8 +91,12 @@ class Cia402Options(ProtocolOptions):
         eds = values.get("eds")
         if eds is not None and not isinstance(eds, str):
             raise ValueError(f"'eds' is the path of an EDS or DCF file, not {eds!r}")
+        serial = values.get("serial_number")
+        if serial is not None and (not isinstance(serial, int) or isinstance(serial, bool)
+                                   or not 0 <= serial <= 0xFFFFFFFF):
+            raise ValueError(f"'serial_number' is an UNSIGNED32 (0..4294967295), not {serial!r}")
         options = cls(feed_forward=str(values.get("feed_forward", "none")),
-                      eds=Path(eds) if eds is not None else None)
+                      eds=Path(eds) if eds is not None else None, serial_number=serial)
         if options.feed_forward not in FEED_FORWARD:
             raise ValueError(f"'feed_forward' is one of {', '.join(FEED_FORWARD)}, not "
                              f"'{options.feed_forward}'")
@@ -103,6 +112,7 @@ class Cia402(Protocol):
     name = "cia402"
     uses_sync = True
     carries_torque_feed_forward = True
+    unconfigured_node_id = UNCONFIGURED
     Options = Cia402Options
     # the objects the drive keeps them in, with the types of hil's EDS (CiA 301 for 0x1017,
     # CiA 402 for 0x6066, 0x6076 and 0x608F; 0x2010 is hil's own)
@@ -130,11 +140,29 @@ class Cia402(Protocol):
         RPDO1 (controlword, target), TPDO1, TPDO2 per SYNC, and RPDO4 (velocity and torque
         offsets) with velocity feed-forward; heartbeat; EMCY and SDO only on events (their
         ids are reserved)."""
+        if node_id == UNCONFIGURED:
+            # counted at the LSS answer's id until a master assigns the node id (which
+            # frames it will use is the master's to say)
+            return [(LSS_ANSWER_ID, size, rate) for _, size, rate in
+                    cls.bus_frames(1, cycle_hz, heartbeat_period, options)]
         feed_forward = options is not None and options.sends_velocity
         return [(0x200 + node_id, 6, cycle_hz), (0x180 + node_id, 6, cycle_hz),
                 (0x280 + node_id, 6, cycle_hz), (0x700 + node_id, 1, 1.0 / heartbeat_period),
                 *([(0x500 + node_id, 6, cycle_hz)] if feed_forward else []),
                 (0x080 + node_id, 8, 0.0), (0x580 + node_id, 8, 0.0), (0x600 + node_id, 8, 0.0)]
+
+    @classmethod
+    def drive_problem(cls, node_id: int, options=None) -> str | None:
+        if node_id == UNCONFIGURED and (options is None or options.serial_number is None):
+            return ("a drive that boots without a node id (255, for an LSS master to assign) "
+                    "needs options: {serial_number: N}, distinct on its bus: the identity "
+                    "the master tells it by")
+        return None
+
+    @classmethod
+    def shared_ids(cls, options=None) -> set[int]:
+        """The LSS answer's id: every unconfigured drive's until it has a node id."""
+        return {LSS_ANSWER_ID}
 
     @classmethod
     def frame_source(cls, can_id: int, data: bytes, remote: bool,

@@ -18,7 +18,7 @@ from canopen.profiles.p402 import State402
 from hil.bus_config.types import DriveConfig
 from hil.errors import HilError
 from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind, Frame
-from hil.protocols.cia402 import FRAME_ERRORS, Cia402, Cia402Options, emcy_words
+from hil.protocols.cia402 import FRAME_ERRORS, UNCONFIGURED, Cia402, Cia402Options, emcy_words
 from hil.resources import eds_path
 
 #: NMT states in a heartbeat (CiA 301)
@@ -129,6 +129,11 @@ class Cia402Axis(Axis):
 
     def configure(self) -> None:
         """After boot: check the device, read its units and PDO maps, select CSP (SDO)."""
+        if self.node_id == UNCONFIGURED:
+            raise HilError.single(f"{self.label} boots without a node id (255): hil's own "
+                                  "master assigns none (LSS, CiA 305)",
+                                  hint="give it a node id in the bus config, or bring it up "
+                                       "with your LSS master")
         try:
             device_type = self.node.sdo[0x1000].raw
             if device_type & 0xFFFF != 402:

@@ -20,13 +20,12 @@ network leaving OPERATIONAL) gets the reaction 0x6007 selects (0 none, 1 fault, 
 voltage, 3 quick stop).
 
 Threading: canopen calls back from python-can's Notifier thread (or the bus' own
-delivering thread). Every callback takes the ``lock`` the owner passes in, the same lock
-the owner holds while stepping the physics, so a drive never sees a half-done step.
-At every SYNC the drive takes its latched setpoints, samples the state its
-TPDOs will carry and reports the cycle's command (:class:`DriveProfile`'s
-contract); the owner sends the TPDOs at once, or in lock-step after the
-step, so the reply carries the state at SYNC and arrives only once the step
-is done.
+delivering thread); every callback takes the ``lock`` the owner holds while stepping the
+physics. At every SYNC the drive takes its latched setpoints, samples the state its TPDOs
+will carry and reports the cycle's command (:class:`DriveProfile`'s contract); the owner
+sends the TPDOs at once, or in lock-step after the step.
+
+LSS (:mod:`.lss`): a drive of node id 255 listens for LSS only until a master assigns one.
 """
 
 from __future__ import annotations
@@ -38,13 +37,17 @@ import struct
 import time
 from collections.abc import Callable
 from contextlib import AbstractContextManager
+
 import canopen
 
 from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Power
 from hil.drives.profile import DriveProfile
-from hil.protocols.cia402 import NMT_ID, SYNC_ID, Cia402
-from hil.protocols.cia402.errors import ErrorRecord
+from hil.protocols.cia402 import (LSS_ANSWER_ID, LSS_REQUEST_ID, NMT_ID, SYNC_ID, UNCONFIGURED,
+                                  Cia402)
+from hil.protocols.cia402.errors import (COMMUNICATION_ERROR, EMCY_NO_ERROR, EMCY_PDO_LENGTH,
+                                         EMCY_PDO_LENGTH_EXCEEDED, EMCY_SYNC_LENGTH, ErrorRecord)
+from hil.protocols.cia402.lss import Identity, LssSlave
 from hil.protocols.cia402.node import DriveNode
 from hil.protocols.cia402.objects import PROFILE_PARAMETERS, DriveObjects
 from hil.protocols.cia402.pdo import PdoLayout, TpdoSchedule
@@ -58,13 +61,6 @@ log = logging.getLogger(__name__)
 
 OPERATIONAL = "OPERATIONAL"
 
-#: EMCY codes that are not drive faults (CiA 301).
-EMCY_PDO_LENGTH = 0x8210            # PDO not processed: shorter than its mapping
-EMCY_PDO_LENGTH_EXCEEDED = 0x8220   # PDO longer than its mapping (processed)
-EMCY_SYNC_LENGTH = 0x8240
-EMCY_NO_ERROR = 0x0000
-#: error register of the communication EMCYs: generic + communication
-COMMUNICATION_ERROR = 0x11
 #: a refused frame is logged the first time, then every this many
 LOG_REFUSED_EVERY = 1000
 
@@ -81,7 +77,8 @@ class Cia402Drive(ReplayView, DriveProfile):
         heartbeat_ms = round(heartbeat_period * 1000)
         self.machine = Cia402StateMachine(core)
         self.personality = Personality.of(options.eds if options is not None else None)
-        self.node = DriveNode(node_id, self.personality.eds, self._refused)
+        self._serial = options.serial_number if options is not None else None
+        self._heartbeat_ms = heartbeat_ms
         self._latched: dict[int, bytes] = {}
         self.errors = ErrorRecord()
         self._pending: list[tuple[int, bytes]] = []
@@ -90,25 +87,58 @@ class Cia402Drive(ReplayView, DriveProfile):
         self._rpdo_layouts: dict[int, PdoLayout | None] = {}
         self._rpdo_handlers: list[tuple[int, Callable]] = []     # (COB-ID, subscribed)
         self._tpdos: list[TpdoSchedule] = []
-        self.objects = DriveObjects(self.node, self.machine, core, lock, rated_torque,
-                                    heartbeat_ms, self._configure_pdos, self.errors,
-                                    self.personality)
-        self._counts_per_rad = self.objects.counts_per_rad
         #: the bus config's parameters: the application area's values after a reset node
         self._configured = (core.parameters, core.silence_reaction)
+        self._make_node(node_id)
+        self._counts_per_rad = self.objects.counts_per_rad
+        self.lss = LssSlave(Identity(*(self.node.value(0x1018, sub) for sub in range(1, 5))),
+                            node_id, lambda data: self.send(LSS_ANSWER_ID, data),
+                            self._take_node_id)
+
+    def _make_node(self, node_id: int) -> None:
+        """The CANopen node of ``node_id`` (UNCONFIGURED: one that waits for LSS)."""
+        self.node_id = node_id
+        self.node = DriveNode(node_id, self.personality.eds, self._refused)
+        self.objects = DriveObjects(self.node, self.machine, self.core, self.lock,
+                                    self.rated_torque, self._heartbeat_ms, self._configure_pdos,
+                                    self.errors, self.personality, self._serial)
         self.objects.store_configuration()
+
+    def _take_node_id(self, node_id: int) -> None:
+        """LSS gave the drive a node id: it leaves the network under the old one (if any)
+        and boots with the new one (CiA 305; caller holds the lock)."""
+        network = self.network
+        if self.node.has_network():
+            self.node.nmt.stop_heartbeat()
+            self._unsubscribe_rpdos(network)
+            self.node.remove_network()
+            del network[self.node.id]
+        self._make_node(node_id)
+        if node_id != UNCONFIGURED:
+            network.add_node(self.node)
+            network.unsubscribe(NMT_ID, self._after_nmt)     # again after the node's NMT
+            network.subscribe(NMT_ID, self._after_nmt)
+            self._configure_pdos()
+            self._boot()
 
     # --- network life cycle ---------------------------------------------------
 
     def subscriptions(self):
-        return {NMT_ID: self._after_nmt, SYNC_ID: self._on_sync}
+        return {NMT_ID: self._after_nmt, SYNC_ID: self._on_sync, LSS_REQUEST_ID: self._on_lss}
 
     def attach(self, network: canopen.Network) -> None:
-        """Join the network: PDO maps from the object dictionary, boot-up, heartbeat."""
-        network.add_node(self.node)
+        """Join the network: PDO maps from the object dictionary, boot-up, heartbeat (a
+        drive without a node id only listens for LSS)."""
+        if self.node_id != UNCONFIGURED:
+            network.add_node(self.node)      # its NMT slave before this drive's _after_nmt
         super().attach(network)
-        self._configure_pdos()
-        self._boot()
+        if self.node_id != UNCONFIGURED:
+            self._configure_pdos()
+            self._boot()
+
+    def _on_lss(self, can_id: int, data: bytes, timestamp: float) -> None:
+        with self.lock:
+            self.lss.on_request(can_id, data, timestamp)
 
     def detach(self) -> None:
         if not self.attached:
@@ -126,8 +156,8 @@ class Cia402Drive(ReplayView, DriveProfile):
     def _refused(self, can_id: int, why: str) -> None:
         self.malformed += 1
         if self.malformed % LOG_REFUSED_EVERY == 1:
-            log.warning("node %d refused frame 0x%03X: %s (%d refused so far)", self.node_id,
-                        can_id, why, self.malformed)
+            log.warning("node %d refused frame 0x%03X: %s (%d so far)", self.node_id, can_id,
+                        why, self.malformed)
 
     def _boot(self) -> None:
         """Boot-up message, pre-operational, heartbeat (CiA 301 initialisation)."""
@@ -137,11 +167,14 @@ class Cia402Drive(ReplayView, DriveProfile):
 
     def _after_nmt(self, can_id: int, data: bytes, timestamp: float) -> None:
         """Runs after canopen's NMT slave has applied a command."""
-        if len(data) != 2 or data[1] not in (0, self.node_id):
+        if len(data) != 2 or data[1] not in (0, self.node_id) or not self.node.has_network():
             return
         with self.lock:
             state = self.node.nmt.state
-            if state == "INITIALISING":
+            if state == "INITIALISING" and self.lss.pending_node_id not in (self.node_id,
+                                                                            UNCONFIGURED):
+                self._take_node_id(self.lss.pending_node_id)   # CiA 305: at a reset
+            elif state == "INITIALISING":
                 self._reset(communication_only=data[0] == 0x82)
             elif state == OPERATIONAL and data[0] == 0x01:
                 self._configure_pdos()     # mappings written by SDO take effect on start
@@ -152,7 +185,10 @@ class Cia402Drive(ReplayView, DriveProfile):
 
     def restart(self) -> None:
         """A power cycle: the application reset (CiA 301 0x81), stored configuration and all,
-        then boot-up in PRE-OPERATIONAL."""
+        then boot-up in PRE-OPERATIONAL, with the node id LSS stored (CiA 305)."""
+        stored = self.lss.power_on()
+        if stored != self.node_id:
+            self._take_node_id(stored)
         self._reset(communication_only=False)
 
     def _reset(self, communication_only: bool) -> None:
@@ -172,10 +208,11 @@ class Cia402Drive(ReplayView, DriveProfile):
             for index in [i for i in self.node.data_store if 0x1000 <= i < 0x2000]:
                 del self.node.data_store[index]
             self.objects.store_communication()
-        self.node.configure_heartbeat_consumers()
-        self._configure_pdos()
         self._latched.clear()
-        self._boot()
+        if self.node.has_network():
+            self.node.configure_heartbeat_consumers()
+            self._configure_pdos()
+            self._boot()
 
     def _configure_pdos(self) -> None:
         network = self.node.network

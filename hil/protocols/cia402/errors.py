@@ -16,6 +16,13 @@ from dataclasses import dataclass, field
 
 from hil.drives.definitions import Fault
 
+#: EMCY codes that are not drive faults (CiA 301)
+EMCY_PDO_LENGTH = 0x8210            # PDO not processed: shorter than its mapping
+EMCY_PDO_LENGTH_EXCEEDED = 0x8220   # PDO longer than its mapping (processed)
+EMCY_SYNC_LENGTH = 0x8240
+EMCY_NO_ERROR = 0x0000
+#: error register of the communication EMCYs: generic + communication
+COMMUNICATION_ERROR = 0x11
 #: 0x1003's standard error fields in hil's EDS
 HISTORY = 8
 GENERIC = 0x01

@@ -31,10 +31,12 @@ class DriveObjects:
     def __init__(self, node: DriveNode, machine: Cia402StateMachine, core: DriveCore,
                  lock: AbstractContextManager, rated_torque: float, heartbeat_ms: int,
                  on_pdo_parameters: Callable[[], None], errors: ErrorRecord,
-                 personality: Personality):
+                 personality: Personality, serial_number: int | None = None):
         self.node, self.machine, self.core, self.lock = node, machine, core, lock
         self.errors = errors
         self.personality = personality
+        #: 0x1018:04 where the bus config gives one (else the EDS's)
+        self.serial_number = serial_number
         self.rated_torque = rated_torque
         self.heartbeat_ms = heartbeat_ms
         #: called (under ``lock``) when a PDO's stored communication parameters change
@@ -183,6 +185,8 @@ class DriveObjects:
 
     def store_communication(self) -> None:
         self._put(0x1017, None, self.heartbeat_ms)
+        if self.serial_number is not None:
+            self._put(0x1018, 4, self.serial_number)
         self.store_errors()
 
     def store_errors(self) -> None:

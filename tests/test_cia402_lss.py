@@ -1,0 +1,124 @@
+"""LSS (CiA 305): a master finds drives that boot without a node id and assigns them one.
+
+The master is python canopen's LssMaster (fastscan, configure node id, store, switch
+state global; switch state selective and the inquire services), over python-can's
+in-process bus; the drives are hil's, two of them at node id 255 (unconfigured) with
+distinct serial numbers (0x1018:04). Each case cites CiA 305 as CANopenNode's
+CO_LSSslave.c implements it.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import canopen
+import pytest
+
+from conftest import UR3_VIRTUAL, Bench
+from test_cia402_conformance import FrameTap
+from test_cia402_drive import enable_csp
+
+from hil.bus_config import load_bus_config
+from hil.errors import HilError
+from hil.realtime import REAL_TIME
+
+SERIALS = {"joint1": 1, "joint2": 2}
+
+
+def _config(tmp_path: Path, first: str = "{node_id: 255, joint: joint1, "
+                                        "options: {serial_number: 1}}") -> Path:
+    text = UR3_VIRTUAL.read_text().replace("../../robots", str(UR3_VIRTUAL.parents[2] / "robots"))
+    text = text.replace("{node_id: 1, joint: joint1}", first)
+    text = text.replace("{node_id: 2, joint: joint2}",
+                        "{node_id: 255, joint: joint2, options: {serial_number: 2}}")
+    path = tmp_path / "lss.yaml"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture
+def unconfigured(tmp_path):
+    bench = Bench("virtual", f"lss-{time.monotonic_ns()}", REAL_TIME, _config(tmp_path))
+    yield bench
+    bench.close()
+
+
+def _assign(network: canopen.Network, node_id: int) -> list[int]:
+    """Fastscan one unconfigured drive, give it ``node_id``, store it, let it boot."""
+    found, identity = network.lss.fast_scan()
+    assert found, "no unconfigured drive answered the fastscan"
+    network.lss.configure_node_id(node_id)
+    network.lss.store_configuration()
+    network.lss.send_switch_state_global(network.lss.WAITING_STATE)
+    return identity
+
+
+def test_drives_without_a_node_id_send_nothing_until_assigned(unconfigured):
+    with FrameTap(unconfigured) as tap:
+        time.sleep(0.5)
+    own = {0x700 + n for n in range(3, 7)}
+    assert {msg.arbitration_id for _, msg in tap.frames if msg.arbitration_id >= 0x700} == own
+
+
+def test_an_lss_master_assigns_node_ids_by_fastscan_and_brings_the_drives_up(unconfigured):
+    network = unconfigured.network
+    with FrameTap(unconfigured) as tap:
+        first = _assign(network, 1)
+        second = _assign(network, 2)
+        time.sleep(0.3)
+    # the lowest identity first (CiA 305 fastscan): serial 1, then 2; vendor, product,
+    # revision as hil's EDS gives them
+    assert first == [0, 402, 2, 1] and second == [0, 402, 2, 2]
+    assert [m.data[0] for m in tap.of(0x701)][:1] == [0x00]       # boot-up with its new id
+    assert [m.data[0] for m in tap.of(0x702)][:1] == [0x00]
+    assert network.lss.fast_scan() == (False, None)                # none left unconfigured
+    for node_id in (1, 2):
+        node = enable_csp(unconfigured, node_id)
+        assert node.state == "OPERATION ENABLED"
+        assert node.sdo[0x1018][4].raw == node_id                  # its serial number
+
+
+def test_switch_state_selective_and_inquire_services(unconfigured):
+    lss = unconfigured.network.lss
+    _assign(unconfigured.network, 1)
+    lss.send_switch_state_selective(0, 402, 2, 2)                  # the other drive (0x44)
+    assert lss.inquire_node_id() == 255
+    assert lss.inquire_lss_address(canopen.lss.CS_INQUIRE_SERIAL_NUMBER) == 2
+    assert lss.inquire_lss_address(canopen.lss.CS_INQUIRE_PRODUCT_CODE) == 402
+    lss.configure_node_id(7)
+    with pytest.raises(canopen.lss.LssError):                      # 128: out of range
+        lss.configure_node_id(128)
+    lss.send_switch_state_global(lss.WAITING_STATE)
+    node = enable_csp(unconfigured, 7)
+    assert node.state == "OPERATION ENABLED"
+
+
+def _answers(bench, ask) -> list[int]:
+    """The command specifiers of the LSS answers (0x7E4) to what ``ask`` sends
+    (canopen's identify services do not wait for answers)."""
+    with FrameTap(bench) as tap:
+        ask()
+        time.sleep(0.3)
+    return [msg.data[0] for msg in tap.of(0x7E4)]
+
+
+def test_identify_services_are_answered_by_the_drives_they_describe(unconfigured):
+    lss = unconfigured.network.lss
+    # identify non-configured remote slave: 0x50 from each drive without a node id
+    assert _answers(unconfigured, lss.send_identify_non_configured_remote_slave) == [0x50] * 2
+    # identify remote slave: vendor, product, revision range, serial range: 0x4F from each
+    # drive within them (the configured ones have the EDS's serial 0, outside 2..2)
+    within = _answers(unconfigured, lambda: lss.send_identify_remote_slave(0, 402, 0, 9, 2, 2))
+    assert within == [0x4F]
+    assert _answers(unconfigured, lambda: lss.send_identify_remote_slave(0, 401, 0, 9, 0, 9)) == []
+    _assign(unconfigured.network, 1)
+    _assign(unconfigured.network, 2)
+    assert _answers(unconfigured, lss.send_identify_non_configured_remote_slave) == []
+
+
+def test_an_unconfigured_drive_without_a_serial_number_is_refused(tmp_path):
+    config = _config(tmp_path, first="{node_id: 255, joint: joint1}")
+    with pytest.raises(HilError) as refused:
+        load_bus_config(config)
+    assert "serial_number" in str(refused.value)
