@@ -38,8 +38,10 @@ HEADER = """\
 ;   TPDO2 0x280+id: velocity actual 0x606C + torque actual 0x6077
 ;   TPDO3 0x380+id, TPDO4 0x480+id: not valid, nothing mapped
 ; Each PDO maps up to 8 objects. TPDO transmission types: 0 (acyclic synchronous: on the
-; SYNC after a mapped value changed), 1-240 (every n-th SYNC), 254/255 (event-driven: on a
-; change, no sooner than the inhibit time, and at least every event timer period).
+; SYNC after a mapped value changed), 1-240 (every n-th SYNC), 252/253 (on an RTR only:
+; sampled at SYNC / at the request), 254/255 (event-driven: on a change, no sooner than
+; the inhibit time, and at least every event timer period). A TPDO whose COB-ID has bit 30
+; clear answers an RTR. SYNC counter: 0x1019.
 """
 
 
@@ -111,6 +113,7 @@ OBJECTS = {
                      {k: var(f"Consumer heartbeat time {k}", UINT32, "rw", 0)
                       for k in range(1, 5)}),
     0x1017: var("Producer heartbeat time", UINT16, "rw", 100),
+    0x1019: var("Synchronous counter overflow value", UINT8, "rw", 0),
     0x1018: compound("Identity object", RECORD, {
         1: var("Vendor-ID", UINT32, "ro", 0), 2: var("Product code", UINT32, "ro", 402),
         3: var("Revision number", UINT32, "ro", 2), 4: var("Serial number", UINT32, "ro", 0)}),

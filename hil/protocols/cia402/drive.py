@@ -53,19 +53,21 @@ from hil.protocols.cia402.objects import PROFILE_PARAMETERS, DriveObjects
 from hil.protocols.cia402.pdo import PdoLayout, TpdoSchedule
 from hil.protocols.cia402.personality import Personality
 from hil.protocols.cia402.replay_view import ReplayView
+from hil.protocols.cia402.tpdo import TpdoProducer
 from hil.protocols.cia402.eds import LIVE_OBJECTS
 from hil.protocols.cia402.state import (ERROR_REGISTER, INTERPOLATED_POSITION,
-                                        Cia402StateMachine, live_values)
+                                        Cia402StateMachine)
 
 log = logging.getLogger(__name__)
 
 OPERATIONAL = "OPERATIONAL"
+SYNC_COUNTER_OVERFLOW = 0x1019
 
 #: a refused frame is logged the first time, then every this many
 LOG_REFUSED_EVERY = 1000
 
 
-class Cia402Drive(ReplayView, DriveProfile):
+class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
     """A CiA 402 servo drive on a CANopen network, around a :class:`DriveCore`."""
 
     protocol = Cia402
@@ -87,6 +89,7 @@ class Cia402Drive(ReplayView, DriveProfile):
         self._rpdo_layouts: dict[int, PdoLayout | None] = {}
         self._rpdo_handlers: list[tuple[int, Callable]] = []     # (COB-ID, subscribed)
         self._tpdos: list[TpdoSchedule] = []
+        self._remote_ids: list[int] = []        # TPDO COB-IDs that answer an RTR
         #: the bus config's parameters: the application area's values after a reset node
         self._configured = (core.parameters, core.silence_reaction)
         self._make_node(node_id)
@@ -239,7 +242,9 @@ class Cia402Drive(ReplayView, DriveProfile):
             self._tpdos.append(TpdoSchedule(
                 pdo, layout.codec if live else None, layout.indices if live else (),
                 pdo.trans_type, self.node.value(communication, 5) / 1000.0,
-                self.node.value(communication, 3) / 10000.0))
+                self.node.value(communication, 3) / 10000.0, rtr_allowed=pdo.rtr_allowed,
+                start=self.node.value(communication, 6)))
+        self.serve_remote_requests(network)
 
     # --- cyclic exchange --------------------------------------------------------
 
@@ -271,13 +276,14 @@ class Cia402Drive(ReplayView, DriveProfile):
     def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:
         with self.lock:
             self.sync_receive(data)
-            self.prepare_tpdos()
+            self.prepare_tpdos(data[0] if len(data) == 1 else None)
             self.on_command(self)
 
     def sync_receive(self, data: bytes) -> None:
-        """SYNC: take the latched setpoints (caller holds the lock)."""
+        """SYNC: take the latched setpoints (caller holds the lock). A SYNC carries a
+        counter where 0x1019 (its overflow value) is over 0, none otherwise (CiA 301)."""
         state = self.node.nmt.state
-        if len(data) > 1:
+        if len(data) != (1 if self.node.value(SYNC_COUNTER_OVERFLOW) else 0):
             self.node.emcy.send(EMCY_SYNC_LENGTH, COMMUNICATION_ERROR)    # not in STOPPED
             return
         if state != OPERATIONAL:
@@ -286,66 +292,18 @@ class Cia402Drive(ReplayView, DriveProfile):
             self._apply(number)
         self._latched.clear()
 
-    def prepare_tpdos(self) -> None:
-        """SYNC: pack the synchronous TPDOs due at this SYNC with the current state (caller
-        holds the lock): every n-th SYNC for types 1-240, on a change for type 0."""
-        self._pending = []
-        if self.node.nmt.state != OPERATIONAL:
-            return
-        status = self.core.status()
-        for schedule in self._tpdos:
-            kind = schedule.transmission_type
-            if kind > 240:
-                continue
-            if kind > 0:
-                schedule.syncs += 1
-                if schedule.syncs < kind:
-                    continue
-                schedule.syncs = 0
-            data = self._pack(schedule, status)
-            if kind == 0:
-                if data == schedule.last_data:
-                    continue
-                schedule.last_data = data
-            self._pending.append((schedule.pdo.cob_id, data))
-
-    def _pack(self, schedule: TpdoSchedule, status) -> bytes:
-        if schedule.codec is not None:
-            return schedule.codec.pack(*live_values(
-                schedule.indices, self.machine, status, self._counts_per_rad,
-                self.rated_torque))
-        pdo = schedule.pdo
-        for variable in pdo.map:     # through the object dictionary, live or stored
-            variable.set_data(self.node.get_data(variable.index, variable.subindex))
-        return bytes(pdo.data)
-
-    def send_replies(self) -> None:
-        """Send the TPDOs :meth:`prepare_tpdos` packed."""
-        pending, self._pending = self._pending, []
-        for cob_id, data in pending:
-            self.send(cob_id, data)
-
     def tick(self, now: float) -> None:
         """The heartbeat, event-driven TPDOs (254, 255) and the heartbeat consumer (caller
         holds the lock)."""
+        self.node.sdo.expire(now)
         beat = self.node.nmt.heartbeat_due(now)
         if beat is not None:
             self.send(0x700 + self.node_id, beat)
         for producer in self.node.lost_heartbeats(now):
             log.warning("node %d: the heartbeat of node %d stopped", self.node_id, producer)
             self.core.lose_connection(Fault.HEARTBEAT_LOST)
-        if self.node.nmt.state != OPERATIONAL:
-            return
-        status = None
-        for schedule in self._tpdos:
-            if not schedule.event_driven or now - schedule.last_sent < schedule.inhibit:
-                continue
-            status = status or self.core.status()
-            data = self._pack(schedule, status)
-            timer = schedule.event_timer
-            if data != schedule.last_data or (timer > 0 and now - schedule.last_sent >= timer):
-                schedule.last_data, schedule.last_sent = data, now
-                self.send(schedule.pdo.cob_id, data)
+        if self.node.nmt.state == OPERATIONAL:
+            self.send_event_tpdos(now)
 
     def _apply(self, number: int) -> None:
         pdo = self.node.rpdo.map[number]

@@ -52,8 +52,9 @@ STOPPED = "STOPPED"
 #: COB-ID bits (CiA 301): 31 PDO not valid, 29 29-bit frame
 NOT_VALID, EXTENDED_FRAME = 0x80000000, 0x20000000
 #: transmission types a PDO of this drive may have: synchronous (acyclic 0, every n-th SYNC
-#: 1-240) and event-driven (254, 255); 241-251 are reserved, 252-253 (RTR only) unsupported
-TRANSMISSION_TYPES = frozenset(range(241)) | {254, 255}
+#: 1-240), RTR only (252 synchronous, 253 asynchronous; TPDOs only) and event-driven (254,
+#: 255); 241-251 are reserved
+TRANSMISSION_TYPES = frozenset(range(241)) | {252, 253, 254, 255}
 #: NMT commands that reset a node (application, communication)
 RESETS = (0x81, 0x82)
 #: bits of the dummy entries (data types 0x0002-0x0007) an RPDO may map
@@ -263,6 +264,8 @@ class DriveNode(canopen.LocalNode):
                 self._check_communication(parameter, subindex, value)
         elif index == CONSUMER_HEARTBEAT and subindex > 0:
             self._check_consumer(subindex, od.decode_raw(data))
+        elif index == 0x1019 and od.decode_raw(data) in (1, *range(241, 256)):
+            raise SdoAbortedError(ABORT_INVALID_VALUE)     # 0 or 2-240 (CiA 301)
 
     def _check_communication(self, parameter: PdoParameter, subindex: int, value: int) -> None:
         valid = self.pdo_valid(parameter.communication_index)
@@ -272,7 +275,8 @@ class DriveNode(canopen.LocalNode):
                 raise SdoAbortedError(ABORT_INVALID_VALUE)   # make it not valid first
             if not value & EXTENDED_FRAME and value & 0x1FFFF800:
                 raise SdoAbortedError(ABORT_INVALID_VALUE)   # an 11-bit CAN-ID over 0x7FF
-        elif subindex == 2 and value not in TRANSMISSION_TYPES:
+        elif subindex == 2 and (value not in TRANSMISSION_TYPES
+                                or parameter.receive and value in (252, 253)):
             raise SdoAbortedError(ABORT_INVALID_VALUE)
         elif subindex in (3, 6) and valid and value != self.value(
                 parameter.communication_index, subindex):

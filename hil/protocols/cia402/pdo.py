@@ -45,7 +45,17 @@ class TpdoSchedule:
     syncs: int = 0                         # SYNCs since it last went out (types 1-240)
     last_data: bytes | None = None         # what it last sent (types 0, 254, 255)
     last_sent: float = field(default=-math.inf)
+    rtr_allowed: bool = False              # COB-ID bit 30 clear
+    start: int = 0                         # SYNC start value (sub-index 6; 0: none)
+    running: bool = False                  # past its SYNC start value
 
     @property
     def event_driven(self) -> bool:
         return self.transmission_type >= 254
+
+    def started(self, counter: int | None) -> bool:
+        """Whether it counts SYNCs yet: from the SYNC whose counter is its start value, when
+        SYNCs carry a counter and it has one."""
+        if not self.running and (not self.start or counter is None or counter == self.start):
+            self.running = True
+        return self.running

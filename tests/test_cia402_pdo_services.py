@@ -1,0 +1,75 @@
+"""RTR-requested TPDOs and the SYNC counter (CiA 301 7.2.2.2, 7.2.5; 0x1019; the TPDO's
+SYNC start value, sub-index 6), as python canopen's master and raw frames see them."""
+
+from __future__ import annotations
+
+import time
+
+import can
+
+from test_cia402_conformance import FrameTap, abort_code, pre_operational, wait_until
+
+TPDO2 = 0x281
+
+
+def _remote(bench, can_id: int) -> None:
+    bench.master_bus.send(can.Message(arbitration_id=can_id, is_remote_frame=True, dlc=6,
+                                      is_extended_id=False))
+
+
+def _operational(bench):
+    node = pre_operational(bench)
+    node.sdo[0x1801][2].raw = 253                # TPDO2: RTR only, asynchronous
+    node.nmt.state = "OPERATIONAL"
+    return node
+
+
+def test_an_rtr_on_a_tpdo_that_allows_it_is_answered_with_the_tpdo(bench):
+    node = _operational(bench)
+    with FrameTap(bench) as tap:
+        _remote(bench, TPDO2)
+        assert wait_until(lambda: [m for m in tap.of(TPDO2) if not m.is_remote_frame])
+    answer = [m for m in tap.of(TPDO2) if not m.is_remote_frame][0]
+    assert len(answer.data) == 6                 # velocity actual, torque actual
+    node.sdo[0x1801][1].raw = 0x40000000 | TPDO2   # bit 30: no RTR allowed
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.nmt.state = "OPERATIONAL"
+    with FrameTap(bench) as tap:
+        _remote(bench, TPDO2)
+        assert not wait_until(lambda: [m for m in tap.of(TPDO2) if not m.is_remote_frame],
+                              timeout=0.5)
+
+
+def test_an_rtr_outside_operational_is_not_answered(bench):
+    node = _operational(bench)
+    node.nmt.state = "PRE-OPERATIONAL"
+    with FrameTap(bench) as tap:
+        _remote(bench, TPDO2)
+        assert not wait_until(lambda: [m for m in tap.of(TPDO2) if not m.is_remote_frame],
+                              timeout=0.5)
+
+
+def test_with_a_sync_counter_a_sync_must_carry_it_and_a_tpdo_starts_at_its_start_value(bench):
+    node = pre_operational(bench)
+    assert abort_code(lambda: node.sdo.download(0x1019, 0, b"\x01")) == 0x06090030
+    node.sdo[0x1019].raw = 10                    # SYNCs count 1..10
+    node.sdo[0x1800][1].raw = 0x80000181         # TPDO1 not valid while its start changes
+    node.sdo[0x1800][2].raw = 2                  # every 2nd SYNC
+    node.sdo[0x1800][6].raw = 3                  # from the SYNC whose counter is 3
+    node.sdo[0x1800][1].raw = 0x181
+    node.nmt.state = "OPERATIONAL"
+    sent = []
+    with FrameTap(bench) as tap:
+        for counter in range(1, 9):
+            bench.network.sync.transmit(counter)
+            sent.append(time.monotonic())
+            time.sleep(0.05)
+        assert wait_until(lambda: len(tap.of(0x181)) >= 3)
+        time.sleep(0.2)
+    # TPDO1 at the SYNCs counting 4, 6, 8: every 2nd SYNC from (and counting) the 3rd; none
+    # before the 4th SYNC went out
+    tpdos = [t for t, m in tap.frames if m.arbitration_id == 0x181]
+    assert len(tpdos) == 3 and tpdos[0] > sent[3]
+    node.emcy.reset()
+    bench.network.sync.transmit()                # no counter where one is due
+    assert wait_until(lambda: any(e.code == 0x8240 for e in node.emcy.log))
