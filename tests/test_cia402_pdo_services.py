@@ -17,6 +17,15 @@ def _remote(bench, can_id: int) -> None:
                                       is_extended_id=False))
 
 
+def _answers_to_rtr(bench, can_id: int, timeout: float = 1.0) -> list[can.Message]:
+    """The data frames on ``can_id`` within ``timeout`` of a remote frame on it."""
+    with FrameTap(bench) as tap:
+        _remote(bench, can_id)
+        wait_until(lambda: [m for m in tap.of(can_id) if not m.is_remote_frame], timeout)
+        time.sleep(0.1)
+    return [m for m in tap.of(can_id) if not m.is_remote_frame]
+
+
 def _operational(bench):
     node = pre_operational(bench)
     node.sdo[0x1801][2].raw = 253                # TPDO2: RTR only, asynchronous
@@ -26,27 +35,18 @@ def _operational(bench):
 
 def test_an_rtr_on_a_tpdo_that_allows_it_is_answered_with_the_tpdo(bench):
     node = _operational(bench)
-    with FrameTap(bench) as tap:
-        _remote(bench, TPDO2)
-        assert wait_until(lambda: [m for m in tap.of(TPDO2) if not m.is_remote_frame])
-    answer = [m for m in tap.of(TPDO2) if not m.is_remote_frame][0]
-    assert len(answer.data) == 6                 # velocity actual, torque actual
+    answers = _answers_to_rtr(bench, TPDO2)
+    assert len(answers) == 1 and len(answers[0].data) == 6   # velocity, torque actual
     node.sdo[0x1801][1].raw = 0x40000000 | TPDO2   # bit 30: no RTR allowed
     node.nmt.state = "PRE-OPERATIONAL"
     node.nmt.state = "OPERATIONAL"
-    with FrameTap(bench) as tap:
-        _remote(bench, TPDO2)
-        assert not wait_until(lambda: [m for m in tap.of(TPDO2) if not m.is_remote_frame],
-                              timeout=0.5)
+    assert _answers_to_rtr(bench, TPDO2) == []
 
 
 def test_an_rtr_outside_operational_is_not_answered(bench):
     node = _operational(bench)
     node.nmt.state = "PRE-OPERATIONAL"
-    with FrameTap(bench) as tap:
-        _remote(bench, TPDO2)
-        assert not wait_until(lambda: [m for m in tap.of(TPDO2) if not m.is_remote_frame],
-                              timeout=0.5)
+    assert _answers_to_rtr(bench, TPDO2) == []
 
 
 def test_with_a_sync_counter_a_sync_must_carry_it_and_a_tpdo_starts_at_its_start_value(bench):
