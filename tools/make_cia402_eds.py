@@ -114,6 +114,16 @@ OBJECTS = {
                       for k in range(1, 5)}),
     0x1017: var("Producer heartbeat time", UINT16, "rw", 100),
     0x1019: var("Synchronous counter overflow value", UINT8, "rw", 0),
+    0x1010: compound("Store parameters", ARRAY, {
+        1: var("Save all parameters", UINT32, "rw", 1),
+        2: var("Save communication parameters", UINT32, "rw", 1),
+        3: var("Save application parameters", UINT32, "rw", 1),
+        4: var("Save manufacturer defined parameters", UINT32, "rw", 1)}),
+    0x1011: compound("Restore default parameters", ARRAY, {
+        1: var("Restore all default parameters", UINT32, "rw", 1),
+        2: var("Restore communication default parameters", UINT32, "rw", 1),
+        3: var("Restore application default parameters", UINT32, "rw", 1),
+        4: var("Restore manufacturer defined default parameters", UINT32, "rw", 1)}),
     0x1018: compound("Identity object", RECORD, {
         1: var("Vendor-ID", UINT32, "ro", 0), 2: var("Product code", UINT32, "ro", 402),
         3: var("Revision number", UINT32, "ro", 2), 4: var("Serial number", UINT32, "ro", 0)}),

@@ -61,9 +61,11 @@ class Cia402Options(ProtocolOptions):
     eds: Path | None = None
     #: 0x1018:04, the identity an LSS master tells drives apart by (None: the EDS's)
     serial_number: int | None = None
+    #: where the parameters saved by 0x1010 last across restarts (None: for the run)
+    parameter_file: Path | None = None
 
-    KEYS = ("feed_forward", "eds", "serial_number")
-    PATH_KEYS = ("eds",)
+    KEYS = ("feed_forward", "eds", "serial_number", "parameter_file")
+    PATH_KEYS = ("eds", "parameter_file")
 
     @property
     def sends_velocity(self) -> bool:
@@ -95,8 +97,12 @@ class Cia402Options(ProtocolOptions):
         if serial is not None and (not isinstance(serial, int) or isinstance(serial, bool)
                                    or not 0 <= serial <= 0xFFFFFFFF):
             raise ValueError(f"'serial_number' is an UNSIGNED32 (0..4294967295), not {serial!r}")
+        kept = values.get("parameter_file")
+        if kept is not None and not isinstance(kept, str):
+            raise ValueError(f"'parameter_file' is a file's path, not {kept!r}")
         options = cls(feed_forward=str(values.get("feed_forward", "none")),
-                      eds=Path(eds) if eds is not None else None, serial_number=serial)
+                      eds=Path(eds) if eds is not None else None, serial_number=serial,
+                      parameter_file=Path(kept) if kept is not None else None)
         if options.feed_forward not in FEED_FORWARD:
             raise ValueError(f"'feed_forward' is one of {', '.join(FEED_FORWARD)}, not "
                              f"'{options.feed_forward}'")

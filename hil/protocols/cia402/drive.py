@@ -53,6 +53,7 @@ from hil.protocols.cia402.objects import PROFILE_PARAMETERS, DriveObjects
 from hil.protocols.cia402.pdo import PdoLayout, TpdoSchedule
 from hil.protocols.cia402.personality import Personality
 from hil.protocols.cia402.replay_view import ReplayView
+from hil.protocols.cia402.storage import ParameterStore
 from hil.protocols.cia402.tpdo import TpdoProducer
 from hil.protocols.cia402.eds import LIVE_OBJECTS
 from hil.protocols.cia402.state import (ERROR_REGISTER, INTERPOLATED_POSITION,
@@ -80,6 +81,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         self.machine = Cia402StateMachine(core)
         self.personality = Personality.of(options.eds if options is not None else None)
         self._serial = options.serial_number if options is not None else None
+        self.store = ParameterStore(options.parameter_file if options is not None else None)
         self._heartbeat_ms = heartbeat_ms
         self._latched: dict[int, bytes] = {}
         self.errors = ErrorRecord()
@@ -104,8 +106,9 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         self.node = DriveNode(node_id, self.personality.eds, self._refused)
         self.objects = DriveObjects(self.node, self.machine, self.core, self.lock,
                                     self.rated_torque, self._heartbeat_ms, self._configure_pdos,
-                                    self.errors, self.personality, self._serial)
+                                    self.errors, self.personality, self._serial, self.store)
         self.objects.store_configuration()
+        self.store.restore(self.node, communication_only=False)
 
     def _take_node_id(self, node_id: int) -> None:
         """LSS gave the drive a node id: it leaves the network under the old one (if any)
@@ -211,6 +214,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
             for index in [i for i in self.node.data_store if 0x1000 <= i < 0x2000]:
                 del self.node.data_store[index]
             self.objects.store_communication()
+        self.store.restore(self.node, communication_only)     # what 0x1010 saved
         self._latched.clear()
         if self.node.has_network():
             self.node.configure_heartbeat_consumers()

@@ -19,6 +19,7 @@ from hil.drives.definitions import SilenceReaction
 from hil.protocols.cia402.errors import ErrorRecord
 from hil.protocols.cia402.node import DriveNode
 from hil.protocols.cia402.personality import Personality
+from hil.protocols.cia402.storage import ParameterStore
 from hil.protocols.cia402.eds import LIVE_OBJECTS
 from hil.protocols.cia402.state import (HOMING_METHODS, INTERPOLATED_POSITION, MODE_CODES,
                                         Cia402StateMachine, int32, live_value, uint32)
@@ -31,12 +32,14 @@ class DriveObjects:
     def __init__(self, node: DriveNode, machine: Cia402StateMachine, core: DriveCore,
                  lock: AbstractContextManager, rated_torque: float, heartbeat_ms: int,
                  on_pdo_parameters: Callable[[], None], errors: ErrorRecord,
-                 personality: Personality, serial_number: int | None = None):
+                 personality: Personality, serial_number: int | None = None,
+                 store: ParameterStore | None = None):
         self.node, self.machine, self.core, self.lock = node, machine, core, lock
         self.errors = errors
         self.personality = personality
         #: 0x1018:04 where the bus config gives one (else the EDS's)
         self.serial_number = serial_number
+        self.store = store or ParameterStore()
         self.rated_torque = rated_torque
         self.heartbeat_ms = heartbeat_ms
         #: called (under ``lock``) when a PDO's stored communication parameters change
@@ -47,6 +50,8 @@ class DriveObjects:
         node.on_stored(self.after_store)
 
     def on_read(self, index: int, subindex: int, od) -> int | None:
+        if index in (0x1010, 0x1011) and subindex > 0:
+            return 1                 # CiA 301: the device saves (restores) on command
         if index in LIVE_OBJECTS:
             with self.lock:
                 return live_value(index, self.machine, self.core.status(),
@@ -57,7 +62,9 @@ class DriveObjects:
         value = od.decode_raw(data)
         cpr = self.counts_per_rad
         with self.lock:
-            if index == 0x1003:
+            if index in (0x1010, 0x1011):
+                self.store.command(index, subindex, value, self.node)
+            elif index == 0x1003:
                 if subindex != 0 or value != 0:
                     raise SdoAbortedError(ABORT_INVALID_VALUE)   # CiA 301: only 0, to clear
                 self.errors.history.clear()

@@ -1,0 +1,93 @@
+"""Store and restore parameters (CiA 301 7.5.2.13, 7.5.2.14: 0x1010, 0x1011) over SDO,
+kept across a reset within the run and, with ``parameter_file``, across restarts."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import can
+import pytest
+
+from conftest import UR3_VIRTUAL, Bench
+from test_cia402_conformance import abort_code, pre_operational, wait_until
+
+from hil.bus_config import load_bus_config
+from hil.errors import HilError
+from hil.realtime import REAL_TIME
+from hil.simulator import Simulator
+
+SAVE, LOAD = b"save", b"load"          # 0x65766173, 0x64616F6C as the bytes go on the bus
+APPLICATION, ALL = 3, 1
+
+
+def _reset_node(bench, node) -> None:
+    node.nmt.send_command(0x81)
+    assert wait_until(lambda: node.nmt.state == "PRE-OPERATIONAL")
+    time.sleep(0.1)
+
+
+def test_saved_application_parameters_come_back_after_a_reset_node(bench):
+    node = pre_operational(bench)
+    configured = node.sdo[0x6065].raw
+    assert node.sdo[0x1010][APPLICATION].raw == 1          # saves on command
+    node.sdo[0x6065].raw = configured + 1000
+    node.sdo.download(0x1010, APPLICATION, SAVE)
+    node.sdo[0x6065].raw = configured + 2000               # not saved
+    _reset_node(bench, node)
+    assert node.sdo[0x6065].raw == configured + 1000
+    node.sdo.download(0x1011, APPLICATION, LOAD)           # the defaults at the next reset
+    _reset_node(bench, node)
+    assert node.sdo[0x6065].raw == configured
+
+
+def test_a_store_command_without_its_signature_is_aborted(bench):
+    node = pre_operational(bench)
+    assert abort_code(lambda: node.sdo.download(0x1010, ALL, b"nope")) == 0x08000020
+    assert abort_code(lambda: node.sdo.download(0x1011, ALL, SAVE)) == 0x08000020
+
+
+def test_process_data_is_not_saved(bench):
+    node = pre_operational(bench)
+    node.sdo[0x607A].raw = 12345                           # a target: PDO-mappable
+    node.sdo.download(0x1010, ALL, SAVE)
+    _reset_node(bench, node)
+    assert node.sdo[0x607A].raw != 12345
+
+
+@pytest.fixture
+def kept_config(tmp_path) -> Path:
+    text = UR3_VIRTUAL.read_text().replace("../../robots", str(UR3_VIRTUAL.parents[2] / "robots"))
+    text = text.replace("{node_id: 1, joint: joint1}",
+                        "{node_id: 1, joint: joint1, options: {parameter_file: drive1.json}}")
+    path = tmp_path / "kept.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_a_parameter_file_keeps_what_was_saved_across_restarts(kept_config):
+    bench = Bench("virtual", f"store-{time.monotonic_ns()}", REAL_TIME, kept_config)
+    try:
+        node = pre_operational(bench)
+        configured = node.sdo[0x6065].raw
+        node.sdo[0x6065].raw = configured + 777
+        node.sdo.download(0x1010, ALL, SAVE)
+    finally:
+        bench.close()
+    assert (kept_config.parent / "drive1.json").is_file()
+    bench = Bench("virtual", f"store-{time.monotonic_ns()}", REAL_TIME, kept_config)
+    try:
+        assert pre_operational(bench).sdo[0x6065].raw == configured + 777
+    finally:
+        bench.close()
+
+
+def test_a_parameter_file_hil_did_not_write_is_refused_with_its_name(kept_config):
+    (kept_config.parent / "drive1.json").write_text("[1, 2")
+    bus = can.Bus(interface="virtual", channel=f"store-{time.monotonic_ns()}")
+    try:
+        with pytest.raises(HilError) as refused:
+            Simulator(load_bus_config(kept_config), {"arm": bus}, REAL_TIME)
+    finally:
+        bus.shutdown()
+    assert "drive1.json" in str(refused.value)
