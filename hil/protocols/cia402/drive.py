@@ -95,10 +95,13 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         #: the bus config's parameters: the application area's values after a reset node
         self._configured = (core.parameters, core.silence_reaction)
         self._make_node(node_id)
-        self._counts_per_rad = self.objects.counts_per_rad
         self.lss = LssSlave(Identity(*(self.node.value(0x1018, sub) for sub in range(1, 5))),
                             node_id, lambda data: self.send(LSS_ANSWER_ID, data),
                             self._take_node_id)
+
+    @property
+    def _counts_per_rad(self) -> float:
+        return self.objects.counts_per_rad
 
     def _make_node(self, node_id: int) -> None:
         """The CANopen node of ``node_id`` (UNCONFIGURED: one that waits for LSS)."""

@@ -44,6 +44,8 @@ class DriveObjects:
         self.heartbeat_ms = heartbeat_ms
         #: called (under ``lock``) when a PDO's stored communication parameters change
         self.on_pdo_parameters = on_pdo_parameters
+        #: user position units per motor radian: increments unless the position factor
+        #: (0x6091, 0x6092) says otherwise
         self.counts_per_rad = core.parameters.counts_per_rev / (2 * math.pi)
         node.add_read_callback(self.on_read)
         node.add_write_callback(self.on_write)
@@ -100,6 +102,8 @@ class DriveObjects:
                 if value not in HOMING_METHODS and value != 0:     # 0: no homing method
                     raise SdoAbortedError(ABORT_INVALID_VALUE)
                 self.machine.homing_method = value
+            elif index in (0x6091, 0x6092, 0x6080) and value == 0:
+                raise SdoAbortedError(ABORT_VALUE_TOO_LOW)    # a ratio's terms, a top speed
             elif index == 0x60C2:
                 self._set_interpolation_period(subindex, value)
             elif index in PROFILE_PARAMETERS:
@@ -114,6 +118,18 @@ class DriveObjects:
         if 0x1400 <= index < 0x1600 or 0x1800 <= index < 0x1A00:
             with self.lock:
                 self.on_pdo_parameters()
+        elif index in (0x6091, 0x6092):
+            self.counts_per_rad = self._position_factor()
+
+    def _position_factor(self) -> float:
+        """User units per motor radian: feed constant / gear ratio / 2 pi (CiA 402 6.3.1);
+        where the object dictionary has neither, encoder increments."""
+        node = self.node
+        if 0x6091 not in node.object_dictionary or 0x6092 not in node.object_dictionary:
+            return self.core.parameters.counts_per_rev / (2 * math.pi)
+        feed = node.value(0x6092, 1) / node.value(0x6092, 2)
+        gear = node.value(0x6091, 1) / node.value(0x6091, 2)
+        return feed / gear / (2 * math.pi)
 
     def set_mode(self, code: int) -> None:
         """0x6060: a mode the drive offers (its personality's 0x6502); 0 ("no mode",
@@ -162,8 +178,10 @@ class DriveObjects:
         self.core.set_cycle(period * 10.0 ** exponent)
 
     def store_configuration(self) -> None:
-        """Write the drive's configured values into its object dictionary."""
+        """Write the drive's configured values into its object dictionary (in increments:
+        the position factor takes its defaults)."""
         p = self.core.parameters
+        self.counts_per_rad = p.counts_per_rev / (2 * math.pi)
         cpr = self.counts_per_rad
         put = self._put
         self.store_communication()
@@ -171,6 +189,13 @@ class DriveObjects:
         put(0x6072, None, round(p.peak_torque / self.rated_torque * 1000))
         put(0x608F, 1, p.counts_per_rev)
         put(0x607F, None, uint32(p.max_velocity * cpr))
+        # hil's reading: 0x6080 in the velocity units of the other objects (some makers'
+        # manuals give rpm, others user units)
+        put(0x6080, None, uint32(p.max_velocity * cpr))
+        put(0x6091, 1, 1)
+        put(0x6091, 2, 1)
+        put(0x6092, 1, p.counts_per_rev)
+        put(0x6092, 2, 1)
         put(0x6081, None, uint32(p.profile_velocity * cpr))
         put(0x6083, None, uint32(p.profile_acceleration * cpr))
         put(0x6084, None, uint32(p.profile_deceleration * cpr))
@@ -244,6 +269,7 @@ _PARAMETER_WRITERS = {
     0x6065: lambda p, s, v, c: replace(p, following_error_limit=v / c),
     0x6066: lambda p, s, v, c: replace(p, following_error_timeout=v / 1000),
     0x6085: lambda p, s, v, c: replace(p, quick_stop_deceleration=v / c),
+    0x6080: lambda p, s, v, c: replace(p, max_velocity=v / c),
     0x607D: _limits,
 }
 #: profile-mode objects (increments/s, /s^2) -> DriveParameters field (rad/s, /s^2)

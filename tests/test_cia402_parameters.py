@@ -1,8 +1,10 @@
-"""Store and restore parameters (CiA 301 7.5.2.13, 7.5.2.14: 0x1010, 0x1011) over SDO,
-kept across a reset within the run and, with ``parameter_file``, across restarts."""
+"""A drive's parameters over SDO: store and restore (CiA 301 7.5.2.13, 7.5.2.14: 0x1010,
+0x1011), kept across a reset within the run and, with ``parameter_file``, across restarts;
+the position factor (CiA 402 0x6091, 0x6092) and the max motor speed 0x6080."""
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 
@@ -91,3 +93,31 @@ def test_a_parameter_file_hil_did_not_write_is_refused_with_its_name(kept_config
     finally:
         bus.shutdown()
     assert "drive1.json" in str(refused.value)
+
+
+def test_the_position_factor_sets_the_units_of_positions_and_velocities(bench):
+    """CiA 402 6.3.1: user units per motor revolution = feed constant 0x6092 / gear ratio
+    0x6091; by default one revolution's encoder increments."""
+    node = pre_operational(bench)
+    increments = node.sdo[0x6092][1].raw
+    assert increments == node.sdo[0x608F][1].raw and node.sdo[0x6091][1].raw == 1
+    before = node.sdo[0x6064].raw
+    node.sdo[0x6091][1].raw = 2                 # 2 motor revolutions per shaft revolution
+    node.sdo[0x6092][1].raw = 1000              # 1000 units per shaft revolution
+    drive = bench.sim.drive("arm", 1)
+    assert drive.objects.counts_per_rad == pytest.approx(500 / (2 * math.pi))
+    # the unpowered axis may creep a few increments meanwhile: 1 unit is 262 of them
+    assert node.sdo[0x6064].raw == pytest.approx(before * 500 / increments, abs=3)
+    assert abort_code(lambda: node.sdo.download(0x6091, 2, bytes(4))) == 0x06090032
+    _reset_node(bench, node)                    # the defaults again
+    assert drive.objects.counts_per_rad == pytest.approx(increments / (2 * math.pi))
+
+
+def test_the_max_motor_speed_0x6080_limits_the_velocity(bench):
+    node = pre_operational(bench)
+    top = node.sdo[0x6080].raw
+    assert top == node.sdo[0x607F].raw > 0
+    node.sdo[0x6080].raw = top // 2
+    drive = bench.sim.drive("arm", 1)
+    assert drive.core.parameters.max_velocity == pytest.approx(
+        top // 2 / drive.objects.counts_per_rad)
