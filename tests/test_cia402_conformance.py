@@ -203,7 +203,7 @@ def test_sdo_requests_are_refused_with_the_cia301_abort_code(bench, what, code):
         "a write to a read-only object": lambda: node.sdo.download(0x6041, 0, b"\x06\x00"),
         "a write of the wrong length": lambda: node.sdo.download(0x6040, 0, b"\x06\x00\x00\x00"),
         "a mode of operation the drive does not support":
-            lambda: node.sdo.download(0x6060, 0, b"\x04"),
+            lambda: node.sdo.download(0x6060, 0, b"\x02"),
         "an abort connection option it does not have":
             lambda: node.sdo.download(0x6007, 0, struct.pack("<h", -1)),
         "a homing method it does not run": lambda: node.sdo.download(0x6098, 0, b"\x11"),

@@ -93,10 +93,10 @@ def test_statusword_and_mode_over_sdo_match_the_pdo(bench):
     node = enable_csp(bench)
     assert node.sdo[0x6041].raw & 0x6F == 0x27
     assert node.sdo[0x6061].raw == 8
-    assert node.sdo[0x6502].raw == SUPPORTED_MODES == 0x3E5     # PP, PV, HM, IP, CSP, CSV, CST
+    assert node.sdo[0x6502].raw == SUPPORTED_MODES == 0x3ED  # PP, PV, PT, HM, IP, CSP, CSV, CST
     assert node.sdo[0x608F][1].raw == COUNTS
-    with pytest.raises(canopen.SdoAbortedError) as refused:     # profile torque
-        node.sdo[0x6060].raw = 4
+    with pytest.raises(canopen.SdoAbortedError) as refused:     # velocity mode (vl)
+        node.sdo[0x6060].raw = 2
     assert refused.value.code == 0x06090030
 
 

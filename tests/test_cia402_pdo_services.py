@@ -73,3 +73,25 @@ def test_with_a_sync_counter_a_sync_must_carry_it_and_a_tpdo_starts_at_its_start
     node.emcy.reset()
     bench.network.sync.transmit()                # no counter where one is due
     assert wait_until(lambda: any(e.code == 0x8240 for e in node.emcy.log))
+
+
+def test_profile_torque_ramps_to_the_target_on_the_torque_slope_and_halts_to_zero(bench):
+    """CiA 402 profile torque (mode 4): 0x6071 reached at 0x6087 (per mille of 0x6076 per
+    second); statusword bit 10 once there; halt (bit 8) ramps the torque to 0."""
+    node = pre_operational(bench)
+    node.sdo[0x6060].raw = 4
+    node.sdo[0x6087].raw = 1000                  # the rated torque in one second
+    assert abort_code(lambda: node.sdo.download(0x6088, 0, b"\x01\x00")) == 0x06090030
+    node.nmt.state = "OPERATIONAL"
+    for word in (0x06, 0x07, 0x0F):
+        node.sdo[0x6040].raw = word
+    assert wait_until(lambda: node.sdo[0x6041].raw & 0x6F == 0x27)
+    drive = bench.sim.drive("arm", 1)
+    started = time.monotonic()
+    node.sdo[0x6071].raw = 100                   # 10 % of the rated torque: 0.1 s away
+    assert wait_until(lambda: node.sdo[0x6041].raw & 0x0400)
+    assert time.monotonic() - started >= 0.09    # not sooner than the slope allows
+    assert drive.machine.torque_demand == drive.rated_torque * 0.1
+    node.sdo[0x6040].raw = 0x010F                # halt
+    assert wait_until(lambda: drive.machine.torque_demand == 0.0)
+    assert node.sdo[0x6061].raw == 4

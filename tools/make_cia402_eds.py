@@ -26,7 +26,8 @@ HEADER = """\
 ; ratio 0x6091 and feed constant 0x6092 say otherwise; velocity in units/s,
 ; acceleration in increments/s^2, torque in per mille of the motor rated torque 0x6076
 ; (which is in mN m).
-; Modes (0x6502): profile position 1, profile velocity 3, homing 6 (methods 35/37),
+; Modes (0x6502): profile position 1, profile velocity 3, profile torque 4 (0x6071 on the
+; slope 0x6087), homing 6 (methods 35/37),
 ; interpolated position 7 (0x60C1:01 each SYNC while controlword bit 4 is set),
 ; cyclic synchronous position 8, velocity 9, torque 10.
 ; Default PDOs (all on every SYNC, transmission type 1), COB-IDs relative to $NODEID:
@@ -165,6 +166,9 @@ OBJECTS = {
         2: var("Motor revolutions", UINT32, "rw", 1)}),
     # position factor (CiA 402): user units per motor revolution = feed constant / gear
     # ratio; the defaults (1/1, one encoder revolution's increments) make them increments
+    # profile torque (mode 4): per mille of 0x6076 per second, 0: the target at once
+    0x6087: var("Torque slope", UINT32, "rw", 0, mappable=True),
+    0x6088: var("Torque profile type", INT16, "rw", 0),
     0x6091: compound("Gear ratio", ARRAY, {
         1: var("Motor revolutions", UINT32, "rw", 1),
         2: var("Shaft revolutions", UINT32, "rw", 1)}),
@@ -187,7 +191,7 @@ OBJECTS = {
         2: var("Interpolation time index", INT8, "rw", -3)}),
     0x60F4: var("Following error actual value", INT32, "ro", 0, mappable=True),
     0x60FF: var("Target velocity", INT32, "rw", 0, mappable=True),
-    0x6502: var("Supported drive modes", UINT32, "ro", "0x000003E5"),
+    0x6502: var("Supported drive modes", UINT32, "ro", "0x000003ED"),
 }
 
 DEVICE_INFO = {

@@ -92,6 +92,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         self._rpdo_handlers: list[tuple[int, Callable]] = []     # (COB-ID, subscribed)
         self._tpdos: list[TpdoSchedule] = []
         self._remote_ids: list[int] = []        # TPDO COB-IDs that answer an RTR
+        self._last_tick = time.monotonic()
         #: the bus config's parameters: the application area's values after a reset node
         self._configured = (core.parameters, core.silence_reaction)
         self._make_node(node_id)
@@ -303,6 +304,8 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         """The heartbeat, event-driven TPDOs (254, 255) and the heartbeat consumer (caller
         holds the lock)."""
         self.node.sdo.expire(now)
+        self.machine.ramp_torque(now - self._last_tick)
+        self._last_tick = now
         beat = self.node.nmt.heartbeat_due(now)
         if beat is not None:
             self.send(0x700 + self.node_id, beat)
@@ -333,9 +336,11 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         for index in (0x607A, 0x60C1):
             if index in fields:
                 self.objects.set_target_position(index, fields[index])
+        if 0x6071 in fields:
+            self.objects.set_target_torque(fields[0x6071])
         self.core.new_setpoint(
             velocity=fields[0x60FF] / self._counts_per_rad if 0x60FF in fields else None,
-            torque=fields[0x6071] * self.rated_torque / 1000 if 0x6071 in fields else None,
+
             velocity_ff=fields[0x60B1] / self._counts_per_rad if 0x60B1 in fields else None,
             torque_ff=fields[0x60B2] * self.rated_torque / 1000 if 0x60B2 in fields else None)
         if 0x6040 in fields and not interpolated:

@@ -22,6 +22,7 @@ from hil.protocols.cia402.personality import Personality
 from hil.protocols.cia402.storage import ParameterStore
 from hil.protocols.cia402.eds import LIVE_OBJECTS
 from hil.protocols.cia402.state import (HOMING_METHODS, INTERPOLATED_POSITION, MODE_CODES,
+                                        PROFILE_TORQUE,
                                         Cia402StateMachine, int32, live_value, uint32)
 
 
@@ -91,7 +92,11 @@ class DriveObjects:
             elif index == 0x60FF:
                 self.core.new_setpoint(velocity=value / cpr)
             elif index == 0x6071:
-                self.core.new_setpoint(torque=value * self.rated_torque / 1000)
+                self.set_target_torque(value)
+            elif index == 0x6088 and value != 0:
+                raise SdoAbortedError(ABORT_INVALID_VALUE)       # linear ramps only
+            elif index == 0x6087:        # per mille of the rated torque per s (0: a step)
+                self.machine.torque_slope = value * self.rated_torque / 1000 or math.inf
             elif index == 0x60B1:
                 self.core.new_setpoint(velocity_ff=value / cpr)
             elif index == 0x60B2:
@@ -153,6 +158,15 @@ class DriveObjects:
             return
         self.machine.target_position = counts / self.counts_per_rad
         self.core.new_setpoint(position=self.machine.target_position)
+
+    def set_target_torque(self, value: int) -> None:
+        """0x6071 (per mille of the rated torque): cyclic synchronous torque's setpoint, or
+        profile torque's target (reached on its slope)."""
+        torque = value * self.rated_torque / 1000
+        if self.machine.mode_code == PROFILE_TORQUE:
+            self.machine.torque_target = torque
+        else:
+            self.core.new_setpoint(torque=torque)
 
     def set_profile_parameter(self, index: int, value: int) -> None:
         """A profile velocity, acceleration or deceleration. hil's own drive refuses a zero

@@ -9,18 +9,23 @@ cycle.
 from __future__ import annotations
 
 import enum
+import math
 
 from hil.drives.core import DriveCore
 from hil.drives.definitions import DriveStatus, Fault, Mode, Power
 
 #: CiA 402 modes of operation (0x6060/0x6061) this drive supports: profile position (1),
-#: profile velocity (3), homing (6), interpolated position (7: the position of each SYNC's
+#: profile velocity (3), profile torque (4), homing (6), interpolated position (7: the position of each SYNC's
 #: interpolation data record 0x60C1:01, followed as in CSP while controlword bit 4 "enable ip
 #: mode" is set), cyclic synchronous position/velocity/torque (8, 9, 10)
-MODE_CODES = {1: Mode.PROFILE_POSITION, 3: Mode.PROFILE_VELOCITY, 6: Mode.HOMING,
-              7: Mode.POSITION, 8: Mode.POSITION, 9: Mode.VELOCITY, 10: Mode.TORQUE}
-INTERPOLATED_POSITION = 7
-CODE_OF_MODE = {mode: code for code, mode in MODE_CODES.items() if code != INTERPOLATED_POSITION}
+MODE_CODES = {1: Mode.PROFILE_POSITION, 3: Mode.PROFILE_VELOCITY, 4: Mode.TORQUE,
+              6: Mode.HOMING, 7: Mode.POSITION, 8: Mode.POSITION, 9: Mode.VELOCITY,
+              10: Mode.TORQUE}
+#: the modes that share a core mode with a cyclic one: profile torque (4: the target torque
+#: 0x6071 reached on the torque slope 0x6087, halt ramps it to 0) and interpolated position
+PROFILE_TORQUE, INTERPOLATED_POSITION = 4, 7
+CODE_OF_MODE = {mode: code for code, mode in MODE_CODES.items()
+                if code not in (PROFILE_TORQUE, INTERPOLATED_POSITION)}
 #: 0x6502, supported drive modes: bit (code - 1) of each mode above
 SUPPORTED_MODES = sum(1 << (code - 1) for code in MODE_CODES)
 #: homing methods (0x6098) this drive runs: 35 and 37 (its newer number), "current position
@@ -76,6 +81,11 @@ class Cia402StateMachine:
         self.homing_method = 35
         #: 0x6060 as last set (0: none yet): interpolated position shares CSP's core mode
         self.mode_code = 0
+        #: profile torque: the target 0x6071, the slope 0x6087 (N·m, N·m/s; inf: a step)
+        #: and the torque demand the ramp has reached
+        self.torque_target = 0.0
+        self.torque_slope = math.inf
+        self.torque_demand = 0.0
         self.setpoint_acknowledged = False
         self._buffered: float | None = None     # profile position: the next set-point
         self._last_target = 0.0                 # profile position: the latest set-point taken
@@ -177,7 +187,8 @@ class Cia402StateMachine:
         if mode is Mode.HOMING:
             return ((0x1000 if self.homing_attained else 0)
                     | (0x2000 if self.homing_error else 0))
-        if self.state is not State.OPERATION_ENABLED:
+        if self.mode_code == PROFILE_TORQUE or self.state is not State.OPERATION_ENABLED:
+            return 0                # (bits 12 and 13 are reserved in profile torque)
             return 0
         if not self.following_setpoints():
             return 0               # interpolated position, bit 4 clear: ip mode not active
@@ -186,6 +197,27 @@ class Cia402StateMachine:
         if status.following_error_exceeded and mode is Mode.POSITION:
             bits |= 0x2000
         return bits
+
+    def ramp_torque(self, dt: float) -> None:
+        """Profile torque: the demand ``dt`` further toward the target (0 while halted) at
+        the torque slope (linear, 0x6088 = 0)."""
+        if self.mode_code != PROFILE_TORQUE or self.core.power is not Power.ENABLED:
+            self.torque_demand = 0.0
+            return
+        goal = self._torque_goal()
+        step = self.torque_slope * dt
+        if abs(goal - self.torque_demand) <= step:
+            self.torque_demand = goal
+        else:
+            self.torque_demand += step if goal > self.torque_demand else -step
+        self.core.new_setpoint(torque=self.torque_demand)
+
+    def _torque_goal(self) -> float:
+        return 0.0 if self._last_controlword & HALT else self.torque_target
+
+    def torque_reached(self) -> bool:
+        """Profile torque's statusword bit 10: the demand is at the target (0 halted)."""
+        return self.torque_demand == self._torque_goal()
 
     def following_setpoints(self) -> bool:
         """Whether cyclic setpoints are taken: always, but in interpolated position mode
@@ -238,7 +270,11 @@ def live_value(index: int, machine: Cia402StateMachine, status: DriveStatus,
                counts_per_rad: float, rated_torque: float) -> int:
     """The value of live object ``index`` (one of :data:`LIVE_OBJECTS`)."""
     if index == 0x6041:
-        return statusword(machine.state, status, machine.mode_bits(status))
+        word = statusword(machine.state, status, machine.mode_bits(status))
+        if machine.mode_code == PROFILE_TORQUE and status.mode is Mode.TORQUE:
+            reached = machine.torque_reached() and status.power is Power.ENABLED
+            word = (word & ~0x0400) | (0x0400 if reached else 0)     # bit 10: the torque's
+        return word
     if index == 0x6064:
         return int32(status.position * counts_per_rad)
     if index == 0x606C:
