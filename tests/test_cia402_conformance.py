@@ -206,7 +206,7 @@ def test_sdo_requests_are_refused_with_the_cia301_abort_code(bench, what, code):
             lambda: node.sdo.download(0x6060, 0, b"\x02"),
         "an abort connection option it does not have":
             lambda: node.sdo.download(0x6007, 0, struct.pack("<h", -1)),
-        "a homing method it does not run": lambda: node.sdo.download(0x6098, 0, b"\x11"),
+        "a homing method it does not run": lambda: node.sdo.download(0x6098, 0, b"\x13"),
         "a profile acceleration of zero": lambda: node.sdo.download(0x6083, 0, bytes(4)),
     }
     assert abort_code(actions[what]) == code

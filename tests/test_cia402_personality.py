@@ -68,11 +68,14 @@ class VendorBench(Bench):
 
     def master_of(self, node_id: int) -> canopen.RemoteNode:
         """A master's node from the vendor's file, made a DCF: each writable object's
-        ParameterValue is its DefaultValue."""
+        ParameterValue is its DefaultValue (the store commands aside)."""
         node = patient(canopen.RemoteNode(node_id, str(EDS_DIR / VENDORS[node_id])))
         normalise_access_types(node.object_dictionary)    # "RW" as a master reads it
         for entry in _variables(node.object_dictionary):
-            if entry.writable and entry.default is not None and entry.value is None:
+            # 0x1010/0x1011 are commands ("save", "load"), not values: a DCF leaves them out,
+            # and a device aborts any other value written there (0x08000020)
+            if entry.writable and entry.default is not None and entry.value is None \
+                    and entry.index not in (0x1010, 0x1011):
                 entry.value = entry.default
         self.network.add_node(node)
         return node

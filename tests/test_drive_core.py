@@ -193,3 +193,56 @@ def test_enabling_again_forgets_the_offsets():
     core.disable()
     core.enable()
     assert first_torque(core) == 0.0
+
+
+# --- homing (CiA 402 homing mode; hil.protocols.cia402.homing) ------------------------
+
+def _homed(method: int, start: float = 1.0, limits=(-3.0, 3.0)):
+    """(machine, motor) after a homing run of ``method`` from ``start`` (motor rad)."""
+    from hil.protocols.cia402.homing import HomingSpeeds
+    core, motor = DriveCore(parameters(position_limits=limits)), Motor()
+    motor.position = start
+    machine = Cia402StateMachine(core)
+    core.set_cycle(0.01)
+    core.set_mode(Mode.HOMING)
+    motor.run(core, 0.01)
+    for word in (0x06, 0x07, 0x0F):
+        machine.controlword(word)
+    machine.homing_method, machine.home_offset = method, 0.5
+    machine.homing_speeds = HomingSpeeds(switch=20.0, zero=5.0, acceleration=200.0)
+    machine.controlword(0x1F)                    # bit 4: homing operation start
+    for _ in range(300):
+        motor.run(core, 0.01)
+        machine.after_update()
+        if machine.homing_attained or machine.homing_error:
+            break
+    motor.run(core, 0.2)
+    return machine, motor
+
+
+@pytest.mark.parametrize("method, home", [
+    (17, -3.0),      # the negative limit switch
+    (18, 3.0),       # the positive one
+    (1, 0.0),        # negative switch, then the first index pulse (encoder zero) above it
+    (2, 0.0),        # positive switch, then the first index pulse below it
+    (33, 0.0),       # the index pulse below the start
+    (35, 1.0),       # where it stands
+])
+def test_homing_finds_the_switch_or_index_and_reads_the_home_offset_there(method, home):
+    machine, motor = _homed(method)
+    assert machine.homing_attained and not machine.homing_error
+    assert motor.position == pytest.approx(home, abs=0.01)
+    assert machine.core.status().position == pytest.approx(0.5, abs=0.01)
+    bits = machine.mode_bits(machine.core.status())
+    assert bits & 0x1000 and not bits & 0x2000   # homing attained, no error
+
+
+def test_homing_to_an_index_pulse_past_a_limit_is_a_homing_error():
+    machine, motor = _homed(34)                  # the next index above 1.0 is 2 pi > 3.0
+    assert machine.homing_error and not machine.homing_attained
+    assert machine.mode_bits(machine.core.status()) & 0x2000
+
+
+def test_homing_on_a_switch_that_is_not_there_is_a_homing_error():
+    machine, _ = _homed(17, limits=None)
+    assert machine.homing_error

@@ -27,7 +27,8 @@ HEADER = """\
 ; acceleration in increments/s^2, torque in per mille of the motor rated torque 0x6076
 ; (which is in mN m).
 ; Modes (0x6502): profile position 1, profile velocity 3, profile torque 4 (0x6071 on the
-; slope 0x6087), homing 6 (methods 35/37),
+; slope 0x6087), homing 6 (methods 1, 2, 17, 18, 33, 34, 35, 37: the limit switches are
+; the position limits 0x607D, the index pulse the encoder's zero),
 ; interpolated position 7 (0x60C1:01 each SYNC while controlword bit 4 is set),
 ; cyclic synchronous position 8, velocity 9, torque 10.
 ; Default PDOs (all on every SYNC, transmission type 1), COB-IDs relative to $NODEID:

@@ -103,6 +103,10 @@ class DriveObjects:
                 self.core.new_setpoint(torque_ff=value * self.rated_torque / 1000)
             elif index == 0x607C:
                 self.machine.home_offset = value / cpr
+            elif index == 0x6099 and subindex in (1, 2):
+                setattr(self.machine.homing_speeds, ("switch", "zero")[subindex - 1], value / cpr)
+            elif index == 0x609A:
+                self.machine.homing_speeds.acceleration = value / cpr
             elif index == 0x6098:
                 if value not in HOMING_METHODS and value != 0:     # 0: no homing method
                     raise SdoAbortedError(ABORT_INVALID_VALUE)
@@ -214,6 +218,14 @@ class DriveObjects:
         put(0x6083, None, uint32(p.profile_acceleration * cpr))
         put(0x6084, None, uint32(p.profile_deceleration * cpr))
         put(0x6085, None, uint32(p.quick_stop_deceleration * cpr))
+        # homing at the profile's speed (searching for a switch), a quarter of it (for the
+        # index pulse) and its acceleration: hil's defaults, CiA 402 names none
+        speeds = self.machine.homing_speeds
+        speeds.switch, speeds.zero = p.profile_velocity, p.profile_velocity / 4
+        speeds.acceleration = p.profile_acceleration
+        put(0x6099, 1, uint32(speeds.switch * cpr))
+        put(0x6099, 2, uint32(speeds.zero * cpr))
+        put(0x609A, None, uint32(speeds.acceleration * cpr))
         put(0x6065, None, uint32(p.following_error_limit * cpr))
         put(0x6066, None, round(p.following_error_timeout * 1000))
         put(0x6007, None, self.core.silence_reaction.value)

@@ -13,6 +13,7 @@ import math
 
 from hil.drives.core import DriveCore
 from hil.drives.definitions import DriveStatus, Fault, Mode, Power
+from hil.protocols.cia402.homing import METHODS, Homing, HomingSpeeds
 
 #: CiA 402 modes of operation (0x6060/0x6061) this drive supports: profile position (1),
 #: profile velocity (3), profile torque (4), homing (6), interpolated position (7: the position of each SYNC's
@@ -28,9 +29,8 @@ CODE_OF_MODE = {mode: code for code, mode in MODE_CODES.items()
                 if code not in (PROFILE_TORQUE, INTERPOLATED_POSITION)}
 #: 0x6502, supported drive modes: bit (code - 1) of each mode above
 SUPPORTED_MODES = sum(1 << (code - 1) for code in MODE_CODES)
-#: homing methods (0x6098) this drive runs: 35 and 37 (its newer number), "current position
-#: is the home position" (the simulated encoder is absolute: nothing to search)
-HOMING_METHODS = (35, 37)
+#: homing methods (0x6098) this drive runs (:mod:`.homing`)
+HOMING_METHODS = METHODS
 
 #: error register (0x1001) of each fault; bits (CiA 301): 0x01 generic, 0x10 communication,
 #: 0x20 device profile, 0x80 manufacturer
@@ -79,6 +79,8 @@ class Cia402StateMachine:
         #: homing: home offset 0x607C (rad, motor): the position where homing leaves the axis
         self.home_offset = 0.0
         self.homing_method = 35
+        self.homing_speeds = HomingSpeeds()
+        self._homing: Homing | None = None      # a homing run in progress
         #: 0x6060 as last set (0: none yet): interpolated position shares CSP's core mode
         self.mode_code = 0
         #: profile torque: the target 0x6071, the slope 0x6087 (N·m, N·m/s; inf: a step)
@@ -167,13 +169,29 @@ class Cia402StateMachine:
             self._home()
 
     def _home(self) -> None:
-        """Homing start: the methods this drive runs finish at once, where the axis is."""
-        if self.homing_method in HOMING_METHODS:
+        """Homing start: a run of the method's moves (:mod:`.homing`)."""
+        self._stop_homing()
+        self.homing_attained = False
+        run = (Homing(self.core, self.homing_method, self.homing_speeds)
+               if self.homing_method in HOMING_METHODS else None)
+        self.homing_error = run is None or run.failed
+        if not self.homing_error:
+            self._homing = run
+            self._advance_homing()
+
+    def _advance_homing(self) -> None:
+        run = self._homing
+        if run is not None and run.advance():
+            self._homing = None
+            # the home position reads the home offset (CiA 402); the axis holds there
             self.core.rebase(self.home_offset - self.core.status().position)
-            self.core.hold_position()            # the home position is where it stands
-            self.homing_attained, self.homing_error = True, False
-        else:
-            self.homing_attained, self.homing_error = False, True
+            self.core.hold_position()
+            self.homing_attained = True
+
+    def _stop_homing(self) -> None:
+        if self._homing is not None:
+            self._homing.abandon()
+            self._homing = None
 
     def mode_bits(self, status: DriveStatus) -> int:
         """Statusword bits 12 and 13 of the operation mode in force."""
@@ -236,6 +254,12 @@ class Cia402StateMachine:
         if (power is Power.QUICK_STOP and self.quick_stop_option < 5
                 and self.core.status().stopped):
             self._to_disabled(State.SWITCH_ON_DISABLED)
+        if self._homing is not None:
+            if (power is not Power.ENABLED or self.core.mode is not Mode.HOMING
+                    or self._last_controlword & HALT):
+                self._stop_homing()          # interrupted: neither attained nor an error
+            else:
+                self._advance_homing()
         if self._buffered is not None and self.core.move_done:
             self.core.move_to(self._buffered)
             self._buffered = None
@@ -244,6 +268,7 @@ class Cia402StateMachine:
 
     def reset_homing(self) -> None:
         """A node reset: the drive forgets its home (its position scale is the encoder's)."""
+        self._stop_homing()
         self.core.rebase(-self.core.offset)
         self.homing_attained = self.homing_error = False
 
