@@ -147,10 +147,8 @@ class Cia402(Protocol):
         offsets) with velocity feed-forward; heartbeat; EMCY and SDO only on events (their
         ids are reserved)."""
         if node_id == UNCONFIGURED:
-            # counted at the LSS answer's id until a master assigns the node id (which
-            # frames it will use is the master's to say)
-            return [(LSS_ANSWER_ID, size, rate) for _, size, rate in
-                    cls.bus_frames(1, cycle_hz, heartbeat_period, options)]
+            # LSS only, until a master assigns the node id (whose frames are then that id's)
+            return [(LSS_REQUEST_ID, 8, 0.0), (LSS_ANSWER_ID, 8, 0.0)]
         feed_forward = options is not None and options.sends_velocity
         return [(0x200 + node_id, 6, cycle_hz), (0x180 + node_id, 6, cycle_hz),
                 (0x280 + node_id, 6, cycle_hz), (0x700 + node_id, 1, 1.0 / heartbeat_period),
@@ -167,8 +165,8 @@ class Cia402(Protocol):
 
     @classmethod
     def shared_ids(cls, options=None) -> set[int]:
-        """The LSS answer's id: every unconfigured drive's until it has a node id."""
-        return {LSS_ANSWER_ID}
+        """The LSS ids: every unconfigured drive's until it has a node id."""
+        return {LSS_REQUEST_ID, LSS_ANSWER_ID}
 
     @classmethod
     def frame_source(cls, can_id: int, data: bytes, remote: bool,
@@ -180,6 +178,9 @@ class Cia402(Protocol):
             return FrameSource(Sender.MASTER, None, "SYNC", cycle=True)
         if can_id == TIME_ID:
             return FrameSource(Sender.MASTER, None, "TIME")
+        if can_id in (LSS_REQUEST_ID, LSS_ANSWER_ID):     # CiA 305: no node id in either
+            return (FrameSource(Sender.MASTER, None, "LSS request") if can_id == LSS_REQUEST_ID
+                    else None)
         if can_id == NMT_ID:
             node = data[1] if len(data) == 2 else None
             if node not in (0, None) and node not in drives:
