@@ -398,6 +398,15 @@ def read_rrd(path, whole: bool = True):
     return rows, static
 
 
+def rrd_verify_errors(path) -> str:
+    """What rerun's own verifier (``rerun rrd verify``: every column against rerun's
+    schema) says is wrong with an .rrd file; empty when it passes."""
+    rerun_cli = Path(sys.executable).with_name("rerun")
+    result = subprocess.run([str(rerun_cli), "rrd", "verify", str(path)], capture_output=True,
+                            text=True, timeout=120)
+    return "" if result.returncode == 0 else (result.stdout + result.stderr)[-2000:]
+
+
 def rrd_series(path, entity: str) -> tuple[np.ndarray, np.ndarray]:
     """An entity's scalar series in an .rrd file: its sim times (s) and its values (one row
     per time, a column per series), in time order."""

@@ -26,7 +26,7 @@ from hil.cli.up.children import make_children
 from hil.cli.up.robots import RobotRun
 from hil.messaging.zenoh_api import RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
-from conftest import ROOT, free_port, read_rrd
+from conftest import ROOT, free_port, read_rrd, rrd_verify_errors
 
 PIGOT_CONFIG = str(ROOT / "bus_config" / "pigot.yaml")
 #: the entity with a row for every cycle recorded (hil.visualisation.recorder)
@@ -116,6 +116,7 @@ def test_up_runs_the_demo_and_records_axes_robot_and_can_traffic(tmp_path):
                             text=True, timeout=300, cwd=tmp_path)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "demo succeeded" in result.stdout
+    assert rrd_verify_errors(save) == ""               # rerun's own schema check
     rows, static = read_rrd(save)
     assert rows[AXIS_ENTITY] > 1000 and rows["/joints"] > 10 * 8    # 8 joints, the mimic too
     assert rows["/bus/load"] > 0 and rows["/drives/limits"] > 0
@@ -242,6 +243,7 @@ def test_up_runs_two_robots_demos_together_into_one_recording(tmp_path):
     assert result.returncode == 0, result.stdout + result.stderr
     assert "hil up: ur3: demo succeeded" in result.stdout
     assert "hil up: pigot: demo succeeded" in result.stdout
+    assert rrd_verify_errors(save) == ""               # the ur3's and the pigot's, lock-step
     rows, static = read_rrd(save)
     # both robots' timelines, each under its name, through both demos (ur3 6 s, pigot 4.5 s)
     for robot, cycles in (("ur3", 3000), ("pigot", 2250)):
@@ -332,6 +334,8 @@ def test_a_recording_in_segments_loses_at_most_its_last_to_a_sigkill(tmp_path, p
     segments = sorted(tmp_path.glob("long-*.rrd"))
     assert [path.name for path in segments[:4]] == [f"long-000{n}.rrd" for n in range(1, 5)]
     assert not save.exists()
+    for path in segments[:-1]:                         # closed: each passes rerun's check
+        assert rrd_verify_errors(path) == "", path
     for path in segments:
         rows, static = read_rrd(path, whole=path != segments[-1])
         assert any(entity.startswith("/robot/pigot/visual_geometries") for entity in static), path

@@ -93,9 +93,12 @@ class ScalarTable:
         self.add_rows(entity, np.column_stack(series))
 
     def add_rows(self, entity: str, rows: np.ndarray) -> None:
-        """One row per time of ``rows`` (times x series), its values as they are typed (4-byte
-        floats where they are)."""
-        kind = pa.float32() if rows.dtype == np.float32 else pa.float64()
+        """One row per time of ``rows`` (times x series), as Float64: rerun's schema for the
+        Scalar component (`rerun rrd verify` rejects a Float32 column, which the viewer
+        shows). Values the recorder rounded to 4-byte floats keep their zero low bits, which
+        the recording's compression takes back."""
+        kind = pa.float64()
+        rows = rows.astype(np.float64)
         self._fields.append(pa.field("Scalars:scalars", pa.list_(kind), metadata={
             "rerun:kind": "data", "rerun:entity_path": entity,
             "rerun:archetype": "rerun.archetypes.Scalars", "rerun:component": "Scalars:scalars",
