@@ -20,7 +20,7 @@ from hil.messaging import cdr
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSampleBuffer, ControlSamples
 from hil.visualisation import RunRecorder, SimTimeMap
-from conftest import PIGOT_XACRO, ROOT, UR3_XACRO
+from conftest import PIGOT_XACRO, ROOT, UR3_XACRO, read_rrd
 
 PIGOT_CONFIG = ROOT / "bus_config" / "pigot.yaml"
 
@@ -241,12 +241,15 @@ def test_recorder_logs_every_cycle_of_every_axis_and_counts_the_lost_batch(recor
     assert not np.isnan(cycles[:, series.torque("arm_rot_1_motor")]).any()
 
 
-def test_every_signal_of_a_cycle_shares_one_row_of_four_byte_floats(recorded):
+def test_every_signal_of_a_cycle_shares_one_row_of_rerun_scalars(recorded):
     """The layout's point: a cycle is one row of one entity (its row id and three times
-    once), its values 4-byte floats, its series named with their units."""
+    once), its values Float64 as rerun's Scalar component declares them (rounded to 4-byte
+    floats: the low bits compress away), its series named with their units."""
     recorder, joints, _, values, static = recorded
     (batch, *_) = values["/cycle"]
-    assert str(batch.schema.field("Scalars:scalars").type) == "list<item: float>"
+    assert str(batch.schema.field("Scalars:scalars").type) == "list<item: double>"
+    row = np.array(batch.column("Scalars:scalars").to_pylist()[0])
+    assert np.array_equal(row.astype(np.float32).astype(np.float64), row, equal_nan=True)
     assert {"wall_time", "control_time", "sim_time"} <= set(batch.schema.names)
     names = recorder.series.names()
     assert names[:3] == ["arm_rot_1 reference [rad]", "arm_rot_1 measured [rad]",
@@ -437,9 +440,14 @@ def test_review_counts_each_processes_stalls_and_their_longest(tmp_path, pigot, 
         recorder.log_samples(batch)
     for process, length in (("sim", 0.007), ("control", 0.012), ("sim", 0.031)):
         recorder.log_stall(Stall(process, 1.0, length))
+    for k in range(5000):                       # a loaded host: a row a second, not a point
+        recorder.log_stall(Stall("transport", 2.0 + k * 0.002, 0.003 + k * 1e-7))
     recorder.flush()
     recording.flush()
     recording.disconnect()
     (run,) = review([path]).runs
     assert run.stalls["sim"] == (2, pytest.approx(31.0))
     assert run.stalls["control"] == (1, pytest.approx(12.0))
+    assert run.stalls["transport"] == (5000, pytest.approx(3.4999, abs=1e-3))
+    rows, _ = read_rrd(path)
+    assert rows["/loop/stalls/transport"] <= 11             # 10 s of stalls, a row a second

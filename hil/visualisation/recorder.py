@@ -18,8 +18,9 @@ shares the rows of ``joints`` (docs/performance.md has what each layout cost).
 ``drives/<actuator>/state``             the drive's state (StateChange, on change)
 ``bus/load``                            each bus' measured load, % of the bitrate
                                         (nominal and worst-case stuffing)
-``loop/stalls/<process>``               each stall of a real-time process (sim, control,
-                                        transport): its length (ms) where it began
+``loop/stalls/<process>``               a real-time process' stalls (sim, control,
+                                        transport), a row a second at most: the worst's
+                                        length (ms) where it began, and their count
 ``diagnostics``                         the controller's faults and resets (TextLog)
 ``robot/...``                           the URDF (rerun's UrdfTree)
 ``joints``                              every joint's transform (parent link to child),
@@ -60,6 +61,7 @@ from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.messaging.scene import SceneState
 from hil.realtime.stalls import PROCESS_WORDS, Stall
+from hil.visualisation.stall_digest import StallDigest, StallRow
 from hil.description.rotations import rpy_quaternion
 from hil.visualisation.blueprint import CycleSeries, robot_view
 from hil.visualisation.columns import ScalarTable, SimTimeMap, Times
@@ -107,6 +109,7 @@ class RunRecorder:
         self.cycles_logged = 0
         self.cycles_lost = 0
         self.stalls_logged = 0
+        self._stalls = StallDigest()
         self._next_cycle: int | None = None
         self._last_states: dict[str, str] = {}
         self._last_pose = -np.inf
@@ -152,8 +155,9 @@ class RunRecorder:
         self._limits_logged = -np.inf
         for process, words in PROCESS_WORDS.items():     # points: a stall is an event
             rec.log(f"{root}/loop/stalls/{process}", rr.SeriesPoints(
-                names=[f"{words} stalled [ms]"], markers=["cross"], marker_sizes=[6.0]),
-                static=True)
+                names=[f"{words} stalled [ms], the second's worst",
+                       f"{words} stalls that second"],
+                markers=["cross", "circle"], marker_sizes=[6.0, 3.0]), static=True)
         rec.log(f"{root}/bus/load", rr.SeriesLines(names=[
             f"{bus} {what} [%]" for bus in self._buses
             for what in ("load", "load, worst-case stuffing")]), static=True)
@@ -197,11 +201,17 @@ class RunRecorder:
                                        level=[_TEXT_LOG_LEVELS[diagnostic.level]]))
 
     def log_stall(self, stall: Stall) -> None:
-        """A stall of a real-time process on the wall and sim timelines, where it began."""
-        table = ScalarTable(self._times(np.array([stall.at])))
-        table.add(f"{self.root}/loop/stalls/{stall.process}", np.array([stall.length * 1e3]))
-        table.send(self.recording)
+        """A stall of a real-time process: gathered, a row an interval per process
+        (:mod:`.stall_digest`) at the worst's start on the wall and sim timelines."""
         self.stalls_logged += 1
+        self._send_stalls(self._stalls.add(stall))
+
+    def _send_stalls(self, rows: list[StallRow]) -> None:
+        for row in rows:
+            table = ScalarTable(self._times(np.array([row.at])))
+            table.add(f"{self.root}/loop/stalls/{row.process}", np.array([row.worst * 1e3]),
+                      np.array([float(row.count)]))
+            table.send(self.recording)
 
     def log_bus_load(self, wall_time: float, loads: list[MeasuredLoad]) -> None:
         """The loads of this robot's buses among ``loads`` (named as ``monitor_names``)."""
@@ -214,6 +224,7 @@ class RunRecorder:
                for value in (by_bus[bus].nominal, by_bus[bus].worst_case)]
         if len(row) != 2 * len(self._buses):          # a bus not measured: none this time
             return
+        self._send_stalls(self._stalls.due(wall_time))     # a quiet process' last interval
         self._loads.append((wall_time, row))
         if wall_time - self._loads[0][0] >= GROUPED:
             self._send_loads()
@@ -232,6 +243,7 @@ class RunRecorder:
         is flushed, at a segment's end and at the end."""
         self._send_loads()
         self._send_poses()
+        self._send_stalls(self._stalls.drain())
 
     def log_scene(self, state: SceneState) -> None:
         """The moving objects' poses, the contacts and a floating base's pose, at the state's

@@ -171,10 +171,12 @@ def _summarise(run: RunSummary, chunk) -> None:
 def _count_stalls(run: RunSummary, process: str, chunk) -> None:
     if chunk.is_static:
         return
-    lengths = [values[0] for values in
-               chunk.to_record_batch().column("Scalars:scalars").to_pylist() if values]
+    rows = [values for values in chunk.to_record_batch().column("Scalars:scalars").to_pylist()
+            if values]
+    # a row: the interval's worst stall (ms) and its count (a row per stall before)
     count, longest = run.stalls.get(process, (0, 0.0))
-    run.stalls[process] = (count + len(lengths), max([longest, *lengths]))
+    run.stalls[process] = (count + sum(int(row[1]) if len(row) > 1 else 1 for row in rows),
+                           max([longest, *(row[0] for row in rows)]))
 
 
 def _chunks(path: Path) -> tuple[list, str | None]:
