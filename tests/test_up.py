@@ -26,7 +26,7 @@ from hil.cli.up.children import make_children
 from hil.cli.up.robots import RobotRun
 from hil.messaging.zenoh_api import RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
-from conftest import ROOT, free_port, read_rrd, rrd_verify_errors
+from conftest import ROOT, free_port, read_rrd, rrd_series, rrd_verify_errors
 
 PIGOT_CONFIG = str(ROOT / "bus_config" / "pigot.yaml")
 #: the entity with a row for every cycle recorded (hil.visualisation.recorder)
@@ -119,6 +119,12 @@ def test_up_runs_the_demo_and_records_axes_robot_and_can_traffic(tmp_path):
     assert rrd_verify_errors(save) == ""               # rerun's own schema check
     rows, static = read_rrd(save)
     assert rows[AXIS_ENTITY] > 1000 and rows["/joints"] > 10 * 8    # 8 joints, the mimic too
+    # the bus loads per second of bus time: a lock-step run's as `hil check` estimates them
+    # (worst-case stuffing; its measured columns are each bus' second)
+    _, loads = rrd_series(save, "/bus/load")
+    config = load_bus_config(ROOT / "bus_config" / "pigot.yaml")
+    for k, bus in enumerate(config.buses):
+        assert loads[:, 2 * k + 1].max() <= 105 * bus.load().worst_ratio, bus.name
     assert rows["/bus/load"] > 0 and rows["/drives/limits"] > 0
     assert rows["/drives/finger_pri_1_motor/state"] >= 1
     assert any(p.startswith("/robot/pigot/visual_geometries/arm_link_6") for p in static)

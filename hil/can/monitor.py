@@ -25,6 +25,7 @@ class MeasuredLoad:
     frames_per_second: float
     nominal: float            # without stuff bits
     worst_case: float         # with worst-case bit stuffing
+    interval: float = 0.0     # s of wall time measured (0: not said)
 
 
 class BusLoadMeter(can.Listener):
@@ -64,7 +65,7 @@ class BusLoadMeter(can.Listener):
         if interval <= 0:
             return []
         return [MeasuredLoad(bus, frames / interval, nominal / interval / self._bitrates[bus],
-                             worst / interval / self._bitrates[bus])
+                             worst / interval / self._bitrates[bus], interval)
                 for bus, (frames, nominal, worst) in counts.items()]
 
 

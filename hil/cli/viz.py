@@ -90,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
             """What every segment starts with: the static data and the layout."""
             for recorder in recorders:
                 recorder.log_static()
-            recording.send_blueprint(run_blueprint([r.view() for r in recorders]))
+            recording.send_blueprint(run_blueprint([r.view() for r in recorders],
+                                                   lock_step=args.timing.lock_step))
 
         def roll() -> None:
             """A full segment: flushed and closed, the next begun."""

@@ -141,10 +141,13 @@ def robot_view(robot: RobotDescription, series: CycleSeries,
     return rrb.Horizontal(side, axes, column_shares=[2, 3], name=robot.name)
 
 
-def run_blueprint(views: list[rrb.Container]) -> rrb.Blueprint:
+def run_blueprint(views: list[rrb.Container], lock_step: bool = False) -> rrb.Blueprint:
     """The whole layout: one robot's view, or a tab per robot."""
+    # the clock that means something for the run: a lock-step run's is the plant's (its wall
+    # time only says how fast the host was)
     return rrb.Blueprint(views[0] if len(views) == 1 else rrb.Tabs(*views),
-                         rrb.SelectionPanel(state="collapsed"))
+                         rrb.SelectionPanel(state="collapsed"),
+                         rrb.TimePanel(timeline="sim_time" if lock_step else "wall_time"))
 
 
 __all__ = ["JOINT_SERIES", "LOOP_SERIES", "CycleSeries", "robot_view", "run_blueprint"]

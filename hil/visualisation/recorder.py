@@ -45,6 +45,7 @@ interpolation over wall time; absent while no sim has been heard).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -61,6 +62,7 @@ from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.messaging.scene import SceneState
 from hil.realtime.stalls import PROCESS_WORDS, Stall
+from hil.visualisation.bus_time import BusTimeLoads
 from hil.visualisation.stall_digest import StallDigest, StallRow
 from hil.description.rotations import rpy_quaternion
 from hil.visualisation.blueprint import CycleSeries, robot_view
@@ -136,7 +138,8 @@ class RunRecorder:
         self._poses = JointPoses(robot, prefix)
         #: what waits to be sent in GROUPED chunks: (wall time, bus loads) rows, and poses
         #: (times, translations, quaternions, parent and child frames)
-        self._loads: list[tuple[float, list[float]]] = []
+        self._loads = BusTimeLoads()
+        self._loads_sent = -np.inf
         self._poses_waiting: list[tuple] = []
 
     def log_static(self) -> None:
@@ -183,6 +186,7 @@ class RunRecorder:
         self._next_cycle = batch.next_cycle
         self.cycles_logged += len(batch)
         times = self._times(batch.wall_time, batch.control_time)
+        self._loads.cycles(batch.wall_time, batch.period)
         table = ScalarTable(times)
         table.add_rows(f"{self.root}/cycle", self._cycle_rows(batch))
         table.send(self.recording)
@@ -214,26 +218,26 @@ class RunRecorder:
             table.send(self.recording)
 
     def log_bus_load(self, wall_time: float, loads: list[MeasuredLoad]) -> None:
-        """The loads of this robot's buses among ``loads`` (named as ``monitor_names``)."""
-        mine = [(self.monitor_names[load.bus], load) for load in loads
-                if load.bus in self.monitor_names]
-        if not mine:
-            return
-        by_bus = dict(mine)
+        """The loads of this robot's buses among ``loads`` (named as ``monitor_names``),
+        each measured over its interval up to ``wall_time``."""
+        self._send_stalls(self._stalls.due(wall_time))     # a quiet process' last interval
+        by_bus = {self.monitor_names[load.bus]: load for load in loads
+                  if load.bus in self.monitor_names}
         row = [100 * value for bus in self._buses if bus in by_bus
                for value in (by_bus[bus].nominal, by_bus[bus].worst_case)]
         if len(row) != 2 * len(self._buses):          # a bus not measured: none this time
             return
-        self._send_stalls(self._stalls.due(wall_time))     # a quiet process' last interval
-        self._loads.append((wall_time, row))
-        if wall_time - self._loads[0][0] >= GROUPED:
-            self._send_loads()
+        interval = max(load.interval for load in by_bus.values())
+        self._loads.add(wall_time - interval, wall_time, row)
+        if wall_time - self._loads_sent >= GROUPED:
+            self._send_loads(wall_time)
 
-    def _send_loads(self) -> None:
-        if not self._loads:
+    def _send_loads(self, now: float, final: bool = False) -> None:
+        """The bus-load rows ready (on bus time: :mod:`.bus_time`), as one chunk."""
+        self._loads_sent = now
+        times, rows = self._loads.ready(now, final)
+        if not rows:
             return
-        times, rows = zip(*self._loads)
-        self._loads.clear()
         table = ScalarTable(self._times(np.array(times)))
         table.add_rows(f"{self.root}/bus/load", np.array(rows, dtype=np.float32))
         table.send(self.recording)
@@ -241,7 +245,7 @@ class RunRecorder:
     def flush(self) -> None:
         """Send what waits to be grouped (the poses, the bus loads): before the recording
         is flushed, at a segment's end and at the end."""
-        self._send_loads()
+        self._send_loads(time.time(), final=True)
         self._send_poses()
         self._send_stalls(self._stalls.drain())
 

@@ -1,0 +1,67 @@
+"""Bus loads per second of bus time.
+
+The monitor measures each bus per second of wall time. A lock-step run is not on the
+wall's clock: its buses carry a control cycle's frames as fast as the sim steps, 2-4
+cycles of bus time per wall period, and a wall-time load overstates what the same traffic
+takes on a real bus by that much (190 % where `hil check` says 72 %). The controller's
+clock is the bus's: every cycle of it sends one cycle's frames. So a row measured over
+[w0, w1] of wall time is scaled by (w1 - w0) / (the cycles the controller ran in it x its
+period), counted from the recorded cycles' wall times. A row waits until cycles past
+its end have been recorded; without a controller (its cycles not recorded for
+CLOCKLESS s) the wall's seconds stand.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: a row waits at most this long (s of wall time) for the controller's cycles to cover it
+CLOCKLESS = 2.0
+#: the cycles' wall times kept (s): more than a row waits
+KEPT = 2 * CLOCKLESS
+
+
+class BusTimeLoads:
+    """Bus-load rows measured on the wall clock, handed out on the bus's clock."""
+
+    def __init__(self):
+        #: the recorded cycles' wall times (the last KEPT s of them) and their period
+        self._walls = np.empty(0)
+        self._period = 0.0
+        self._pending: list[tuple[float, float, list[float]]] = []   # (w0, w1, row)
+
+    def cycles(self, wall: np.ndarray, period: float) -> None:
+        """Recorded cycles: the wall time of each, and the control period."""
+        self._walls = np.concatenate((self._walls, wall))
+        self._walls = self._walls[self._walls >= self._walls[-1] - KEPT]
+        self._period = period
+
+    def add(self, start: float, end: float, row: list[float]) -> None:
+        self._pending.append((start, end, row))
+
+    def ready(self, now: float, final: bool = False) -> tuple[list[float], list[list[float]]]:
+        """(end times, rows) of the rows that can go: covered by recorded cycles (scaled to
+        bus time), or waiting past CLOCKLESS (or ``final``: the run's end) on wall time."""
+        covered = self._walls[-1] if len(self._walls) else -np.inf
+        times, rows, waiting = [], [], []
+        for start, end, row in self._pending:
+            if start < end and (end <= covered or final and covered > start):
+                times.append(end)
+                rows.append([value * self._scale(start, end) for value in row])
+            elif final or start >= end or now - end > CLOCKLESS:   # (no interval said)
+                times.append(end)
+                rows.append(row)
+            else:
+                waiting.append((start, end, row))
+        self._pending = waiting
+        return times, rows
+
+    def _scale(self, start: float, end: float) -> float:
+        """Wall seconds per bus second over a row: the cycles the controller ran in it, and
+        the wall's own seconds outside the cycles' run (before the first, after the last:
+        no controller, the bus on wall time)."""
+        walls = self._walls
+        cycles = np.searchsorted(walls, end) - np.searchsorted(walls, start)
+        outside = max(0.0, min(end, walls[0]) - start) + max(0.0, end - max(start, walls[-1]))
+        bus = cycles * self._period + outside
+        return (end - start) / bus if bus > 0 else 1.0
