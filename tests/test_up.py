@@ -120,11 +120,12 @@ def test_up_runs_the_demo_and_records_axes_robot_and_can_traffic(tmp_path):
     rows, static = read_rrd(save)
     assert rows[AXIS_ENTITY] > 1000 and rows["/joints"] > 10 * 8    # 8 joints, the mimic too
     # the bus loads per second of bus time: a lock-step run's as `hil check` estimates them
-    # (worst-case stuffing; its measured columns are each bus' second)
+    # (worst-case stuffing: each bus' second column; the third draws the estimate)
     _, loads = rrd_series(save, "/bus/load")
     config = load_bus_config(ROOT / "bus_config" / "pigot.yaml")
     for k, bus in enumerate(config.buses):
-        assert loads[:, 2 * k + 1].max() <= 105 * bus.load().worst_ratio, bus.name
+        assert loads[:, 3 * k + 1].max() <= 105 * bus.load().worst_ratio, bus.name
+        assert loads[:, 3 * k + 2] == pytest.approx(100 * bus.load().worst_ratio, rel=1e-6)
     assert rows["/bus/load"] > 0 and rows["/drives/limits"] > 0
     assert rows["/drives/finger_pri_1_motor/state"] >= 1
     assert any(p.startswith("/robot/pigot/visual_geometries/arm_link_6") for p in static)

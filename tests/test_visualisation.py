@@ -19,7 +19,7 @@ from hil.hardware import JointFeedback
 from hil.messaging import cdr
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSampleBuffer, ControlSamples
-from hil.visualisation import RunRecorder, SimTimeMap
+from hil.visualisation import BenchParts, RunRecorder, SimTimeMap
 from conftest import PIGOT_XACRO, ROOT, UR3_XACRO, read_rrd
 
 PIGOT_CONFIG = ROOT / "bus_config" / "pigot.yaml"
@@ -307,8 +307,10 @@ def test_robots_sharing_a_recording_each_keep_their_entities_frames_and_bus_load
         urdf.write_bytes(ET.tostring(read_robot_source(xacro, package_path).root))
         actuators = {a.name: tuple(j.name for j in t.joints)
                      for t in robot.transmissions for a in t.actuators}
-        recorder = recorders[robot.name] = RunRecorder(recording, robot, urdf, actuators,
-                                                       ("arm", "wrist"), namespaced=True)
+        estimates = {"arm": 0.5, "wrist": 0.6} if robot is ur3 else {}
+        recorder = recorders[robot.name] = RunRecorder(
+            recording, robot, urdf, actuators, ("arm", "wrist"), namespaced=True,
+            bench=BenchParts(bus_estimates=estimates))
         recorder.log_static()
         recorder.log_clock(0.0, 0.0)
         joints = tuple(j.name for j in robot.driven_joints)
@@ -345,8 +347,10 @@ def test_robots_sharing_a_recording_each_keep_their_entities_frames_and_bus_load
     assert rows["/pigot/cycle"] == 20 and rows["/ur3/cycle"] == 20
     assert not any(p.startswith(("/cycle", "/drives", "/joints")) for p in rows)
     assert set(load_logged) == {"/ur3/bus/load", "/pigot/bus/load"}
-    assert load_logged["/ur3/bus/load"] == pytest.approx([10, 10, 20, 20])
-    assert load_logged["/pigot/bus/load"] == pytest.approx([30, 30, 40, 40])
+    # each bus: nominal, worst-case stuffing, the config's estimate (none given: NaN)
+    assert load_logged["/ur3/bus/load"] == pytest.approx([10, 10, 50, 20, 20, 60])
+    assert load_logged["/pigot/bus/load"] == pytest.approx([30, 30, np.nan, 40, 40, np.nan],
+                                                           nan_ok=True)
     # each robot's model under its name, its frames named after it: no link shared
     assert any(p.startswith("/pigot/visual_geometries/arm_link_6") for p in static)
     assert any(p.startswith("/ur3/visual_geometries/") for p in static)

@@ -135,7 +135,7 @@ def _recorder(recording: rr.RecordingStream, config: SystemConfig, folder: Path,
     urdf = folder / f"{config.robot.name}.urdf"
     urdf.write_bytes(viewer_urdf(config.robot))
     parts = BenchParts(config.scene, {d.actuator: d.peak_torque for d in config.drives},
-                       config.floating_base)
+                       config.floating_base, {b.name: b.load().worst_ratio for b in config.buses})
     return RunRecorder(recording, config.robot, urdf, _actuator_joints(config),
                        tuple(b.name for b in config.buses), namespaced, parts)
 

@@ -16,8 +16,9 @@ shares the rows of ``joints`` (docs/performance.md has what each layout cost).
 ``drives/limits``                       each drive's peak torque, both ways, a row a
                                         second (the effort views draw it)
 ``drives/<actuator>/state``             the drive's state (StateChange, on change)
-``bus/load``                            each bus' measured load, % of the bitrate
-                                        (nominal and worst-case stuffing)
+``bus/load``                            each bus' measured load, % of the bitrate per
+                                        second of bus time (nominal and worst-case
+                                        stuffing), and hil check's estimate
 ``loop/stalls/<process>``               a real-time process' stalls (sim, control,
                                         transport), a row a second at most: the worst's
                                         length (ms) where it began, and their count
@@ -89,11 +90,13 @@ _TEXT_LOG_LEVELS = {"OK": rr.TextLogLevel.INFO, "WARN": rr.TextLogLevel.WARN,
 @dataclass(frozen=True)
 class BenchParts:
     """What a bus config adds to its robot that the recording draws: the scene, each drive's
-    peak torque (by actuator, N·m) and whether the base floats."""
+    peak torque (by actuator, N·m), whether the base floats, and each bus' estimated load
+    (`hil check`'s worst case, a fraction of the bitrate: drawn beside the measured)."""
 
     scene: tuple[SceneObject, ...] = ()
     torque_limits: Mapping[str, float] = field(default_factory=dict)
     floating_base: bool = False
+    bus_estimates: Mapping[str, float] = field(default_factory=dict)
 
 
 class RunRecorder:
@@ -111,6 +114,7 @@ class RunRecorder:
         self.cycles_logged = 0
         self.cycles_lost = 0
         self.stalls_logged = 0
+        self._bus_estimates = bench.bus_estimates
         self._stalls = StallDigest()
         self._next_cycle: int | None = None
         self._last_states: dict[str, str] = {}
@@ -163,7 +167,8 @@ class RunRecorder:
                 markers=["cross", "circle"], marker_sizes=[6.0, 3.0]), static=True)
         rec.log(f"{root}/bus/load", rr.SeriesLines(names=[
             f"{bus} {what} [%]" for bus in self._buses
-            for what in ("load", "load, worst-case stuffing")]), static=True)
+            for what in ("load", "load, worst-case stuffing", "hil check's worst case")]),
+            static=True)
         for thing in self._scene:
             rec.log(f"{root}/scene/{thing.name}", _shape(thing), static=True)
             if not thing.movable:       # a moving one is posed by each SceneState
@@ -224,8 +229,9 @@ class RunRecorder:
         by_bus = {self.monitor_names[load.bus]: load for load in loads
                   if load.bus in self.monitor_names}
         row = [100 * value for bus in self._buses if bus in by_bus
-               for value in (by_bus[bus].nominal, by_bus[bus].worst_case)]
-        if len(row) != 2 * len(self._buses):          # a bus not measured: none this time
+               for value in (by_bus[bus].nominal, by_bus[bus].worst_case,
+                             self._bus_estimates.get(bus, np.nan))]
+        if len(row) != 3 * len(self._buses):          # a bus not measured: none this time
             return
         interval = max(load.interval for load in by_bus.values())
         self._loads.add(wall_time - interval, wall_time, row)
