@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import collections
 import time
+import math
 import xml.etree.ElementTree as ET
 
 import can
@@ -455,3 +456,51 @@ def test_review_counts_each_processes_stalls_and_their_longest(tmp_path, pigot, 
     assert run.stalls["transport"] == (5000, pytest.approx(3.4999, abs=1e-3))
     rows, _ = read_rrd(path)
     assert rows["/loop/stalls/transport"] <= 11             # 10 s of stalls, a row a second
+
+
+ARM_WITHOUT_MESHES = """<robot name="arm">
+  <link name="base"><visual><geometry><mesh filename="package://gone/base.stl"/></geometry>
+    </visual><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0"
+    ixz="0" iyz="0"/></inertial></link>
+  <link name="upper"><visual><geometry><mesh filename="package://gone/upper.stl"/></geometry>
+    </visual><inertial><origin xyz="0 0 0.15"/><mass value="1"/><inertia ixx="0.01"
+    iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="fore"><visual><geometry><mesh filename="package://gone/fore.stl"/></geometry>
+    </visual><inertial><origin xyz="0.1 0 0"/><mass value="1"/><inertia ixx="0.01"
+    iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/>
+    <origin xyz="0 0 0.1"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
+  <joint name="elbow" type="revolute"><parent link="upper"/><child link="fore"/>
+    <origin xyz="0 0 0.3"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
+</robot>
+"""
+
+
+def test_a_robot_without_its_meshes_is_drawn_as_its_kinematic_skeleton(tmp_path):
+    """Meshes not found: each link drawn as bones to its child joints' origins (to its
+    centre of mass at the chain's end) and its joint along its axis, where the plant's
+    inertia boxes would float apart, each at its link's centre of mass."""
+    from hil.description import PackagePath, load_description
+    from hil.visualisation.urdf_export import viewer_urdf
+
+    source = tmp_path / "arm.urdf"
+    source.write_text(ARM_WITHOUT_MESHES)
+    robot = load_description(source, PackagePath(()))
+    drawn = {link.get("name"): link for link in ET.fromstring(viewer_urdf(robot)).iter("link")}
+
+    def cylinders(link: str) -> list[tuple[tuple[float, ...], str, float]]:
+        return [(tuple(map(float, v.find("origin").get("xyz").split())),
+                 v.find("origin").get("rpy"), float(v.find("geometry/cylinder").get("length")))
+                for v in drawn[link].iter("visual")]
+
+    # bones: base to the shoulder (0.1 up), upper arm to the elbow (0.3 up), forearm to its
+    # centre of mass (0.1 along x: pitched a quarter turn); joints along y (pitched, yawed)
+    assert ((0.0, 0.0, 0.05), "0.0 0.0 0.0", pytest.approx(0.1)) in cylinders("base")
+    assert ((0.0, 0.0, 0.15), "0.0 0.0 0.0", pytest.approx(0.3)) in cylinders("upper")
+    (bone, joint) = cylinders("fore")
+    assert bone[0] == pytest.approx((0.05, 0.0, 0.0)) and bone[2] == pytest.approx(0.1)
+    assert [float(a) for a in bone[1].split()] == pytest.approx([0, math.pi / 2, 0])
+    assert [float(a) for a in joint[1].split()] == pytest.approx([0, math.pi / 2, math.pi / 2])
+    assert all(link.find("visual/geometry/box") is None for link in drawn.values())

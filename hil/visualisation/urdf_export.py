@@ -3,25 +3,40 @@
 rerun finds ``package://`` meshes through ``ROS_PACKAGE_PATH`` only, and would draw what the
 description says rather than what hil simulates. So the recording gets a URDF written from
 the typed description: every mesh by the absolute path hil resolved it to (``--package-path``
-included), a box of the link's equivalent inertia where a mesh is missing (as the plant
-draws it), mimic and corrected joints as the plant has them.
+included), where a mesh is missing, the link drawn as a skeleton of its kinematics (a bone from its
+origin to each child joint's, or to its centre of mass at the chain's end, and its joint
+as a short cylinder along the joint's axis: a robot whose meshes are not shipped still
+reads as that robot; the inertia boxes it had floated apart), mimic and corrected joints
+as the plant has them.
 """
 
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
+
+import numpy as np
 
 from hil.description import GeometryKind, Joint, Link, Pose, RobotDescription
 
 #: joint types the viewer animates; others are fixed, as in the plant (a fixed base)
 _MOVING = ("revolute", "continuous", "prismatic")
+#: a skeleton's bone radius: this fraction of its length, within these bounds (m)
+BONE, THINNEST, THICKEST = 0.12, 0.006, 0.03
+#: bones and joints of a skeleton (RGBA)
+BONE_COLOUR, JOINT_COLOUR = "0.75 0.75 0.78 1", "0.95 0.55 0.15 1"
 
 
 def viewer_urdf(robot: RobotDescription) -> bytes:
     """URDF text of ``robot`` with resolved meshes (see the module's docstring)."""
     root = ET.Element("robot", name=robot.name)
+    children: dict[str, list[Joint]] = {}
+    parent_joint: dict[str, Joint] = {}
+    for joint in robot.joints:
+        children.setdefault(joint.parent, []).append(joint)
+        parent_joint[joint.child] = joint
     for link in robot.links:
-        root.append(_link(link))
+        root.append(_link(link, children.get(link.name, []), parent_joint.get(link.name)))
     for joint in robot.joints:
         root.append(_joint(joint))
     return ET.tostring(root, encoding="utf-8", xml_declaration=True)
@@ -32,8 +47,9 @@ def _origin(pose: Pose) -> ET.Element:
                       rpy=" ".join(map(repr, pose.rpy)))
 
 
-def _link(link: Link) -> ET.Element:
+def _link(link: Link, children: list[Joint], parent: Joint | None) -> ET.Element:
     element = ET.Element("link", name=link.name)
+    skeleton = False                       # drawn once, however many meshes are missing
     for number, visual in enumerate(link.visuals):
         geometry = visual.geometry
         origin = visual.origin
@@ -47,10 +63,10 @@ def _link(link: Link) -> ET.Element:
                                length=repr(geometry.size[1]))
         elif geometry.kind is GeometryKind.SPHERE:
             shape = ET.Element("sphere", radius=repr(geometry.size[0]))
-        elif link.inertial is not None:        # a missing mesh: the plant's box
-            shape = ET.Element("box", size=" ".join(map(repr, link.inertial.equivalent_box())))
-            origin = link.inertial.origin
-        else:
+        else:                                  # a missing mesh: the kinematics' skeleton
+            if not skeleton:
+                element.extend(_skeleton(link, children, parent))
+                skeleton = True
             continue
         drawn = ET.SubElement(element, "visual")
         drawn.append(_origin(origin))
@@ -75,3 +91,36 @@ def _joint(joint: Joint) -> ET.Element:
         ET.SubElement(element, "limit", lower=repr(limits.lower), upper=repr(limits.upper),
                       effort=repr(limits.effort), velocity=repr(limits.velocity))
     return element
+
+
+def _skeleton(link: Link, children: list[Joint], parent: Joint | None) -> list[ET.Element]:
+    """``<visual>`` elements drawing ``link`` as bones and its joint (module doc)."""
+    ends = [np.array(child.origin.xyz, dtype=float) for child in children]
+    if not ends and link.inertial is not None:
+        ends = [np.array(link.inertial.origin.xyz, dtype=float)]
+    bones = [end for end in ends if np.linalg.norm(end) > 1e-3]
+    radius = max([THINNEST, *(min(THICKEST, BONE * np.linalg.norm(b)) for b in bones)])
+    visuals = [_cylinder(end / 2, end, min(THICKEST, max(THINNEST, BONE * np.linalg.norm(end))),
+                         np.linalg.norm(end), BONE_COLOUR, f"{link.name}_bone{k}")
+               for k, end in enumerate(bones)]
+    if parent is not None and parent.type.value in _MOVING:
+        axis = np.array(parent.axis, dtype=float)
+        visuals.append(_cylinder(np.zeros(3), axis, 1.6 * radius, 4 * radius, JOINT_COLOUR,
+                                 f"{link.name}_joint"))
+    return visuals
+
+
+def _cylinder(centre, direction, radius: float, length: float, colour: str,
+              name: str) -> ET.Element:
+    """A cylinder about ``centre``, its axis along ``direction`` (URDF's: along z)."""
+    x, y, z = np.asarray(direction) / np.linalg.norm(direction)
+    # rpy with R z = direction: pitch about y, then yaw about z (roll 0)
+    rpy = (0.0, math.acos(max(-1.0, min(1.0, z))), math.atan2(y, x))
+    visual = ET.Element("visual")
+    visual.append(_origin(Pose(tuple(float(c) for c in centre), rpy)))
+    ET.SubElement(ET.SubElement(visual, "geometry"), "cylinder", radius=repr(radius),
+                  length=repr(float(length)))
+    material = ET.SubElement(visual, "material", name=name)
+    ET.SubElement(material, "color", rgba=colour)
+    return visual
+
