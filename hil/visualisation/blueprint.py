@@ -11,10 +11,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
 from hil.description import RobotDescription
+from hil.description.rotations import rpy_matrix
 
 #: a joint's series in ``cycle``, in order, and their units by joint type
 JOINT_SERIES = ("reference", "measured", "error", "reference velocity", "velocity", "effort")
@@ -139,18 +141,45 @@ def robot_view(robot: RobotDescription, series: CycleSeries,
         states.append(rrb.TimeSeriesView(name="base position [m]", origin=f"{root}/base",
                                          contents=[f"{root}/base/position"]))
     loop = {series.loop(q): q for q in LOOP_SERIES}
+    hidden = rrb.PlotLegend(visible=False)      # the views' names say what they show
     side = rrb.Vertical(
         rrb.Spatial3DView(name=robot.name, origin="/", contents=[
-            *model, f"{root}/joints", f"{root}/scene/**", f"{root}/base"]),
+            *model, f"{root}/joints", f"{root}/scene/**", f"{root}/base"],
+            eye_controls=framing(robot)),
         rrb.Tabs(*states),
-        rrb.TimeSeriesView(name="bus load [%]", origin=f"{root}/bus",
-                           contents=[f"{root}/bus/load"]),
+        rrb.TimeSeriesView(name="bus load [%]: nominal, worst-case stuffing, hil check's",
+                           origin=f"{root}/bus", contents=[f"{root}/bus/load"],
+                           plot_legend=hidden),
         rrb.TimeSeriesView(name="control loop [ms]: period, round trip, stalls",
                            origin=f"{root}/loop", contents=[cycle, f"{root}/loop/stalls/**"],
-                           overrides={cycle: series.showing(loop)}),
-        row_shares=[3, 2, 1, 1],          # every drive's state lane readable
+                           overrides={cycle: series.showing(loop)}, plot_legend=hidden),
+        row_shares=[2.5, 3, 1, 1],        # every drive's state lane readable
     )
     return rrb.Horizontal(side, axes, column_shares=[2, 3], name=robot.name)
+
+
+def framing(robot: RobotDescription) -> rrb.EyeControls3D:
+    """A camera on the whole robot as it stands at zero: its links' origins' box seen from
+    the front right, above, from far enough that the box fits."""
+    placed = {robot.root_link: (np.eye(3), np.zeros(3))}
+    pending = list(robot.joints)
+    while pending:                                  # parents before children
+        waiting = []
+        for joint in pending:
+            if joint.parent not in placed:
+                waiting.append(joint)
+                continue
+            rotation, position = placed[joint.parent]
+            placed[joint.child] = (rotation @ np.array(rpy_matrix(joint.origin.rpy)).reshape(3, 3),
+                                   position + rotation @ np.array(joint.origin.xyz))
+        if len(waiting) == len(pending):           # joints of links off the tree: left out
+            break
+        pending = waiting
+    points = np.array([position for _, position in placed.values()])
+    low, high = points.min(axis=0), points.max(axis=0)
+    centre, size = (low + high) / 2, max(float(np.max(high - low)), 0.3)
+    return rrb.EyeControls3D(position=centre + size * np.array([0.75, -0.95, 0.55]),
+                             look_target=centre, eye_up=(0.0, 0.0, 1.0))
 
 
 def run_blueprint(views: list[rrb.Container], lock_step: bool = False) -> rrb.Blueprint:
