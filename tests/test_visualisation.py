@@ -504,3 +504,14 @@ def test_a_robot_without_its_meshes_is_drawn_as_its_kinematic_skeleton(tmp_path)
     assert [float(a) for a in bone[1].split()] == pytest.approx([0, math.pi / 2, 0])
     assert [float(a) for a in joint[1].split()] == pytest.approx([0, math.pi / 2, math.pi / 2])
     assert all(link.find("visual/geometry/box") is None for link in drawn.values())
+
+
+def test_the_seed_robots_stand_in_boxes_are_drawn_as_skeletons(ur3, pigot):
+    """The shipped seeds draw each link as its equivalent inertia box at its centre of mass
+    (their meshes are not shipped): the viewer takes those for stand-ins, a skeleton each."""
+    from hil.visualisation.urdf_export import viewer_urdf
+
+    for robot in (ur3, pigot):
+        drawn = ET.fromstring(viewer_urdf(robot))
+        assert next(drawn.iter("box"), None) is None, robot.name
+        assert sum(1 for _ in drawn.iter("cylinder")) >= len(robot.joints), robot.name

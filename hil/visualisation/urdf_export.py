@@ -3,7 +3,9 @@
 rerun finds ``package://`` meshes through ``ROS_PACKAGE_PATH`` only, and would draw what the
 description says rather than what hil simulates. So the recording gets a URDF written from
 the typed description: every mesh by the absolute path hil resolved it to (``--package-path``
-included), where a mesh is missing, the link drawn as a skeleton of its kinematics (a bone from its
+included), where a mesh is missing (or a box stands in for it: the link's equivalent inertia box at its
+centre of mass, as the shipped seed robots have them), the link drawn as a skeleton of its
+kinematics (a bone from its
 origin to each child joint's, or to its centre of mass at the chain's end, and its joint
 as a short cylinder along the joint's axis: a robot whose meshes are not shipped still
 reads as that robot; the inertia boxes it had floated apart), mimic and corrected joints
@@ -56,7 +58,7 @@ def _link(link: Link, children: list[Joint], parent: Joint | None) -> ET.Element
         if geometry.kind is GeometryKind.MESH:
             shape = ET.Element("mesh", filename=str(geometry.mesh),
                                scale=" ".join(map(repr, geometry.size)))
-        elif geometry.kind is GeometryKind.BOX and geometry.size:
+        elif geometry.kind is GeometryKind.BOX and geometry.size and not _stand_in(link, visual):
             shape = ET.Element("box", size=" ".join(map(repr, geometry.size)))
         elif geometry.kind is GeometryKind.CYLINDER:
             shape = ET.Element("cylinder", radius=repr(geometry.size[0]),
@@ -123,4 +125,13 @@ def _cylinder(centre, direction, radius: float, length: float, colour: str,
     material = ET.SubElement(visual, "material", name=name)
     ET.SubElement(material, "color", rgba=colour)
     return visual
+
+
+def _stand_in(link: Link, visual) -> bool:
+    """Whether a box is a mesh's stand-in: the link's own equivalent inertia box at its
+    centre of mass, as hil draws a missing mesh and as the shipped seed robots' descriptions
+    draw theirs (their meshes are not shipped). Drawn as the skeleton instead."""
+    inertial = link.inertial
+    return (inertial is not None and visual.origin == inertial.origin
+            and np.allclose(visual.geometry.size, inertial.equivalent_box(), rtol=2e-3))
 
