@@ -506,12 +506,19 @@ def test_a_robot_without_its_meshes_is_drawn_as_its_kinematic_skeleton(tmp_path)
     assert all(link.find("visual/geometry/box") is None for link in drawn.values())
 
 
-def test_the_seed_robots_stand_in_boxes_are_drawn_as_skeletons(ur3, pigot):
+def test_the_seed_robots_stand_in_boxes_are_drawn_as_skeletons(ur3, pigot, tmp_path):
     """The shipped seeds draw each link as its equivalent inertia box at its centre of mass
-    (their meshes are not shipped): the viewer takes those for stand-ins, a skeleton each."""
+    (their meshes are not shipped): the viewer takes those for stand-ins, a skeleton each,
+    in a URDF rerun's own loader reads."""
+    from rerun.urdf import UrdfTree
+
     from hil.visualisation.urdf_export import viewer_urdf
 
     for robot in (ur3, pigot):
-        drawn = ET.fromstring(viewer_urdf(robot))
+        text = viewer_urdf(robot)
+        drawn = ET.fromstring(text)
         assert next(drawn.iter("box"), None) is None, robot.name
         assert sum(1 for _ in drawn.iter("cylinder")) >= len(robot.joints), robot.name
+        path = tmp_path / f"{robot.name}.urdf"
+        path.write_bytes(text)
+        UrdfTree.from_file_path(path, "robot")          # raises on what it cannot read

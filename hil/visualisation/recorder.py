@@ -229,9 +229,8 @@ class RunRecorder:
         by_bus = {self.monitor_names[load.bus]: load for load in loads
                   if load.bus in self.monitor_names}
         row = [100 * value for bus in self._buses if bus in by_bus
-               for value in (by_bus[bus].nominal, by_bus[bus].worst_case,
-                             self._bus_estimates.get(bus, np.nan))]
-        if len(row) != 3 * len(self._buses):          # a bus not measured: none this time
+               for value in (by_bus[bus].nominal, by_bus[bus].worst_case)]
+        if len(row) != 2 * len(self._buses):          # a bus not measured: none this time
             return
         interval = max(load.interval for load in by_bus.values())
         self._loads.add(wall_time - interval, wall_time, row)
@@ -244,8 +243,13 @@ class RunRecorder:
         times, rows = self._loads.ready(now, final)
         if not rows:
             return
+        measured = np.array(rows, dtype=np.float32).reshape(len(rows), -1, 2)
+        estimates = np.array([100 * self._bus_estimates.get(bus, np.nan) for bus in self._buses],
+                             dtype=np.float32)          # beside each bus' pair, unscaled
         table = ScalarTable(self._times(np.array(times)))
-        table.add_rows(f"{self.root}/bus/load", np.array(rows, dtype=np.float32))
+        table.add_rows(f"{self.root}/bus/load", np.concatenate(
+            (measured, np.broadcast_to(estimates[None, :, None], (len(rows), len(estimates), 1))),
+            axis=2).reshape(len(rows), -1))
         table.send(self.recording)
 
     def flush(self) -> None:

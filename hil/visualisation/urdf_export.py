@@ -120,7 +120,7 @@ def _cylinder(centre, direction, radius: float, length: float, colour: str,
     rpy = (0.0, math.acos(max(-1.0, min(1.0, z))), math.atan2(y, x))
     visual = ET.Element("visual")
     visual.append(_origin(Pose(tuple(float(c) for c in centre), rpy)))
-    ET.SubElement(ET.SubElement(visual, "geometry"), "cylinder", radius=repr(radius),
+    ET.SubElement(ET.SubElement(visual, "geometry"), "cylinder", radius=repr(float(radius)),
                   length=repr(float(length)))
     material = ET.SubElement(visual, "material", name=name)
     ET.SubElement(material, "color", rgba=colour)
