@@ -5,8 +5,8 @@ wall's clock: its buses carry a control cycle's frames as fast as the sim steps,
 cycles of bus time per wall period, and a wall-time load overstates what the same traffic
 takes on a real bus by that much (190 % where `hil check` says 72 %). The controller's
 clock is the bus's: every cycle of it sends one cycle's frames. So a row measured over
-[w0, w1] of wall time is scaled by (w1 - w0) / (the cycles the controller ran in it x its
-period), counted from the recorded cycles' wall times. A row waits until cycles past
+[w0, w1] of wall time (rows merged over WINDOW) is its bits over the cycles the controller
+ran in it x its period, counted from the recorded cycles' wall times. A row waits until cycles past
 its end have been recorded; without a controller (its cycles not recorded for
 CLOCKLESS s) the wall's seconds stand.
 """
@@ -17,6 +17,9 @@ import numpy as np
 
 #: a row waits at most this long (s of wall time) for the controller's cycles to cover it
 CLOCKLESS = 2.0
+#: rows merge into one over this long at least (s of wall time): a cycle's frames straddle
+#: a short row's edges, and a loaded host's lock-step pace varies from row to row
+WINDOW = 0.5
 #: the cycles' wall times kept (s): more than a row waits
 KEPT = 2 * CLOCKLESS
 
@@ -40,28 +43,36 @@ class BusTimeLoads:
         self._pending.append((start, end, row))
 
     def ready(self, now: float, final: bool = False) -> tuple[list[float], list[list[float]]]:
-        """(end times, rows) of the rows that can go: covered by recorded cycles (scaled to
-        bus time), or waiting past CLOCKLESS (or ``final``: the run's end) on wall time."""
+        """(end times, rows) that can go: the rows covered by recorded cycles merged into
+        one a WINDOW at least, its bits over its bus time; rows waiting past CLOCKLESS (or
+        at ``final``, the run's end) on wall time."""
         covered = self._walls[-1] if len(self._walls) else -np.inf
-        times, rows, waiting = [], [], []
-        for start, end, row in self._pending:
-            if start < end and (end <= covered or final and covered > start):
-                times.append(end)
-                rows.append([value * self._scale(start, end) for value in row])
+        times, rows = [], []
+        while self._pending:
+            start, end, row = self._pending[0]
+            group = [item for item in self._pending if item[1] <= covered or final]
+            span = group[-1][1] - start if group else 0.0
+            if start < end and group and (span >= WINDOW or final) and covered > start:
+                self._pending = self._pending[len(group):]
+                bus = self._bus_seconds(start, group[-1][1])
+                weights = np.array([b - a for a, b, _ in group])
+                merged = weights @ np.array([r for _, _, r in group]) / bus if bus > 0 \
+                    else np.array(row)
+                times.append(group[-1][1])
+                rows.append(merged.tolist())
             elif final or start >= end or now - end > CLOCKLESS:   # (no interval said)
+                self._pending.pop(0)
                 times.append(end)
                 rows.append(row)
             else:
-                waiting.append((start, end, row))
-        self._pending = waiting
+                break
         return times, rows
 
-    def _scale(self, start: float, end: float) -> float:
-        """Wall seconds per bus second over a row: the cycles the controller ran in it, and
-        the wall's own seconds outside the cycles' run (before the first, after the last:
-        no controller, the bus on wall time)."""
+    def _bus_seconds(self, start: float, end: float) -> float:
+        """The bus time of [start, end]: the cycles the controller ran in it, and the wall's
+        own seconds outside the cycles' run (before the first, after the last: no
+        controller, the bus on wall time)."""
         walls = self._walls
         cycles = np.searchsorted(walls, end) - np.searchsorted(walls, start)
         outside = max(0.0, min(end, walls[0]) - start) + max(0.0, end - max(start, walls[-1]))
-        bus = cycles * self._period + outside
-        return (end - start) / bus if bus > 0 else 1.0
+        return cycles * self._period + outside
