@@ -33,6 +33,7 @@ import can
 from hil.bus_config import SystemConfig
 from hil.can.faults import FaultyBus
 from hil.control_node import ControlNode, FaceFactory
+from hil.controllers.config import controllers_for
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
 from hil.simulator import Simulator
 from hil.zenoh_session import ZenohSettings, close, free_loopback_port, session
@@ -74,7 +75,7 @@ class Stack:
             config, {b.name: self._opened[2 * i + 1] for i, b in enumerate(config.buses)},
             reply_timeout=LOCK_STEP_REPLY_TIMEOUT if timing.lock_step else None)
         self.node = ControlNode(hardware, self.zenoh, config.cycle_hz, timing,
-                                faces=faces)
+                                controllers=controllers_for(config), faces=faces)
         #: why the control node's bring-up failed, if it did
         self.error: Exception | None = None
         self._node_thread = threading.Thread(target=self._run_node, daemon=True)

@@ -16,11 +16,11 @@ a narrower right and is denied (a deny rule on an exact key would let it through
 A certificate of the CA with any other name matches no subject and is refused everything.
 
 - ``drives`` (``hil sim``) and ``controller`` (``hil control``): everything;
-- ``operator`` (``hil send``, ``hil reset``, ``hil up``'s own session): the controller's
-  commands (an action's goals, cancels and results, the fault reset) as queries of those
-  keys, subscriptions and liveliness under ``hil/``; no CAN frame, nothing published;
-- ``observer`` (``hil viz``): subscriptions, liveliness and goal results under ``hil/``, its
-  own liveliness token; no frame, no goal, no cancel, no reset, nothing published.
+- ``operator`` (``hil send``, ``hil reset``, ``hil controllers``, ``hil up``'s own session):
+  the controller's commands (an action's goals, cancels and results, the fault reset, a
+  controller switch, a forward controller's commands) as queries of those keys, subscriptions and liveliness under ``hil/``; no CAN frame, nothing published;
+- ``observer`` (``hil viz``): subscriptions, liveliness, goal results and the controllers'
+  list under ``hil/``, its own liveliness token; no frame, no goal, no cancel, no reset, nothing published.
 
 docs/security.md has the threat model. The certificates carry no host names, and names are
 not verified on connect: a peer is whoever holds a key the CA signed, wherever it connects
@@ -37,7 +37,8 @@ from pathlib import Path
 from hil.errors import HilError
 
 #: the roles and the commands that take each
-ROLES = {"drives": "hil sim", "controller": "hil control", "operator": "hil send, hil reset",
+ROLES = {"drives": "hil sim", "controller": "hil control",
+         "operator": "hil send, hil reset, hil controllers",
          "observer": "hil viz"}
 CA_CERTIFICATE = "ca.pem"
 CA_KEY = "ca.key"
@@ -49,9 +50,10 @@ FRAME_KEYS = ["hil/can/**"]
 #: queries that command the controller (an action's goals and cancels, wherever its
 #: namespace puts it, and the fault reset; tests/test_secure.py holds them against the keys
 #: the controller serves)
-COMMAND_KEYS = ["hil/*/**/send_goal", "hil/*/**/cancel_goal", "hil/*/reset_faults"]
-#: the results of an action's goals: a read, queried
-RESULT_KEYS = ["hil/*/**/get_result"]
+COMMAND_KEYS = ["hil/*/**/send_goal", "hil/*/**/cancel_goal", "hil/*/reset_faults",
+                "hil/*/controller_manager/switch_controller", "hil/*/*/commands"]
+#: the results of an action's goals and the controllers' list: reads, queried
+RESULT_KEYS = ["hil/*/**/get_result", "hil/*/controller_manager/list_controllers"]
 #: what every role may read: subscriptions and liveliness anywhere under hil/
 READ_KEYS = ["hil/**"]
 EVERY_MESSAGE = ["put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",

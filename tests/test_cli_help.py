@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from hil.cli import COMMANDS, main
@@ -21,7 +23,8 @@ def test_the_command_help_runs(capsys):
         main(["--help"])
     assert ended.value.code == 0
     printed = capsys.readouterr().out
-    assert all(f"    {name} " in printed for name in COMMANDS), printed
+    assert all(re.search(rf"^    {name}(\s|$)", printed, re.MULTILINE) for name in COMMANDS), \
+        printed
 
 
 def _options(command: str):

@@ -52,7 +52,8 @@ def _stack(router, namespace: str = "/"):
     return running_stack(
         load_bus_config(config_path("ur3")), LOCK_STEP,
         faces=[lambda node: RosControlFace(settings, node.controller, node.clock,
-                                           "<robot name='ur3'/>", node.reset_faults)])
+                                           "<robot name='ur3'/>", node.reset_faults,
+                                           manager=node.manager)])
 
 
 @pytest.fixture(scope="module")
@@ -483,21 +484,22 @@ def _set(client, types, name: str, value):
 def test_a_client_lists_reads_and_describes_the_controllers_parameters(client, spec_types):
     listed = _ask(client, spec_types, "list_parameters", "ListRequest", "ListResponse",
                   prefixes=[], depth=0).result
-    assert {"joints", "use_sim_time", "constraints.goal_position_tolerance",
-            "constraints.path_position_tolerance"} <= set(listed.names), listed.names
+    assert {"joints", "use_sim_time", "constraints.joint1.goal",
+            "constraints.joint1.trajectory", "constraints.goal_time",
+            "allow_partial_joints_goal"} <= set(listed.names), listed.names
     assert "constraints" in listed.prefixes
     under = _ask(client, spec_types, "list_parameters", "ListRequest", "ListResponse",
                  prefixes=["constraints"], depth=0).result
     assert under.names and all(n.startswith("constraints.") for n in under.names)
     joints, tolerance, unknown = _ask(
         client, spec_types, "get_parameters", "GetRequest", "GetResponse",
-        names=["joints", "constraints.goal_position_tolerance", "no_such"]).values
+        names=["joints", "constraints.joint1.goal", "no_such"]).values
     assert joints.type == STRING_ARRAY and list(joints.string_array_value) == UR3_JOINTS
     assert tolerance.type == DOUBLE and tolerance.double_value == pytest.approx(0.02)
     assert unknown.type == 0
     fixed, settable = _ask(client, spec_types, "describe_parameters", "DescribeRequest",
                            "DescribeResponse",
-                           names=["joints", "constraints.goal_position_tolerance"]).descriptors
+                           names=["joints", "constraints.joint1.goal"]).descriptors
     assert fixed.read_only and not settable.read_only and settable.type == DOUBLE
     assert "goal" in settable.description
 
@@ -506,10 +508,10 @@ def test_read_only_and_mistyped_parameters_are_refused_with_the_reason(client, s
     refused = _set(client, spec_types, "joints",
                    _value(spec_types, STRING_ARRAY, string_array_value=["joint1"]))
     assert not refused.successful and "read-only" in refused.reason
-    mistyped = _set(client, spec_types, "constraints.goal_position_tolerance",
+    mistyped = _set(client, spec_types, "constraints.joint1.goal",
                     _value(spec_types, STRING, string_value="tight"))
     assert not mistyped.successful and "double" in mistyped.reason
-    negative = _set(client, spec_types, "constraints.goal_position_tolerance",
+    negative = _set(client, spec_types, "constraints.joint1.goal",
                     _value(spec_types, DOUBLE, double_value=-1.0))
     assert not negative.successful and ">= 0" in negative.reason
     unknown = _set(client, spec_types, "no_such", _value(spec_types, DOUBLE, double_value=1.0))
@@ -524,7 +526,7 @@ def _changes(events: list, name: str, value: float) -> bool:
 
 def test_a_set_path_tolerance_takes_effect_on_the_next_goal_and_is_announced(client, spec_types,
                                                                                stack):
-    name = "constraints.path_position_tolerance"
+    name = "constraints.joint3.trajectory"
     events_sub, events = _collect(client, "/parameter_events",
                                   "rcl_interfaces/msg/ParameterEvent")
     try:
@@ -605,3 +607,27 @@ def test_the_type_description_service_describes_what_the_node_publishes_to_its_h
     unused = _ask(client, spec_types, "get_type_description", "TypeRequest", "TypeResponse",
                   type_name="sensor_msgs/msg/Image", type_hash="", include_type_sources=False)
     assert not unused.successful and "uses no type" in unused.failure_reason
+
+
+def test_controller_manager_lists_and_switches_the_controllers_over_ros(client):
+    """controller_manager's services as `ros2 control` calls them (controller_manager_msgs,
+    jazzy), and forward_command_controller's ~/commands topics in the graph."""
+    listed = cdr.decode(client.call(client.find("SS", "/controller_manager/list_controllers"),
+                                    cdr.EMPTY_REQUEST), cdr.LIST_CONTROLLERS_RESPONSE)
+    states = {c.name: (c.state, c.type) for c in listed.controller}
+    assert states["joint_trajectory_controller"] == (
+        "active", "joint_trajectory_controller/JointTrajectoryController")
+    assert states["forward_position_controller"][0] == "inactive"
+    client.find("MS", "/forward_position_controller/commands")
+    switch = client.find("SS", "/controller_manager/switch_controller")
+
+    def request(activate, deactivate, strictness=2):
+        response = cdr.decode(client.call(switch, cdr.encode(cdr.msg(
+            cdr.SWITCH_CONTROLLER_REQUEST, activate_controllers=activate,
+            deactivate_controllers=deactivate, strictness=strictness, activate_asap=False,
+            timeout=cdr.duration_msg(0.0)))), cdr.SWITCH_CONTROLLER_RESPONSE)
+        return response.ok, response.message
+    ok, message = request([], ["joint_trajectory_controller"])
+    assert not ok and "without a controller" in message
+    assert request(["forward_position_controller"], ["joint_trajectory_controller"]) == (True, "")
+    assert request(["joint_trajectory_controller"], ["forward_position_controller"]) == (True, "")

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 from rosidl_adapter.action import convert_action_to_idl
 from rosidl_adapter.msg import convert_msg_to_idl
+from rosidl_adapter.srv import convert_srv_to_idl
 from rosidl_generator_type_description import generate_type_hash
 
 from hil.messaging.ros.interfaces import DISTROS, FollowJointTrajectory, TypeHashes
@@ -67,25 +68,50 @@ SERVICES = ("std_srvs/srv/Trigger", "action_msgs/srv/CancelGoal",
             "type_description_interfaces/srv/GetTypeDescription")
 
 
+#: controller_manager_msgs as ros2_control's jazzy, kilted and master branches define them
+#: (identical; comments left out)
+CONTROLLER_MANAGER_MSGS = {
+    "msg/ChainConnection.msg": "string name\nstring[] reference_interfaces\n",
+    "msg/ControllerState.msg":
+        "string name\nstring state\nstring type\nbool is_async\nuint16 update_rate\n"
+        "string[] claimed_interfaces\nstring[] required_command_interfaces\n"
+        "string[] required_state_interfaces\nbool is_chainable\nbool is_chained\n"
+        "string[] exported_state_interfaces\nstring[] reference_interfaces\n"
+        "ChainConnection[] chain_connections\n",
+    "srv/ListControllers.srv": "---\ncontroller_manager_msgs/ControllerState[] controller\n",
+    "srv/SwitchController.srv":
+        "string[] activate_controllers\nstring[] deactivate_controllers\nint32 strictness\n"
+        "int32 BEST_EFFORT=1\nint32 STRICT=2\nint32 AUTO=3\nint32 FORCE_AUTO=4\n"
+        "bool activate_asap\nbuiltin_interfaces/Duration timeout\n---\nbool ok\n"
+        "string message\n",
+}
+
+
 def control_msgs_hashes(feedback: str, folder: Path) -> dict[str, str]:
     """ROS's hashes of control_msgs' FollowJointTrajectory with this feedback definition,
     computed by rosidl's own pipeline against the message wheels' type descriptions."""
-    package = folder / "control_msgs"
-    files = {"msg/JointTolerance.msg": JOINT_TOLERANCE,
-             "msg/JointComponentTolerance.msg": JOINT_COMPONENT_TOLERANCE,
-             "action/FollowJointTrajectory.action": f"{GOAL}---\n{RESULT}---\n{feedback}"}
+    return ros_hashes("control_msgs", {
+        "msg/JointTolerance.msg": JOINT_TOLERANCE,
+        "msg/JointComponentTolerance.msg": JOINT_COMPONENT_TOLERANCE,
+        "action/FollowJointTrajectory.action": f"{GOAL}---\n{RESULT}---\n{feedback}"}, folder)
+
+
+def ros_hashes(name: str, files: dict[str, str], folder: Path) -> dict[str, str]:
+    """ROS's hashes of a package of these interface files (rosidl's own pipeline)."""
+    package = folder / name
     idl = folder / "idl"
+    converters = {".action": convert_action_to_idl, ".srv": convert_srv_to_idl,
+                  ".msg": convert_msg_to_idl}
     for relative, text in files.items():
         source = package / relative
         source.parent.mkdir(parents=True, exist_ok=True)
         source.write_text(text)
         (idl / source.parent.name).mkdir(parents=True, exist_ok=True)
-        convert = convert_action_to_idl if source.suffix == ".action" else convert_msg_to_idl
         with contextlib.redirect_stdout(io.StringIO()):        # it says what it reads
-            convert(package, "control_msgs", Path(relative), idl / source.parent.name)
+            converters[source.suffix](package, name, Path(relative), idl / source.parent.name)
     arguments = folder / "arguments.json"
     arguments.write_text(json.dumps({
-        "package_name": "control_msgs", "output_dir": str(folder / "out"),
+        "package_name": name, "output_dir": str(folder / "out"),
         "idl_tuples": [f"{idl}:{path.relative_to(idl)}" for path in sorted(idl.rglob("*.idl"))],
         "include_paths": [f"{p.name}:{p}" for p in SHARE.iterdir() if p.is_dir()]}))
     hashes = {}
@@ -123,6 +149,19 @@ def test_every_interface_hil_declares_has_the_hash_ros_computes_for_that_distrib
     pairs |= {name: ours.service(name).type_hash for name in SERVICES}
     expected |= {name: wheel_hash(name) for name in pairs if name not in expected}
     assert pairs == expected
+
+
+def test_controller_manager_services_and_commands_have_the_hashes_ros_computes(tmp_path):
+    """The ROS face's controller_manager services (RosControllerManager) and the forward
+    controllers' command topic."""
+    ros = ros_hashes("controller_manager_msgs", CONTROLLER_MANAGER_MSGS, tmp_path)
+    for distro in sorted(DISTROS):
+        ours = TypeHashes(distro)
+        for service in ("ListControllers", "SwitchController"):
+            name = f"controller_manager_msgs/srv/{service}"
+            assert ours.service(name).type_hash == ros[name], (distro, name)
+        name = "std_msgs/msg/Float64MultiArray"
+        assert ours.message(name).type_hash == wheel_hash(name), distro
 
 
 def test_kilted_feedback_is_the_one_ros_reports_and_differs_from_jazzys(tmp_path):

@@ -10,15 +10,21 @@ import time
 import can
 import pytest
 import zenoh
-
 from conftest import free_port, stop_process
+
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.errors import HilError
 from hil.messaging import cdr
 from hil.messaging.action import ACTION
+from hil.messaging.controller_manager import ControllerManagerClient
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient, key
-from hil.zenoh_security import (COMMAND_KEYS, Identity, access_policy, make_keys,
-                                 secured_endpoint)
+from hil.zenoh_security import (
+    COMMAND_KEYS,
+    Identity,
+    access_policy,
+    make_keys,
+    secured_endpoint,
+)
 from hil.zenoh_session import ZenohSettings, close, session, why_unreached
 
 pytestmark = pytest.mark.slow
@@ -354,3 +360,24 @@ def test_a_stall_report_counts_only_from_the_benchs_own_roles(keys, peers):
     finally:
         subscriber.close()
         close(listening)
+
+
+def test_an_observer_lists_controllers_but_cannot_switch_or_command_them(
+        keys, secure_controller, peers):
+    """The controller manager's list is a read; its switch and a forward controller's
+    commands are an operator's commands (an observer's queries are not answered)."""
+    observer = ControllerManagerClient(peers(keys, "observer", secure_controller).session,
+                                       "ur3", timeout=2.0)
+    operator = ControllerManagerClient(peers(keys, "operator", secure_controller).session,
+                                       "ur3", timeout=10.0)
+    assert {s.name for s in operator.list()} >= {"joint_trajectory_controller"}
+    assert {s.name for s in observer.list()} >= {"joint_trajectory_controller"}
+    with pytest.raises(TimeoutError):
+        observer.switch(["forward_position_controller"], ["joint_trajectory_controller"])
+    with pytest.raises(TimeoutError):
+        observer.command("forward_position_controller", [0.0] * 6, wait=True)
+    assert operator.switch(["forward_position_controller"],
+                           ["joint_trajectory_controller"]) == (True, "")
+    operator.command("forward_position_controller", [0.0] * 6, wait=True)
+    assert operator.switch(["joint_trajectory_controller"],
+                           ["forward_position_controller"]) == (True, "")

@@ -6,9 +6,8 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-import yaml
-
 from hil.bus_config.checks import check_system
+from hil.bus_config.controllers_key import read_controllers
 from hil.bus_config.joint_limits import apply_joint_limits
 from hil.bus_config.scene import read_scene
 from hil.bus_config.start_pose import read_start_pose
@@ -16,7 +15,7 @@ from hil.bus_config.transmissions import add_transmissions
 from hil.bus_config.types import (
     NO_EFFECTS, ActuatorEffects, BusConfig, DriveConfig, Gains, SystemConfig,
 )
-from hil.bus_config.yaml_reader import ConfigTooLarge, LineLoader, LineMapping, Reader
+from hil.bus_config.yaml_reader import LineMapping, Reader, parse_yaml
 from hil.description import JointType, PackagePath, RobotDescription, load_description
 from hil.errors import HilError, Severity
 from hil.input_files import read_input_file
@@ -26,7 +25,7 @@ from hil.protocols import protocol
 from hil.transmissions import SimpleTransmission, Transmission, build_transmissions
 
 _TOP_KEYS = {"robot", "plant_rate_hz", "base", "start_pose", "defaults", "joint_limits",
-             "transmissions", "buses", "scene"}
+             "transmissions", "buses", "scene", "controllers"}
 #: the ``base:`` values: the root link welded to the world, or free (a free joint)
 BASES = {"fixed": False, "floating": True}
 _BUS_KEYS = {"name", "interface", "channel", "bitrate", "cycle_hz", "drives"}
@@ -49,20 +48,7 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
     """
     path = Path(path)
     text = read_input_file(path, "bus config", hint="give the path of a bus_config/*.yaml file")
-    try:
-        document = yaml.load(text, Loader=LineLoader)
-    except RecursionError:
-        raise HilError.single("YAML nested too deeply to read", path,
-                              hint="a bus config nests a few levels") from None
-    except ConfigTooLarge as exc:
-        raise HilError.single(f"YAML too large: {exc.problem}", path, exc.problem_mark.line + 1,
-                              hint="a bus config is a few hundred small values: "
-                                   "remove what is not one") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise HilError.single(f"YAML syntax: {getattr(exc, 'problem', exc)}", path,
-                              mark.line + 1 if mark else None,
-                              hint="fix the YAML at that line (indentation, ':' and '-')") from None
+    document = parse_yaml(text, path, "a bus config")
     reader = Reader(path)
     top = reader.mapping(document, "the bus config", 1)
     reader.unknown_keys(top, _TOP_KEYS, "the bus config")
@@ -95,7 +81,8 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
     scene = read_scene(reader, top)
     config = SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses,
                           scene=scene, floating_base=_read_base(reader, top),
-                          start_pose=read_start_pose(reader, top, robot))
+                          start_pose=read_start_pose(reader, top, robot),
+                          controllers=read_controllers(reader, top))
     check_system(reader, config, transmissions, top)
     errors = [d for d in reader.diagnostics if d.severity is Severity.ERROR]
     warnings = tuple(d for d in reader.diagnostics if d.severity is Severity.WARNING)

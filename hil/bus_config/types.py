@@ -167,6 +167,21 @@ class BusConfig:
 
 
 @dataclass(frozen=True)
+class ControllersSource:
+    """The bus config's ``controllers:`` (hil.bus_config.controllers_key): the user's
+    controller_manager YAML and how its names meet this bench."""
+
+    path: Path
+    #: (name in the file, the bench's joint) pairs; a name not listed is the joint's own
+    joint_names: tuple[tuple[str, str], ...] = ()
+    #: the values of the file's $(var NAME) substitutions
+    variables: tuple[tuple[str, str], ...] = ()
+    #: the controllers active from the start (None: the file's trajectory controller)
+    active: tuple[str, ...] | None = None
+    line: int | None = None
+
+
+@dataclass(frozen=True)
 class SystemConfig:
     """A whole bench: robot, plant rate, buses."""
 
@@ -181,6 +196,8 @@ class SystemConfig:
     floating_base: bool = False
     #: where joints start (``start_pose:``), (joint, position) pairs; the rest hil's way
     start_pose: tuple[tuple[str, float], ...] = ()
+    #: the user's controller_manager YAML (``controllers:``), or None: hil's own controllers
+    controllers: ControllersSource | None = None
 
     @property
     def effects(self) -> dict[str, ActuatorEffects]:

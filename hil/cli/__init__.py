@@ -26,6 +26,8 @@ COMMANDS = {
     "sim": "run the plant and all virtual drives of a bus config",
     "control": "run the CAN master, joint state publisher and joint trajectory controller",
     "send": "send a joint trajectory to a running hil control and wait for the result",
+    "controllers": "list a running hil control's controllers, or switch between them "
+                   "(trajectory, forward position, forward velocity)",
     "reset": "reset drive faults (after a fault aborted a goal) and hold position",
     "ls": "list the robots and hil processes reachable from here (sim, control, viz)",
     "viz": "show and record every axis of a running robot in rerun",

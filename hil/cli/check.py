@@ -8,6 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from hil.bus_config import SystemConfig, load_bus_config
+from hil.controllers.config import ControllersConfig, controllers_for
 from hil.bus_config.types import SceneObject
 from hil.cli import common
 from hil.description import GeometryKind, PackagePath, RobotDescription, load_description
@@ -32,10 +33,13 @@ def run(args: argparse.Namespace) -> int:
     if args.path.suffix in (".yaml", ".yml"):
         config = load_bus_config(args.path, package_path)
         plant = bench_plant(config)                     # as hil sim builds it
-        config = replace(config, warnings=config.warnings + plant.warnings)
+        controllers = controllers_for(config)           # as hil control reads them
+        config = replace(config, warnings=config.warnings + plant.warnings +
+                         controllers.warnings)
         if args.strict and config.warnings:
             raise HilError([replace(w, severity=Severity.ERROR) for w in config.warnings])
         print(bus_summary(config))
+        print(controllers_summary(controllers))
         return 0
     if args.path.suffix not in (".xacro", ".urdf"):
         raise HilError.single(f"cannot check '{args.path}': not a .xacro, .urdf or .yaml file",
@@ -45,6 +49,14 @@ def run(args: argparse.Namespace) -> int:
     description = load_description(args.path, package_path, strict=args.strict)
     print(summary(description, Plant(description), package_path))
     return 0
+
+
+def controllers_summary(controllers: ControllersConfig) -> str:
+    """What hil control runs: each controller, active or not, and where they come from."""
+    source = controllers.path or "hil's own: no controllers file"
+    names = [controllers.trajectory_name, *(f.name for f in controllers.forwards)]
+    return f"controllers ({source}): " + ", ".join(
+        f"{name}{' (active)' if name in controllers.active else ''}" for name in names)
 
 
 def bus_summary(config: SystemConfig) -> str:

@@ -14,7 +14,7 @@ from hil.bus_config import load_bus_config, open_buses
 from hil.can.capabilities import capabilities
 from hil.cli import common
 from hil.control_node import ControlNode
-from hil.controllers import Defaults
+from hil.controllers.config import DEFAULT_GOAL_TOLERANCE, controllers_for
 from hil.errors import HilError
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface
 from hil.realtime import REAL_TIME_PRIORITY, enter_real_time
@@ -39,8 +39,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="real time: run the control loop under SCHED_FIFO priority N "
                              f"where the OS allows it (default {REAL_TIME_PRIORITY}; 0: the "
                              "normal scheduler)")
-    parser.add_argument("--goal-tolerance", type=common.positive, default=Defaults.goal_position_tolerance,
-                        metavar="RAD", help="default goal position tolerance")
+    parser.add_argument("--goal-tolerance", type=common.positive, default=None, metavar="RAD",
+                        help="hil's own controllers: how far (rad or m) each joint may end "
+                             f"from a goal (default {DEFAULT_GOAL_TOLERANCE:g})")
+    parser.add_argument("--controllers", type=Path, metavar="YAML",
+                        help="run the controllers of your controller_manager YAML (a "
+                             "ros2_controllers.yaml) instead of hil's own; the bus config's "
+                             "controllers: entry maps its names (docs/controllers.md)")
     parser.add_argument("--boot-timeout", type=common.duration, default=CONTROL_BOOT_TIMEOUT,
                         metavar="TIME",
                         help="how long to wait for every drive to boot (default "
@@ -63,6 +68,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     config = load_bus_config(common.config_path(args.config), common.package_path(args))
+    controllers = controllers_for(config, args.goal_tolerance, args.controllers)
+    for warning in controllers.warnings:
+        print(f"hil control: {warning}", file=sys.stderr)
     zenoh = common.zenoh_settings(args)
     if not args.timing.lock_step:  # the frame handling just below the loop (its own priority)
         enter_real_time(max(0, args.priority - 1), common.cpus(args))
@@ -80,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         node = ControlNode(hardware, session(zenoh), config.cycle_hz,
                            args.timing, joint_state_hz=args.joint_state_rate,
-                           defaults=Defaults(goal_position_tolerance=args.goal_tolerance),
+                           controllers=controllers,
                            priority=args.priority, faces=_ros_faces(args, config))
     except BaseException:        # e.g. no Zenoh router for --ros: no bus may keep us alive
         for bus in buses.values():
@@ -91,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
     mode = "fake hardware" if args.fake else f"{len(config.drives)} drive(s)"
     print(f"hil control: {config.robot.name}, {mode}, {config.cycle_hz:g} Hz, "
           f"{args.timing}; goals on "
-          f"hil/{config.robot.name}/follow_joint_trajectory", flush=True)
+          f"hil/{config.robot.name}/follow_joint_trajectory; controllers: " + ", ".join(
+              f"{c.name} ({c.state})" for c in node.manager.list()), flush=True)
     gc.collect()
     gc.freeze()     # start-up's objects out of the collector's way: shorter passes in the loop
     try:
@@ -123,7 +132,7 @@ def _ros_faces(args: argparse.Namespace, config) -> list:
             raise HilError.single("--ros-use-sim-time is for the ROS 2 face",
                                   hint="add --ros")
         return []
-    from hil.messaging.ros.face import ACTION_NAME, PlantClock, RosControlFace  # noqa: PLC0415
+    from hil.messaging.ros.face import ACTION, PlantClock, RosControlFace  # noqa: PLC0415
     from hil.visualisation.urdf_export import viewer_urdf            # noqa: PLC0415
 
     def make(node: ControlNode):
@@ -134,8 +143,8 @@ def _ros_faces(args: argparse.Namespace, config) -> list:
                               plant_clock, facts={
                                   "robot": config.robot.name, "cycle_hz": float(config.cycle_hz),
                                   "lock_step": args.timing.lock_step,
-                                  "fake_hardware": bool(args.fake)})
-        action = f"{settings.namespace.rstrip('/')}/{ACTION_NAME}"
+                                  "fake_hardware": bool(args.fake)}, manager=node.manager)
+        action = f"{settings.namespace.rstrip('/')}/{node.controller.name}/{ACTION}"
         print(f"hil control: ROS 2 node {settings.namespace.rstrip('/')}/hil_control on "
               f"domain {settings.domain_id} via {settings.router} ({settings.distro}); "
               f"action {action}; stamps on the "

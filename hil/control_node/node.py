@@ -22,7 +22,8 @@ import zenoh
 
 from hil.control_node.attribution import GRACE, Attribution, FaultAttribution
 from hil.control_node.fault_reset import RESET_TIMEOUT, FaultReset
-from hil.controllers import Defaults, JointTrajectoryController
+from hil.controllers.config import DEFAULT_GOAL_TOLERANCE, ControllersConfig, hil_controllers
+from hil.controllers.manager import ControllerManager
 from hil.controllers.joint_state import JointStateBroadcaster
 from hil.hardware import AxisFault, HardwareInterface
 from hil.hardware.feedback import JointFeedback
@@ -47,19 +48,27 @@ class ControlNode:
 
     def __init__(self, hardware: HardwareInterface, session: zenoh.Session, cycle_hz: float,
                  timing: Timing = REAL_TIME, joint_state_hz: float = 100.0,
-                 feedback_hz: float = 20.0, samples_hz: float = 10.0,
-                 defaults: Defaults = Defaults(), priority: int = REAL_TIME_PRIORITY,
-                 faces: Sequence[FaceFactory] = ()):
-        """``priority``: the real-time loop's SCHED_FIFO priority where allowed (0: none).
-        The node always has its face on hil's own keys in ``session``; ``faces`` make more
-        (the ROS 2 face), each given every output too."""
+                 samples_hz: float = 10.0, controllers: ControllersConfig | None = None,
+                 priority: int = REAL_TIME_PRIORITY, faces: Sequence[FaceFactory] = ()):
+        """``controllers``: what the controller manager runs (None: hil's own set,
+        :func:`hil.controllers.config.hil_controllers`); the trajectory controller's feedback
+        goes out at its action_monitor_rate. ``priority``: the real-time loop's SCHED_FIFO
+        priority where allowed (0: none). The node always has its face on hil's own keys in
+        ``session``; ``faces`` make more (the ROS 2 face), each given every output too."""
         self.hardware = hardware
         robot = hardware.robot
         self.period = 1.0 / cycle_hz
         self.timing = timing
         self.lock_step = timing.lock_step
         self.priority = priority
-        self.controller = JointTrajectoryController(robot, defaults)
+        if controllers is None:
+            controllers = hil_controllers(hardware.joint_names, DEFAULT_GOAL_TOLERANCE)
+        #: the controllers, listed and switched as controller_manager does
+        self.manager = ControllerManager.from_config(robot, hardware.joint_names, controllers,
+                                                     self.period)
+        #: the joint trajectory controller (its action faces serve it)
+        self.controller = self.manager.trajectory
+        feedback_hz = controllers.trajectory.action_monitor_rate
         self.broadcaster = JointStateBroadcaster(robot, hardware.joint_names)
         self._cycle = 0
         self._start = time.monotonic()
@@ -79,7 +88,8 @@ class ControlNode:
         self._stop = threading.Event()
         self._fault_reset = FaultReset(hardware, self.controller, self._diagnose)
         self.faces: list[ControlFace] = [ZenohControlFace(
-            session, robot.name, self.controller, self.clock, self.reset_faults)]
+            session, robot.name, self.manager, self.clock, self.stamp_to_clock,
+            self.reset_faults)]
         self.faces += [make(self) for make in faces]
         #: faults explained by the bench's own stalls (real time), as diagnosed
         self.bench_faults: list[Attribution] = []
@@ -144,6 +154,11 @@ class ControlNode:
         """The controller's time: cycles x period in lock-step, monotonic otherwise."""
         return self._cycle * self.period if self.lock_step else time.monotonic() - self._start
 
+    def stamp_to_clock(self, stamp: float) -> float:
+        """A goal's header stamp (wall time, as hil's keys stamp everything; the ROS face
+        maps the plant's time with use_sim_time) on the controller's clock."""
+        return self.clock() + (stamp - time.time())
+
     def stop(self) -> None:
         self._stop.set()
 
@@ -159,7 +174,7 @@ class ControlNode:
         pacer = None
         try:
             start = self.hardware.start(self._stop)
-            self.controller.update(self.clock(), start.positions, start.velocities)
+            self.manager.update(self.clock(), start.positions, start.velocities)
             self._token = self._session.liveliness().declare_token(
                 key(self.hardware.robot.name, "control"))
             self._cycling_since = time.time()
@@ -186,13 +201,14 @@ class ControlNode:
         for fault in faults:
             self.faults.append(fault)
             self.controller.abort(str(fault))
+            self.manager.hold(feedback.positions)
             self._diagnose("ERROR", str(fault), fault_values(fault))
             self._attribution.fault(fault, time.time())
         self._fault_reset.advance(faults)
         if pacer is not None:
             self._attribute(pacer, released)
         now = self.clock()
-        command, velocity = self.controller.update(now, feedback.positions, feedback.velocities)
+        command, velocity = self.manager.update(now, feedback.positions, feedback.velocities)
         hardware.write(command, velocity)
         self.samples.add(self._cycle, now, command, velocity, feedback,
                          pacer.last_period if pacer is not None else math.nan,
@@ -264,7 +280,7 @@ class ControlNode:
         if self._cycle % self._every_feedback == self._feedback_phase:
             state = self.controller.state()
             if state.goal_id is not None:
-                payload = cdr.encode(feedback_message(state))
+                payload = cdr.encode(feedback_message(state, time.time()))
                 for face in self.faces:
                     face.publish_feedback(payload, state)
         self._publish_results()

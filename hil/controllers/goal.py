@@ -23,6 +23,14 @@ HARDWARE_FAULT = -100        # hil: a drive faulted or went silent (not in contr
 MAX_POINTS = 100_000
 
 
+#: the JTC's result strings (joint_trajectory_controller.cpp, jazzy): clients may compare them
+REACHED = "Goal successfully reached!"
+PREEMPTED = "Current goal preempted by new incoming action."
+PATH_ABORT = "Aborted due to path tolerance violation"
+GOAL_TIME_ABORT = "Aborted due to goal_time_tolerance exceeding by {:.6f} seconds"
+DEACTIVATED = "Current goal cancelled during deactivate transition."
+
+
 class GoalStatus(enum.Enum):
     """Terminal states of a goal, as action_msgs/GoalStatus numbers them."""
 
@@ -83,7 +91,12 @@ class TrajectoryGoal:
     start_time: float | None = None
     path_tolerance: tuple[JointTolerance, ...] = ()
     goal_tolerance: tuple[JointTolerance, ...] = ()
+    #: control_msgs: 0 keeps the controller's constraints.goal_time, -1 erases it (no time
+    #: limit), > 0 replaces it
     goal_time_tolerance: float = 0.0
+    #: whether any point carries efforts (the JTC refuses them without an effort command
+    #: interface, which hil's hardware does not export)
+    has_efforts: bool = False
 
 
 @dataclass(frozen=True)
@@ -93,40 +106,14 @@ class GoalResult:
     error_string: str = ""
 
 
-@dataclass(frozen=True)
-class Defaults:
-    """Controller defaults for what a goal leaves at 0."""
-
-    goal_position_tolerance: float = 0.02
-    goal_velocity_tolerance: float = 0.0        # 0: not checked
-    path_position_tolerance: float = 0.0        # 0: not checked
-    goal_time_tolerance: float = 1.0
-    stopped_velocity_tolerance: float = 0.05
-
-
 class GoalRejected(ValueError):
     def __init__(self, reason: str, error_code: int = INVALID_GOAL):
         super().__init__(reason)
         self.error_code = error_code
 
 
-# --- a goal's own consistency (the robot's limits are the controller's to check) -----
-
-def check_tolerances(goal: TrajectoryGoal) -> None:
-    """Raise GoalRejected for a tolerance of a joint the goal does not command, or a
-    tolerance, goal_time_tolerance or start time that is not a finite value."""
-    for tolerance in (*goal.path_tolerance, *goal.goal_tolerance):
-        if tolerance.name not in goal.joint_names:
-            raise GoalRejected(f"tolerance for joint '{tolerance.name}', which the goal does "
-                               "not command", INVALID_JOINTS)
-        for what, value in (("position", tolerance.position),
-                            ("velocity", tolerance.velocity)):
-            if not math.isfinite(value):
-                raise GoalRejected(f"the {what} tolerance of joint '{tolerance.name}' is "
-                                   f"{value} (0: the default, < 0: not checked)")
-    if not math.isfinite(goal.goal_time_tolerance) or goal.goal_time_tolerance < 0:
-        raise GoalRejected(f"goal_time_tolerance {goal.goal_time_tolerance} is not a "
-                           "duration (0: the default)")
+def check_start_time(goal: TrajectoryGoal) -> None:
+    """Raise GoalRejected for a start time that is not a finite value."""
     if goal.start_time is not None and not math.isfinite(goal.start_time):
         raise GoalRejected(f"the start time {goal.start_time} is not a time")
 

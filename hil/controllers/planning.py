@@ -9,9 +9,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from hil.controllers.goal import (
-    INVALID_JOINTS, MAX_POINTS, Defaults, GoalRejected, JointTolerance, TrajectoryGoal,
-    check_tolerances, first_index, goal_arrays,
+    INVALID_JOINTS, MAX_POINTS, GoalRejected, JointTolerance, TrajectoryGoal, check_start_time,
+    first_index, goal_arrays,
 )
+from hil.controllers.parameters import FLOAT_EPSILON, JtcParameters, SegmentTolerances, resolve
 from hil.controllers.spline import Spline
 from hil.description import Joint, JointType, RobotDescription
 
@@ -47,17 +48,31 @@ class GoalPlan:
 
     indices: np.ndarray            # controller joint index of each goal joint
     spline: Spline
-    path: tuple[np.ndarray, np.ndarray]
-    tolerance: tuple[np.ndarray, np.ndarray]
-    goal_time_tolerance: float
+    #: over every controller joint (the JTC fills a partial goal with the others' holds)
+    tolerances: SegmentTolerances
+    #: why the goal's own tolerances were not taken (the JTC logs it and runs the goal with
+    #: its defaults), or None
+    tolerance_warning: str | None = None
 
 
-def plan_goal(joints: JointLimitTable, defaults: Defaults, goal: TrajectoryGoal) -> GoalPlan:
-    """Check a goal against the joints' limits and plan its segments between points; raise
-    GoalRejected naming the joint and point at the first problem."""
+def plan_goal(joints: JointLimitTable, parameters: JtcParameters,
+              goal: TrajectoryGoal) -> GoalPlan:
+    """Check a goal as the JTC's validate_trajectory_msg does, and against the joints'
+    limits, and plan its segments between points; raise GoalRejected naming the joint and
+    point at the first problem."""
     indices = _check_joints(joints, goal)
+    if not parameters.allow_partial_joints_goal and len(indices) != len(joints.names):
+        raise GoalRejected(
+            f"the goal names {len(indices)} of the controller's {len(joints.names)} joints and "
+            "allow_partial_joints_goal is false (the JTC: \"Joints on incoming trajectory "
+            f"don't match the controller joints.\"): name all of {', '.join(joints.names)}",
+            INVALID_JOINTS)
     if not goal.points:
         raise GoalRejected("the trajectory has no points")
+    if goal.has_efforts:
+        raise GoalRejected("Trajectories with effort fields are only supported for controllers "
+                           "using the 'effort' command interface (hil's hardware interface "
+                           "exports position and velocity)")
     if len(goal.points) > MAX_POINTS:
         raise GoalRejected(f"the trajectory has {len(goal.points)} points; this controller "
                            f"takes at most {MAX_POINTS} (split it into several goals, or "
@@ -87,16 +102,58 @@ def plan_goal(joints: JointLimitTable, defaults: Defaults, goal: TrajectoryGoal)
             raise GoalRejected(
                 f"point {p + 1} joint '{goal.joint_names[k]}' needs {abs(implied[p, k]):.4g}"
                 f" on average from point {p}, above its velocity limit {limit[k]:g}")
-    check_tolerances(goal)
-    path = _tolerances(goal.path_tolerance, goal.joint_names,
-                            defaults.path_position_tolerance, 0.0)
-    tolerance = _tolerances(goal.goal_tolerance, goal.joint_names,
-                                 defaults.goal_position_tolerance,
-                                 defaults.goal_velocity_tolerance)
-    goal_time = (goal.goal_time_tolerance if goal.goal_time_tolerance > 0 else
-                 defaults.goal_time_tolerance)
+    if not parameters.allow_nonzero_velocity_at_trajectory_end:
+        moving = np.abs(velocities[-1]) > FLOAT_EPSILON
+        if moving.any():
+            k = int(np.argmax(moving))
+            raise GoalRejected(
+                f"Velocity of last trajectory point of joint {goal.joint_names[k]} is not "
+                f"zero: {velocities[-1, k]:.15f} (allow_nonzero_velocity_at_trajectory_end "
+                "is false)")
+    check_start_time(goal)
+    tolerances, warning = goal_tolerances(parameters, goal)
     return GoalPlan(indices, Spline.between(times, positions, velocities, accelerations, order),
-                 path, tolerance, goal_time)
+                    tolerances, warning)
+
+
+def goal_tolerances(parameters: JtcParameters,
+                    goal: TrajectoryGoal) -> tuple[SegmentTolerances, str | None]:
+    """The tolerances a goal runs with (tolerances.hpp, get_segment_tolerances(goal)): its
+    own over the controller's defaults; for an illegal value (negative but -1) or a joint the
+    controller does not have, the defaults and why (the JTC logs it and runs the goal)."""
+    defaults = parameters.defaults()
+    try:
+        goal_time = resolve(defaults.goal_time, goal.goal_time_tolerance)
+    except ValueError:
+        return defaults, (f"Specified illegal goal_time_tolerance: "
+                          f"{goal.goal_time_tolerance:f}. Using default tolerances")
+    path = [defaults.path_position.copy(), defaults.path_velocity.copy()]
+    end = [defaults.goal_position.copy(), defaults.goal_velocity.copy()]
+    for what, given, arrays in (("path_tolerance", goal.path_tolerance, path),
+                                ("goal_tolerance", goal.goal_tolerance, end)):
+        problem = _resolve_joints(parameters.joints, given, arrays)
+        if problem:
+            return defaults, problem.format(what)
+    return SegmentTolerances(*path, *end, goal_time=goal_time), None
+
+
+def _resolve_joints(joints: tuple[str, ...], given: tuple[JointTolerance, ...],
+                    arrays: list[np.ndarray]) -> str | None:
+    """Resolve each joint's tolerances into ``arrays`` (position, velocity); the JTC's
+    complaint ('{}': which list) at the first it cannot take."""
+    for tolerance in given:
+        if tolerance.name not in joints:
+            return (f"joint '{tolerance.name}' specified in goal.{{}} does not exist. "
+                    "Using default tolerances.")
+        i = joints.index(tolerance.name)
+        for values, interface, value in ((arrays[0], "position", tolerance.position),
+                                         (arrays[1], "velocity", tolerance.velocity)):
+            try:
+                values[i] = resolve(values[i], value)
+            except ValueError:
+                return (f"joint '{tolerance.name}' specified in goal.{{}} has a invalid "
+                        f"{interface} tolerance. Using default tolerances.")
+    return None
 
 
 def _check_joints(joints: JointLimitTable, goal: TrajectoryGoal) -> np.ndarray:
@@ -113,16 +170,3 @@ def _check_joints(joints: JointLimitTable, goal: TrajectoryGoal) -> np.ndarray:
     if len(set(names)) != len(names):
         raise GoalRejected("a joint is named twice in the goal", INVALID_JOINTS)
     return np.array([joints.names.index(n) for n in names])
-
-
-def _tolerances(given: tuple[JointTolerance, ...], names: tuple[str, ...],
-                position_default: float, velocity_default: float):
-    position = np.full(len(names), position_default)
-    velocity = np.full(len(names), velocity_default)
-    for tolerance in given:
-        k = names.index(tolerance.name)
-        if tolerance.position != 0:
-            position[k] = tolerance.position
-        if tolerance.velocity != 0:
-            velocity[k] = tolerance.velocity
-    return position, velocity

@@ -65,16 +65,22 @@ class Spline:
                                  accelerations[1:], order)
         return cls(t0, times.astype(float), c, positions, velocities, accelerations, order)
 
-    def start_from(self, p0: np.ndarray, v0: np.ndarray, a0: np.ndarray) -> None:
-        """Plan segment 0, from the controller's desired state to point 0."""
+    def start_from(self, p0: np.ndarray, v0: np.ndarray, a0: np.ndarray,
+                   at: float = 0.0) -> None:
+        """Plan segment 0, from the controller's state at ``at`` (goal clock: the goal's
+        stamp may lie before or after now) to point 0 (the JTC's point before the
+        trajectory). A first point due now where the joints already are is held."""
         p1, v1, a1 = self.points[:1], self.velocities[:1], self.accelerations[:1]
-        if self.t1[0] > 0:
+        self.t0[0] = at
+        if self.t1[0] > at:
             v0 = v0 if self.order > 1 else np.zeros_like(v0)
-            self.coefficients[0] = coefficients(self.t1[:1], p0[None], v0[None], a0[None],
-                                                p1, v1, a1, self.order)[0]
-        else:     # a first point at time 0 where the joints already are: hold it
-            self.t1[0] = INSTANT
-            self.coefficients[0] = coefficients(self.t1[:1], p1, v1, a1, p1, v1, a1, 1)[0]
+            self.coefficients[0] = coefficients(self.t1[:1] - at, p0[None], v0[None],
+                                                a0[None], p1, v1, a1, self.order)[0]
+        else:     # point 0 due now (held), or past (the JTC's jump: a constant, never run)
+            if self.t1[0] == at:
+                self.t1[0] = at + INSTANT
+            self.coefficients[0] = coefficients(np.array([INSTANT]), p1, v1, a1, p1, v1, a1,
+                                                1)[0]
 
     def shift(self, offsets: np.ndarray) -> None:
         """Move every position by ``offsets`` (per joint; whole turns of continuous joints)."""

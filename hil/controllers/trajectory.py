@@ -1,52 +1,59 @@
-"""Joint trajectory controller, with ros2_controllers' joint_trajectory_controller semantics.
+"""Joint trajectory controller, with ros2_controllers' joint_trajectory_controller semantics
+(jazzy branch; each behaviour cites its source in tests/test_jtc_semantics.py).
 
-* A goal is validated before any motion: unknown, duplicate or mimic joints,
-  ragged or non-finite points, non-increasing ``time_from_start``, positions
-  outside the joint limits, velocities (given, or implied by consecutive
-  points) above the velocity limits: each rejection names the joint and point.
-* Interpolation follows what the points give: positions only -> linear,
-  + velocities -> cubic, + accelerations -> quintic; the first segment starts
-  from the current desired state (or the measured one when idle).
-* A trajectory may start in the future (it holds until then); a goal may name
-  a subset of the joints (the others hold); a new goal preempts the active one,
-  which is aborted with the reason; cancel holds the current position.
-* Path tolerances are checked while executing, goal tolerances at the end
-  within ``goal_time_tolerance``; a tolerance of 0 takes the controller's
-  default and a negative one disables the check (as in control_msgs).
-* Continuous joints: goal positions are unwrapped to the nearest turn and
-  errors are the shortest angle.
+* A goal is validated before any motion as the JTC's validate_trajectory_msg does (partial
+  goals only with ``allow_partial_joints_goal``, a last point at rest unless
+  ``allow_nonzero_velocity_at_trajectory_end``, no effort fields, a stamped goal that ends in
+  the past) and against the robot's limits (hil's own: unknown, duplicate or mimic joints,
+  ragged or non-finite points, positions outside the limits, velocities above them): each
+  rejection names the joint and point.
+* Interpolation follows what the points give: positions only -> linear, + velocities ->
+  cubic, + accelerations -> quintic. The goal's clock starts at its header stamp (0: now);
+  the first segment runs from the measured state now (the desired one with
+  ``interpolate_from_desired_state``) to point 0.
+* Path tolerances are checked while the trajectory runs, goal tolerances from its last point
+  on: within ``goal_time`` (0: without a time limit) the goal succeeds, after it it aborts; a
+  violation holds the measured position (or ramps down with ``decelerate_on_cancel``), as a
+  cancel does. A new goal preempts the active one.
+* Continuous joints: goal positions are unwrapped to the nearest turn and errors are the
+  shortest angle.
 """
 
 from __future__ import annotations
 
-import math
+import logging
 import threading
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from hil.controllers.goal import (
-    GOAL_TOLERANCE_VIOLATED, HARDWARE_FAULT, INVALID_GOAL, PATH_TOLERANCE_VIOLATED, SUCCESSFUL,
-    Defaults, GoalRejected, GoalResult, GoalStatus, TrajectoryGoal,
+    DEACTIVATED, GOAL_TIME_ABORT, GOAL_TOLERANCE_VIOLATED, HARDWARE_FAULT, INVALID_GOAL,
+    PATH_ABORT, PATH_TOLERANCE_VIOLATED, PREEMPTED, REACHED, SUCCESSFUL, GoalRejected,
+    GoalResult, GoalStatus, TrajectoryGoal,
 )
+from hil.controllers.parameters import JtcParameters, SegmentTolerances
 from hil.controllers.planning import GoalPlan, JointLimitTable, plan_goal
 from hil.controllers.spline import Spline
+from hil.controllers.stop_ramp import StopRamp
 from hil.description import RobotDescription
+
+log = logging.getLogger(__name__)
+
+#: a first point due now may lie this far from where a joint is when its constraint sets no
+#: goal tolerance (hil's choice: the JTC would jump there)
+FIRST_POINT_SLACK = 0.02
 
 
 @dataclass
 class _ActiveGoal:
     goal_id: str
     indices: np.ndarray            # controller joint index of each goal joint
-    spline: Spline                 # on the goal's clock: 0 = start
-    start: float
+    spline: Spline                 # on the goal's clock: 0 = its stamp
+    start: float                   # the goal's stamp on the controller's clock
     end: float
-    path_position: np.ndarray
-    path_velocity: np.ndarray
-    goal_position: np.ndarray
-    goal_velocity: np.ndarray
-    goal_time_tolerance: float
-    final: np.ndarray
+    tolerances: SegmentTolerances  # over every controller joint
+    sampled: bool = False
     result: GoalResult | None = None
 
 
@@ -71,42 +78,84 @@ class ControllerState:
 
 
 class JointTrajectoryController:
-    """Position-commanding trajectory controller over a robot's actuated joints.
+    """Position-commanding trajectory controller over ``parameters.joints`` (the robot's
+    driven joints by default), with the JTC's parameters.
 
-    Thread-safe: goals and cancels may arrive from any thread; :meth:`update`
-    runs in the control loop.
-    """
+    Thread-safe: goals and cancels may arrive from any thread; :meth:`update` runs in the
+    control loop. Inactive (see :meth:`activate`) it refuses goals, as the JTC does."""
 
-    def __init__(self, robot: RobotDescription, defaults: Defaults = Defaults()):
-        self.joints = tuple(j for j in robot.driven_joints)
-        self.joint_names = tuple(j.name for j in self.joints)
-        self.defaults = defaults
+    type_name = "joint_trajectory_controller/JointTrajectoryController"
+
+    def __init__(self, robot: RobotDescription, parameters: JtcParameters | None = None,
+                 name: str = "joint_trajectory_controller"):
+        self.name = name
+        driven = {j.name: j for j in robot.driven_joints}
+        if parameters is None:
+            parameters = JtcParameters(joints=tuple(driven))
+        unknown = [name for name in parameters.joints if name not in driven]
+        if unknown:
+            raise ValueError(f"joint(s) {', '.join(unknown)} are not driven joints of "
+                             f"{robot.name}: {', '.join(driven)}")
+        self.joints = tuple(driven[name] for name in parameters.joints)
+        self.joint_names = parameters.joints
+        self.parameters = parameters
         self.limits = JointLimitTable.of(robot, self.joints)
         n = len(self.joints)
         self._lock = threading.Lock()
         self._active: _ActiveGoal | None = None
+        self._ramp: StopRamp | None = None
         self._finished: list[tuple[str, GoalResult]] = []
         self._desired = np.zeros(n)
         self._desired_velocity = np.zeros(n)
         self._desired_acceleration = np.zeros(n)
         self._initialised = False
+        self._running = True
         self._actual = np.zeros(n)
         self._actual_velocity = np.zeros(n)
         self._now = 0.0
         self._fault: str | None = None
 
-    def set_defaults(self, **changes: float) -> None:
-        """Change :class:`Defaults` fields for the goals accepted from now on (the active
-        goal keeps the ones it was planned with); ValueError, changing nothing, for an
-        unknown field or a value that is not a finite number >= 0. Any thread."""
-        known = Defaults.__dataclass_fields__
-        for name, value in changes.items():
-            if name not in known:
-                raise ValueError(f"no controller default '{name}'; there are: "
-                                 f"{', '.join(known)}")
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, not {value!r}")
-        self.defaults = replace(self.defaults, **changes)
+    @property
+    def command_interfaces(self) -> tuple[str, ...]:
+        return self.parameters.command_interfaces
+
+    def set_parameters(self, changes: dict[str, float | bool]) -> None:
+        """Change settable parameters (:meth:`JtcParameters.settable`, ROS names) for the
+        goals accepted from now on (the active goal keeps its tolerances, as in the JTC);
+        ValueError, changing nothing, for an unknown name or a bad value. Any thread."""
+        changed = self.parameters.changed(changes)
+        with self._lock:
+            self.parameters = changed
+
+    # --- lifecycle (controller_manager's activate/deactivate) ---------------------------
+
+    def activate(self, now: float, positions: np.ndarray) -> None:
+        """Run again from ``now`` (the controller clock), holding ``positions`` (the last
+        commands: the JTC's set_last_command_interface_value_as_state_on_activation)."""
+        with self._lock:
+            self._running = True
+            self._now = now
+            self._ramp = None
+            self._desired = np.array(positions, dtype=float)
+            self._desired_velocity = np.zeros_like(self._desired)
+            self._desired_acceleration = np.zeros_like(self._desired)
+            # measured again at the next cycle; a goal before it starts from the commands
+            self._actual, self._actual_velocity = self._desired.copy(), np.zeros_like(
+                self._desired)
+            self._initialised = True
+
+    def deactivate(self) -> None:
+        """Stop taking goals; the active one is aborted as the JTC's on_deactivate does."""
+        with self._lock:
+            self._running = False
+            if self._active is not None and self._active.result is None:
+                self._finish(self._active, GoalResult(GoalStatus.ABORTED, INVALID_GOAL,
+                                                      DEACTIVATED))
+
+    @property
+    def running(self) -> bool:
+        with self._lock:
+            return self._running
 
     # --- goals ------------------------------------------------------------------
 
@@ -118,17 +167,21 @@ class JointTrajectoryController:
         from its state under the lock."""
         with self._lock:
             self._check_accepting()
-        plan = self._plan(goal)
+            parameters = self.parameters
+        plan = plan_goal(self.limits, parameters, goal)
+        if plan.tolerance_warning:
+            log.warning("goal %s: %s", goal_id, plan.tolerance_warning)
         with self._lock:
             self._check_accepting()
             active = self._start(goal_id, goal, plan)
             if self._active is not None and self._active.result is None:
-                self._finish(self._active, GoalResult(
-                    GoalStatus.ABORTED, INVALID_GOAL,
-                    f"preempted by goal {goal_id}"))
-            self._active = active
+                self._finish(self._active, GoalResult(GoalStatus.ABORTED, INVALID_GOAL,
+                                                      PREEMPTED))
+            self._active, self._ramp = active, None
 
     def _check_accepting(self) -> None:
+        if not self._running:
+            raise GoalRejected("Can't accept new action goals. Controller is not running.")
         if self._fault is not None:
             raise GoalRejected(f"the hardware is faulted: {self._fault}", HARDWARE_FAULT)
         if not self._initialised:
@@ -136,13 +189,13 @@ class JointTrajectoryController:
                                HARDWARE_FAULT)
 
     def cancel(self, goal_id: str) -> bool:
-        """Cancel a goal: the joints hold where they are. False if it is not active."""
+        """Cancel a goal: the joints hold where they are (or ramp down). False if it is not
+        active."""
         with self._lock:
             if self._active is None or self._active.goal_id != goal_id or self._active.result:
                 return False
-            self._hold_actual()
-            self._finish(self._active, GoalResult(GoalStatus.CANCELED, SUCCESSFUL,
-                                                  "canceled: holding position"))
+            self._stop_moving()
+            self._finish(self._active, GoalResult(GoalStatus.CANCELED, SUCCESSFUL))
             return True
 
     def abort(self, reason: str, error_code: int = HARDWARE_FAULT) -> None:
@@ -190,6 +243,9 @@ class JointTrajectoryController:
             goal = self._active
             if goal is not None and goal.result is None:
                 self._follow(goal, now)
+            elif self._ramp is not None:
+                self._desired, self._desired_velocity, self._desired_acceleration = \
+                    self._ramp.sample(now)
             return self._desired.copy(), self._desired_velocity.copy()
 
     def state(self) -> ControllerState:
@@ -204,96 +260,133 @@ class JointTrajectoryController:
     # --- internals (lock held) ----------------------------------------------------
 
     def _follow(self, goal: _ActiveGoal, now: float) -> None:
-        idx = goal.indices
-        if now >= goal.start:
-            p, v, a = goal.spline.sample(now - goal.start)
-            self._desired[idx], self._desired_velocity[idx] = p, v
-            self._desired_acceleration[idx] = a
-        error = self._wrap(self._desired[idx] - self._actual[idx], idx)
-        if goal.start <= now <= goal.end:
-            self._check_path(goal, error)
-        if now >= goal.end and goal.result is None:
-            self._desired_velocity[idx] = 0.0
-            self._desired_acceleration[idx] = 0.0
-            self._check_goal(goal, now)
-
-    def _check_path(self, goal: _ActiveGoal, error: np.ndarray) -> None:
-        velocity_error = self._desired_velocity[goal.indices] - self._actual_velocity[goal.indices]
-        for k, i in enumerate(goal.indices):
-            for what, value, tolerance in (("position", error[k], goal.path_position[k]),
-                                           ("velocity", velocity_error[k], goal.path_velocity[k])):
-                if tolerance > 0 and abs(value) > tolerance:
-                    self._hold_actual()
-                    self._finish(goal, GoalResult(
-                        GoalStatus.ABORTED, PATH_TOLERANCE_VIOLATED,
-                        f"joint '{self.joint_names[i]}' {what} error {value:+.4f} exceeds the "
-                        f"path tolerance {tolerance:g} at t={self._now - goal.start:.3f} s"))
-                    return
-
-    def _check_goal(self, goal: _ActiveGoal, now: float) -> None:
-        idx = goal.indices
-        error = np.abs(self._wrap(goal.final - self._actual[idx], idx))
-        velocity = np.abs(self._actual_velocity[idx])
-        position_ok = (goal.goal_position <= 0) | (error <= goal.goal_position)
-        velocity_ok = (goal.goal_velocity <= 0) | (velocity <= goal.goal_velocity)
-        if np.all(position_ok & velocity_ok):
-            self._finish(goal, GoalResult(GoalStatus.SUCCEEDED, SUCCESSFUL))
-        elif now > goal.end + goal.goal_time_tolerance:
-            k = int(np.argmax(~(position_ok & velocity_ok)))
-            self._finish(goal, GoalResult(
-                GoalStatus.ABORTED, GOAL_TOLERANCE_VIOLATED,
-                f"joint '{self.joint_names[idx[k]]}' is {error[k]:.4f} from its goal "
-                f"(tolerance {goal.goal_position[k]:g}), velocity {velocity[k]:.4f}, "
-                f"{now - goal.end:.3f} s after the trajectory ended (goal_time_tolerance "
-                f"{goal.goal_time_tolerance:g} s)"))
+        """The JTC's update for a goal: sample, then the path tolerance while the trajectory
+        runs (and on its first sample), the goal tolerance from its last point on."""
+        idx, t = goal.indices, now - goal.start
+        p, v, a = goal.spline.sample(t)
+        self._desired[idx], self._desired_velocity[idx], self._desired_acceleration[idx] = p, v, a
+        before_last_point = t < goal.spline.end
+        if not before_last_point:
+            self._desired_velocity[idx] = self._desired_acceleration[idx] = 0.0
+        first, goal.sampled = not goal.sampled, True
+        error = self._wrap(self._desired - self._actual)
+        velocity_error = (self._desired_velocity - self._actual_velocity
+                          if self.parameters.commands_velocity else np.zeros_like(error))
+        tolerances = goal.tolerances
+        if before_last_point or first:
+            broken = _outside(error, velocity_error, tolerances.path_position,
+                              tolerances.path_velocity)
+            if broken is not None:
+                log.warning("goal %s: joint '%s' %s at t=%.3f s", goal.goal_id,
+                            self.joint_names[broken[0]], broken[1], t)
+                self._stop_moving()
+                self._finish(goal, GoalResult(GoalStatus.ABORTED, PATH_TOLERANCE_VIOLATED,
+                                              PATH_ABORT))
+                return
+        if before_last_point:
+            return
+        late = t - goal.spline.end
+        broken = _outside(error, velocity_error, tolerances.goal_position,
+                          tolerances.goal_velocity)
+        timeout = self.parameters.effective_cmd_timeout()
+        if broken is not None and timeout > 0 and late > timeout:
+            # the JTC holds on a command timeout, then (holding, no tolerance is checked)
+            # reports the goal reached on its next update: the same result here
+            log.warning("goal %s: Aborted due to command timeout", goal.goal_id)
+            self._stop_moving()
+            self._finish(goal, GoalResult(GoalStatus.SUCCEEDED, SUCCESSFUL, REACHED))
+        elif broken is None:
+            self._finish(goal, GoalResult(GoalStatus.SUCCEEDED, SUCCESSFUL, REACHED))
+        elif tolerances.goal_time != 0 and late > tolerances.goal_time:
+            log.warning("goal %s: joint '%s' %s, %.3f s after the last point", goal.goal_id,
+                        self.joint_names[broken[0]], broken[1], late)
+            self._stop_moving()
+            self._finish(goal, GoalResult(GoalStatus.ABORTED, GOAL_TOLERANCE_VIOLATED,
+                                          GOAL_TIME_ABORT.format(late)))
 
     def _finish(self, goal: _ActiveGoal, result: GoalResult) -> None:
         goal.result = result
         self._finished.append((goal.goal_id, result))
 
+    def _stop_moving(self) -> None:
+        """After a cancel or an abort: hold the measured position, or with
+        decelerate_on_cancel ramp down to rest (where every joint has a deceleration)."""
+        deceleration = np.array([self.parameters.constraint(j).max_deceleration_on_cancel
+                                 for j in self.joint_names])
+        if self.parameters.decelerate_on_cancel and np.all(deceleration > 0):
+            self._ramp = StopRamp(self._now, self._actual.copy(),
+                                  self._actual_velocity.copy(), deceleration)
+            self._desired, self._desired_velocity, self._desired_acceleration = \
+                self._ramp.sample(self._now)
+        else:
+            self._hold_actual()
+
     def _hold_actual(self) -> None:
+        self._ramp = None
         self._desired = self._actual.copy()
         self._desired_velocity = np.zeros_like(self._desired)
         self._desired_acceleration = np.zeros_like(self._desired)
 
-    def _wrap(self, difference: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    def _wrap(self, difference: np.ndarray) -> np.ndarray:
         wrapped = (difference + np.pi) % (2 * np.pi) - np.pi
-        return np.where(self.limits.continuous[indices], wrapped, difference)
-
-    def _plan(self, goal: TrajectoryGoal) -> GoalPlan:
-        """:func:`plan_goal` on this controller's joints (no lock held: it reads only their
-        fixed limits)."""
-        return plan_goal(self.limits, self.defaults, goal)
+        return np.where(self.limits.continuous, wrapped, difference)
 
     def _start(self, goal_id: str, goal: TrajectoryGoal, plan: GoalPlan) -> _ActiveGoal:
-        """The planned goal from the controller's state now (lock held): continuous joints on
-        the turn nearest where they are, the first point reachable at the velocity limits,
-        the first segment from the desired state."""
-        indices, spline = plan.indices, plan.spline
-        start = self._now if goal.start_time is None else max(goal.start_time, self._now)
-        here = self._desired[indices].copy()
+        """The planned goal from the controller's state now (lock held): its clock from its
+        stamp (now when none), continuous joints on the turn nearest where they are, the
+        first segment from the measured (or desired) state now to point 0."""
+        indices, spline, now = plan.indices, plan.spline, self._now
+        stamp = now if goal.start_time is None else goal.start_time
+        if stamp + spline.end < now:
+            raise GoalRejected(f"Received trajectory with non-zero start time ({stamp:f}) that "
+                               f"ends in the past ({stamp + spline.end:f}); now is {now:f}")
+        if self.parameters.interpolate_from_desired_state:
+            here = self._desired[indices].copy()
+            v0, a0 = (self._desired_velocity[indices].copy(),
+                      self._desired_acceleration[indices].copy())
+        else:
+            here, v0 = self._actual[indices].copy(), self._actual_velocity[indices].copy()
+            a0 = np.zeros_like(here)
         turns = np.round((spline.points[0] - here) / (2 * np.pi))
         spline.shift(np.where(self.limits.continuous[indices], -turns * 2 * np.pi, 0.0))
-        self._check_reachable(goal, indices, here, spline.points[0])
-        spline.start_from(here, self._desired_velocity[indices].copy(),
-                          self._desired_acceleration[indices].copy())
-        return _ActiveGoal(goal_id, indices, spline, start, start + spline.end, *plan.path,
-                           *plan.tolerance, plan.goal_time_tolerance, spline.points[-1].copy())
+        available = float(spline.t1[0]) - (now - stamp)
+        spline.start_from(here, v0, a0, at=now - stamp)
+        if self.parameters.reject_unreachable_first_point:
+            self._check_reachable(indices, here, spline, now - stamp, available)
+        return _ActiveGoal(goal_id, indices, spline, stamp, stamp + spline.end, plan.tolerances)
 
-    def _check_reachable(self, goal: TrajectoryGoal, indices: np.ndarray, here: np.ndarray,
-                         first: np.ndarray) -> None:
-        """The move from where the joints are to the first point must respect the limits."""
-        distance = np.abs(first - here)
-        first_time = goal.points[0].time_from_start
+    def _check_reachable(self, indices: np.ndarray, here: np.ndarray, spline: Spline,
+                         at: float, available: float) -> None:
+        """hil's own check: the joints reach the first point in its time within their
+        velocity limits; where it is due now or past, the trajectory's position now is where
+        they are (the JTC would command the jump)."""
+        distance = np.abs(spline.points[0] - here)
+        jump = np.abs(spline.sample(at)[0] - here)
         for k, i in enumerate(indices):
             name = self.joint_names[i]
-            if first_time == 0:
-                if distance[k] > self.defaults.goal_position_tolerance:
+            slack = self.parameters.constraint(name).goal or FIRST_POINT_SLACK
+            if available <= 0:
+                if jump[k] > slack:
                     raise GoalRejected(
-                        f"point 0 joint '{name}' is {distance[k]:.4g} from the current position "
-                        "at time_from_start 0: give the first point a time to get there")
-            elif distance[k] / first_time > self.limits.velocity[i] * (1 + 1e-9):
+                        f"point 0 joint '{name}' is due {-available:.4g} s ago on the goal's "
+                        f"clock and the trajectory is {jump[k]:.4g} from the current position "
+                        "there: give the first point a time to get there "
+                        "(reject_unreachable_first_point)")
+            elif distance[k] / available > self.limits.velocity[i] * (1 + 1e-9):
                 raise GoalRejected(
-                    f"point 0 joint '{name}' needs {distance[k] / first_time:.4g} on "
+                    f"point 0 joint '{name}' needs {distance[k] / available:.4g} on "
                     f"average from the current position, above its velocity limit "
-                    f"{self.limits.velocity[i]:g}")
+                    f"{self.limits.velocity[i]:g} (reject_unreachable_first_point)")
+
+
+def _outside(error: np.ndarray, velocity_error: np.ndarray, position: np.ndarray,
+             velocity: np.ndarray) -> tuple[int, str] | None:
+    """The first joint outside its tolerances (check_state_tolerance_per_joint: a tolerance
+    of 0 is not checked) and how, or None."""
+    for what, values, tolerance in (("position error", error, position),
+                                    ("velocity error", velocity_error, velocity)):
+        broken = (tolerance > 0) & (np.abs(values) > tolerance)
+        if broken.any():
+            i = int(np.argmax(broken))
+            return i, f"{what} {values[i]:+.4f} exceeds its tolerance {tolerance[i]:g}"
+    return None

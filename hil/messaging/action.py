@@ -37,8 +37,10 @@ class TrajectoryActionServer:
     """Serves a JointTrajectoryController's FollowJointTrajectory action on Zenoh."""
 
     def __init__(self, session: zenoh.Session, robot: str, controller: JointTrajectoryController,
-                 clock: Callable[[], float]):
+                 clock: Callable[[], float], stamp_to_clock: Callable[[float], float]):
+        """``clock``: the controller's; ``stamp_to_clock``: a goal's header stamp on it."""
         self.session, self.robot, self.controller, self.clock = session, robot, controller, clock
+        self.stamp_to_clock = stamp_to_clock
         self._results: dict[str, GoalResult] = {}
         self._lock = threading.Lock()
         #: answers a fault reset: () -> (succeeded, message); set by the control loop
@@ -65,7 +67,7 @@ class TrajectoryActionServer:
 
     def _on_send_goal(self, query: zenoh.Query) -> None:
         try:
-            submit_goal_request(self.controller.submit, self.clock, _payload(query))
+            submit_goal_request(self.controller.submit, self.stamp_to_clock, _payload(query))
         except (ValueError, GoalRejected) as exc:
             code = getattr(exc, "error_code", -1)
             query.reply_err(f"rejected ({code}): {exc}")
@@ -138,18 +140,18 @@ def encode_feedback_once(joint_names, types=cdr.TYPES) -> None:
     publishes the first feedback."""
     zeros = np.zeros(len(joint_names))
     cdr.encode(feedback_message(ControllerState(0.0, tuple(joint_names), zeros, zeros, zeros,
-                                                zeros, "00" * 16), types), types)
+                                                zeros, "00" * 16), 0.0, types), types)
 
 
-def feedback_message(state: ControllerState, types=cdr.TYPES):
-    """The active goal's FeedbackMessage (``state.goal_id`` set) as ``types`` lays it out:
-    with control_msgs 6's point indices where its Feedback has them (``types``: see
-    :func:`hil.messaging.cdr.encode`)."""
+def feedback_message(state: ControllerState, stamp: float, types=cdr.TYPES):
+    """The active goal's FeedbackMessage (``state.goal_id`` set), stamped ``stamp``, as
+    ``types`` lays it out: with control_msgs 6's point indices where its Feedback has them
+    (``types``: see :func:`hil.messaging.cdr.encode`)."""
     feedback_type = types.types["control_msgs/action/FollowJointTrajectory_Feedback"]
     indices = ({"index": state.point_index, "multi_dof_index": 0}
                if "index" in feedback_type.__dataclass_fields__ else {})
     feedback = feedback_type(
-        header=cdr.header(time.time()), joint_names=list(state.joint_names),
+        header=cdr.header(stamp), joint_names=list(state.joint_names),
         desired=cdr.point_msg(state.desired_positions, state.desired_velocities),
         actual=cdr.point_msg(state.actual_positions, state.actual_velocities),
         error=cdr.point_msg(state.errors,
@@ -161,10 +163,11 @@ def feedback_message(state: ControllerState, types=cdr.TYPES):
 
 
 def submit_goal_request(submit: Callable[[str, TrajectoryGoal], None],
-                        clock: Callable[[], float], payload: bytes) -> str:
+                        stamp_to_clock: Callable[[float], float], payload: bytes) -> str:
     """Decode a FollowJointTrajectory SendGoal request and hand its goal to ``submit`` (a
-    controller's :meth:`~JointTrajectoryController.submit`, or a server's wrapper of it);
-    the goal's id. Raises GoalRejected (with the controller's reason) or ValueError.
+    controller's :meth:`~JointTrajectoryController.submit`, or a server's wrapper of it),
+    its header stamp (0: now) put on the controller's clock by ``stamp_to_clock``; the
+    goal's id. Raises GoalRejected (with the controller's reason) or ValueError.
 
     A large goal is a burst of Python objects in the calling (Zenoh) thread: decoded below
     the frame handling's priority, with the collector paused and freed a chunk at a time,
@@ -177,7 +180,7 @@ def submit_goal_request(submit: Callable[[str, TrajectoryGoal], None],
         request = cdr.decode(payload, cdr.SEND_GOAL_REQUEST)
         goal_id = cdr.goal_id_of(request.goal_id)
         stamp = cdr.seconds_of(request.goal.trajectory.header.stamp)
-        start = None if stamp == 0 else clock() + (stamp - time.time())
+        start = None if stamp == 0 else stamp_to_clock(stamp)
         goal = cdr.goal_from_msg(request.goal, start)
         release_gradually(request.goal.trajectory.points)
         submit(goal_id, goal)

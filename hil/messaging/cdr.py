@@ -83,6 +83,20 @@ DEFINITIONS = {
     "hil_msgs/msg/Stall": "string process\nfloat64 at\nfloat64 length\nfloat64 steal\n"
                           "string where",
     "std_srvs/srv/Trigger_Response": "bool success\nstring message",
+    # controller_manager_msgs as ros2_control's jazzy branch releases them
+    "controller_manager_msgs/msg/ChainConnection": "string name\nstring[] reference_interfaces",
+    "controller_manager_msgs/msg/ControllerState":
+        "string name\nstring state\nstring type\nbool is_async\nuint16 update_rate\n"
+        "string[] claimed_interfaces\nstring[] required_command_interfaces\n"
+        "string[] required_state_interfaces\nbool is_chainable\nbool is_chained\n"
+        "string[] exported_state_interfaces\nstring[] reference_interfaces\n"
+        "controller_manager_msgs/ChainConnection[] chain_connections",
+    "controller_manager_msgs/srv/ListControllers_Response":
+        "controller_manager_msgs/ControllerState[] controller",
+    "controller_manager_msgs/srv/SwitchController_Request":
+        "string[] activate_controllers\nstring[] deactivate_controllers\nint32 strictness\n"
+        "bool activate_asap\nbuiltin_interfaces/Duration timeout",
+    "controller_manager_msgs/srv/SwitchController_Response": "bool ok\nstring message",
 }
 
 TYPES = get_typestore(Stores.ROS2_HUMBLE)
@@ -103,6 +117,11 @@ TRIGGER_RESPONSE = "std_srvs/srv/msg/Trigger_Response"
 SIM_CLOCK = "hil_msgs/msg/SimClock"
 SCENE_STATE = "hil_msgs/msg/SceneState"
 STALL = "hil_msgs/msg/Stall"
+LIST_CONTROLLERS_RESPONSE = "controller_manager_msgs/srv/msg/ListControllers_Response"
+SWITCH_CONTROLLER_REQUEST = "controller_manager_msgs/srv/msg/SwitchController_Request"
+SWITCH_CONTROLLER_RESPONSE = "controller_manager_msgs/srv/msg/SwitchController_Response"
+CONTROLLER_STATE = "controller_manager_msgs/msg/ControllerState"
+FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 #: the CDR of a request without fields (std_srvs/Trigger's): the encapsulation header and
 #: the one byte rosidl gives an empty structure
 EMPTY_REQUEST = b"\x00\x01\x00\x00\x00"
@@ -222,7 +241,8 @@ def goal_from_msg(goal, start_time: float | None) -> TrajectoryGoal:
                                     for t in items)
     return TrajectoryGoal(tuple(trajectory.joint_names), points, start_time,
                           tolerance(goal.path_tolerance), tolerance(goal.goal_tolerance),
-                          seconds_of(goal.goal_time_tolerance))
+                          seconds_of(goal.goal_time_tolerance),
+                          has_efforts=any(len(p.effort) for p in trajectory.points))
 
 
 def _points_from_msgs(points, joints: int):

@@ -14,8 +14,10 @@ from collections.abc import Callable
 
 import zenoh
 
-from hil.controllers import ControllerState, GoalResult, JointTrajectoryController
+from hil.controllers import ControllerState, GoalResult
+from hil.controllers.manager import ControllerManager
 from hil.messaging.action import TrajectoryActionServer
+from hil.messaging.controller_manager import ControllerManagerServer
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import (
     ControlSamplesPublisher, DiagnosticsPublisher, JointStatePublisher,
@@ -47,12 +49,15 @@ class ControlFace:
 
 class ZenohControlFace(ControlFace):
     """hil's own keys: joint states, the trajectory action (goals in, feedback and results
-    out), diagnostics, control samples and the fault reset query."""
+    out), the controller manager, diagnostics, control samples and the fault reset query."""
 
-    def __init__(self, session: zenoh.Session, robot: str, controller: JointTrajectoryController,
-                 clock: Callable[[], float], reset: Callable[[], tuple[bool, str]]):
-        self.server = TrajectoryActionServer(session, robot, controller, clock)
+    def __init__(self, session: zenoh.Session, robot: str, manager: ControllerManager,
+                 clock: Callable[[], float], stamp_to_clock: Callable[[float], float],
+                 reset: Callable[[], tuple[bool, str]]):
+        self.server = TrajectoryActionServer(session, robot, manager.trajectory, clock,
+                                             stamp_to_clock)
         self.server.on_reset = reset
+        self.manager = ControllerManagerServer(session, robot, manager, 1.0 / manager.period)
         self._joint_states = JointStatePublisher(session, robot)
         self._samples = ControlSamplesPublisher(session, robot)
         self._diagnostics = DiagnosticsPublisher(session, robot)
@@ -74,6 +79,7 @@ class ZenohControlFace(ControlFace):
 
     def close(self) -> None:
         self.server.close()
+        self.manager.close()
         self._joint_states.close()
         self._samples.close()
         self._diagnostics.close()

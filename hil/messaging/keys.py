@@ -16,6 +16,9 @@
                                                        fault resets (OK), as they happen
 ``reset_faults``                                       query (no payload) -> std_srvs/Trigger response:
                                                        reset drive faults, hold, accept goals again
+``controller_manager/list_controllers``, ``..._switch``  queries: the controllers, a switch
+                                                       (hil.messaging.controller_manager)
+``<controller>/commands``                              query: a forward controller's command
 ``control``, ``sim``, ``viz``                          liveliness tokens of the processes
 =====================================================  ==========================================
 

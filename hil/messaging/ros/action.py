@@ -108,7 +108,7 @@ class RosTrajectoryActionServer:
 
     def _on_send_goal(self, request: ServiceRequest) -> None:
         try:
-            goal_id = submit_goal_request(self._submit, self.clock, request.payload)
+            goal_id = submit_goal_request(self._submit, self._stamp_to_clock, request.payload)
         except (ValueError, GoalRejected) as exc:
             # rcl's answer carries no reason: it goes to the log and to on_rejected
             log.warning("FollowJointTrajectory goal rejected: %s", exc)
@@ -121,6 +121,10 @@ class RosTrajectoryActionServer:
             accepted = self._goals[goal_id].accepted
         request.reply(cdr.encode(cdr.msg(cdr.SEND_GOAL_RESPONSE, accepted=True,
                                          stamp=cdr.time_msg(accepted))))
+
+    def _stamp_to_clock(self, stamp: float) -> float:
+        """A goal's header stamp (ROS time) on the controller's clock."""
+        return self.clock() + (stamp - self.ros_time())
 
     def _submit(self, goal_id: str, goal: TrajectoryGoal) -> None:
         """The controller's submit, with the goal known to this server in the same breath:

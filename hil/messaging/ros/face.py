@@ -25,7 +25,9 @@ import zenoh
 from hil.controllers import ControllerState
 from hil.errors import HilError
 from hil.messaging import cdr
+from hil.controllers.manager import ControllerManager
 from hil.messaging.action import encode_feedback_once, feedback_message
+from hil.messaging.ros.controller_manager import RosControllerManager
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.face import ControlFace
 from hil.messaging.keys import direct, key
@@ -43,7 +45,10 @@ from hil.zenoh_session import DROP_WAIT_US
 #: rmw_zenohd's default endpoint, as a session on the router's host reaches it
 DEFAULT_ROUTER = "tcp/localhost:7447"
 #: the action's name, as ros2_control's joint_trajectory_controller serves it
-ACTION_NAME = "joint_trajectory_controller/follow_joint_trajectory"
+#: the action under a trajectory controller's name (as the JTC serves it)
+ACTION = "follow_joint_trajectory"
+#: the action of hil's own trajectory controller
+ACTION_NAME = f"joint_trajectory_controller/{ACTION}"
 CONTROL_NODE = "hil_control"
 SIM_NODE = "hil_sim"
 
@@ -163,35 +168,45 @@ def open_context(settings: RosSettings) -> RosContext:
     return RosContext(session, settings.domain_id)
 
 
-#: the prefix of the trajectory controller's settable parameters (ros2_controllers' JTC
-#: keeps its tolerances under ``constraints.`` too)
-CONSTRAINTS = "constraints."
-#: what each controller default means, for describe_parameters
-CONSTRAINT_DESCRIPTIONS = {
-    "goal_position_tolerance": "rad or m a joint may end from a goal's last point, for goals "
-                               "that give 0; applies to goals accepted after a change",
-    "goal_velocity_tolerance": "rad/s or m/s a joint may still move at a goal's end, for "
-                               "goals that give 0 (0: not checked)",
-    "path_position_tolerance": "rad or m a joint may lag while a goal runs, for goals that "
-                               "give 0 (0: not checked)",
-    "goal_time_tolerance": "s after a goal's last point within which its goal tolerance "
-                           "must hold, for goals that give 0",
+#: what the trajectory controller's settable parameters mean (the JTC's descriptions, short)
+PARAMETER_DESCRIPTIONS = {
+    "allow_partial_joints_goal": "goals may name some of the joints (the others hold)",
+    "allow_nonzero_velocity_at_trajectory_end": "a goal's last point may have a velocity",
+    "interpolate_from_desired_state": "a new goal starts from the last command, not the "
+                                      "measured state",
+    "reject_unreachable_first_point": "hil's own: refuse a goal whose first point the joints "
+                                      "cannot reach in time (false: the JTC's jump)",
+    "cmd_timeout": "s after a goal's last point after which it holds (0: never; must exceed "
+                   "constraints.goal_time)",
+    "constraints.stopped_velocity_tolerance": "rad/s a joint may still move at a goal's end",
+    "constraints.goal_time": "s after a goal's last point within which its goal tolerance "
+                             "must hold (0: no limit)",
+    "trajectory": "rad or m a joint may lag while a goal runs (0: not checked)",
+    "goal": "rad or m a joint may end from a goal's last point (0: not checked)",
 }
 
 
 def control_parameters(controller, settings: RosSettings, use_sim_time: bool) -> list[Parameter]:
-    """The trajectory controller's parameters: its joints and stamps (read-only) and its
-    defaults for what a goal leaves at 0 (settable, ``constraints.<name>``)."""
+    """The trajectory controller's parameters by the JTC's names: its joints, interfaces and
+    stamps (read-only) and what it lets a client change (settable; applies to the goals
+    accepted after the change, as in the JTC)."""
+    parameters = controller.parameters
     return [
         Parameter("joints", tuple(controller.joint_names),
                   "the joints the trajectory controller commands, in its order"),
+        Parameter("command_interfaces", parameters.command_interfaces,
+                  "the interfaces it commands"),
+        Parameter("state_interfaces", parameters.state_interfaces, "the interfaces it reads"),
+        Parameter("action_monitor_rate", float(parameters.action_monitor_rate),
+                  "Hz of the action's feedback"),
         Parameter("ros_distro", settings.distro, "the ROS 2 distribution whose interface "
                   "definitions and type hashes this node uses", read_only_reason="--ros-distro"),
         Parameter("use_sim_time", use_sim_time, "stamps on the plant's time (/clock) instead "
                   "of the wall clock", read_only_reason="--ros-use-sim-time, at start"),
-        *(Parameter(f"{CONSTRAINTS}{name}", float(getattr(controller.defaults, name)),
-                    description, settable=True)
-          for name, description in CONSTRAINT_DESCRIPTIONS.items())]
+        *(Parameter(name, float(value) if not isinstance(value, bool) else value,
+                    PARAMETER_DESCRIPTIONS.get(name) or
+                    PARAMETER_DESCRIPTIONS[name.rsplit(".", 1)[-1]], settable=True)
+          for name, value in parameters.settable().items())]
 
 
 def facts_as_parameters(facts: dict[str, Value]) -> list[Parameter]:
@@ -206,13 +221,15 @@ class RosControlFace(ControlFace):
 
     def __init__(self, settings: RosSettings, controller, clock, robot_description: str,
                  reset: Callable[[], tuple[bool, str]] | None = None,
-                 plant_clock: PlantClock | None = None, facts: dict[str, Value] | None = None):
+                 plant_clock: PlantClock | None = None, facts: dict[str, Value] | None = None,
+                 manager: ControllerManager | None = None):
         """``reset``: resets drive faults, (succeeded, what happened); served as the
         std_srvs/Trigger service ``<namespace>/hil_control/reset_faults``. ``plant_clock``:
         stamp joint states, feedback, diagnostics and goals on the plant's time (ROS's
         use_sim_time) instead of the wall clock; none are published before it is known.
         ``facts``: read-only parameters of the process (robot, rate, ...), beside the
-        trajectory controller's own (:func:`control_parameters`)."""
+        trajectory controller's own (:func:`control_parameters`). ``manager``: also serve
+        controller_manager's services and the forward controllers' command topics."""
         self._plant_clock = plant_clock
         self.context = open_context(settings)
         self._clock = clock
@@ -231,17 +248,19 @@ class RosControlFace(ControlFace):
         self._description.put(cdr.encode(cdr.msg("std_msgs/msg/String",
                                                  data=robot_description)))
         self.action = RosTrajectoryActionServer(
-            self.node, ACTION_NAME, FollowJointTrajectory.for_distro(hashes), controller, clock,
+            self.node, f"{controller.name}/{ACTION}", FollowJointTrajectory.for_distro(hashes),
+            controller, clock,
             on_rejected=self._warn, ros_time=self._ros_time)
         self._reset = reset
+        self.controller_manager = None if manager is None else RosControllerManager(
+            self.context, settings.namespace, manager, hashes, 1.0 / manager.period)
         self._reset_service = self.node.service(
             reset_service_name(settings), hashes.service("std_srvs/srv/Trigger"),
             self._on_reset)
         self.services = NodeServices(
             self.node, hashes, [*facts_as_parameters(facts or {}), *control_parameters(
                 controller, settings, plant_clock is not None)],
-            apply=lambda changes: controller.set_defaults(**{
-                name.removeprefix(CONSTRAINTS): value for name, value in changes.items()}),
+            apply=controller.set_parameters,
             ros_time=self._ros_time)
 
     def _ros_time(self) -> float:
@@ -274,7 +293,8 @@ class RosControlFace(ControlFace):
 
     def publish_feedback(self, payload: bytes, state: ControllerState) -> None:
         if self._own_feedback:          # the distribution's own layout (control_msgs 6)
-            payload = cdr.encode(feedback_message(state, self._types), self._types)
+            payload = cdr.encode(feedback_message(state, self._ros_time(), self._types),
+                                 self._types)
         self._put(self.action.feedback, payload, FEEDBACK_STAMP)
 
     def publish_diagnostics(self, payload: bytes) -> None:
@@ -291,6 +311,8 @@ class RosControlFace(ControlFace):
         self.action.record_results(finished)
 
     def close(self) -> None:
+        if self.controller_manager is not None:
+            self.controller_manager.close()
         self.services.close()
         self.action.close()
         self._reset_service.close()

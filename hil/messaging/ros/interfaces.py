@@ -61,6 +61,7 @@ _EXTRA_DEFINITIONS = {
     "action_msgs/srv/CancelGoal_Response":
         "int8 return_code\naction_msgs/msg/GoalInfo[] goals_canceling",
     "std_srvs/srv/Trigger_Request": "",
+    "controller_manager_msgs/srv/ListControllers_Request": "",
     "std_srvs/srv/Trigger_Response": "bool success\nstring message",
     # a node's parameter services (rcl_interfaces) and type description service
     "rcl_interfaces/srv/ListParameters_Request": "string[] prefixes\nuint64 depth",

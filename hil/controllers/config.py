@@ -1,0 +1,230 @@
+"""A user's controller_manager YAML (ros2_controllers.yaml) read into the controllers hil
+runs: the joint trajectory controller with its parameters, forward command controllers.
+
+Read as ROS reads a parameters file: each node's ``ros__parameters`` under its name (``/``,
+``/**/`` prefixes allowed), the controller_manager's ``<controller>: {type: ...}`` entries.
+What hil cannot honour in a controller it runs is an error naming the key and line;
+controllers of types hil does not run, and parameters ROS would ignore (undeclared), are
+warnings: the file loads unchanged. ``$(var NAME)`` is substituted from values the user
+gives; no other launch substitution is evaluated (data never runs code)."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from hil.bus_config.types import ControllersSource, SystemConfig
+from hil.bus_config.yaml_reader import LineMapping, Reader, parse_yaml
+from hil.controllers.forward import FORWARD_TYPES
+from hil.controllers.jtc_section import read_jtc
+from hil.controllers.parameters import COMMAND_INTERFACES, JointConstraint, JtcParameters
+from hil.errors import Diagnostic, HilError, Severity
+from hil.input_files import read_input_file
+
+#: rad (or m) each joint may end from a goal in hil's own controller set (hil control
+#: --goal-tolerance)
+DEFAULT_GOAL_TOLERANCE = 0.02
+JTC_TYPE = "joint_trajectory_controller/JointTrajectoryController"
+BROADCASTER = "joint_state_broadcaster/JointStateBroadcaster"
+EFFORT_TYPE = "effort_controllers/JointGroupEffortController"
+_SUBSTITUTION = re.compile(r"\$\((\w[\w-]*)([^)]*)\)")
+
+
+@dataclass(frozen=True)
+class ForwardSpec:
+    name: str
+    type: str
+    joints: tuple[str, ...]
+    interface: str
+
+
+@dataclass(frozen=True)
+class ControllersConfig:
+    """The controllers a file gives hil to run, in the bench's joint names."""
+
+    path: Path | None            # None: hil's own set (:func:`hil_controllers`)
+    trajectory_name: str
+    trajectory: JtcParameters
+    forwards: tuple[ForwardSpec, ...]
+    active: tuple[str, ...]
+    update_rate: float | None
+    warnings: tuple[Diagnostic, ...] = ()
+
+
+def hil_controllers(joints: tuple[str, ...], goal_tolerance: float) -> ControllersConfig:
+    """hil's own controllers where the bus config names no file, as a bringup's YAML would
+    set them (docs/controllers.md shows it): the JTC over every joint, commanding position
+    and velocity, partial goals allowed, each joint within ``goal_tolerance`` of its goal
+    within 1 s of the last point, its end velocity not checked (a motor's residual motion
+    is the drives' to judge); forward position and velocity controllers, inactive."""
+    trajectory = JtcParameters(
+        joints=joints, command_interfaces=COMMAND_INTERFACES,
+        state_interfaces=("position", "velocity"), allow_partial_joints_goal=True,
+        stopped_velocity_tolerance=0.0, goal_time=1.0,
+        constraints={j: JointConstraint(goal=goal_tolerance) for j in joints})
+    forwards = tuple(ForwardSpec(f"forward_{interface}_controller", type_name, joints,
+                                 interface)
+                     for type_name, interface in FORWARD_TYPES.items() if interface)
+    return ControllersConfig(None, "joint_trajectory_controller", trajectory, forwards,
+                             ("joint_trajectory_controller",), None)
+
+
+def controllers_for(config: SystemConfig, goal_tolerance: float | None = None,
+                    file: Path | None = None) -> ControllersConfig:
+    """What the controller runs for a bus config: the controllers file ``file`` (with the
+    config's ``controllers:`` names and values), else the config's own, else hil's set with
+    ``goal_tolerance`` (None: DEFAULT_GOAL_TOLERANCE). HilError where a file's constraints
+    and ``goal_tolerance`` would both set the goal tolerance."""
+    source = config.controllers
+    if file is not None:
+        source = replace(source, path=Path(file)) if source else ControllersSource(Path(file))
+    driven = tuple(j.name for j in config.robot.driven_joints)
+    if source is None:
+        return hil_controllers(driven, goal_tolerance or DEFAULT_GOAL_TOLERANCE)
+    if goal_tolerance is not None:
+        raise HilError.single("--goal-tolerance is for hil's own controllers: the "
+                              f"controllers file {source.path} sets each joint's goal "
+                              "tolerance (constraints: <joint>: goal)",
+                              hint="leave out --goal-tolerance, or change the file")
+    return load_controllers(source, driven, config.cycle_hz)
+
+
+def load_controllers(source: ControllersSource, driven: tuple[str, ...],
+                     cycle_hz: float) -> ControllersConfig:
+    """Read ``source.path`` for a robot whose driven joints are ``driven``; HilError with
+    every problem found (file, line, what to do)."""
+    path = source.path
+    text = read_input_file(path, "controllers file",
+                           hint="give a controller_manager YAML (ros2_controllers.yaml)")
+    reader = Reader(path)
+    text = _substitute(reader, text, dict(source.variables))
+    _raise_errors(reader)
+    document = reader.mapping(parse_yaml(text, path, "a controllers file"), "the file", 1)
+    nodes = _nodes(reader, document)
+    manager = nodes.get("controller_manager")
+    if manager is None:
+        raise HilError.single("no controller_manager: ros__parameters: in the file", path,
+                              hint="a ros2_controllers.yaml lists its controllers under "
+                                   "controller_manager: ros__parameters: <name>: {type: ...}")
+    rename = dict(source.joint_names)
+    joints = lambda names: tuple(rename.get(n, n) for n in names)  # noqa: E731
+    update_rate, types = _manager_section(reader, manager, cycle_hz)
+    trajectory_name, trajectory, forwards = None, None, []
+    for name, (type_name, line) in types.items():
+        params = nodes.get(name, LineMapping())
+        if type_name == JTC_TYPE and trajectory is None:
+            trajectory_name = name
+            trajectory = read_jtc(reader, params, name, joints, driven)
+        elif type_name == JTC_TYPE:
+            reader.warn(f"controller '{name}': hil runs one joint trajectory controller "
+                        f"('{trajectory_name}'); this one is not loaded", line)
+        elif type_name in FORWARD_TYPES or type_name == EFFORT_TYPE:
+            spec = _forward(reader, name, type_name, params, joints, driven, line)
+            if spec is not None:
+                forwards.append(spec)
+        elif type_name != BROADCASTER:
+            reader.warn(f"controller '{name}' of type {type_name}: hil does not run this "
+                        "type; it is not loaded", line,
+                        hint="hil runs the joint trajectory controller and forward "
+                             "position and velocity command controllers")
+    if trajectory is None:
+        reader.fail("the file has no joint_trajectory_controller/JointTrajectoryController",
+                    manager.line, hint="hil's action server is a JTC's: add one")
+    _raise_errors(reader)
+    loaded = [trajectory_name, *(f.name for f in forwards)]
+    active = source.active if source.active is not None else (trajectory_name,)
+    for name in active:
+        if name not in loaded:
+            reader.fail(f"controllers: active: '{name}' is not a controller hil loaded from "
+                        f"{path.name}", source.line, hint=f"loaded: {', '.join(loaded)}")
+    _raise_errors(reader)
+    return ControllersConfig(path, trajectory_name, trajectory, tuple(forwards), tuple(active),
+                             update_rate, tuple(reader.diagnostics))
+
+
+def _raise_errors(reader: Reader) -> None:
+    if any(d.severity is Severity.ERROR for d in reader.diagnostics):
+        raise HilError(reader.diagnostics)
+
+
+def _substitute(reader: Reader, text: str, variables: dict[str, str]) -> str:
+    """``$(var NAME)`` replaced by the user's value; any other substitution refused."""
+    def replace(match: re.Match) -> str:
+        line = text.count("\n", 0, match.start()) + 1
+        command, argument = match.group(1), match.group(2).strip()
+        if command != "var":
+            reader.fail(f"launch substitution {match.group(0)!r}: hil substitutes only "
+                        "$(var NAME), from values you give; nothing in the file is evaluated",
+                        line, hint="write the value itself into the file")
+        elif argument not in variables:
+            reader.fail(f"{match.group(0)}: no value for '{argument}'", line,
+                        hint=f"give it in the bus config: controllers: vars: "
+                             f"{{{argument}: VALUE}}")
+        else:
+            return variables[argument]
+        return match.group(0)
+    return _SUBSTITUTION.sub(replace, text)
+
+
+def _nodes(reader: Reader, document: LineMapping) -> dict[str, LineMapping]:
+    """Each node's ros__parameters by its bare name."""
+    nodes = {}
+    for key, section in document.items():
+        name = str(key).removeprefix("/**/").lstrip("/").rsplit("/", 1)[-1]
+        section = reader.mapping(section, f"'{key}'", document.key_lines.get(key))
+        params = section.get("ros__parameters")
+        if params is None:
+            reader.warn(f"'{key}' has no ros__parameters: ignored (as ROS ignores it)",
+                        document.key_lines.get(key))
+            continue
+        nodes[name] = reader.mapping(params, f"'{key}: ros__parameters'",
+                                     section.key_lines.get("ros__parameters"))
+    return nodes
+
+
+def _manager_section(reader: Reader, manager: LineMapping, cycle_hz: float):
+    """update_rate, and each controller's (type, line) in the file's order."""
+    types = {}
+    update_rate = None
+    for key, value in manager.items():
+        line = manager.key_lines.get(key, manager.line)
+        if key == "update_rate":
+            update_rate = reader.number(manager, key, "controller_manager")
+            if update_rate != cycle_hz:
+                reader.warn(f"controller_manager: update_rate {update_rate:g} Hz: hil's "
+                            f"controllers run each bus cycle, at {cycle_hz:g} Hz", line,
+                            hint="set the buses' cycle_hz to run them at this rate")
+        elif isinstance(value, LineMapping) and "type" in value:
+            types[key] = (reader.text(value, "type", f"controller '{key}'"), line)
+        else:
+            reader.warn(f"controller_manager parameter '{key}' is not used by hil", line)
+    return update_rate, types
+
+
+def _forward(reader: Reader, name: str, type_name: str, params: LineMapping, joints,
+             driven: tuple[str, ...], line: int | None) -> ForwardSpec | None:
+    interface = ("effort" if type_name == EFFORT_TYPE else
+                 FORWARD_TYPES[type_name] or params.get("interface_name"))
+    if interface == "effort":
+        reader.warn(f"controller '{name}' commands effort: hil's hardware interface exports "
+                    "position and velocity command interfaces; it is not loaded", line)
+        return None
+    if interface not in ("position", "velocity"):
+        reader.fail(f"controller '{name}': interface_name {interface!r} is not a command "
+                    "interface of hil's hardware", params.key_lines.get("interface_name", line),
+                    hint="position or velocity")
+        return None
+    names = params.get("joints")
+    at = params.key_lines.get("joints", params.line or line)
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        reader.fail(f"controller '{name}': 'joints' must be a non-empty list of joint names",
+                    at)
+        return None
+    mapped = joints(names)
+    for original, joint in zip(names, mapped):
+        if joint not in driven:
+            reader.fail(f"controller '{name}': joint '{original}' is not a driven joint of "
+                        "the robot", at, hint=f"driven joints: {', '.join(driven)}; map "
+                                             "others with controllers: joint_names")
+    return ForwardSpec(name, type_name, mapped, interface)

@@ -1,0 +1,257 @@
+"""Controllers over one hardware interface, listed and switched as ros2_control's
+controller_manager does it (controller_manager.cpp, jazzy: switch_controller_cb,
+check_for_interfaces_availability_to_activate; controller_manager_msgs/SwitchController).
+
+Each controller claims command interfaces (``joint/position``, ``joint/velocity``); two
+active controllers never claim the same one. A switch deactivates, then activates, between
+two control cycles; an activated controller starts from the last commands. Each cycle the
+active controllers' outputs make the hardware's commands:
+
+* a joint whose position interface is claimed gets that position (and the claimed velocity,
+  else 0, as the velocity feed-forward);
+* a joint whose velocity interface alone is claimed gets its last position command advanced
+  by the velocity over the period, within its limits: hil's drives run cyclic synchronous
+  position, and this is how they follow a velocity (hil's choice);
+* a joint nobody commands holds its last position command.
+"""
+
+from __future__ import annotations
+
+import enum
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from hil.controllers.config import ControllersConfig
+from hil.controllers.forward import ForwardCommandController
+from hil.controllers.planning import JointLimitTable
+from hil.controllers.trajectory import JointTrajectoryController
+from hil.description import RobotDescription
+
+
+class Strictness(enum.IntEnum):
+    """controller_manager_msgs/SwitchController's strictness."""
+
+    BEST_EFFORT = 1
+    STRICT = 2
+
+
+class Controller(Protocol):
+    """What the manager needs of a controller (JointTrajectoryController,
+    ForwardCommandController)."""
+
+    name: str
+    type_name: str
+    joint_names: tuple[str, ...]
+
+    @property
+    def command_interfaces(self) -> tuple[str, ...]: ...
+
+    def activate(self, now: float, positions: np.ndarray) -> None: ...
+
+    def deactivate(self) -> None: ...
+
+    def update(self, now: float, positions: np.ndarray, velocities: np.ndarray
+               ) -> tuple[np.ndarray | None, np.ndarray | None]: ...
+
+
+@dataclass(frozen=True)
+class ControllerInfo:
+    """A controller as controller_manager_msgs/ControllerState lists it."""
+
+    name: str
+    state: str                   # "active" or "inactive"
+    type: str
+    claimed_interfaces: tuple[str, ...]
+    required_command_interfaces: tuple[str, ...]
+    required_state_interfaces: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class SwitchResult:
+    ok: bool
+    message: str = ""
+
+
+class ControllerManager:
+    """Runs the active controllers each cycle over ``limits.names`` (the hardware's joints,
+    in its order). Thread-safe: list and switch from any thread, :meth:`update` in the loop."""
+
+    def __init__(self, limits: JointLimitTable, controllers: Sequence[Controller],
+                 active: Sequence[str], period: float):
+        self.limits, self.period = limits, period
+        self.joint_names = limits.names
+        self._controllers = {c.name: c for c in controllers}
+        self._indices = {c.name: np.array([self.joint_names.index(j) for j in c.joint_names])
+                         for c in controllers}
+        self._active: list[str] = []
+        self._lock = threading.Lock()
+        self._position = np.zeros(len(self.joint_names))
+        self._now = 0.0                 # the last cycle's time (activations start from it)
+        self._started = False
+        unknown = [name for name in active if name not in self._controllers]
+        if unknown:
+            raise ValueError(f"no controller named {', '.join(unknown)} to activate")
+        for controller in controllers:      # loaded and configured: inactive until the start
+            controller.deactivate()
+        self._pending = list(active)
+
+    @classmethod
+    def from_config(cls, robot: RobotDescription, joint_names: tuple[str, ...],
+                    config: ControllersConfig, period: float) -> ControllerManager:
+        """The controllers of ``config`` over the hardware's ``joint_names``."""
+        driven = {j.name: j for j in robot.driven_joints}
+        limits = lambda names: JointLimitTable.of(  # noqa: E731
+            robot, tuple(driven[n] for n in names))
+        trajectory = JointTrajectoryController(robot, config.trajectory,
+                                               config.trajectory_name)
+        forwards = [ForwardCommandController(f.name, f.type, limits(f.joints), f.interface)
+                    for f in config.forwards]
+        return cls(limits(joint_names), [trajectory, *forwards], config.active, period)
+
+    @property
+    def trajectory(self) -> JointTrajectoryController:
+        """The joint trajectory controller (hil runs one, active or not)."""
+        return next(c for c in self._controllers.values()
+                    if isinstance(c, JointTrajectoryController))
+
+    def forward(self, name: str) -> ForwardCommandController:
+        """The forward command controller ``name``; KeyError naming those there are."""
+        controller = self._controllers.get(name)
+        if not isinstance(controller, ForwardCommandController):
+            raise KeyError(f"no forward command controller '{name}'; there are: "
+                           f"{', '.join(self.forward_names())}")
+        return controller
+
+    def forward_names(self) -> tuple[str, ...]:
+        return tuple(c.name for c in self._controllers.values()
+                     if isinstance(c, ForwardCommandController))
+
+    def controller(self, name: str) -> Controller:
+        return self._controllers[name]
+
+    def claims(self, name: str) -> tuple[str, ...]:
+        """A controller's command interfaces as ``joint/interface``."""
+        controller = self._controllers[name]
+        return tuple(f"{joint}/{interface}" for joint in controller.joint_names
+                     for interface in controller.command_interfaces)
+
+    def list(self) -> list[ControllerInfo]:
+        with self._lock:
+            active = set(self._active)
+        return [ControllerInfo(
+            name, "active" if name in active else "inactive", c.type_name,
+            self.claims(name) if name in active else (), self.claims(name),
+            tuple(f"{joint}/{state}" for joint in c.joint_names
+                  for state in ("position", "velocity")))
+            for name, c in self._controllers.items()]
+
+    def is_active(self, name: str) -> bool:
+        with self._lock:
+            return name in self._active
+
+    def switch(self, activate: Sequence[str], deactivate: Sequence[str],
+               strictness: Strictness = Strictness.STRICT) -> SwitchResult:
+        """Deactivate, then activate, as controller_manager's switch_controller: STRICT
+        changes nothing unless every request can be honoured; BEST_EFFORT drops those it
+        cannot and switches the rest. A claimed interface conflict fails either way; in
+        STRICT, so does a switch that leaves a joint without a controller (hil's rule)."""
+        with self._lock:
+            return self._switch(list(activate), list(deactivate), strictness)
+
+    def _switch(self, activate: list[str], deactivate: list[str],
+                strictness: Strictness) -> SwitchResult:
+        messages = []
+        for action, names in (("activate", activate), ("deactivate", deactivate)):
+            for name in list(names):
+                if name not in self._controllers:
+                    problem = (f"Could not {action} controller with name '{name}' because no "
+                               "controller with this name exists")
+                    if strictness is Strictness.STRICT:
+                        return SwitchResult(False, problem)
+                    messages.append(problem)
+                    names.remove(name)
+        for name in list(deactivate):
+            if name not in self._active:
+                problem = f"Could not deactivate controller '{name}' since it is not active"
+                if strictness is Strictness.STRICT:
+                    return SwitchResult(False, problem)
+                messages.append(problem)
+                deactivate.remove(name)
+        for name in list(activate):
+            if name in self._active and name not in deactivate:
+                problem = f"Could not activate controller '{name}' since it is already active"
+                if strictness is Strictness.STRICT:
+                    return SwitchResult(False, problem)
+                messages.append(problem)
+                activate.remove(name)
+        if not activate and not deactivate:
+            return SwitchResult(True, "After checking the controllers, no controllers need to "
+                                      "be activated or deactivated.")
+        staying = [n for n in self._active if n not in deactivate]
+        claimed = {claim: n for n in staying for claim in self.claims(n)}
+        for name in activate:
+            for claim in self.claims(name):
+                if claim in claimed:
+                    return SwitchResult(False, f"Unable to activate controller '{name}' since "
+                                        f"the command interface '{claim}' is not available "
+                                        f"(claimed by '{claimed[claim]}')")
+                claimed[claim] = name
+        uncovered = [j for j in self.joint_names
+                     if f"{j}/position" not in claimed and f"{j}/velocity" not in claimed]
+        if uncovered and strictness is Strictness.STRICT:
+            return SwitchResult(False, f"the switch would leave joint(s) "
+                                f"{', '.join(uncovered)} without a controller (STRICT; with "
+                                "BEST_EFFORT they hold their last command)")
+        for name in deactivate:
+            self._controllers[name].deactivate()
+            self._active.remove(name)
+        for name in activate:
+            self._controllers[name].activate(self._now,
+                                             self._position[self._indices[name]].copy())
+            self._active.append(name)
+        return SwitchResult(True, "\n".join(messages))
+
+    def update(self, now: float, positions: np.ndarray, velocities: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """One cycle: the active controllers' outputs, as the hardware's position and
+        velocity commands (see the module's rules)."""
+        with self._lock:
+            self._now = now
+            if not self._started:       # the first cycle: hold where the joints are
+                self._position = np.array(positions, dtype=float)
+                self._started = True
+                self._switch(self._pending, [], Strictness.BEST_EFFORT)
+            position = self._position.copy()
+            velocity = np.zeros_like(position)
+            position_claimed = np.zeros(len(position), dtype=bool)
+            velocity_claimed = np.zeros(len(position), dtype=bool)
+            for name in self._active:
+                controller, idx = self._controllers[name], self._indices[name]
+                out_position, out_velocity = controller.update(now, positions[idx],
+                                                               velocities[idx])
+                interfaces = controller.command_interfaces
+                if out_position is not None and "position" in interfaces:
+                    position[idx], position_claimed[idx] = out_position, True
+                if out_velocity is not None and "velocity" in interfaces:
+                    velocity[idx], velocity_claimed[idx] = out_velocity, True
+            integrate = velocity_claimed & ~position_claimed
+            if integrate.any():
+                position[integrate] = np.clip(
+                    self._position[integrate] + velocity[integrate] * self.period,
+                    self.limits.lower[integrate], self.limits.upper[integrate])
+            self._position = position
+            return position.copy(), velocity
+
+    def hold(self, positions: np.ndarray) -> None:
+        """After a hardware fault: every joint holds ``positions`` and each active controller
+        starts again from them (a streaming controller forgets its command: a stale velocity
+        must not move a joint after the reset)."""
+        with self._lock:
+            self._position = np.array(positions, dtype=float)
+            for name in self._active:
+                self._controllers[name].activate(self._now,
+                                             self._position[self._indices[name]].copy())

@@ -1,0 +1,231 @@
+"""Controllers listed and switched as ros2_control's controller_manager does
+(controller_manager.cpp, jazzy: switch_controller_cb), forward command controllers, and a
+user's controller_manager YAML (tests/controllers: Universal Robots' own, unchanged)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hil.bus_config import load_bus_config
+from hil.controllers import (
+    GoalRejected, GoalStatus, JointTolerance, TrajectoryGoal, TrajectoryPoint,
+)
+from hil.controllers.config import DEFAULT_GOAL_TOLERANCE, controllers_for, hil_controllers
+from hil.controllers.goal import DEACTIVATED
+from hil.controllers.manager import ControllerManager, Strictness
+from hil.errors import HilError
+from hil.messaging.controller_manager import ControllerManagerClient
+from hil.messaging.zenoh_api import TrajectoryActionClient
+from hil.realtime import LOCK_STEP
+from hil.stack import running_stack
+
+HERE = Path(__file__).parent
+UR_BENCH = HERE / "controllers" / "ur3_with_ur_controllers.yaml"
+JTC, POSITION, VELOCITY = ("joint_trajectory_controller", "forward_position_controller",
+                           "forward_velocity_controller")
+PERIOD = 0.01
+
+
+@pytest.fixture
+def manager(ur3) -> ControllerManager:
+    joints = tuple(j.name for j in ur3.driven_joints)
+    made = ControllerManager.from_config(ur3, joints,
+                                         hil_controllers(joints, DEFAULT_GOAL_TOLERANCE), PERIOD)
+    made.update(0.0, np.zeros(6), np.zeros(6))           # the first cycle activates the JTC
+    return made
+
+
+def states(manager):
+    return {info.name: info.state for info in manager.list()}
+
+
+def test_the_list_names_each_controller_its_state_type_and_claims(manager):
+    listed = {info.name: info for info in manager.list()}
+    assert states(manager) == {JTC: "active", POSITION: "inactive", VELOCITY: "inactive"}
+    assert listed[JTC].type == "joint_trajectory_controller/JointTrajectoryController"
+    assert listed[JTC].claimed_interfaces[:2] == ("joint1/position", "joint1/velocity")
+    assert listed[POSITION].claimed_interfaces == ()
+    assert listed[POSITION].required_command_interfaces[0] == "joint1/position"
+
+
+def test_a_switch_onto_a_claimed_interface_fails_in_either_strictness(manager):
+    """check_for_interfaces_availability_to_activate: an interface another active controller
+    keeps is not available."""
+    for strictness in Strictness:
+        result = manager.switch([POSITION], [], strictness)
+        assert not result.ok and "joint1/position" in result.message and f"'{JTC}'" in \
+            result.message
+    assert states(manager)[JTC] == "active"
+
+
+def test_strict_refuses_the_whole_switch_for_one_bad_name_best_effort_drops_it(manager):
+    """switch_controller_cb: STRICT "Aborting, no controller is switched!"; BEST_EFFORT goes
+    on without the controller that does not exist."""
+    result = manager.switch([POSITION, "no_such"], [JTC], Strictness.STRICT)
+    assert not result.ok and "no controller with this name exists" in result.message
+    assert states(manager)[JTC] == "active"
+    result = manager.switch([POSITION, "no_such"], [JTC], Strictness.BEST_EFFORT)
+    assert result.ok and "no_such" in result.message
+    assert states(manager) == {JTC: "inactive", POSITION: "active", VELOCITY: "inactive"}
+
+
+def test_strict_refuses_activating_an_active_controller_best_effort_skips_it(manager):
+    assert not manager.switch([JTC], [], Strictness.STRICT).ok
+    result = manager.switch([JTC], [], Strictness.BEST_EFFORT)
+    assert result.ok and "no controllers need to be activated" in result.message
+
+
+def test_strict_refuses_a_switch_that_leaves_a_joint_without_a_controller(manager):
+    """hil's rule (docs/controllers.md): STRICT keeps every joint commanded; BEST_EFFORT lets
+    the joints hold their last command."""
+    result = manager.switch([], [JTC], Strictness.STRICT)
+    assert not result.ok and "joint1" in result.message
+    assert manager.switch([], [JTC], Strictness.BEST_EFFORT).ok
+    position, velocity = manager.update(0.01, np.full(6, 0.1), np.zeros(6))
+    assert position == pytest.approx(np.zeros(6)) and velocity == pytest.approx(np.zeros(6))
+
+
+def test_deactivating_the_trajectory_controller_aborts_its_goal(manager):
+    jtc = manager.trajectory
+    jtc.submit("g", TrajectoryGoal(("joint1",), (TrajectoryPoint(1.0, (0.2,)),)))
+    assert manager.switch([POSITION], [JTC]).ok
+    (done,) = jtc.finished()
+    assert done[1].status is GoalStatus.ABORTED and done[1].error_string == DEACTIVATED
+
+
+def test_a_forward_position_controller_commands_what_it_is_sent_and_refuses_bad_commands(manager):
+    assert manager.switch([POSITION], [JTC]).ok
+    position, _ = manager.update(0.01, np.zeros(6), np.zeros(6))
+    assert position == pytest.approx(np.zeros(6))         # no command yet: held
+    forward = manager.forward(POSITION)
+    forward.command([0.1, 0.2, 0.0, 0.0, 0.0, 0.0])
+    position, velocity = manager.update(0.02, np.zeros(6), np.zeros(6))
+    assert position[:2] == pytest.approx([0.1, 0.2]) and velocity == pytest.approx(np.zeros(6))
+    for bad, words in (([0.1] * 5, "command size (5) does not match"),
+                       ([np.nan] + [0.0] * 5, "joint 'joint1' position nan"),
+                       ([9.0] + [0.0] * 5, "joint 'joint1' position 9 is outside")):
+        with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)")):
+            forward.command(bad)
+    assert manager.update(0.03, np.zeros(6), np.zeros(6))[0][:2] == pytest.approx([0.1, 0.2])
+
+
+def test_a_forward_velocity_controller_moves_the_position_setpoint_by_the_velocity(manager):
+    """hil's drives run cyclic synchronous position: a velocity alone is followed by
+    advancing the position setpoint each period."""
+    assert manager.switch([VELOCITY], [JTC]).ok
+    manager.forward(VELOCITY).command([0.5, 0, 0, 0, 0, 0])
+    for k in range(10):
+        position, velocity = manager.update(0.01 * k, np.zeros(6), np.zeros(6))
+    assert position[0] == pytest.approx(10 * 0.5 * PERIOD) and velocity[0] == 0.5
+
+
+def test_after_a_fault_a_streaming_controller_forgets_its_command(manager):
+    assert manager.switch([VELOCITY], [JTC]).ok
+    manager.forward(VELOCITY).command([0.5, 0, 0, 0, 0, 0])
+    manager.update(0.0, np.zeros(6), np.zeros(6))
+    manager.hold(np.full(6, 0.2))
+    position, velocity = manager.update(0.01, np.zeros(6), np.zeros(6))
+    assert position == pytest.approx(np.full(6, 0.2)) and velocity == pytest.approx(np.zeros(6))
+
+
+# --- a user's controller_manager YAML ---------------------------------------------------------
+
+def test_universal_robots_controller_file_loads_unchanged_onto_the_ur3():
+    controllers = controllers_for(load_bus_config(UR_BENCH))
+    jtc = controllers.trajectory
+    assert controllers.trajectory_name == JTC and controllers.active == (JTC,)
+    assert jtc.joints == ("joint1", "joint2", "joint3", "joint4", "joint5", "joint6")
+    assert jtc.command_interfaces == ("position",) and jtc.stopped_velocity_tolerance == 0.2
+    assert jtc.goal_time == 0.0 and jtc.constraint("joint3").goal == 0.1
+    assert jtc.constraint("joint3").trajectory == 0.2 and not jtc.allow_partial_joints_goal
+    assert {f.name for f in controllers.forwards} == {POSITION, VELOCITY}
+    warned = "\n".join(str(w) for w in controllers.warnings)
+    assert "ur_controllers.yaml:24: warning: controller 'forward_effort_controller'" in warned
+    assert "'state_publish_rate' is not a parameter" in warned
+    assert "speed_scaling: state_interface" in warned
+
+
+@pytest.mark.parametrize("text, words", [
+    ("joint_trajectory_controller:\n  ros__parameters:\n    joints: [$(command ls)]\n",
+     "controllers.yaml:7: error: launch substitution '$(command ls)'"),
+    ("joint_trajectory_controller:\n  ros__parameters:\n    joints: [$(var prefix)joint1]\n",
+     "controllers.yaml:7: error: $(var prefix): no value for 'prefix'"),
+    ("joint_trajectory_controller:\n  ros__parameters:\n    joints: [shoulder]\n",
+     "controllers.yaml:7: error: controller 'joint_trajectory_controller': joint 'shoulder' "
+     "is not a driven joint"),
+    ("joint_trajectory_controller:\n  ros__parameters:\n    joints: [joint1]\n"
+     "    command_interfaces: [effort]\n",
+     "controllers.yaml:8: error: controller 'joint_trajectory_controller': command_interfaces "
+     "['effort']"),
+    ("joint_trajectory_controller:\n  ros__parameters:\n    joints: [joint1]\n"
+     "    constraints: {goal_time: -1}\n",
+     "controllers.yaml:8: error: controller 'joint_trajectory_controller': constraints: "
+     "goal_time must be >= 0"),
+], ids=["command substitution", "var without a value", "unknown joint", "effort commands",
+        "negative goal_time"])
+def test_a_controller_file_hil_cannot_honour_is_refused_naming_the_line(tmp_path, text, words):
+    manager = ("controller_manager:\n  ros__parameters:\n    joint_trajectory_controller:\n"
+               "      type: joint_trajectory_controller/JointTrajectoryController\n")
+    (tmp_path / "controllers.yaml").write_text(manager + text)
+    bench = (HERE / "fixtures" / "ur3_virtual.yaml").read_text().replace(
+        "../../robots", str(HERE.parent / "robots"))
+    (tmp_path / "bench.yaml").write_text(bench + "controllers: {file: controllers.yaml}\n")
+    with pytest.raises(HilError) as caught:
+        controllers_for(load_bus_config(tmp_path / "bench.yaml"))
+    expected = words.replace("controllers.yaml:", f"{tmp_path / 'controllers.yaml'}:")
+    assert expected in str(caught.value), str(caught.value)
+
+
+def test_the_ur_files_constraints_take_effect_on_the_ur3_in_lock_step():
+    """Its JTC takes only full goals; a goal ends within the file's goal tolerance (0.1)
+    and succeeds; goal_time 0 waits; a goal's own goal_time_tolerance aborts it."""
+    config = load_bus_config(UR_BENCH)
+    with running_stack(config, LOCK_STEP, interface="virtual") as stack:
+        client = TrajectoryActionClient(stack.zenoh, config.robot.name)
+        joints = tuple(f"joint{i}" for i in range(1, 7))
+        partial = TrajectoryGoal(("joint1",), (TrajectoryPoint(1.0, (0.2,)),))
+        with pytest.raises(GoalRejected, match="allow_partial_joints_goal is false"):
+            client.send_goal(partial)
+        move = TrajectoryGoal(joints, (TrajectoryPoint(1.0, (0.2, -0.1, 0, 0, 0, 0)),))
+        assert client.wait_result(client.send_goal(move), 60).status is GoalStatus.SUCCEEDED
+        unreachable = TrajectoryGoal(
+            joints, (TrajectoryPoint(1.0, (0.3, -0.1, 0, 0, 0, 0)),),
+            goal_tolerance=(JointTolerance("joint1", 1e-7),), goal_time_tolerance=0.05)
+        result = client.wait_result(client.send_goal(unreachable), 60)
+        assert result.status is GoalStatus.ABORTED and result.error_string.startswith(
+            "Aborted due to goal_time_tolerance exceeding by")
+        client.close()
+
+
+def test_a_streaming_client_switches_to_forward_position_and_back():
+    """The issue's scenario: JTC -> forward position controller (strict), setpoints at
+    100 Hz for 2 s, back to the JTC, a trajectory goal succeeds; a switch leaving the joints
+    without a controller is refused in STRICT."""
+    config = load_bus_config(HERE / "fixtures" / "ur3_virtual.yaml")
+    with running_stack(config, LOCK_STEP, interface="virtual") as stack:
+        manager = ControllerManagerClient(stack.zenoh, config.robot.name)
+        action = TrajectoryActionClient(stack.zenoh, config.robot.name)
+        ok, message = manager.switch([], [JTC])
+        assert not ok and "without a controller" in message
+        ok, message = manager.switch([POSITION], [JTC])
+        assert ok, message
+        for k in range(200):
+            manager.command(POSITION, [0.1 * k / 199, 0, 0, 0, 0, 0])
+            time.sleep(0.01)
+        manager.command(POSITION, [0.1, 0, 0, 0, 0, 0], wait=True)
+        states = {s.name: s.state for s in manager.list()}
+        assert states[POSITION] == "active" and states[JTC] == "inactive"
+        deadline = time.monotonic() + 30
+        while abs(stack.sim.plant.joint_positions()[0] - 0.1) > 0.005:
+            assert time.monotonic() < deadline, "the joint did not follow the stream"
+            time.sleep(0.05)
+        with pytest.raises(ValueError, match="is not active"):
+            manager.command(VELOCITY, [0.0] * 6, wait=True)
+        assert manager.switch([JTC], [POSITION]) == (True, "")
+        goal = TrajectoryGoal(("joint1",), (TrajectoryPoint(1.0, (-0.1,)),))
+        assert action.wait_result(action.send_goal(goal), 60).status is GoalStatus.SUCCEEDED
+        action.close()
