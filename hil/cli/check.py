@@ -54,9 +54,7 @@ def run(args: argparse.Namespace) -> int:
 def controllers_summary(controllers: ControllersConfig) -> str:
     """What hil control runs: each controller, active or not, and where they come from."""
     source = controllers.path or "hil's own: no controllers file"
-    names = [controllers.trajectory_name, *(f.name for f in controllers.forwards)]
-    return f"controllers ({source}): " + ", ".join(
-        f"{name}{' (active)' if name in controllers.active else ''}" for name in names)
+    return f"controllers ({source}): {controllers.summary()}"
 
 
 def bus_summary(config: SystemConfig) -> str:

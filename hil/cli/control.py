@@ -99,8 +99,8 @@ def run(args: argparse.Namespace) -> int:
     mode = "fake hardware" if args.fake else f"{len(config.drives)} drive(s)"
     print(f"hil control: {config.robot.name}, {mode}, {config.cycle_hz:g} Hz, "
           f"{args.timing}; goals on "
-          f"hil/{config.robot.name}/follow_joint_trajectory; controllers: " + ", ".join(
-              f"{c.name} ({c.state})" for c in node.manager.list()), flush=True)
+          f"hil/{config.robot.name}/follow_joint_trajectory; controllers: "
+          f"{controllers.summary()}", flush=True)
     gc.collect()
     gc.freeze()     # start-up's objects out of the collector's way: shorter passes in the loop
     try:

@@ -51,6 +51,12 @@ class ControllersConfig:
     update_rate: float | None
     warnings: tuple[Diagnostic, ...] = ()
 
+    def summary(self) -> str:
+        """Each controller by name, the active ones marked, in load order."""
+        names = [self.trajectory_name, *(f.name for f in self.forwards)]
+        return ", ".join(f"{name}{' (active)' if name in self.active else ''}"
+                         for name in names)
+
 
 def hil_controllers(joints: tuple[str, ...], goal_tolerance: float) -> ControllersConfig:
     """hil's own controllers where the bus config names no file, as a bringup's YAML would
@@ -149,20 +155,26 @@ def _raise_errors(reader: Reader) -> None:
 
 
 def _substitute(reader: Reader, text: str, variables: dict[str, str]) -> str:
-    """``$(var NAME)`` replaced by the user's value; any other substitution refused."""
+    """``$(var NAME)`` replaced by the user's value; any other substitution refused (each
+    distinct one reported once, at its first line)."""
+    reported: set[str] = set()
+
     def replace(match: re.Match) -> str:
         line = text.count("\n", 0, match.start()) + 1
         command, argument = match.group(1), match.group(2).strip()
+        if command == "var" and argument in variables:
+            return variables[argument]
+        if match.group(0) in reported:
+            return match.group(0)
+        reported.add(match.group(0))
         if command != "var":
             reader.fail(f"launch substitution {match.group(0)!r}: hil substitutes only "
                         "$(var NAME), from values you give; nothing in the file is evaluated",
                         line, hint="write the value itself into the file")
-        elif argument not in variables:
+        else:
             reader.fail(f"{match.group(0)}: no value for '{argument}'", line,
                         hint=f"give it in the bus config: controllers: vars: "
                              f"{{{argument}: VALUE}}")
-        else:
-            return variables[argument]
         return match.group(0)
     return _SUBSTITUTION.sub(replace, text)
 
