@@ -1,15 +1,20 @@
 """The README's pictures taken by a real browser on rerun's web viewer: each demo recorded by
-`hil up NAME --demo --lock-step`, served by `rerun --serve-web` (its web viewer over HTTP
-and the recording over gRPC, on loopback), opened by headless Chromium (WebGL on its
-software rasteriser) and captured once the viewer has laid out the recording's blueprint.
+`hil up ROBOT --demo --lock-step`, served by `rerun --serve-web` (its web viewer over HTTP,
+the recording over gRPC, both on 127.0.0.1), opened by headless Chromium (WebGL on its
+software rasteriser) through the DevTools protocol, and captured once the viewer has
+streamed the recording and laid out its blueprint.
 
     .venv/bin/python tools/web_screenshot.py pigot docs/viewer.png ur3 docs/viewer-ur3.png
 
-Needs Debian's `chromium` (apt). Run from the repository root with hil installed; the
-browser reaches nothing but 127.0.0.1."""
+Needs Debian's `chromium` (apt) and the `websockets` package (pip; mujoco's studio brings
+it). Run from the repository root with hil installed. The browser reaches nothing but
+127.0.0.1; its profile is a temporary folder."""
 
 from __future__ import annotations
 
+import asyncio
+import base64
+import json
 import shutil
 import socket
 import subprocess
@@ -17,11 +22,14 @@ import sys
 import tempfile
 import time
 import urllib.parse
+import urllib.request
 from pathlib import Path
 
-#: how long the viewer gets to load the wasm, stream the recording and lay out its views (s)
-SETTLE = 25
-SIZE = (1600, 900)
+import websockets
+
+#: how long the viewer gets to load its wasm, stream the recording and lay out its views (s)
+SETTLE = 35.0
+WIDTH, HEIGHT = 1600, 900
 
 
 def free_port() -> int:
@@ -47,6 +55,44 @@ def record(robot: str, folder: Path, bin_dir: Path) -> Path:
     return recording
 
 
+async def capture(browser: str, url: str, picture: Path) -> None:
+    """Open ``url`` in headless Chromium, wait SETTLE seconds, save the page as PNG."""
+    port = free_port()
+    with tempfile.TemporaryDirectory() as profile:
+        process = subprocess.Popen(
+            [browser, "--headless=new", "--no-sandbox", "--use-angle=swiftshader",
+             "--enable-unsafe-swiftshader", "--no-first-run", f"--user-data-dir={profile}",
+             f"--window-size={WIDTH},{HEIGHT}", "--hide-scrollbars",
+             "--remote-debugging-address=127.0.0.1", f"--remote-debugging-port={port}",
+             "about:blank"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            wait_for(port)
+            with urllib.request.urlopen(f"http://127.0.0.1:{port}/json") as answer:
+                page = next(t for t in json.load(answer) if t["type"] == "page")
+            async with websockets.connect(page["webSocketDebuggerUrl"],
+                                          max_size=2 ** 28) as devtools:
+                calls = iter(range(1, 1_000_000))
+
+                async def call(method: str, **params) -> dict:
+                    number = next(calls)
+                    await devtools.send(json.dumps({"id": number, "method": method,
+                                                    "params": params}))
+                    while True:              # events arrive between the answers
+                        answer = json.loads(await devtools.recv())
+                        if answer.get("id") == number:
+                            return answer.get("result", {})
+
+                await call("Emulation.setDeviceMetricsOverride", width=WIDTH, height=HEIGHT,
+                           deviceScaleFactor=1, mobile=False)
+                await call("Page.navigate", url=url)
+                await asyncio.sleep(SETTLE)
+                shot = await call("Page.captureScreenshot", format="png")
+                picture.write_bytes(base64.b64decode(shot["data"]))
+        finally:
+            process.terminate()
+            process.wait(10)
+
+
 def shoot(recording: Path, picture: Path, bin_dir: Path, browser: str) -> None:
     web, grpc = free_port(), free_port()
     server = subprocess.Popen([str(bin_dir / "rerun"), "--serve-web", "--bind", "127.0.0.1",
@@ -57,15 +103,8 @@ def shoot(recording: Path, picture: Path, bin_dir: Path, browser: str) -> None:
         wait_for(web)
         wait_for(grpc)
         source = urllib.parse.quote(f"rerun+http://127.0.0.1:{grpc}/proxy", safe="")
-        with tempfile.TemporaryDirectory() as profile:
-            subprocess.run([browser, "--headless=new", "--no-sandbox", "--disable-gpu-sandbox",
-                            "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-                            "--no-first-run", f"--user-data-dir={profile}",
-                            f"--window-size={SIZE[0]},{SIZE[1]}", "--hide-scrollbars",
-                            f"--timeout={SETTLE * 1000}", f"--screenshot={picture}",
-                            f"http://127.0.0.1:{web}/?url={source}"],
-                           check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                           timeout=SETTLE + 120)
+        asyncio.run(capture(browser, f"http://127.0.0.1:{web}/?url={source}&renderer=webgl",
+                            picture))
     finally:
         server.terminate()
         server.wait(10)

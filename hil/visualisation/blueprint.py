@@ -186,9 +186,12 @@ def run_blueprint(views: list[rrb.Container], lock_step: bool = False) -> rrb.Bl
     """The whole layout: one robot's view, or a tab per robot."""
     # the clock that means something for the run: a lock-step run's is the plant's (its wall
     # time only says how fast the host was)
+    # the views take the window: the blueprint tree and the streams list are a click away
     return rrb.Blueprint(views[0] if len(views) == 1 else rrb.Tabs(*views),
+                         rrb.BlueprintPanel(state="collapsed"),
                          rrb.SelectionPanel(state="collapsed"),
-                         rrb.TimePanel(timeline="sim_time" if lock_step else "wall_time"))
+                         rrb.TimePanel(state="collapsed",
+                                       timeline="sim_time" if lock_step else "wall_time"))
 
 
 __all__ = ["JOINT_SERIES", "LOOP_SERIES", "CycleSeries", "robot_view", "run_blueprint"]
