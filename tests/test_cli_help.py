@@ -64,3 +64,15 @@ def test_a_wrong_duration_is_an_argparse_error_not_a_traceback(capsys):
         main(["send", "ur3", "--joint", "joint2", "--to", "0.1", "--in", "2 parsecs"])
     assert ended.value.code == 2
     assert "--in: '2 parsecs' is not a duration: give e.g. 500ms" in capsys.readouterr().err
+
+
+def test_output_cut_short_by_its_reader_ends_without_a_traceback(monkeypatch):
+    """`hil check ur3 | head -1`: the reader left; hil ends quietly (141, as a shell says
+    for SIGPIPE) instead of a BrokenPipeError traceback."""
+    import os
+
+    read_end, write_end = os.pipe()
+    os.close(read_end)                                  # the reader is gone
+    with os.fdopen(write_end, "w", buffering=1) as stdout:
+        monkeypatch.setattr("sys.stdout", stdout)
+        assert main(["check", "ur3"]) == 141
