@@ -113,6 +113,18 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
                                     self.errors, self.personality, self._serial, self.store)
         self.objects.store_configuration()
         self.store.restore(self.node, communication_only=False)
+        self.node.on_stored(self._on_stored)
+        self._refresh_sync_length()
+
+    def _on_stored(self, index: int, subindex: int) -> None:
+        if index == SYNC_COUNTER_OVERFLOW:
+            self._refresh_sync_length()
+
+    def _refresh_sync_length(self) -> None:
+        """The SYNC's data length 0x1019 asks for (a counter where it is over 0), kept at hand:
+        every SYNC checks it, and reading it through the object dictionary was 5 % of a
+        lock-step cycle. Refreshed where 0x1019 can change: a write, a reset, a restore."""
+        self._sync_length = 1 if self.node.value(SYNC_COUNTER_OVERFLOW) else 0
 
     def _take_node_id(self, node_id: int) -> None:
         """LSS gave the drive a node id: it leaves the network under the old one (if any)
@@ -219,6 +231,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
                 del self.node.data_store[index]
             self.objects.store_communication()
         self.store.restore(self.node, communication_only)     # what 0x1010 saved
+        self._refresh_sync_length()
         self._latched.clear()
         if self.node.has_network():
             self.node.configure_heartbeat_consumers()
@@ -291,7 +304,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         """SYNC: take the latched setpoints (caller holds the lock). A SYNC carries a
         counter where 0x1019 (its overflow value) is over 0, none otherwise (CiA 301)."""
         state = self.node.nmt.state
-        if len(data) != (1 if self.node.value(SYNC_COUNTER_OVERFLOW) else 0):
+        if len(data) != self._sync_length:
             self.node.emcy.send(EMCY_SYNC_LENGTH, COMMUNICATION_ERROR)    # not in STOPPED
             return
         if state != OPERATIONAL:
