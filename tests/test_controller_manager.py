@@ -165,8 +165,12 @@ def test_universal_robots_controller_file_loads_unchanged_onto_the_ur3():
      "    constraints: {goal_time: -1}\n",
      "controllers.yaml:8: error: controller 'joint_trajectory_controller': constraints: "
      "goal_time must be >= 0"),
+    ("    fwd:\n      type: position_controllers/JointGroupPositionController\n"
+     "joint_trajectory_controller:\n  ros__parameters:\n    joints: [joint1]\n"
+     "fwd:\n  ros__parameters:\n    joints: [joint1, joint1]\n",
+     "controllers.yaml:12: error: controller 'fwd': a joint is named twice in 'joints'"),
 ], ids=["command substitution", "var without a value", "unknown joint", "effort commands",
-        "negative goal_time"])
+        "negative goal_time", "forward controller's joint twice"])
 def test_a_controller_file_hil_cannot_honour_is_refused_naming_the_line(tmp_path, text, words):
     manager = ("controller_manager:\n  ros__parameters:\n    joint_trajectory_controller:\n"
                "      type: joint_trajectory_controller/JointTrajectoryController\n")

@@ -88,8 +88,7 @@ class ControlNode:
         self._stop = threading.Event()
         self._fault_reset = FaultReset(hardware, self.controller, self._diagnose)
         self.faces: list[ControlFace] = [ZenohControlFace(
-            session, robot.name, self.manager, self.clock, self.stamp_to_clock,
-            self.reset_faults)]
+            session, robot.name, self.manager, self.stamp_to_clock, self.reset_faults)]
         self.faces += [make(self) for make in faces]
         #: faults explained by the bench's own stalls (real time), as diagnosed
         self.bench_faults: list[Attribution] = []

@@ -17,7 +17,7 @@ from pathlib import Path
 from hil.bus_config.types import ControllersSource, SystemConfig
 from hil.bus_config.yaml_reader import LineMapping, Reader, parse_yaml
 from hil.controllers.forward import FORWARD_TYPES
-from hil.controllers.jtc_section import read_jtc
+from hil.controllers.jtc_section import read_jtc, read_joint_names
 from hil.controllers.parameters import COMMAND_INTERFACES, JointConstraint, JtcParameters
 from hil.errors import Diagnostic, HilError, Severity
 from hil.input_files import read_input_file
@@ -48,7 +48,6 @@ class ControllersConfig:
     trajectory: JtcParameters
     forwards: tuple[ForwardSpec, ...]
     active: tuple[str, ...]
-    update_rate: float | None
     warnings: tuple[Diagnostic, ...] = ()
 
     def summary(self) -> str:
@@ -73,7 +72,7 @@ def hil_controllers(joints: tuple[str, ...], goal_tolerance: float) -> Controlle
                                  interface)
                      for type_name, interface in FORWARD_TYPES.items() if interface)
     return ControllersConfig(None, "joint_trajectory_controller", trajectory, forwards,
-                             ("joint_trajectory_controller",), None)
+                             ("joint_trajectory_controller",))
 
 
 def controllers_for(config: SystemConfig, goal_tolerance: float | None = None,
@@ -115,7 +114,7 @@ def load_controllers(source: ControllersSource, driven: tuple[str, ...],
                                    "controller_manager: ros__parameters: <name>: {type: ...}")
     rename = dict(source.joint_names)
     joints = lambda names: tuple(rename.get(n, n) for n in names)  # noqa: E731
-    update_rate, types = _manager_section(reader, manager, cycle_hz)
+    types = _manager_section(reader, manager, cycle_hz)
     trajectory_name, trajectory, forwards = None, None, []
     for name, (type_name, line) in types.items():
         params = nodes.get(name, LineMapping())
@@ -146,7 +145,7 @@ def load_controllers(source: ControllersSource, driven: tuple[str, ...],
                         f"{path.name}", source.line, hint=f"loaded: {', '.join(loaded)}")
     _raise_errors(reader)
     return ControllersConfig(path, trajectory_name, trajectory, tuple(forwards), tuple(active),
-                             update_rate, tuple(reader.diagnostics))
+                             tuple(reader.diagnostics))
 
 
 def _raise_errors(reader: Reader) -> None:
@@ -195,10 +194,11 @@ def _nodes(reader: Reader, document: LineMapping) -> dict[str, LineMapping]:
     return nodes
 
 
-def _manager_section(reader: Reader, manager: LineMapping, cycle_hz: float):
-    """update_rate, and each controller's (type, line) in the file's order."""
+def _manager_section(reader: Reader, manager: LineMapping,
+                     cycle_hz: float) -> dict[str, tuple[str, int | None]]:
+    """Each controller's (type, line) in the file's order; an update_rate other than the
+    bus cycle, and other parameters, are warned about."""
     types = {}
-    update_rate = None
     for key, value in manager.items():
         line = manager.key_lines.get(key, manager.line)
         if key == "update_rate":
@@ -211,7 +211,7 @@ def _manager_section(reader: Reader, manager: LineMapping, cycle_hz: float):
             types[key] = (reader.text(value, "type", f"controller '{key}'"), line)
         else:
             reader.warn(f"controller_manager parameter '{key}' is not used by hil", line)
-    return update_rate, types
+    return types
 
 
 def _forward(reader: Reader, name: str, type_name: str, params: LineMapping, joints,
@@ -227,16 +227,5 @@ def _forward(reader: Reader, name: str, type_name: str, params: LineMapping, joi
                     "interface of hil's hardware", params.key_lines.get("interface_name", line),
                     hint="position or velocity")
         return None
-    names = params.get("joints")
-    at = params.key_lines.get("joints", params.line or line)
-    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
-        reader.fail(f"controller '{name}': 'joints' must be a non-empty list of joint names",
-                    at)
-        return None
-    mapped = joints(names)
-    for original, joint in zip(names, mapped):
-        if joint not in driven:
-            reader.fail(f"controller '{name}': joint '{original}' is not a driven joint of "
-                        "the robot", at, hint=f"driven joints: {', '.join(driven)}; map "
-                                             "others with controllers: joint_names")
-    return ForwardSpec(name, type_name, mapped, interface)
+    mapped = read_joint_names(reader, params, f"controller '{name}'", joints, driven, line)
+    return ForwardSpec(name, type_name, mapped, interface) if mapped else None

@@ -37,7 +37,7 @@ def read_jtc(reader: Reader, params: LineMapping, name: str,
         if key not in _KNOWN:
             reader.warn(f"{what}: '{key}' is not a parameter of the joint_trajectory_controller"
                         " (jazzy): ignored, as ROS ignores undeclared parameters", line(key))
-    joints = _names(reader, params, "joints", what, rename, driven)
+    joints = read_joint_names(reader, params, what, rename, driven)
     command_joints = params.get("command_joints") or []
     if command_joints and list(rename(command_joints)) != list(joints):
         reader.fail(f"{what}: command_joints differ from joints: hil's JTC commands the "
@@ -71,10 +71,15 @@ def read_jtc(reader: Reader, params: LineMapping, name: str,
                          **values, **_constraints(reader, constraints, what, rename, joints))
 
 
-def _names(reader: Reader, params: LineMapping, key: str, what: str, rename, driven
-           ) -> tuple[str, ...]:
+def read_joint_names(reader: Reader, params: LineMapping, what: str,
+                     rename: Callable[[list[str]], tuple[str, ...]], driven: tuple[str, ...],
+                     line: int | None = None) -> tuple[str, ...]:
+    """A controller's ``joints``, renamed onto the bench's; () after reporting a list that is
+    empty or not of names, a joint that is not driven, or one named twice (at the key's line,
+    else the section's, else ``line``)."""
+    key = "joints"
     names = params.get(key)
-    at = params.key_lines.get(key, params.line)
+    at = params.key_lines.get(key, params.line or line)
     if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
         reader.fail(f"{what}: '{key}' must be a non-empty list of joint names", at)
         return ()

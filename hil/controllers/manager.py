@@ -130,9 +130,6 @@ class ControllerManager:
         return tuple(c.name for c in self._controllers.values()
                      if isinstance(c, ForwardCommandController))
 
-    def controller(self, name: str) -> Controller:
-        return self._controllers[name]
-
     def claims(self, name: str) -> tuple[str, ...]:
         """A controller's command interfaces as ``joint/interface``."""
         controller = self._controllers[name]

@@ -14,10 +14,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-#: the command and state interfaces hil's hardware interface exports per joint: drives in
+#: the command interfaces hil's hardware interface exports per joint: drives in
 #: cyclic synchronous position take a position with a velocity feed-forward
 COMMAND_INTERFACES = ("position", "velocity")
-STATE_INTERFACES = ("position", "velocity", "effort")
 
 #: control_msgs/JointTolerance: -1 erases a tolerance (tolerances.hpp, resolve_tolerance_source
 #: compares within float epsilon)

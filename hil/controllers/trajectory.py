@@ -152,11 +152,6 @@ class JointTrajectoryController:
                 self._finish(self._active, GoalResult(GoalStatus.ABORTED, INVALID_GOAL,
                                                       DEACTIVATED))
 
-    @property
-    def running(self) -> bool:
-        with self._lock:
-            return self._running
-
     # --- goals ------------------------------------------------------------------
 
     def submit(self, goal_id: str, goal: TrajectoryGoal) -> None:

@@ -37,9 +37,9 @@ class TrajectoryActionServer:
     """Serves a JointTrajectoryController's FollowJointTrajectory action on Zenoh."""
 
     def __init__(self, session: zenoh.Session, robot: str, controller: JointTrajectoryController,
-                 clock: Callable[[], float], stamp_to_clock: Callable[[float], float]):
-        """``clock``: the controller's; ``stamp_to_clock``: a goal's header stamp on it."""
-        self.session, self.robot, self.controller, self.clock = session, robot, controller, clock
+                 stamp_to_clock: Callable[[float], float]):
+        """``stamp_to_clock``: a goal's header stamp on the controller's clock."""
+        self.session, self.robot, self.controller = session, robot, controller
         self.stamp_to_clock = stamp_to_clock
         self._results: dict[str, GoalResult] = {}
         self._lock = threading.Lock()

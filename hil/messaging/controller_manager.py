@@ -54,8 +54,9 @@ def controller_state_msg(info: ControllerInfo, update_rate: int):
                    reference_interfaces=[], chain_connections=[])
 
 
-def list_response(manager: ControllerManager, update_rate: int) -> bytes:
-    """ListControllers_Response of ``manager``'s controllers, CDR."""
+def list_response(manager: ControllerManager) -> bytes:
+    """ListControllers_Response of ``manager``'s controllers (each updated every cycle), CDR."""
+    update_rate = min(65535, round(1.0 / manager.period))      # a uint16 in the message
     return cdr.encode(cdr.msg(cdr.LIST_CONTROLLERS_RESPONSE, controller=[
         controller_state_msg(info, update_rate) for info in manager.list()]))
 
@@ -83,9 +84,8 @@ def forward_command(manager: ControllerManager, name: str, payload: bytes) -> No
 class ControllerManagerServer:
     """Serves a ControllerManager's list, switch and forward commands on Zenoh."""
 
-    def __init__(self, session: zenoh.Session, robot: str, manager: ControllerManager,
-                 update_rate: float):
-        self.manager, self.update_rate = manager, min(65535, round(update_rate))
+    def __init__(self, session: zenoh.Session, robot: str, manager: ControllerManager):
+        self.manager = manager
         self._queryables = [
             session.declare_queryable(key(robot, LIST), self._on_list),
             session.declare_queryable(key(robot, SWITCH), self._on_switch),
@@ -95,7 +95,7 @@ class ControllerManagerServer:
 
     def _on_list(self, query: zenoh.Query) -> None:
         enter_side_work()
-        query.reply(query.key_expr, list_response(self.manager, self.update_rate))
+        query.reply(query.key_expr, list_response(self.manager))
 
     def _on_switch(self, query: zenoh.Query) -> None:
         enter_side_work()

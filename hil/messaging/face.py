@@ -52,12 +52,11 @@ class ZenohControlFace(ControlFace):
     out), the controller manager, diagnostics, control samples and the fault reset query."""
 
     def __init__(self, session: zenoh.Session, robot: str, manager: ControllerManager,
-                 clock: Callable[[], float], stamp_to_clock: Callable[[float], float],
+                 stamp_to_clock: Callable[[float], float],
                  reset: Callable[[], tuple[bool, str]]):
-        self.server = TrajectoryActionServer(session, robot, manager.trajectory, clock,
-                                             stamp_to_clock)
+        self.server = TrajectoryActionServer(session, robot, manager.trajectory, stamp_to_clock)
         self.server.on_reset = reset
-        self.manager = ControllerManagerServer(session, robot, manager, 1.0 / manager.period)
+        self.manager = ControllerManagerServer(session, robot, manager)
         self._joint_states = JointStatePublisher(session, robot)
         self._samples = ControlSamplesPublisher(session, robot)
         self._diagnostics = DiagnosticsPublisher(session, robot)

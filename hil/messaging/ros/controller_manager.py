@@ -28,8 +28,8 @@ class RosControllerManager:
     """Serves ``manager`` on ROS 2 through ``context``."""
 
     def __init__(self, context: RosContext, namespace: str, manager: ControllerManager,
-                 hashes: TypeHashes, update_rate: float):
-        self.manager, self.update_rate = manager, min(65535, round(update_rate))
+                 hashes: TypeHashes):
+        self.manager = manager
         self.node = RosNode(context, NODE, namespace)
         self.node.service(f"{NODE}/list_controllers",
                           hashes.service("controller_manager_msgs/srv/ListControllers"),
@@ -44,7 +44,7 @@ class RosControllerManager:
                                    lambda payload, _, name=name: self._on_command(name, payload))
 
     def _on_list(self, request: ServiceRequest) -> None:
-        request.reply(list_response(self.manager, self.update_rate))
+        request.reply(list_response(self.manager))
 
     def _on_switch(self, request: ServiceRequest) -> None:
         try:

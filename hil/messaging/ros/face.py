@@ -253,7 +253,7 @@ class RosControlFace(ControlFace):
             on_rejected=self._warn, ros_time=self._ros_time)
         self._reset = reset
         self.controller_manager = None if manager is None else RosControllerManager(
-            self.context, settings.namespace, manager, hashes, 1.0 / manager.period)
+            self.context, settings.namespace, manager, hashes)
         self._reset_service = self.node.service(
             reset_service_name(settings), hashes.service("std_srvs/srv/Trigger"),
             self._on_reset)
