@@ -174,14 +174,27 @@ def test_universal_robots_controller_file_loads_unchanged_onto_the_ur3():
 def test_a_controller_file_hil_cannot_honour_is_refused_naming_the_line(tmp_path, text, words):
     manager = ("controller_manager:\n  ros__parameters:\n    joint_trajectory_controller:\n"
                "      type: joint_trajectory_controller/JointTrajectoryController\n")
-    (tmp_path / "controllers.yaml").write_text(manager + text)
+    refused = _refusal(tmp_path, manager + text)
+    expected = words.replace("controllers.yaml:", f"{tmp_path / 'controllers.yaml'}:")
+    assert expected in refused, refused
+
+
+def test_an_update_rate_that_is_no_number_is_one_error_and_no_made_up_rate(tmp_path):
+    refused = _refusal(tmp_path, "controller_manager:\n  ros__parameters:\n"
+                                 "    update_rate: fast\n")
+    assert "'update_rate' must be a number, not 'fast'" in refused
+    assert "update_rate 1 Hz" not in refused, refused
+
+
+def _refusal(tmp_path, text: str) -> str:
+    """What hil says of a controllers file ``text`` on the ur3 fixture's bench (HilError)."""
+    (tmp_path / "controllers.yaml").write_text(text)
     bench = (HERE / "fixtures" / "ur3_virtual.yaml").read_text().replace(
         "../../robots", str(HERE.parent / "robots"))
     (tmp_path / "bench.yaml").write_text(bench + "controllers: {file: controllers.yaml}\n")
     with pytest.raises(HilError) as caught:
         controllers_for(load_bus_config(tmp_path / "bench.yaml"))
-    expected = words.replace("controllers.yaml:", f"{tmp_path / 'controllers.yaml'}:")
-    assert expected in str(caught.value), str(caught.value)
+    return str(caught.value)
 
 
 def test_the_ur_files_constraints_take_effect_on_the_ur3_in_lock_step():

@@ -202,8 +202,10 @@ def _manager_section(reader: Reader, manager: LineMapping,
     for key, value in manager.items():
         line = manager.key_lines.get(key, manager.line)
         if key == "update_rate":
+            errors = len(reader.diagnostics)
             update_rate = reader.number(manager, key, "controller_manager")
-            if update_rate != cycle_hz:
+            # a rate that is no number was reported; its placeholder says nothing
+            if len(reader.diagnostics) == errors and update_rate != cycle_hz:
                 reader.warn(f"controller_manager: update_rate {update_rate:g} Hz: hil's "
                             f"controllers run each bus cycle, at {cycle_hz:g} Hz", line,
                             hint="set the buses' cycle_hz to run them at this rate")
