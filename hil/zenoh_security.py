@@ -8,7 +8,8 @@ client of another CA cannot connect).
 
 Every process enforces the policy on what it receives (Zenoh's access control, ingress,
 subjects by certificate Common Name), so a message is refused by the process that would act
-on it. Peers link directly (no relay, ``hil.zenoh_session``), so the certificate a process
+on it; and on what it sends: queries go to the drives and the controller only, so an
+operator's goal never reaches another client, even a peer linked a moment ago. Peers link directly (no relay, ``hil.zenoh_session``), so the certificate a process
 checks is the sender's own. The rights are allow-lists, deny by default: Zenoh applies a rule
 to a message whose key expression the rule's key expressions include, so a wider expression
 or a wildcard (``**``, ``hil/**``, ``<key>$*``, ``hil/<robot>/*``) is inside no allow rule of
@@ -59,6 +60,12 @@ READ_KEYS = ["hil/**"]
 EVERY_MESSAGE = ["put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
                  "liveliness_token", "liveliness_query", "declare_liveliness_subscriber"]
 READ_MESSAGES = ["declare_subscriber", "liveliness_query", "declare_liveliness_subscriber"]
+#: what a process sends an operator or an observer: all but queries, for they serve none. A
+#: peer that has just linked is sent queries before its declarations are known (Zenoh's
+#: discovery window), so without this an observer's queryable on a command key could be asked
+#: an operator's goal (never answered: its reply is refused on ingress, but the goal is seen
+#: and the operator waits for the query's end)
+TO_CLIENT_MESSAGES = [m for m in EVERY_MESSAGE if m != "query"]
 
 
 @dataclass(frozen=True)
@@ -107,6 +114,7 @@ def access_policy() -> dict:
         "default_permission": "deny",
         "rules": [
             rule("send anything", EVERY_MESSAGE, ["**"], ("egress",)),
+            rule("send a client", TO_CLIENT_MESSAGES, ["**"], ("egress",)),
             rule("anything", EVERY_MESSAGE, ["**"]),
             rule("read", READ_MESSAGES, READ_KEYS),
             rule("results", ["query"], RESULT_KEYS),
@@ -115,7 +123,8 @@ def access_policy() -> dict:
         ],
         "subjects": [{"id": role, "cert_common_names": [role]} for role in ROLES],
         "policies": [
-            {"rules": ["send anything"], "subjects": list(ROLES)},
+            {"rules": ["send anything"], "subjects": ["drives", "controller"]},
+            {"rules": ["send a client"], "subjects": ["operator", "observer"]},
             {"rules": ["anything"], "subjects": ["drives", "controller"]},
             {"rules": ["read", "results", "commands"], "subjects": ["operator"]},
             {"rules": ["read", "results", "viewer's token"], "subjects": ["observer"]},

@@ -3,6 +3,7 @@ process that would act (the drives' own process for CAN frames, the controller f
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import time
@@ -311,6 +312,33 @@ def test_the_operator_and_observer_may_not_serve_or_publish(keys, secure_control
     assert not asked, "the operator's goal went to an observer posing as the controller"
 
 
+def test_no_process_sends_a_query_to_an_operator_or_observer(keys):
+    """Zenoh sends a query to a peer linked a moment ago before its declarations are known,
+    so the querier's own egress rule keeps command queries from reaching a client: shown here
+    with an operator that (against hil's policy) believed an observer's queryable, asking it
+    with every target; none reaches it."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    credulous = access_policy()
+    credulous["policies"].append({"rules": ["anything"], "subjects": ["observer"]})
+    operator_config = ZenohSettings(listen=(endpoint,),
+                                    identity=Identity.of(keys, "operator")).to_config()
+    operator_config.insert_json5("access_control", json.dumps(credulous))
+    operator = zenoh.open(operator_config)
+    observer = Peer(keys, "observer", endpoint)
+    try:
+        assert observer.linked()
+        asked = []
+        observer.session.declare_queryable(GOAL_KEY, asked.append)
+        time.sleep(1.0)                     # its declaration has reached the operator
+        for target in (zenoh.QueryTarget.BEST_MATCHING, zenoh.QueryTarget.ALL):
+            for _ in range(5):
+                list(operator.get(GOAL_KEY, target=target, timeout=1.0))
+        assert not asked, "an operator's goal query went to an observer"
+    finally:
+        observer.close()
+        operator.close()
+
+
 def test_the_policy_gives_operators_and_observers_allow_lists_only():
     policy = access_policy()
     rules = {r["id"]: r for r in policy["rules"]}
@@ -322,6 +350,9 @@ def test_the_policy_gives_operators_and_observers_allow_lists_only():
         keys_of = {k for r in ingress for k in r["key_exprs"]}
         assert "**" not in keys_of, f"{role} may do anything somewhere"
         assert not any("put" in r["messages"] for r in ingress), f"{role} may publish"
+        egress = [rules[n] for n in names if "egress" in rules[n]["flows"]]
+        assert egress and not any("query" in r["messages"] for r in egress), \
+            f"a process may send the {role} a query"
 
 
 def test_a_stall_report_counts_only_from_the_benchs_own_roles(keys, peers):
