@@ -77,12 +77,15 @@ class CanopenNetwork(canopen.Network):
     same ``can.Message`` in 60 % of the time (a ur3 cycle sends 20 frames)."""
 
     def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
-        # canopen's own send_message but for how the frame is built (canopen 2.4)
+        # canopen's own send_message but for how the frame is built (canopen 2.4), and its
+        # check() called only where the notifier has an error to raise (never, delivered
+        # directly: one call less a frame)
         if not self.bus:
             raise RuntimeError("Not connected to CAN bus")
         with self.send_lock:
             self.bus.send(data_frame(can_id, data, remote))
-        self.check()
+        if self.notifier is not None and self.notifier.exception is not None:
+            self.check()
 
 
 def start_network(bus: can.BusABC, timeout: float = 0.1,

@@ -54,7 +54,8 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
                 del _DIRECT[self.queue]
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        self._check_if_open()
+        if not self._open:                  # python-can's _check_if_open, one call less
+            self._check_if_open()
         timestamp = msg.timestamp if self.preserve_timestamps else time.time()
         all_sent = True
         for bus_queue in self.channel:

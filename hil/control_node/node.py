@@ -70,6 +70,7 @@ class ControlNode:
         self.controller = self.manager.trajectory
         feedback_hz = controllers.trajectory.action_monitor_rate
         self.broadcaster = JointStateBroadcaster(robot, hardware.joint_names)
+        self._joint_states = cdr.JointStateCdr(self.broadcaster.names)
         self._cycle = 0
         self._start = time.monotonic()
         self.samples = ControlSampleBuffer(hardware.joint_names, hardware.actuator_names,
@@ -272,8 +273,7 @@ class ControlNode:
         if self._cycle % self._every_states == self._states_phase:
             positions, velocities, efforts = self.broadcaster.compute(
                 feedback.positions, feedback.velocities, feedback.efforts)
-            payload = cdr.encode(cdr.joint_state_msg(time.time(), self.broadcaster.names,
-                                                     positions, velocities, efforts))
+            payload = self._joint_states.encode(time.time(), positions, velocities, efforts)
             for face in self.faces:
                 face.publish_joint_states(payload)
         if self._cycle % self._every_feedback == self._feedback_phase:

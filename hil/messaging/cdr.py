@@ -159,6 +159,44 @@ def time_cdr(seconds: float) -> bytes:
 _TIME_CDR = struct.Struct("<4siI")
 
 
+class JointStateCdr:
+    """sensor_msgs/JointState of fixed joint names as CDR, packed by one struct: the joint
+    states published every few cycles of a real-time loop cost a struct.pack, not a rosbags
+    message and its serialiser (about 40 us a message in a ur3 cycle; tests/test_cdr.py
+    holds the bytes against rosbags' own)."""
+
+    def __init__(self, names):
+        self.names = list(names)
+        self._count = count = len(self.names)
+        # XCDR1, little endian; alignment counts from the end of the encapsulation header.
+        # header: stamp (int32, uint32) at 0, frame_id "" (length 1, NUL) at 8
+        static, offset = bytearray(), 13
+        for part in [struct.pack("<I", count)] + [
+                struct.pack("<I", len(name.encode()) + 1) + name.encode() + b"\0"
+                for name in self.names]:
+            static += b"\0" * (-offset % 4) + part          # uint32s align to 4
+            offset = 13 + len(static)
+        layout = [f"<4siI5s{len(static)}s"]
+        self._static = b"\x01\0\0\0\0", bytes(static)
+        for _ in range(3):                      # position, velocity, effort: sequence<double>
+            count_pad = -offset % 4
+            offset += count_pad + 4
+            data_pad = -offset % 8 if count else 0
+            layout.append(f"{count_pad}xI{data_pad}x{count}d")
+            offset += data_pad + 8 * count
+        self._struct = struct.Struct("".join(layout))
+
+    def encode(self, stamp: float, positions, velocities, efforts) -> bytes:
+        """The message stamped ``stamp`` (s), one value per name in each array (ValueError
+        otherwise, as for a stamp ROS cannot carry)."""
+        n = self._count
+        if not len(positions) == len(velocities) == len(efforts) == n:
+            raise ValueError(f"{n} joints, values for {len(positions)}, {len(velocities)}, "
+                             f"{len(efforts)}")
+        return self._struct.pack(b"\x00\x01\x00\x00", *seconds_and_nanoseconds(stamp),
+                                 *self._static, n, *positions, n, *velocities, n, *efforts)
+
+
 def time_msg(seconds: float):
     sec, nanosec = seconds_and_nanoseconds(seconds)
     return msg("builtin_interfaces/msg/Time", sec=sec, nanosec=nanosec)

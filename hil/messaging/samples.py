@@ -135,9 +135,9 @@ class ControlSampleBuffer:
                                                       feedback.efforts)):
             table[row] = values
         self._torque[row] = feedback.motor_torques
-        for column, state in enumerate(feedback.drive_states):
-            code = self._state_index.setdefault(state, len(self._state_index))
-            self._state[row, column] = code
+        index = self._state_index
+        self._state[row] = [index.setdefault(state, len(index))
+                            for state in feedback.drive_states]
         self._rows = row + 1
 
     def take(self) -> ControlSamples | None:

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import functools
 import logging
-import math
 import struct
 import time
 from collections.abc import Callable
@@ -50,7 +49,7 @@ from hil.protocols.cia402.errors import (COMMUNICATION_ERROR, EMCY_NO_ERROR, EMC
 from hil.protocols.cia402.lss import Identity, LssSlave
 from hil.protocols.cia402.node import DriveNode
 from hil.protocols.cia402.objects import PROFILE_PARAMETERS, DriveObjects
-from hil.protocols.cia402.pdo import PdoLayout, TpdoSchedule
+from hil.protocols.cia402.pdo import PdoLayout, Rpdo, TpdoSchedule
 from hil.protocols.cia402.personality import Personality
 from hil.protocols.cia402.replay_view import ReplayView
 from hil.protocols.cia402.storage import ParameterStore
@@ -86,9 +85,9 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         self._latched: dict[int, bytes] = {}
         self.errors = ErrorRecord()
         self._pending: list[tuple[int, bytes]] = []
-        # from the PDO maps at each (re)configuration: RPDO number -> layout, and the
-        # TPDOs with their schedules
-        self._rpdo_layouts: dict[int, PdoLayout | None] = {}
+        # from the PDO maps at each (re)configuration: the RPDOs by number, and the TPDOs
+        # with their schedules
+        self._rpdos: dict[int, Rpdo] = {}
         self._rpdo_handlers: list[tuple[int, Callable]] = []     # (COB-ID, subscribed)
         self._tpdos: list[TpdoSchedule] = []
         self._remote_ids: list[int] = []        # TPDO COB-IDs that answer an RTR
@@ -251,8 +250,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
                 handler = functools.partial(self._on_rpdo, number)
                 network.subscribe(pdo.cob_id, handler)
                 self._rpdo_handlers.append((pdo.cob_id, handler))
-        self._rpdo_layouts = {number: PdoLayout.of(pdo)
-                              for number, pdo in self.node.rpdo.map.items()}
+        self._rpdos = {number: Rpdo.of(pdo) for number, pdo in self.node.rpdo.map.items()}
         self._tpdos = []
         for number, pdo in self.node.tpdo.map.items():
             if not pdo.enabled or pdo.trans_type is None:
@@ -278,8 +276,8 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
     def _on_rpdo(self, number: int, can_id: int, data: bytes, timestamp: float) -> None:
         if self.node.nmt.state != OPERATIONAL:
             return                            # PDOs are off outside OPERATIONAL (CiA 301)
-        pdo = self.node.rpdo.map[number]
-        expected = math.ceil(pdo.length / 8)
+        rpdo = self._rpdos[number]
+        expected = rpdo.length
         if len(data) < expected:
             self.node.emcy.send(EMCY_PDO_LENGTH, COMMUNICATION_ERROR,
                                 struct.pack("<HB", len(data), expected) + b"\0\0")
@@ -291,7 +289,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         with self.lock:
             self._latched[number] = bytes(data)
             self.core.new_setpoint(now=time.monotonic())
-            if pdo.trans_type is not None and pdo.trans_type >= 254:
+            if rpdo.immediate:
                 self._apply(number)
 
     def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:
@@ -329,9 +327,10 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
             self.send_event_tpdos(now)
 
     def _apply(self, number: int) -> None:
-        pdo = self.node.rpdo.map[number]
+        rpdo = self._rpdos[number]
+        pdo = rpdo.pdo
         pdo.data = self._latched.get(number, pdo.data)
-        layout = self._rpdo_layouts.get(number)
+        layout = rpdo.layout
         if layout is not None:
             fields = dict(zip(layout.indices, layout.codec.unpack(pdo.data)))
         else:
@@ -362,13 +361,15 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
     def after_update(self) -> None:
         """After the inner loops ran: state machine follow-ups and EMCY for new faults."""
         self.machine.after_update()
-        events = self.take_events()
-        if not self.attached:
+        # (called at every plant step: the common case, nothing new, asks no more)
+        events = self.take_events() if self.core.events else ()
+        if self.network is None:            # detached: silent
             return
         for fault in events:
             self.errors.enter(fault.code, ERROR_REGISTER[fault])
             self._error_changed(fault.code)
-        if self.errors.over(self.core.fault is not None, self.core.power is Power.ENABLED):
+        if self.errors.active and self.errors.over(self.core.fault is not None,
+                                                   self.core.power is Power.ENABLED):
             self.errors.active.clear()
             self._error_changed(EMCY_NO_ERROR)
 

@@ -32,6 +32,23 @@ class PdoLayout:
                    struct.Struct("<" + "".join(formats)))
 
 
+@dataclass(frozen=True)
+class Rpdo:
+    """One RPDO as the drive takes it, read from canopen's PdoMap at each (re)configuration
+    (the mapping and communication parameters take effect then, not frame by frame)."""
+
+    pdo: object                            # canopen PdoMap
+    length: int                            # bytes its mapping fills
+    immediate: bool                        # types 254, 255: applied on arrival, not at SYNC
+    layout: PdoLayout | None
+
+    @classmethod
+    def of(cls, pdo) -> Rpdo:
+        kind = pdo.trans_type
+        return cls(pdo, math.ceil(pdo.length / 8), kind is not None and kind >= 254,
+                   PdoLayout.of(pdo))
+
+
 @dataclass
 class TpdoSchedule:
     """When one TPDO goes out: its transmission type, event timer and inhibit time."""

@@ -32,7 +32,7 @@ class TpdoProducer:
             kind = schedule.transmission_type
             if kind == SYNCHRONOUS_RTR:
                 schedule.last_data = self._pack(schedule, status)   # what an RTR gets
-            if kind > 240 or not schedule.started(counter):
+            if kind > 240 or not (schedule.running or schedule.started(counter)):
                 continue
             if kind > 0:
                 schedule.syncs += 1
@@ -57,10 +57,12 @@ class TpdoProducer:
         return bytes(pdo.data)
 
     def send_replies(self) -> None:
-        """Send the TPDOs :meth:`prepare_tpdos` packed."""
+        """Send the TPDOs :meth:`prepare_tpdos` packed (if on a bus)."""
         pending, self._pending = self._pending, []
-        for cob_id, data in pending:
-            self.send(cob_id, data)
+        network = self.network
+        if network is not None:
+            for cob_id, data in pending:
+                network.send_message(cob_id, data)
 
     def send_event_tpdos(self, now: float) -> None:
         """Event-driven TPDOs (254, 255) whose data changed (past the inhibit time) or whose
