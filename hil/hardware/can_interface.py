@@ -98,6 +98,7 @@ class CanHardwareInterface(HardwareInterface):
         self._configuring: set[Axis] = set()
         self._pending: list[AxisFault] = []
         self._arrived = threading.Condition()
+        self._awaiting = False          # a reader is in _await_feedback
         # a drive may legitimately be unheard while its answers are still within the limit of
         # missed ones: in lock-step (LOCK_STEP_REPLY_TIMEOUT), a stalled sim is slow, not dead
         self._answer_silence_limit = MISSED_ANSWER_LIMIT * self.reply_timeout
@@ -230,14 +231,22 @@ class CanHardwareInterface(HardwareInterface):
             awaited = [a for a in self.axes if not _missed_too_many(a, self._cycle - 1)] \
                 or self.axes
         with self._arrived:
-            return self._arrived.wait_for(
-                lambda: all(a.feedback.cycle == self._cycle for a in awaited),
-                timeout=max(0.0, deadline - time.perf_counter()))
+            self._awaiting = True
+            try:
+                return self._arrived.wait_for(
+                    lambda: all(a.feedback.cycle == self._cycle for a in awaited),
+                    timeout=max(0.0, deadline - time.perf_counter()))
+            finally:
+                self._awaiting = False
 
     def _on_feedback(self) -> None:
         self._last_answer = time.perf_counter()
-        with self._arrived:
-            self._arrived.notify()
+        # a reader sets the flag under the lock before it looks at the answers: an answer
+        # that finds it unset was in before that look (no wake-up lost), and one that
+        # arrives in the reader's own thread (lock-step) takes no lock
+        if self._awaiting:
+            with self._arrived:
+                self._arrived.notify()
 
     def _joint_feedback(self) -> JointFeedback:
         feedback = [axis.feedback for axis in self.axes]
