@@ -40,6 +40,9 @@ class Child:
     robot: str = ""
     process: subprocess.Popen | None = None
     expected_exit: bool = False
+    #: started with a pipe on its standard input, which :meth:`release` closes (``hil control
+    #: --hold`` waits for that)
+    held: bool = False
 
     @property
     def label(self) -> str:
@@ -51,7 +54,13 @@ class Child:
         with open(self.log_path, "wb") as log:
             self.process = subprocess.Popen(
                 [sys.executable, "-m", "hil", *self.argv], stdout=log, stderr=subprocess.STDOUT,
-                stdin=subprocess.DEVNULL, env=env, start_new_session=True)
+                stdin=subprocess.PIPE if self.held else subprocess.DEVNULL, env=env,
+                start_new_session=True)
+
+    def release(self) -> None:
+        """End a held child's standard input: the word it waits for."""
+        if self.process is not None and self.process.stdin is not None:
+            self.process.stdin.close()
 
     @property
     def pid(self) -> int:

@@ -24,7 +24,7 @@ from hil.cli import up
 from hil.cli.run_progress import Progress
 from hil.cli.up.children import make_children
 from hil.cli.up.robots import RobotRun
-from hil.messaging.zenoh_api import RunSubscriber
+from hil.messaging.zenoh_api import ProcessWatch, RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
 from conftest import ROOT, free_port, read_rrd, rrd_series, rrd_verify_errors
 
@@ -269,6 +269,65 @@ def test_up_runs_two_robots_demos_together_into_one_recording(tmp_path):
     for robot in ("ur3", "pigot"):
         assert "stopped; drives disabled" in (
             save.with_name("run.logs") / f"{robot}.control.log").read_text()
+
+
+@pytest.fixture
+def watched_robot():
+    """A Zenoh session listening on a loopback port, watching the ur3's processes: (the
+    endpoint to give a process, its ProcessWatch)."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    settings = ZenohSettings(listen=(endpoint,))
+    watch = ProcessWatch(session(settings), "ur3")
+    yield endpoint, watch
+    watch.close()
+    close(settings)
+
+
+def test_a_held_controller_brings_its_drives_up_only_once_told_on_its_input(
+        watched_robot, processes):
+    """hil up starts several robots' controllers held (--hold) and releases them together
+    (by closing their input; a line does it too): held, a controller says so and runs no
+    cycle."""
+    endpoint, watch = watched_robot
+    control = hil("control", "ur3", "--fake", "--hold", "--connect", endpoint,
+                  stdin=subprocess.PIPE)
+    processes.append(control)
+    assert watch.wait_alive("control/held", 30), control.stderr.read()
+    assert not watch.wait_alive("control", 1.0), "a held controller cycled"
+    control.stdin.write("\n")
+    control.stdin.flush()
+    assert watch.wait_alive("control", 30)
+    control.send_signal(signal.SIGINT)
+    out, err = control.communicate(timeout=30)
+    assert control.returncode == 0, out + err
+    assert "stopped; drives disabled" in out
+
+
+def test_a_held_controller_told_to_stop_ends_without_bringing_anything_up(
+        watched_robot, processes):
+    endpoint, watch = watched_robot
+    control = hil("control", "ur3", "--fake", "--hold", "--connect", endpoint,
+                  stdin=subprocess.PIPE)
+    processes.append(control)
+    assert watch.wait_alive("control/held", 30), control.stderr.read()
+    control.send_signal(signal.SIGTERM)
+    out, err = control.communicate(timeout=30)
+    assert control.returncode == 0, out + err
+    assert "0 cycles" in out or "no cycle" in out, out
+    assert not watch.wait_alive("control", 0.5)
+
+
+def test_up_holds_every_controller_until_all_have_started(tmp_path):
+    parser = argparse.ArgumentParser()
+    up.add_arguments(parser)
+    robots = [RobotRun(ROOT / "bus_config" / f"{name}.yaml", load_bus_config(
+        ROOT / "bus_config" / f"{name}.yaml"), Progress()) for name in ("ur3", "pigot")]
+    make_children(parser.parse_args(["ur3", "pigot"]), robots, [], tmp_path,
+                  tmp_path / "run.can.log")
+    for robot in robots:
+        control = robot.children["control"]
+        assert control.held and "--hold" in control.argv
+        assert not robot.children["sim"].held
 
 
 def test_up_puts_each_of_several_robots_in_a_ros_namespace_of_its_own(tmp_path):

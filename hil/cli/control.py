@@ -6,8 +6,10 @@ import argparse
 import dataclasses
 import gc
 import json
+import select
 import signal
 import sys
+import threading
 from pathlib import Path
 
 from hil.bus_config import load_bus_config, open_buses
@@ -17,6 +19,7 @@ from hil.control_node import ControlNode
 from hil.controllers.config import DEFAULT_GOAL_TOLERANCE, controllers_for
 from hil.errors import HilError
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface
+from hil.messaging.zenoh_api import key
 from hil.realtime import REAL_TIME_PRIORITY, enter_real_time
 from hil.zenoh_session import close_all, session
 
@@ -50,6 +53,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         metavar="TIME",
                         help="how long to wait for every drive to boot (default "
                              f"{CONTROL_BOOT_TIMEOUT:g}: start hil sim before or after)")
+    parser.add_argument("--hold", action="store_true",
+                        help="started, wait before bringing up the drives until a line or the "
+                             "end of standard input (hil up starts several robots' "
+                             "controllers so, that no loop runs while another process starts)")
     parser.add_argument("--report", type=Path, metavar="FILE.json",
                         help="at exit, write the run's figures (periods, busy times, round "
                              "trips, faults, frame counts) as JSON")
@@ -95,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
             bus.shutdown()
         close_all()
         raise
-    previous = common.on_stop_signals(node.stop)
+    stopped = threading.Event()
+    previous = common.on_stop_signals(lambda: (stopped.set(), node.stop()))
     mode = "fake hardware" if args.fake else f"{len(config.drives)} drive(s)"
     print(f"hil control: {config.robot.name}, {mode}, {config.cycle_hz:g} Hz, "
           f"{args.timing}; goals on "
@@ -104,7 +112,10 @@ def run(args: argparse.Namespace) -> int:
     gc.collect()
     gc.freeze()     # start-up's objects out of the collector's way: shorter passes in the loop
     try:
-        node.run()
+        if args.hold:
+            _hold(zenoh, config.robot.name, stopped)
+        if not stopped.is_set():
+            node.run()
     finally:
         for bus in buses.values():
             bus.shutdown()
@@ -122,6 +133,18 @@ def run(args: argparse.Namespace) -> int:
         print(f"hil control: {line}")
     print("hil control: stopped; drives disabled", flush=True)
     return 0
+
+
+def _hold(zenoh, robot: str, stopped: threading.Event) -> None:
+    """--hold: say so (a liveliness token ``hil/<robot>/control/held``), then wait until
+    standard input has a line or ends, or the process is told to stop."""
+    token = session(zenoh).liveliness().declare_token(key(robot, "control/held"))
+    try:
+        while not stopped.is_set():
+            if select.select([sys.stdin], [], [], 0.1)[0]:
+                return
+    finally:
+        token.undeclare()
 
 
 def _ros_faces(args: argparse.Namespace, config) -> list:

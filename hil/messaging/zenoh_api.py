@@ -237,15 +237,15 @@ class RunSubscriber:
 
 
 class ProcessWatch:
-    """Which of a robot's processes (``sim``, ``control``, ``viz``) are alive, from their
-    liveliness tokens."""
+    """Which of a robot's processes (``sim``, ``control``, ``viz``) are alive, and in what
+    phase (``control/held``: waiting to bring its drives up), from their liveliness tokens."""
 
     def __init__(self, session: zenoh.Session, robot: str):
         self._prefix = key(robot, "")
         self._alive: set[str] = set()
         self._changed = threading.Condition()
         self._subscriber = session.liveliness().declare_subscriber(
-            key(robot, "*"), self._on_token, history=True)
+            key(robot, "**"), self._on_token, history=True)
 
     def _on_token(self, sample: zenoh.Sample) -> None:
         name = str(sample.key_expr).removeprefix(self._prefix)

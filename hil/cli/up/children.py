@@ -50,9 +50,9 @@ def make_children(args: argparse.Namespace, robots: list[RobotRun], faults: list
             "control": Child("control", [
                 "control", *config, *lock_step, *placed["control"], *ros,
                 # the sim already runs: a drive silent at boot is a fault
-                "--boot-timeout", f"{BOOT_TIMEOUT:g}",
+                "--boot-timeout", f"{BOOT_TIMEOUT:g}", "--hold",
                 *(["--ros-use-sim-time"] if args.ros_use_sim_time else [])],
-                logs / f"{prefix}control.log", tag),
+                logs / f"{prefix}control.log", tag, held=True),
         }
     return Child("viz", ["viz", *(str(r.config_path) for r in robots),
                          *can_options(args, robots[0].config), *shared, *lock_step,
@@ -79,11 +79,14 @@ def _ros_options(args: argparse.Namespace, robot: str, several: bool) -> list[st
 def start_in_order(robots: list[RobotRun], viz: Child, supervised: Run, zenoh: ZenohSettings,
            watchers: list) -> None:
     """Start the sims, the visualiser and the controllers in turn, each once the one before
-    is alive on Zenoh; the watchers it makes go into ``watchers`` (to be closed however the
-    start ends)."""
+    is alive on Zenoh; the controllers held before their bring-up until all of them have
+    started, so that no real-time loop runs while another process starts (the import of a
+    controller took the CPU from the first robot's loop: its transport 29-43 ms late and its
+    drives silent, in 2 of 2 runs of ``hil up ur3 pigot`` on 2 CPUs). The watchers it makes
+    go into ``watchers`` (to be closed however the start ends)."""
     watches: dict[str, ProcessWatch] = {}
 
-    def started(child: Child, robot: RobotRun) -> None:
+    def started(child: Child, robot: RobotRun, token: str | None = None) -> None:
         child.start()
         supervised.children.append(child)
         if not watches:        # the first sim holds the meeting point, or has joined it
@@ -93,7 +96,11 @@ def start_in_order(robots: list[RobotRun], viz: Child, supervised: Run, zenoh: Z
                 watchers.extend([watches[each.name], RunSubscriber(
                     session(zenoh), each.name, progress.on_samples, lambda wall, sim: None,
                     progress.problems.append, progress.on_diagnostic, progress.on_stall)])
-        wait_alive(supervised, watches[robot.name].wait_alive, child)
+        if token is None:
+            wait_alive(supervised, watches[robot.name].wait_alive, child)
+        else:
+            supervised.wait_until(child, lambda timeout: watches[robot.name].wait_alive(
+                token, timeout), "started (waiting to bring its drives up)")
 
     # the visualiser starts before the controllers: its start-up (rerun, the robot models)
     # is CPU-heavy, and must not starve the first real-time cycles
@@ -109,7 +116,13 @@ def start_in_order(robots: list[RobotRun], viz: Child, supervised: Run, zenoh: Z
     if supervised.stop.is_set():
         return
     for robot in robots:
-        started(robot.children["control"], robot)
+        started(robot.children["control"], robot, "control/held")
+        if supervised.stop.is_set():
+            return
+    for robot in robots:
+        robot.children["control"].release()
+    for robot in robots:
+        wait_alive(supervised, watches[robot.name].wait_alive, robot.children["control"])
         if supervised.stop.is_set():
             return
 
