@@ -9,8 +9,9 @@ client of another CA cannot connect).
 Every process enforces the policy on what it receives (Zenoh's access control, ingress,
 subjects by certificate Common Name), so a message is refused by the process that would act
 on it; and on what it sends: queries go to the drives and the controller only, so an
-operator's goal never reaches another client, even a peer linked a moment ago. Peers link directly (no relay, ``hil.zenoh_session``), so the certificate a process
-checks is the sender's own. The rights are allow-lists, deny by default: Zenoh applies a rule
+operator's goal never reaches another client, even a peer linked a moment ago. Peers link
+directly (no relay, ``hil.zenoh_session``), so the certificate a process checks is the
+sender's own. The rights are allow-lists, deny by default: Zenoh applies a rule
 to a message whose key expression the rule's key expressions include, so a wider expression
 or a wildcard (``**``, ``hil/**``, ``<key>$*``, ``hil/<robot>/*``) is inside no allow rule of
 a narrower right and is denied (a deny rule on an exact key would let it through: issue 43).

@@ -9,7 +9,6 @@ import json
 import select
 import signal
 import sys
-import threading
 from pathlib import Path
 
 from hil.bus_config import load_bus_config, open_buses
@@ -102,8 +101,7 @@ def run(args: argparse.Namespace) -> int:
             bus.shutdown()
         close_all()
         raise
-    stopped = threading.Event()
-    previous = common.on_stop_signals(lambda: (stopped.set(), node.stop()))
+    previous = common.on_stop_signals(node.stop)
     mode = "fake hardware" if args.fake else f"{len(config.drives)} drive(s)"
     print(f"hil control: {config.robot.name}, {mode}, {config.cycle_hz:g} Hz, "
           f"{args.timing}; goals on "
@@ -113,8 +111,8 @@ def run(args: argparse.Namespace) -> int:
     gc.freeze()     # start-up's objects out of the collector's way: shorter passes in the loop
     try:
         if args.hold:
-            _hold(zenoh, config.robot.name, stopped)
-        if not stopped.is_set():
+            _hold(zenoh, config.robot.name, node)
+        if not node.stopping:
             node.run()
     finally:
         for bus in buses.values():
@@ -135,12 +133,12 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _hold(zenoh, robot: str, stopped: threading.Event) -> None:
+def _hold(zenoh, robot: str, node: ControlNode) -> None:
     """--hold: say so (a liveliness token ``hil/<robot>/control/held``), then wait until
-    standard input has a line or ends, or the process is told to stop."""
+    standard input has a line or ends, or ``node`` is told to stop."""
     token = session(zenoh).liveliness().declare_token(key(robot, "control/held"))
     try:
-        while not stopped.is_set():
+        while not node.stopping:
             if select.select([sys.stdin], [], [], 0.1)[0]:
                 return
     finally:

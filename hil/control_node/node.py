@@ -162,6 +162,11 @@ class ControlNode:
     def stop(self) -> None:
         self._stop.set()
 
+    @property
+    def stopping(self) -> bool:
+        """Whether :meth:`stop` was called."""
+        return self._stop.is_set()
+
     def reset_faults(self, timeout: float = RESET_TIMEOUT) -> tuple[bool, str]:
         """Reset the hardware's faults and accept goals again, holding where the joints are.
 

@@ -166,14 +166,14 @@ class JointStateCdr:
     holds the bytes against rosbags' own)."""
 
     def __init__(self, names):
-        self.names = list(names)
-        self._count = count = len(self.names)
+        names = list(names)
+        self._count = count = len(names)
         # XCDR1, little endian; alignment counts from the end of the encapsulation header.
         # header: stamp (int32, uint32) at 0, frame_id "" (length 1, NUL) at 8
         static, offset = bytearray(), 13
         for part in [struct.pack("<I", count)] + [
                 struct.pack("<I", len(name.encode()) + 1) + name.encode() + b"\0"
-                for name in self.names]:
+                for name in names]:
             static += b"\0" * (-offset % 4) + part          # uint32s align to 4
             offset = 13 + len(static)
         layout = [f"<4siI5s{len(static)}s"]

@@ -67,16 +67,16 @@ class Plant:
         self._stage_qpos = np.array([self.model.jnt_qposadr[j] for _, j in stages], dtype=int)
         self._stage_dof = np.array([self.model.jnt_dofadr[j] for _, j in stages], dtype=int)
         driven = [j for t in self.transmissions for j in t.joints]
-        self._driven_qpos = np.array([self.model.joint(n).qposadr[0] for n in driven], dtype=int)
-        self._driven_dof = np.array([self.model.joint(n).dofadr[0] for n in driven], dtype=int)
-        self._motors = TransmissionStack(self.transmissions, tuple(driven), self.actuator_names)
+        driven_qpos = np.array([self.model.joint(n).qposadr[0] for n in driven], dtype=int)
+        driven_dof = np.array([self.model.joint(n).dofadr[0] for n in driven], dtype=int)
+        motors = TransmissionStack(self.transmissions, tuple(driven), self.actuator_names)
         # the transmissions over the whole of qpos and qvel: a = P q - P offset as one
         # product per read, no gather (the simulator reads both at every plant step)
         self._position_map = np.zeros((len(self.actuator_names), self.model.nq))
-        self._position_map[:, self._driven_qpos] = self._motors.position_matrix
-        self._position_bias = self._motors.position_matrix @ self._motors.joint_offsets
+        self._position_map[:, driven_qpos] = motors.position_matrix
+        self._position_bias = motors.position_matrix @ motors.joint_offsets
         self._velocity_map = np.zeros((len(self.actuator_names), self.model.nv))
-        self._velocity_map[:, self._driven_dof] = self._motors.position_matrix
+        self._velocity_map[:, driven_dof] = motors.position_matrix
         self._actuator_ids = np.array([self.model.actuator(n).id for n in self.actuator_names])
         base = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, FLOATING_BASE)
         self._base = int(self.model.jnt_qposadr[base]) if base >= 0 else None
