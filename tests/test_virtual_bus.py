@@ -10,7 +10,7 @@ import can
 import pytest
 
 from hil.can.faults import FaultyBus, FrameFault
-from hil.can.messages import data_frame
+from hil.can.messages import EXTENDED, data_frame, extended
 from hil.can.network import start_network
 from conftest import FrameRecorder
 
@@ -195,3 +195,88 @@ def test_a_networks_listener_feeds_subscribers_routes_rtr_and_survives_a_failing
     assert "Traceback" not in caplog.text             # one line, counted
     assert network.frame_listener.refused == 1
     network.notifier.stop()
+
+
+@pytest.fixture
+def networks(pair):
+    sender, receiver = pair
+    ends = start_network(sender), start_network(receiver)
+    yield ends
+    for network in ends:
+        network.notifier.stop()
+
+
+def _hear(network, key: int) -> list:
+    heard = []
+    network.subscribe(key, lambda can_id, data, timestamp: heard.append((can_id, data)))
+    return heard
+
+
+def test_hils_networks_exchange_frames_as_parts_without_building_a_message(
+        networks, monkeypatch):
+    sent, received = networks
+    import hil.can.network
+    import hil.can.virtual
+
+    def no_message(*args, **kwargs):
+        raise AssertionError("a can.Message was built between two of hil's networks")
+
+    for module, builder in ((hil.can.network, "data_frame"), (hil.can.virtual, "data_frame"),
+                            (hil.can.virtual, "received_copy")):
+        monkeypatch.setattr(module, builder, no_message)
+    heard = _hear(received, 0x181)
+    payload = bytearray(b"\x27\x00\x10\x00")
+    sent.send_message(0x181, payload)
+    payload[0] = 0xFF                      # the sender's buffer is its own again
+    assert heard == [(0x181, bytearray(b"\x27\x00\x10\x00"))]
+    assert type(heard[0][1]) is bytearray  # the receiver's own copy, as a message's data
+
+
+def test_a_frame_sent_as_parts_reaches_python_cans_buses_as_the_message_it_stands_for(
+        networks, channel):
+    sent, _ = networks
+    plain = can.Bus(interface="virtual", channel=channel)
+    try:
+        for can_id, data in ((0x181, b"\x01\x02"), (0x1ABCDE, b"\x03"),
+                             (0x101 | EXTENDED, b""), (0x080, b"")):
+            sent.send_message(can_id, data)
+            expected = data_frame(can_id, data)
+            got = plain.recv(1)
+            assert (got.arbitration_id, got.is_extended_id, got.dlc, bytes(got.data),
+                    got.is_remote_frame, got.is_rx) == (
+                expected.arbitration_id, expected.is_extended_id, expected.dlc,
+                bytes(expected.data), False, True)
+    finally:
+        plain.shutdown()
+
+
+def test_frames_as_parts_keep_standard_and_extended_ids_of_one_number_apart(networks):
+    sent, received = networks
+    standard, extended_heard = _hear(received, 0x101), _hear(received, extended(0x101))
+    long_id = _hear(received, 0x1ABCDE)
+    sent.send_message(0x101, b"\x01")
+    sent.send_message(0x101 | EXTENDED, b"\x02")
+    sent.send_message(0x1ABCDE, b"\x03")
+    assert standard == [(0x101, b"\x01")]
+    assert extended_heard == [(extended(0x101), b"\x02")]
+    assert long_id == [(0x1ABCDE, b"\x03")]
+
+
+def test_a_listener_that_wants_messages_added_later_gets_them_beside_the_network(
+        networks):
+    sent, received = networks
+    heard = _hear(received, 0x181)
+    recorder = FrameRecorder()
+    received.notifier.add_listener(recorder)
+    sent.send_message(0x181, b"\x05")
+    assert heard == [(0x181, b"\x05")]
+    (message, _), = recorder.frames
+    assert (message.arbitration_id, bytes(message.data)) == (0x181, b"\x05")
+
+
+def test_a_remote_request_between_hils_networks_goes_as_a_message_to_its_handler(networks):
+    sent, received = networks
+    asked = []
+    received.frame_listener.remote_handlers[0x281] = asked.append
+    sent.send_message(0x281, b"", remote=True)
+    assert asked == [0x281]

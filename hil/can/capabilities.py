@@ -37,6 +37,12 @@ class BusCapabilities:
         the bus cannot (a Notifier then reads ``recv``)."""
         return None
 
+    def frame_sender(self) -> Callable[[int, bytes | bytearray], None] | None:
+        """A function that sends a data frame from its parts (its dispatch key, as
+        :func:`hil.can.messages.frame_key` has it, and its data), building a ``can.Message``
+        only for receivers that want one; None where the bus sends messages only."""
+        return None
+
     def batch(self) -> AbstractContextManager:
         """A block whose frames go out together (one message); by default each frame goes
         out as it is sent."""

@@ -6,6 +6,13 @@ A bus that already runs code when a frame arrives (``hil-virtual`` in the sender
 ``zenoh`` in Zenoh's callback thread) can call the listeners there instead:
 ``bus.deliver_to(listeners)`` returns a :class:`DirectDelivery`, which stands where the
 Notifier would (``stop``, ``add_listener``, ``exception``).
+
+Where every listener is a :class:`FrameListener` (hil's canopen networks) and nothing
+rewrites the frames on the way in (no ``accept``), the delivery also takes a data frame as
+its parts (:meth:`DirectDelivery.deliver_frame`): a bus that sends from parts (hil's own
+networks on ``hil-virtual``) then builds no ``can.Message`` for it at all. hil's cycle
+exchanges 20 frames (ur3) between hil's own ends; a message built and copied per frame was
+measured as a large share of a lock-step cycle (docs/performance.md).
 """
 
 from __future__ import annotations
@@ -16,7 +23,18 @@ from collections.abc import Callable, Iterable
 
 import can
 
+from hil.can.messages import ID_BITS, received_frame
+
 log = logging.getLogger(__name__)
+
+
+class FrameListener(can.Listener):
+    """A listener that also takes a data frame as its parts: its dispatch key
+    (:func:`hil.can.messages.frame_key`), its own data and its receive timestamp, in
+    place of a ``can.Message`` (never remote or error frames: those come as messages)."""
+
+    def on_frame(self, key: int, data: bytearray, timestamp: float) -> None:
+        raise NotImplementedError
 
 
 class DirectDelivery:
@@ -41,6 +59,12 @@ class DirectDelivery:
         # each listener's own method, called straight (can.Listener.__call__ is one more
         # Python call per frame and listener; plain callables are listeners too)
         self._receivers = [_receiver(listener) for listener in self.listeners]
+        #: whether :meth:`deliver_frame` takes frames as parts (read by senders unlocked: a
+        #: frame that meets a change of it is still delivered, as a message if need be)
+        self.takes_frames = accept is None and all(
+            isinstance(listener, FrameListener) for listener in self.listeners)
+        self._frame_receivers = ([listener.on_frame for listener in self.listeners]
+                                 if self.takes_frames else [])
         self._accept = accept
         self._on_stop = on_stop
         self._lock = threading.RLock()
@@ -60,10 +84,29 @@ class DirectDelivery:
                 except Exception:          # as python-can's Notifier: one bad listener
                     log.exception("listener %r failed on %s", receive, msg)
 
+    def deliver_frame(self, key: int, data: bytes | bytearray, timestamp: float) -> None:
+        """A data frame by its parts: each listener gets its own copy of ``data``."""
+        with self._lock:
+            if self._stopped:
+                return
+            if not self.takes_frames:       # a listener that wants messages came meanwhile
+                self.deliver(received_frame(timestamp, key & ID_BITS, key > 0x7FF, False,
+                                            False, len(data), data, None))
+                return
+            for receive in self._frame_receivers:
+                try:
+                    receive(key, bytearray(data), timestamp)
+                except Exception:          # as deliver
+                    log.exception("listener %r failed on frame 0x%X", receive, key)
+
     def add_listener(self, listener: can.Listener) -> None:
         with self._lock:
             self.listeners.append(listener)
             self._receivers.append(_receiver(listener))
+            if isinstance(listener, FrameListener):
+                self._frame_receivers.append(listener.on_frame)
+            else:
+                self.takes_frames = False
 
     def stop(self, timeout: float = 5.0) -> None:
         """Stop delivering (the bus queues its frames again), after a delivery in progress

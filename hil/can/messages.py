@@ -17,7 +17,8 @@ _new_message = can.Message.__new__
 #: does in its ``can_id``: a drive that listens on extended ids below 0x800 (a CubeMars
 #: servo command, ``mode << 8 | id``) must not hear the standard frame of the same number
 EXTENDED = 0x80000000
-_ID_BITS = 0x1FFFFFFF
+#: the bits of an arbitration id
+ID_BITS = 0x1FFFFFFF
 
 
 def frame_key(msg: can.Message) -> int:
@@ -33,6 +34,14 @@ def extended(can_id: int) -> int:
     return can_id | EXTENDED if can_id <= 0x7FF else can_id
 
 
+def sent_key(can_id: int) -> int:
+    """The dispatch key (:func:`frame_key`) of the frame :func:`data_frame` builds for
+    ``can_id``."""
+    if can_id <= 0x7FF:
+        return can_id
+    return extended(can_id & ID_BITS)
+
+
 def data_frame(arbitration_id: int, data: bytes | bytearray, remote: bool = False
                ) -> can.Message:
     """What ``can.Message(arbitration_id=..., data=..., is_extended_id=arbitration_id >
@@ -43,7 +52,7 @@ def data_frame(arbitration_id: int, data: bytes | bytearray, remote: bool = Fals
     elif not isinstance(data, bytearray):
         data = bytearray(data)
     is_extended = arbitration_id > 0x7FF
-    arbitration_id &= _ID_BITS
+    arbitration_id &= ID_BITS
     return _filled(_new_message(can.Message), 0.0, arbitration_id, is_extended,
                    remote, False, None, len(data), data, False, True, False, False)
 

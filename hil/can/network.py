@@ -14,12 +14,13 @@ import can
 import canopen
 
 from hil.can.capabilities import capabilities
-from hil.can.messages import data_frame, frame_key
+from hil.can.delivery import FrameListener
+from hil.can.messages import ID_BITS, data_frame, frame_key, sent_key
 
 log = logging.getLogger(__name__)
 
 
-class NetworkListener(can.Listener):
+class NetworkListener(FrameListener):
     """A canopen network's frames in, in one call per frame: what canopen's own
     MessageListener and ``network.notify`` do (every data frame to the network's subscribers
     of its id; a failing subscriber logged, never raised into the bus), plus remote (RTR)
@@ -52,29 +53,35 @@ class NetworkListener(can.Listener):
             if handler is not None:
                 handler(msg.arbitration_id)
         elif not msg.is_error_frame:
-            key = frame_key(msg)
-            for callback in self.subscribers.get(key, ()):
-                try:
-                    callback(key, msg.data, msg.timestamp)
-                except Exception as exc:
-                    self._refuse(msg, callback, exc)
+            self.on_frame(frame_key(msg), msg.data, msg.timestamp)
 
-    def _refuse(self, msg: can.Message, callback, exc: Exception) -> None:
+    def on_frame(self, key: int, data: bytearray, timestamp: float) -> None:
+        for callback in self.subscribers.get(key, ()):
+            try:
+                callback(key, data, timestamp)
+            except Exception as exc:
+                self._refuse(key & ID_BITS, data, callback, exc)
+
+    def _refuse(self, can_id: int, data: bytearray, callback, exc: Exception) -> None:
         self.refused += 1
-        count = self._refused_by_id.get(msg.arbitration_id, 0) + 1
-        self._refused_by_id[msg.arbitration_id] = count
+        count = self._refused_by_id.get(can_id, 0) + 1
+        self._refused_by_id[can_id] = count
         if count % self.LOG_EVERY == 1:
             log.warning("frame 0x%03X [%s] refused by %s: %s: %s (%d from this id so far)",
-                        msg.arbitration_id, bytes(msg.data).hex(" "),
+                        can_id, bytes(data).hex(" "),
                         # a function's name where it has one, for the log only
                         getattr(callback, "__qualname__", callback), type(exc).__name__, exc,
                         count)
-        log.debug("frame 0x%03X refused", msg.arbitration_id, exc_info=exc)
+        log.debug("frame 0x%03X refused", can_id, exc_info=exc)
 
 
 class CanopenNetwork(canopen.Network):
     """canopen's Network, its frames built by :func:`hil.can.messages.data_frame`: the
-    same ``can.Message`` in 60 % of the time (a ur3 cycle sends 20 frames)."""
+    same ``can.Message`` in 60 % of the time (a ur3 cycle sends 20 frames); or, on a bus
+    that sends frames from their parts (``frame_sender``), no message at all."""
+
+    #: the bus' frame sender (BusCapabilities.frame_sender), set by :func:`start_network`
+    frame_sender: Callable[[int, bytes | bytearray], None] | None = None
 
     def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
         # canopen's own send_message but for how the frame is built (canopen 2.4), and its
@@ -82,21 +89,27 @@ class CanopenNetwork(canopen.Network):
         # directly: one call less a frame)
         if not self.bus:
             raise RuntimeError("Not connected to CAN bus")
+        send_frame = self.frame_sender
         with self.send_lock:
-            self.bus.send(data_frame(can_id, data, remote))
+            if send_frame is None or remote:
+                self.bus.send(data_frame(can_id, data, remote))
+            else:
+                send_frame(can_id if can_id <= 0x7FF else sent_key(can_id), data)
         if self.notifier is not None and self.notifier.exception is not None:
             self.check()
 
 
 def start_network(bus: can.BusABC, timeout: float = 0.1,
-                  network_class: type[canopen.Network] = CanopenNetwork) -> canopen.Network:
+                  network_class: type[CanopenNetwork] = CanopenNetwork) -> CanopenNetwork:
     """A canopen network (of ``network_class``) on ``bus`` with its frames flowing and RTR
     frames routed: handed over in the thread that brings them where the bus can
     (``deliver_to``: hil-virtual, zenoh; see hil.can.delivery), else by a python-can
-    Notifier (``network.notifier`` either way)."""
+    Notifier (``network.notifier`` either way); sent from their parts where the bus can
+    (``frame_sender``: hil-virtual)."""
     network = network_class(bus)
     network.frame_listener = NetworkListener(network)
     network.listeners = [network.frame_listener]     # canopen's MessageListener replaced
     direct = capabilities(bus).deliver_to(network.listeners)
     network.notifier = direct or can.Notifier(bus, network.listeners, timeout)
+    network.frame_sender = capabilities(bus).frame_sender()
     return network

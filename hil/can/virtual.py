@@ -9,7 +9,11 @@ measured in ``hil bench``:
 * :meth:`VirtualBus.deliver_to` hands a receiver's frames to its listeners in the
   sending thread (:mod:`hil.can.delivery`), where a Notifier thread would take them from
   a queue: a lock-step cycle becomes one chain of calls instead of a thread switch per
-  burst of frames.
+  burst of frames;
+* between hil's own ends (a canopen network of :mod:`hil.can.network` on each) a data
+  frame goes as its parts (:meth:`VirtualBus.frame_sender`,
+  :meth:`~hil.can.delivery.DirectDelivery.deliver_frame`): no ``can.Message`` is built
+  for it unless a receiver wants one (python-can's own buses, a listener of yours).
 
 Channels are python-can's own, so ``hil-virtual`` and ``virtual`` buses on one channel
 hear each other; a bus without direct delivery queues its frames for ``recv`` as usual.
@@ -28,7 +32,7 @@ from can.interfaces import virtual
 
 from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
-from hil.can.messages import received_copy
+from hil.can.messages import data_frame, frame_key, received_copy
 
 #: a receiving bus' queue -> who takes its frames directly (read without a lock in send)
 _DIRECT: dict[queue.Queue, DirectDelivery] = {}
@@ -53,25 +57,55 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
             if _DIRECT.get(self.queue) is delivery:
                 del _DIRECT[self.queue]
 
+    def frame_sender(self) -> Callable[[int, bytes | bytearray], None]:
+        return self.send_frame
+
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         if not self._open:                  # python-can's _check_if_open, one call less
             self._check_if_open()
         timestamp = msg.timestamp if self.preserve_timestamps else time.time()
+        as_parts = not (msg.is_remote_frame or msg.is_error_frame)
         all_sent = True
         for bus_queue in self.channel:
             if bus_queue is self.queue and not self.receive_own_messages:
                 continue
-            copy = received_copy(msg, timestamp, self.channel_id, bus_queue is not self.queue)
             direct = _DIRECT.get(bus_queue)
             if direct is not None:
-                direct.deliver(copy)
+                if as_parts and direct.takes_frames and bus_queue is not self.queue:
+                    direct.deliver_frame(frame_key(msg), msg.data, timestamp)
+                else:
+                    direct.deliver(received_copy(msg, timestamp, self.channel_id,
+                                                 bus_queue is not self.queue))
                 continue
+            copy = received_copy(msg, timestamp, self.channel_id, bus_queue is not self.queue)
             try:
                 bus_queue.put(copy, block=True, timeout=timeout)
             except queue.Full:
                 all_sent = False
         if not all_sent:
             raise can.CanOperationError("Could not send message to one or more recipients")
+
+    def send_frame(self, key: int, data: bytes | bytearray) -> None:
+        """Send a data frame from its parts (dispatch key and data): handed over as parts
+        where every receiver takes them, else built and sent as :meth:`send` sends it."""
+        if not self._open:
+            self._check_if_open()
+        directs = []
+        for bus_queue in self.channel:
+            if bus_queue is not self.queue:
+                direct = _DIRECT.get(bus_queue)
+                if direct is None or not direct.takes_frames:
+                    break
+                directs.append(direct)
+            elif self.receive_own_messages:
+                break
+        else:
+            timestamp = 0.0 if self.preserve_timestamps else time.time()  # a built frame's
+            for direct in directs:
+                direct.deliver_frame(key, data, timestamp)
+            return
+        # a receiver that wants messages (python-can's bus, a listener of yours, this bus)
+        self.send(data_frame(key, data))
 
     def shutdown(self) -> None:
         with _DIRECT_LOCK:
