@@ -1,6 +1,6 @@
 """python-can's in-process ``virtual`` bus, made cheap enough for a control loop.
 
-Two differences from python-can's :class:`~can.interfaces.virtual.VirtualBus`, both
+Three differences from python-can's :class:`~can.interfaces.virtual.VirtualBus`, each
 measured in ``hil bench``:
 
 * ``send`` builds each receiver's copy of a frame field by field
@@ -100,7 +100,8 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
             elif self.receive_own_messages:
                 break
         else:
-            timestamp = 0.0 if self.preserve_timestamps else time.time()  # a built frame's
+            # preserved: 0.0, the timestamp of the frame data_frame would have built
+            timestamp = 0.0 if self.preserve_timestamps else time.time()
             for direct in directs:
                 direct.deliver_frame(key, data, timestamp)
             return
