@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from abc import abstractmethod
 from collections.abc import Callable, Iterable
 
 import can
@@ -33,8 +34,9 @@ class FrameListener(can.Listener):
     (:func:`hil.can.messages.frame_key`), its own data and its receive timestamp, in
     place of a ``can.Message`` (never remote or error frames: those come as messages)."""
 
+    @abstractmethod
     def on_frame(self, key: int, data: bytearray, timestamp: float) -> None:
-        raise NotImplementedError
+        """One data frame, by its parts."""
 
 
 class DirectDelivery:

@@ -93,7 +93,7 @@ class CanopenNetwork(canopen.Network):
         with self.send_lock:
             if send_frame is None or remote:
                 self.bus.send(data_frame(can_id, data, remote))
-            else:
+            else:       # sent_key's standard-id case inline: one call less a frame
                 send_frame(can_id if can_id <= 0x7FF else sent_key(can_id), data)
         if self.notifier is not None and self.notifier.exception is not None:
             self.check()
