@@ -16,11 +16,12 @@ Two time modes:
   the controller cannot start the next cycle early.
 
 Threads: python-can's Notifier calls back per bus (or the sender's thread
-delivers, on ``hil-virtual``); one re-entrant lock, inside PlantPresent,
-guards the plant and all drives. The watchdogs run on the wall clock in both
-modes; in lock-step they are stretched to at least LOCK_STEP_WATCHDOG, since
-nothing moves between commands there: a late controller is no hazard, and the
-watchdog only has to find a dead one.
+delivers, on ``hil-virtual``); one re-entrant lock guards the plant and all
+drives (in real time inside PlantPresent; in lock-step a plain one). The
+watchdogs run on the wall clock in both modes; in lock-step they are
+stretched to at least LOCK_STEP_WATCHDOG, since nothing moves between
+commands there: a late controller is no hazard, and the watchdog only has to
+find a dead one.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, replace
 
 import can
@@ -139,7 +141,10 @@ class Simulator:
         self.config = config
         self.timing = timing
         self.lock_step = timing.lock_step       # read at every frame
-        self.lock = PlantPresent(self._advance)
+        # lock-step: nothing moves the plant between commands, nothing to advance on entry
+        # (a plain lock: 4 % off a ur3 cycle, docs/performance.md)
+        self.lock: AbstractContextManager = (threading.RLock() if timing.lock_step
+                                             else PlantPresent(self._advance))
         self.plant = bench_plant(config)
         self.steps_per_cycle = config.steps_per_cycle
         #: cycles run: lock-step, the plant's; real time, the most cycle frames (SYNCs,
@@ -264,7 +269,10 @@ class Simulator:
     def follow(self, clock: Callable[[], float]) -> None:
         """Real time on another clock, without :meth:`run`: from now on plant time follows
         ``clock`` (s) from its present reading, stepped whenever a frame or a call enters the
-        lock; no watchdog and no timed message runs (a replay on a log's own timestamps)."""
+        lock; no watchdog and no timed message runs (a replay on a log's own timestamps).
+        Real time only: a lock-step plant moves by cycles."""
+        if self.lock_step:
+            raise ValueError("a lock-step simulator's plant moves by cycles, not on a clock")
         with self.lock:
             self.wall_clock = clock
             self._clock = (clock(), 0)
@@ -348,5 +356,21 @@ class Simulator:
             self._step()
         self.cycles += 1
         self._waiting = {d for d in self.drives if d.attached}
-        for each in self.drives:
-            each.send_replies()
+        self._send_replies()
+
+    def _send_replies(self) -> None:
+        """Lock-step: every drive's reply, in config order, those of a bus in one send
+        (a profile that sends its own, in its place)."""
+        for simulated in self.buses:
+            replies: list[tuple[int, bytes]] = []
+            for drive in simulated.drives:
+                frames = drive.take_replies()
+                if frames is None:
+                    if replies:
+                        simulated.network.send_frames(replies)
+                        replies = []
+                    drive.send_replies()
+                elif drive.network is not None:
+                    replies += frames
+            if replies:
+                simulated.network.send_frames(replies)

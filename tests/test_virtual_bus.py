@@ -280,3 +280,50 @@ def test_a_remote_request_between_hils_networks_goes_as_a_message_to_its_handler
     received.frame_listener.remote_handlers[0x281] = asked.append
     sent.send_message(0x281, b"", remote=True)
     assert asked == [0x281]
+
+
+def test_frames_sent_at_once_reach_every_receiver_frame_by_frame_in_order(networks, channel):
+    sent, first = networks
+    second = start_network(can.Bus(interface="hil-virtual", channel=channel))
+    try:
+        heard = []
+        for name, network in (("first", first), ("second", second)):
+            for key in (0x181, extended(0x101), 0x1ABCDE):
+                network.subscribe(key, lambda can_id, data, timestamp, name=name:
+                                  heard.append((name, can_id, bytes(data))))
+        sent.send_frames([(0x181, b"\x01"), (0x101 | EXTENDED, b"\x02"), (0x1ABCDE, b"\x03")])
+        # as one send after another: each frame at every receiver before the next at any
+        assert [(can_id, data) for _, can_id, data in heard] == [
+            (0x181, b"\x01"), (0x181, b"\x01"), (extended(0x101), b"\x02"),
+            (extended(0x101), b"\x02"), (0x1ABCDE, b"\x03"), (0x1ABCDE, b"\x03")]
+        assert {name for name, _, _ in heard[:2]} == {"first", "second"}
+    finally:
+        second.notifier.stop()
+        second.bus.shutdown()
+
+
+def test_frames_sent_at_once_reach_python_cans_bus_as_messages_in_order(networks, channel):
+    sent, _ = networks
+    plain = can.Bus(interface="virtual", channel=channel)
+    try:
+        sent.send_frames([(0x181, b"\x01"), (0x182, b"\x02"), (0x181, b"\x03")])
+        got = [plain.recv(1) for _ in range(3)]
+        assert [(m.arbitration_id, bytes(m.data)) for m in got] == [
+            (0x181, b"\x01"), (0x182, b"\x02"), (0x181, b"\x03")]
+        assert plain.recv(0) is None
+    finally:
+        plain.shutdown()
+
+
+def test_a_drive_network_counts_every_frame_of_a_batch_its_closed_bus_refuses(
+        channel, caplog):
+    from hil.drives.profile import DriveNetwork
+    bus = can.Bus(interface="hil-virtual", channel=channel)
+    network = start_network(bus, 0.1, DriveNetwork)
+    network.notifier.stop()
+    bus.shutdown()
+    with caplog.at_level(logging.WARNING):
+        network.send_frames([(0x181, b"\x01"), (0x281, b"\x02"), (0x381, b"\x03")])
+        network.send_frames([(0x181, b"\x01")])
+    assert network.lost_frames == 4
+    assert len([r for r in caplog.records if "was lost" in r.getMessage()]) == 1

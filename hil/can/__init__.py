@@ -15,7 +15,7 @@ from contextlib import AbstractContextManager, ExitStack
 
 import can
 
-from hil.can.capabilities import BusCapabilities, capabilities
+from hil.can.capabilities import UNBATCHED, BusCapabilities, capabilities
 from hil.can.frames import BusLoad, bus_load, frame_bits
 from hil.errors import HilError
 from hil.realtime.stalls import Stall
@@ -25,13 +25,17 @@ __all__ = ["BusCapabilities", "BusLoad", "capabilities", "bus_load", "deliver_un
            "watch_deliveries"]
 
 
-def sent_together(buses: Iterable[can.BusABC]) -> ExitStack:
+def sent_together(buses: Iterable[can.BusABC]) -> AbstractContextManager:
     """A block (``with sent_together(buses):``) whose frames go out together where the bus
     can do that (``zenoh``: one message for all the buses of a Zenoh session); others send
     each frame as it is sent, as ever."""
+    batches = [batch for batch in (capabilities(bus).batch() for bus in buses)
+               if batch is not UNBATCHED]
+    if not batches:             # no ExitStack a cycle where none batches (hil-virtual)
+        return UNBATCHED
     together = ExitStack()
-    for bus in buses:
-        together.enter_context(capabilities(bus).batch())
+    for batch in batches:
+        together.enter_context(batch)
     return together
 
 

@@ -10,17 +10,22 @@ interface) offers none of them: :func:`capabilities` gives it these defaults.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from typing import TYPE_CHECKING
 
 import can
 
+from hil.can.messages import FrameParts
 from hil.realtime.stalls import Stall
 
 if TYPE_CHECKING:
     from hil.can.delivery import DirectDelivery
     from hil.can.link_statistics import FrameCounters
+
+
+#: the block of a bus that sends each frame as it is sent (nullcontext is re-entrant)
+UNBATCHED = nullcontext()
 
 
 class BusCapabilities:
@@ -37,16 +42,17 @@ class BusCapabilities:
         the bus cannot (a Notifier then reads ``recv``)."""
         return None
 
-    def frame_sender(self) -> Callable[[int, bytes | bytearray], None] | None:
-        """A function that sends a data frame from its parts (its dispatch key, as
-        :func:`hil.can.messages.frame_key` has it, and its data), building a ``can.Message``
-        only for receivers that want one; None where the bus sends messages only."""
+    def frame_sender(self) -> Callable[[Sequence[FrameParts]], None] | None:
+        """A function that sends data frames, in order, from their parts (each its dispatch
+        key, as :func:`hil.can.messages.frame_key` has it, and its data), building a
+        ``can.Message`` only for receivers that want one; None where the bus sends messages
+        only."""
         return None
 
     def batch(self) -> AbstractContextManager:
         """A block whose frames go out together (one message); by default each frame goes
-        out as it is sent."""
-        return nullcontext()
+        out as it is sent (:data:`UNBATCHED`)."""
+        return UNBATCHED
 
     def deliver_under(self, guard: AbstractContextManager | None) -> None:
         """From now on deliver each batch of received frames inside ``guard``, entered once

@@ -20,6 +20,9 @@ EXTENDED = 0x80000000
 #: the bits of an arbitration id
 ID_BITS = 0x1FFFFFFF
 
+#: a data frame by its parts: its dispatch key (:func:`frame_key`) and its data
+FrameParts = tuple[int, bytes | bytearray]
+
 
 def frame_key(msg: can.Message) -> int:
     """The id frames are dispatched by: the arbitration id, with :data:`EXTENDED` set for an

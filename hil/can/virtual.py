@@ -11,9 +11,10 @@ measured in ``hil bench``:
   a queue: a lock-step cycle becomes one chain of calls instead of a thread switch per
   burst of frames;
 * between hil's own ends (a canopen network of :mod:`hil.can.network` on each) a data
-  frame goes as its parts (:meth:`VirtualBus.frame_sender`,
-  :meth:`~hil.can.delivery.DirectDelivery.deliver_frame`): no ``can.Message`` is built
-  for it unless a receiver wants one (python-can's own buses, a listener of yours).
+  frame goes as its parts, a cycle's frames of one sender in one call
+  (:meth:`VirtualBus.send_frames`, :meth:`~hil.can.delivery.DirectDelivery.deliver_frame`):
+  no ``can.Message`` is built for it unless a receiver wants one (python-can's own buses,
+  a listener of yours).
 
 Channels are python-can's own, so ``hil-virtual`` and ``virtual`` buses on one channel
 hear each other; a bus without direct delivery queues its frames for ``recv`` as usual.
@@ -25,14 +26,14 @@ from __future__ import annotations
 import queue
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 
 import can
 from can.interfaces import virtual
 
 from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
-from hil.can.messages import data_frame, frame_key, received_copy
+from hil.can.messages import FrameParts, data_frame, frame_key, received_copy
 
 #: a receiving bus' queue -> who takes its frames directly (read without a lock in send)
 _DIRECT: dict[queue.Queue, DirectDelivery] = {}
@@ -57,8 +58,8 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
             if _DIRECT.get(self.queue) is delivery:
                 del _DIRECT[self.queue]
 
-    def frame_sender(self) -> Callable[[int, bytes | bytearray], None]:
-        return self.send_frame
+    def frame_sender(self) -> Callable[[Sequence[FrameParts]], None]:
+        return self.send_frames
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         if not self._open:                  # python-can's _check_if_open, one call less
@@ -85,9 +86,13 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
         if not all_sent:
             raise can.CanOperationError("Could not send message to one or more recipients")
 
-    def send_frame(self, key: int, data: bytes | bytearray) -> None:
-        """Send a data frame from its parts (dispatch key and data): handed over as parts
-        where every receiver takes them, else built and sent as :meth:`send` sends it."""
+    def send_frames(self, frames: Sequence[FrameParts]) -> None:
+        """Send data frames, in order, from their parts (dispatch key and data): handed over
+        as parts where every receiver takes them, else each built and sent as :meth:`send`
+        sends it. Each frame reaches every receiver before the next frame reaches any, as
+        one :meth:`send` after another would; the receivers are the channel's when the call
+        begins (a bus opened by a receiver meanwhile hears the frames after it, as a node
+        that joins a bus mid-burst does)."""
         if not self._open:
             self._check_if_open()
         directs = []
@@ -102,11 +107,13 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
         else:
             # preserved: 0.0, the timestamp of the frame data_frame would have built
             timestamp = 0.0 if self.preserve_timestamps else time.time()
-            for direct in directs:
-                direct.deliver_frame(key, data, timestamp)
+            for key, data in frames:
+                for direct in directs:
+                    direct.deliver_frame(key, data, timestamp)
             return
         # a receiver that wants messages (python-can's bus, a listener of yours, this bus)
-        self.send(data_frame(key, data))
+        for key, data in frames:
+            self.send(data_frame(key, data))
 
     def shutdown(self) -> None:
         with _DIRECT_LOCK:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import logging
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from typing import ClassVar
@@ -53,10 +53,20 @@ class DriveNetwork(CanopenNetwork):
         try:
             super().send_message(can_id, data, remote)
         except can.CanError as exc:
-            self.lost_frames += 1
-            if self.lost_frames % self.LOG_EVERY == 1:
-                log.warning("a drive's frame 0x%03X was lost (%d so far): %s", can_id,
-                            self.lost_frames, exc)
+            self._lost(can_id, 1, exc)
+
+    def send_frames(self, frames: Sequence[tuple[int, bytes]]) -> None:
+        try:
+            super().send_frames(frames)
+        except can.CanError as exc:     # from a bus taking them all at once: all lost
+            self._lost(frames[0][0], len(frames), exc)
+
+    def _lost(self, can_id: int, count: int, exc: can.CanError) -> None:
+        before, self.lost_frames = self.lost_frames, self.lost_frames + count
+        # the first, the 1001st, ...: whichever of them this loss counted
+        if (before - 1) // self.LOG_EVERY != (self.lost_frames - 1) // self.LOG_EVERY:
+            log.warning("a drive's frame 0x%03X was lost (%d so far): %s", can_id,
+                        self.lost_frames, exc)
 
 
 #: what a :class:`Reading` measures; None for what must match exactly (states, codes)
@@ -88,6 +98,13 @@ class DriveProfile(ABC):
         """``lock`` is held around everything a frame does to the drive; its owner holds it
         while stepping the physics (the simulator's also brings the plant up to the present
         on entry: hil.simulator.PlantPresent)."""
+        profile = type(self)
+        if (profile.take_replies is DriveProfile.take_replies
+                and profile.send_replies is DriveProfile.send_replies):
+            # ABC's refusal of a class with an abstract method left, for a pair of which
+            # either will do
+            raise TypeError(f"Can't instantiate {profile.__name__}: it defines neither "
+                            "take_replies nor send_replies")
         self.node_id = node_id
         self.core = core
         self.lock = lock
@@ -101,10 +118,6 @@ class DriveProfile(ABC):
     @abstractmethod
     def subscriptions(self) -> dict[int, Callable[[int, bytes, float], None]]:
         """The arbitration ids this drive listens to, with their handlers."""
-
-    @abstractmethod
-    def send_replies(self) -> None:
-        """Send the reply to this cycle's command, as sampled when it arrived."""
 
     def remote_subscriptions(self) -> dict[int, Callable[[int], None]]:
         """Remote (RTR) frame ids this drive answers, with their handlers."""
@@ -139,6 +152,22 @@ class DriveProfile(ABC):
         """Send a frame, if on a bus."""
         if self.network is not None:
             self.network.send_message(can_id, data, remote)
+
+    # --- the reply to a cycle's command: a profile defines one of the two --------------
+
+    def take_replies(self) -> list[tuple[int, bytes]] | None:
+        """The reply to this cycle's command, as sampled when it arrived: its frames
+        (arbitration id, data), each taken once, which the simulator sends with the other
+        replies of the bus in one go. None (this default): the profile sends its reply
+        itself (:meth:`send_replies`)."""
+        return None
+
+    def send_replies(self) -> None:
+        """Send the reply to this cycle's command, as sampled when it arrived (by default the
+        frames of :meth:`take_replies`), if on a bus."""
+        replies = self.take_replies()
+        if replies and self.network is not None:
+            self.network.send_frames(replies)
 
     def after_update(self) -> None:
         """After each plant step (lock held): report new faults, state follow-ups."""

@@ -34,7 +34,7 @@ from hil.realtime.stalls import Stall
 from hil.transmissions import TransmissionStack, build_transmissions
 
 if TYPE_CHECKING:
-    import canopen
+    from hil.can.network import CanopenNetwork
 
 log = logging.getLogger(__name__)
 
@@ -74,7 +74,7 @@ class CanHardwareInterface(HardwareInterface):
         self.boot_timeout = boot_timeout
         self.reply_timeout = reply_timeout if reply_timeout is not None else 1.0 / config.cycle_hz
         self._buses = buses
-        self._networks: dict[str, canopen.Network] = {}
+        self._networks: dict[str, CanopenNetwork] = {}
         self.axes: list[Axis] = [protocol(drive.protocol).axis_class()(drive, bus.name,
                                                                        self._on_feedback)
                                  for bus in config.buses for drive in bus.drives]
@@ -196,18 +196,19 @@ class CanHardwareInterface(HardwareInterface):
         speeds = self.transmissions.joint_to_actuator_velocity(velocities).tolist()
         torques = self._feed_forward_torques(positions)
         hold = enabling or self._recovering
-        # one message for every bus where the transport can (zenoh): a cycle's frames in one put
+        # each bus' frames in one send where it can (hil-virtual), its SYNC last (the RPDOs
+        # before the SYNC that applies them, CiA 301); every bus' in one put where it can (zenoh)
+        batches: dict[str, list[tuple[int, bytes, bool]]] = {n: [] for n in self._networks}
+        for axis, target, speed, torque in zip(self.axes, targets, speeds, torques):
+            axis.begin_cycle(self._cycle)
+            # a torque only for drives that ask (their protocol carries one)
+            batches[axis.bus_name] += axis.cycle_frames(
+                AxisCommand(target, speed, torque, self._stopping, hold))
+        for name in self._sync_buses:
+            batches[name].append((SYNC_ID, b"", False))
         with sent_together(network.bus for network in self._networks.values()):
-            for axis, target, speed, torque in zip(self.axes, targets, speeds, torques):
-                axis.begin_cycle(self._cycle)
-                network = self._networks[axis.bus_name]
-                # a torque only for drives that ask (their protocol carries one)
-                frames = axis.cycle_frames(AxisCommand(target, speed, torque, self._stopping,
-                                                       hold))
-                for can_id, data, remote in frames:
-                    network.send_message(can_id, data, remote)
-            for name in self._sync_buses:
-                self._networks[name].send_message(SYNC_ID, b"")
+            for name, frames in batches.items():
+                self._networks[name].send_in_order(frames)
         self._sync_sent = time.perf_counter()
 
     def _feed_forward_torques(self, positions) -> list[float]:
@@ -226,10 +227,13 @@ class CanHardwareInterface(HardwareInterface):
         With ``skip_silent``, axes already past the missed-answer limit (reported silent) are
         not waited for while any other axis answers: in lock-step a dead drive would hold every
         cycle of the others for the whole timeout (2 s), and their stop with it."""
+        cycle = self._cycle
         awaited = self.axes
         if skip_silent:      # silent as of the last cycle's watch
-            awaited = [a for a in self.axes if not _missed_too_many(a, self._cycle - 1)] \
+            awaited = [a for a in self.axes if not _missed_too_many(a, cycle - 1)] \
                 or self.axes
+        if all(a.feedback.cycle == cycle for a in awaited):
+            return True          # all in already (lock-step: in this thread), no wait
         with self._arrived:
             self._awaiting = True
             try:

@@ -61,7 +61,7 @@ class Cia402Axis(Axis):
         self.counts_per_rad = config.encoder_counts_per_rev / (2 * math.pi)
         self.rated_torque = config.rated_torque
         self.controlword = SHUTDOWN
-        self.statusword = 0
+        self.take_statusword(0)
         self.last_emcy: int | None = None
         self._emcy_cycle = 0          # the master's cycle when it arrived
         self._operational = False     # its heartbeat said OPERATIONAL since configure()
@@ -82,7 +82,8 @@ class Cia402Axis(Axis):
 
     def _on_tpdo1(self, can_id, data, timestamp) -> None:
         if len(data) == _TPDO1.size:
-            self.statusword, counts = _TPDO1.unpack(data)
+            statusword, counts = _TPDO1.unpack(data)
+            self.take_statusword(statusword)
             self.feedback.position = counts / self.counts_per_rad
             self.answered()
 
@@ -116,7 +117,7 @@ class Cia402Axis(Axis):
                                 and self._operational):
             self.rebooted = True
             self._operational = False
-            self.statusword = 0        # its state before the reboot is gone
+            self.take_statusword(0)        # its state before the reboot is gone
         if state == BOOT_UP:
             self.booted.set()
 
@@ -160,7 +161,8 @@ class Cia402Axis(Axis):
             self.configured, self.rebooted, self._operational = True, False, False
             # what it said before (a reboot) is no longer its state: walk it up from its
             # first answer, never from a state and position it had before it restarted
-            self.statusword, self.feedback.heard = 0, False
+            self.take_statusword(0)
+            self.feedback.heard = False
         except canopen.SdoCommunicationError as exc:
             raise HilError.single(f"{self.label} does not answer SDO: {exc}",
                                   hint="is the drive powered and on this bus?") from None
@@ -184,13 +186,15 @@ class Cia402Axis(Axis):
 
     # --- cyclic ------------------------------------------------------------------------
 
-    @property
-    def state(self) -> str:
-        return state_of(self.statusword)
+    #: the state ``statusword`` says, kept with it (read several times a cycle)
+    state: str = state_of(0)
+    enabled: bool = False
 
-    @property
-    def enabled(self) -> bool:
-        return self.state == "OPERATION ENABLED"
+    def take_statusword(self, statusword: int) -> None:
+        """The drive's statusword, from its answer (or 0: its state unknown)."""
+        self.statusword = statusword
+        self.state = state = state_of(statusword)
+        self.enabled = state == "OPERATION ENABLED"
 
     def cycle_frames(self, command: AxisCommand) -> list[Frame]:
         target, velocity, torque = command.target, command.velocity, command.torque

@@ -56,13 +56,10 @@ class TpdoProducer:
             variable.set_data(self.node.get_data(variable.index, variable.subindex))
         return bytes(pdo.data)
 
-    def send_replies(self) -> None:
-        """Send the TPDOs :meth:`prepare_tpdos` packed (if on a bus)."""
+    def take_replies(self) -> list[tuple[int, bytes]]:
+        """The TPDOs :meth:`prepare_tpdos` packed."""
         pending, self._pending = self._pending, []
-        network = self.network
-        if network is not None:
-            for cob_id, data in pending:
-                network.send_message(cob_id, data)
+        return pending
 
     def send_event_tpdos(self, now: float) -> None:
         """Event-driven TPDOs (254, 255) whose data changed (past the inhibit time) or whose

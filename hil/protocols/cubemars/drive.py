@@ -68,10 +68,9 @@ class CubeMarsDrive(DriveProfile):
                     command_id(self.node_id, ServoMode.DUTY): self._on_v3_special}
         return {self.node_id: self._on_mit}
 
-    def send_replies(self) -> None:
+    def take_replies(self) -> list[tuple[int, bytes]]:
         reply, self._reply = self._reply, None
-        if reply is not None:
-            self.send(*reply)
+        return [reply] if reply is not None else []
 
     # --- MIT mode --------------------------------------------------------------------------
 

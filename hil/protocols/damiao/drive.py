@@ -102,10 +102,9 @@ class DamiaoDrive(DriveProfile):
         # else: a command for another mode than CTRL_MODE's, or to a disabled motor: it
         # moves nothing, and the motor answers with its feedback (its state says why)
 
-    def send_replies(self) -> None:
+    def take_replies(self) -> list[tuple[int, bytes]]:
         reply, self._reply = self._reply, b""
-        if reply:
-            self.send(self.reply_id, reply)
+        return [(self.reply_id, reply)] if reply else []
 
     @property
     def control_mode(self) -> ControlMode:

@@ -67,10 +67,9 @@ class MitDrive(DriveProfile):
                                               status.velocity, status.torque), self.ranges)
             self.on_command(self)
 
-    def send_replies(self) -> None:
+    def take_replies(self) -> list[tuple[int, bytes]]:
         reply, self._reply = self._reply, b""
-        if reply:
-            self.send(self.options.reply_id, reply)
+        return [(self.options.reply_id, reply)] if reply else []
 
     def after_update(self) -> None:
         events = self.take_events()

@@ -243,10 +243,9 @@ class ODriveDrive(DriveProfile):
                 return
         self.send(arbitration_id, data)
 
-    def send_replies(self) -> None:
+    def take_replies(self) -> list[tuple[int, bytes]]:
         reply, self._reply = self._reply, b""
-        if reply:
-            self.send(can_id(self.node_id, Cmd.GET_ENCODER_ESTIMATES), reply)
+        return [(can_id(self.node_id, Cmd.GET_ENCODER_ESTIMATES), reply)] if reply else []
 
     def _payload(self, cmd: Cmd) -> bytes:
         """A Get_* message (or the heartbeat) with the axis' values now."""
