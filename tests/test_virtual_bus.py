@@ -327,3 +327,17 @@ def test_a_drive_network_counts_every_frame_of_a_batch_its_closed_bus_refuses(
         network.send_frames([(0x181, b"\x01")])
     assert network.lost_frames == 4
     assert len([r for r in caplog.records if "was lost" in r.getMessage()]) == 1
+
+
+def test_a_delivery_stopped_by_its_listener_mid_batch_delivers_no_more_of_it(networks):
+    sent, received = networks
+    heard = []
+
+    def stop_at_the_second(can_id, data, timestamp):
+        heard.append(bytes(data))
+        if len(heard) == 2:
+            received.notifier.stop()
+
+    received.subscribe(0x181, stop_at_the_second)
+    sent.send_frames([(0x181, b"\x01"), (0x181, b"\x02"), (0x181, b"\x03")])
+    assert heard == [b"\x01", b"\x02"]

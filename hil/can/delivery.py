@@ -9,8 +9,9 @@ Notifier would (``stop``, ``add_listener``, ``exception``).
 
 Where every listener is a :class:`FrameListener` (hil's canopen networks) and nothing
 rewrites the frames on the way in (no ``accept``), the delivery also takes a data frame as
-its parts (:meth:`DirectDelivery.deliver_frame`): a bus that sends from parts (hil's own
-networks on ``hil-virtual``) then builds no ``can.Message`` for it at all. hil's cycle
+its parts, a sender's frames in one call (:meth:`DirectDelivery.deliver_frames`): a bus
+that sends from parts (hil's own networks on ``hil-virtual``) then builds no
+``can.Message`` for them at all. hil's cycle
 exchanges 20 frames (ur3) between hil's own ends; a message built and copied per frame was
 measured as a large share of a lock-step cycle (docs/performance.md).
 """
@@ -24,7 +25,7 @@ from collections.abc import Callable, Iterable
 
 import can
 
-from hil.can.messages import ID_BITS, received_frame
+from hil.can.messages import ID_BITS, FrameParts, received_frame
 
 log = logging.getLogger(__name__)
 
@@ -61,7 +62,7 @@ class DirectDelivery:
         # each listener's own method, called straight (can.Listener.__call__ is one more
         # Python call per frame and listener; plain callables are listeners too)
         self._receivers = [_receiver(listener) for listener in self.listeners]
-        #: whether :meth:`deliver_frame` takes frames as parts (read by senders unlocked: a
+        #: whether :meth:`deliver_frames` takes frames as parts (read by senders unlocked: a
         #: frame that meets a change of it is still delivered, as a message if need be)
         self.takes_frames = accept is None and all(
             isinstance(listener, FrameListener) for listener in self.listeners)
@@ -86,20 +87,22 @@ class DirectDelivery:
                 except Exception:          # as python-can's Notifier: one bad listener
                     log.exception("listener %r failed on %s", receive, msg)
 
-    def deliver_frame(self, key: int, data: bytes | bytearray, timestamp: float) -> None:
-        """A data frame by its parts: each listener gets its own copy of ``data``."""
+    def deliver_frames(self, frames: Iterable[FrameParts], timestamp: float) -> None:
+        """Data frames by their parts, in order, in one hold of the lock: each listener gets
+        its own copy of each frame's data."""
         with self._lock:
-            if self._stopped:
-                return
-            if not self.takes_frames:       # a listener that wants messages came meanwhile
-                self.deliver(received_frame(timestamp, key & ID_BITS, key > 0x7FF, False,
-                                            False, len(data), data, None))
-                return
-            for receive in self._frame_receivers:
-                try:
-                    receive(key, bytearray(data), timestamp)
-                except Exception:          # as deliver
-                    log.exception("listener %r failed on frame 0x%X", receive, key)
+            for key, data in frames:
+                if self._stopped:           # a listener stopped it
+                    return
+                if not self.takes_frames:   # a listener that wants messages came meanwhile
+                    self.deliver(received_frame(timestamp, key & ID_BITS, key > 0x7FF, False,
+                                                False, len(data), data, None))
+                    continue
+                for receive in self._frame_receivers:
+                    try:
+                        receive(key, bytearray(data), timestamp)
+                    except Exception:          # as deliver
+                        log.exception("listener %r failed on frame 0x%X", receive, key)
 
     def add_listener(self, listener: can.Listener) -> None:
         with self._lock:

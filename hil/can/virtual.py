@@ -12,7 +12,7 @@ measured in ``hil bench``:
   burst of frames;
 * between hil's own ends (a canopen network of :mod:`hil.can.network` on each) a data
   frame goes as its parts, a cycle's frames of one sender in one call
-  (:meth:`VirtualBus.send_frames`, :meth:`~hil.can.delivery.DirectDelivery.deliver_frame`):
+  (:meth:`VirtualBus.send_frames`, :meth:`~hil.can.delivery.DirectDelivery.deliver_frames`):
   no ``can.Message`` is built for it unless a receiver wants one (python-can's own buses,
   a listener of yours).
 
@@ -73,7 +73,7 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
             direct = _DIRECT.get(bus_queue)
             if direct is not None:
                 if as_parts and direct.takes_frames and bus_queue is not self.queue:
-                    direct.deliver_frame(frame_key(msg), msg.data, timestamp)
+                    direct.deliver_frames(((frame_key(msg), msg.data),), timestamp)
                 else:
                     direct.deliver(received_copy(msg, timestamp, self.channel_id,
                                                  bus_queue is not self.queue))
@@ -107,9 +107,12 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
         else:
             # preserved: 0.0, the timestamp of the frame data_frame would have built
             timestamp = 0.0 if self.preserve_timestamps else time.time()
-            for key, data in frames:
+            if len(directs) == 1:   # one receiver: frame by frame is receiver by receiver
+                directs[0].deliver_frames(frames, timestamp)
+                return
+            for frame in frames:
                 for direct in directs:
-                    direct.deliver_frame(key, data, timestamp)
+                    direct.deliver_frames((frame,), timestamp)
             return
         # a receiver that wants messages (python-can's bus, a listener of yours, this bus)
         for key, data in frames:
