@@ -48,7 +48,7 @@ from hil.protocols.cia402.errors import (COMMUNICATION_ERROR, EMCY_NO_ERROR, EMC
                                          EMCY_PDO_LENGTH_EXCEEDED, EMCY_SYNC_LENGTH, ErrorRecord)
 from hil.protocols.cia402.lss import Identity, LssSlave
 from hil.protocols.cia402.node import DriveNode
-from hil.protocols.cia402.objects import PROFILE_PARAMETERS, DriveObjects
+from hil.protocols.cia402.objects import DriveObjects
 from hil.protocols.cia402.pdo import PdoLayout, Rpdo, TpdoSchedule
 from hil.protocols.cia402.personality import Personality
 from hil.protocols.cia402.replay_view import ReplayView
@@ -337,9 +337,8 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
             fields = {variable.index: variable.raw for variable in pdo.map}
         if 0x6060 in fields:
             self.objects.set_mode(fields[0x6060])
-        for index, value in fields.items():
-            if index in PROFILE_PARAMETERS:
-                self.objects.set_profile_parameter(index, value)
+        for index in rpdo.profile:
+            self.objects.set_profile_parameter(index, fields[index])
         # the controlword after the targets (profile position's new set-point takes the
         # target of its own PDO), but in ip mode before them: bit 4 gates its own PDO's record
         interpolated = self.machine.mode_code == INTERPOLATED_POSITION
@@ -350,11 +349,12 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
                 self.objects.set_target_position(index, fields[index])
         if 0x6071 in fields:
             self.objects.set_target_torque(fields[0x6071])
-        self.core.new_setpoint(
-            velocity=fields[0x60FF] / self._counts_per_rad if 0x60FF in fields else None,
-
-            velocity_ff=fields[0x60B1] / self._counts_per_rad if 0x60B1 in fields else None,
-            torque_ff=fields[0x60B2] * self.rated_torque / 1000 if 0x60B2 in fields else None)
+        if rpdo.offsets:
+            self.core.new_setpoint(
+                velocity=fields[0x60FF] / self._counts_per_rad if 0x60FF in fields else None,
+                velocity_ff=fields[0x60B1] / self._counts_per_rad if 0x60B1 in fields else None,
+                torque_ff=fields[0x60B2] * self.rated_torque / 1000 if 0x60B2 in fields
+                else None)
         if 0x6040 in fields and not interpolated:
             self.machine.controlword(fields[0x6040])
 

@@ -7,6 +7,8 @@ import math
 import struct
 from dataclasses import dataclass, field
 
+from hil.protocols.cia402.objects import PROFILE_PARAMETERS
+
 
 @dataclass(frozen=True)
 class PdoLayout:
@@ -41,12 +43,16 @@ class Rpdo:
     length: int                            # bytes its mapping fills
     immediate: bool                        # types 254, 255: applied on arrival, not at SYNC
     layout: PdoLayout | None
+    profile: tuple[int, ...]               # the profile parameters it maps, in its order
+    offsets: bool                          # maps a target velocity or a velocity/torque offset
 
     @classmethod
     def of(cls, pdo) -> Rpdo:
         kind = pdo.trans_type
+        indices = [variable.index for variable in pdo.map]
         return cls(pdo, math.ceil(pdo.length / 8), kind is not None and kind >= 254,
-                   PdoLayout.of(pdo))
+                   PdoLayout.of(pdo), tuple(i for i in indices if i in PROFILE_PARAMETERS),
+                   any(i in indices for i in (0x60FF, 0x60B1, 0x60B2)))
 
 
 @dataclass
