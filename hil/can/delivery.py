@@ -11,9 +11,9 @@ Where every listener is a :class:`FrameListener` (hil's canopen networks) and no
 rewrites the frames on the way in (no ``accept``), the delivery also takes a data frame as
 its parts, a sender's frames in one call (:meth:`DirectDelivery.deliver_frames`): a bus
 that sends from parts (hil's own networks on ``hil-virtual``) then builds no
-``can.Message`` for them at all. hil's cycle
-exchanges 20 frames (ur3) between hil's own ends; a message built and copied per frame was
-measured as a large share of a lock-step cycle (docs/performance.md).
+``can.Message`` for them at all. hil's cycle exchanges 20 frames (ur3) between hil's own
+ends; a message built and copied per frame was measured as a large share of a lock-step
+cycle (docs/performance.md).
 """
 
 from __future__ import annotations
