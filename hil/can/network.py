@@ -88,14 +88,13 @@ class CanopenNetwork(canopen.Network):
         # canopen's own send_message but for how the frame is built (canopen 2.4), and its
         # check() called only where the notifier has an error to raise (never, delivered
         # directly: one call less a frame)
+        if self.frame_sender is not None and not remote:
+            self.send_frames(((can_id, data),))
+            return
         if not self.bus:
             raise RuntimeError("Not connected to CAN bus")
-        send_frames = self.frame_sender
         with self.send_lock:
-            if send_frames is None or remote:
-                self.bus.send(data_frame(can_id, data, remote))
-            else:       # sent_key's standard-id case inline: one call less a frame
-                send_frames(((can_id if can_id <= 0x7FF else sent_key(can_id), data),))
+            self.bus.send(data_frame(can_id, data, remote))
         if self.notifier is not None and self.notifier.exception is not None:
             self.check()
 
@@ -109,7 +108,7 @@ class CanopenNetwork(canopen.Network):
             return
         if not self.bus:
             raise RuntimeError("Not connected to CAN bus")
-        with self.send_lock:
+        with self.send_lock:    # sent_key's standard-id case inline: one call less a frame
             send_frames([(can_id if can_id <= 0x7FF else sent_key(can_id), data)
                          for can_id, data in frames])
         if self.notifier is not None and self.notifier.exception is not None:
