@@ -93,6 +93,23 @@ TEST_MOTOR_DRIVE = dict(counts_per_rev=4096, rated_torque=1.0, peak_torque=2.0,
 free_port = free_loopback_port
 
 
+@pytest.fixture
+def endpoint():
+    return f"tcp/127.0.0.1:{free_port()}"
+
+
+@pytest.fixture
+def bus_pair(endpoint):
+    """Two buses on one channel, in two Zenoh sessions joined over loopback."""
+    channel = f"test/{time.monotonic_ns()}"
+    a = can.Bus(interface="zenoh", channel=channel, listen=[endpoint])
+    b = can.Bus(interface="zenoh", channel=channel, connect=[endpoint])
+    time.sleep(0.5)                               # the sessions find each other
+    yield a, b
+    a.shutdown()
+    b.shutdown()
+
+
 @pytest.fixture(autouse=True)
 def meeting_point_of_its_own(monkeypatch):
     """Every test's hil processes meet at a loopback port of the test's own (the child

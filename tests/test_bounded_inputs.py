@@ -102,9 +102,9 @@ def test_an_odrive_message_rate_is_a_uint32_as_in_the_firmware():
 def test_a_bus_remembers_a_bounded_number_of_senders(tmp_path):
     bus = can.Bus(interface="zenoh", channel=f"senders-{time.monotonic_ns()}")
     try:
-        frame = can.Message(arbitration_id=0x123, data=b"\x01", is_extended_id=False)
+        frame = (0x123, b"\x01")
         for sender in range(1, 3 * MAX_SENDERS):
-            bus._on_message(Message(bus._channel, sender, 1, time.time(), Echo(), [frame]),
+            bus._on_message(Message(bus._channel, sender, 1, time.time(), Echo(), [frame], True),
                             time.time(), time.monotonic())
         assert len(bus._heard) <= MAX_SENDERS and len(bus._quickest) <= MAX_SENDERS
     finally:

@@ -16,27 +16,11 @@ import pytest
 
 from hil.can import sent_together
 from hil.can.link_statistics import Quickest as _Quickest
-from hil.can.zenoh_wire import Echo, decode_frames, encode_frames
+from hil.can.messages import EXTENDED
+from hil.can.zenoh_wire import Echo, decode_frames, encode_frames, message_of, wire_frame
 from hil.realtime.stalls import STALL_THRESHOLD
 from hil.zenoh_session import ZenohSettings, close, session
 from conftest import EDS, ROOT, DelayingRelay, FrameRecorder, free_port
-
-
-@pytest.fixture
-def endpoint():
-    return f"tcp/127.0.0.1:{free_port()}"
-
-
-@pytest.fixture
-def bus_pair(endpoint):
-    """Two buses on one channel, in two Zenoh sessions joined over loopback."""
-    channel = f"test/{time.monotonic_ns()}"
-    a = can.Bus(interface="zenoh", channel=channel, listen=[endpoint])
-    b = can.Bus(interface="zenoh", channel=channel, connect=[endpoint])
-    time.sleep(0.5)                               # the sessions find each other
-    yield a, b
-    a.shutdown()
-    b.shutdown()
 
 
 def test_frames_arrive_in_order_and_not_at_the_sender(bus_pair):
@@ -119,30 +103,38 @@ def test_frame_codec_round_trips_extended_and_remote_frames_in_one_message():
               can.Message(arbitration_id=0x123, is_remote_frame=True, dlc=4,
                           is_extended_id=False),
               can.Message(arbitration_id=0x80, data=b"", is_extended_id=False)]
-    [message] = decode_frames(encode_frames("x", 42, 7, 1234.5, frames, Echo(9, 3, 0.25)),
-                              1235.0)
+    [message] = decode_frames(encode_frames("x", 42, 7, 1234.5, list(map(wire_frame, frames)),
+                                            Echo(9, 3, 0.25)))
     assert (message.channel, message.sender, message.sequence, message.sent_at) == (
         "x", 42, 7, 1234.5)
     assert message.echo == Echo(9, 3, 0.25) and len(message.frames) == 3
+    assert not message.all_data                     # the remote frame
     for msg, got in zip(frames, message.frames):
-        assert got.equals(msg, timestamp_delta=None, check_channel=False,
-                          check_direction=False)
+        assert message_of(got, 1235.0, "x").equals(msg, timestamp_delta=None,
+                                                   check_channel=False, check_direction=False)
+
+
+def test_a_message_of_data_frames_only_says_so_and_keeps_an_extended_low_id_apart():
+    frames = [(0x80, b""), (0x5 | EXTENDED, b"\x01"), (0x1ABCDEF0, b"\x02\x03")]
+    [message] = decode_frames(encode_frames("x", 1, 1, 0.0, frames))
+    assert message.all_data and message.frames == frames
+    extended_low = message_of(message.frames[1], 0.0, "x")
+    assert (extended_low.arbitration_id, extended_low.is_extended_id) == (0x5, True)
 
 
 def test_sections_of_several_channels_in_one_message_decode_each_with_its_own_numbers():
-    sync = [can.Message(arbitration_id=0x80, data=b"", is_extended_id=False)]
+    sync = [(0x80, b"")]
     payload = (encode_frames("ur3/arm", 1, 10, 5.0, sync * 2)
                + encode_frames("ur3/wrist", 2, 20, 5.0, sync, Echo(7, 3, 0.5)))
-    arm, wrist = decode_frames(payload, 6.0)
+    arm, wrist = decode_frames(payload)
     assert (arm.channel, arm.sender, arm.sequence, len(arm.frames)) == ("ur3/arm", 1, 10, 2)
     assert (wrist.channel, wrist.sender, wrist.sequence, wrist.echo) == (
         "ur3/wrist", 2, 20, Echo(7, 3, 0.5))
-    assert [m.channel for m in arm.frames + wrist.frames] == ["ur3/arm"] * 2 + ["ur3/wrist"]
+    assert (arm.frames, wrist.frames) == (sync * 2, sync)
 
 
 def _one(arbitration_id: int = 1, data: bytes = b"\x01\x02") -> bytes:
-    return encode_frames("x", 1, 1, 0.0, [can.Message(arbitration_id=arbitration_id,
-                                                      data=data, is_extended_id=False)])
+    return encode_frames("x", 1, 1, 0.0, [(arbitration_id, data)])
 
 
 @pytest.mark.parametrize("payload, reason", [
@@ -154,16 +146,14 @@ def _one(arbitration_id: int = 1, data: bytes = b"\x01\x02") -> bytes:
     (_one() + b"\x00", "section 2: channel '': 0 bytes is shorter than a section header"),
     (_one()[:-8], "channel 'x': frame 1 of 1 is cut short"),
     (encode_frames("x", 1, 1, 0.0, []), "channel 'x': a section of no frames"),
-    (encode_frames("x", 1, 1, 0.0, [can.Message(arbitration_id=1, is_extended_id=False)],
-                   Echo(1, 1, -1.0)), "the echo was held -1.0 s"),
-    (encode_frames("x", 1, 1, math.nan,
-                   [can.Message(arbitration_id=1, is_extended_id=False)]),
+    (encode_frames("x", 1, 1, 0.0, [(1, b"")], Echo(1, 1, -1.0)), "the echo was held -1.0 s"),
+    (encode_frames("x", 1, 1, math.nan, [(1, b"")]),
      "the sender's clock reads nan"),
     (_one(0x7FF).replace(b"\xff\x07\x00\x00", b"\xff\xff\x00\x00", 1),
      "identifier 0xFFFF out of range")])
 def test_malformed_payloads_are_rejected_with_what_is_wrong(payload, reason):
     with pytest.raises(ValueError, match=re.escape(reason)):
-        decode_frames(payload, 0.0)
+        decode_frames(payload)
 
 
 def test_malformed_payloads_on_the_network_are_dropped(bus_pair, endpoint):
@@ -260,7 +250,7 @@ def test_frames_lost_on_the_way_are_counted_from_the_senders_sequence_numbers(bu
     intruder = session(ZenohSettings(connect=(endpoint,),     # a session of its own:
                                      listen=(f"tcp/127.0.0.1:{free_port()}",)))   # a remote
     key = b.channel_info.split(" ", 1)[1]
-    frame = can.Message(arbitration_id=0x181, data=b"\x01", is_extended_id=False)
+    frame = (0x181, b"\x01")
     deadline = time.monotonic() + 10
     while b.recv(0.1) is None:                       # until the new session's route is up
         assert time.monotonic() < deadline
@@ -384,7 +374,7 @@ def _remote_sender(endpoint, bus):
     settings = ZenohSettings(connect=(endpoint,), listen=(f"tcp/127.0.0.1:{free_port()}",))
     remote = session(settings)
     key = bus.channel_info.split(" ", 1)[1]
-    probe = can.Message(arbitration_id=0x7E5, data=b"", is_extended_id=False)
+    probe = (0x7E5, b"")
     try:
         deadline = time.monotonic() + 10
         while bus.recv(0.1) is None:
@@ -402,7 +392,7 @@ def _four_from_a_remote(endpoint, bus, behind_last: float = 0.0, stall_before_la
     """Four frames from a remote sender (77), 20 ms apart, stamped when put; the last stamped
     ``behind_last`` s before its put (held on the way), after the sender stalled
     ``stall_before_last`` s. The frames as received."""
-    frame = can.Message(arbitration_id=0x181, data=b"\x01", is_extended_id=False)
+    frame = (0x181, b"\x01")
     with _remote_sender(endpoint, bus) as put:
         for sequence in range(1, 5):
             if sequence == 4:

@@ -10,7 +10,7 @@ Notifier would (``stop``, ``add_listener``, ``exception``).
 Where every listener is a :class:`FrameListener` (hil's canopen networks) and nothing
 rewrites the frames on the way in (no ``accept``), the delivery also takes a data frame as
 its parts, a sender's frames in one call (:meth:`DirectDelivery.deliver_frames`): a bus
-that sends from parts (hil's own networks on ``hil-virtual``) then builds no
+that sends from parts (hil's own networks on ``hil-virtual`` and ``zenoh``) then builds no
 ``can.Message`` for them at all. hil's cycle exchanges 20 frames (ur3) between hil's own
 ends; a message built and copied per frame was measured as a large share of a lock-step
 cycle (docs/performance.md).

@@ -136,7 +136,7 @@ def start_network(bus: can.BusABC, timeout: float = 0.1,
     frames routed: handed over in the thread that brings them where the bus can
     (``deliver_to``: hil-virtual, zenoh; see hil.can.delivery), else by a python-can
     Notifier (``network.notifier`` either way); sent from their parts where the bus can
-    (``frame_sender``: hil-virtual)."""
+    (``frame_sender``: hil-virtual, zenoh)."""
     network = network_class(bus)
     network.frame_listener = NetworkListener(network)
     network.listeners = [network.frame_listener]     # canopen's MessageListener replaced

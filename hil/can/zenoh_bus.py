@@ -30,6 +30,10 @@ trip between two processes doubled (630 -> 1140 us p50, measured). Received fram
 (:mod:`hil.can.delivery`), straight to the listeners. Every frame carries its sender's
 sequence number, so a receiver counts what was lost on the way (:class:`FrameCounters`).
 
+Between hil's own ends a frame stays its parts (key and data) from the sender's canopen
+network (``frame_sender``) to the receiver's (``deliver_frames``): a ``can.Message`` is
+built only where one is wanted (``recv``, a listener of yours, a remote or error frame).
+
 Frames sent together go in one Zenoh message, as a CAN-over-Ethernet gateway packs a
 cycle's frames into one datagram, whichever of the process' buses they are on: those a
 thread sends inside ``with bus.batch():`` (a controller's cycle, on every bus of its
@@ -85,9 +89,10 @@ import zenoh
 from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
 from hil.can.link_statistics import FrameCounters, Quickest
-from hil.can.messages import received_copy
+from hil.can.messages import FrameParts
 from hil.can.zenoh_channels import Channels
-from hil.can.zenoh_wire import KEY_PREFIX, NO_ECHO, Echo, Message, encode_frames
+from hil.can.zenoh_wire import (KEY_PREFIX, NO_ECHO, NOT_DATA, Echo, Message, encode_frames,
+                                message_of, wire_frame)
 from hil.realtime.stalls import STALL_THRESHOLD, Stall
 from hil.zenoh_session import ZenohSettings, session, why_unreached
 
@@ -205,20 +210,16 @@ class ZenohBus(can.BusABC, BusCapabilities):
     def _on_message(self, message: Message, arrived: float, now: float) -> None:
         """A section of a message for this bus' channel, arrived at ``arrived`` (wall clock)
         and ``now`` (monotonic)."""
-        frames = message.frames
         self._last_heard = (message.sender, message.sequence, now)
-        stalls = (self._count_arrival(message.sender, message.sequence, len(frames),
+        stalls = (self._count_arrival(message.sender, message.sequence, len(message.frames),
                                       arrived - message.sent_at, arrived),
                   self._count_round_trip(message.echo, now, arrived))
         on_stall = self._on_stall
         if on_stall is not None:
             for stall in filter(None, stalls):
                 on_stall(stall)
-        if self._stamp_sent:
-            for msg in frames:
-                msg.timestamp = message.sent_at
-        for msg in frames:
-            self._take(msg)
+        self._take(message.frames, message.all_data,
+                   message.sent_at if self._stamp_sent else arrived)
 
     def _count_round_trip(self, echo: Echo, now: float, arrived: float) -> Stall | None:
         """The link's round trip, if ``echo`` is of a message of this bus; a stall of the
@@ -244,17 +245,24 @@ class ZenohBus(can.BusABC, BusCapabilities):
             self._link_stall_end = arrived
         return Stall("link", arrived - round_trip, round_trip, where=self._channel)
 
-    def _take(self, msg: can.Message) -> None:
-        """A frame for this bus: to the listeners or the receive FIFO."""
+    def _take(self, frames: Sequence[FrameParts], all_data: bool, timestamp: float,
+              is_rx: bool = True) -> None:
+        """Frames for this bus (their wire parts; ``all_data``: every one a data frame), to
+        the listeners (as parts where they all take them) or the receive FIFO."""
         direct = self._direct
         if direct is not None:
-            direct.deliver(msg)
+            if all_data and direct.takes_frames:
+                direct.deliver_frames(frames, timestamp)
+                return
+            for frame in frames:
+                direct.deliver(message_of(frame, timestamp, self._channel, is_rx))
             return
-        try:
-            self._queue.put_nowait(msg)
-        except queue.Full:
-            with self._count_lock:
-                self.counters.overrun += 1
+        for frame in frames:
+            try:
+                self._queue.put_nowait(message_of(frame, timestamp, self._channel, is_rx))
+            except queue.Full:
+                with self._count_lock:
+                    self.counters.overrun += 1
 
     def _count_arrival(self, sender: int, sequence: int, frames: int, transit: float,
                        arrived: float) -> Stall | None:
@@ -322,20 +330,31 @@ class ZenohBus(can.BusABC, BusCapabilities):
             channels.release()
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.send_frames((wire_frame(msg),))
+
+    def frame_sender(self) -> Callable[[Sequence[FrameParts]], None]:
+        return self.send_frames
+
+    def send_frames(self, frames: Sequence[FrameParts]) -> None:
+        """Send frames, in order, by their wire parts (data frames: their dispatch key and
+        data, :data:`~hil.can.messages.FrameParts`; see :func:`~hil.can.zenoh_wire.wire_frame`):
+        held for the batch's message inside :meth:`batch`, else in a message of their own."""
         if self._is_shutdown:
             raise can.CanOperationError(f"{self.channel_info}: the bus is shut down")
+        # copied: the sender may reuse its buffers once this returns, before the batch's put
+        frames = [(key, bytes(data)) for key, data in frames]
         channels = self._channels
         outbox = channels.outbox
         if outbox.depth:
             held = outbox.held.get(self)
             if held is None:
-                outbox.held[self] = [msg]
+                outbox.held[self] = frames
             else:
-                held.append(msg)
+                held.extend(frames)
         else:
-            channels.put({self: [msg]})
+            channels.put({self: frames})
 
-    def _section(self, frames: Sequence[can.Message], sent_at: float, now: float
+    def _section(self, frames: Sequence[FrameParts], sent_at: float, now: float
                  ) -> tuple[int, bytes]:
         """This bus' section of a message of ``frames`` put now (under the session's send
         lock, so that its numbers keep the order of the puts): its first sequence number and
@@ -351,16 +370,17 @@ class ZenohBus(can.BusABC, BusCapabilities):
             del self._puts[next(iter(self._puts))]       # the oldest
         return first, encode_frames(self._channel, self._sender, first, sent_at, frames, echo)
 
-    def _to_neighbours(self, first: int, frames: Sequence[can.Message]) -> None:
-        """Copies of frames sent (the first numbered ``first``) to this process' buses on
-        this channel (Zenoh carries them to other processes only)."""
-        for neighbour in tuple(self._neighbours):
-            if neighbour is not self or self._receive_own:
-                neighbour._count_arrival(self._sender, first, len(frames), 0.0, 0.0)
-                now = time.time()
-                for msg in frames:
-                    neighbour._take(received_copy(msg, now, self._channel,
-                                                  neighbour is not self))
+    def _to_neighbours(self, first: int, frames: Sequence[FrameParts]) -> None:
+        """Frames sent (the first numbered ``first``) to this process' buses on this channel
+        (Zenoh carries them to other processes only)."""
+        neighbours = [neighbour for neighbour in tuple(self._neighbours)
+                      if neighbour is not self or self._receive_own]
+        if not neighbours:
+            return
+        all_data = not any(key & NOT_DATA for key, _ in frames)
+        for neighbour in neighbours:
+            neighbour._count_arrival(self._sender, first, len(frames), 0.0, 0.0)
+            neighbour._take(frames, all_data, time.time(), neighbour is not self)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         try:

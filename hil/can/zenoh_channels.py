@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import can
 import zenoh
 
-from hil.can.messages import received_copy
+from hil.can.messages import FrameParts
 from hil.can.zenoh_wire import KEY_PREFIX, decode_frames
 
 if TYPE_CHECKING:
@@ -26,7 +26,7 @@ class Outbox(threading.local):
     depth = 0
 
     def __init__(self):
-        self.held: dict[ZenohBus, list[can.Message]] = {}
+        self.held: dict[ZenohBus, list[FrameParts]] = {}
 
 
 class Channels:
@@ -83,11 +83,11 @@ class Channels:
             held, outbox.held = outbox.held, {}
             self.put(held)
 
-    def put(self, held: dict[ZenohBus, list[can.Message]]) -> None:
-        """One message of each bus' ``held`` frames (a section each, in the order the buses
-        first sent), on the first bus' key; copies to this process' buses on each channel.
-        Buses shut down meanwhile send nothing and raise CanOperationError, after the rest
-        went out."""
+    def put(self, held: dict[ZenohBus, list[FrameParts]]) -> None:
+        """One message of each bus' ``held`` frames (their wire parts: a section each, in the
+        order the buses first sent), on the first bus' key; copies to this process' buses on
+        each channel. Buses shut down meanwhile send nothing and raise CanOperationError,
+        after the rest went out."""
         firsts = []
         with self.send_lock:
             live = [(bus, frames) for bus, frames in held.items() if not bus._is_shutdown]
@@ -109,7 +109,7 @@ class Channels:
         payload = sample.payload.to_bytes()
         arrived = time.time()
         try:
-            messages = decode_frames(payload, arrived)
+            messages = decode_frames(payload)
         except ValueError as exc:
             for bus in tuple(self.buses.get(str(sample.key_expr), ())):
                 bus._count_malformed(exc)
@@ -122,10 +122,7 @@ class Channels:
             with self.guard or nullcontext():
                 for message in messages:
                     buses = self.buses.get(KEY_PREFIX + message.channel)
-                    if buses:
-                        for number, bus in enumerate(tuple(buses)):
-                            bus._on_message(message if number == 0 else message._replace(
-                                frames=[received_copy(msg, arrived, msg.channel, True)
-                                        for msg in message.frames]), arrived, now)
+                    for bus in tuple(buses or ()):     # each receiver copies what it keeps
+                        bus._on_message(message, arrived, now)
         finally:
             self.release()

@@ -6,6 +6,14 @@ sender, wrapping; the frames after it are numbered on), the sender's wall clock 
 f64 (s since the epoch), the echo: sender id u64 (0: none), first sequence number u32, time
 held f32 (s); frame count u16; then each frame: arbitration id u32, flags u8 (1 extended,
 2 remote, 4 error), DLC u8, the data bytes (none for a remote frame).
+
+A frame goes in and comes out as its parts (:data:`hil.can.messages.FrameParts`: its
+dispatch key and its data), as SocketCAN's ``can_frame`` has a frame (the flags in the id,
+the DLC as the data's length): a remote or error frame carries :data:`REMOTE` or
+:data:`ERROR` in its key, and a remote frame as many zero bytes as its DLC. Between hil's
+own ends no ``can.Message`` is built for a frame (:func:`message_of` builds one for a
+receiver that wants it): a cycle's frames went through two builds each, measured as a
+large share of a process' time per cycle (docs/performance.md).
 """
 
 from __future__ import annotations
@@ -17,7 +25,7 @@ from typing import NamedTuple
 
 import can
 
-from hil.can.messages import received_frame
+from hil.can.messages import EXTENDED, ID_BITS, FrameParts, frame_key, received_frame
 
 #: every CAN channel's key is below this one
 KEY_PREFIX = "hil/can/"
@@ -40,49 +48,84 @@ class Echo(NamedTuple):
 NO_ECHO = Echo()
 
 
+#: in a frame's key, as SocketCAN's ``CAN_RTR_FLAG`` and ``CAN_ERR_FLAG`` in its ``can_id``
+#: (bits an arbitration id and :data:`~hil.can.messages.EXTENDED` leave free)
+REMOTE, ERROR = 0x40000000, 0x20000000
+#: the key bits of a frame that is not a data frame
+NOT_DATA = REMOTE | ERROR
+
+
+def wire_frame(msg: can.Message) -> FrameParts:
+    """``msg`` as the wire's parts: its key (with REMOTE or ERROR where it is such a frame)
+    and a copy of its data (a remote frame: as many zero bytes as its DLC)."""
+    if msg.is_remote_frame:
+        return frame_key(msg) | REMOTE | (ERROR if msg.is_error_frame else 0), bytes(msg.dlc)
+    return frame_key(msg) | (ERROR if msg.is_error_frame else 0), bytes(msg.data or b"")
+
+
+def message_of(frame: FrameParts, timestamp: float, channel, is_rx: bool = True
+               ) -> can.Message:
+    """The ``can.Message`` of a frame by its wire parts (its own copy of the data)."""
+    key, data = frame
+    remote = bool(key & REMOTE)
+    extended = bool(key & EXTENDED) or (key & ID_BITS) > 0x7FF
+    msg = received_frame(timestamp, key & ID_BITS, extended, remote, bool(key & ERROR),
+                         len(data), b"" if remote else data, channel)
+    msg.is_rx = is_rx
+    return msg
+
+
 def encode_frames(channel: str, sender: int, sequence: int, sent_at: float,
-                  frames: Sequence[can.Message], echo: Echo = NO_ECHO) -> bytes:
-    """One section of a message: ``frames`` of ``channel``, the first numbered ``sequence``,
-    put at ``sent_at``, echoing ``echo``. A message is one or more sections, joined."""
+                  frames: Sequence[FrameParts], echo: Echo = NO_ECHO) -> bytes:
+    """One section of a message: ``frames`` (by their wire parts: :func:`wire_frame`) of
+    ``channel``, the first numbered ``sequence``, put at ``sent_at``, echoing ``echo``. A
+    message is one or more sections, joined."""
     name = channel.encode()
     parts = [_CHANNEL.pack(len(name)), name,
              _HEADER.pack(sender, sequence & 0xFFFFFFFF, sent_at, echo.sender,
                           echo.sequence & 0xFFFFFFFF, echo.held, len(frames))]
-    for msg in frames:
-        flags = ((_EXTENDED if msg.is_extended_id else 0)
-                 | (_REMOTE if msg.is_remote_frame else 0) | (_ERROR if msg.is_error_frame else 0))
-        parts.append(_FRAME.pack(msg.arbitration_id, flags, msg.dlc))
-        if not msg.is_remote_frame:
-            parts.append(bytes(msg.data or b""))
+    pack, append = _FRAME.pack, parts.append
+    for key, data in frames:
+        if key <= 0x7FF:            # a standard data frame: no flags
+            append(pack(key, 0, len(data)))
+            append(data)
+            continue
+        arbitration_id = key & ID_BITS
+        extended = key & EXTENDED or arbitration_id > 0x7FF
+        append(pack(arbitration_id, (_EXTENDED if extended else 0)
+                    | (_REMOTE if key & REMOTE else 0) | (_ERROR if key & ERROR else 0),
+                    len(data)))
+        if not key & REMOTE:
+            append(data)
     return b"".join(parts)
 
 
 class Message(NamedTuple):
     """A decoded section: its channel, who put it, its first frame's sequence number, the
-    sender's clock at the put, what it echoes, and its frames."""
+    sender's clock at the put, what it echoes, its frames (their wire parts), and whether
+    every one of them is a data frame."""
 
     channel: str
     sender: int
     sequence: int
     sent_at: float
     echo: Echo
-    frames: list[can.Message]
+    frames: list[FrameParts]
+    all_data: bool
 
 
-def decode_frames(payload: bytes, arrived: float) -> list[Message]:
-    """The sections of the message in ``payload``, their frames stamped ``arrived``; raise
-    ValueError for anything that is not a well-formed message, naming the section and
-    frame."""
+def decode_frames(payload: bytes) -> list[Message]:
+    """The sections of the message in ``payload``; raise ValueError for anything that is not
+    a well-formed message, naming the section and frame."""
     sections, offset = [], 0
     while True:
-        section, offset = _decode_section(payload, offset, arrived, len(sections) + 1)
+        section, offset = _decode_section(payload, offset, len(sections) + 1)
         sections.append(section)
         if offset == len(payload):
             return sections
 
 
-def _decode_section(payload: bytes, offset: int, arrived: float, number: int
-                    ) -> tuple[Message, int]:
+def _decode_section(payload: bytes, offset: int, number: int) -> tuple[Message, int]:
     """The section at ``offset``, and where the next one begins."""
     where = f"section {number}: " if number > 1 else ""
     if len(payload) < offset + 1:
@@ -109,24 +152,30 @@ def _decode_section(payload: bytes, offset: int, arrived: float, number: int
     if not (math.isfinite(held) and held >= 0):
         raise ValueError(f"{where}the echo was held {held} s")
     frames = []
+    all_data = True
     offset += _HEADER.size
     for index in range(count):
         if len(payload) < offset + _FRAME.size:
             raise ValueError(f"{where}frame {index + 1} of {count} is cut short")
         arbitration_id, flags, dlc = _FRAME.unpack_from(payload, offset)
         offset += _FRAME.size
-        remote = bool(flags & _REMOTE)
-        length = 0 if remote else dlc
+        length = 0 if flags & _REMOTE else dlc
         if dlc > 8 or len(payload) < offset + length:
             raise ValueError(f"{where}frame {index + 1} of {count}: DLC {dlc} does not match "
                              f"{min(len(payload) - offset, 8)} data bytes")
-        limit = 0x1FFFFFFF if flags & _EXTENDED else 0x7FF
-        if arbitration_id > limit:
+        if flags == 0 and arbitration_id <= 0x7FF:      # a standard data frame
+            frames.append((arbitration_id, payload[offset:offset + length]))
+            offset += length
+            continue
+        if arbitration_id > (0x1FFFFFFF if flags & _EXTENDED else 0x7FF):
             raise ValueError(f"{where}frame {index + 1} of {count}: identifier "
                              f"0x{arbitration_id:X} out of range")
-        frames.append(received_frame(arrived, arbitration_id, bool(flags & _EXTENDED), remote,
-                                     bool(flags & _ERROR), dlc, payload[offset:offset + length],
-                                     channel))
+        key = arbitration_id | (EXTENDED if flags & _EXTENDED and arbitration_id <= 0x7FF
+                                else 0)
+        if flags & (_REMOTE | _ERROR):
+            all_data = False
+            key |= (REMOTE if flags & _REMOTE else 0) | (ERROR if flags & _ERROR else 0)
+        frames.append((key, bytes(dlc) if flags & _REMOTE else payload[offset:offset + length]))
         offset += length
     return Message(channel, sender, sequence, sent_at, Echo(echo_sender, echo_sequence, held),
-                   frames), offset
+                   frames, all_data), offset
