@@ -25,7 +25,7 @@ from collections.abc import Callable, Iterable
 
 import can
 
-from hil.can.messages import ID_BITS, FrameParts, received_frame
+from hil.can.messages import FrameParts, identifier, received_frame
 
 log = logging.getLogger(__name__)
 
@@ -95,8 +95,8 @@ class DirectDelivery:
                 if self._stopped:           # a listener stopped it
                     return
                 if not self.takes_frames:   # a listener that wants messages came meanwhile
-                    self.deliver(received_frame(timestamp, key & ID_BITS, key > 0x7FF, False,
-                                                False, len(data), data, None))
+                    self.deliver(received_frame(timestamp, *identifier(key), False, False,
+                                                len(data), data, None))
                     continue
                 for receive in self._frame_receivers:
                     try:

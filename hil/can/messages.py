@@ -32,6 +32,13 @@ def frame_key(msg: can.Message) -> int:
     return msg.arbitration_id
 
 
+def identifier(key: int) -> tuple[int, bool]:
+    """The arbitration id of the frame of dispatch key ``key`` and whether it is extended
+    (the inverse of :func:`frame_key`; flag bits above the id, such as a wire's, ignored)."""
+    arbitration_id = key & ID_BITS
+    return arbitration_id, bool(key & EXTENDED) or arbitration_id > 0x7FF
+
+
 def extended(can_id: int) -> int:
     """The dispatch key of the extended frame of id ``can_id``."""
     return can_id | EXTENDED if can_id <= 0x7FF else can_id

@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import can
 
-from hil.can.messages import EXTENDED, ID_BITS, FrameParts, frame_key, received_frame
+from hil.can.messages import FrameParts, extended, frame_key, identifier, received_frame
 
 #: every CAN channel's key is below this one
 KEY_PREFIX = "hil/can/"
@@ -49,7 +49,7 @@ NO_ECHO = Echo()
 
 
 #: in a frame's key, as SocketCAN's ``CAN_RTR_FLAG`` and ``CAN_ERR_FLAG`` in its ``can_id``
-#: (bits an arbitration id and :data:`~hil.can.messages.EXTENDED` leave free)
+#: (bits an arbitration id and :data:`hil.can.messages.EXTENDED` leave free)
 REMOTE, ERROR = 0x40000000, 0x20000000
 #: the key bits of a frame that is not a data frame
 NOT_DATA = REMOTE | ERROR
@@ -68,9 +68,8 @@ def message_of(frame: FrameParts, timestamp: float, channel, is_rx: bool = True
     """The ``can.Message`` of a frame by its wire parts (its own copy of the data)."""
     key, data = frame
     remote = bool(key & REMOTE)
-    extended = bool(key & EXTENDED) or (key & ID_BITS) > 0x7FF
-    msg = received_frame(timestamp, key & ID_BITS, extended, remote, bool(key & ERROR),
-                         len(data), b"" if remote else data, channel)
+    msg = received_frame(timestamp, *identifier(key), remote, bool(key & ERROR), len(data),
+                         b"" if remote else data, channel)
     msg.is_rx = is_rx
     return msg
 
@@ -90,9 +89,8 @@ def encode_frames(channel: str, sender: int, sequence: int, sent_at: float,
             append(pack(key, 0, len(data)))
             append(data)
             continue
-        arbitration_id = key & ID_BITS
-        extended = key & EXTENDED or arbitration_id > 0x7FF
-        append(pack(arbitration_id, (_EXTENDED if extended else 0)
+        arbitration_id, is_extended = identifier(key)
+        append(pack(arbitration_id, (_EXTENDED if is_extended else 0)
                     | (_REMOTE if key & REMOTE else 0) | (_ERROR if key & ERROR else 0),
                     len(data)))
         if not key & REMOTE:
@@ -170,8 +168,7 @@ def _decode_section(payload: bytes, offset: int, number: int) -> tuple[Message, 
         if arbitration_id > (0x1FFFFFFF if flags & _EXTENDED else 0x7FF):
             raise ValueError(f"{where}frame {index + 1} of {count}: identifier "
                              f"0x{arbitration_id:X} out of range")
-        key = arbitration_id | (EXTENDED if flags & _EXTENDED and arbitration_id <= 0x7FF
-                                else 0)
+        key = extended(arbitration_id) if flags & _EXTENDED else arbitration_id
         if flags & (_REMOTE | _ERROR):
             all_data = False
             key |= (REMOTE if flags & _REMOTE else 0) | (ERROR if flags & _ERROR else 0)
