@@ -295,3 +295,29 @@ def test_a_tpdo_remapped_by_sdo_carries_its_new_objects_after_nmt_start(bench, m
         assert values[0x6061] == 8
     else:
         assert values[0x6060] == 8
+
+
+def test_the_heartbeat_keeps_its_phase_and_sends_one_beat_after_a_stall():
+    from hil.protocols.cia402.node import ClockedNmtSlave
+    nmt = ClockedNmtSlave(1, local_node=None)
+    nmt._state = 0x7F                               # PRE-OPERATIONAL
+    nmt.start_heartbeat(50)
+    start = nmt._due
+    beats = [now for now in (start + 0.001 * ms for ms in range(0, 400))
+             if nmt.heartbeat_due(now) is not None]
+    assert beats == pytest.approx([start + 0.05 * k for k in range(8)])
+    # a stall of three periods: one beat when the clock runs again, the next a period on
+    later = start + 0.55
+    assert nmt.heartbeat_due(later) == bytes([0x7F])
+    assert nmt.heartbeat_due(later + 0.049) is None
+    assert nmt.heartbeat_due(later + 0.05) == bytes([0x7F])
+
+
+def test_the_nmt_operational_flag_follows_every_state_change():
+    from hil.protocols.cia402.node import ClockedNmtSlave
+    nmt = ClockedNmtSlave(1, local_node=None)
+    assert not nmt.operational
+    for command, operational in ((0x01, True), (0x80, False), (0x01, True), (0x02, False)):
+        nmt.on_command(0, bytes([command, 1]), 0.0)       # start, pre-op, start, stop
+        assert nmt.operational is operational
+        assert (nmt.state == "OPERATIONAL") is operational

@@ -223,9 +223,11 @@ class ControllerManager:
                 self._started = True
                 self._switch(self._pending, [], Strictness.BEST_EFFORT)
             position = self._position.copy()
-            velocity = np.zeros_like(position)
-            position_claimed = np.zeros(len(position), dtype=bool)
-            velocity_claimed = np.zeros(len(position), dtype=bool)
+            count = len(position)
+            # np.zeros, not zeros_like: the latter is a Python function around it (a cycle)
+            velocity = np.zeros(count)
+            position_claimed = np.zeros(count, dtype=bool)
+            velocity_claimed = np.zeros(count, dtype=bool)
             for name in self._active:
                 controller, idx = self._controllers[name], self._indices[name]
                 out_position, out_velocity = controller.update(now, positions[idx],

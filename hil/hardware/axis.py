@@ -15,7 +15,7 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, ClassVar, NamedTuple
 
 from hil.bus_config.types import DriveConfig
 from hil.protocols.base import Protocol
@@ -39,9 +39,10 @@ class FaultKind(enum.Enum):
     REBOOTED = "rebooted"                 # booted again mid-run: it lost its configuration
 
 
-@dataclass(frozen=True, slots=True)
-class AxisCommand:
-    """What the master asks of one axis this cycle, in motor units."""
+class AxisCommand(NamedTuple):
+    """What the master asks of one axis this cycle, in motor units. (A named tuple: one is
+    made per axis per cycle, and a frozen dataclass' constructor sets each field through
+    ``object.__setattr__``.)"""
 
     #: where to follow (rad)
     target: float

@@ -228,12 +228,12 @@ class CanHardwareInterface(HardwareInterface):
         not waited for while any other axis answers: in lock-step a dead drive would hold every
         cycle of the others for the whole timeout (2 s), and their stop with it."""
         cycle = self._cycle
+        if all(a.feedback.cycle == cycle for a in self.axes):
+            return True          # all in already (lock-step: in this thread), no wait
         awaited = self.axes
         if skip_silent:      # silent as of the last cycle's watch
             awaited = [a for a in self.axes if not _missed_too_many(a, cycle - 1)] \
                 or self.axes
-        if all(a.feedback.cycle == cycle for a in awaited):
-            return True          # all in already (lock-step: in this thread), no wait
         with self._arrived:
             self._awaiting = True
             try:

@@ -274,7 +274,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         self._rpdo_handlers = []
 
     def _on_rpdo(self, number: int, can_id: int, data: bytes, timestamp: float) -> None:
-        if self.node.nmt.state != OPERATIONAL:
+        if not self.node.nmt.operational:
             return                            # PDOs are off outside OPERATIONAL (CiA 301)
         rpdo = self._rpdos[number]
         expected = rpdo.length
@@ -301,11 +301,11 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
     def sync_receive(self, data: bytes) -> None:
         """SYNC: take the latched setpoints (caller holds the lock). A SYNC carries a
         counter where 0x1019 (its overflow value) is over 0, none otherwise (CiA 301)."""
-        state = self.node.nmt.state
+        operational = self.node.nmt.operational
         if len(data) != self._sync_length:
             self.node.emcy.send(EMCY_SYNC_LENGTH, COMMUNICATION_ERROR)    # not in STOPPED
             return
-        if state != OPERATIONAL:
+        if not operational:
             return
         for number in sorted(self._latched):
             self._apply(number)
@@ -323,7 +323,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         for producer in self.node.lost_heartbeats(now):
             log.warning("node %d: the heartbeat of node %d stopped", self.node_id, producer)
             self.core.lose_connection(Fault.HEARTBEAT_LOST)
-        if self.node.nmt.state == OPERATIONAL:
+        if self.node.nmt.operational:
             self.send_event_tpdos(now)
 
     def _apply(self, number: int) -> None:

@@ -49,6 +49,8 @@ from canopen.objectdictionary import NUMBER_TYPES
 log = logging.getLogger(__name__)
 
 STOPPED = "STOPPED"
+#: canopen's code of OPERATIONAL (the heartbeat's state byte, CiA 301)
+NMT_OPERATIONAL = 5
 #: COB-ID bits (CiA 301): 31 PDO not valid, 29 29-bit frame
 NOT_VALID, EXTENDED_FRAME = 0x80000000, 0x20000000
 #: transmission types a PDO of this drive may have: synchronous (acyclic 0, every n-th SYNC
@@ -109,10 +111,25 @@ class ClockedNmtSlave(NmtSlave):
     (CiA 301 7.2.8.3.2.1: the boot-up is the first frame a node sends after a reset, and
     masters start configuring on it)."""
 
+    #: in OPERATIONAL now (PDOs processed, CiA 301): kept with the state, because every PDO
+    #: and SYNC asks, and canopen's ``state`` property is a Python call and a name lookup
+    operational = False
+
     def __init__(self, node_id: int, local_node):
         super().__init__(node_id, local_node)
         self._period = 0.0
         self._due: float | None = None
+
+    # canopen keeps the state code in ``_state`` and sets it from several places (a command,
+    # a local transition): the flag follows every write there
+    @property
+    def _state(self) -> int:
+        return self._code
+
+    @_state.setter
+    def _state(self, code: int) -> None:
+        self._code = code
+        self.operational = code == NMT_OPERATIONAL
 
     def start_heartbeat(self, heartbeat_time_ms: int) -> None:
         self._heartbeat_time_ms = heartbeat_time_ms
@@ -128,10 +145,14 @@ class ClockedNmtSlave(NmtSlave):
     def heartbeat_due(self, now: float) -> bytes | None:
         """The heartbeat to send at ``now``, if one is due; never in INITIALISING (a
         heartbeat of state 0 is a boot-up)."""
-        if self._due is None or now < self._due or self._state == 0:
+        if self._due is None or now < self._due or self._code == 0:
             return None
-        self._due = max(self._due + self._period, now)
-        return bytes([self._state])
+        # on its phase; after a stall past a whole period, one beat and a period from now
+        # (a timer's missed expiries are one expiry: no burst of beats to catch up)
+        self._due += self._period
+        if self._due <= now:
+            self._due = now + self._period
+        return bytes([self._code])
 
 
 class DriveNode(canopen.LocalNode):

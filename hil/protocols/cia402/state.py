@@ -280,7 +280,9 @@ class Cia402StateMachine:
 
 def statusword(state: State, status: DriveStatus, mode_bits: int) -> int:
     """0x6041 for a state, the core's flags and the operation mode's bits 12-13."""
-    word = state.value | 0x0200 | mode_bits                       # bit 9: remote
+    # _value_, not value: the latter is a Python property, two calls at every statusword
+    # (every TPDO of every drive); a dict by state would hash it in Python
+    word = state._value_ | 0x0200 | mode_bits                     # bit 9: remote
     if state in (State.READY_TO_SWITCH_ON, State.SWITCHED_ON, State.OPERATION_ENABLED,
                  State.QUICK_STOP_ACTIVE):
         word |= 0x0010                                            # bit 4: voltage enabled

@@ -11,7 +11,6 @@ from __future__ import annotations
 from hil.protocols.cia402.pdo import TpdoSchedule
 from hil.protocols.cia402.state import live_values
 
-OPERATIONAL = "OPERATIONAL"
 #: TPDO COB-ID bit 30: no RTR allowed on this PDO (CiA 301)
 NO_RTR = 0x40000000
 SYNCHRONOUS_RTR = 252
@@ -25,7 +24,7 @@ class TpdoProducer:
         this SYNC with the current state (caller holds the lock): every n-th SYNC for types
         1-240, on a change for type 0."""
         self._pending = []
-        if self.node.nmt.state != OPERATIONAL:
+        if not self.node.nmt.operational:
             return
         status = self.core.status()
         for schedule in self._tpdos:
@@ -49,7 +48,7 @@ class TpdoProducer:
     def _pack(self, schedule: TpdoSchedule, status) -> bytes:
         if schedule.codec is not None:
             return schedule.codec.pack(*live_values(
-                schedule.indices, self.machine, status, self._counts_per_rad,
+                schedule.indices, self.machine, status, self.objects.counts_per_rad,
                 self.rated_torque))
         pdo = schedule.pdo
         for variable in pdo.map:     # through the object dictionary, live or stored
@@ -78,7 +77,7 @@ class TpdoProducer:
     def remote_requested(self, can_id: int) -> None:
         """An RTR on a TPDO's COB-ID: the TPDO, where it allows RTR, in OPERATIONAL."""
         with self.lock:
-            if self.node.nmt.state != OPERATIONAL:
+            if not self.node.nmt.operational:
                 return
             for schedule in self._tpdos:
                 if schedule.pdo.cob_id == can_id and schedule.rtr_allowed:
