@@ -98,9 +98,9 @@ def _counted_run(robot: str, cycles: int, root: Path | None) -> tuple[int, int]:
         ran = int(done.stdout.split()[-1])
         # one file a thread: <out>-01 is the main thread (it builds the model and steps it
         # once); the control thread is the other one that steps MuJoCo
-        counts = [int(SUMMARY.search(f.read_bytes()).group(1))
-                  for f in sorted(Path(folder).glob("callgrind.out-*"))
-                  if not f.name.endswith("-01") and b"mj_step" in f.read_bytes()]
+        threads = [f.read_bytes() for f in sorted(Path(folder).glob("callgrind.out-*"))
+                   if not f.name.endswith("-01")]
+        counts = [int(SUMMARY.search(text).group(1)) for text in threads if b"mj_step" in text]
     if len(counts) != 1:
         raise RuntimeError(f"expected one thread besides the main one to step MuJoCo, "
                            f"found {len(counts)}")
