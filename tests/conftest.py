@@ -15,6 +15,7 @@ from pathlib import Path
 
 import can
 import canopen
+import hypothesis
 import numpy as np
 import pytest
 import yaml
@@ -36,6 +37,21 @@ UR3_XACRO = ROOT / "robots" / "ur3_description" / "urdf" / "ur3.xacro"
 PIGOT_XACRO = ROOT / "robots" / "pigot_description" / "urdf" / "pigot.xacro"
 CORPUS = TESTS / "corpus"
 COUPLED_URDF = TESTS / "fixtures" / "coupled_transmissions.urdf"
+
+#: a test judged against the host's stalls (tests/host_stalls.py)
+pytest_plugins = ["host_stalls"]
+
+# hypothesis' default 200 ms deadline per example is a wall-clock assert: a host that pauses
+# a vCPU for 0.3 s fails it on a pure function (CI, 2026-11-28); a test that does mean a
+# deadline sets it in its own settings
+hypothesis.settings.register_profile("hil", deadline=None)
+hypothesis.settings.load_profile("hil")
+
+
+def judged_in_real_time(request: pytest.FixtureRequest) -> None:
+    """Mark the test that uses a real-time fixture ``real_time``: its failure while the host
+    stalled past its margins is inconclusive (tests/host_stalls.py)."""
+    request.node.add_marker(pytest.mark.real_time)
 
 
 class FrameRecorder(can.Listener):
@@ -199,7 +215,8 @@ class Bench:
 
 
 @pytest.fixture
-def bench(transport):
+def bench(transport, request):
+    judged_in_real_time(request)
     made = Bench(*transport)
     yield made
     made.close()
@@ -297,7 +314,8 @@ class ControlledBench(Stack):
 
 
 @pytest.fixture
-def controlled():
+def controlled(request):
+    judged_in_real_time(request)
     bench = ControlledBench()
     yield bench
     bench.close()
@@ -327,8 +345,10 @@ def shipped_at_100hz(name: str, folder: Path) -> Path:
 
 
 @pytest.fixture
-def ur3_100hz(tmp_path) -> str:
-    """The path of :func:`ur3_at_100hz`'s config, in the test's folder."""
+def ur3_100hz(tmp_path, request) -> str:
+    """The path of :func:`ur3_at_100hz`'s config, in the test's folder (for a real-time run:
+    the test is judged so)."""
+    judged_in_real_time(request)
     return str(ur3_at_100hz(tmp_path))
 
 

@@ -12,6 +12,9 @@ import pytest
 from hil.bench import ACROSS_PROCESSES_QUICK, FIGURES, RATES, ROBOTS
 from hil.realtime import CyclePacer
 
+#: judged against the host's stalls (tests/host_stalls.py): `hil bench` measures real time
+pytestmark = pytest.mark.real_time
+
 
 @pytest.mark.slow
 def test_quick_bench_reports_every_figure(tmp_path):

@@ -21,6 +21,9 @@ from hil.realtime.stalls import Stall, StallDetector
 from hil.cli.run_progress import Progress
 from test_up import hil, read_rrd
 
+#: judged against the host's stalls (tests/host_stalls.py): stalls and silences of real-time runs
+pytestmark = pytest.mark.real_time
+
 #: how long the simulator is stopped: 2.5x the controller's silence limit (6 cycles of 2 ms)
 STOP = 0.030
 

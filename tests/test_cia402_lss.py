@@ -23,6 +23,10 @@ from hil.bus_config import load_bus_config
 from hil.errors import HilError
 from hil.realtime import REAL_TIME
 
+#: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
+#: canopen's LSS master
+pytestmark = pytest.mark.real_time
+
 SERIALS = {"joint1": 1, "joint2": 2}
 
 

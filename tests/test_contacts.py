@@ -94,7 +94,8 @@ def test_a_robot_without_a_scene_skips_collision_detection(pick):
     assert plant.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
 
 
-@pytest.mark.parametrize("real_time", [False, True], ids=["lock-step", "real-time"])
+@pytest.mark.parametrize("real_time", [False, pytest.param(True, marks=pytest.mark.real_time)],
+                         ids=["lock-step", "real-time"])
 def test_the_gripper_lifts_the_cube_10_cm_and_holds_it_for_5_s(real_time, tmp_path):
     """Through the drives: close the fingers on the cube, raise the arm, hold. Real time at
     100 Hz (see conftest.ur3_at_100hz: a stalled process on a shared machine rightly faults,

@@ -21,6 +21,10 @@ from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient, key
 from hil.zenoh_session import ZenohSettings, session
 from conftest import ROOT, free_port, socketcan_missing, ur3_at_100hz
 
+#: judged against the host's stalls (tests/host_stalls.py): the stacks run in real time, as
+#: separate processes
+pytestmark = pytest.mark.real_time
+
 
 #: bus configs whose robot is not named like the config
 ROBOT_OF = {"pigot_mixed": "pigot"}

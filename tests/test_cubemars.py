@@ -29,6 +29,10 @@ from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, pack_command,
 )
 
+#: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
+#: the client libraries
+pytestmark = pytest.mark.real_time
+
 CONFIG = TESTS / "fixtures" / "cubemars_one_axis.yaml"
 AK80_9 = MitRanges(12.5, 50.0, 500.0, 5.0, 18.0)
 #: one LSB of the MIT answer's position: 16 bits over [-PMAX, PMAX]

@@ -25,6 +25,10 @@ from hil.protocols.damiao import (
 from hil.protocols.damiao.models import MODELS, model
 from hil.protocols.mit import MitCommand, MitRanges, pack_command
 
+#: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
+#: the client libraries
+pytestmark = pytest.mark.real_time
+
 CONFIG = TESTS / "fixtures" / "damiao_one_axis.yaml"
 DM4310 = MitRanges(12.5, 30.0, 500.0, 5.0, 10.0)
 #: one LSB of the feedback's position: 16 bits over [-PMAX, PMAX]

@@ -27,6 +27,10 @@ from hil.controllers import HARDWARE_FAULT, GoalStatus
 from hil.drives import Power
 from hil.errors import HilError
 
+#: judged against the host's stalls (tests/host_stalls.py): faults and silences are judged on
+#: the controller's clock
+pytestmark = pytest.mark.real_time
+
 
 def test_dropping_every_frame_aborts_the_goal_and_the_drives_quick_stop(controlled):
     goal_id = controlled.move("joint1", 0.3, seconds=2.0)

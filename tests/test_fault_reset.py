@@ -12,6 +12,10 @@ from hil.controllers import HARDWARE_FAULT, GoalRejected, GoalStatus
 from hil.hardware import FaultKind
 from hil.messaging.zenoh_api import RunSubscriber
 
+#: judged against the host's stalls (tests/host_stalls.py): faults and silences are judged on
+#: the controller's clock
+pytestmark = pytest.mark.real_time
+
 
 def test_reset_brings_a_faulted_drive_back_and_goals_are_accepted_again(controlled):
     controlled.fault(2)

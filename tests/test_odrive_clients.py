@@ -24,6 +24,10 @@ from hil.protocols.odrive import TURN, AxisState, Cmd, InputMode, ODriveError, c
 from hil.realtime import LOCK_STEP
 from hil.simulator import Simulator
 
+#: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
+#: the client libraries
+pytestmark = pytest.mark.real_time
+
 CONFIG = TESTS / "fixtures" / "odrive_one_axis.yaml"
 
 

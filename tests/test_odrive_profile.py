@@ -23,6 +23,10 @@ from hil.protocols.odrive import TURN, AxisState, Cmd, ODriveError, ODriveOption
 from hil.protocols.odrive.axis import ODriveAxis
 from hil.protocols.odrive.drive import ODriveDrive
 
+#: judged against the host's stalls (tests/host_stalls.py): the drive answers in its own thread;
+#: each command gives it 10 ms
+pytestmark = pytest.mark.real_time(margin=0.01)
+
 DBC = cantools.database.load_file(
     str(importlib.resources.files("odrive_can") / "dbc" / "odrive-cansimple-0.6.10.dbc"))
 NODE_IDS = range(64)

@@ -101,13 +101,14 @@ def test_a_protocol_from_an_installed_package_drives_a_joint(tmp_path):
         from hil.bus_config import load_bus_config
         from hil.controllers import TrajectoryGoal, TrajectoryPoint
         from hil.messaging.zenoh_api import TrajectoryActionClient
+        from hil.realtime import LOCK_STEP
         from hil.stack import running_stack
 
         config = load_bus_config({str(config)!r})
-        with running_stack(config) as stack:
+        with running_stack(config, LOCK_STEP) as stack:    # what it moves, not how fast
             client = TrajectoryActionClient(stack.zenoh, config.robot.name)
             goal = TrajectoryGoal(("joint2",), (TrajectoryPoint(1.0, (0.3,), (0.0,)),))
-            result = client.wait_result(client.send_goal(goal), timeout=10)
+            result = client.wait_result(client.send_goal(goal), timeout=60)
             print(result.error_code, stack.sim.plant.joint_positions()[1], flush=True)
             client.close()
         """, env={"PYTHONPATH": str(TOY_PACKAGE)})

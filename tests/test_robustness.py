@@ -24,6 +24,10 @@ from conftest import EDS, ROOT, free_port
 sys.path.insert(0, str(ROOT / "tools"))
 import make_cia402_eds  # noqa: E402
 
+#: judged against the host's stalls (tests/host_stalls.py): the stacks run in real time under
+#: load
+pytestmark = pytest.mark.real_time
+
 
 @pytest.mark.parametrize("text, words", [
     ("points:\n  - {time_from_start: .nan, positions: [0.1]}", "time_from_start is nan"),

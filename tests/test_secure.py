@@ -28,7 +28,8 @@ from hil.zenoh_security import (
 )
 from hil.zenoh_session import ZenohSettings, close, session, why_unreached
 
-pytestmark = pytest.mark.slow
+#: judged against the host's stalls (tests/host_stalls.py): the processes run in real time
+pytestmark = [pytest.mark.slow, pytest.mark.real_time]
 
 #: an SDO upload request of the device type (0x1000:00) to node 1, and its answer's id
 SDO_REQUEST = can.Message(arbitration_id=0x601, data=bytes([0x40, 0x00, 0x10, 0, 0, 0, 0, 0]),

@@ -18,7 +18,9 @@ import pytest
 from conftest import stop_process
 from hil.zenoh_security import make_keys
 
-pytestmark = pytest.mark.slow
+#: judged against the host's stalls (tests/host_stalls.py): the processes run in real time
+#: across network namespaces
+pytestmark = [pytest.mark.slow, pytest.mark.real_time]
 
 #: private addresses, used only inside the namespaces this test makes
 DRIVES_HOST, CONTROLLER_HOST = "10.213.77.1", "10.213.77.2"

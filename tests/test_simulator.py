@@ -146,7 +146,8 @@ def test_hil_sim_reports_a_bad_config_without_traceback(tmp_path):
 
 
 
-@pytest.fixture(params=[False, True], ids=["real-time", "lock-step"])
+@pytest.fixture(params=[pytest.param(False, marks=pytest.mark.real_time), True],
+                ids=["real-time", "lock-step"])
 def master_and_sim(request):
     """The ur3 fixture's Simulator and a CanHardwareInterface on one virtual bus, brought up;
     yields (hardware, lock_step, positions where it came up)."""

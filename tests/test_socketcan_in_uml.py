@@ -7,8 +7,10 @@ test is skipped with the reason (CI installs it: see .ci/run).
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
+import warnings
 
 import pytest
 
@@ -40,4 +42,11 @@ def test_socketcan_suite_passes_inside_user_mode_linux():
     start = output.rfind("short test summary info")
     summary = output[start:start + 3000] if start >= 0 else ""
     assert result.returncode == 0, f"{summary}\n...\n{output[-5000:]}"
-    assert " passed" in output and "skipped" not in output.split("passed")[-1], output[-3000:]
+    assert " passed" in output, output[-3000:]
+    # no socketcan test may be skipped in there, but for a real-time test that failed while
+    # the host stalled past its margins (tests/host_stalls.py): told here as a warning
+    skips = re.findall(r"^SKIPPED \[\d+\] (.*)$", output, re.MULTILINE)
+    unexplained = [s for s in skips if "inconclusive on this host" not in s]
+    assert not unexplained, "\n".join(unexplained)
+    for skip in skips:
+        warnings.warn(f"inside User-Mode Linux: {skip}", stacklevel=1)

@@ -14,7 +14,9 @@ import pytest
 from conftest import DelayingRelay, free_port, stop_process
 from hil.zenoh_session import MEETING_VARIABLE
 
-pytestmark = pytest.mark.slow
+#: judged against the host's stalls (tests/host_stalls.py): the processes meet and run in real
+#: time
+pytestmark = [pytest.mark.slow, pytest.mark.real_time]
 
 
 class Processes:

@@ -28,6 +28,10 @@ from hil.messaging.zenoh_api import ProcessWatch, RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
 from conftest import ROOT, free_port, read_rrd, rrd_series, rrd_verify_errors
 
+#: judged against the host's stalls (tests/host_stalls.py): `hil up` and its processes run in
+#: real time (the demos at their pace)
+pytestmark = pytest.mark.real_time
+
 PIGOT_CONFIG = str(ROOT / "bus_config" / "pigot.yaml")
 #: the entity with a row for every cycle recorded (hil.visualisation.recorder)
 AXIS_ENTITY = "/cycle"
@@ -58,6 +62,15 @@ def processes():
         process.communicate()
 
 
+def wait_for_cycles(published: list, count: int, timeout: float = 60) -> None:
+    """Until ``count`` cycles were published (``published``: a RunSubscriber's batches): the
+    host's pace, not a fixed sleep, says when enough is recorded."""
+    deadline = time.monotonic() + timeout
+    while sum(len(b) for b in published) < count:
+        assert time.monotonic() < deadline, f"{count} cycles not published in {timeout} s"
+        time.sleep(0.1)
+
+
 def test_viz_records_every_published_cycle_of_the_controller(tmp_path, processes):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     control = hil("control", PIGOT_CONFIG, "--fake", "--listen", endpoint)
@@ -70,7 +83,7 @@ def test_viz_records_every_published_cycle_of_the_controller(tmp_path, processes
               "--save", str(tmp_path / "run.rrd"))
     processes.append(viz)
     assert "hil viz:" in viz.stdout.readline()
-    time.sleep(3.0)                          # 500 Hz: about 1500 cycles
+    wait_for_cycles(published, 1500)         # 500 Hz: 3 s of a quiet host
     control.send_signal(signal.SIGTERM)      # its last batch goes out as it stops
     control.communicate(timeout=20)
     time.sleep(0.5)
@@ -97,7 +110,11 @@ def test_a_recording_cut_off_by_sigkill_reads_back_up_to_its_last_flush(tmp_path
     viz = hil("viz", PIGOT_CONFIG, "--no-can", "--connect", endpoint, "--save", str(save))
     processes.append(viz)
     assert "hil viz:" in viz.stdout.readline()
-    time.sleep(4.0)                          # 500 Hz: about 2000 cycles, several flushes
+    published = []
+    listener = RunSubscriber(session(ZenohSettings(connect=(endpoint,))), "pigot",
+                             published.append, lambda *_: None, pytest.fail)
+    wait_for_cycles(published, 2000)         # 500 Hz: 4 s, several flushes
+    listener.close()
     viz.kill()
     viz.wait(timeout=20)
     # no footer (it never closed): rerun scans the stream, as its viewer does

@@ -22,6 +22,10 @@ from hil.realtime.stalls import STALL_THRESHOLD
 from hil.zenoh_session import ZenohSettings, close, session
 from conftest import EDS, ROOT, DelayingRelay, FrameRecorder, free_port
 
+#: judged against the host's stalls (tests/host_stalls.py): stalls and round trips are measured
+#: on the wall clock
+pytestmark = pytest.mark.real_time
+
 
 def test_frames_arrive_in_order_and_not_at_the_sender(bus_pair):
     a, b = bus_pair

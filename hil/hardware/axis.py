@@ -94,6 +94,10 @@ class Axis(ABC):
 
     #: the protocol it speaks
     protocol: ClassVar[type[Protocol]]
+    #: the least time a bring-up request waits for its answer (s), where that is longer
+    #: than its protocol's own default: the master's reply timeout (in lock-step a stalled
+    #: drive is slow, not dead)
+    request_timeout: float = 0.0
 
     def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
         self.config = config

@@ -55,7 +55,6 @@ LOCK_STEP_REPLY_TIMEOUT = 2.0
 SYNC_ID = 0x080
 
 
-
 class CanHardwareInterface(HardwareInterface):
     """CAN master for every drive of a bus config, each spoken to in its own protocol.
 
@@ -346,6 +345,7 @@ class CanHardwareInterface(HardwareInterface):
                              name="configure", daemon=True).start()
 
     def _configure(self, axis: Axis) -> None:
+        axis.request_timeout = self.reply_timeout    # lock-step's longer wait holds here too
         axis.configure()
         axis.feedback.cycle = self._cycle    # missed answers count from here on
 

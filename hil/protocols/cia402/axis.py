@@ -135,6 +135,9 @@ class Cia402Axis(Axis):
                                   "master assigns none (LSS, CiA 305)",
                                   hint="give it a node id in the bus config, or bring it up "
                                        "with your LSS master")
+        # canopen's default answer timeout (0.3 s) unless the master waits longer
+        self.node.sdo.RESPONSE_TIMEOUT = max(canopen.sdo.client.SdoClient.RESPONSE_TIMEOUT,
+                                             self.request_timeout)
         try:
             device_type = self.node.sdo[0x1000].raw
             if device_type & 0xFFFF != 402:
