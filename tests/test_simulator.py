@@ -13,6 +13,7 @@ import time
 import uuid
 
 import can
+import canopen
 import numpy as np
 import pytest
 
@@ -170,6 +171,37 @@ def master_and_sim(request):
         sim.close()
         master_bus.shutdown()
         sim_bus.shutdown()
+
+
+@pytest.mark.parametrize("request_timeout, waits", [(1 / 500, 0.3), (LOCK_STEP_REPLY_TIMEOUT,
+                                                                        LOCK_STEP_REPLY_TIMEOUT)],
+                         ids=["real-time", "lock-step"])
+def test_a_lock_step_bring_up_waits_its_reply_timeout_for_each_sdo_answer(request_timeout, waits):
+    """canopen's SDO client gives up on an answer after 0.3 s; a sim stalled in User-Mode
+    Linux answers later than that (CI, 2026-11-28: `hil up --lock-step` failed its bring-up).
+    In lock-step a stalled sim is slow, not dead: the master's bring-up waits as long for an
+    SDO answer as for a cycle's (LOCK_STEP_REPLY_TIMEOUT); in real time canopen's 0.3 s
+    stand. A drive that never answers still fails, naming it (at the earliest after that
+    wait: only a lower bound of time is judged)."""
+    from hil.errors import HilError
+    from hil.protocols.cia402.axis import Cia402Axis
+    config = load_bus_config(UR3_VIRTUAL)
+    bus = can.Bus(interface="virtual", channel=f"hil-sdo-{uuid.uuid4().hex[:8]}")
+    network = canopen.Network(bus)
+    network.notifier = can.Notifier(bus, network.listeners, 0.1)
+    axis = Cia402Axis(config.drives[0], "arm")
+    axis.attach(network)
+    axis.request_timeout = request_timeout
+    try:
+        began = time.monotonic()
+        with pytest.raises(HilError, match=r"drive node 1 \(joint1\) on bus 'arm' does not "
+                                           r"answer SDO"):
+            axis.configure()
+        assert time.monotonic() - began >= waits
+        assert axis.node.sdo.RESPONSE_TIMEOUT == waits
+    finally:
+        network.notifier.stop(1)
+        bus.shutdown()
 
 
 def test_a_controller_stall_past_the_watchdog_faults_in_real_time_only(master_and_sim):
