@@ -484,7 +484,7 @@ def init_check_and_demo(description: Path, folder: Path, share: Path) -> tuple[P
     save = folder / "robot.rrd"
     up = subprocess.run([sys.executable, "-m", "hil", "up", str(config), "--demo", "--lock-step",
                          "--no-viewer", "--save", str(save), *found],
-                        capture_output=True, text=True, timeout=280, cwd=folder)
+                        capture_output=True, text=True, timeout=560, cwd=folder)
     assert up.returncode == 0, up.stdout[-3000:] + up.stderr[-3000:]
     assert "hil up: demo succeeded" in up.stdout
     return config, save

@@ -119,7 +119,12 @@ class RealTimeJudge:
         path, line, _ = item.reportinfo()
         report.outcome = "skipped"
         report.longrepr = (str(path), (line or 0) + 1, f"Skipped: {reason}")
-        self.inconclusive.append(item.nodeid)
+
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        # counted where reports arrive: in this process, or from pytest-xdist's workers
+        if report.skipped and isinstance(report.longrepr, tuple) \
+                and "inconclusive on this host" in report.longrepr[2]:
+            self.inconclusive.append(report.nodeid)
 
     def pytest_terminal_summary(self, terminalreporter) -> None:
         longest, count = self.watch.longest()
@@ -134,9 +139,9 @@ class RealTimeJudge:
             f"# {len(self.inconclusive)} REAL-TIME TESTS INCONCLUSIVE: they failed while this "
             f"host stalled longer than their margins", yellow=True)
         terminalreporter.write_line(
-            f"# ({count} host stalls over 20 ms in the run, the longest {longest * 1e3:.0f} ms)."
-            " Their failures are reported as skips; run them on a host that does not stall:",
-            yellow=True)
+            f"# (this process saw {count} host stalls over 20 ms, the longest "
+            f"{longest * 1e3:.0f} ms). Their failures are reported as skips; run them on a host "
+            "that does not stall:", yellow=True)
         for nodeid in self.inconclusive:
             terminalreporter.write_line(f"#   {nodeid}", yellow=True)
         terminalreporter.write_line(bar, yellow=True)

@@ -22,7 +22,7 @@ import canopen
 import pytest
 from canopen.objectdictionary import NUMBER_TYPES, ODVariable
 
-from conftest import UR3_VIRTUAL, Bench, patient
+from conftest import UR3_VIRTUAL, Bench, judged_in_real_time, patient
 
 from hil.bus_config import load_bus_config
 from hil.errors import HilError
@@ -86,7 +86,8 @@ class VendorBench(Bench):
 
 
 @pytest.fixture
-def vendors(tmp_path):
+def vendors(tmp_path, request):
+    judged_in_real_time(request)
     bench = VendorBench(tmp_path)
     yield bench
     bench.close()

@@ -70,6 +70,7 @@ BENCHES = ["panda_description/urdf/panda.urdf", "go1_description/urdf/go1.urdf",
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(600)      # a lock-step demo of 16-20 drives: 5 min on CI's shared vCPUs
 @pytest.mark.parametrize("name", BENCHES)
 def test_init_check_and_demo_run_a_public_robot_and_record_its_meshes(name, tmp_path):
     """The README's "Adding a robot" commands, unedited (the demo in lock-step here: CI's
