@@ -185,6 +185,7 @@ def test_reset_communication_restores_the_communication_parameters(bench):
 
 # --- SDO -----------------------------------------------------------------------------------
 
+@pytest.mark.socketcan_runs_one_case
 @pytest.mark.parametrize("what, code", [
     ("an object the drive does not have", 0x06020000),
     ("a sub-index the object does not have", 0x06090011),
@@ -285,6 +286,7 @@ def test_canopen_pdo_save_remaps_a_tpdo_with_three_objects_in_cia301_order(bench
     assert position == pytest.approx(node.sdo[0x6064].raw, abs=500)   # braked: still
 
 
+@pytest.mark.socketcan_runs_one_case
 @pytest.mark.parametrize("what, code", [
     ("the mapping of a valid PDO", 0x06090030),
     ("an entry while the count is not 0", 0x06090030),
@@ -452,6 +454,7 @@ def test_one_heartbeat_consumer_entry_per_producer(bench):
         0x1016, 2, struct.pack("<L", (0x7F << 16) | 500))) == 0x06040043
 
 
+@pytest.mark.socketcan_runs_one_case
 @pytest.mark.parametrize("option, state", [(0, "OPERATION ENABLED"), (1, "FAULT"),
                                            (2, "SWITCH ON DISABLED"),
                                            (3, "QUICK STOP ACTIVE")])
@@ -607,6 +610,7 @@ def test_repeated_disable_commands_do_not_let_a_braked_axis_creep(bench, how):
     assert after == pytest.approx(before, abs=1e-3)
 
 
+@pytest.mark.socketcan_runs_one_case
 @pytest.mark.parametrize("mode", [8, 9, 10], ids=["CSP", "CSV", "CST"])
 def test_statusword_bit_12_says_the_drive_follows_the_target_in_every_cyclic_mode(bench, mode):
     """CiA 402 (IEC 61800-7-201) 0x6041 bit 12 in CSP, CSV and CST: 1, the drive follows the

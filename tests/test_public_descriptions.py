@@ -8,14 +8,13 @@ The few that do not load fail for reasons of their own, each named in EXPECTED_F
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
 
 from hil.cli import main
 from hil.description import PackagePath, load_description
-from hil.errors import HilError
-from hil.plant import Plant
 from conftest import example_robot_data, init_check_and_demo
 from test_init import mesh_entities
 
@@ -40,32 +39,31 @@ def descriptions() -> list[str]:
 
 
 @pytest.mark.slow
-def test_nearly_every_public_description_loads_and_none_shows_a_traceback():
-    package_path = PackagePath((SHARE,))
+def test_hil_check_loads_nearly_every_public_description_and_shows_no_traceback(capsys):
+    # `hil check` on a description is load_description and Plant, as hil sim builds them: one
+    # pass over the corpus (it took two, one in-process, before; 4 minutes on CI)
     failed = {}
     for name in descriptions():
-        try:                  # anything but a HilError (with file and line) fails the test
-            Plant(load_description(ROBOTS / name, package_path))
-        except HilError as exc:
-            assert all(d.file is not None for d in exc.diagnostics), (name, str(exc))
-            failed[name] = str(exc)
+        code = main(["check", str(ROBOTS / name), "--package-path", str(SHARE)])
+        out, err = capsys.readouterr()
+        assert "Traceback" not in err, (name, err)
+        assert code in (0, 1), (name, code)
+        if code == 1:             # told as a file, its line and what to do
+            assert re.search(r"^\S+:\d+: error: .*\n    what to do: ", err, re.M), (name, err)
+            failed[name] = err
+        else:
+            assert "Traceback" not in out
     loaded = len(descriptions()) - len(failed)
     assert len(descriptions()) >= 70 and loaded / len(descriptions()) >= 0.9
     assert set(failed) == set(EXPECTED_FAILURES), failed
 
 
-@pytest.mark.slow
-def test_hil_check_prints_no_traceback_for_any_public_description(capsys):
-    for name in descriptions():
-        code = main(["check", str(ROBOTS / name), "--package-path", str(SHARE)])
-        assert code == (1 if name in EXPECTED_FAILURES else 0), name
-    assert "Traceback" not in capsys.readouterr().err
-
-
 #: robots hil never shipped (bases fixed): an arm, a quadruped, a humanoid (two of its joints
-#: without limits: the default class), a mobile manipulator with a prismatic lift, a hand
+#: without limits: the default class), a hand. tiago_no_hand (a mobile manipulator whose
+#: prismatic lift slows its demo) runs too, measured in docs/performance.md, but its demo took
+#: 8 minutes of CI's 90 here and is left out of the suite
 BENCHES = ["panda_description/urdf/panda.urdf", "go1_description/urdf/go1.urdf",
-           "romeo_description/urdf/romeo.urdf", "tiago_description/robots/tiago_no_hand.urdf",
+           "romeo_description/urdf/romeo.urdf",
            "allegro_hand_description/urdf/allegro_right_hand.urdf"]
 
 

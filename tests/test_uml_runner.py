@@ -20,6 +20,7 @@ import time
 import pytest
 
 from conftest import ROOT
+from process_leaks import running_descendants
 
 sys.path.insert(0, str(ROOT / "tools"))
 import uml_run  # noqa: E402
@@ -148,28 +149,12 @@ def test_commands_inside_user_mode_linux_run_with_avx512_off(tmp_path):
     assert "LD_PRELOAD" not in inside
 
 
-def _descendants(pid: int) -> list[int]:
-    """Process ids under ``pid`` on this host, from /proc's parent links."""
-    parents = {}
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                stat = open(f"/proc/{entry}/stat").read()
-            except OSError:
-                continue                      # it ended meanwhile
-            parents[int(entry)] = int(stat.rsplit(")", 1)[1].split()[1])
-    found, frontier = [], [pid]
-    while frontier:
-        children = [child for child, parent in parents.items() if parent in frontier]
-        found += children
-        frontier = children
-    return found
-
-
 def test_user_mode_linux_and_its_processes_run_on_one_host_cpu(tmp_path):
     if uml_run.available():
         pytest.skip(f"User-Mode Linux cannot run here: {uml_run.available()}")
     started = tmp_path / "started"
+    # this test's own helpers (the real-time judge's watcher) are not UML's
+    before = running_descendants(os.getpid())
     inside = threading.Thread(target=uml_run.run, args=(
         ["sh", "-c", f"touch {started}; sleep 3"], ["vcan0"], 120, "256M"))
     inside.start()
@@ -179,7 +164,7 @@ def test_user_mode_linux_and_its_processes_run_on_one_host_cpu(tmp_path):
             time.sleep(0.05)
         assert started.exists(), "the command inside UML did not start"
         allowed = {}
-        for pid in _descendants(os.getpid()):
+        for pid in running_descendants(os.getpid()) - before:
             try:
                 allowed[pid] = os.sched_getaffinity(pid)
             except ProcessLookupError:

@@ -1,0 +1,110 @@
+"""No process a test starts outlives it (a pytest plugin, loaded by conftest).
+
+A test that starts `hil` processes and fails before its fixture yields (a controller that
+did not come up, say) used to leave the others running: a real-time sim spinning at half a
+CPU for the rest of the run, slowing every later test on a 2-vCPU host until the run ran
+out of time (CI, 2026-11-29). After each test this plugin looks for descendants of the
+pytest process that the test started and that are still running, ends them (SIGTERM, then
+SIGKILL), and fails the teardown of a test that passed: a leak is the test's defect. After
+a test that failed (or was skipped), the leftovers are only ended: the failure is the news.
+
+Descendants whose parent died are re-parented out of our tree and are not seen: the tests'
+own fixtures end their process groups.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+#: how long the leftovers get to end on SIGTERM before SIGKILL
+_GRACE_S = 5.0
+
+
+def _running_children() -> dict[int, list[int]]:
+    """Parent pid -> pids of its running (not zombie) children, from /proc."""
+    children: dict[int, list[int]] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:          # it ended while we looked
+            continue
+        # "pid (comm) state ppid ...": comm may hold spaces and parentheses
+        state, ppid = stat[stat.rfind(")") + 2:].split()[:2]
+        if state != "Z":
+            children.setdefault(int(ppid), []).append(int(entry.name))
+    return children
+
+
+def running_descendants(pid: int) -> set[int]:
+    """The running descendants of ``pid``."""
+    children = _running_children()
+    found: set[int] = set()
+    todo = list(children.get(pid, ()))
+    while todo:
+        child = todo.pop()
+        if child not in found:
+            found.add(child)
+            todo.extend(children.get(child, ()))
+    return found
+
+
+def _command_line(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()[:160]
+    except OSError:
+        return "(ended)"
+
+
+def _end(pids: set[int]) -> None:
+    for sig, wait in ((signal.SIGTERM, _GRACE_S), (signal.SIGKILL, 1.0)):
+        for pid in pids:
+            try:
+                os.kill(pid, sig)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + wait
+        while time.monotonic() < deadline:
+            pids = pids & running_descendants(os.getpid())
+            if not pids:
+                return
+            time.sleep(0.05)
+
+
+class ProcessLeaks:
+    """The plugin: an autouse fixture and the call phase's outcome it needs."""
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_makereport(self, item: pytest.Item, call: pytest.CallInfo):
+        report = yield
+        if report.when == "call":
+            item.stash[_CALL_PASSED] = report.passed
+        return report
+
+    @pytest.fixture(autouse=True)
+    def no_process_outlives_its_test(self, request: pytest.FixtureRequest):
+        # autouse and function scoped: set up after the wider fixtures (whose processes
+        # are in `before`), torn down after the test's other fixtures
+        before = running_descendants(os.getpid())
+        yield
+        left = running_descendants(os.getpid()) - before
+        if not left:
+            return
+        lines = [f"  {pid}: {_command_line(pid)}" for pid in sorted(left)]
+        _end(left)
+        if request.node.stash.get(_CALL_PASSED, False):
+            pytest.fail(f"{len(left)} process(es) the test started were still running after "
+                        "it (ended now):\n" + "\n".join(lines), pytrace=False)
+
+
+_CALL_PASSED = pytest.StashKey[bool]()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.pluginmanager.register(ProcessLeaks(), "hil-process-leaks")
