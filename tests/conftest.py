@@ -56,6 +56,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     at the end of the run (CI, 2026-11-29). A stable sort: each file's tests stay together
     and in order."""
     _one_case_on_socketcan(config, items)
+
     def allowed(item: pytest.Item) -> float:
         mark = item.get_closest_marker("timeout")
         return float(mark.args[0]) if mark is not None and mark.args else 0.0

@@ -8,8 +8,7 @@ pytest process that the test started and that are still running, ends them (SIGT
 SIGKILL), and fails the teardown of a test that passed: a leak is the test's defect. After
 a test that failed (or was skipped), the leftovers are only ended: the failure is the news.
 
-Descendants whose parent died are re-parented out of our tree and are not seen: the tests'
-own fixtures end their process groups.
+Descendants whose parent died are re-parented out of our tree and are not seen.
 """
 
 from __future__ import annotations
@@ -25,20 +24,27 @@ import pytest
 _GRACE_S = 5.0
 
 
+def state_and_parent(pid: int) -> tuple[str, int] | None:
+    """A process' state letter (R, S, Z...) and its parent's pid, from /proc; None once it
+    is gone."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    # "pid (comm) state ppid ...": comm may hold spaces and parentheses
+    state, ppid = stat[stat.rfind(")") + 2:].split()[:2]
+    return state, int(ppid)
+
+
 def _running_children() -> dict[int, list[int]]:
     """Parent pid -> pids of its running (not zombie) children, from /proc."""
     children: dict[int, list[int]] = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
-        try:
-            stat = (entry / "stat").read_text()
-        except OSError:          # it ended while we looked
-            continue
-        # "pid (comm) state ppid ...": comm may hold spaces and parentheses
-        state, ppid = stat[stat.rfind(")") + 2:].split()[:2]
-        if state != "Z":
-            children.setdefault(int(ppid), []).append(int(entry.name))
+        known = state_and_parent(int(entry.name))
+        if known is not None and known[0] != "Z":
+            children.setdefault(known[1], []).append(int(entry.name))
     return children
 
 

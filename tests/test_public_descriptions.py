@@ -39,6 +39,7 @@ def descriptions() -> list[str]:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(600)      # 130 s here alone; over 300 s on CI's shared vCPUs (2026-11-29)
 def test_hil_check_loads_nearly_every_public_description_and_shows_no_traceback(capsys):
     # `hil check` on a description is load_description and Plant, as hil sim builds them: one
     # pass over the corpus (it took two, one in-process, before; 4 minutes on CI)
@@ -46,13 +47,11 @@ def test_hil_check_loads_nearly_every_public_description_and_shows_no_traceback(
     for name in descriptions():
         code = main(["check", str(ROBOTS / name), "--package-path", str(SHARE)])
         out, err = capsys.readouterr()
-        assert "Traceback" not in err, (name, err)
+        assert "Traceback" not in out + err, (name, out + err)
         assert code in (0, 1), (name, code)
         if code == 1:             # told as a file, its line and what to do
             assert re.search(r"^\S+:\d+: error: .*\n    what to do: ", err, re.M), (name, err)
             failed[name] = err
-        else:
-            assert "Traceback" not in out
     loaded = len(descriptions()) - len(failed)
     assert len(descriptions()) >= 70 and loaded / len(descriptions()) >= 0.9
     assert set(failed) == set(EXPECTED_FAILURES), failed
@@ -60,8 +59,8 @@ def test_hil_check_loads_nearly_every_public_description_and_shows_no_traceback(
 
 #: robots hil never shipped (bases fixed): an arm, a quadruped, a humanoid (two of its joints
 #: without limits: the default class), a hand. tiago_no_hand (a mobile manipulator whose
-#: prismatic lift slows its demo) runs too, measured in docs/performance.md, but its demo took
-#: 8 minutes of CI's 90 here and is left out of the suite
+#: prismatic lift slows its demo) passed here too (2026-11-29), but its demo took 8 minutes
+#: of CI's 90 and is left out of the suite (docs/getting-started.md says so)
 BENCHES = ["panda_description/urdf/panda.urdf", "go1_description/urdf/go1.urdf",
            "romeo_description/urdf/romeo.urdf",
            "allegro_hand_description/urdf/allegro_right_hand.urdf"]
