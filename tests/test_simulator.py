@@ -23,7 +23,8 @@ from hil.bus_config import load_bus_config
 from hil.cli import common
 from hil.cli.sim import status_lines
 from hil.drives import Fault
-from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FaultKind
+from hil.hardware import (LOCK_STEP_REPLY_TIMEOUT, MISSED_ANSWER_LIMIT, CanHardwareInterface,
+                          FaultKind)
 from hil.simulator import LOCK_STEP_WATCHDOG, MAX_CATCH_UP, Simulator
 from hil.realtime import LOCK_STEP, REAL_TIME
 
@@ -178,16 +179,24 @@ def master_and_sim(request):
         sim_bus.shutdown()
 
 
-@pytest.mark.parametrize("request_timeout, waits", [(1 / 500, 0.3), (LOCK_STEP_REPLY_TIMEOUT,
-                                                                        LOCK_STEP_REPLY_TIMEOUT)],
+def test_a_lock_step_master_waits_for_a_bring_up_answer_as_long_as_a_drive_may_be_silent():
+    """In lock-step a stalled sim is slow, not dead: a bring-up request waits as long as the
+    cycles let a drive go unheard (MISSED_ANSWER_LIMIT answers of LOCK_STEP_REPLY_TIMEOUT);
+    in real time that is shorter than canopen's own 0.3 s, which stands (the axis' max)."""
+    config = load_bus_config(UR3_VIRTUAL)
+    lock_step = CanHardwareInterface(config, {}, reply_timeout=LOCK_STEP_REPLY_TIMEOUT)
+    assert lock_step.request_timeout == MISSED_ANSWER_LIMIT * LOCK_STEP_REPLY_TIMEOUT
+    assert CanHardwareInterface(config, {}).request_timeout < 0.3
+
+
+@pytest.mark.parametrize("request_timeout, waits", [(1 / 500, 0.3), (0.6, 0.6)],
                          ids=["real-time", "lock-step"])
-def test_a_lock_step_bring_up_waits_its_reply_timeout_for_each_sdo_answer(request_timeout, waits):
+def test_a_bring_up_waits_its_request_timeout_for_each_sdo_answer(request_timeout, waits):
     """canopen's SDO client gives up on an answer after 0.3 s; a sim stalled in User-Mode
     Linux answers later than that (CI, 2026-11-28: `hil up --lock-step` failed its bring-up).
-    In lock-step a stalled sim is slow, not dead: the master's bring-up waits as long for an
-    SDO answer as for a cycle's (LOCK_STEP_REPLY_TIMEOUT); in real time canopen's 0.3 s
-    stand. A drive that never answers still fails, naming it (at the earliest after that
-    wait: only a lower bound of time is judged)."""
+    A master that waits longer (lock-step's) holds its axes' SDO to its wait; in real time
+    canopen's 0.3 s stand. A drive that never answers still fails, naming it (at the earliest
+    after that wait: only a lower bound of time is judged)."""
     from hil.errors import HilError
     from hil.protocols.cia402.axis import Cia402Axis
     config = load_bus_config(UR3_VIRTUAL)

@@ -101,6 +101,10 @@ class CanHardwareInterface(HardwareInterface):
         # a drive may legitimately be unheard while its answers are still within the limit of
         # missed ones: in lock-step (LOCK_STEP_REPLY_TIMEOUT), a stalled sim is slow, not dead
         self._answer_silence_limit = MISSED_ANSWER_LIMIT * self.reply_timeout
+        #: the least time a bring-up request waits for its answer (s): as long as a drive may
+        #: be unheard in the cycles (CI, 2026-11-29: a go1 bring-up in lock-step failed on an
+        #: SDO answer over 2 s late, its bus delivering up to 1.8 s late on a loaded host)
+        self.request_timeout = self._answer_silence_limit
         self._plausibility = PlausibilityCheck(config.robot, self.joint_names)
         #: each cycle's round trip (s): its SYNC (last frame) sent to its last answer in
         self.round_trips = Ring(PeriodStatistics.KEEP)
@@ -345,7 +349,7 @@ class CanHardwareInterface(HardwareInterface):
                              name="configure", daemon=True).start()
 
     def _configure(self, axis: Axis) -> None:
-        axis.request_timeout = self.reply_timeout    # lock-step's longer wait holds here too
+        axis.request_timeout = self.request_timeout
         axis.configure()
         axis.feedback.cycle = self._cycle    # missed answers count from here on
 
