@@ -50,20 +50,8 @@ hypothesis.settings.load_profile("hil")
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """On SocketCAN, a test marked ``socketcan_runs_one_case`` runs its first case only (see
-    _one_case_on_socketcan); then the files whose tests are allowed longest (their
-    ``timeout`` marks) first, the rest in their order: under ``--dist loadfile`` each file
-    goes to the next idle worker, and the 30-minute SocketCAN file handed out last ran alone
-    at the end of the run (CI, 2026-11-29). A stable sort: each file's tests stay together
-    and in order."""
+    _one_case_on_socketcan)."""
     _one_case_on_socketcan(config, items)
-
-    def allowed(item: pytest.Item) -> float:
-        mark = item.get_closest_marker("timeout")
-        return float(mark.args[0]) if mark is not None and mark.args else 0.0
-    longest: dict[Path, float] = {}
-    for item in items:
-        longest[item.path] = max(longest.get(item.path, 0.0), allowed(item))
-    items.sort(key=lambda item: -longest[item.path])
 
 
 def _one_case_on_socketcan(config: pytest.Config, items: list[pytest.Item]) -> None:

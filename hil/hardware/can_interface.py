@@ -98,13 +98,9 @@ class CanHardwareInterface(HardwareInterface):
         self._pending: list[AxisFault] = []
         self._arrived = threading.Condition()
         self._awaiting = False          # a reader is in _await_feedback
-        # a drive may legitimately be unheard while its answers are still within the limit of
-        # missed ones: in lock-step (LOCK_STEP_REPLY_TIMEOUT), a stalled sim is slow, not dead
-        self._answer_silence_limit = MISSED_ANSWER_LIMIT * self.reply_timeout
-        #: the least time a bring-up request waits for its answer (s): as long as a drive may
-        #: be unheard in the cycles (CI, 2026-11-29: a go1 bring-up in lock-step failed on an
-        #: SDO answer over 2 s late, its bus delivering up to 1.8 s late on a loaded host)
-        self.request_timeout = self._answer_silence_limit
+        # a drive may be unheard while its answers are within the limit of missed ones (in
+        # lock-step a stalled sim is slow, not dead); a bring-up request waits as long (s)
+        self._answer_silence_limit = self.request_timeout = MISSED_ANSWER_LIMIT * self.reply_timeout
         self._plausibility = PlausibilityCheck(config.robot, self.joint_names)
         #: each cycle's round trip (s): its SYNC (last frame) sent to its last answer in
         self.round_trips = Ring(PeriodStatistics.KEEP)
