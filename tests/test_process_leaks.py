@@ -12,7 +12,12 @@ pytest_plugins = ["pytester"]
 
 INNER = textwrap.dedent("""\
     import subprocess
+    import sys
     import pytest
+
+    # ends half a second after SIGTERM, as a stack's process shuts down
+    SLOW_TO_END = ("import signal, sys, time; signal.signal(signal.SIGTERM, lambda *a: "
+                   "(time.sleep(0.5), sys.exit(0))); print('ready', flush=True); time.sleep(600)")
 
     def start_sleeper(tmp_path, name):
         process = subprocess.Popen(["sleep", "600"])
@@ -30,6 +35,11 @@ INNER = textwrap.dedent("""\
         process = start_sleeper(tmp_path, "tidy")
         process.kill()
         process.wait()
+
+    def test_stopping_its_process_without_waiting_for_it():
+        process = subprocess.Popen([sys.executable, "-c", SLOW_TO_END], stdout=subprocess.PIPE)
+        assert process.stdout.readline().strip() == b"ready"
+        process.terminate()
     """)
 
 
@@ -39,12 +49,14 @@ def _running(pid: int) -> bool:
 
 
 def test_a_left_process_is_ended_and_fails_a_passing_test_only(pytester):
+    """A process still ending when its test ends is given its time and no failure."""
     pytester.makeconftest(f"import sys\nsys.path.insert(0, {str(TESTS)!r})\n"
+                          "import process_leaks\nprocess_leaks.SETTLE_S = 5.0\n"
                           "pytest_plugins = ['process_leaks']\n")
     pytester.makepyfile(test_inner=INNER)
     result = pytester.runpytest_subprocess("-rfE", "-p", "no:cacheprovider",
                                            f"--basetemp={pytester.path / 'tmp'}")
-    result.assert_outcomes(passed=2, failed=1, errors=1)
+    result.assert_outcomes(passed=3, failed=1, errors=1)
     output = result.stdout.str()
     assert "ERROR test_inner.py::test_passing_but_leaving_a_process" in output
     result.stdout.fnmatch_lines(["*1 process(es) the test started were still running after it*",
