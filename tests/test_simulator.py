@@ -190,7 +190,7 @@ def test_a_lock_step_master_waits_for_a_bring_up_answer_as_long_as_a_drive_may_b
 
 
 @pytest.mark.parametrize("request_timeout, waits", [(1 / 500, 0.3), (0.6, 0.6)],
-                         ids=["real-time", "lock-step"])
+                         ids=["canopen's", "longer"])
 def test_a_bring_up_waits_its_request_timeout_for_each_sdo_answer(request_timeout, waits):
     """canopen's SDO client gives up on an answer after 0.3 s; a sim stalled in User-Mode
     Linux answers later than that (CI, 2026-11-28: `hil up --lock-step` failed its bring-up).

@@ -6,5 +6,6 @@ from hil.hardware.can_interface import (BOOT_TIMEOUT, LOCK_STEP_REPLY_TIMEOUT, M
                                          CanHardwareInterface)
 from hil.hardware.interface import FakeHardwareInterface, HardwareInterface
 
-__all__ = ["AxisFault", "BOOT_TIMEOUT", "CanHardwareInterface", "FaultKind", "FakeHardwareInterface", "HardwareInterface",
-           "JointFeedback", "LOCK_STEP_REPLY_TIMEOUT", "MISSED_ANSWER_LIMIT"]
+__all__ = ["AxisFault", "BOOT_TIMEOUT", "CanHardwareInterface", "FaultKind",
+           "FakeHardwareInterface", "HardwareInterface", "JointFeedback",
+           "LOCK_STEP_REPLY_TIMEOUT", "MISSED_ANSWER_LIMIT"]
