@@ -325,6 +325,24 @@ def _zenoh_threads_scheduling(pid: int):
     return setting(pid), threads
 
 
+def test_the_plant_clock_tells_no_time_before_its_first_sample():
+    """A message stamped before the plant's time was known and re-stamped after (late, on a
+    stalled host) gets no plant time: extrapolated back it would read before the clock's
+    first sample (CI, 2026-11-29: a joint state at 99.9 s after a clock starting at 100)."""
+    settings = ZenohSettings(listen=(f"tcp/127.0.0.1:{free_loopback_port()}",))
+    clock = PlantClock(session(settings), "ur3")
+    try:
+        assert clock.at(1000.0) is None
+        clock.add(1000.0, 100.0)
+        clock.add(1000.05, 100.1)                      # twice the wall's pace
+        assert clock.at(999.99) is None
+        assert clock.at(1000.0) == pytest.approx(100.0)
+        assert clock.at(1000.1) == pytest.approx(100.2)
+    finally:
+        clock.close()
+        close(settings)
+
+
 def test_use_sim_time_stamps_joint_states_feedback_and_goals_on_the_plants_clock(router):
     hil_session = ZenohSettings(listen=(f"tcp/127.0.0.1:{free_loopback_port()}",))
     plant = PlantClock(session(hil_session), "ur3")

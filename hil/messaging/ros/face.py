@@ -13,6 +13,7 @@ put again with rmw_zenoh's attachment on the ROS key expressions.
 
 from __future__ import annotations
 
+import math
 import os
 import struct
 import threading
@@ -102,6 +103,7 @@ class PlantClock:
 
     def __init__(self, session: zenoh.Session, robot: str):
         self._samples: tuple[tuple[float, float], ...] = ()     # the last two (wall, plant)
+        self._since = math.inf          # the wall time of the first sample
         self._subscriber = session.declare_subscriber(key(robot, "sim/clock"),
                                                       direct(self._on_sample))
 
@@ -113,12 +115,15 @@ class PlantClock:
         self.add(clock.wall_time, clock.sim_time)
 
     def add(self, wall_time: float, plant_time: float) -> None:
+        self._since = min(self._since, wall_time)
         self._samples = (*self._samples[-1:], (wall_time, plant_time))
 
     def at(self, wall_time: float) -> float | None:
-        """The plant's time at ``wall_time`` (s since the epoch); None before a sample."""
+        """The plant's time at ``wall_time`` (s since the epoch); None before the first
+        sample's wall time (a message stamped then and sent after it, late on a stalled
+        host, would carry a time from before the plant's time was known: CI, 2026-11-29)."""
         samples = self._samples
-        if not samples:
+        if not samples or wall_time < self._since:
             return None
         wall, plant = samples[-1]
         rate = 1.0
