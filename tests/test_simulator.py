@@ -185,8 +185,8 @@ def test_a_lock_step_master_waits_for_a_bring_up_answer_as_long_as_a_drive_may_b
     in real time that is shorter than canopen's own 0.3 s, which stands (the axis' max)."""
     config = load_bus_config(UR3_VIRTUAL)
     lock_step = CanHardwareInterface(config, {}, reply_timeout=LOCK_STEP_REPLY_TIMEOUT)
-    assert lock_step.request_timeout == MISSED_ANSWER_LIMIT * LOCK_STEP_REPLY_TIMEOUT
-    assert CanHardwareInterface(config, {}).request_timeout < 0.3
+    assert lock_step.answer_silence_limit == MISSED_ANSWER_LIMIT * LOCK_STEP_REPLY_TIMEOUT
+    assert CanHardwareInterface(config, {}).answer_silence_limit < 0.3
 
 
 @pytest.mark.parametrize("request_timeout, waits", [(1 / 500, 0.3), (0.6, 0.6)],

@@ -98,9 +98,9 @@ class CanHardwareInterface(HardwareInterface):
         self._pending: list[AxisFault] = []
         self._arrived = threading.Condition()
         self._awaiting = False          # a reader is in _await_feedback
-        # a drive may be unheard while its answers are within the limit of missed ones (in
-        # lock-step a stalled sim is slow, not dead); a bring-up request waits as long (s)
-        self._answer_silence_limit = self.request_timeout = MISSED_ANSWER_LIMIT * self.reply_timeout
+        #: how long a drive may be unheard, its answers within the limit of missed ones (in
+        #: lock-step a stalled sim is slow, not dead); a bring-up request waits as long (s)
+        self.answer_silence_limit = MISSED_ANSWER_LIMIT * self.reply_timeout
         self._plausibility = PlausibilityCheck(config.robot, self.joint_names)
         #: each cycle's round trip (s): its SYNC (last frame) sent to its last answer in
         self.round_trips = Ring(PeriodStatistics.KEEP)
@@ -300,7 +300,7 @@ class CanHardwareInterface(HardwareInterface):
             if fault is not None:
                 self._report(axis.label, fault.message, fault)
             silence = now - axis.last_heard
-            if silence > max(axis.silence_limit, self._answer_silence_limit):
+            if silence > max(axis.silence_limit, self.answer_silence_limit):
                 self._report(axis.label, "heartbeat", axis.found(
                     FaultKind.SILENT, f"is silent: not heard for {silence * 1e3:.0f} ms",
                     silent_for=silence))
@@ -345,7 +345,7 @@ class CanHardwareInterface(HardwareInterface):
                              name="configure", daemon=True).start()
 
     def _configure(self, axis: Axis) -> None:
-        axis.request_timeout = self.request_timeout
+        axis.request_timeout = self.answer_silence_limit
         axis.configure()
         axis.feedback.cycle = self._cycle    # missed answers count from here on
 
