@@ -4,7 +4,7 @@ import os
 
 import pytest
 
-from hil.realtime import CyclePacer, PeriodStatistics
+from hil.realtime import CyclePacer, PeriodStatistics, lock_step_cpus, real_time_cpus
 
 PERIOD = 0.001
 
@@ -171,3 +171,13 @@ def test_statistics_keep_the_latest_cycles_in_order_and_count_them_all():
     statistics.clear()
     statistics.add(PERIOD, 0.0)
     assert list(statistics.samples) == [PERIOD] and statistics.count == 1
+
+
+def test_lock_step_puts_sim_and_controller_on_one_cpu_and_real_time_on_one_each():
+    # lock-step: the two take turns, so one CPU for both; the visualiser on the others
+    assert lock_step_cpus({0, 1}) == ({1}, {1}, {0})
+    assert lock_step_cpus({0, 1, 2, 3}) == ({3}, {3}, {0, 1, 2})
+    # real time: a CPU each, the visualiser on the rest (anywhere with two)
+    assert real_time_cpus({0, 1, 2, 3}) == ({2}, {3}, {0, 1})
+    assert real_time_cpus({0, 1}) == ({0}, {1}, None)
+    assert lock_step_cpus({5}) == real_time_cpus({5}) == (None, None, None)

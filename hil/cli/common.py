@@ -278,8 +278,17 @@ def add_timing(parser: argparse.ArgumentParser, lock_step_help: str) -> None:
 
 def add_cpus(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cpus", metavar="LIST",
-                        help="real time: run on these CPUs only, e.g. 1 or 2,3 (default: any; "
-                             "hil up gives sim and controller a CPU each)")
+                        help="run on these CPUs only, e.g. 1 or 2,3 (default: any; hil up "
+                             "gives sim and controller a CPU each in real time, one CPU "
+                             "together in lock-step)")
+
+
+def keep_on_cpus(args: argparse.Namespace) -> None:
+    """Keep this process (and the threads it starts after) on the CPUs of --cpus, if given,
+    at its scheduling as it is (lock-step, and the visualiser)."""
+    chosen = cpus(args)
+    if chosen:
+        os.sched_setaffinity(0, chosen)
 
 
 def cpus(args: argparse.Namespace) -> set[int] | None:

@@ -78,7 +78,9 @@ def run(args: argparse.Namespace) -> int:
     for warning in controllers.warnings:
         print(f"hil control: {warning}", file=sys.stderr)
     zenoh = common.zenoh_settings(args)
-    if not args.timing.lock_step:  # the frame handling just below the loop (its own priority)
+    if args.timing.lock_step:
+        common.keep_on_cpus(args)
+    else:                          # the frame handling just below the loop (its own priority)
         enter_real_time(max(0, args.priority - 1), common.cpus(args))
     # after the scheduling: Zenoh's runtime threads, started with the session, inherit it
     common.refuse_a_second(zenoh, config.robot.name, "control")

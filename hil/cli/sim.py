@@ -68,6 +68,8 @@ def run(args: argparse.Namespace) -> int:
         print(warning, file=sys.stderr)
     zenoh = common.zenoh_settings(args)
     frame_faults, drive_faults = _faults(args, config)
+    if args.timing.lock_step:
+        common.keep_on_cpus(args)
     scheduling = ("lock-step" if args.timing.lock_step
                   else enter_real_time(args.priority, common.cpus(args)))
     # after the scheduling: Zenoh's runtime threads, started with the session, inherit it

@@ -76,8 +76,7 @@ def run(args: argparse.Namespace) -> int:
     zenoh = common.zenoh_settings(args)
     if not args.timing.lock_step:
         enter_background()      # never the real-time processes' time (its threads inherit it)
-    if common.cpus(args):
-        os.sched_setaffinity(0, common.cpus(args))
+    common.keep_on_cpus(args)
     names = "+".join(c.robot.name for c in configs)
     recording = rr.RecordingStream("hil", recording_id=f"{names}-{os.getpid()}")
     sinks = _sinks(args)

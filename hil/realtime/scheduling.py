@@ -71,6 +71,20 @@ def real_time_cpus(cpus: set[int] | None = None) -> tuple[set[int] | None, set[i
     return {usable[-2]}, {usable[-1]}, rest
 
 
+def lock_step_cpus(cpus: set[int] | None = None) -> tuple[set[int] | None, set[int] | None,
+                                                           set[int] | None]:
+    """Where ``hil up --lock-step`` puts (sim, controller, visualiser): simulator and
+    controller together on the last CPU this process may use, the visualiser on the others.
+    In lock-step the two take turns, never run at once, and a hand-over within one CPU costs
+    less than waking a process on another (an inter-processor interrupt, dear in a virtual
+    machine): the ur3's demo took 23 s so against 38 s apart on 2 vCPUs (2026-11-29,
+    docs/performance.md). None: anywhere (a single CPU)."""
+    usable = sorted(cpus if cpus is not None else os.sched_getaffinity(0))
+    if len(usable) < 2:
+        return None, None, None
+    return {usable[-1]}, {usable[-1]}, set(usable[:-1])
+
+
 _side = threading.local()
 
 

@@ -149,7 +149,8 @@ def run(args: argparse.Namespace) -> int:
     status = 0
     watchers: list = []
     try:
-        start_in_order(robots, viz, supervised, zenoh, watchers)
+        start_in_order(robots, viz, supervised, zenoh, watchers,
+                       together=args.timing.lock_step)
         for robot in robots:
             robot.progress.count_stalls()
         if not stop.is_set():

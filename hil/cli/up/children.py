@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+from functools import partial
 from pathlib import Path
 
 from hil.bus_config import SystemConfig
@@ -13,7 +14,7 @@ from hil.cli.up.robots import RobotRun
 from hil.errors import HilError
 from hil.hardware import BOOT_TIMEOUT
 from hil.messaging.zenoh_api import ProcessWatch, RunSubscriber
-from hil.realtime import real_time_cpus
+from hil.realtime import lock_step_cpus, real_time_cpus
 from hil.supervisor import Child, Run, cpus_argument, wait_alive
 from hil.zenoh_session import ZenohSettings, session
 
@@ -36,8 +37,9 @@ def make_children(args: argparse.Namespace, robots: list[RobotRun], faults: list
     # over TLS the processes are not pinned to a CPU each: pinned, every `hil up ur3 --secure`
     # on 2 CPUs faulted within a second as soon as a third process took the traffic (the
     # transport 40-107 ms late), unpinned 3 of 3 ran clean (docs/performance.md)
-    placed = {name: [] if lock_step or args.secure else cpus_argument(cpus)
-              for name, cpus in zip(("sim", "control", "viz"), real_time_cpus())}
+    placement = lock_step_cpus() if lock_step else real_time_cpus()
+    placed = {name: [] if args.secure else cpus_argument(cpus)
+              for name, cpus in zip(("sim", "control", "viz"), placement)}
     for robot in robots:
         config = [str(robot.config_path), *can_options(args, robot.config), *shared]
         ros = _ros_options(args, robot.name, several)
@@ -77,16 +79,18 @@ def _ros_options(args: argparse.Namespace, robot: str, several: bool) -> list[st
 
 
 def start_in_order(robots: list[RobotRun], viz: Child, supervised: Run, zenoh: ZenohSettings,
-           watchers: list) -> None:
+                   watchers: list, together: bool = False) -> None:
     """Start the sims, the visualiser and the controllers in turn, each once the one before
     is alive on Zenoh; the controllers held before their bring-up until all of them have
     started, so that no real-time loop runs while another process starts (the import of a
     controller took the CPU from the first robot's loop: its transport 29-43 ms late and its
-    drives silent, in 2 of 2 runs of ``hil up ur3 pigot`` on 2 CPUs). The watchers it makes
-    go into ``watchers`` (to be closed however the start ends)."""
+    drives silent, in 2 of 2 runs of ``hil up ur3 pigot`` on 2 CPUs). ``together`` (lock-step,
+    where no loop can be starved): all of them started at once, their imports overlapping,
+    then waited for in the same order (Zenoh's meeting point takes any order of start). The
+    watchers it makes go into ``watchers`` (to be closed however the start ends)."""
     watches: dict[str, ProcessWatch] = {}
 
-    def started(child: Child, robot: RobotRun, token: str | None = None) -> None:
+    def start(child: Child) -> None:
         child.start()
         supervised.children.append(child)
         if not watches:        # the first sim holds the meeting point, or has joined it
@@ -96,27 +100,31 @@ def start_in_order(robots: list[RobotRun], viz: Child, supervised: Run, zenoh: Z
                 watchers.extend([watches[each.name], RunSubscriber(
                     session(zenoh), each.name, progress.on_samples, lambda wall, sim: None,
                     progress.problems.append, progress.on_diagnostic, progress.on_stall)])
-        if token is None:
-            wait_alive(supervised, watches[robot.name].wait_alive, child)
-        else:
-            supervised.wait_until(child, lambda timeout: watches[robot.name].wait_alive(
-                token, timeout), "started (waiting to bring its drives up)")
+
+    def sim_alive(robot: RobotRun) -> None:
+        wait_alive(supervised, watches[robot.name].wait_alive, robot.children["sim"])
+
+    def viz_alive() -> None:       # the one visualiser declares itself for every robot
+        wait_alive(supervised, lambda name, timeout: all(
+            watches[robot.name].wait_alive(name, timeout) for robot in robots), viz)
+
+    def control_held(robot: RobotRun) -> None:
+        supervised.wait_until(robot.children["control"], lambda timeout: watches[
+            robot.name].wait_alive("control/held", timeout),
+            "started (waiting to bring its drives up)")
 
     # the visualiser starts before the controllers: its start-up (rerun, the robot models)
     # is CPU-heavy, and must not starve the first real-time cycles
-    for robot in robots:
-        started(robot.children["sim"], robot)
-        if supervised.stop.is_set():
-            return
-    viz.start()
-    supervised.children.append(viz)
-    # the one visualiser declares itself for every robot
-    wait_alive(supervised, lambda name, timeout: all(
-        watches[robot.name].wait_alive(name, timeout) for robot in robots), viz)
-    if supervised.stop.is_set():
-        return
-    for robot in robots:
-        started(robot.children["control"], robot, "control/held")
+    steps = [*((robot.children["sim"], partial(sim_alive, robot)) for robot in robots),
+             (viz, viz_alive),
+             *((robot.children["control"], partial(control_held, robot)) for robot in robots)]
+    if together:
+        for child, _ in steps:
+            start(child)
+    for child, alive in steps:
+        if not together:
+            start(child)
+        alive()
         if supervised.stop.is_set():
             return
     for robot in robots:
