@@ -49,30 +49,36 @@ hypothesis.settings.load_profile("hil")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """On SocketCAN, a test marked ``socketcan_runs_one_case`` runs its first case only (see
-    _one_case_on_socketcan)."""
-    _one_case_on_socketcan(config, items)
+    """Over SocketCAN only the tests marked ``wire`` run (see _socketcan_cases); then the
+    files whose tests are allowed longest (their ``timeout`` marks) first, the rest in their
+    order: under ``--dist loadfile`` each file goes to the next idle worker, and the long
+    SocketCAN file handed out last ran alone at the end of the run (CI, 2026-11-29). A
+    stable sort: each file's tests stay together and in order."""
+    _socketcan_cases(config, items)
 
-
-def _one_case_on_socketcan(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Deselect the SocketCAN variants of a ``socketcan_runs_one_case`` test but its first
-    case: its cases (abort codes, PDO parameters, modes) differ in what the drive answers,
-    which the virtual bus checks case by case; SocketCAN adds the wire, which one case
-    checks, at about 20 s a test inside User-Mode Linux."""
-    kept, dropped, seen = [], [], set()
+    def allowed(item: pytest.Item) -> float:
+        mark = item.get_closest_marker("timeout")
+        return float(mark.args[0]) if mark is not None and mark.args else 0.0
+    longest: dict[Path, float] = {}
     for item in items:
-        callspec = getattr(item, "callspec", None)      # only parametrised tests have one
-        if (item.get_closest_marker("socketcan_runs_one_case") is not None
-                and callspec is not None and callspec.params.get("transport") == "socketcan"):
-            function = (item.path, getattr(item, "originalname", item.name))
-            if function in seen:
-                dropped.append(item)
-                continue
-            seen.add(function)
-        kept.append(item)
+        longest[item.path] = max(longest.get(item.path, 0.0), allowed(item))
+    items.sort(key=lambda item: -longest[item.path])
+
+
+def _socketcan_cases(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Deselect the SocketCAN variants (the ``transport`` fixture's) of the tests not marked
+    ``wire``. The virtual bus checks what a drive answers, case by case; SocketCAN adds the
+    wire (the kernel's delivery to other sockets, RTR frames, bursts, a drive's timers
+    against real frames), which the ``wire`` tests check, at about 20 s a test inside
+    User-Mode Linux: all 64 took 20-30 minutes there beside a second worker on a 2-vCPU
+    host like CI's (2026-11-29)."""
+    dropped = [item for item in items
+               if getattr(item, "callspec", None) is not None     # only parametrised ones
+               and item.callspec.params.get("transport") == "socketcan"
+               and item.get_closest_marker("wire") is None]
     if dropped:
         config.hook.pytest_deselected(items=dropped)
-        items[:] = kept
+        items[:] = [item for item in items if item not in dropped]
 
 
 def judged_in_real_time(request: pytest.FixtureRequest) -> None:

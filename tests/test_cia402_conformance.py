@@ -104,6 +104,7 @@ def pre_operational(bench, node_id: int = 1) -> canopen.BaseNode402:
 
 # --- NMT states ---------------------------------------------------------------------------
 
+@pytest.mark.wire("NMT frames from another process, through the kernel")
 def test_a_stopped_node_answers_only_nmt_and_heartbeat(bench):
     node = pre_operational(bench)
     node.nmt.state = "OPERATIONAL"
@@ -137,6 +138,7 @@ def test_a_pre_operational_node_ignores_pdos_without_emcy(bench):
     assert node.sdo[0x6041].raw & 0x4F == 0x40              # still SWITCH ON DISABLED
 
 
+@pytest.mark.wire("the frame order another socket sees")
 @pytest.mark.parametrize("command", [0x81, 0x82], ids=["reset node", "reset communication"])
 def test_the_boot_up_is_the_first_frame_a_node_sends_after_a_reset(bench, command):
     """CiA 301 7.2.8.3.2.1: after a reset the node sends its boot-up (0x700 + id, 00), then
@@ -185,7 +187,6 @@ def test_reset_communication_restores_the_communication_parameters(bench):
 
 # --- SDO -----------------------------------------------------------------------------------
 
-@pytest.mark.socketcan_runs_one_case
 @pytest.mark.parametrize("what, code", [
     ("an object the drive does not have", 0x06020000),
     ("a sub-index the object does not have", 0x06090011),
@@ -240,6 +241,7 @@ def test_an_expedited_download_without_size_takes_the_objects_size(bench):
     assert node.sdo[0x6060].raw == 1
 
 
+@pytest.mark.wire("a segmented transfer's frames back to back")
 def test_the_device_name_and_versions_come_by_segmented_upload(bench):
     """CiA 301 0x1008-0x100A (VISIBLE_STRING, const): longer than 4 bytes, so uploaded in
     segments (issue 44: no object was larger than 4 bytes); a write is refused as to any
@@ -286,7 +288,6 @@ def test_canopen_pdo_save_remaps_a_tpdo_with_three_objects_in_cia301_order(bench
     assert position == pytest.approx(node.sdo[0x6064].raw, abs=500)   # braked: still
 
 
-@pytest.mark.socketcan_runs_one_case
 @pytest.mark.parametrize("what, code", [
     ("the mapping of a valid PDO", 0x06090030),
     ("an entry while the count is not 0", 0x06090030),
@@ -355,6 +356,7 @@ def _retype_tpdo(node, number: int, trans_type: int, entries=None, event_timer: 
     tpdo.save()
 
 
+@pytest.mark.wire("SYNC and TPDOs on a real bus")
 def test_a_tpdo_of_transmission_type_n_goes_out_at_every_nth_sync(bench):
     node = pre_operational(bench)
     _retype_tpdo(node, 2, 3)
@@ -383,6 +385,7 @@ def test_a_tpdo_of_transmission_type_0_goes_out_at_a_sync_after_a_change(bench):
     assert struct.unpack("<Hb", tap.of(0x381)[-1].data)[1] == 9
 
 
+@pytest.mark.wire("a drive's own timer against the wire")
 def test_an_event_driven_tpdo_goes_out_on_its_event_timer_without_sync(bench):
     node = pre_operational(bench)
     _retype_tpdo(node, 3, 254, entries=(0x6041,), event_timer=50)
@@ -429,6 +432,7 @@ def _sent_intervals(tap: FrameTap, can_id: int) -> list[float]:
     return [b - a for a, b in zip(times, times[1:])]
 
 
+@pytest.mark.wire("a master's heartbeat lost on the wire stops the axis")
 def test_the_heartbeat_consumer_quick_stops_when_the_masters_heartbeat_stops(bench):
     node = enable_csp(bench)
     node.sdo[0x2010].raw = 0                            # the setpoint watchdog off: the
@@ -454,7 +458,6 @@ def test_one_heartbeat_consumer_entry_per_producer(bench):
         0x1016, 2, struct.pack("<L", (0x7F << 16) | 500))) == 0x06040043
 
 
-@pytest.mark.socketcan_runs_one_case
 @pytest.mark.parametrize("option, state", [(0, "OPERATION ENABLED"), (1, "FAULT"),
                                            (2, "SWITCH ON DISABLED"),
                                            (3, "QUICK STOP ACTIVE")])
@@ -507,6 +510,7 @@ def _enable_in(bench, mode: str) -> canopen.BaseNode402:
     return node
 
 
+@pytest.mark.wire("a move commanded over the wire")
 def test_profile_position_moves_to_a_target_with_a_set_point_handshake(bench):
     node = _enable_in(bench, "PROFILED POSITION")
     velocity = round(20 / (2 * math.pi) * COUNTS)       # 20 rad/s at the motor
@@ -610,7 +614,6 @@ def test_repeated_disable_commands_do_not_let_a_braked_axis_creep(bench, how):
     assert after == pytest.approx(before, abs=1e-3)
 
 
-@pytest.mark.socketcan_runs_one_case
 @pytest.mark.parametrize("mode", [8, 9, 10], ids=["CSP", "CSV", "CST"])
 def test_statusword_bit_12_says_the_drive_follows_the_target_in_every_cyclic_mode(bench, mode):
     """CiA 402 (IEC 61800-7-201) 0x6041 bit 12 in CSP, CSV and CST: 1, the drive follows the

@@ -58,6 +58,7 @@ def joint_from_counts(counts: int) -> float:
     return counts / COUNTS * 2 * math.pi / REDUCTION
 
 
+@pytest.mark.wire("canopen's master moves the joint over SocketCAN")
 def test_canopen_master_moves_the_mujoco_joint_in_csp(bench):
     node = enable_csp(bench)
     assert node.state == "OPERATION ENABLED"
@@ -100,6 +101,7 @@ def test_statusword_and_mode_over_sdo_match_the_pdo(bench):
     assert refused.value.code == 0x06090030
 
 
+@pytest.mark.wire("a silent master on the wire stops the axis")
 def test_silent_controller_trips_the_watchdog_into_quick_stop_with_emcy(bench):
     node = enable_csp(bench)
     timeout = bench.config.drives[0].watchdog_timeout
@@ -113,6 +115,7 @@ def test_silent_controller_trips_the_watchdog_into_quick_stop_with_emcy(bench):
     assert node.state == "QUICK STOP ACTIVE"
 
 
+@pytest.mark.wire("EMCY and a fault reset over the wire")
 def test_following_error_faults_with_emcy_and_fault_reset_recovers(bench):
     node = enable_csp(bench)
     start = node.tpdo[1]["Position actual value"].raw
@@ -131,6 +134,7 @@ def test_following_error_faults_with_emcy_and_fault_reset_recovers(bench):
     assert emcy_logged_after(node, 0x0000, Fault.FOLLOWING_ERROR.code)   # "error reset" EMCY
 
 
+@pytest.mark.wire("any frame the kernel delivers")
 def test_garbage_frames_never_crash_the_drive(bench):
     node = enable_csp(bench)
     send = bench.master_bus.send

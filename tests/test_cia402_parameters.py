@@ -29,6 +29,7 @@ def _reset_node(bench, node) -> None:
     time.sleep(0.1)
 
 
+@pytest.mark.wire("a reset node seen from another socket")
 def test_saved_application_parameters_come_back_after_a_reset_node(bench):
     node = pre_operational(bench)
     configured = node.sdo[0x6065].raw

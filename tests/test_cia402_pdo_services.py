@@ -6,6 +6,7 @@ from __future__ import annotations
 import time
 
 import can
+import pytest
 
 from test_cia402_conformance import FrameTap, abort_code, pre_operational, wait_until
 
@@ -33,6 +34,7 @@ def _operational(bench):
     return node
 
 
+@pytest.mark.wire("RTR frames exist on a real bus")
 def test_an_rtr_on_a_tpdo_that_allows_it_is_answered_with_the_tpdo(bench):
     node = _operational(bench)
     answers = _answers_to_rtr(bench, TPDO2)
@@ -43,12 +45,14 @@ def test_an_rtr_on_a_tpdo_that_allows_it_is_answered_with_the_tpdo(bench):
     assert _answers_to_rtr(bench, TPDO2) == []
 
 
+@pytest.mark.wire("RTR frames exist on a real bus")
 def test_an_rtr_outside_operational_is_not_answered(bench):
     node = _operational(bench)
     node.nmt.state = "PRE-OPERATIONAL"
     assert _answers_to_rtr(bench, TPDO2) == []
 
 
+@pytest.mark.wire("a SYNC's counter byte on the wire")
 def test_with_a_sync_counter_a_sync_must_carry_it_and_a_tpdo_starts_at_its_start_value(bench):
     node = pre_operational(bench)
     assert abort_code(lambda: node.sdo.download(0x1019, 0, b"\x01")) == 0x06090030

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import struct
 
+import pytest
+
 from test_cia402_conformance import FrameTap, pre_operational, raw, wait_until
 
 SDO_REQUEST, SDO_ANSWER = 0x601, 0x581
@@ -15,6 +17,7 @@ def _answers(tap: FrameTap) -> list[bytes]:
     return [bytes(msg.data) for msg in tap.of(SDO_ANSWER)]
 
 
+@pytest.mark.wire("a block's burst of frames")
 def test_a_block_upload_gives_the_device_name_with_its_crc(bench):
     node = pre_operational(bench)
     expected = node.sdo.upload(0x1008, 0)                 # segmented
@@ -41,6 +44,7 @@ def test_a_block_upload_at_or_under_the_switch_threshold_is_a_normal_upload(benc
     assert _answers(tap)[0][0] == 0xC6
 
 
+@pytest.mark.wire("a block's burst of frames")
 def test_a_block_download_writes_the_object(bench):
     node = pre_operational(bench)
     with node.sdo.open(0x6081, 0, "wb", size=4, block_transfer=True) as stream:

@@ -20,6 +20,7 @@ from hil.errors import HilError
 from hil.messaging.scene import SceneState
 from hil.plant import Plant
 from conftest import ROOT, example_robot_data, init_check_and_demo, rrd_series
+from test_public_descriptions import assert_meshes_recorded
 
 SHARE = example_robot_data()
 needs_corpus = pytest.mark.skipif(SHARE is None, reason="example-robot-data is not installed "
@@ -161,8 +162,9 @@ def test_a_quadruped_made_a_bench_by_hil_init_stands_ten_seconds_under_joint_con
     """The acceptance path: `hil init` + `hil up --demo` on Unitree's Go1 (lock-step here:
     CI's two shared CPUs are no place to judge real time). The demo holds its twelve leg
     joints through CiA 402 drives for 10 s; the base's height, read back from the recording,
-    stays within 2 cm of where it started."""
+    stays within 2 cm of where it started; the recording draws the Go1's meshes."""
     config, save = init_check_and_demo(GO1, tmp_path, SHARE)
+    assert_meshes_recorded(GO1, save)
     times, position = rrd_series(save, "/base/position")
     start = Plant(load_description(GO1, PackagePath((SHARE,))), scene=(floor(),),
                   floating_base=True, start_pose=dict(load_bus_config(
