@@ -51,9 +51,10 @@ hypothesis.settings.load_profile("hil")
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Over SocketCAN only the tests marked ``wire`` run (see _socketcan_cases); then the
     files whose tests are allowed longest (their ``timeout`` marks) first, the rest in their
-    order: under ``--dist loadfile`` each file goes to the next idle worker, and the long
-    SocketCAN file handed out last ran alone at the end of the run (CI, 2026-11-29). A
-    stable sort: each file's tests stay together and in order."""
+    order: under ``--dist loadfile`` each file goes to the next idle worker in this order
+    (pyproject's ``--no-loadscope-reorder``), and the long SocketCAN file handed out last ran
+    alone at the end of the run (2026-11-29). A stable sort: each file's tests stay together
+    and in order."""
     _socketcan_cases(config, items)
 
     def allowed(item: pytest.Item) -> float:

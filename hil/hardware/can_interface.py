@@ -131,7 +131,7 @@ class CanHardwareInterface(HardwareInterface):
             hold = self.read(watch=False).positions
             now = time.monotonic()
             silent = [a.label for a in self.axes if not a.booted.is_set()]
-            if now - began > self.boot_timeout:
+            if silent and now - began > self.boot_timeout:    # a cycle may outlast it
                 raise HilError.single(
                     f"{'; '.join(silent)}: not heard within {self.boot_timeout:g} s after "
                     "reset" + unreached_links(self._buses),
