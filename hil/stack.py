@@ -41,6 +41,13 @@ from hil.realtime.timing import REAL_TIME, Timing
 
 #: a real-time bring-up on a loaded machine can miss answers and fault: it is tried again
 START_ATTEMPTS = 3
+
+
+class StackDidNotStart(RuntimeError):
+    """No attempt of :func:`running_stack` brought its controller to cycling; the message
+    gives every attempt's reason."""
+
+
 #: the stacks' default bus: python-can's virtual bus, frames handed over in the sender's
 #: thread
 IN_PROCESS = "hil-virtual"
@@ -117,8 +124,8 @@ class Stack:
 def running_stack(config: SystemConfig, timing: Timing = REAL_TIME, interface: str = IN_PROCESS,
                   channels: dict[str, str] | None = None, injectable: bool = False,
                   faces: Sequence[FaceFactory] = ()) -> Iterator[Stack]:
-    """A :class:`Stack` whose controller cycles (tried START_ATTEMPTS times; RuntimeError
-    with every attempt's reason if none comes up), closed on exit."""
+    """A :class:`Stack` whose controller cycles (tried START_ATTEMPTS times;
+    :class:`StackDidNotStart` with every attempt's reason if none comes up), closed on exit."""
     failures = []
     for _ in range(START_ATTEMPTS):
         stack = Stack(config, timing, interface, channels, injectable, faces)
@@ -127,7 +134,7 @@ def running_stack(config: SystemConfig, timing: Timing = REAL_TIME, interface: s
         failures.append(str(stack.error or "no bring-up within 30 s"))
         stack.close()
     else:
-        raise RuntimeError(f"the stack did not start in {START_ATTEMPTS} attempts: "
+        raise StackDidNotStart(f"the stack did not start in {START_ATTEMPTS} attempts: "
                            + " | ".join(failures))
     gc.collect()
     gc.freeze()        # start-up's objects out of the collector's way, as hil sim/control do

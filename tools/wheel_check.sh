@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Build hil's wheel, install it into a fresh virtual environment and run `hil check ur3`,
-# `hil up pigot --demo --no-viewer --lock-step`, `hil bench --quick` and the pytest examples of
-# docs/testing.md (with JUnit) from an empty folder: what a user gets from `pip install`, with
-# no checkout in reach. Run from the repository root.
+# `hil up pigot --demo --no-viewer --lock-step` and the pytest examples of docs/testing.md (with
+# JUnit) from an empty folder: what a user gets from `pip install`, with no checkout in reach.
+# `hil bench --quick` is tests/test_bench.py's (CI's hosts are slower now: stop 58 took 4,614 s
+# of CI's 5,400 before this check's bench had run a fifth). Run from the repository root.
 set -euo pipefail
 root=$(pwd)
 work=$(mktemp -d)
@@ -19,7 +20,6 @@ echo "wheel check: $(ls "$work"/dist) in a fresh environment, from an empty fold
 # lock-step: this checks what the wheel installs; real time is `hil bench`'s to measure (on a
 # shared 2-CPU VM a hypervisor stall mid-demo is a silent drive, issue 18)
 "$work/venv/bin/hil" up pigot --demo --no-viewer --lock-step
-"$work/venv/bin/hil" bench --quick
 # a user's own tests, as docs/testing.md shows them, with hil's pytest plugin from the wheel
 "$work/venv/bin/pip" install --quiet pytest
 "$work/venv/bin/python" - "$root/docs/testing.md" <<'PY'

@@ -53,8 +53,8 @@ from hil.bench.processes import across_processes, lock_step_across_processes
 from hil.bench.real_time import real_time, socketcan, timing_floor, vcan_missing
 from hil.bench.scale import scale
 from hil.bench.settings import (
-    ACROSS_PROCESSES, ACROSS_PROCESSES_QUICK, FIGURES, RATES, ROBOTS, BenchSettings,
-    with_feed_forward, with_rate,
+    ACROSS_PROCESSES, ACROSS_PROCESSES_QUICK, DID_NOT_START, FIGURES, RATES, ROBOTS,
+    BenchSettings, with_feed_forward, with_rate,
 )
 from hil.bench.soak import run_soak
 from hil.bench.tracking import tracking, tracking_goal
@@ -63,8 +63,9 @@ from hil.compiled import is_compiled
 from hil.stack import IN_PROCESS
 from hil.zenoh_session import close_all
 
-__all__ = ["ACROSS_PROCESSES", "ACROSS_PROCESSES_QUICK", "FIGURES", "LOCK_STEP_WINDOW", "RATES",
-           "ROBOTS", "BenchSettings", "run_bench", "run_soak", "tracking_goal", "with_rate"]
+__all__ = ["ACROSS_PROCESSES", "ACROSS_PROCESSES_QUICK", "DID_NOT_START", "FIGURES",
+           "LOCK_STEP_WINDOW", "RATES", "ROBOTS", "BenchSettings", "run_bench", "run_soak",
+           "runs_not_started", "tracking_goal", "with_rate"]
 
 
 def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> dict:
@@ -121,4 +122,19 @@ def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> di
     if absent:
         raise RuntimeError(f"figures missing from the report: {', '.join(absent)}")
     return report
+
+
+def runs_not_started(report: dict) -> list[str]:
+    """The real-time runs of a report whose stack did not start, each named in words."""
+    rows = [(f"{row['robot']} at {row['rate_hz']:g} Hz", row)
+            for row in report["control_cycle"]]
+    rows += [(f"fault detection: {row['fault']}", row) for row in report["fault_detection"]]
+    rows += [(f"{row['robot']} at {row['rate_hz']:g} Hz across processes"
+              f"{' with the visualiser' if row['viz'] else ''}", row)
+             for row in report["across_processes"]]
+    rows += [(f"scale: {row['drives']} drives at {row['rate_hz']:g} Hz", row)
+             for row in report["scale"]]
+    if isinstance(report["socketcan"], list):
+        rows += [(f"{row['robot']} over SocketCAN", row) for row in report["socketcan"]]
+    return [name for name, row in rows if DID_NOT_START in row]
 

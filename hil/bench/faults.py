@@ -4,10 +4,13 @@ controller reports it."""
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 from hil.bus_config import SystemConfig
 from hil.can.faults import FrameFault, FrameFaultKind
-from hil.stack import running_stack
+from hil.bench.settings import DID_NOT_START
+from hil.simulator import Simulator
+from hil.stack import StackDidNotStart, running_stack
 from hil.realtime.timing import REAL_TIME
 
 
@@ -27,16 +30,24 @@ def fault_detection(config: SystemConfig, timeout: float = 3.0) -> list[dict]:
     }
     rows = []
     for kind, inject in kinds.items():
-        with running_stack(config, REAL_TIME, injectable=True) as stack:
-            time.sleep(0.2)
-            reported = len(stack.node.faults)
-            started = time.perf_counter()
-            inject(stack.sim, stack.sim_buses)
-            while len(stack.node.faults) == reported and time.perf_counter() - started < timeout:
-                time.sleep(0.0005)
-            elapsed = time.perf_counter() - started
-            detected = len(stack.node.faults) > reported
-            rows.append({"fault": kind, "detected": detected,
-                         "detection_ms": elapsed * 1e3 if detected else None,
-                         "first_report": str(stack.node.faults[reported]) if detected else None})
+        try:
+            rows.append({"fault": kind, **_detection(config, inject, timeout)})
+        except StackDidNotStart as failure:
+            rows.append({"fault": kind, "detected": False, "detection_ms": None,
+                         "first_report": None, DID_NOT_START: str(failure)})
     return rows
+
+
+def _detection(config: SystemConfig, inject: Callable[[Simulator, dict], object],
+               timeout: float) -> dict:
+    with running_stack(config, REAL_TIME, injectable=True) as stack:
+        time.sleep(0.2)
+        reported = len(stack.node.faults)
+        started = time.perf_counter()
+        inject(stack.sim, stack.sim_buses)
+        while len(stack.node.faults) == reported and time.perf_counter() - started < timeout:
+            time.sleep(0.0005)
+        elapsed = time.perf_counter() - started
+        detected = len(stack.node.faults) > reported
+        return {"detected": detected, "detection_ms": elapsed * 1e3 if detected else None,
+                "first_report": str(stack.node.faults[reported]) if detected else None}

@@ -26,9 +26,9 @@ from pathlib import Path
 import yaml
 
 from hil.bench.floor import floor_across_processes
-from hil.bench.settings import BenchSettings
+from hil.bench.settings import DID_NOT_START, BenchSettings
 from hil.bus_config import load_bus_config
-from hil.supervisor import Child, Run, cpus_argument, viz_summary
+from hil.supervisor import Child, ChildFailed, Run, cpus_argument, viz_summary
 from hil.realtime import LOCK_STEP, REAL_TIME, Timing, real_time_cpus
 from hil.zenoh_session import free_loopback_port
 
@@ -94,7 +94,8 @@ def stack_across_processes(config_path: Path, seconds: float, with_viz: bool,
                            timing: Timing = REAL_TIME) -> dict:
     """One run of ``hil sim`` + ``hil control`` (+ ``hil viz``) on the config: in real time,
     placed on the CPUs as ``hil up`` places them; or in lock-step, where ``hil up`` places
-    nothing."""
+    nothing. A real-time run whose child exits (a bring-up the host's stalls failed) is
+    the row :data:`DID_NOT_START`."""
     sim_cpus, control_cpus, viz_cpus = (None, None, None) if timing.lock_step else real_time_cpus()
     timing_options = ["--lock-step"] if timing.lock_step else []
     with tempfile.TemporaryDirectory(prefix="hil-bench-") as folder:
@@ -102,8 +103,8 @@ def stack_across_processes(config_path: Path, seconds: float, with_viz: bool,
         endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
         report = folder / "control.json"
         children = [Child("sim", ["sim", str(config_path), "--listen", endpoint,
-                                  "--status-period", "0", *timing_options, *cpus_argument(sim_cpus)],
-                          folder / "sim.log")]
+                                  "--status-period", "0", *timing_options,
+                                  *cpus_argument(sim_cpus)], folder / "sim.log")]
         if with_viz:
             children.append(Child("viz", ["viz", str(config_path), "--connect", endpoint, "--save",
                                           str(folder / "run.rrd"), "--can-log",
@@ -124,6 +125,10 @@ def stack_across_processes(config_path: Path, seconds: float, with_viz: bool,
             run.wait(seconds)
             cpu = {child.name: (_cpu_seconds(child.pid) - cpu_start[child.name]) / seconds
                    for child in children}
+        except ChildFailed as failure:
+            if timing.lock_step:        # no stall of the host fails a lock-step run
+                raise
+            return {DID_NOT_START: str(failure)}
         finally:
             problems = run.shut_down()
         if not report.exists():

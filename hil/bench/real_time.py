@@ -9,7 +9,7 @@ import time
 import can
 import numpy as np
 
-from hil.bench.settings import ROBOTS, BenchSettings
+from hil.bench.settings import DID_NOT_START, ROBOTS, BenchSettings
 from hil.bus_config import SystemConfig, load_bus_config
 from hil.can import socketcan_missing
 from hil.can.monitor import BusLoadMeter
@@ -17,10 +17,19 @@ from hil.messaging import cdr
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import key
 from hil.realtime import REAL_TIME, CyclePacer, PeriodStatistics
-from hil.stack import IN_PROCESS, running_stack
+from hil.stack import IN_PROCESS, StackDidNotStart, running_stack
 
 
 def real_time(config: SystemConfig, seconds: float) -> tuple[dict, dict, list[dict]]:
+    """The control cycle's figures, the latency's and each bus' load over ``seconds`` of
+    real time; if the stack did not start, a cycle row with :data:`DID_NOT_START`."""
+    try:
+        return _real_time(config, seconds)
+    except StackDidNotStart as failure:
+        return {DID_NOT_START: str(failure)}, {"unavailable": "the stack did not start"}, []
+
+
+def _real_time(config: SystemConfig, seconds: float) -> tuple[dict, dict, list[dict]]:
     with running_stack(config, REAL_TIME) as stack:
         meters = _listen(config, stack.channels)
         latency = _LatencyProbe(stack.zenoh, config.robot.name)
@@ -138,10 +147,14 @@ def socketcan(settings: BenchSettings) -> list[dict]:
     for robot in ROBOTS:
         config = load_bus_config(settings.config_dir / f"{robot}.yaml")
         channels = dict(zip((b.name for b in config.buses), ("vcan0", "vcan1")))
-        with running_stack(config, False, "socketcan", channels) as stack:
-            stack.node.statistics.clear()
-            time.sleep(settings.seconds)
-            rows.append({"robot": robot, "rate_hz": config.cycle_hz,
-                         **stack.node.statistics.figures()})
+        row = {"robot": robot, "rate_hz": config.cycle_hz}
+        try:
+            with running_stack(config, REAL_TIME, "socketcan", channels) as stack:
+                stack.node.statistics.clear()
+                time.sleep(settings.seconds)
+                row.update(stack.node.statistics.figures())
+        except StackDidNotStart as failure:
+            row[DID_NOT_START] = str(failure)
+        rows.append(row)
     return rows
 

@@ -19,7 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from hil.bench.processes import stack_across_processes
-from hil.bench.settings import BenchSettings
+from hil.bench.settings import DID_NOT_START, BenchSettings
 from hil.commissioning.initial import initial_config
 from hil.description import load_description
 from hil.description.packages import PackagePath
@@ -46,6 +46,10 @@ def scale(settings: BenchSettings, folder: Path, say: Callable[[str], None]) -> 
             say(f"hil bench: scale, {drives} drives at {rate:g} Hz across processes ...")
             config, buses = scale_bench(drives, rate, folder)
             run = stack_across_processes(config, settings.seconds, False)
+            if DID_NOT_START in run:
+                rows.append({"drives": drives, "rate_hz": rate, "buses": buses, "holds": False,
+                             DID_NOT_START: run[DID_NOT_START]})
+                continue
             cycles = max(run.get("cycles", 0), 1)
             # a CPU share over the measured window, at the rate's cycles a second
             per_cycle = {name: share / rate * 1e6 for name, share in run["cpu"].items()}

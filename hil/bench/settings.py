@@ -10,6 +10,10 @@ from hil.protocols.cia402 import Cia402, Cia402Options
 from hil.resources import BUS_CONFIGS, data_dir
 
 ROBOTS = ("ur3", "pigot")
+#: the key of a real-time run's row whose stack did not start or run through, with why (every
+#: attempt's reason): a host that cannot hold real time (a 2-vCPU VM's stalls) fails a
+#: bring-up, and the bench reports it beside the runs that did start rather than losing them
+DID_NOT_START = "did_not_start"
 RATES = (250.0, 500.0, 1000.0)
 #: the figures every report has (a row list, or {"unavailable": why})
 FIGURES = ("control_cycle", "timing_floor", "socketcan", "lock_step", "overhead", "latency",

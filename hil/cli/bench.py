@@ -6,15 +6,33 @@ import argparse
 import json
 import math
 import sys
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
-from hil.bench import LOCK_STEP_WINDOW, BenchSettings, run_bench, run_soak
+from hil.bench import (
+    DID_NOT_START, LOCK_STEP_WINDOW, BenchSettings, run_bench, run_soak, runs_not_started,
+)
 from hil.bench.scale import HOLDS_MISSED, largest_holding
 from hil.cli import common
+from hil.stack import START_ATTEMPTS, StackDidNotStart
+from hil.supervisor import ChildFailed
+
+#: exit status: the report is whole but some real-time run did not start or run through (why
+#: is in its row): a host that stalls past the drives' silence limits, or a regression of the
+#: real-time bring-up (the lock-step runs, which no stall fails, ran)
+NOT_STARTED_STATUS = 3
+#: what a row whose stack did not start shows in the table
+NOT_STARTED = "did not start (why: the report's did_not_start)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.epilog = (
+        "exit status: 0 every figure measured; 1 a run failed (the error names it); "
+        f"{NOT_STARTED_STATUS} the report is whole but some real-time run did not start (an "
+        f"in-process stack in {START_ATTEMPTS} attempts, or a process of a run across processes "
+        "exited; the table names each, the report says why): a host that stalls past the "
+        "drives' silence limits, or a regression; rerun to tell")
     parser.add_argument("--quick", action="store_true",
                         help="short runs (about a minute; what CI runs)")
     parser.add_argument("--seconds", type=common.duration, metavar="TIME",
@@ -31,21 +49,37 @@ def run(args: argparse.Namespace) -> int:
     if args.seconds is not None:
         settings = replace(settings, seconds=args.seconds)
     say = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
-    if args.soak:
-        soak = run_soak(args.soak, settings, say=say)
-        args.json.write_text(json.dumps({"soak": soak}, indent=2))
-        print(f"soak {soak['seconds']:g} s, {soak['robot']}: {soak['repetitions']} repetitions, "
-              f"{soak['failed']} failed; final position error first {soak['final_error_first']:.5f}"
-              f", last {soak['final_error_last']:.5f}, max {soak['final_error_max']:.5f}; "
-              f"memory growth {soak['rss_growth_bytes'] / 1e6:.1f} MB, after the first repetition"
-              f" {soak['rss_growth_after_first_bytes'] / 1e6:.2f} MB; missed {soak['missed']} "
-              f"of {soak['cycles']} cycles")
-        print(f"hil bench: report in {args.json}")
-        return 0
+    try:
+        return _soak(args, settings, say) if args.soak else _bench(args, settings, say)
+    except (StackDidNotStart, ChildFailed) as failure:
+        # a lock-step run, which no stall of the host fails, or the soak's one long run
+        say(f"hil bench: error: {failure}")
+        return 1
+
+
+def _soak(args: argparse.Namespace, settings: BenchSettings, say: Callable[[str], None]) -> int:
+    soak = run_soak(args.soak, settings, say=say)
+    args.json.write_text(json.dumps({"soak": soak}, indent=2))
+    print(f"soak {soak['seconds']:g} s, {soak['robot']}: {soak['repetitions']} repetitions, "
+          f"{soak['failed']} failed; final position error first {soak['final_error_first']:.5f}"
+          f", last {soak['final_error_last']:.5f}, max {soak['final_error_max']:.5f}; "
+          f"memory growth {soak['rss_growth_bytes'] / 1e6:.1f} MB, after the first repetition"
+          f" {soak['rss_growth_after_first_bytes'] / 1e6:.2f} MB; missed {soak['missed']} "
+          f"of {soak['cycles']} cycles")
+    print(f"hil bench: report in {args.json}")
+    return 0
+
+
+def _bench(args: argparse.Namespace, settings: BenchSettings, say: Callable[[str], None]) -> int:
     report = run_bench(settings, say=say)
     args.json.write_text(json.dumps(report, indent=2))
     print(format_table(report))
     print(f"\nhil bench: report in {args.json}")
+    not_started = runs_not_started(report)
+    if not_started:
+        say(f"hil bench: {len(not_started)} real-time run(s) did not start: "
+            f"{', '.join(not_started)}; their figures are missing from the report")
+        return NOT_STARTED_STATUS
     return 0
 
 
@@ -70,6 +104,9 @@ def _cycle_lines(report: dict) -> list[str]:
              f"{'max us':>7} {'missed':>6} {'busy p50':>9} {'p99 us':>7} {'sim RTF':>8} "
              f"{'e2e p50 ms':>11} {'e2e p99 ms':>11}"]
     for cycle, latency in zip(report["control_cycle"], report["latency"]):
+        if DID_NOT_START in cycle:
+            lines.append(f"  {cycle['robot']:<6} {cycle['rate_hz']:>5.0f} {NOT_STARTED}")
+            continue
         lines.append(
             f"  {_cycle_columns(cycle['robot'], cycle)} {cycle['sim_real_time_factor']:>8.2f} "
             f"{latency.get('p50_ms', float('nan')):>11.2f} "
@@ -82,11 +119,12 @@ def _cycle_lines(report: dict) -> list[str]:
 def _socketcan_lines(report: dict) -> list[str]:
     """Real time over SocketCAN, where vcan exists."""
     socketcan = report["socketcan"]
-    lines = ["", "SocketCAN: " + (socketcan["unavailable"] if isinstance(socketcan, dict) else
-                                   "; ".join(f"{r['robot']} {r['rate_hz']:g} Hz p99 "
-                                             f"{r['error_p99_us']:.0f} us, missed {r['missed']}"
-                                             for r in socketcan))]
-    return lines
+    if isinstance(socketcan, dict):
+        return ["", f"SocketCAN: {socketcan['unavailable']}"]
+    return ["", "SocketCAN: " + "; ".join(
+        f"{r['robot']} {r['rate_hz']:g} Hz " + (NOT_STARTED if DID_NOT_START in r else
+                                                 f"p99 {r['error_p99_us']:.0f} us, missed "
+                                                 f"{r['missed']}") for r in socketcan)]
 
 
 def _lock_step_lines(report: dict) -> list[str]:
@@ -119,7 +157,8 @@ def _tracking_and_fault_lines(report: dict) -> list[str]:
                      f"{row['ideal_servo_rms']:.4f} max {row['ideal_servo_max']:.4f}")
     lines += ["", "fault detection (ur3, 500 Hz: injected on bus 'arm')"]
     for row in report["fault_detection"]:
-        when = f"{row['detection_ms']:6.1f} ms" if row["detected"] else "NOT DETECTED"
+        when = (NOT_STARTED if DID_NOT_START in row else f"{row['detection_ms']:6.1f} ms"
+                if row["detected"] else "NOT DETECTED")
         lines.append(f"  {row['fault']:<22} {when}  {row['first_report'] or ''}")
     return lines
 
@@ -135,6 +174,10 @@ def _across_process_lines(report: dict) -> list[str]:
               f"{'p99':>5} {'floor p50':>10} {'p99':>5} {'x p99':>6} {'faults':>6} "
               f"{'stalls s/c/t':>12}  CPU"]
     for row in report["across_processes"]:
+        if DID_NOT_START in row:
+            lines.append(f"  {row['robot']:<8} {row['rate_hz']:>5.0f} "
+                         f"{'yes' if row['viz'] else 'no':>4} {NOT_STARTED}")
+            continue
         floor = row["floor"]
         cpu = " ".join(f"{name} {share:.0%}" for name, share in row["cpu"].items())
         missed = f"{row['missed']} {100 * row['missed'] / max(row['cycles'], 1):.2f}%"
@@ -145,7 +188,8 @@ def _across_process_lines(report: dict) -> list[str]:
             f"{row['cycles']:>7} {row.get('error_p50_us', math.nan):>7.0f} "
             f"{row.get('error_p99_us', math.nan):>7.0f} {row.get('error_max_us', math.nan):>7.0f}"
             f" {missed:>7} {row.get('busy_p50_us', math.nan):>9.0f} "
-            f"{row.get('busy_p99_us', math.nan):>5.0f} {row.get('round_trip_p50_us', math.nan):>7.0f}"
+            f"{row.get('busy_p99_us', math.nan):>5.0f} "
+            f"{row.get('round_trip_p50_us', math.nan):>7.0f}"
             f" {row.get('round_trip_p99_us', math.nan):>5.0f} "
             f"{floor.get('round_trip_p50_us', math.nan):>10.0f} "
             f"{floor.get('round_trip_p99_us', math.nan):>5.0f} "
@@ -185,6 +229,10 @@ def _scale_lines(report: dict) -> list[str]:
              f"{'busy p50':>9} {'p99':>6} {'rt p99':>7} {'sim us':>7} {'ctl us':>7} "
              f"{'faults':>6}  holds"]
     for row in report["scale"]:
+        if DID_NOT_START in row:
+            lines.append(f"  {row['drives']:>6} {row['rate_hz']:>5.0f} {row['buses']:>5} "
+                         f"{NOT_STARTED}")
+            continue
         per_cycle = row["cpu_us_per_cycle"]
         lines.append(
             f"  {row['drives']:>6} {row['rate_hz']:>5.0f} {row['buses']:>5} {row['cycles']:>7} "
