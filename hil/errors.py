@@ -59,6 +59,9 @@ class HilError(Exception):
     exits non-zero without a traceback.
     """
 
+    #: the CLI's exit status for it
+    exit_status = 1
+
     def __init__(self, diagnostics: Diagnostic | list[Diagnostic] | tuple[Diagnostic, ...]):
         if isinstance(diagnostics, Diagnostic):
             diagnostics = [diagnostics]

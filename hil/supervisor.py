@@ -93,7 +93,12 @@ class Child:
 
 
 class ChildFailed(Exception):
-    """A child exited (or failed to come up) while it should have been running."""
+    """A child exited (or failed to come up) while it should have been running; ``status``:
+    its exit status (None: it did not come up in time)."""
+
+    def __init__(self, message: str, status: int | None = None):
+        super().__init__(message)
+        self.status = status
 
 
 class Run:
@@ -110,7 +115,8 @@ class Run:
             status = child.exited()
             if status is not None and not child.expected_exit:
                 raise ChildFailed(f"{child.label} (pid {child.pid}) exited with status {status}; "
-                                  f"its last lines ({child.log_path}):\n{child.last_lines()}")
+                                  f"its last lines ({child.log_path}):\n{child.last_lines()}",
+                                  status)
 
     def wait(self, seconds: float) -> None:
         """Sleep up to ``seconds``, checking the children; return early when stopped."""

@@ -19,7 +19,7 @@ from hil.control_node.attribution import GRACE, FaultAttribution
 from hil.hardware import AxisFault, FaultKind
 from hil.realtime.stalls import Stall, StallDetector
 from hil.cli.run_progress import Progress
-from test_up import hil, read_rrd
+from test_up import hil, processes, read_rrd, watched_robot  # noqa: F401 (fixtures)
 
 #: judged against the host's stalls (tests/host_stalls.py): stalls and silences of real-time runs
 pytestmark = pytest.mark.real_time
@@ -184,7 +184,8 @@ def test_a_stopped_simulator_is_named_as_the_bench_fault_and_ends_with_the_bench
     # measured from the simulator's own 10 ms wake-ups: at least the stop less one period
     assert named and int(named.group(1) or named.group(2)) >= 1e3 * STOP - 10, err[-3000:]
     assert "the bench broke real time" in err
-    assert re.search(r"hil up: the bench's stalls over 5 ms: .*sim [1-9]", out), out[-2000:]
+    assert re.search(r"hil up: the bench since the controller's bring-up: stalls over 5 ms: "
+                     r".*sim [1-9]", out), out[-2000:]
     rows, static = read_rrd(tmp_path / "run.rrd")          # on the control loop's view
     assert rows["/loop/stalls/sim"] >= 1 and "/loop/stalls/sim" in static, rows
 
@@ -234,3 +235,34 @@ def test_a_drive_silenced_on_purpose_is_a_device_fault_the_bench_does_not_explai
     assert "drive node 1 (joint1) on bus 'arm' is silent: not heard for" in err, err
     assert re.search(r"fault\(s\), above, [1-9]\d* of them not explained by a stall of the "
                      r"bench", err), err
+
+
+@needs_sigstop
+def test_a_bring_up_that_fails_while_the_simulator_is_stopped_is_told_as_the_benchs(
+        tmp_path, processes, watched_robot):
+    """The simulator stopped from before the controller's release until past its boot wait:
+    no drive is heard, the bring-up fails, and the simulator's stall (reported once it
+    resumes, within the grace the controller waits) explains it: exit status 3."""
+    endpoint, watch = watched_robot
+    boot = 1.0
+    sim = hil("sim", "ur3", "--connect", endpoint, "--status-period", "0", cwd=tmp_path)
+    processes.append(sim)
+    assert watch.wait_alive("sim", 60), sim.stderr.read()
+    control = hil("control", "ur3", "--connect", endpoint, "--hold", "--boot-timeout",
+                  f"{boot:g}", stdin=subprocess.PIPE, cwd=tmp_path)
+    processes.append(control)
+    assert watch.wait_alive("control/held", 60), control.stderr.read()
+    os.kill(sim.pid, signal.SIGSTOP)
+    try:
+        control.stdin.write("\n")
+        control.stdin.flush()
+        time.sleep(boot + 0.5)
+    finally:
+        os.kill(sim.pid, signal.SIGCONT)
+    out, err = control.communicate(timeout=60)
+    assert control.returncode == 3, out + err
+    assert f"not heard within {boot:g} s after reset" in err, err
+    named = re.search(r"the bench itself stalled during the bring-up: .*the simulator "
+                      r"stalled (\d+) ms", err)
+    assert named and int(named.group(1)) >= 1e3 * boot, err
+    assert "Traceback" not in err

@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
         return command_module(args.command).run(args)
     except HilError as exc:
         print(exc, file=sys.stderr)
-        return 1
+        return exc.exit_status
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:      # `hil ... | head`: the reader left; nothing more to say

@@ -20,6 +20,7 @@ from hil.errors import HilError
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface
 from hil.messaging.zenoh_api import key
 from hil.realtime import REAL_TIME_PRIORITY, enter_real_time
+from hil.realtime.stalls import BENCH_STALL_STATUS
 from hil.zenoh_session import close_all, session
 
 
@@ -29,6 +30,12 @@ CONTROL_BOOT_TIMEOUT = 60.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.epilog = (
+        "exit status: 0 stopped (Ctrl-C, SIGTERM), the drives disabled; 1 an error (the "
+        "message names the drive that did not come up, or the input at fault); "
+        f"{BENCH_STALL_STATUS} in real time, the bring-up failed while the bench itself "
+        "stalled (the simulator, the Zenoh transport or this process did not run; the "
+        "message names the stalls): the bench broke real time, the drive need not have failed")
     parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
                                        "name (ur3, pigot)")
     parser.add_argument("--fake", action="store_true",

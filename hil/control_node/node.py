@@ -21,6 +21,7 @@ from collections.abc import Callable, Sequence
 import zenoh
 
 from hil.control_node.attribution import GRACE, Attribution, FaultAttribution
+from hil.control_node.bring_up import judged_bring_up
 from hil.control_node.fault_reset import RESET_TIMEOUT, FaultReset
 from hil.controllers.config import DEFAULT_GOAL_TOLERANCE, ControllersConfig, hil_controllers
 from hil.controllers.manager import ControllerManager
@@ -178,7 +179,7 @@ class ControlNode:
     def run(self) -> None:
         pacer = None
         try:
-            start = self.hardware.start(self._stop)
+            start = self._bring_up()
             self.manager.update(self.clock(), start.positions, start.velocities)
             self._token = self._session.liveliness().declare_token(
                 key(self.hardware.robot.name, "control"))
@@ -194,6 +195,20 @@ class ControlNode:
             if pacer is not None:
                 pacer.close()      # shutting down is not real-time work
             self._shut_down()
+
+    def _bring_up(self) -> JointFeedback:
+        """The hardware's start; in real time judged against the bench's stalls meanwhile."""
+        if self._stall_publisher is None:       # lock-step: no stall fails it
+            return self.hardware.start(self._stop)
+        return judged_bring_up(lambda: self.hardware.start(self._stop),
+                               self._stall_publisher.publish, self._heard_stalls,
+                               self._stop.is_set)
+
+    def _heard_stalls(self) -> list[Stall]:
+        heard = []
+        while not self._reported_stalls.empty():
+            heard.append(self._reported_stalls.get_nowait())
+        return heard
 
     def _cycle_once(self, pacer: CyclePacer | None) -> None:
         """One cycle: read, faults, the controller, write, record, publish."""

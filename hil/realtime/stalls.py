@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,6 +20,9 @@ from datetime import datetime
 #: a wake-up this much later than due is a stall (s): far above a SCHED_FIFO thread's
 #: wake-up jitter (tens of us), below a cycle's worth of a drive's silence limit
 STALL_THRESHOLD = 0.005
+#: a command's exit status where the bench's own stalls explain its failure: the bench broke
+#: real time, the device did not fail (1: the device's failure, or the user's)
+BENCH_STALL_STATUS = 3
 #: what each process is called in words
 PROCESS_WORDS = {"sim": "the simulator", "control": "the controller",
                  "transport": "the Zenoh transport", "link": "the link"}
@@ -165,3 +169,40 @@ class StallTally:
         return f"stalls over {threshold * 1e3:g} ms: " + ", ".join(
             f"{process} {count} (longest {longest * 1e3:.0f} ms)"
             for process, (count, longest) in sorted(self._counts.items()))
+
+
+class StallWatch:
+    """A thread of its own, while open, that wakes every ``period`` s and hands each stall of
+    ``process`` over ``threshold`` to ``report``: the stalls of a process where no paced loop
+    of its own runs to find them (the controller's bring-up). A stall of the whole process
+    (descheduled, a hypervisor's pause) is found; so is the interpreter lock held longer
+    than that by another thread of it, which stalls its real-time work alike."""
+
+    def __init__(self, process: str, report: Callable[[Stall], None], threshold: float,
+                 period: float = 0.01):
+        self._detector = StallDetector(process, period, threshold)
+        self._report = report
+        self._watching, self._closed = threading.Event(), threading.Event()
+        self._thread = threading.Thread(target=self._watch, name=f"{process} stall watch",
+                                        daemon=True)
+
+    def __enter__(self) -> StallWatch:
+        self._thread.start()
+        self._watching.wait()            # a stall from here on is found
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self._closed.set()
+        self._thread.join()
+
+    def _watch(self) -> None:
+        self._detector.tick()
+        self._watching.set()
+        while True:
+            closed = self._closed.wait(self._detector.period)
+            # the wake-up that closes it still measures: a stall up to the close is found
+            stall = self._detector.tick()
+            if stall is not None:
+                self._report(stall)
+            if closed:
+                return

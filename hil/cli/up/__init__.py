@@ -28,6 +28,7 @@ from hil.cli.up.children import make_children, start_in_order
 from hil.cli.up.demo import supervise
 from hil.cli.up.robots import RobotRun
 from hil.errors import HilError
+from hil.realtime.stalls import BENCH_STALL_STATUS
 from hil.supervisor import ChildFailed, Child, Run, kill_later, viz_summary
 from hil.visualisation.segments import SegmentLimit, segment_files
 from hil.zenoh_security import Identity
@@ -39,10 +40,11 @@ CAN_LOG_FORMATS = {".blf": "Vector BLF", ".log": "candump", ".asc": "Vector ASC"
                    ".trc": "PEAK TRC", ".csv": "python-can CSV"}
 
 #: exit status: every fault the controller reported was explained by a stall of the bench's
-#: own real-time processes (the simulator's, the controller's, the Zenoh transport's), or the
-#: run passed --max-stalls: the bench broke real time, the device did not fail (1: the device
-#: reported a fault, or a process failed)
-BENCH_FAULT_STATUS = 3
+#: own real-time processes (the simulator's, the controller's, the Zenoh transport's), the
+#: controller's bring-up failed during such a stall, or the run passed --max-stalls: the bench
+#: broke real time, the device did not fail (1: the device reported a fault, or a process
+#: failed)
+BENCH_FAULT_STATUS = BENCH_STALL_STATUS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -56,7 +58,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "the demo failed without a fault, or a process failed; "
         f"{BENCH_FAULT_STATUS} every fault the controller reported (and so a demo they "
         "aborted) was explained by a measured stall of the bench's own simulator, controller "
-        "or Zenoh transport, or the bench stalled more than --max-stalls times (the bench "
+        "or Zenoh transport, a controller's bring-up failed while the bench itself stalled, "
+        "or the bench stalled more than --max-stalls times (the bench "
         "broke real time: a flaky host, not a regression); 130 interrupted. With several "
         f"robots, the worst of theirs (1, then {BENCH_FAULT_STATUS})")
     parser.add_argument("target", nargs="*", metavar="ROBOT|CONFIG",
@@ -162,6 +165,12 @@ def run(args: argparse.Namespace) -> int:
     except ChildFailed as exc:
         print(f"hil up: {exc}", file=sys.stderr, flush=True)
         status = 1
+        if exc.status == BENCH_STALL_STATUS:       # only a controller's bring-up ends so
+            print("hil up: the controller's bring-up failed while the bench itself stalled "
+                  "(its error above names the stalls): the bench broke real time, the device "
+                  f"need not have failed; exit status {BENCH_FAULT_STATUS}", file=sys.stderr,
+                  flush=True)
+            status = BENCH_FAULT_STATUS
     finally:
         too_many = [r for r in robots if r.progress.too_many is not None]
         if too_many:
@@ -192,9 +201,9 @@ def run(args: argparse.Namespace) -> int:
     if not timing.lock_step:
         for robot in robots:
             with robot.progress.lock:
-                print(f"hil up: {robot.label}the bench's {robot.progress.stalls.summary()} "
-                      f"since the controller cycled (sim, control: their loops; transport: "
-                      f"Zenoh's deliveries)", flush=True)
+                print(f"hil up: {robot.label}the bench since the controller's bring-up: "
+                      f"{robot.progress.stalls.summary()} (sim, control: their loops; "
+                      f"transport: Zenoh's deliveries)", flush=True)
     _report_outputs(save, can_log, viz)
     return status
 
