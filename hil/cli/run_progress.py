@@ -57,8 +57,8 @@ class Progress:
                 self.worst = (float(errors.max()), batch.joint_names[int(errors.argmax())])
 
     def count_stalls(self) -> None:
-        """From now on count the stalls (the bring-up's, before the controller cycled, are
-        not the run's)."""
+        """From now on count the stalls: ``hil up`` calls it as it releases the controllers
+        (the bring-up's stalls are counted, the start-up's before it are not the run's)."""
         with self.lock:
             self._counting_since = time.time()
 
