@@ -149,8 +149,11 @@ class Run:
         self.wait_until(child, logged, f"up (no {text!r} in its log)")
 
     def shut_down(self) -> list[str]:
-        """Stop the running children: controller, visualiser, sim; return problems."""
-        order = {"control": 0, "viz": 1, "sim": 2}
+        """Stop the running children: controllers (their drives disabled), sims, then the
+        visualiser, which records what is still on its way from them (VizNode's drain: a
+        visualiser stopped before a sim cut the CAN log of a lock-step run short of the
+        controller's last frames, and the replay of the log failed); return problems."""
+        order = {"control": 0, "sim": 1, "viz": 2}
         problems = []
         for child in sorted(self.children, key=lambda c: order[c.name]):
             child.expected_exit = True

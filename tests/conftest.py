@@ -25,10 +25,12 @@ from hil.can import socketcan_missing as can_socketcan_missing
 from hil.cli import main
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.description import PackagePath, load_description
-from hil.messaging.zenoh_api import TrajectoryActionClient
+from hil.messaging.zenoh_api import ProcessWatch, TrajectoryActionClient
 from hil.simulator import Simulator
 from hil.stack import Stack
-from hil.zenoh_session import MEETING_VARIABLE, ZenohSettings, free_loopback_port
+from hil.zenoh_session import (
+    MEETING_VARIABLE, ZenohSettings, close, free_loopback_port, session,
+)
 from hil.realtime import REAL_TIME, Timing
 
 TESTS = Path(__file__).resolve().parent
@@ -522,3 +524,26 @@ def init_check_and_demo(description: Path, folder: Path, share: Path) -> tuple[P
     assert up.returncode == 0, up.stdout[-3000:] + up.stderr[-3000:]
     assert "hil up: demo succeeded" in up.stdout
     return config, save
+
+
+@pytest.fixture
+def processes():
+    """Processes a test starts; every one is ended (and reaped) afterwards."""
+    started: list[subprocess.Popen] = []
+    yield started
+    for process in started:
+        if process.poll() is None:
+            process.kill()
+        process.communicate()
+
+
+@pytest.fixture
+def watched_robot():
+    """A Zenoh session listening on a loopback port, watching the ur3's processes: (the
+    endpoint to give a process, its ProcessWatch)."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    settings = ZenohSettings(listen=(endpoint,))
+    watch = ProcessWatch(session(settings), "ur3")
+    yield endpoint, watch
+    watch.close()
+    close(settings)

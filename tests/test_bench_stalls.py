@@ -19,7 +19,7 @@ from hil.control_node.attribution import GRACE, FaultAttribution
 from hil.hardware import AxisFault, FaultKind
 from hil.realtime.stalls import Stall, StallDetector
 from hil.cli.run_progress import Progress
-from test_up import hil, processes, read_rrd, watched_robot  # noqa: F401 (fixtures)
+from test_up import hil, read_rrd
 
 #: judged against the host's stalls (tests/host_stalls.py): stalls and silences of real-time runs
 pytestmark = pytest.mark.real_time

@@ -24,7 +24,7 @@ from hil.cli import up
 from hil.cli.run_progress import Progress
 from hil.cli.up.children import make_children
 from hil.cli.up.robots import RobotRun
-from hil.messaging.zenoh_api import ProcessWatch, RunSubscriber
+from hil.messaging.zenoh_api import RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
 from conftest import ROOT, free_port, read_rrd, rrd_series, rrd_verify_errors
 
@@ -49,17 +49,6 @@ def gone(pid: int) -> bool:
         return True
     with open(f"/proc/{pid}/stat") as stat:       # a zombie has ended too
         return stat.read().split(")")[-1].split()[0] == "Z"
-
-
-@pytest.fixture
-def processes():
-    """Processes a test starts; every one is ended (and reaped) afterwards."""
-    started: list[subprocess.Popen] = []
-    yield started
-    for process in started:
-        if process.poll() is None:
-            process.kill()
-        process.communicate()
 
 
 def wait_for_cycles(published: list, count: int, timeout: float = 60) -> None:
@@ -293,18 +282,6 @@ def test_up_runs_two_robots_demos_together_into_one_recording(tmp_path):
     for robot in ("ur3", "pigot"):
         assert "stopped; drives disabled" in (
             save.with_name("run.logs") / f"{robot}.control.log").read_text()
-
-
-@pytest.fixture
-def watched_robot():
-    """A Zenoh session listening on a loopback port, watching the ur3's processes: (the
-    endpoint to give a process, its ProcessWatch)."""
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    settings = ZenohSettings(listen=(endpoint,))
-    watch = ProcessWatch(session(settings), "ur3")
-    yield endpoint, watch
-    watch.close()
-    close(settings)
 
 
 def test_a_held_controller_brings_its_drives_up_only_once_told_on_its_input(

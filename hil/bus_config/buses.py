@@ -11,13 +11,14 @@ from hil.zenoh_session import ZenohSettings
 
 
 def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None = None,
-               channels: dict[str, str] | None = None, logging: bool = False
-               ) -> dict[str, can.BusABC]:
+               channels: dict[str, str] | None = None, logging: bool = False,
+               lossless: bool = False) -> dict[str, can.BusABC]:
     """Open every bus of a config, with optional interface/channel overrides.
 
     Zenoh buses join the process' Zenoh session given by ``zenoh``; with ``logging`` (a
     monitor's) their frames are stamped with their senders' clock, the time they were on
-    the bus.
+    the bus; with ``lossless`` (a lock-step process') a send waits for room where a
+    congested link would drop it.
     """
     channels = channels or {}
     unknown = set(channels) - {bus.name for bus in config.buses}
@@ -29,8 +30,8 @@ def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None
     try:
         for bus in config.buses:
             name = interface or bus.interface
-            options = ({"settings": zenoh, "timestamps": "sent" if logging else "arrival"}
-                       if name == "zenoh" else {})
+            options = ({"settings": zenoh, "timestamps": "sent" if logging else "arrival",
+                        "lossless": lossless} if name == "zenoh" else {})
             opened[bus.name] = open_bus(name, channels.get(bus.name, bus.channel), bus.bitrate,
                                         **options)
     except HilError:

@@ -125,6 +125,11 @@ class BusMonitor:
                 queued.append(bus)
         self._notifier = can.Notifier(queued, listeners, timeout=0.1) if queued else None
 
+    def received(self) -> int:
+        """Frames received so far on the buses that count them (hil-virtual, zenoh)."""
+        counted = (capabilities(bus).counters for bus in self.buses.values())
+        return sum(counters.received for counters in counted if counters is not None)
+
     def close(self) -> None:
         """Stop listening, close the log (flushed) and the buses."""
         for delivery in self._direct:

@@ -16,55 +16,34 @@ and also lets a bench put drives and controller on different hosts.
 Back-pressure, as a CAN controller has it: a send never blocks its thread (a drive answers
 from inside a delivery, holding the simulator's lock): under congestion Zenoh drops the
 frame (``CongestionControl.DROP``, after at most ``hil.zenoh_session.DROP_WAIT_US``).
-Frames reach other processes only (``Locality.REMOTE``); buses of one process that share a
-Zenoh session hand each other their frames in the sender's thread, as ``hil-virtual``
-does. So a bus' own frames never enter the channel of its Zenoh callback, which only the
-thread that answers inside that callback drains (a drive answering into its own full
-channel locked `hil sim` up for good under 20,000 SDO requests/s). One subscriber per
-session takes the frames of every channel (``hil/can/**``) and hands them to the buses on
-it: one Python thread for all of a process' buses (with a thread per bus, a simulator's two
-buses fought for the GIL at every SYNC). That thread is fed by a channel (``indirect``): run
-in Zenoh's receiving thread instead, every frame took the GIL there, and a cycle's round
-trip between two processes doubled (630 -> 1140 us p50, measured). Received frames go to a bounded FIFO for
-``recv`` (a full one drops and counts them: an overrun), or, after ``deliver_to``
-(:mod:`hil.can.delivery`), straight to the listeners. Every frame carries its sender's
-sequence number, so a receiver counts what was lost on the way (:class:`FrameCounters`).
+``lossless=True`` (hil's processes in lock-step, which keep no deadline) waits for room
+instead (``CongestionControl.BLOCK``), and at shutdown for the monitors to have heard its
+last frame (:mod:`hil.can.zenoh_receipts`): a monitor that falls behind (``hil viz`` on a
+loaded host) slows the run rather than lose frames of its log, which a replay compares.
+Frames reach other processes only; buses of one process that share a session hand each
+other their frames in the sender's thread. One subscriber per session feeds all of a
+process' buses, which deliver to a bounded FIFO for ``recv`` (an overrun is counted) or
+straight to listeners (``deliver_to``); every frame carries its sender's sequence number,
+so a receiver counts what was lost on the way (docs/design.md: why each choice).
 
 Between hil's own ends a frame stays its parts (key and data) from the sender's canopen
 network (``frame_sender``) to the receiver's (``deliver_frames``): a ``can.Message`` is
 built only where one is wanted (``recv``, a listener of yours, a remote or error frame).
 
-Frames sent together go in one Zenoh message, as a CAN-over-Ethernet gateway packs a
-cycle's frames into one datagram, whichever of the process' buses they are on: those a
-thread sends inside ``with bus.batch():`` (a controller's cycle, on every bus of its
-session), and those sent in answer to a message while it is being delivered (the drives'
-replies to a cycle's SYNCs). One put and one Python delivery per cycle and direction,
-however many buses: each message is a wake-up of the sender's and the receiver's Zenoh and
-Python threads, and measured across processes in lock-step, the ur3's six drives on six
-buses ran at 3.0x real time against 4.6-4.9x on one bus (the bare exchange alone: 4.3x
-against 8.6x). A bus used without ``batch`` sends each frame on its own, in order.
+Frames sent together (inside ``with bus.batch():``, or in answer to a message being
+delivered) go in one Zenoh message of a section per bus (docs/design.md, "The Zenoh CAN
+transport", says why).
 
-A message holds one section per bus it carries frames of, each with its channel, so any
-key below ``hil/can/`` carries any channel's frames (a message goes out on the key of its
-first section's channel; every session subscribes to them all). Each section has its own
-sender (the bus), sequence numbers, stamp and echo.
-
-Each section carries the sender's clock at the put, so a receiver tells a late sender (its
-messages stamped late) from a slow delivery (stamped on time, arriving late): a message
-that arrives over STALL_THRESHOLD later than the quickest of that sender's is a
-:class:`~hil.realtime.stalls.Stall` of the transport (``on_stall``), with the sender's
-clock offset taken out as the quickest arrival takes it out (so across hosts too; the
-quickest of the last 10 to 20 s, as clocks drift).
-
-Each section also says which message its sender heard last and how long ago (the echo:
-that message's sender and first sequence number, and the time held since it arrived), as
-an RTCP receiver report does: the sender of the echoed message takes its own put time and
-the hold out of the arrival and has the link's round trip, on its own clock, with no
-clock shared between hosts. A drive's answer echoes the master's SYNC, so the master's
-bus knows the round trip of the link to its drives (:attr:`FrameCounters.round_trip`);
-SLOW_LINK_ECHOES of them in a row over STALL_THRESHOLD are a
-:class:`~hil.realtime.stalls.Stall` of the link (``on_stall``), the cause of the silence a
-slow link makes of every drive on it.
+Each section carries the sender's clock at the put, so a receiver tells a late sender
+from a slow delivery: a message over STALL_THRESHOLD later than the quickest of that
+sender's (of the last 10 to 20 s, as clocks drift; so across hosts too) is a
+:class:`~hil.realtime.stalls.Stall` of the transport (``on_stall``). Each section also
+echoes the message its sender heard last and how long it held it, as an RTCP receiver
+report does: the echoed sender takes its own put time and the hold out of the arrival and
+has the link's round trip on its own clock (:attr:`FrameCounters.round_trip`; a drive's
+answer echoes the master's SYNC). SLOW_LINK_ECHOES of them in a row over STALL_THRESHOLD
+are a :class:`~hil.realtime.stalls.Stall` of the link, the cause of the silence a slow
+link makes of every drive on it.
 
 The wire format is :mod:`hil.can.zenoh_wire`'s; what a bus counts, :mod:`hil.can.link_statistics`'.
 """
@@ -91,6 +70,7 @@ from hil.can.delivery import DirectDelivery
 from hil.can.link_statistics import FrameCounters, Quickest
 from hil.can.messages import FrameParts
 from hil.can.zenoh_channels import Channels
+from hil.can.zenoh_receipts import LINGER, wait_until_heard
 from hil.can.zenoh_wire import (KEY_PREFIX, NO_ECHO, NOT_DATA, Echo, Message, encode_frames,
                                 message_of, wire_frame)
 from hil.realtime.stalls import STALL_THRESHOLD, Stall
@@ -139,20 +119,23 @@ class ZenohBus(can.BusABC, BusCapabilities):
     ``timestamps``: what a received frame's timestamp is, ``"arrival"`` (this process'
     clock when it came) or ``"sent"`` (its sender's clock when it was put: when it was on
     the bus, as an interface on the bus stamps it; what a log of the bus wants, the logger
-    being a process that may be late).
+    being a process that may be late); ``lossless``: a send waits for room in a congested
+    link instead of dropping the frame (see the module doc).
     ``watch_stalls`` sets who is told (in Zenoh's delivering thread) of each late delivery.
     """
 
     def __init__(self, channel: str, listen=(), connect=(), zenoh_config=None,
                  receive_own_messages: bool = False, settings: ZenohSettings | None = None,
-                 timestamps: str = "arrival", **kwargs):
+                 timestamps: str = "arrival", lossless: bool = False, **kwargs):
         self.channel_info = f"Zenoh {KEY_PREFIX}{channel}"
         self._channel = str(channel)
         if len(self._channel.encode()) > 255:
             raise ValueError(f"channel '{channel}': a name of at most 255 bytes (UTF-8)")
         if timestamps not in ("arrival", "sent"):
             raise ValueError(f"timestamps '{timestamps}': 'arrival' or 'sent'")
-        self._stamp_sent = timestamps == "sent"
+        #: a log's bus (stamped with the senders' clocks): it answers for what it heard
+        self.monitors = timestamps == "sent"
+        self._lossless = lossless
         self._receive_own = receive_own_messages
         self._sender = random.getrandbits(63) ^ os.getpid()
         self._sequence = 0
@@ -180,9 +163,11 @@ class ZenohBus(can.BusABC, BusCapabilities):
         # loopback (8 frames answered by 12, as a cycle of the ur3): round trip p50 340 us
         # against 860 us express, 4 us a put against 30-40 us; a lone frame's round trip is
         # the same either way (300-375 us), Zenoh's batch time limit does not hold it back.
-        # DROP: a put never blocks; REMOTE: see the module doc
+        # DROP: a put never blocks (lossless, BLOCK: it waits for room); REMOTE: see the
+        # module doc
         self._publisher = self._session.declare_publisher(
-            key, congestion_control=zenoh.CongestionControl.DROP, express=False,
+            key, congestion_control=zenoh.CongestionControl.BLOCK if lossless
+            else zenoh.CongestionControl.DROP, express=False,
             allowed_destination=zenoh.Locality.REMOTE)
         self._key = key
         self._channels, self._neighbours = Channels.join(self._session, key, self)
@@ -191,6 +176,11 @@ class ZenohBus(can.BusABC, BusCapabilities):
 
     def watch_stalls(self, on_stall: Callable[[Stall], None] | None) -> None:
         self._on_stall = on_stall
+
+    def heard(self) -> dict[int, int]:
+        """Each sender's last sequence number heard."""
+        with self._count_lock:
+            return dict(self._heard)
 
     def unreached(self) -> str | None:
         """Why this bus' session reaches no other process, in words, if it reaches none
@@ -219,7 +209,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
             for stall in filter(None, stalls):
                 on_stall(stall)
         self._take(message.frames, message.all_data,
-                   message.sent_at if self._stamp_sent else arrived)
+                   message.sent_at if self.monitors else arrived)
 
     def _count_round_trip(self, echo: Echo, now: float, arrived: float) -> Stall | None:
         """The link's round trip, if ``echo`` is of a message of this bus; a stall of the
@@ -392,6 +382,12 @@ class ZenohBus(can.BusABC, BusCapabilities):
         if self._is_shutdown:
             return
         super().shutdown()        # stops the periodic tasks; later sends are refused
+        if self._lossless and self._sequence:
+            behind = wait_until_heard(self._session, self._channel, self._sender,
+                                      self._sequence)
+            if behind:
+                log.warning("%s: %d monitor(s) had not heard its last frames after %g s: "
+                            "their logs end short of them", self.channel_info, behind, LINGER)
         # not under the send lock: a delivery in progress may still be answering
         Channels.leave(self._session, self._key, self)
         # a put still running in another thread ends first: zenoh refuses to undeclare a

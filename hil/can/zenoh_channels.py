@@ -13,6 +13,7 @@ import can
 import zenoh
 
 from hil.can.messages import FrameParts
+from hil.can.zenoh_receipts import declare_receipts
 from hil.can.zenoh_wire import KEY_PREFIX, decode_frames
 
 if TYPE_CHECKING:
@@ -46,6 +47,8 @@ class Channels:
         self.guard: AbstractContextManager | None = None
         self._subscriber = session.declare_subscriber(
             KEY_PREFIX + "**", self._on_sample, allowed_origin=zenoh.Locality.REMOTE)
+        self._session = session
+        self._receipts = None        # the queryable, once a monitor joins (hil.can.zenoh_receipts)
 
     @classmethod
     def join(cls, session: zenoh.Session, key: str, bus: ZenohBus
@@ -58,6 +61,8 @@ class Channels:
                 channels = cls._of_session[id(session)] = Channels(session)
             on_key = channels.buses.setdefault(key, [])
             on_key.append(bus)
+            if bus.monitors and channels._receipts is None:
+                channels._receipts = declare_receipts(session, channels._heard)
             return channels, on_key
 
     @classmethod
@@ -70,6 +75,14 @@ class Channels:
             if not channels.buses:
                 del cls._of_session[id(session)]
                 channels._subscriber.undeclare()
+                if channels._receipts is not None:
+                    channels._receipts.undeclare()
+
+    def _heard(self) -> list[tuple[str, dict[int, int]]]:
+        """Each monitor bus' channel and the last frame it heard of each sender."""
+        with self._lock:
+            monitors = [bus for on_key in self.buses.values() for bus in on_key if bus.monitors]
+        return [(bus._channel, bus.heard()) for bus in monitors]
 
     def hold(self) -> None:
         """What this thread sends on the session's buses from now on waits for

@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
         hardware = FakeHardwareInterface(config.robot)
     else:
         interface, channels = common.can_overrides(args)
-        buses = open_buses(config, zenoh, interface, channels)
+        buses = open_buses(config, zenoh, interface, channels, lossless=args.timing.lock_step)
         hardware = CanHardwareInterface(
             config, buses, reply_timeout=LOCK_STEP_REPLY_TIMEOUT if args.timing.lock_step else None,
             boot_timeout=args.boot_timeout)

@@ -12,8 +12,8 @@ from pathlib import Path
 from hil.bus_config import load_bus_config
 from hil.cli import common
 from hil.replay import (
-    LOG_CLOCK_TOLERANCES, REAL_TIME_SHARE, Replay, Report, Tolerances, frames, log_clock, not_whole,
-    parse_channels, survey,
+    LOG_CLOCK_TOLERANCES, REAL_TIME_SHARE, REORDER_WINDOW, Replay, Report, Tolerances, frames,
+    log_clock, not_whole, parse_channels, survey,
 )
 from hil.replay.compare import UNITS
 
@@ -63,9 +63,13 @@ def run(args: argparse.Namespace) -> int:
     cut = not_whole(args.log)
     if cut:
         print(f"hil replay: {args.log} is not whole: {cut}", flush=True)
+    if found.disorder > REORDER_WINDOW:
+        print(f"hil replay: its frames are written up to {found.disorder:.2f} s out of time "
+              "order (a monitor that fell behind one sender more than another): read in time "
+              "order", flush=True)
     report = Replay(config, found, clock, tolerances,
-                    keep_values=args.record is not None).run(frames(args.log, config,
-                                                                    found.channels))
+                    keep_values=args.record is not None).run(frames(
+                        args.log, config, found.channels, found.reorder_window))
     for line in summary(report, tolerances):
         print(line)
     if args.record is not None:

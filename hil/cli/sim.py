@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     # after the scheduling: Zenoh's runtime threads, started with the session, inherit it
     common.refuse_a_second(zenoh, config.robot.name, "sim")
     simulator, buses, ros_clock = _open(args, config, zenoh, frame_faults)
-    token = session(zenoh).liveliness().declare_token(f"hil/{config.robot.name}/sim")
+    token = None
     stop = threading.Event()
 
     def on_signal():
@@ -96,6 +96,10 @@ def run(args: argparse.Namespace) -> int:
                for work, argument in side_work]
     try:
         simulator.start()
+        # alive once its drives are on the bus and have sent their boot-ups: hil up releases
+        # the controller then, and a master's first NMT reset never meets a drive still
+        # powering on (a lock-step log held a boot-up of each that no replay answers)
+        token = session(zenoh).liveliness().declare_token(f"hil/{config.robot.name}/sim")
         gc.collect()
         gc.freeze()     # start-up's objects out of the collector's way: shorter passes in the loop
         print(f"hil sim: {config.robot.name}, {len(config.drives)} drive(s) on "
@@ -116,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
             if face is not None:
                 face.close()
         simulator.close()
-        token.undeclare()
+        if token is not None:
+            token.undeclare()
         for bus in buses.values():
             bus.shutdown()
         close_all()
@@ -144,7 +149,8 @@ def _faults(args: argparse.Namespace, config) -> tuple[list[FrameFault], list[Dr
 def _open(args: argparse.Namespace, config, zenoh, frame_faults: list[FrameFault]):
     """(the simulator on its buses, the buses, the ROS 2 clock face or None)."""
     interface, channels = common.can_overrides(args)
-    buses = with_frame_faults(open_buses(config, zenoh, interface, channels), frame_faults,
+    buses = with_frame_faults(open_buses(config, zenoh, interface, channels,
+                                         lossless=args.timing.lock_step), frame_faults,
                               args.fault_seed)
     try:
         simulator = Simulator(config, buses, args.timing)

@@ -10,7 +10,9 @@ beside the bench: it runs the simulator, never a master.
 from __future__ import annotations
 
 from hil.replay.compare import Divergence, JointStatistics, Tolerances
-from hil.replay.log import LoggedFrame, Survey, frames, not_whole, parse_channels, survey
+from hil.replay.log import (
+    REORDER_WINDOW, LoggedFrame, Survey, frames, not_whole, parse_channels, survey,
+)
 from hil.replay.replay import Replay
 from hil.replay.report import Report
 
@@ -30,5 +32,5 @@ def log_clock(found: Survey) -> str:
 
 
 __all__ = ["Divergence", "JointStatistics", "REAL_TIME_SHARE", "LOG_CLOCK_TOLERANCES",
-           "LoggedFrame", "Replay", "Report", "Survey", "Tolerances", "frames", "log_clock",
+           "REORDER_WINDOW", "LoggedFrame", "Replay", "Report", "Survey", "Tolerances", "frames", "log_clock",
            "not_whole", "parse_channels", "survey"]

@@ -32,10 +32,15 @@ from hil.protocols import FrameSource, Sender, protocol
 
 #: misfits listed in a refusal before "and N more"
 MISFITS_SHOWN = 8
-#: how far out of time order (s) a log's frames may be written: a monitor that reads each
-#: bus' queue in turn (python-can's Notifier, hil viz) writes a burst of one bus before
-#: the same moment's frames of another
+#: how far out of time order (s) a log's frames are put back in order at least: a monitor
+#: that reads each bus' queue in turn (python-can's Notifier, hil viz) writes a burst of one
+#: bus before the same moment's frames of another; a log written further out of order (a
+#: monitor that fell behind one sender more than another: hil viz paused 1.5 s wrote 1.5 s
+#: out of order) is put back in order as far as :func:`survey` measured
 REORDER_WINDOW = 1.0
+#: the most a log may be written out of time order (s): the frames of that much of the log
+#: are held to order them (a lock-step run's 30,000 frames a second: about 270 MB)
+MAX_REORDER = 30.0
 #: how close to the config's period an interval between cycles is one of a real-time run
 PERIOD_TOLERANCE = 0.1
 
@@ -103,12 +108,29 @@ class Survey:
     last_drive_time: list[float | None] = field(default_factory=list)
     #: the time of the log's first frame from the master
     first_master_time: float | None = None
+    #: per bus and node (None: to all of the bus), when the master first sent to it
+    first_master_times: dict[tuple[int, int | None], float] = field(default_factory=dict)
     #: per bus and node (None: all) of the cycle frames: [the last one's time, the time
     #: between them, the part of it in intervals of the config's period (within
     #: PERIOD_TOLERANCE)]
     cycle_timing: dict[tuple[int, int | None], list[float]] = field(default_factory=dict)
     #: what reading the log took (s)
     seconds: float = 0.0
+    #: how far out of time order its frames are written (s): the most a frame's time is
+    #: before that of a frame written earlier
+    disorder: float = 0.0
+
+    def addressed_since(self, bus: int, node: int) -> float:
+        """When the master first sent to the drive ``node`` of ``bus`` or to all of the bus
+        (inf: never): what the drive sent before (a boot-up at its power-on, which may come
+        among the master's first frames to other drives) answers nothing."""
+        return min(self.first_master_times.get((bus, node), math.inf),
+                   self.first_master_times.get((bus, None), math.inf))
+
+    @property
+    def reorder_window(self) -> float:
+        """How far :func:`frames` must reorder the log to read it in time order (s)."""
+        return max(REORDER_WINDOW, self.disorder)
 
     @property
     def duration(self) -> float:
@@ -237,10 +259,11 @@ class ChannelMap:
                  "from 1 in the config's bus order)")
 
 
-def frames(path: Path, config: SystemConfig, channels: dict[object, int]
-           ) -> Iterator[LoggedFrame]:
+def frames(path: Path, config: SystemConfig, channels: dict[object, int],
+           reorder_window: float = REORDER_WINDOW) -> Iterator[LoggedFrame]:
     """The log's frames told apart (after :func:`survey` accepted it), in time order (one
-    bus' frames in the log's order). Error frames are left out."""
+    bus' frames in the log's order) where the log is written at most ``reorder_window``
+    out of it (:attr:`Survey.reorder_window`). Error frames are left out."""
     tellers = [BusFrames(bus) for bus in config.buses]
 
     def told() -> Iterator[LoggedFrame]:
@@ -252,7 +275,7 @@ def frames(path: Path, config: SystemConfig, channels: dict[object, int]
             source = tellers[bus].source(msg.arbitration_id, data, msg.is_remote_frame)
             yield LoggedFrame(number, msg.timestamp, bus, msg.arbitration_id, data,
                               msg.is_remote_frame, source)
-    return in_time_order(told())
+    return in_time_order(told(), reorder_window)
 
 
 def in_time_order(logged: Iterable[LoggedFrame], window: float = REORDER_WINDOW
@@ -278,6 +301,7 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
     result = Survey(path, channels.buses, cycle_frames=[{} for _ in tellers],
                     last_drive_time=[None] * len(tellers))
     misfits: dict[tuple[int, int], list] = {}
+    newest, most_disordered = -math.inf, 0
     for number, msg in enumerate(read_log(path), 1):
         if msg.is_error_frame:
             continue
@@ -285,6 +309,9 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
         if result.first_time is None:
             result.first_time = msg.timestamp
         result.last_time = msg.timestamp
+        newest = max(newest, msg.timestamp)
+        if newest - msg.timestamp > result.disorder:
+            result.disorder, most_disordered = newest - msg.timestamp, number
         bus = channels.bus(msg.channel, number)
         if bus is None:
             continue
@@ -295,6 +322,9 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
         elif source.sender is Sender.MASTER:
             if result.first_master_time is None or msg.timestamp < result.first_master_time:
                 result.first_master_time = msg.timestamp
+            addressed = (bus, source.node_id)
+            result.first_master_times[addressed] = min(
+                msg.timestamp, result.first_master_times.get(addressed, math.inf))
             if source.cycle:
                 counts = result.cycle_frames[bus]
                 counts[source.node_id] = counts.get(source.node_id, 0) + 1
@@ -316,6 +346,12 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
         raise channels.refusal(config, path)
     if misfits:
         raise HilError(_refusal(misfits, tellers, result))
+    if result.disorder > MAX_REORDER:
+        raise HilError.single(
+            f"{path}: frame {most_disordered} is written {result.disorder:.1f} s after frames "
+            f"stamped later; hil replay puts a log back in time order over at most "
+            f"{MAX_REORDER:g} s (it holds that much of the log to do it)",
+            hint="write the log in time order: sort its frames by timestamp")
     result.seconds = time.perf_counter() - begun
     return result
 

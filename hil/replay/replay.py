@@ -146,7 +146,8 @@ class Replay:
             for frame in frames:
                 if frame.source.sender is Sender.MASTER:
                     self._feed(frame)
-                elif frame.time >= (self.survey.first_master_time or 0.0):
+                elif frame.time >= self.survey.addressed_since(frame.bus,
+                                                               frame.source.node_id):
                     self._logged(frame)
         finally:
             self.sim.close()

@@ -27,6 +27,11 @@ from hil.visualisation.recorder import RunRecorder
 
 #: batches whose lag and logging time are kept: an hour's at 10 batches a second
 KEEP = 36_000
+#: once stopped, it logs until nothing has come for this long (s)...
+QUIET = 0.25
+#: ... or for this long at most (s): a sender still running (a visualiser stopped alone)
+#: never goes quiet
+DRAIN_LIMIT = 3.0
 
 
 class VizNode:
@@ -92,6 +97,7 @@ class VizNode:
                     for recorder in self.recorders:
                         recorder.log_bus_load(now, loads)
         finally:
+            self._drain()
             for token in tokens:
                 token.undeclare()
             for subscriber in self.subscribers:
@@ -101,6 +107,25 @@ class VizNode:
                     self._handle(self._queue.get_nowait())
                 except queue.Empty:
                     break
+
+    def _drain(self) -> None:
+        """Once stopped: log what is still on its way (a visualiser behind its senders holds
+        their last batches and frames in its links) until nothing has come for QUIET s, at
+        most DRAIN_LIMIT s. ``hil up`` stops it after the processes it records, so it
+        records them to their end."""
+        deadline = time.monotonic() + DRAIN_LIMIT
+        heard, quiet_since = self._frames_received(), time.monotonic()
+        while time.monotonic() < deadline and time.monotonic() - quiet_since < QUIET:
+            try:
+                self._handle(self._queue.get(timeout=QUIET / 10))
+                quiet_since = time.monotonic()
+            except queue.Empty:
+                received = self._frames_received()
+                if received != heard:
+                    heard, quiet_since = received, time.monotonic()
+
+    def _frames_received(self) -> int:
+        return self.monitor.received() if self.monitor is not None else 0
 
     def _handle(self, queued: tuple[RunRecorder, object]) -> None:
         recorder, item = queued

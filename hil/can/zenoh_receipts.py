@@ -1,0 +1,70 @@
+"""Receipts of a CAN log over Zenoh: which frame of each sender a monitor (a bus opened with
+``timestamps="sent"``, as ``hil viz`` logs) has heard, asked for by a lossless bus as it
+shuts down, so that a lock-step run's log is whole to its last frame.
+
+A Zenoh session's queue for a link holds what it has not sent yet: about 400 cycles of a
+ur3's frames for a visualiser that fell behind, which closing the session drops (the log of
+a lock-step run then lacked the controller's last cycles, and its replay failed). So a
+lossless bus waits before it closes until every monitor that has heard from it has heard its
+last frame, or LINGER passes (then it says how many monitors were behind).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable
+
+import zenoh
+
+#: where each session with monitors answers (``<key>/<session id>``)
+RECEIPTS_KEY = "hil/can-receipts"
+#: how long a lossless bus waits for the monitors at its shutdown (s)
+LINGER = 10.0
+#: how often it asks (s)
+_POLL = 0.02
+#: sequence numbers are 32-bit and wrap: ``a`` is before ``b`` if ``b - a`` is under half
+_HALF = 0x80000000
+
+
+def receipts_payload(heard: Iterable[tuple[str, dict[int, int]]]) -> bytes:
+    """Lines "<channel> <sender> <its last sequence number heard>" of monitors' buses, each
+    given as (channel, {sender: sequence})."""
+    return "".join(f"{channel} {sender} {sequence}\n" for channel, senders in heard
+                   for sender, sequence in senders.items()).encode()
+
+
+def declare_receipts(session: zenoh.Session,
+                     heard: Callable[[], Iterable[tuple[str, dict[int, int]]]]):
+    """The session's queryable that answers with ``heard()``'s receipts."""
+    def answer(query: zenoh.Query) -> None:
+        query.reply(query.key_expr, receipts_payload(heard()))
+
+    return session.declare_queryable(f"{RECEIPTS_KEY}/{session.zid()}", answer)
+
+
+def monitors_behind(session: zenoh.Session, channel: str, sender: int, last: int) -> int:
+    """How many monitors that have heard ``sender`` on ``channel`` have not heard its frame
+    numbered ``last`` (masked to 32 bits)."""
+    behind = 0
+    for reply in session.get(f"{RECEIPTS_KEY}/*", timeout=1.0):
+        if reply.ok is None:
+            continue
+        for line in reply.ok.payload.to_bytes().decode(errors="replace").splitlines():
+            name, _, rest = line.rpartition(" ")
+            name, _, heard_from = name.rpartition(" ")
+            if name == channel and heard_from == str(sender) and rest.isdigit():
+                gap = (last - int(rest)) & 0xFFFFFFFF
+                behind += 0 < gap < _HALF
+    return behind
+
+
+def wait_until_heard(session: zenoh.Session, channel: str, sender: int, last: int,
+                     linger: float = LINGER) -> int:
+    """Wait until no monitor is behind ``sender``'s frame ``last`` on ``channel``, at most
+    ``linger`` s; how many still were."""
+    deadline = time.monotonic() + linger
+    while True:
+        behind = monitors_behind(session, channel, sender, last & 0xFFFFFFFF)
+        if not behind or time.monotonic() >= deadline:
+            return behind
+        time.sleep(_POLL)
