@@ -22,7 +22,9 @@ A certificate of the CA with any other name matches no subject and is refused ev
   the controller's commands (an action's goals, cancels and results, the fault reset, a
   controller switch, a forward controller's commands) as queries of those keys, subscriptions and liveliness under ``hil/``; no CAN frame, nothing published;
 - ``observer`` (``hil viz``): subscriptions, liveliness, goal results and the controllers'
-  list under ``hil/``, its own liveliness token; no frame, no goal, no cancel, no reset, nothing published.
+  list under ``hil/``, its own liveliness token, and the receipts of its CAN log
+  (:data:`RECEIPT_KEYS`: the one query a client is sent, answered by the one queryable it
+  may declare); no frame, no goal, no cancel, no reset, nothing published.
 
 docs/security.md has the threat model. The certificates carry no host names, and names are
 not verified on connect: a peer is whoever holds a key the CA signed, wherever it connects
@@ -67,6 +69,13 @@ READ_MESSAGES = ["declare_subscriber", "liveliness_query", "declare_liveliness_s
 #: an operator's goal (never answered: its reply is refused on ingress, but the goal is seen
 #: and the operator waits for the query's end)
 TO_CLIENT_MESSAGES = [m for m in EVERY_MESSAGE if m != "query"]
+#: where each session with a CAN log's buses answers which frame of each sender it heard
+#: (``<key>/<session id>``), asked by lock-step senders before they close
+#: (:mod:`hil.can.zenoh_receipts`)
+RECEIPTS_KEY = "hil/can-receipts"
+#: the one query a client (an observer's log) is sent, answered by the one queryable it may
+#: declare; a wrong answer can only hold a sender's close up to its LINGER
+RECEIPT_KEYS = [f"{RECEIPTS_KEY}/*"]
 
 
 @dataclass(frozen=True)
@@ -121,6 +130,8 @@ def access_policy() -> dict:
             rule("results", ["query"], RESULT_KEYS),
             rule("commands", ["query"], COMMAND_KEYS),
             rule("viewer's token", ["liveliness_token"], ["hil/*/viz"]),
+            rule("receipts asked", ["query"], RECEIPT_KEYS, ("egress",)),
+            rule("receipts answered", ["declare_queryable", "reply"], RECEIPT_KEYS),
         ],
         "subjects": [{"id": role, "cert_common_names": [role]} for role in ROLES],
         "policies": [
@@ -128,7 +139,8 @@ def access_policy() -> dict:
             {"rules": ["send a client"], "subjects": ["operator", "observer"]},
             {"rules": ["anything"], "subjects": ["drives", "controller"]},
             {"rules": ["read", "results", "commands"], "subjects": ["operator"]},
-            {"rules": ["read", "results", "viewer's token"], "subjects": ["observer"]},
+            {"rules": ["read", "results", "viewer's token", "receipts answered",
+                       "receipts asked"], "subjects": ["observer"]},
         ],
     }
 

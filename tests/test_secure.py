@@ -19,8 +19,10 @@ from hil.messaging import cdr
 from hil.messaging.action import ACTION
 from hil.messaging.controller_manager import ControllerManagerClient
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient, key
+from hil.can.zenoh_receipts import declare_receipts, monitors_behind
 from hil.zenoh_security import (
     COMMAND_KEYS,
+    RECEIPT_KEYS,
     Identity,
     access_policy,
     make_keys,
@@ -352,8 +354,39 @@ def test_the_policy_gives_operators_and_observers_allow_lists_only():
         assert "**" not in keys_of, f"{role} may do anything somewhere"
         assert not any("put" in r["messages"] for r in ingress), f"{role} may publish"
         egress = [rules[n] for n in names if "egress" in rules[n]["flows"]]
-        assert egress and not any("query" in r["messages"] for r in egress), \
+        asked = [r for r in egress if "query" in r["messages"]]
+        # the one query a client is sent: its CAN log's receipts (an observer's)
+        assert egress and all(r["key_exprs"] == RECEIPT_KEYS for r in asked), \
             f"a process may send the {role} a query"
+        served = [r for r in ingress if "declare_queryable" in r["messages"]]
+        assert all(r["key_exprs"] == RECEIPT_KEYS for r in served), f"{role} may serve"
+
+
+def test_a_lock_step_sender_asks_an_observer_its_receipts_and_nothing_else(keys, peers):
+    """An observer's log answers which frames it heard (hil.can.zenoh_receipts), so that a
+    lock-step sender closes only once its last frame is logged: the sender asks and gets the
+    answer through the policy, and the receipts' query is all an observer is asked, by any
+    queryable it declares (a wider one sees that query, a command key's nothing)."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    sender = ZenohSettings(listen=(endpoint,), identity=Identity.of(keys, "controller"))
+    asking = session(sender)
+    observer = peers(keys, "observer", endpoint)
+    try:
+        assert observer.linked()
+        wide, goals = [], []
+        receipts = declare_receipts(observer.session, lambda: [("ur3/arm", {7: 3})])
+        observer.session.declare_queryable("hil/**", lambda q: wide.append(str(q.key_expr)))
+        observer.session.declare_queryable(GOAL_KEY, goals.append)
+        deadline = time.monotonic() + 10
+        while monitors_behind(asking, "ur3/arm", 7, 5) != 1:
+            assert time.monotonic() < deadline, "the observer's receipts never came"
+            time.sleep(0.05)
+        for expression in (GOAL_KEY, "hil/**", "hil/ur3/**"):
+            list(asking.get(expression, timeout=1.0))
+        assert not goals and wide and set(wide) == {"hil/can-receipts/*"}, (wide, goals)
+        receipts.undeclare()
+    finally:
+        close(sender)
 
 
 def test_a_stall_report_counts_only_from_the_benchs_own_roles(keys, peers):

@@ -16,8 +16,8 @@ from collections.abc import Callable, Iterable
 
 import zenoh
 
-#: where each session with monitors answers (``<key>/<session id>``)
-RECEIPTS_KEY = "hil/can-receipts"
+from hil.zenoh_security import RECEIPTS_KEY
+
 #: how long a lossless bus waits for the monitors at its shutdown (s)
 LINGER = 10.0
 #: how often it asks (s)
