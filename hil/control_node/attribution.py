@@ -11,6 +11,7 @@ broke real time from a device that failed.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from hil.hardware import AxisFault, FaultKind
@@ -29,6 +30,26 @@ MARGIN = 0.005
 LINK_LOSS_CODES = frozenset({0x8250, 0x8130})
 
 
+def stalls_in_words(stalls: Sequence[Stall]) -> list[str]:
+    """Each process' stalls (oldest first): one in full, several (a burst of late messages)
+    in a line."""
+    words = []
+    for process in dict.fromkeys(stall.process for stall in stalls):
+        own = [stall for stall in stalls if stall.process == process]
+        if len(own) == 1:
+            words.append(str(own[0]))
+            continue
+        where = ", ".join(dict.fromkeys(stall.where for stall in own if stall.where))
+        first = clock_time(own[0].at)
+        longest = max(stall.length for stall in own)
+        what = {"transport": f"delivered {len(own)} messages late",
+                "link": f"was slow {len(own)} times, round trips"}.get(
+                    process, f"stalled {len(own)} times")
+        words.append(f"{PROCESS_WORDS.get(process, process)} {what} from {first}, up to "
+                     f"{longest * 1e3:.0f} ms" + (f" ({where})" if where else ""))
+    return words
+
+
 @dataclass(frozen=True)
 class Attribution:
     """Faults explained by stalls of the bench (oldest first)."""
@@ -38,27 +59,9 @@ class Attribution:
 
     def message(self) -> str:
         drives = ", ".join(f"{f.bus}/{f.node_id}" for f in self.faults)
-        return (f"bench fault, not a drive fault: {'; '.join(self._stalls_in_words())}; "
+        return (f"bench fault, not a drive fault: {'; '.join(stalls_in_words(self.stalls))}; "
                 f"{'it explains' if len(self.stalls) == 1 else 'they explain'} the "
                 f"{len(self.faults)} drive fault(s) of lost frames ({drives})")
-
-    def _stalls_in_words(self) -> list[str]:
-        """Each process' stalls: one in full, several (a burst of late messages) in a line."""
-        words = []
-        for process in dict.fromkeys(stall.process for stall in self.stalls):
-            own = [stall for stall in self.stalls if stall.process == process]
-            if len(own) == 1:
-                words.append(str(own[0]))
-                continue
-            where = ", ".join(dict.fromkeys(stall.where for stall in own if stall.where))
-            first = clock_time(own[0].at)
-            longest = max(stall.length for stall in own)
-            what = {"transport": f"delivered {len(own)} messages late",
-                    "link": f"was slow {len(own)} times, round trips"}.get(
-                        process, f"stalled {len(own)} times")
-            words.append(f"{PROCESS_WORDS.get(process, process)} {what} from {first}, up to "
-                         f"{longest * 1e3:.0f} ms" + (f" ({where})" if where else ""))
-        return words
 
     def values(self) -> tuple[tuple[str, str], ...]:
         """As diagnostic KeyValues: kind bench_stall, the stalls (comma-separated, in turn)

@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable
 from typing import TypeVar
 
-from hil.control_node.attribution import GRACE
+from hil.control_node.attribution import GRACE, stalls_in_words
 from hil.errors import HilError, error
 from hil.realtime.stalls import BENCH_STALL_STATUS, Stall, StallWatch
 
@@ -36,12 +36,13 @@ class BringUpStalled(HilError):
 
     def __init__(self, failure: HilError, stalls: list[Stall]):
         self.stalls = tuple(sorted(stalls, key=lambda stall: stall.at))
-        told = "; ".join(map(str, self.stalls))
+        told = "; ".join(stalls_in_words(self.stalls))
         super().__init__([dataclasses.replace(d, hint=None) for d in failure.diagnostics] + [
             error(f"the bench itself stalled during the bring-up: {told}: the bench broke real "
                   "time, the drive need not have failed",
-                  hint="a host that pauses the bench's processes (a shared VM) does this: run "
-                       "again, on quieter CPUs (--cpus), or in lock-step (--lock-step)")])
+                  hint="a host that pauses the bench's processes (a shared VM) or a slow link "
+                       "between them does this: run again, on quieter CPUs (--cpus), over a "
+                       "quicker link, or in lock-step (--lock-step)")])
 
 
 def judged_bring_up(start: Callable[[], Feedback], publish: Callable[[Stall], None],
