@@ -47,7 +47,6 @@ class Channels:
         self.guard: AbstractContextManager | None = None
         self._subscriber = session.declare_subscriber(
             KEY_PREFIX + "**", self._on_sample, allowed_origin=zenoh.Locality.REMOTE)
-        self._session = session
         self._receipts = None        # the queryable, once a monitor joins (hil.can.zenoh_receipts)
 
     @classmethod
