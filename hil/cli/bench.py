@@ -15,13 +15,14 @@ from hil.bench import (
 )
 from hil.bench.scale import HOLDS_MISSED, largest_holding
 from hil.cli import common
+from hil.realtime.stalls import BENCH_STALL_STATUS
 from hil.stack import START_ATTEMPTS, StackDidNotStart
 from hil.supervisor import ChildFailed
 
 #: exit status: the report is whole but some real-time run did not start or run through (why
 #: is in its row): a host that stalls past the drives' silence limits, or a regression of the
 #: real-time bring-up (the lock-step runs, which no stall fails, ran)
-NOT_STARTED_STATUS = 3
+NOT_STARTED_STATUS = BENCH_STALL_STATUS
 #: what a row whose stack did not start shows in the table
 NOT_STARTED = "did not start (why: the report's did_not_start)"
 
