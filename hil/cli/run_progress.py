@@ -32,6 +32,7 @@ class Progress:
         self.cycles = 0
         self.control_time = 0.0
         self.positions: np.ndarray | None = None
+        self.velocities: np.ndarray | None = None
         self.joint_names: tuple[str, ...] = ()
         self.worst = (0.0, "")
         self._cycles_shown = 0
@@ -53,6 +54,7 @@ class Progress:
             self.cycles += len(batch)
             self.control_time = float(batch.control_time[-1])
             self.positions, self.joint_names = batch.position[-1], batch.joint_names
+            self.velocities = batch.velocity[-1]
             if len(errors) and errors.max() > self.worst[0]:
                 self.worst = (float(errors.max()), batch.joint_names[int(errors.argmax())])
 

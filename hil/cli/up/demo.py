@@ -8,6 +8,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 from hil.bus_config import SystemConfig
+from hil.cli.run_progress import Progress
 from hil.cli.up.robots import RobotRun
 from hil.commissioning.demo_pace import MOTION_SHARE, paced_demo
 from hil.commissioning.stance import stance
@@ -16,6 +17,12 @@ from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient
 from hil.realtime import Timing, enter_background
 from hil.supervisor import Run
 from hil.zenoh_session import ZenohSettings, session
+
+#: the joints a demo holds (a standing robot's) are at rest below this speed (rad/s or m/s)
+#: and waited for this long at most, on the controller's clock (s): a quadruped lands on its
+#: feet within a second of its drives enabling (hil's own choice: no maker speaks to it)
+REST_SPEED = 0.05
+REST_WAIT = 3.0
 
 
 def supervise(args, robots: list[RobotRun], run: Run, zenoh: ZenohSettings) -> None:
@@ -51,6 +58,20 @@ def _held(config: SystemConfig) -> tuple[str, ...]:
     return found.carrying if found else tuple(j.name for j in config.robot.movable_joints)
 
 
+def _at_rest(progress: Progress, held: tuple[str, ...]) -> bool:
+    """Whether the samples say where the joints are, and the joints the demo holds (a
+    standing robot's) have come to rest there: held where the first samples found them, a
+    quadruped still landing on its feet was held in mid-fall, and the demo pushed its base
+    2 cm over the floor (a lock-step run's first samples come at a moment the host's load
+    decides)."""
+    with progress.lock:
+        if progress.positions is None:
+            return False
+        moving = {name: abs(float(v)) for name, v in zip(progress.joint_names,
+                                                          progress.velocities)}
+    return all(moving.get(name, 0.0) < REST_SPEED for name in held)
+
+
 def _demo(robot: RobotRun, run: Run, zenoh: ZenohSettings, timing: Timing) -> bool:
     """The robot's demo goal, followed to its end; whether it succeeded."""
     if not timing.lock_step:
@@ -61,13 +82,19 @@ def _demo(robot: RobotRun, run: Run, zenoh: ZenohSettings, timing: Timing) -> bo
         # thread beside two busy processes would hardly run
         enter_background()
     progress, say = robot.progress, f"hil up: {robot.label}"
-    while progress.positions is None:          # the first samples tell where the joints are
+    held = _held(robot.config)
+    heard_at = None                            # the controller's clock at the first samples
+    while not _at_rest(progress, held):        # the samples tell where the joints are
         run.wait(0.05)
         if run.stop.is_set():
             return False
+        if progress.positions is not None:
+            heard_at = progress.control_time if heard_at is None else heard_at
+            if progress.control_time - heard_at > REST_WAIT:
+                break                          # held where they are, moving or not
     with progress.lock:
         names, positions = progress.joint_names, progress.positions.copy()
-    demo = paced_demo(robot.config.robot, names, positions, _held(robot.config))
+    demo = paced_demo(robot.config.robot, names, positions, held)
     goal = demo.goal
     client = TrajectoryActionClient(session(zenoh), robot.name)
     try:
