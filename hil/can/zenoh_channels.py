@@ -71,16 +71,19 @@ class Channels:
             channels.buses[key].remove(bus)
             if not channels.buses[key]:
                 del channels.buses[key]
-            if not channels.buses:
+            last = not channels.buses
+            if last:
                 del cls._of_session[id(session)]
-                channels._subscriber.undeclare()
-                if channels._receipts is not None:
-                    channels._receipts.undeclare()
+        if last:          # outside the lock: Zenoh may wait for a callback under way
+            channels._subscriber.undeclare()
+            if channels._receipts is not None:
+                channels._receipts.undeclare()
 
     def _heard(self) -> list[tuple[str, dict[int, int]]]:
-        """Each monitor bus' channel and the last frame it heard of each sender."""
-        with self._lock:
-            monitors = [bus for on_key in self.buses.values() for bus in on_key if bus.monitors]
+        """Each monitor bus' channel and the last frame it heard of each sender (in a
+        Zenoh thread, as _on_sample: copies, no lock a shutdown may hold)."""
+        monitors = [bus for on_key in tuple(self.buses.values()) for bus in tuple(on_key)
+                    if bus.monitors]
         return [(bus._channel, bus.heard()) for bus in monitors]
 
     def hold(self) -> None:
