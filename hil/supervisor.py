@@ -23,6 +23,10 @@ from pathlib import Path
 START_TIMEOUT = 60.0
 #: how long each child may take to stop after SIGTERM before it is killed (s)
 STOP_TIMEOUT = 15.0
+#: ... but a visualiser, stopped last, writes what it still holds of the run before it goes:
+#: on a loaded host that took longer than STOP_TIMEOUT once (it was killed, the recording's
+#: end lost), so it is given this long (s)
+RECORDER_STOP_TIMEOUT = 60.0
 LAST_LINES = 15
 #: set in every child: the pid whose death must end the child too
 PARENT_PID_VARIABLE = "HIL_PARENT_PID"
@@ -43,6 +47,8 @@ class Child:
     #: started with a pipe on its standard input, which :meth:`release` closes (``hil control
     #: --hold`` waits for that)
     held: bool = False
+    #: how long it may take to stop after SIGTERM before it is killed (s)
+    stop_timeout: float = STOP_TIMEOUT
 
     @property
     def label(self) -> str:
@@ -84,11 +90,11 @@ class Child:
         self.expected_exit = True
         self.process.send_signal(signal.SIGTERM)
         try:
-            status = self.process.wait(STOP_TIMEOUT)
+            status = self.process.wait(self.stop_timeout)
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
-            return f"{self.label} did not stop within {STOP_TIMEOUT:g} s and was killed"
+            return f"{self.label} did not stop within {self.stop_timeout:g} s and was killed"
         return None if status == 0 else f"{self.label} stopped with status {status}"
 
 

@@ -134,9 +134,11 @@ def test_up_runs_the_demo_and_records_axes_robot_and_can_traffic(tmp_path):
         cycling = loads[:, 3 * k + 1][loads[:, 3 * k + 1] > estimate / 2]
         # the row where the cycles begin also holds the bring-up's last frames, counted on
         # the wall's clock (measured: up to 6 % over, 57.9 % against 54.7 % once in CI; the
-        # rows after it within 1 %); that row is held to 110 %, every later one to 105 %
-        assert len(cycling) >= 3, (bus.name, loads[:, 3 * k + 1])
-        assert cycling[0] <= 1.10 * estimate and cycling[1:].max() <= 1.05 * estimate, \
+        # rows after it within 1 %); that row is held to 110 %, every later one to 105 %. The
+        # rows are 0.1 s of wall time: a lock-step demo on a quick host cycles for a quarter
+        # of a second, one or two rows wholly in the cycles (1 in 4 runs here had one)
+        assert len(cycling) >= 1, (bus.name, loads[:, 3 * k + 1])
+        assert cycling[0] <= 1.10 * estimate and all(cycling[1:] <= 1.05 * estimate), \
             (bus.name, cycling)
         assert loads[:, 3 * k + 2] == pytest.approx(100 * bus.load().worst_ratio, rel=1e-6)
     assert rows["/bus/load"] > 0 and rows["/drives/limits"] > 0

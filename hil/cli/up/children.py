@@ -15,7 +15,7 @@ from hil.errors import HilError
 from hil.hardware import BOOT_TIMEOUT
 from hil.messaging.zenoh_api import ProcessWatch, RunSubscriber
 from hil.realtime import lock_step_cpus, real_time_cpus
-from hil.supervisor import Child, Run, cpus_argument, wait_alive
+from hil.supervisor import RECORDER_STOP_TIMEOUT, Child, Run, cpus_argument, wait_alive
 from hil.zenoh_session import ZenohSettings, session
 
 #: the visualiser's status lines (cycles, losses, the recording's lag) in viz.log, every (s)
@@ -63,7 +63,7 @@ def make_children(args: argparse.Namespace, robots: list[RobotRun], faults: list
                          # a line a minute in viz.log: the recording's lag over a long run
                          "--status-period", str(VIZ_STATUS_PERIOD),
                          "--can-log", str(can_log), *viewer_options(args)],
-                 logs / "viz.log")
+                 logs / "viz.log", stop_timeout=RECORDER_STOP_TIMEOUT)
 
 
 def _ros_options(args: argparse.Namespace, robot: str, several: bool) -> list[str]:
