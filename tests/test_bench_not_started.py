@@ -19,6 +19,7 @@ from hil.bench.processes import stack_across_processes
 from hil.bench.real_time import real_time, socketcan
 from hil.bus_config import load_bus_config
 from hil.cli import main
+from hil.realtime.stalls import BENCH_STALL_STATUS
 from hil.resources import BUS_CONFIGS, data_dir
 from hil.realtime import LOCK_STEP
 from hil.stack import StackDidNotStart
@@ -106,7 +107,7 @@ def test_hil_bench_names_the_runs_that_did_not_start_and_exits_3(report_with, ca
     failed["scale"][1] = {"drives": 12, "rate_hz": 500.0, "buses": 3, "holds": False,
                           DID_NOT_START: "hil control exited"}
     status, out, err, written = report_with(failed, capsys)
-    assert status == hil.cli.bench.NOT_STARTED_STATUS == 3
+    assert status == BENCH_STALL_STATUS == 3
     assert written == failed
     assert f"pigot    250 {hil.cli.bench.NOT_STARTED}" in out
     assert f"delay answers 200 ms   {hil.cli.bench.NOT_STARTED}" in out

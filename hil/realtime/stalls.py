@@ -21,7 +21,9 @@ from datetime import datetime
 #: wake-up jitter (tens of us), below a cycle's worth of a drive's silence limit
 STALL_THRESHOLD = 0.005
 #: a command's exit status where the bench's own stalls explain its failure: the bench broke
-#: real time, the device did not fail (1: the device's failure, or the user's)
+#: real time, the device did not fail (1: the device's failure, or the user's). hil up: every
+#: fault explained by a stall, a bring-up failed during one, or --max-stalls passed; hil
+#: control: its bring-up so failed; hil bench: a real-time run did not start
 BENCH_STALL_STATUS = 3
 #: what each process is called in words
 PROCESS_WORDS = {"sim": "the simulator", "control": "the controller",

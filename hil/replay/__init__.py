@@ -32,5 +32,5 @@ def log_clock(found: Survey) -> str:
 
 
 __all__ = ["Divergence", "JointStatistics", "REAL_TIME_SHARE", "LOG_CLOCK_TOLERANCES",
-           "REORDER_WINDOW", "LoggedFrame", "Replay", "Report", "Survey", "Tolerances", "frames", "log_clock",
-           "not_whole", "parse_channels", "survey"]
+           "REORDER_WINDOW", "LoggedFrame", "Replay", "Report", "Survey", "Tolerances", "frames",
+           "log_clock", "not_whole", "parse_channels", "survey"]

@@ -106,8 +106,6 @@ class Survey:
     cycle_frames: list[dict[int | None, int]] = field(default_factory=list)
     #: per bus: the time of the log's last frame from a drive (None: none)
     last_drive_time: list[float | None] = field(default_factory=list)
-    #: the time of the log's first frame from the master
-    first_master_time: float | None = None
     #: per bus and node (None: to all of the bus), when the master first sent to it
     first_master_times: dict[tuple[int, int | None], float] = field(default_factory=dict)
     #: per bus and node (None: all) of the cycle frames: [the last one's time, the time
@@ -320,8 +318,6 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
             misfit = misfits.setdefault((bus, msg.arbitration_id), [number, msg.timestamp, 0])
             misfit[2] += 1
         elif source.sender is Sender.MASTER:
-            if result.first_master_time is None or msg.timestamp < result.first_master_time:
-                result.first_master_time = msg.timestamp
             addressed = (bus, source.node_id)
             result.first_master_times[addressed] = min(
                 msg.timestamp, result.first_master_times.get(addressed, math.inf))

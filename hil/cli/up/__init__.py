@@ -39,12 +39,6 @@ from hil.zenoh_session import ZenohSettings, close_all, meeting_endpoint
 CAN_LOG_FORMATS = {".blf": "Vector BLF", ".log": "candump", ".asc": "Vector ASC",
                    ".trc": "PEAK TRC", ".csv": "python-can CSV"}
 
-#: exit status: every fault the controller reported was explained by a stall of the bench's
-#: own real-time processes (the simulator's, the controller's, the Zenoh transport's), the
-#: controller's bring-up failed during such a stall, or the run passed --max-stalls: the bench
-#: broke real time, the device did not fail (1: the device reported a fault, or a process
-#: failed)
-BENCH_FAULT_STATUS = BENCH_STALL_STATUS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -56,12 +50,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "exit status: 0 the run (and the demo) succeeded; 1 the controller reported a drive "
         "fault that no stall of the bench explains (a device fault, injected ones included), "
         "the demo failed without a fault, or a process failed; "
-        f"{BENCH_FAULT_STATUS} every fault the controller reported (and so a demo they "
+        f"{BENCH_STALL_STATUS} every fault the controller reported (and so a demo they "
         "aborted) was explained by a measured stall of the bench's own simulator, controller "
         "or Zenoh transport, a controller's bring-up failed while the bench itself stalled, "
         "or the bench stalled more than --max-stalls times (the bench "
         "broke real time: a flaky host, not a regression); 130 interrupted. With several "
-        f"robots, the worst of theirs (1, then {BENCH_FAULT_STATUS})")
+        f"robots, the worst of theirs (1, then {BENCH_STALL_STATUS})")
     parser.add_argument("target", nargs="*", metavar="ROBOT|CONFIG",
                         help="a robot with a config in bus_config/ (pigot, ur3) or a bus config "
                              "path (default: pigot); several: each robot's entities go under "
@@ -99,7 +93,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-stalls", type=int, metavar="N",
                         help="real time: stop the run once the bench has stalled more than N "
                              "times (the sim's or the controller's loop, or a Zenoh delivery, "
-                             f"over 5 ms late), exit status {BENCH_FAULT_STATUS}, as Simulink "
+                             f"over 5 ms late), exit status {BENCH_STALL_STATUS}, as Simulink "
                              "Real-Time's Max Overloads (0: at the first); default: no limit, "
                              "each stall is counted, reported and held against the faults")
     parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
@@ -168,17 +162,17 @@ def run(args: argparse.Namespace) -> int:
         if exc.status == BENCH_STALL_STATUS:       # only a controller's bring-up ends so
             print("hil up: the controller's bring-up failed while the bench itself stalled "
                   "(its error above names the stalls): the bench broke real time, the device "
-                  f"need not have failed; exit status {BENCH_FAULT_STATUS}", file=sys.stderr,
+                  f"need not have failed; exit status {BENCH_STALL_STATUS}", file=sys.stderr,
                   flush=True)
-            status = BENCH_FAULT_STATUS
+            status = BENCH_STALL_STATUS
     finally:
         too_many = [r for r in robots if r.progress.too_many is not None]
         if too_many:
             for robot in too_many:
                 print(f"hil up: {robot.label}the bench stalled more than --max-stalls "
                       f"{args.max_stalls} times (the last: {robot.progress.too_many}): run "
-                      f"stopped, exit status {BENCH_FAULT_STATUS}", file=sys.stderr, flush=True)
-            status = BENCH_FAULT_STATUS
+                      f"stopped, exit status {BENCH_STALL_STATUS}", file=sys.stderr, flush=True)
+            status = BENCH_STALL_STATUS
         elif stop.is_set():
             print("hil up: interrupted", flush=True)
             status = 130
@@ -210,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _outcome(robots: list[RobotRun]) -> int:
     """After a run no process failed, robot by robot: 0 without faults and with its demo
-    (if any) succeeded; BENCH_FAULT_STATUS when the bench's own stalls explain every fault
+    (if any) succeeded; BENCH_STALL_STATUS when the bench's own stalls explain every fault
     (a demo aborted by them too); else 1; says which. The worst of them: 1, then 3, then 0."""
     statuses = [0]
     for robot in robots:
@@ -222,9 +216,9 @@ def _outcome(robots: list[RobotRun]) -> int:
         if explained >= reported:
             print(f"hil up: {robot.label}the controller reported {reported} fault(s), each "
                   f"explained by a stall of the bench itself (above): the bench broke real "
-                  f"time, the device did not fail; exit status {BENCH_FAULT_STATUS} ({story})",
+                  f"time, the device did not fail; exit status {BENCH_STALL_STATUS} ({story})",
                   file=sys.stderr)
-            statuses.append(BENCH_FAULT_STATUS)
+            statuses.append(BENCH_STALL_STATUS)
         else:
             print(f"hil up: {robot.label}the controller reported {reported} fault(s), above, "
                   f"{reported - explained} of them not explained by a stall of the bench; the "
