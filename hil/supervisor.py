@@ -23,9 +23,8 @@ from pathlib import Path
 START_TIMEOUT = 60.0
 #: how long each child may take to stop after SIGTERM before it is killed (s)
 STOP_TIMEOUT = 15.0
-#: ... but a visualiser, stopped last, writes what it still holds of the run before it goes:
-#: on a loaded host that took longer than STOP_TIMEOUT once (it was killed, the recording's
-#: end lost), so it is given this long (s)
+#: ... but a visualiser writes what it still holds of the run before it goes: on a loaded
+#: host that can take longer, so it is given this long (s)
 RECORDER_STOP_TIMEOUT = 60.0
 LAST_LINES = 15
 #: set in every child: the pid whose death must end the child too
@@ -155,11 +154,11 @@ class Run:
         self.wait_until(child, logged, f"up (no {text!r} in its log)")
 
     def shut_down(self) -> list[str]:
-        """Stop the running children: controllers (their drives disabled), sims, then the
-        visualiser, which records what is still on its way from them (VizNode's drain: a
-        visualiser stopped before a sim cut the CAN log of a lock-step run short of the
-        controller's last frames, and the replay of the log failed); return problems."""
-        order = {"control": 0, "sim": 1, "viz": 2}
+        """Stop the running children: controllers (their drives disabled; in lock-step they
+        close once the visualiser has logged their last frame), the visualiser (it records
+        what is still on its way), then the sims; return problems. Stopped after the sims,
+        whose session holds the meeting point, a visualiser twice did not stop at all."""
+        order = {"control": 0, "viz": 1, "sim": 2}
         problems = []
         for child in sorted(self.children, key=lambda c: order[c.name]):
             child.expected_exit = True

@@ -111,8 +111,8 @@ class VizNode:
     def _drain(self) -> None:
         """Once stopped: log what is still on its way (a visualiser behind its senders holds
         their last batches and frames in its links) until nothing has come for QUIET s, at
-        most DRAIN_LIMIT s. ``hil up`` stops it after the processes it records, so it
-        records them to their end."""
+        most DRAIN_LIMIT s. ``hil up`` stops it after the controllers, whose last frames
+        it so records (a lock-step controller closes once the visualiser has heard them)."""
         deadline = time.monotonic() + DRAIN_LIMIT
         heard, quiet_since = self._frames_received(), time.monotonic()
         while time.monotonic() < deadline and time.monotonic() - quiet_since < QUIET:

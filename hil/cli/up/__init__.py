@@ -176,7 +176,7 @@ def run(args: argparse.Namespace) -> int:
         elif stop.is_set():
             print("hil up: interrupted", flush=True)
             status = 130
-        print("hil up: stopping control, sim and viz", flush=True)
+        print("hil up: stopping control, viz and sim", flush=True)
         problems = supervised.shut_down()
         for watcher in watchers:
             watcher.close()
