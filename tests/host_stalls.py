@@ -30,13 +30,15 @@ import pytest
 #: at 100 Hz, the controller's silence limit, the smallest wall-clock margin of the suite
 DEFAULT_MARGIN = 0.05
 
-#: the watcher: prints "<wall clock> <length>" for each late wake-up over 20 ms; ends when
-#: the run that started it is gone (its parent changes), so it never outlives pytest
+#: the watcher: says "ready" once its loop begins, then prints "<wall clock> <length>" for
+#: each late wake-up over 20 ms; ends when the run that started it is gone (its parent
+#: changes), so it never outlives pytest
 _WATCHER = """
 import os, sys, time
 parent = os.getppid()
 last = time.time()
 checked = last
+print("ready", flush=True)
 while True:
     time.sleep(0.002)
     now = time.time()
@@ -59,6 +61,12 @@ class HostStallWatch:
     def __init__(self) -> None:
         self._process = subprocess.Popen([sys.executable, "-c", _WATCHER],
                                          stdout=subprocess.PIPE, text=True)
+        # A stall while the watcher's Python still starts is one it never measures (CI: a
+        # test stopped it then, and its 0.3 s went unseen); the run's tests begin once it
+        # watches.
+        if self._process.stdout.readline() != "ready\n":
+            raise RuntimeError(f"the host-stall watcher did not start "
+                               f"(exit status {self._process.wait()})")
         self._stalls: collections.deque[tuple[float, float]] = collections.deque(maxlen=100_000)
         self._lock = threading.Lock()
         self._reader = threading.Thread(target=self._read, daemon=True)
