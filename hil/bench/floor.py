@@ -3,7 +3,8 @@
 The same frames per cycle (every drive's cyclic frames and SYNC out, their answers back,
 per bus) exchanged between two processes over the same transport, python-can on both ends
 and no hil code on the answering side, paced like the controller, each end on the CPU of
-the process it stands for. The ratio stack / floor says what hil adds to the transport.
+the process it stands for (in lock-step, both on one CPU, as ``hil up --lock-step``
+places sim and controller). The ratio stack / floor says what hil adds to the transport.
 Both ends send a cycle's frames as hil's do: together, one message per process and direction
 (the master in ``sent_together``, the answers from inside their delivery).
 
@@ -12,12 +13,14 @@ The answering process is :mod:`hil.bench.responder`.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 
 import can
 
@@ -25,7 +28,8 @@ from hil.bench.frames import cyclic_frames
 from hil.bus_config import SystemConfig
 from hil.can import sent_together
 from hil.hardware.can_interface import LOCK_STEP_REPLY_TIMEOUT
-from hil.realtime import CyclePacer, PeriodStatistics, Ring, enter_real_time, real_time_cpus
+from hil.realtime import (CyclePacer, PeriodStatistics, Ring, enter_real_time, lock_step_cpus,
+                          real_time_cpus)
 from hil.zenoh_session import free_loopback_port
 
 
@@ -36,7 +40,7 @@ def floor_across_processes(config: SystemConfig, seconds: float, paced: bool = T
     the speed-up over real time the exchange alone allows."""
     endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
     channels = {bus.name: f"bench-floor/{os.getpid()}/{bus.name}" for bus in config.buses}
-    sim_cpus, control_cpus, _ = real_time_cpus() if paced else (None, None, None)
+    sim_cpus, control_cpus, _ = real_time_cpus() if paced else lock_step_cpus()
     spec = json.dumps({"endpoint": endpoint, "seconds": seconds + 30, "real_time": paced,
                        "cpus": sorted(sim_cpus or ()), "buses": [
         {"channel": channels[name], "trigger": out[-1].arbitration_id,
@@ -47,10 +51,36 @@ def floor_across_processes(config: SystemConfig, seconds: float, paced: bool = T
     try:
         if "ready" not in (responder.stdout.readline() or ""):
             raise RuntimeError("the floor's answering process did not start")
-        return _run_floor_master(config, channels, endpoint, seconds, control_cpus, paced)
+        if paced:
+            return _run_floor_master(config, channels, endpoint, seconds, control_cpus, paced)
+        with _threads_on(control_cpus):     # as `hil control --cpus` keeps all of its own
+            return _run_floor_master(config, channels, endpoint, seconds, None, paced)
     finally:
         responder.terminate()
         responder.wait(10)
+
+
+@contextlib.contextmanager
+def _threads_on(cpus: set[int] | None) -> Iterator[None]:
+    """Every thread of this process (Zenoh's, started by earlier runs, too) kept on ``cpus``
+    meanwhile, then back where each was: the floor's master placed as the process it stands
+    for. None: as they are."""
+    if not cpus:
+        yield
+        return
+    def each_thread(place) -> None:
+        for tid in map(int, os.listdir("/proc/self/task")):
+            with contextlib.suppress(OSError):      # a thread that ended meanwhile
+                place(tid)
+
+    before: dict[int, set[int]] = {}
+    each_thread(lambda tid: before.setdefault(tid, os.sched_getaffinity(tid)))
+    each_thread(lambda tid: os.sched_setaffinity(tid, cpus))
+    try:
+        yield
+    finally:        # a thread started meanwhile: where the main thread was
+        each_thread(lambda tid: os.sched_setaffinity(
+            tid, before.get(tid, before.get(os.getpid(), os.sched_getaffinity(0)))))
 
 
 def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: str,

@@ -29,7 +29,7 @@ from hil.bench.floor import floor_across_processes
 from hil.bench.settings import DID_NOT_START, BenchSettings
 from hil.bus_config import load_bus_config
 from hil.supervisor import Child, ChildFailed, Run, cpus_argument, viz_summary
-from hil.realtime import LOCK_STEP, REAL_TIME, Timing, real_time_cpus
+from hil.realtime import LOCK_STEP, REAL_TIME, Timing, lock_step_cpus, real_time_cpus
 from hil.zenoh_session import free_loopback_port
 
 #: how long after the controller's banner the measurement starts (bring-up, first goal)
@@ -74,8 +74,8 @@ def config_at(path: Path, rate: float, folder: Path) -> Path:
 def lock_step_across_processes(settings: BenchSettings, say: Callable[[str], None]
                                ) -> list[dict]:
     """Each robot of ``settings``' across-processes runs at its config's own rate, in
-    lock-step as ``hil up --lock-step`` runs it (no visualiser), beside the same frames
-    exchanged as fast as they are answered between two bare processes."""
+    lock-step as ``hil up --lock-step`` runs and places it (no visualiser), beside the same
+    frames exchanged as fast as they are answered between two bare processes placed alike."""
     rows = []
     for robot in dict.fromkeys(robot for robot, _ in settings.across_processes):
         path = settings.config_dir / f"{robot}.yaml"
@@ -92,11 +92,12 @@ def lock_step_across_processes(settings: BenchSettings, say: Callable[[str], Non
 
 def stack_across_processes(config_path: Path, seconds: float, with_viz: bool,
                            timing: Timing = REAL_TIME) -> dict:
-    """One run of ``hil sim`` + ``hil control`` (+ ``hil viz``) on the config: in real time,
-    placed on the CPUs as ``hil up`` places them; or in lock-step, where ``hil up`` places
-    nothing. A real-time run whose child exits (a bring-up the host's stalls failed) is
-    the row :data:`DID_NOT_START`."""
-    sim_cpus, control_cpus, viz_cpus = (None, None, None) if timing.lock_step else real_time_cpus()
+    """One run of ``hil sim`` + ``hil control`` (+ ``hil viz``) on the config, placed on the
+    CPUs as ``hil up`` places them in that timing (in lock-step, sim and controller on one
+    CPU). A real-time run whose child exits (a bring-up the host's stalls failed) is the row
+    :data:`DID_NOT_START`."""
+    sim_cpus, control_cpus, viz_cpus = (lock_step_cpus() if timing.lock_step
+                                        else real_time_cpus())
     timing_options = ["--lock-step"] if timing.lock_step else []
     with tempfile.TemporaryDirectory(prefix="hil-bench-") as folder:
         folder = Path(folder)

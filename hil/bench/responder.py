@@ -7,6 +7,7 @@ package's ``__init__`` imports :mod:`hil.bench.floor`)."""
 from __future__ import annotations
 
 import json
+import os
 import signal
 import sys
 import time
@@ -19,9 +20,11 @@ from hil.realtime import enter_real_time
 def respond(spec: dict) -> None:
     """The floor's answering process: on each bus, the answers on the trigger frame; in
     real time as ``hil sim`` runs there (``spec["real_time"]``), else scheduled normally as
-    in lock-step."""
+    in lock-step; on ``spec["cpus"]`` either way."""
     if spec["real_time"]:
         enter_real_time(cpus=set(spec["cpus"]) or None)
+    elif spec["cpus"]:      # as `hil sim --lock-step --cpus`: this process and its threads
+        os.sched_setaffinity(0, set(spec["cpus"]))
     buses = []
     for bus_spec in spec["buses"]:
         bus = can.Bus(interface="zenoh", channel=bus_spec["channel"], listen=[spec["endpoint"]])
