@@ -3,11 +3,14 @@
 
 from __future__ import annotations
 
+import threading
 import time
 
+import can
 import pytest
 
-from hil.can.zenoh_receipts import declare_receipts, monitors_behind, receipts_payload
+from hil.can.zenoh_receipts import (declare_receipts, monitors_behind, receipts_payload,
+                                   wait_for_monitor)
 from hil.zenoh_session import ZenohSettings, close, free_loopback_port, session
 
 
@@ -43,3 +46,35 @@ def test_a_monitor_is_behind_a_sender_until_it_has_heard_its_last_frame(two_sess
         assert monitors_behind(sender, "ur3/wrist", 7, 3) == 0
     finally:
         queryable.undeclare()
+
+
+def test_a_sender_awaiting_a_monitor_waits_for_one_then_the_monitor_hears_its_first_frame():
+    """``--await-monitor`` (hil up --lock-step): the sender's session learns of the monitor
+    before its first frame, so the log holds it (a lock-step log lacked every drive's boot-up,
+    put while the visualiser's subscription was on its way)."""
+    endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
+    sender_settings = ZenohSettings(listen=(endpoint,))
+    monitor_settings = ZenohSettings(connect=(endpoint,))
+    sender = can.Bus(interface="zenoh", channel="ur3/arm", settings=sender_settings)
+    monitor = None
+    try:
+        assert not wait_for_monitor(session(sender_settings), timeout=0.3)   # none there yet
+        found: list[bool] = []
+        waiting = threading.Thread(target=lambda: found.append(
+            wait_for_monitor(session(sender_settings), timeout=20)))
+        waiting.start()
+        time.sleep(0.3)
+        assert waiting.is_alive() and not found
+        monitor = can.Bus(interface="zenoh", channel="ur3/arm", settings=monitor_settings,
+                          timestamps="sent")
+        waiting.join(30)
+        assert found == [True]
+        sender.send(can.Message(arbitration_id=0x701, data=b"\x00", is_extended_id=False))
+        first = monitor.recv(5)
+        assert first is not None and first.arbitration_id == 0x701 and first.data == b"\x00"
+    finally:
+        for bus in (sender, monitor):
+            if bus is not None:
+                bus.shutdown()
+        close(monitor_settings)
+        close(sender_settings)

@@ -2,23 +2,30 @@
 
 from __future__ import annotations
 
+import logging
+
 import can
 
 from hil.bus_config.types import SystemConfig
 from hil.can import open_bus
+from hil.can.zenoh_receipts import AWAIT_MONITOR, wait_for_monitor
 from hil.errors import HilError
-from hil.zenoh_session import ZenohSettings
+from hil.zenoh_session import ZenohSettings, session
+
+log = logging.getLogger(__name__)
 
 
 def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None = None,
                channels: dict[str, str] | None = None, logging: bool = False,
-               lossless: bool = False) -> dict[str, can.BusABC]:
+               lossless: bool = False, await_monitor: bool = False) -> dict[str, can.BusABC]:
     """Open every bus of a config, with optional interface/channel overrides.
 
     Zenoh buses join the process' Zenoh session given by ``zenoh``; with ``logging`` (a
     monitor's) their frames are stamped with their senders' clock, the time they were on
     the bus; with ``lossless`` (a lock-step process') a send waits for room where a
-    congested link would drop it.
+    congested link would drop it; with ``await_monitor`` the buses are returned once a CAN
+    monitor (``hil viz``) hears their frames, or AWAIT_MONITOR s have passed (then with a
+    warning): its log holds the process' frames from the first.
     """
     channels = channels or {}
     unknown = set(channels) - {bus.name for bus in config.buses}
@@ -38,4 +45,8 @@ def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None
         for bus in opened.values():
             bus.shutdown()
         raise
+    zenoh_buses = [b.name for b in config.buses if (interface or b.interface) == "zenoh"]
+    if await_monitor and zenoh_buses and not wait_for_monitor(session(zenoh)):
+        log.warning("no CAN monitor joined bus(es) %s within %g s: a log begun later lacks "
+                    "the frames sent before it", ", ".join(zenoh_buses), AWAIT_MONITOR)
     return opened

@@ -1,6 +1,7 @@
 """Receipts of a CAN log over Zenoh: which frame of each sender a monitor (a bus opened with
 ``timestamps="sent"``, as ``hil viz`` logs) has heard, asked for by a lossless bus as it
-shuts down, so that a lock-step run's log is whole to its last frame.
+shuts down, so that a lock-step run's log is whole to its last frame; and, asked by a
+process that is to be logged from its first frame, whether a monitor has joined yet.
 
 A Zenoh session's queue for a link holds what it has not sent yet: about 400 cycles of a
 ur3's frames for a visualiser that fell behind, which closing the session drops (the log of
@@ -20,6 +21,8 @@ from hil.zenoh_security import RECEIPTS_KEY
 
 #: how long a lossless bus waits for the monitors at its shutdown (s)
 LINGER = 10.0
+#: how long a process asked to wait for a monitor at its start waits for one (s)
+AWAIT_MONITOR = 30.0
 #: how often it asks (s)
 _POLL = 0.02
 #: sequence numbers are 32-bit and wrap: ``a`` is before ``b`` if ``b - a`` is under half
@@ -56,6 +59,26 @@ def monitors_behind(session: zenoh.Session, channel: str, sender: int, last: int
                 gap = (last - int(rest)) & 0xFFFFFFFF
                 behind += 0 < gap < _HALF
     return behind
+
+
+def wait_for_monitor(session: zenoh.Session, timeout: float = AWAIT_MONITOR) -> bool:
+    """Wait until a monitor answers this session's receipts query, at most ``timeout`` s;
+    whether one did.
+
+    A monitor's session declares its subscriber of every CAN key before its receipts
+    queryable (:class:`hil.can.zenoh_channels.Channels`), and a session's declarations
+    reach a peer in the order made. So once a query of this session reaches the queryable,
+    this session knows the subscriber too, and every frame it puts from then on reaches the
+    monitor. A frame put before that went nowhere: a lock-step log lacked its drives'
+    boot-ups, put as the visualiser's subscription was still on its way, and did not replay."""
+    deadline = time.monotonic() + timeout
+    while True:
+        if any(reply.ok is not None
+               for reply in session.get(f"{RECEIPTS_KEY}/*", timeout=min(1.0, timeout))):
+            return True
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(_POLL)
 
 
 def wait_until_heard(session: zenoh.Session, channel: str, sender: int, last: int,

@@ -14,6 +14,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from hil.can.capabilities import capabilities
+from hil.can.zenoh_receipts import AWAIT_MONITOR
 from hil.description import PackagePath
 from hil.durations import parse_duration
 from hil.errors import HilError
@@ -281,6 +282,13 @@ def add_cpus(parser: argparse.ArgumentParser) -> None:
                         help="run on these CPUs only, e.g. 1 or 2,3 (default: any; hil up "
                              "gives sim and controller a CPU each in real time, one CPU "
                              "together in lock-step)")
+
+
+def add_await_monitor(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--await-monitor", action="store_true",
+                        help="open the Zenoh CAN buses only once a CAN monitor (hil viz) hears "
+                             f"them, waiting up to {AWAIT_MONITOR:g} s: its log then holds "
+                             "this process' frames from the first (hil up --lock-step asks it)")
 
 
 def keep_on_cpus(args: argparse.Namespace) -> None:

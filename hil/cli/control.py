@@ -67,6 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="at exit, write the run's figures (periods, busy times, round "
                              "trips, faults, frame counts) as JSON")
     common.add_cpus(parser)
+    common.add_await_monitor(parser)
     common.add_can_override(parser)
     common.add_package_path(parser)
     common.add_zenoh(parser, "controller")
@@ -96,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
         hardware = FakeHardwareInterface(config.robot)
     else:
         interface, channels = common.can_overrides(args)
-        buses = open_buses(config, zenoh, interface, channels, lossless=args.timing.lock_step)
+        buses = open_buses(config, zenoh, interface, channels, lossless=args.timing.lock_step,
+                           await_monitor=args.await_monitor)
         hardware = CanHardwareInterface(
             config, buses, reply_timeout=LOCK_STEP_REPLY_TIMEOUT if args.timing.lock_step else None,
             boot_timeout=args.boot_timeout)

@@ -54,6 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"the OS allows it (default {IO_PRIORITY}; 0: the normal "
                              "scheduler)")
     common.add_cpus(parser)
+    common.add_await_monitor(parser)
     common.add_can_override(parser)
     common.add_package_path(parser)
     common.add_zenoh(parser, "drives")
@@ -150,7 +151,8 @@ def _open(args: argparse.Namespace, config, zenoh, frame_faults: list[FrameFault
     """(the simulator on its buses, the buses, the ROS 2 clock face or None)."""
     interface, channels = common.can_overrides(args)
     buses = with_frame_faults(open_buses(config, zenoh, interface, channels,
-                                         lossless=args.timing.lock_step), frame_faults,
+                                         lossless=args.timing.lock_step,
+                                         await_monitor=args.await_monitor), frame_faults,
                               args.fault_seed)
     try:
         simulator = Simulator(config, buses, args.timing)

@@ -34,6 +34,8 @@ def make_children(args: argparse.Namespace, robots: list[RobotRun], faults: list
     shared = [*(["--secure", str(args.secure)] if args.secure else []),
               *(f"--package-path={p}" for p in args.package_path)]
     lock_step = ["--lock-step"] if args.timing.lock_step else []
+    # the visualiser logs the CAN buses: in lock-step, whole from each process' first frame
+    logged = ["--await-monitor"] if args.timing.lock_step else []
     # over TLS the processes are not pinned to a CPU each: pinned, every `hil up ur3 --secure`
     # on 2 CPUs faulted within a second as soon as a third process took the traffic (the
     # transport 40-107 ms late), unpinned 3 of 3 ran clean (docs/performance.md)
@@ -46,11 +48,11 @@ def make_children(args: argparse.Namespace, robots: list[RobotRun], faults: list
         tag = robot.name if several else ""         # in its messages and its logs' names
         prefix = f"{tag}." if tag else ""
         robot.children = {
-            "sim": Child("sim", ["sim", *config, *lock_step, *placed["sim"],
+            "sim": Child("sim", ["sim", *config, *lock_step, *logged, *placed["sim"],
                                  "--status-period", "0", *sim_faults, *ros],
                          logs / f"{prefix}sim.log", tag),
             "control": Child("control", [
-                "control", *config, *lock_step, *placed["control"], *ros,
+                "control", *config, *lock_step, *logged, *placed["control"], *ros,
                 # the sim already runs: a drive silent at boot is a fault
                 "--boot-timeout", f"{BOOT_TIMEOUT:g}", "--hold",
                 *(["--ros-use-sim-time"] if args.ros_use_sim_time else [])],
