@@ -68,6 +68,7 @@ def _threads_on(cpus: set[int] | None) -> Iterator[None]:
     if not cpus:
         yield
         return
+
     def each_thread(place) -> None:
         for tid in map(int, os.listdir("/proc/self/task")):
             with contextlib.suppress(OSError):      # a thread that ended meanwhile
