@@ -291,6 +291,13 @@ def add_await_monitor(parser: argparse.ArgumentParser) -> None:
                              "this process' frames from the first (hil up --lock-step asks it)")
 
 
+def announce_await_monitor(args: argparse.Namespace, command: str) -> None:
+    """With --await-monitor, say what the process waits for before its banner."""
+    if args.await_monitor:
+        print(f"hil {command}: waiting for a CAN monitor (hil viz) to hear the buses, up to "
+              f"{AWAIT_MONITOR:g} s (--await-monitor)", flush=True)
+
+
 def keep_on_cpus(args: argparse.Namespace) -> None:
     """Keep this process (and the threads it starts after) on the CPUs of --cpus, if given,
     at its scheduling as it is (lock-step, and the visualiser)."""

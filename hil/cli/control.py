@@ -97,6 +97,7 @@ def run(args: argparse.Namespace) -> int:
         hardware = FakeHardwareInterface(config.robot)
     else:
         interface, channels = common.can_overrides(args)
+        common.announce_await_monitor(args, "control")
         buses = open_buses(config, zenoh, interface, channels, lossless=args.timing.lock_step,
                            await_monitor=args.await_monitor)
         hardware = CanHardwareInterface(

@@ -150,6 +150,7 @@ def _faults(args: argparse.Namespace, config) -> tuple[list[FrameFault], list[Dr
 def _open(args: argparse.Namespace, config, zenoh, frame_faults: list[FrameFault]):
     """(the simulator on its buses, the buses, the ROS 2 clock face or None)."""
     interface, channels = common.can_overrides(args)
+    common.announce_await_monitor(args, "sim")
     buses = with_frame_faults(open_buses(config, zenoh, interface, channels,
                                          lossless=args.timing.lock_step,
                                          await_monitor=args.await_monitor), frame_faults,
