@@ -109,10 +109,11 @@ def test_a_lock_step_log_loses_no_frame_to_a_visualiser_that_falls_behind(tmp_pa
     assert up.returncode == 0 and "demo succeeded" in out, out[-3000:] + err[-3000:]
     lines = [line for line in out.splitlines() if "CAN log, bus" in line]
     lost = [int(re.search(r"lost on the way (\d+)", line).group(1)) for line in lines]
-    # at most one message of a cycle (3 RPDOs and a SYNC on a bus): 2 runs of some 15 lost
-    # exactly that (where in the run is not pinned; a message put as the visualiser's
-    # subscription was still reaching the controller is the likely one), and the replay
-    # below must hold all the same; the pause lost thousands
+    # at most one message of a cycle (3 RPDOs and a SYNC on a bus): 2 runs of some 15
+    # counted exactly that, where in the run not pinned. A message that came late, out of
+    # order, was then counted lost (and the frames after it twice); it no longer is
+    # (hil.can.link_statistics.SenderSequences), and whether that was those runs' count is
+    # not known. The replay below must hold all the same; the pause lost thousands
     assert len(lost) == 2 and max(lost) <= 4, lines
     status, replayed = replay(capsys, tmp_path / "run.can.blf", "ur3")
     assert status == 0 and "0 divergences" in replayed, replayed

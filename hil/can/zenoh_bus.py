@@ -67,7 +67,7 @@ import zenoh
 
 from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
-from hil.can.link_statistics import FrameCounters, Quickest
+from hil.can.link_statistics import FrameCounters, Quickest, SenderSequences
 from hil.can.messages import FrameParts
 from hil.can.zenoh_channels import Channels
 from hil.can.zenoh_receipts import LINGER, wait_until_heard
@@ -139,7 +139,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
         self._receive_own = receive_own_messages
         self._sender = random.getrandbits(63) ^ os.getpid()
         self._sequence = 0
-        self._heard: dict[int, int] = {}      # sender -> its last sequence number seen
+        self._sequences = SenderSequences()    # each sender's last number heard, its gaps
         self._quickest: dict[int, Quickest] = {}
         # the last message heard (sender, first sequence, monotonic arrival): echoed
         self._last_heard: tuple[int, int, float] | None = None
@@ -180,7 +180,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
     def heard(self) -> dict[int, int]:
         """Each sender's last sequence number heard."""
         with self._count_lock:
-            return dict(self._heard)
+            return dict(self._sequences.last)
 
     def unreached(self) -> str | None:
         """Why this bus' session reaches no other process, in words, if it reaches none
@@ -262,20 +262,10 @@ class ZenohBus(can.BusABC, BusCapabilities):
         with self._count_lock:
             counters.received += frames
             counters.messages_received += 1
-            last = self._heard.get(sender)
-            if last is not None:
-                # frames that never came: the gap since the sender's previous one (a late
-                # one of an earlier sequence, which Zenoh does not produce, counts nothing)
-                gap = (sequence - last - 1) & 0xFFFFFFFF
-                if gap < 0x80000000:
-                    counters.lost += gap
-            if sender not in self._heard and len(self._heard) >= MAX_SENDERS:
-                # a bounded memory of senders (each message may claim a new one): the
-                # oldest is forgotten, and counted afresh if it is heard again
-                oldest = next(iter(self._heard))
-                del self._heard[oldest]
-                self._quickest.pop(oldest, None)
-            self._heard[sender] = (sequence + frames - 1) & 0xFFFFFFFF
+            if sender not in self._sequences.last and len(self._sequences.last) >= MAX_SENDERS:
+                # a bounded memory of senders (each message may claim a new one)
+                self._quickest.pop(self._sequences.forget_oldest(), None)
+            counters.lost += self._sequences.arrived(sender, sequence, frames)
             quickest = self._quickest.get(sender)
             if quickest is None:
                 self._quickest[sender] = Quickest(transit, transit, arrived)
