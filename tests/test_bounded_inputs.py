@@ -106,7 +106,7 @@ def test_a_bus_remembers_a_bounded_number_of_senders(tmp_path):
         for sender in range(1, 3 * MAX_SENDERS):
             bus._on_message(Message(bus._channel, sender, 1, time.time(), Echo(), [frame], True),
                             time.time(), time.monotonic())
-        assert len(bus._heard) <= MAX_SENDERS and len(bus._quickest) <= MAX_SENDERS
+        assert len(bus.heard()) <= MAX_SENDERS and len(bus._quickest) <= MAX_SENDERS
     finally:
         bus.shutdown()
 
