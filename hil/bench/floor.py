@@ -74,14 +74,14 @@ def _threads_on(cpus: set[int] | None) -> Iterator[None]:
             with contextlib.suppress(OSError):      # a thread that ended meanwhile
                 place(tid)
 
+    here = os.sched_getaffinity(0)
     before: dict[int, set[int]] = {}
     each_thread(lambda tid: before.setdefault(tid, os.sched_getaffinity(tid)))
     each_thread(lambda tid: os.sched_setaffinity(tid, cpus))
     try:
         yield
-    finally:        # a thread started meanwhile: where the main thread was
-        each_thread(lambda tid: os.sched_setaffinity(
-            tid, before.get(tid, before.get(os.getpid(), os.sched_getaffinity(0)))))
+    finally:        # a thread started meanwhile: where this one was
+        each_thread(lambda tid: os.sched_setaffinity(tid, before.get(tid, here)))
 
 
 def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: str,

@@ -34,18 +34,21 @@ def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None
                               config.path,
                               hint=f"buses: {', '.join(bus.name for bus in config.buses)}")
     opened: dict[str, can.BusABC] = {}
+    zenoh_buses = []
     try:
         for bus in config.buses:
             name = interface or bus.interface
-            options = ({"settings": zenoh, "timestamps": "sent" if logging else "arrival",
-                        "lossless": lossless} if name == "zenoh" else {})
+            options = {}
+            if name == "zenoh":
+                zenoh_buses.append(bus.name)
+                options = {"settings": zenoh, "timestamps": "sent" if logging else "arrival",
+                           "lossless": lossless}
             opened[bus.name] = open_bus(name, channels.get(bus.name, bus.channel), bus.bitrate,
                                         **options)
     except HilError:
         for bus in opened.values():
             bus.shutdown()
         raise
-    zenoh_buses = [b.name for b in config.buses if (interface or b.interface) == "zenoh"]
     if await_monitor and zenoh_buses and not wait_for_monitor(session(zenoh)):
         log.warning("no CAN monitor joined bus(es) %s within %g s: a log begun later lacks "
                     "the frames sent before it", ", ".join(zenoh_buses), AWAIT_MONITOR)

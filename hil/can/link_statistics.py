@@ -9,9 +9,10 @@ from dataclasses import dataclass
 
 #: how long a sender's quickest delivery stands as the base of its lateness (s)
 QUICKEST_WINDOW = 10.0
-#: sequence numbers are 32-bit and wrap: ``b`` is after ``a`` if ``b - a`` is under half
+#: a sender's sequence numbers are 32-bit and wrap: ``b`` is after ``a`` if
+#: ``(b - a) & SEQUENCE_MASK`` is under SEQUENCE_HALF
 SEQUENCE_MASK = 0xFFFFFFFF
-_HALF = 0x80000000
+SEQUENCE_HALF = 0x80000000
 #: a sender's most recent gaps kept for a late message to fill
 GAPS_KEPT = 32
 
@@ -102,7 +103,7 @@ class SenderSequences:
         count changes (the gap before it; minus the frames of a late one that fills a gap)."""
         last = self.last.get(sender)
         gap = 0 if last is None else (sequence - last - 1) & SEQUENCE_MASK
-        if gap >= _HALF:            # not after the last heard: late, or a repeat
+        if gap >= SEQUENCE_HALF:            # not after the last heard: late, or a repeat
             return -self._fill(sender, sequence, frames)
         self.last[sender] = (sequence + frames - 1) & SEQUENCE_MASK
         if gap:

@@ -67,7 +67,7 @@ import zenoh
 
 from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
-from hil.can.link_statistics import FrameCounters, Quickest, SenderSequences
+from hil.can.link_statistics import SEQUENCE_MASK, FrameCounters, Quickest, SenderSequences
 from hil.can.messages import FrameParts
 from hil.can.zenoh_channels import Channels
 from hil.can.zenoh_receipts import LINGER, wait_until_heard
@@ -345,7 +345,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
         self.counters.messages_sent += 1
         heard = self._last_heard
         echo = NO_ECHO if heard is None else Echo(heard[0], heard[1], now - heard[2])
-        self._puts[first & 0xFFFFFFFF] = now
+        self._puts[first & SEQUENCE_MASK] = now
         if len(self._puts) > PUTS_KEPT:
             del self._puts[next(iter(self._puts))]       # the oldest
         return first, encode_frames(self._channel, self._sender, first, sent_at, frames, echo)

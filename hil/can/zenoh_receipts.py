@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterable
 
 import zenoh
 
+from hil.can.link_statistics import SEQUENCE_HALF, SEQUENCE_MASK
 from hil.zenoh_security import RECEIPTS_KEY
 
 #: how long a lossless bus waits for the monitors at its shutdown (s)
@@ -25,8 +26,6 @@ LINGER = 10.0
 AWAIT_MONITOR = 30.0
 #: how often it asks (s)
 _POLL = 0.02
-#: sequence numbers are 32-bit and wrap: ``a`` is before ``b`` if ``b - a`` is under half
-_HALF = 0x80000000
 
 
 def receipts_payload(heard: Iterable[tuple[str, dict[int, int]]]) -> bytes:
@@ -56,8 +55,8 @@ def monitors_behind(session: zenoh.Session, channel: str, sender: int, last: int
             name, _, rest = line.rpartition(" ")
             name, _, heard_from = name.rpartition(" ")
             if name == channel and heard_from == str(sender) and rest.isdigit():
-                gap = (last - int(rest)) & 0xFFFFFFFF
-                behind += 0 < gap < _HALF
+                gap = (last - int(rest)) & SEQUENCE_MASK
+                behind += 0 < gap < SEQUENCE_HALF
     return behind
 
 
@@ -87,7 +86,7 @@ def wait_until_heard(session: zenoh.Session, channel: str, sender: int, last: in
     ``linger`` s; how many still were."""
     deadline = time.monotonic() + linger
     while True:
-        behind = monitors_behind(session, channel, sender, last & 0xFFFFFFFF)
+        behind = monitors_behind(session, channel, sender, last & SEQUENCE_MASK)
         if not behind or time.monotonic() >= deadline:
             return behind
         time.sleep(_POLL)
