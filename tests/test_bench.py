@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 import sys
 
@@ -75,6 +76,7 @@ def test_quick_bench_reports_every_figure(tmp_path):
         assert floor["cycles"] > 0 and 0 < floor["round_trip_p50_us"] <= floor["round_trip_p99_us"]
         assert row["round_trip_p99_over_floor"] > 0
         assert set(row["cpu"]) == ({"sim", "control", "viz"} if row["viz"] else {"sim", "control"})
+        assert set(floor["cpu"]) == {"sim", "control"} and min(floor["cpu"].values()) >= 0
         if row["viz"]:
             assert " 0 lost" in row["recorded"], row["recorded"]
     stepped = report["lock_step_across_processes"]
@@ -86,7 +88,7 @@ def test_quick_bench_reports_every_figure(tmp_path):
         assert row["floor"]["speedup_over_real_time"] > 0 and row["faults"] == 0
         assert row["speedup_over_floor"] == pytest.approx(
             row["speedup_over_real_time"] / row["floor"]["speedup_over_real_time"])
-        assert set(row["cpu"]) == {"sim", "control"}
+        assert set(row["cpu"]) == set(row["floor"]["cpu"]) == {"sim", "control"}
     scale = report["scale"]
     assert [(r["drives"], r["rate_hz"]) for r in scale] == [(6, 500.0), (12, 500.0)]
     for row in scale:
@@ -95,6 +97,8 @@ def test_quick_bench_reports_every_figure(tmp_path):
         assert row["holds"] == (row["faults"] == 0 and row["missed"] <= 0.001 * row["cycles"])
     assert "largest that held: 500 Hz" in result.stdout
     assert "lock-step across processes" in result.stdout
+    # each process' CPU with the floor's process in its place beside it
+    assert re.search(r"sim \d+% \(\d+%\) control \d+% \(\d+%\)", result.stdout), result.stdout
     assert "control cycle, real time" in result.stdout and "tracking" in result.stdout
     assert "across processes" in result.stdout
     assert report["machine"]["drive_core"] in ("compiled", "interpreted")   # read figures by it

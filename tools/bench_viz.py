@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import signal
 import subprocess
@@ -28,6 +27,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from hil.bench.floor import cpu_seconds                              # noqa: E402
 from hil.bus_config import load_bus_config                          # noqa: E402
 from hil.hardware import JointFeedback                              # noqa: E402
 from hil.messaging.samples import ControlSampleBuffer                # noqa: E402
@@ -35,12 +35,6 @@ from hil.messaging.zenoh_api import ControlSamplesPublisher, ProcessWatch  # noq
 from hil.zenoh_session import (                                    # noqa: E402
     ZenohSettings, close_all, free_loopback_port, session,
 )
-
-
-def cpu_seconds(pid: int) -> float:
-    with open(f"/proc/{pid}/stat") as stat:
-        fields = stat.read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def main() -> int:

@@ -8,7 +8,10 @@ places sim and controller). The ratio stack / floor says what hil adds to the tr
 Both ends send a cycle's frames as hil's do: together, one message per process and direction
 (the master in ``sent_together``, the answers from inside their delivery).
 
-The answering process is :mod:`hil.bench.responder`.
+The answering process is :mod:`hil.bench.responder`. Each end's CPU share over the cycling
+is reported too (``cpu``: ``sim`` the answering process, ``control`` the master's, the
+bench process with every thread it has), the part of a CPU the transport alone takes beside
+what ``hil sim`` and ``hil control`` take.
 """
 
 from __future__ import annotations
@@ -52,9 +55,11 @@ def floor_across_processes(config: SystemConfig, seconds: float, paced: bool = T
         if "ready" not in (responder.stdout.readline() or ""):
             raise RuntimeError("the floor's answering process did not start")
         if paced:
-            return _run_floor_master(config, channels, endpoint, seconds, control_cpus, paced)
+            return _run_floor_master(config, channels, endpoint, seconds, control_cpus, paced,
+                                     responder.pid)
         with _threads_on(control_cpus):     # as `hil control --cpus` keeps all of its own
-            return _run_floor_master(config, channels, endpoint, seconds, None, paced)
+            return _run_floor_master(config, channels, endpoint, seconds, None, paced,
+                                     responder.pid)
     finally:
         responder.terminate()
         responder.wait(10)
@@ -84,8 +89,16 @@ def _threads_on(cpus: set[int] | None) -> Iterator[None]:
         each_thread(lambda tid: os.sched_setaffinity(tid, before.get(tid, here)))
 
 
+def cpu_seconds(pid: int) -> float:
+    """The CPU time (user and system, s) process ``pid`` has taken, all its threads."""
+    with open(f"/proc/{pid}/stat") as stat:
+        fields = stat.read().rpartition(")")[2].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: str,
-                      seconds: float, cpus: set[int] | None, paced: bool) -> dict:
+                      seconds: float, cpus: set[int] | None, paced: bool,
+                      responder: int) -> dict:
     buses = {name: can.Bus(interface="zenoh", channel=channel, connect=[endpoint])
              for name, channel in channels.items()}
     result: dict = {}
@@ -98,7 +111,8 @@ def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: 
             bus.deliver_to([counter])
         time.sleep(1.0)                               # the sessions find each other
         thread = threading.Thread(target=_floor_loop, args=(
-            exchanges, expected, counter, 1.0 / config.cycle_hz, seconds, result, cpus, paced))
+            exchanges, expected, counter, 1.0 / config.cycle_hz, seconds, result, cpus, paced,
+            {"sim": responder, "control": os.getpid()}))
         thread.start()
         thread.join()
     finally:
@@ -108,10 +122,12 @@ def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: 
 
 
 def _floor_loop(exchanges, expected: int, counter: _Counter, period: float, seconds: float,
-                result: dict, cpus: set[int] | None, paced: bool) -> None:
+                result: dict, cpus: set[int] | None, paced: bool,
+                processes: dict[str, int]) -> None:
     """In a thread of its own, as the controller's loop: write the cycle, then the answers
     to it are due before the next one (paced), or the next cycle goes as soon as they are in
-    (unpaced: lock-step, where a reply may take the controller's 2 s)."""
+    (unpaced: lock-step, where a reply may take the controller's 2 s). ``processes``: the
+    pids whose CPU share over the cycling goes in the result, by the name each stands for."""
     if paced:
         enter_real_time(cpus=cpus)
     statistics = PeriodStatistics(period)
@@ -119,6 +135,7 @@ def _floor_loop(exchanges, expected: int, counter: _Counter, period: float, seco
     pacer = CyclePacer(period, statistics) if paced else None
     wait = period if paced else LOCK_STEP_REPLY_TIMEOUT
     start = time.perf_counter()
+    cpu_start = {name: cpu_seconds(pid) for name, pid in processes.items()}
     end, cycles = start + seconds, 0
     try:
         while time.perf_counter() < end:
@@ -139,10 +156,12 @@ def _floor_loop(exchanges, expected: int, counter: _Counter, period: float, seco
     finally:
         if pacer is not None:
             pacer.close()
+    wall = time.perf_counter() - start
+    cpu = {name: round((cpu_seconds(pid) - cpu_start[name]) / wall, 3)
+           for name, pid in processes.items()}
     figures = statistics.figures() if paced else {
-        "cycles": cycles, "speedup_over_real_time":
-            cycles * period / (time.perf_counter() - start)}
-    result.update({**figures, **trips.percentiles_us("round_trip"), "late": late})
+        "cycles": cycles, "speedup_over_real_time": cycles * period / wall}
+    result.update({**figures, **trips.percentiles_us("round_trip"), "late": late, "cpu": cpu})
 
 
 class _Counter(can.Listener):

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import tempfile
 import time
 from collections.abc import Callable
@@ -25,7 +24,7 @@ from pathlib import Path
 
 import yaml
 
-from hil.bench.floor import floor_across_processes
+from hil.bench.floor import cpu_seconds, floor_across_processes
 from hil.bench.settings import DID_NOT_START, BenchSettings
 from hil.bus_config import load_bus_config
 from hil.supervisor import Child, ChildFailed, Run, cpus_argument, viz_summary
@@ -122,9 +121,9 @@ def stack_across_processes(config_path: Path, seconds: float, with_viz: bool,
                 child.start()
                 run.wait_for_line(child, f"hil {child.name}:")
             time.sleep(SETTLE)
-            cpu_start = {child.name: _cpu_seconds(child.pid) for child in children}
+            cpu_start = {child.name: cpu_seconds(child.pid) for child in children}
             run.wait(seconds)
-            cpu = {child.name: (_cpu_seconds(child.pid) - cpu_start[child.name]) / seconds
+            cpu = {child.name: (cpu_seconds(child.pid) - cpu_start[child.name]) / seconds
                    for child in children}
         except ChildFailed as failure:
             if timing.lock_step:        # no stall of the host fails a lock-step run
@@ -143,8 +142,3 @@ def stack_across_processes(config_path: Path, seconds: float, with_viz: bool,
             "cpu": {name: round(share, 3) for name, share in cpu.items()},
             **({"recorded": recorded} if recorded else {})}
 
-
-def _cpu_seconds(pid: int) -> float:
-    with open(f"/proc/{pid}/stat") as stat:
-        fields = stat.read().rpartition(")")[2].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")

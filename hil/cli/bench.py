@@ -167,7 +167,8 @@ def _across_process_lines(report: dict) -> list[str]:
     lines = ["", "across processes (hil sim, hil control and with viz hil viz recording, over "
               "Zenoh on loopback);", "  floor: the same frames between two bare python-can "
               "processes on the same transport, this run; stalls over 5 ms of the sim's and "
-              "the controller's loops and of Zenoh's deliveries (s/c/t)",
+              "the controller's loops and of Zenoh's deliveries (s/c/t); CPU: each "
+              "process' share of a CPU (the floor's process in its place)",
               f"  {'robot':<8} {'Hz':>5} {'viz':>4} {'cycles':>7} {'p50 us':>7} {'p99 us':>7} "
               f"{'max us':>7} {'missed':>7} {'busy p50':>9} {'p99':>5} {'rt p50':>7} "
               f"{'p99':>5} {'floor p50':>10} {'p99':>5} {'x p99':>6} {'faults':>6} "
@@ -178,7 +179,7 @@ def _across_process_lines(report: dict) -> list[str]:
                          f"{'yes' if row['viz'] else 'no':>4} {NOT_STARTED}")
             continue
         floor = row["floor"]
-        cpu = " ".join(f"{name} {share:.0%}" for name, share in row["cpu"].items())
+        cpu = _cpu_beside_floor(row)
         missed = f"{row['missed']} {100 * row['missed'] / max(row['cycles'], 1):.2f}%"
         stalls = "/".join(str(row.get("stalls", {}).get(process, {}).get("count", 0))
                           for process in ("sim", "control", "transport"))
@@ -196,17 +197,26 @@ def _across_process_lines(report: dict) -> list[str]:
     return lines
 
 
+def _cpu_beside_floor(row: dict) -> str:
+    """Each process' CPU share, and in brackets what the floor's process that stands for it
+    took (the transport alone)."""
+    floor = row["floor"].get("cpu", {})
+    return " ".join(f"{name} {share:.0%}" + (f" ({floor[name]:.0%})" if name in floor else "")
+                    for name, share in row["cpu"].items())
+
+
 def _lock_step_across_process_lines(report: dict) -> list[str]:
     """Lock-step across processes beside the same frames exchanged as fast as they come."""
     lines = ["", "lock-step across processes (hil sim and hil control --lock-step, over Zenoh on "
                  "loopback);", "  floor: the same frames between two bare python-can processes, "
-                 "each cycle as soon as the last one's answers are in, this run",
+                 "each cycle as soon as the last one's answers are in, this run; CPU: each "
+                 "process' share of a CPU (the floor's process in its place)",
              f"  {'robot':<8} {'Hz':>5} {'cycles':>7} {'speed-up':>9} {'rt p50 us':>10} "
              f"{'p99':>6} {'floor speed-up':>15} {'rt p50 us':>10} {'p99':>6} {'of floor':>9}"
              "  CPU"]
     for row in report["lock_step_across_processes"]:
         floor = row["floor"]
-        cpu = " ".join(f"{name} {share:.0%}" for name, share in row["cpu"].items())
+        cpu = _cpu_beside_floor(row)
         lines.append(
             f"  {row['robot']:<8} {row['rate_hz']:>5.0f} {row['cycles']:>7} "
             f"{row['speedup_over_real_time']:>9.2f} {row.get('round_trip_p50_us', math.nan):>10.0f}"
