@@ -165,8 +165,10 @@ def test_up_runs_the_demo_and_records_axes_robot_and_can_traffic(tmp_path):
     assert {p.name for p in logs.iterdir()} == {"sim.log", "control.log", "viz.log"}
 
 
-def start_up(tmp_path, processes) -> tuple[subprocess.Popen, dict[str, int], list[str]]:
-    """`hil up` (no demo) until all three children are ready; their pids by name."""
+def start_up(tmp_path, processes, drain: bool = True
+             ) -> tuple[subprocess.Popen, dict[str, int], list[str]]:
+    """`hil up` (no demo) until all three children are ready; their pids by name; the rest
+    of its output read on into the lines (``drain``) or left to the caller."""
     up = hil("up", "pigot", "--lock-step", "--no-viewer", "--save", str(tmp_path / "run.rrd"),
              cwd=tmp_path)
     processes.append(up)
@@ -178,8 +180,8 @@ def start_up(tmp_path, processes) -> tuple[subprocess.Popen, dict[str, int], lis
         ready = re.search(r"hil up: (\w+) ready \(pid (\d+)\)", line)
         if ready:
             pids[ready.group(1)] = int(ready.group(2))
-    drain = threading.Thread(target=lambda: lines.extend(up.stdout), daemon=True)
-    drain.start()
+    if drain:
+        threading.Thread(target=lambda: lines.extend(up.stdout), daemon=True).start()
     return up, pids, lines
 
 
@@ -207,6 +209,21 @@ def test_up_stops_every_child_cleanly_on_ctrl_c(tmp_path, processes):
     control_log = (tmp_path / "run.logs" / "control.log").read_text()
     assert "stopped; drives disabled" in control_log
     assert (tmp_path / "run.rrd").stat().st_size > 0
+
+
+def test_up_whose_reader_leaves_stops_every_child_and_ends_as_a_filter_does(
+        tmp_path, processes):
+    """`hil up | head`, or a harness that died: the reader of its output leaves. It stops
+    as on SIGTERM, exit status 141 (128 + SIGPIPE); it used to leave sim and control running
+    and wait at exit for good."""
+    up, pids, _ = start_up(tmp_path, processes, drain=False)
+    up.stdout.close()                         # its next line meets no reader
+    up.wait(timeout=60)
+    assert up.returncode == 141, up.stderr.read()
+    for name, pid in pids.items():
+        assert gone(pid), f"{name} (pid {pid}) is still running"
+    assert "stopped; drives disabled" in (tmp_path / "run.logs" / "control.log").read_text()
+    assert "Traceback" not in up.stderr.read()
 
 
 def test_killed_up_takes_its_children_with_it(tmp_path, processes):

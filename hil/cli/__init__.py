@@ -14,6 +14,7 @@ import sys
 from types import ModuleType
 
 from hil import __version__
+from hil.cli.output import READER_LEFT_STATUS, ReaderGone, guarded_output
 from hil.errors import HilError
 from hil.supervisor import end_with_parent_if_asked
 
@@ -74,13 +75,15 @@ def main(argv: list[str] | None = None) -> int:
         args.target += extras
     elif extras:
         parser.error(f"unrecognized arguments: {' '.join(extras)}")
-    try:
-        return command_module(args.command).run(args)
-    except HilError as exc:
-        print(exc, file=sys.stderr)
-        return exc.exit_status
-    except KeyboardInterrupt:
-        return 130
-    except BrokenPipeError:      # `hil ... | head`: the reader left; nothing more to say
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 141
+    with guarded_output():
+        try:
+            status = command_module(args.command).run(args)
+        except HilError as exc:
+            print(exc, file=sys.stderr)
+            status = exc.exit_status
+        except KeyboardInterrupt:
+            status = 130
+        except BrokenPipeError:    # written past the guard (a stream's buffer): as the guard
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            ReaderGone.left, status = True, READER_LEFT_STATUS
+    return READER_LEFT_STATUS if ReaderGone.left else status

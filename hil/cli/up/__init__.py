@@ -140,8 +140,8 @@ def run(args: argparse.Namespace) -> int:
     supervised = Run([], stop)
     previous = common.on_stop_signals(stop.set)
     for robot in robots:
-        print(f"hil up: {robot.name} from {robot.config_path}; Zenoh {meeting_endpoint()}; {timing}; "
-              f"process logs in {logs}/", flush=True)
+        print(f"hil up: {robot.name} from {robot.config_path}; Zenoh {meeting_endpoint()}; "
+              f"{timing}; process logs in {logs}/", flush=True)
     zenoh = ZenohSettings.meeting(Identity.of(args.secure, "operator") if args.secure else None)
     status = 0
     watchers: list = []
@@ -166,23 +166,26 @@ def run(args: argparse.Namespace) -> int:
                   flush=True)
             status = BENCH_STALL_STATUS
     finally:
-        too_many = [r for r in robots if r.progress.too_many is not None]
-        if too_many:
-            for robot in too_many:
-                print(f"hil up: {robot.label}the bench stalled more than --max-stalls "
-                      f"{args.max_stalls} times (the last: {robot.progress.too_many}): run "
-                      f"stopped, exit status {BENCH_STALL_STATUS}", file=sys.stderr, flush=True)
-            status = BENCH_STALL_STATUS
-        elif stop.is_set():
-            print("hil up: interrupted", flush=True)
-            status = 130
-        print("hil up: stopping control, viz and sim", flush=True)
-        problems = supervised.shut_down()
-        for watcher in watchers:
-            watcher.close()
-        close_all()
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+        try:
+            too_many = [r for r in robots if r.progress.too_many is not None]
+            if too_many:
+                for robot in too_many:
+                    print(f"hil up: {robot.label}the bench stalled more than --max-stalls "
+                          f"{args.max_stalls} times (the last: {robot.progress.too_many}): "
+                          f"run stopped, exit status {BENCH_STALL_STATUS}", file=sys.stderr,
+                          flush=True)
+                status = BENCH_STALL_STATUS
+            elif stop.is_set():
+                print("hil up: interrupted", flush=True)
+                status = 130
+            print("hil up: stopping control, viz and sim", flush=True)
+        finally:        # whatever went wrong above: no process is left behind
+            problems = supervised.shut_down()
+            for watcher in watchers:
+                watcher.close()
+            close_all()
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
     for robot in robots:
         for problem in robot.progress.problems[:5]:
             print(f"hil up: {robot.label}{problem}", file=sys.stderr)
