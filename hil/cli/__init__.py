@@ -9,12 +9,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 import sys
 from types import ModuleType
 
 from hil import __version__
-from hil.cli.output import READER_LEFT_STATUS, ReaderGone, guarded_output
+from hil.cli.output import READER_LEFT_STATUS, ReaderGone, guarded_output, to_devnull
 from hil.errors import HilError
 from hil.supervisor import end_with_parent_if_asked
 
@@ -83,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
             status = exc.exit_status
         except KeyboardInterrupt:
             status = 130
-        except BrokenPipeError:    # written past the guard (a stream's buffer): as the guard
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except BrokenPipeError:    # written past the guard (to a stream's buffer directly)
+            to_devnull(sys.stdout)
             ReaderGone.left, status = True, READER_LEFT_STATUS
     return READER_LEFT_STATUS if ReaderGone.left else status

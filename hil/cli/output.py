@@ -59,19 +59,24 @@ class GuardedStream:
 
     def _reader_left(self) -> None:
         # the buffered text that failed is written again, to /dev/null, by the next flush
-        try:
-            descriptor = self._stream.fileno()
-        except (OSError, ValueError):       # a stream of no file (a test's capture)
-            descriptor = None
-        if descriptor is not None:
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, descriptor)
-            os.close(devnull)
+        to_devnull(self._stream)
         if ReaderGone.left:
             return
         ReaderGone.left = True
         if callable(signal.getsignal(signal.SIGTERM)):     # the command's own stop
             os.kill(os.getpid(), signal.SIGTERM)
+
+
+def to_devnull(stream) -> None:
+    """Point the file descriptor under ``stream`` at /dev/null (a stream of no file, as a
+    test's capture: nothing)."""
+    try:
+        descriptor = stream.fileno()
+    except (OSError, ValueError):
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, descriptor)
+    os.close(devnull)
 
 
 @contextmanager
