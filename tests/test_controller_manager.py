@@ -4,6 +4,9 @@ user's controller_manager YAML (tests/controllers: Universal Robots' own, unchan
 
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -22,6 +25,7 @@ from hil.messaging.controller_manager import ControllerManagerClient
 from hil.messaging.zenoh_api import TrajectoryActionClient
 from hil.realtime import LOCK_STEP
 from hil.stack import running_stack
+from conftest import free_port
 
 HERE = Path(__file__).parent
 UR_BENCH = HERE / "controllers" / "ur3_with_ur_controllers.yaml"
@@ -246,3 +250,24 @@ def test_a_streaming_client_switches_to_forward_position_and_back():
         goal = TrajectoryGoal(("joint1",), (TrajectoryPoint(1.0, (-0.1,)),))
         assert action.wait_result(action.send_goal(goal), 60).status is GoalStatus.SUCCEEDED
         action.close()
+
+
+def test_hil_controllers_waits_for_a_controller_that_comes_after_it(processes):
+    """`hil controllers` asked before its session knew of the controller's queries: it met
+    no one at once and said so (after a `hil send`, one call in two). It waits for the
+    controller, as `hil send` and `hil reset` do, up to its --timeout."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    listing = subprocess.Popen([sys.executable, "-m", "hil", "controllers", "ur3", "--connect",
+                                endpoint, "--timeout", "60s"], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    processes.append(listing)
+    time.sleep(1.0)              # asking already, before any controller is there
+    control = subprocess.Popen([sys.executable, "-m", "hil", "control", "ur3", "--fake",
+                                "--listen", endpoint], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    processes.append(control)
+    out, err = listing.communicate(timeout=90)
+    assert listing.returncode == 0, err
+    assert [line.split()[0] for line in out.splitlines()] == [JTC, POSITION, VELOCITY]
+    control.send_signal(signal.SIGINT)
+    control.communicate(timeout=30)

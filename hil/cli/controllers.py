@@ -9,6 +9,7 @@ import sys
 from hil.cli import common
 from hil.controllers.manager import Strictness
 from hil.messaging.controller_manager import ControllerManagerClient
+from hil.messaging.zenoh_api import ProcessWatch
 from hil.zenoh_session import close_all, session
 
 
@@ -27,9 +28,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     common.robot_name(args.robot)
-    client = ControllerManagerClient(session(common.zenoh_settings(args)), args.robot,
-                                     args.timeout)
+    zenoh = common.zenoh_settings(args)
+    # a new session knows of the controller's queries only once its declarations arrived:
+    # asked before, the query met no one at once (after a `hil send`, one call in two here).
+    # The controller declares its liveliness token after its queryables, so the token seen
+    # means they are known, as `hil send` and `hil reset` wait for it
+    watch = ProcessWatch(session(zenoh), args.robot)
+    client = ControllerManagerClient(session(zenoh), args.robot, args.timeout)
     try:
+        if not watch.wait_alive("control", args.timeout):
+            raise common.no_controller(zenoh, args.robot)
         if args.activate or args.deactivate:
             ok, message = client.switch(args.activate, args.deactivate,
                                         Strictness.BEST_EFFORT if args.best_effort
@@ -46,4 +54,5 @@ def run(args: argparse.Namespace) -> int:
         print(f"hil controllers: {exc}", file=sys.stderr)
         return 1
     finally:
+        watch.close()
         close_all()
