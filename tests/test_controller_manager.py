@@ -7,6 +7,7 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -25,6 +26,7 @@ from hil.messaging.controller_manager import ControllerManagerClient
 from hil.messaging.zenoh_api import TrajectoryActionClient
 from hil.realtime import LOCK_STEP
 from hil.stack import running_stack
+from hil.zenoh_session import ZenohSettings, close, session
 from conftest import free_port
 
 HERE = Path(__file__).parent
@@ -252,22 +254,48 @@ def test_a_streaming_client_switches_to_forward_position_and_back():
         action.close()
 
 
-def test_hil_controllers_waits_for_a_controller_that_comes_after_it(processes):
-    """`hil controllers` asked before its session knew of the controller's queries: it met
-    no one at once and said so (after a `hil send`, one call in two). It waits for the
-    controller, as `hil send` and `hil reset` do, up to its --timeout."""
+
+@pytest.fixture
+def controller_later(processes):
+    """A loopback endpoint where `hil control ur3 --fake` starts listening a second from now
+    (a client asks before the controller is there); the controller is stopped afterwards."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
+
+    def start() -> None:
+        processes.append(subprocess.Popen(
+            [sys.executable, "-m", "hil", "control", "ur3", "--fake", "--listen", endpoint],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+
+    timer = threading.Timer(1.0, start)
+    timer.start()
+    yield endpoint
+    timer.join()
+    for process in processes:
+        process.send_signal(signal.SIGINT)
+        process.wait(30)
+
+
+def test_hil_controllers_waits_for_a_controller_that_comes_after_it(controller_later,
+                                                                     processes):
+    """Asked before its session knew of the controller's queries, `hil controllers` met no
+    one at once and said so (after a `hil send`, one call in two). It waits for the
+    controller, as `hil send` and `hil reset` do, up to its --timeout."""
     listing = subprocess.Popen([sys.executable, "-m", "hil", "controllers", "ur3", "--connect",
-                                endpoint, "--timeout", "60s"], stdout=subprocess.PIPE,
+                                controller_later, "--timeout", "60s"], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     processes.append(listing)
-    time.sleep(1.0)              # asking already, before any controller is there
-    control = subprocess.Popen([sys.executable, "-m", "hil", "control", "ur3", "--fake",
-                                "--listen", endpoint], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
-    processes.append(control)
     out, err = listing.communicate(timeout=90)
     assert listing.returncode == 0, err
     assert [line.split()[0] for line in out.splitlines()] == [JTC, POSITION, VELOCITY]
-    control.send_signal(signal.SIGINT)
-    control.communicate(timeout=30)
+
+
+def test_a_controller_manager_client_on_a_new_session_waits_for_the_controller(
+        controller_later):
+    """docs/controllers.md's client, made on a session just opened: its first query asks
+    again until a controller answers, within its timeout."""
+    settings = ZenohSettings(connect=(controller_later,))
+    try:
+        manager = ControllerManagerClient(session(settings), "ur3", timeout=60)
+        assert [state.name for state in manager.list()] == [JTC, POSITION, VELOCITY]
+    finally:
+        close(settings)
