@@ -20,7 +20,7 @@ from hil.controllers import (
     JointTrajectoryController, TrajectoryGoal,
 )
 from hil.messaging import cdr
-from hil.messaging.keys import ACTION, direct, key
+from hil.messaging.keys import ACTION, ask, direct, key
 from hil.realtime import enter_side_work, paused_collection, release_gradually
 
 log = logging.getLogger(__name__)
@@ -272,8 +272,7 @@ class TrajectoryActionClient:
         return self._query("send_goal", payload, timeout, "")
 
     def _query(self, name: str, payload: bytes, timeout: float, goal_id: str) -> str:
-        replies = list(self.session.get(f"{self._prefix}/{name}", payload=payload,
-                                        timeout=timeout))
+        replies = ask(self.session, f"{self._prefix}/{name}", payload, timeout)
         if not replies:
             raise ControllerGone(f"no controller answered on {self._prefix}/{name} within "
                                  f"{timeout:g} s")
@@ -287,16 +286,15 @@ class TrajectoryActionClient:
     def cancel(self, goal_id: str, timeout: float = 5.0) -> bool:
         info = cdr.msg("action_msgs/msg/GoalInfo", goal_id=cdr.uuid_msg(goal_id),
                        stamp=cdr.time_msg(0.0))
-        replies = list(self.session.get(f"{self._prefix}/cancel_goal",
-                                        payload=cdr.encode(cdr.msg(cdr.CANCEL_REQUEST, goal_info=info)),
-                                        timeout=timeout))
+        replies = ask(self.session, f"{self._prefix}/cancel_goal",
+                      cdr.encode(cdr.msg(cdr.CANCEL_REQUEST, goal_info=info)), timeout)
         if not replies or replies[0].err is not None:
             return False
         return cdr.decode(replies[0].ok.payload.to_bytes(), cdr.CANCEL_RESPONSE).return_code == 0
 
     def reset_faults(self, timeout: float = 15.0) -> tuple[bool, str]:
         """Ask the controller to reset drive faults; (succeeded, what happened)."""
-        replies = list(self.session.get(key(self.robot, "reset_faults"), timeout=timeout))
+        replies = ask(self.session, key(self.robot, "reset_faults"), None, timeout)
         if not replies:
             raise ControllerGone(f"no controller answered on {key(self.robot, 'reset_faults')}")
         if replies[0].err is not None:

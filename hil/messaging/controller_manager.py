@@ -18,21 +18,16 @@ answers (:meth:`ControllerManagerClient.command`)."""
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import zenoh
 
 from hil.controllers.manager import ControllerInfo, ControllerManager, Strictness
 from hil.messaging import cdr
-from hil.messaging.keys import key
+from hil.messaging.keys import ask, key
 from hil.realtime import enter_side_work
 
 LIST = "controller_manager/list_controllers"
 SWITCH = "controller_manager/switch_controller"
-#: a query that met no controller is asked again after this long (s); the least a query
-#: waits for its answer (s)
-ASK_AGAIN, MIN_WAIT = 0.05, 0.01
 
 
 def commands_key(robot: str, controller: str) -> str:
@@ -135,22 +130,12 @@ class ControllerManagerClient:
         self.session, self.robot, self.timeout = session, robot, timeout
 
     def _query(self, name: str, payload: bytes | None = None) -> bytes:
-        # a session that asks before it knows of the controller's queryables (a new one,
-        # their declarations still on the way) meets no one, at once: it asks again, until
-        # the timeout. A query a controller got is not asked again: its answer, or the whole
-        # timeout, ends the wait
-        deadline = time.monotonic() + self.timeout
-        while True:
-            replies = self.session.get(key(self.robot, name), payload=payload,
-                                       timeout=max(deadline - time.monotonic(), MIN_WAIT))
-            for reply in replies:
-                if reply.ok is not None:
-                    return reply.ok.payload.to_bytes()
-                raise ValueError(reply.err.payload.to_string())
-            if time.monotonic() + ASK_AGAIN >= deadline:
-                raise TimeoutError(f"no controller of {self.robot} answered {name} within "
-                                   f"{self.timeout:g} s (is hil control running?)")
-            time.sleep(ASK_AGAIN)
+        for reply in ask(self.session, key(self.robot, name), payload, self.timeout):
+            if reply.ok is not None:
+                return reply.ok.payload.to_bytes()
+            raise ValueError(reply.err.payload.to_string())
+        raise TimeoutError(f"no controller of {self.robot} answered {name} within "
+                           f"{self.timeout:g} s (is hil control running?)")
 
     def list(self) -> list:
         """controller_manager_msgs/ControllerState of each controller."""

@@ -28,12 +28,15 @@ it never reaches the controller.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 import zenoh
 
 #: the FollowJointTrajectory action's keys, under ``hil/<robot>/``
 ACTION = "follow_joint_trajectory/_action"
+#: a query that met no one is asked again after this long (s); the least a query waits (s)
+ASK_AGAIN, MIN_WAIT = 0.05, 0.01
 
 
 def key(robot: str, name: str) -> str:
@@ -44,3 +47,21 @@ def key(robot: str, name: str) -> str:
 def direct(callback: Callable[[zenoh.Sample], None]) -> zenoh.handlers.Callback:
     """A Zenoh callback run in Zenoh's receiving thread (for short callbacks only)."""
     return zenoh.handlers.Callback(callback, indirect=False)
+
+
+def ask(session: zenoh.Session, key_expr: str, payload: bytes | None, timeout: float
+        ) -> list[zenoh.Reply]:
+    """The replies to a query, asked again while it meets no one, until ``timeout`` (s).
+
+    A session that asks before it knows of the queryable (a new session: its peers'
+    declarations still on their way) meets no one, and Zenoh answers at once with no reply:
+    a client made and used at once (docs/controllers.md's) said "no controller answered
+    within 5 s" after a fraction of a second. A query some queryable got is not asked again:
+    its replies, or the whole timeout, end the wait."""
+    deadline = time.monotonic() + timeout
+    while True:
+        replies = list(session.get(key_expr, payload=payload,
+                                   timeout=max(deadline - time.monotonic(), MIN_WAIT)))
+        if replies or time.monotonic() + ASK_AGAIN >= deadline:
+            return replies
+        time.sleep(ASK_AGAIN)
