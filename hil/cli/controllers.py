@@ -29,10 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     common.robot_name(args.robot)
     zenoh = common.zenoh_settings(args)
-    # a new session knows of the controller's queries only once its declarations arrived:
-    # asked before, the query met no one at once (after a `hil send`, one call in two here).
-    # The controller declares its liveliness token after its queryables, so the token seen
-    # means they are known, as `hil send` and `hil reset` wait for it
+    # the controller first, as `hil send` and `hil reset` wait for it: with none, the same
+    # error, saying why where the session reached nobody (the queries themselves are asked
+    # again while they meet no one: hil.messaging.keys.ask)
     watch = ProcessWatch(session(zenoh), args.robot)
     client = ControllerManagerClient(session(zenoh), args.robot, args.timeout)
     try:
