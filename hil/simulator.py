@@ -164,7 +164,8 @@ class Simulator:
         actuator_index = {name: i for i, name in enumerate(self.plant.actuator_names)}
         self.buses: list[SimulatedBus] = []
         self.drives = []
-        self._drive_actuators: list[int] = []   # plant actuator index of each drive
+        #: each drive's core with its plant actuator index, walked at every plant step
+        self._cores: list[tuple[DriveCore, int]] = []
         for bus_config in config.buses:
             drives = []
             for drive_config in bus_config.drives:
@@ -179,7 +180,7 @@ class Simulator:
                     drive_config.heartbeat_period, drive_config.options)
                 drive.on_command = self._on_command
                 drives.append(drive)
-                self._drive_actuators.append(actuator_index[drive_config.actuator])
+                self._cores.append((core, actuator_index[drive_config.actuator]))
             self.buses.append(SimulatedBus(bus_config, buses[bus_config.name], drives))
             self.drives += drives
         self._torques = np.zeros(len(self.plant.actuator_names))
@@ -307,9 +308,10 @@ class Simulator:
     def _step(self) -> None:
         """One plant step with the drives' inner loops (lock held)."""
         dt = self.plant.timestep
-        for drive, actuator in zip(self.drives, self._drive_actuators):
-            self._torques[actuator] = drive.core.update(dt)
-        self.plant.set_motor_torques(self._torques)
+        torques = self._torques
+        for core, actuator in self._cores:
+            torques[actuator] = core.update(dt)
+        self.plant.set_motor_torques(torques)
         self.plant.step()
         self._measure(dt)
         for drive in self.drives:
@@ -321,8 +323,8 @@ class Simulator:
         # Python floats: numpy scalars would make every drive's loop arithmetic ~5x slower
         positions = self.plant.motor_positions().tolist()
         velocities = self.plant.motor_velocities().tolist()
-        for drive, actuator in zip(self.drives, self._drive_actuators):
-            drive.core.measure(positions[actuator], velocities[actuator], dt)
+        for core, actuator in self._cores:
+            core.measure(positions[actuator], velocities[actuator], dt)
 
     def _check_watchdogs(self) -> None:
         """Watchdogs and timed messages (heartbeats, cyclic rates), every WATCHDOG_PERIOD of

@@ -5,10 +5,12 @@ from __future__ import annotations
 import math
 
 import pytest
+from hypothesis import example, given
+from hypothesis import strategies as st
 
-from hil.protocols.cia402.state import Cia402StateMachine, State, statusword
+from hil.protocols.cia402.state import Cia402StateMachine, State, int16, int32, statusword
 from hil.drives.core import DriveCore
-from hil.drives.definitions import DriveParameters, Fault, Mode, Power
+from hil.drives.definitions import DriveParameters, Fault, Mode, Power, round_half_even
 from conftest import TEST_MOTOR_DRIVE
 
 DT = 0.001
@@ -246,3 +248,36 @@ def test_homing_to_an_index_pulse_past_a_limit_is_a_homing_error():
 def test_homing_on_a_switch_that_is_not_there_is_a_homing_error():
     machine, _ = _homed(17, limits=None)
     assert machine.homing_error
+
+
+@given(st.floats(allow_nan=False, allow_infinity=False)
+       | st.integers(-2**60, 2**60).map(lambda n: n / 2)
+       | st.integers(-2**60, 2**60).map(lambda n: math.nextafter(n / 2, math.inf))
+       | st.integers(-2**60, 2**60).map(lambda n: math.nextafter(n / 2, -math.inf)))
+@example(0.49999999999999994)
+@example(-0.49999999999999994)
+@example(-0.0)
+@example(2.0**53 + 2)
+@example(-2.5)
+@example(-3.5)
+@example(2.5)
+@example(3.5)
+def test_the_compiled_cores_rounding_gives_what_round_gives_for_every_float(value):
+    # the core and the CiA 402 objects round every measurement and every TPDO value with it:
+    # a count off by one would change what a lock-step replay compares bit for bit
+    assert round_half_even(value) == round(value)
+
+
+@pytest.mark.parametrize("value, error", [(math.nan, ValueError), (math.inf, OverflowError),
+                                          (-math.inf, OverflowError)])
+def test_the_compiled_cores_rounding_refuses_what_round_refuses(value, error):
+    with pytest.raises(error):
+        round(value)
+    with pytest.raises(error):
+        round_half_even(value)
+
+
+def test_integer_objects_saturate_at_their_type_and_round_halves_to_even():
+    assert int32(2.0**40) == 2**31 - 1 and int32(-2.0**40) == -2**31
+    assert int16(40000.0) == 2**15 - 1 and int16(-40000.0) == -2**15
+    assert int32(2.5) == 2 and int32(-3.5) == -4 and int16(0.5) == 0

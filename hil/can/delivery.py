@@ -35,9 +35,20 @@ class FrameListener(can.Listener):
     (:func:`hil.can.messages.frame_key`), its own data and its receive timestamp, in
     place of a ``can.Message`` (never remote or error frames: those come as messages)."""
 
+    #: where this listener's frames go, by dispatch key (read live, at every frame): a
+    #: delivery whose one listener this is calls them itself, one Python call less a frame
+    #: than :meth:`on_frame` (docs/performance.md, 2026-12-01); None: through on_frame
+    routes: dict[int, list[Callable[[int, bytearray, float], None]]] | None = None
+
     @abstractmethod
     def on_frame(self, key: int, data: bytearray, timestamp: float) -> None:
-        """One data frame, by its parts."""
+        """One data frame, by its parts (to its :attr:`routes`, where it has them)."""
+
+    def refuse(self, key: int, data: bytearray,
+               callback: Callable[[int, bytearray, float], None], exc: Exception) -> None:
+        """A route's callback raised on a frame (its routes called by a delivery): by
+        default logged, as a failing listener is."""
+        log.exception("listener %r failed on frame 0x%X", callback, key, exc_info=exc)
 
 
 class DirectDelivery:
@@ -68,6 +79,7 @@ class DirectDelivery:
             isinstance(listener, FrameListener) for listener in self.listeners)
         self._frame_receivers = ([listener.on_frame for listener in self.listeners]
                                  if self.takes_frames else [])
+        self._routed = self._one_routed_listener()
         self._accept = accept
         self._on_stop = on_stop
         self._lock = threading.RLock()
@@ -91,6 +103,10 @@ class DirectDelivery:
         """Data frames by their parts, in order, in one hold of the lock: each listener gets
         its own copy of each frame's data."""
         with self._lock:
+            listener = self._routed
+            if listener is not None:
+                self._route(listener, frames, timestamp)
+                return
             for key, data in frames:
                 if self._stopped:           # a listener stopped it
                     return
@@ -104,6 +120,26 @@ class DirectDelivery:
                     except Exception:          # as deliver
                         log.exception("listener %r failed on frame 0x%X", receive, key)
 
+    def _route(self, listener: FrameListener, frames: Iterable[FrameParts],
+               timestamp: float) -> None:
+        """deliver_frames for one listener with routes (lock held): its callbacks of each
+        frame's key called here, as its on_frame would call them."""
+        routes = listener.routes
+        for key, data in frames:
+            if self._stopped:           # a listener stopped it
+                return
+            if self._routed is not listener:    # a listener came meanwhile
+                self.deliver_frames(((key, data),), timestamp)
+                continue
+            callbacks = routes.get(key)
+            if callbacks:
+                data = bytearray(data)
+                for callback in callbacks:
+                    try:
+                        callback(key, data, timestamp)
+                    except Exception as exc:
+                        listener.refuse(key, data, callback, exc)
+
     def add_listener(self, listener: can.Listener) -> None:
         with self._lock:
             self.listeners.append(listener)
@@ -112,6 +148,15 @@ class DirectDelivery:
                 self._frame_receivers.append(listener.on_frame)
             else:
                 self.takes_frames = False
+            self._routed = self._one_routed_listener()
+
+    def _one_routed_listener(self) -> FrameListener | None:
+        # the delivery calls the routes itself only where they are all there is to call
+        if self.takes_frames and len(self.listeners) == 1:
+            listener = self.listeners[0]
+            if listener.routes is not None:
+                return listener
+        return None
 
     def stop(self, timeout: float = 5.0) -> None:
         """Stop delivering (the bus queues its frames again), after a delivery in progress

@@ -40,7 +40,7 @@ class NetworkListener(FrameListener):
     LOG_EVERY = 1000
 
     def __init__(self, network: canopen.Network):
-        self.subscribers = network.subscribers
+        self.subscribers = self.routes = network.subscribers
         #: RTR id -> handler (called with the id)
         self.remote_handlers: dict[int, Callable[[int], None]] = {}
         #: frames a subscriber could not take
@@ -60,9 +60,10 @@ class NetworkListener(FrameListener):
             try:
                 callback(key, data, timestamp)
             except Exception as exc:
-                self._refuse(key & ID_BITS, data, callback, exc)
+                self.refuse(key, data, callback, exc)
 
-    def _refuse(self, can_id: int, data: bytearray, callback, exc: Exception) -> None:
+    def refuse(self, key: int, data: bytearray, callback, exc: Exception) -> None:
+        can_id = key & ID_BITS
         self.refused += 1
         count = self._refused_by_id.get(can_id, 0) + 1
         self._refused_by_id[can_id] = count

@@ -16,6 +16,11 @@ import numpy as np
 
 #: a first point at time 0 where the joints already are: a segment this short holds it
 INSTANT = 1e-9
+#: tau's powers a sample takes, and the factors of their first and second derivatives (made
+#: once: a sample is taken every cycle)
+_EXPONENTS = np.arange(6)
+_VELOCITY_FACTORS = np.arange(1, 6)
+_ACCELERATION_FACTORS = np.array([2, 6, 12, 20])
 
 
 def coefficients(duration: np.ndarray, p0: np.ndarray, v0: np.ndarray, a0: np.ndarray,
@@ -102,8 +107,9 @@ class Spline:
         s = self.segment_at(t)
         tau = min(max(t - self.t0[s], 0.0), self.t1[s] - self.t0[s])
         c = self.coefficients[s]
-        powers = tau ** np.arange(6)
-        position = powers @ c
-        velocity = (np.arange(1, 6) * powers[:5]) @ c[1:]
-        acceleration = (np.array([2, 6, 12, 20]) * powers[:4]) @ c[2:]
+        powers = tau ** _EXPONENTS
+        # ndarray.dot, not @ (sampled every cycle; see hil.transmissions.base)
+        position = powers.dot(c)
+        velocity = (_VELOCITY_FACTORS * powers[:5]).dot(c[1:])
+        acceleration = (_ACCELERATION_FACTORS * powers[:4]).dot(c[2:])
         return position, velocity, acceleration

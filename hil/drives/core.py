@@ -16,7 +16,7 @@ import math
 from dataclasses import replace
 
 from hil.drives.definitions import (
-    DriveParameters, DriveStatus, Fault, Mode, Power, SilenceReaction,
+    DriveParameters, DriveStatus, Fault, Mode, Power, SilenceReaction, round_half_even,
 )
 from hil.drives.references import InterpolatedSetpoint, ProfileReference
 
@@ -70,8 +70,8 @@ class DriveCore:
         the last measurement), low-passed (backward Euler: v += (raw - v) dt / (T + dt))."""
         p = self.parameters
         step = p.radians_per_count
-        self._position = round((position + self._offset) / step) * step
-        counts = round(position / step)
+        self._position = round_half_even((position + self._offset) / step) * step
+        counts = round_half_even(position / step)
         if p.velocity_filter > 0.0 and self._measured and dt > 0.0:
             raw = (counts - self._counts) * step / dt
             self._velocity += (raw - self._velocity) * dt / (p.velocity_filter + dt)

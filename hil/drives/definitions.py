@@ -10,6 +10,20 @@ import math
 from dataclasses import dataclass
 
 
+def round_half_even(value: float) -> int:
+    """``round(value)`` of a float, to the same int (halves to the even one; NaN and the
+    infinities raise as round does), for the compiled modules: there round() looks up the
+    float's ``__round__`` and makes and frees a bound method at every call, about a thousand
+    instructions, some fifty times a lock-step cycle (docs/performance.md, 2026-12-01)."""
+    whole = int(value)              # exact: the fraction's bits cleared (toward zero)
+    fraction = value - whole        # exact too: the bits int() cleared
+    if fraction > 0.5 or (fraction == 0.5 and whole & 1):
+        return whole + 1
+    if fraction < -0.5 or (fraction == -0.5 and whole & 1):
+        return whole - 1
+    return whole
+
+
 class Power(enum.Enum):
     """What the power stage does."""
 
@@ -98,7 +112,7 @@ class DriveParameters:
         return 2.0 * math.pi / self.counts_per_rev
 
 
-@dataclass
+@dataclass(init=False)
 class DriveStatus:
     """What the drive reports each cycle (its profile encodes this)."""
 
@@ -113,3 +127,15 @@ class DriveStatus:
     following_error_exceeded: bool
     stopped: bool                  # quick stop has reached standstill
     fault: Fault | None
+
+    # written out, not the dataclass' own: mypyc compiles this one, while the generated
+    # __init__ runs interpreted (one per drive and SYNC; docs/performance.md, 2026-12-01)
+    def __init__(self, power: Power, mode: Mode, position: float, velocity: float,
+                 torque: float, following_error: float, target_reached: bool,
+                 internal_limit: bool, following_error_exceeded: bool, stopped: bool,
+                 fault: Fault | None) -> None:
+        self.power, self.mode, self.position, self.velocity = power, mode, position, velocity
+        self.torque, self.following_error = torque, following_error
+        self.target_reached, self.internal_limit = target_reached, internal_limit
+        self.following_error_exceeded, self.stopped, self.fault = (
+            following_error_exceeded, stopped, fault)

@@ -300,7 +300,9 @@ class CanHardwareInterface(HardwareInterface):
             if fault is not None:
                 self._report(axis.label, fault.message, fault)
             silence = now - axis.last_heard
-            if silence > max(axis.silence_limit, self.answer_silence_limit):
+            # the cycles' limit first: it is the longer one in lock-step (and then the
+            # axis' own limit, a property, is not asked)
+            if silence > self.answer_silence_limit and silence > axis.silence_limit:
                 self._report(axis.label, "heartbeat", axis.found(
                     FaultKind.SILENT, f"is silent: not heard for {silence * 1e3:.0f} ms",
                     silent_for=silence))

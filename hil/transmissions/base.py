@@ -40,23 +40,26 @@ class Transmission(ABC):
     def _effort_matrix(self) -> np.ndarray:
         """E: actuator efforts from joint efforts."""
 
+    # the maps by ndarray.dot, not @: numpy's matmul goes through its gufunc machinery, about
+    # 2.5x the time of dot on these small maps (a control cycle maps five times), with the
+    # same result to the bit (docs/performance.md, 2026-12-01)
     def joint_to_actuator_position(self, q) -> np.ndarray:
-        return self.position_matrix @ (np.asarray(q, dtype=float) - self.joint_offsets)
+        return self.position_matrix.dot(np.asarray(q, dtype=float) - self.joint_offsets)
 
     def actuator_to_joint_position(self, a) -> np.ndarray:
-        return self._position_inverse @ np.asarray(a, dtype=float) + self.joint_offsets
+        return self._position_inverse.dot(np.asarray(a, dtype=float)) + self.joint_offsets
 
     def joint_to_actuator_velocity(self, dq) -> np.ndarray:
-        return self.position_matrix @ np.asarray(dq, dtype=float)
+        return self.position_matrix.dot(np.asarray(dq, dtype=float))
 
     def actuator_to_joint_velocity(self, da) -> np.ndarray:
-        return self._position_inverse @ np.asarray(da, dtype=float)
+        return self._position_inverse.dot(np.asarray(da, dtype=float))
 
     def joint_to_actuator_effort(self, tau_j) -> np.ndarray:
-        return self.effort_matrix @ np.asarray(tau_j, dtype=float)
+        return self.effort_matrix.dot(np.asarray(tau_j, dtype=float))
 
     def actuator_to_joint_effort(self, tau_a) -> np.ndarray:
-        return self._effort_inverse @ np.asarray(tau_a, dtype=float)
+        return self._effort_inverse.dot(np.asarray(tau_a, dtype=float))
 
     def actuator_effort_limits(self, joint_efforts) -> np.ndarray:
         """Largest actuator effort needed to reach the joints' effort limits."""

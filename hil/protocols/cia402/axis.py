@@ -249,7 +249,9 @@ class Cia402Axis(Axis):
                 "SWITCHED ON": ENABLE, "OPERATION ENABLED": ENABLE}.get(state, SHUTDOWN)
 
     def rpdo(self, controlword: int, target: float) -> bytes:
-        return _RPDO1.pack(controlword, _int32(target * self.counts_per_rad))
+        counts = round(target * self.counts_per_rad)
+        # clamped only where out of range: _int32's calls are a cycle's cost in the common case
+        return _RPDO1.pack(controlword, counts if -2**31 <= counts < 2**31 else _int32(counts))
 
     def fault(self, stopping: bool = False) -> AxisFault | None:
         if self.rebooted:

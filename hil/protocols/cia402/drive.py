@@ -277,14 +277,14 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         if not self.node.nmt.operational:
             return                            # PDOs are off outside OPERATIONAL (CiA 301)
         rpdo = self._rpdos[number]
-        expected = rpdo.length
-        if len(data) < expected:
+        expected, size = rpdo.length, len(data)
+        if size < expected:
             self.node.emcy.send(EMCY_PDO_LENGTH, COMMUNICATION_ERROR,
-                                struct.pack("<HB", len(data), expected) + b"\0\0")
+                                struct.pack("<HB", size, expected) + b"\0\0")
             return
-        if len(data) > expected:
+        if size > expected:
             self.node.emcy.send(EMCY_PDO_LENGTH_EXCEEDED, COMMUNICATION_ERROR,
-                                struct.pack("<HB", len(data), expected) + b"\0\0")
+                                struct.pack("<HB", size, expected) + b"\0\0")
             data = data[:expected]
         with self.lock:
             self._latched[number] = bytes(data)
@@ -329,33 +329,33 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
     def _apply(self, number: int) -> None:
         rpdo = self._rpdos[number]
         pdo = rpdo.pdo
-        pdo.data = self._latched.get(number, pdo.data)
+        data = pdo.data = self._latched.get(number, pdo.data)
         layout = rpdo.layout
         if layout is not None:
-            fields = dict(zip(layout.indices, layout.codec.unpack(pdo.data)))
+            fields = dict(zip(layout.indices, layout.codec.unpack(data)))
         else:
             fields = {variable.index: variable.raw for variable in pdo.map}
-        if 0x6060 in fields:
-            self.objects.set_mode(fields[0x6060])
+        objects = self.objects
+        if rpdo.mode:
+            objects.set_mode(fields[0x6060])
         for index in rpdo.profile:
-            self.objects.set_profile_parameter(index, fields[index])
+            objects.set_profile_parameter(index, fields[index])
         # the controlword after the targets (profile position's new set-point takes the
         # target of its own PDO), but in ip mode before them: bit 4 gates its own PDO's record
         interpolated = self.machine.mode_code == INTERPOLATED_POSITION
-        if 0x6040 in fields and interpolated:
+        if rpdo.controlword and interpolated:
             self.machine.controlword(fields[0x6040])
-        for index in (0x607A, 0x60C1):
-            if index in fields:
-                self.objects.set_target_position(index, fields[index])
-        if 0x6071 in fields:
-            self.objects.set_target_torque(fields[0x6071])
+        for index in rpdo.targets:
+            objects.set_target_position(index, fields[index])
+        if rpdo.torque:
+            objects.set_target_torque(fields[0x6071])
         if rpdo.offsets:
             self.core.new_setpoint(
                 velocity=fields[0x60FF] / self._counts_per_rad if 0x60FF in fields else None,
                 velocity_ff=fields[0x60B1] / self._counts_per_rad if 0x60B1 in fields else None,
                 torque_ff=fields[0x60B2] * self.rated_torque / 1000 if 0x60B2 in fields
                 else None)
-        if 0x6040 in fields and not interpolated:
+        if rpdo.controlword and not interpolated:
             self.machine.controlword(fields[0x6040])
 
     def after_update(self) -> None:

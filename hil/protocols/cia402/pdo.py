@@ -45,6 +45,11 @@ class Rpdo:
     layout: PdoLayout | None
     profile: tuple[int, ...]               # the profile parameters it maps, in its order
     offsets: bool                          # maps a target velocity or a velocity/torque offset
+    # what else it maps, asked at every apply (a tuple's flags, not a dict's lookups)
+    mode: bool = False                     # modes of operation (0x6060)
+    controlword: bool = False              # 0x6040
+    targets: tuple[int, ...] = ()          # target positions mapped: 0x607A, 0x60C1
+    torque: bool = False                   # target torque (0x6071)
 
     @classmethod
     def of(cls, pdo) -> Rpdo:
@@ -52,7 +57,9 @@ class Rpdo:
         indices = [variable.index for variable in pdo.map]
         return cls(pdo, math.ceil(pdo.length / 8), kind is not None and kind >= 254,
                    PdoLayout.of(pdo), tuple(i for i in indices if i in PROFILE_PARAMETERS),
-                   any(i in indices for i in (0x60FF, 0x60B1, 0x60B2)))
+                   any(i in indices for i in (0x60FF, 0x60B1, 0x60B2)),
+                   0x6060 in indices, 0x6040 in indices,
+                   tuple(i for i in (0x607A, 0x60C1) if i in indices), 0x6071 in indices)
 
 
 @dataclass

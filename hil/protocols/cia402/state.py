@@ -12,7 +12,7 @@ import enum
 import math
 
 from hil.drives.core import DriveCore
-from hil.drives.definitions import DriveStatus, Fault, Mode, Power
+from hil.drives.definitions import DriveStatus, Fault, Mode, Power, round_half_even
 from hil.protocols.cia402.homing import METHODS, Homing, HomingSpeeds
 
 #: CiA 402 modes of operation (0x6060/0x6061) this drive supports: profile position (1),
@@ -329,15 +329,21 @@ def live_values(indices: tuple[int, ...], machine: Cia402StateMachine, status: D
             for index in indices]
 
 
-# saturating conversions to the objects' integer types (a value out of range is clamped, as
-# a drive's firmware would, never wrapped)
+# saturating conversions to the objects' integer types: a value out of range is clamped, as
+# a drive's firmware would, never wrapped. Compared, not max(min()), and round_half_even, not
+# round(): builtins called from compiled code go through Python (a TPDO's every value comes
+# through here)
 def int32(value: float) -> int:
-    return max(-2**31, min(2**31 - 1, round(value)))
+    return _clamped(round_half_even(value), -2**31, 2**31 - 1)
 
 
 def uint32(value: float) -> int:
-    return max(0, min(2**32 - 1, round(value)))
+    return _clamped(round_half_even(value), 0, 2**32 - 1)
 
 
 def int16(value: float) -> int:
-    return max(-2**15, min(2**15 - 1, round(value)))
+    return _clamped(round_half_even(value), -2**15, 2**15 - 1)
+
+
+def _clamped(value: int, lowest: int, highest: int) -> int:
+    return lowest if value < lowest else highest if value > highest else value

@@ -27,6 +27,9 @@ class TpdoProducer:
         if not self.node.nmt.operational:
             return
         status = self.core.status()
+        pending = self._pending
+        machine, counts_per_rad, rated = self.machine, self.objects.counts_per_rad, \
+            self.rated_torque
         for schedule in self._tpdos:
             kind = schedule.transmission_type
             if kind == SYNCHRONOUS_RTR:
@@ -38,12 +41,15 @@ class TpdoProducer:
                 if schedule.syncs < kind:
                     continue
                 schedule.syncs = 0
-            data = self._pack(schedule, status)
+            codec = schedule.codec      # _pack's common case here: a call less a TPDO
+            data = (codec.pack(*live_values(schedule.indices, machine, status, counts_per_rad,
+                                            rated))
+                    if codec is not None else self._pack(schedule, status))
             if kind == 0:
                 if data == schedule.last_data:
                     continue
                 schedule.last_data = data
-            self._pending.append((schedule.pdo.cob_id, data))
+            pending.append((schedule.pdo.cob_id, data))
 
     def _pack(self, schedule: TpdoSchedule, status) -> bytes:
         if schedule.codec is not None:
