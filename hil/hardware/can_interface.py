@@ -227,7 +227,7 @@ class CanHardwareInterface(HardwareInterface):
         not waited for while any other axis answers: in lock-step a dead drive would hold every
         cycle of the others for the whole timeout (2 s), and their stop with it."""
         cycle = self._cycle
-        if all(a.feedback.cycle == cycle for a in self.axes):
+        if not [a for a in self.axes if a.feedback.cycle != cycle]:   # not all() of a generator
             return True          # all in already (lock-step: in this thread), no wait
         awaited = self.axes
         if skip_silent:      # silent as of the last cycle's watch
@@ -300,9 +300,7 @@ class CanHardwareInterface(HardwareInterface):
             if fault is not None:
                 self._report(axis.label, fault.message, fault)
             silence = now - axis.last_heard
-            # the cycles' limit first: it is the longer one in lock-step (and then the
-            # axis' own limit, a property, is not asked)
-            if silence > self.answer_silence_limit and silence > axis.silence_limit:
+            if silence > self.answer_silence_limit and silence > axis.silence_limit:  # both
                 self._report(axis.label, "heartbeat", axis.found(
                     FaultKind.SILENT, f"is silent: not heard for {silence * 1e3:.0f} ms",
                     silent_for=silence))
