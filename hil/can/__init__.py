@@ -20,7 +20,7 @@ from hil.can.frames import BusLoad, bus_load, frame_bits
 from hil.errors import HilError
 from hil.realtime.stalls import Stall
 
-__all__ = ["BusCapabilities", "BusLoad", "capabilities", "bus_load", "deliver_under", "frame_bits", "link_round_trip",
+__all__ = ["BusCapabilities", "BusLoad", "batching", "capabilities", "bus_load", "deliver_under", "frame_bits", "link_round_trip",
            "link_unreached", "open_bus", "sent_together", "socketcan_missing",
            "watch_deliveries"]
 
@@ -37,6 +37,12 @@ def sent_together(buses: Iterable[can.BusABC]) -> AbstractContextManager:
     for batch in batches:
         together.enter_context(batch)
     return together
+
+
+def batching(buses: Iterable[can.BusABC]) -> list[can.BusABC]:
+    """The buses whose frames :func:`sent_together` sends together (asked once: a sender
+    that gives it only these, each cycle, asks no other bus' capabilities every cycle)."""
+    return [bus for bus in buses if capabilities(bus).batch() is not UNBATCHED]
 
 
 def deliver_under(buses: Iterable[can.BusABC], guard: AbstractContextManager) -> None:

@@ -11,6 +11,7 @@ back, in motor units (rad, rad/s, N·m).
 from __future__ import annotations
 
 import enum
+import functools
 import threading
 import time
 from abc import ABC, abstractmethod
@@ -55,6 +56,11 @@ class AxisCommand(NamedTuple):
     stopping: bool = False
     #: hold where it is (enabling, or recovering after a reset) instead of following
     holding: bool = False
+
+
+#: an AxisCommand from the tuple of all its fields, by tuple.__new__ from C: the named tuple's
+#: own __new__ is a Python function, some 2,000 instructions an axis and cycle
+command_of = functools.partial(tuple.__new__, AxisCommand)
 
 
 @dataclass(frozen=True)

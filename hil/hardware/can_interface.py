@@ -21,9 +21,9 @@ import can
 import numpy as np
 
 from hil.bus_config.types import SystemConfig
-from hil.can import sent_together, watch_deliveries
+from hil.can import batching, sent_together, watch_deliveries
 from hil.errors import HilError
-from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind
+from hil.hardware.axis import Axis, AxisFault, FaultKind, command_of
 from hil.hardware.feedback import JointFeedback, PlausibilityCheck
 from hil.hardware.gravity import GravityModel
 from hil.hardware.hold_ups import not_enabled, slow_links, unreached_links
@@ -118,6 +118,7 @@ class CanHardwareInterface(HardwareInterface):
 
         for name, bus in self._buses.items():
             self._networks[name] = start_network(bus)
+        self._batched = batching(self._buses.values())     # what write sends together
         for axis in self.axes:
             axis.attach(self._networks[axis.bus_name])
         for axis in self.axes:                         # reset: every drive starts afresh
@@ -195,17 +196,16 @@ class CanHardwareInterface(HardwareInterface):
         speeds = self.transmissions.joint_to_actuator_velocity(velocities).tolist()
         torques = self._feed_forward_torques(positions)
         hold = enabling or self._recovering
-        # each bus' frames in one send where it can (hil-virtual), its SYNC last (the RPDOs
-        # before the SYNC that applies them, CiA 301); every bus' in one put where it can (zenoh)
+        # a bus' frames in one send (hil-virtual), SYNC last (after its RPDOs, CiA 301); every
+        # bus' in one put where they can (zenoh)
         batches: dict[str, list[tuple[int, bytes, bool]]] = {n: [] for n in self._networks}
         for axis, target, speed, torque in zip(self.axes, targets, speeds, torques):
-            axis.begin_cycle(self._cycle)
-            # a torque only for drives that ask (their protocol carries one)
+            axis.begin_cycle(self._cycle)     # a torque only where the protocol carries one
             batches[axis.bus_name] += axis.cycle_frames(
-                AxisCommand(target, speed, torque, self._stopping, hold))
+                command_of((target, speed, torque, self._stopping, hold)))
         for name in self._sync_buses:
             batches[name].append((SYNC_ID, b"", False))
-        with sent_together(network.bus for network in self._networks.values()):
+        with sent_together(self._batched):
             for name, frames in batches.items():
                 self._networks[name].send_in_order(frames)
         self._sync_sent = time.perf_counter()

@@ -53,6 +53,10 @@ class Plant:
         self.model = compile_model(self.spec, description)
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)
+        # views of the data's arrays, made once: reading data.qpos makes a new array each
+        # time (a pybind11 property), and the simulator reads these at every plant step
+        self._qpos_view, self._qvel_view = self.data.qpos, self.data.qvel
+        self._ctrl_view = self.data.ctrl
 
         self.joint_names = tuple(j.name for j in description.movable_joints)
         self.actuator_names = tuple(b.name for b in self.bindings)
@@ -139,14 +143,14 @@ class Plant:
 
     # ndarray.dot, not @ (read at every plant step; see hil.transmissions.base)
     def motor_positions(self) -> np.ndarray:
-        return self._position_map.dot(self.data.qpos) - self._position_bias
+        return self._position_map.dot(self._qpos_view) - self._position_bias
 
     def motor_velocities(self) -> np.ndarray:
-        return self._velocity_map.dot(self.data.qvel)
+        return self._velocity_map.dot(self._qvel_view)
 
     def set_motor_torques(self, torques) -> None:
         """Command motor torques; MuJoCo saturates them at :attr:`torque_limits`."""
-        self.data.ctrl[self._actuator_ids] = torques
+        self._ctrl_view[self._actuator_ids] = torques
 
     def motor_torques(self) -> np.ndarray:
         """Torques the motors actually apply (after saturation)."""
