@@ -20,9 +20,9 @@ from hil.can.frames import BusLoad, bus_load, frame_bits
 from hil.errors import HilError
 from hil.realtime.stalls import Stall
 
-__all__ = ["BusCapabilities", "BusLoad", "batching", "capabilities", "bus_load", "deliver_under", "frame_bits", "link_round_trip",
-           "link_unreached", "open_bus", "sent_together", "socketcan_missing",
-           "watch_deliveries"]
+__all__ = ["BusCapabilities", "BusLoad", "batching", "capabilities", "bus_load",
+           "deliver_under", "frame_bits", "link_round_trip", "link_unreached", "open_bus",
+           "sent_together", "socketcan_missing", "watch_deliveries"]
 
 
 def sent_together(buses: Iterable[can.BusABC]) -> AbstractContextManager:
