@@ -33,7 +33,9 @@ class NetworkListener(FrameListener):
 
     It calls the subscribers itself: ``notify`` would also feed canopen's NodeScanner (node
     discovery, which hil does not use) on every frame; skipping it and ``notify`` took 4 % off
-    the ur3's lock-step cycle.
+    the ur3's lock-step cycle. Its :attr:`routes` are the network's subscribers: a delivery
+    whose one listener it is calls them itself (:class:`~hil.can.delivery.DirectDelivery`),
+    failures coming back to :meth:`refuse`.
     :func:`start_network` puts one in place of canopen's, as ``network.frame_listener``.
     """
 
