@@ -7,7 +7,6 @@ every cycle for every axis and must stay cheap and allocation-light.
 
 from __future__ import annotations
 
-import functools
 import math
 import struct
 import time
@@ -39,15 +38,27 @@ SHUTDOWN, SWITCH_ON, ENABLE = State402.CW_SHUTDOWN, State402.CW_SWITCH_ON, \
     State402.CW_OPERATION_ENABLED
 QUICK_STOP, DISABLE_VOLTAGE = State402.CW_QUICK_STOP, State402.CW_DISABLE_VOLTAGE
 FAULT_RESET = State402.CW_SWITCH_ON_DISABLED          # bit 7: fault reset (its rising edge)
+#: the controlword that walks a drive up from each state toward OPERATION ENABLED
+_WALK_UP = {"SWITCH ON DISABLED": SHUTDOWN, "READY TO SWITCH ON": SWITCH_ON,
+            "SWITCHED ON": ENABLE, "OPERATION ENABLED": ENABLE}
 
 
-@functools.lru_cache(maxsize=None)     # asked several times a cycle per axis; 2^16 words at most
-def state_of(statusword: int) -> str:
-    """The CiA 402 state name of a statusword (canopen's own mask table)."""
+def _state_of_bits(bits: int) -> str:
     for name, (mask, value) in State402.SW_MASK.items():
-        if statusword & mask == value:
+        if bits & mask == value:
             return name
     return "UNKNOWN"
+
+
+#: the state of each value of a statusword's state bits (0, 1, 2, 3, 5, 6: canopen's masks
+#: ask no others), looked up by index at every answer
+_STATE_BITS = 0x6F
+_STATES = tuple(_state_of_bits(bits) for bits in range(_STATE_BITS + 1))
+
+
+def state_of(statusword: int) -> str:
+    """The CiA 402 state name of a statusword (canopen's own mask table)."""
+    return _STATES[statusword & _STATE_BITS]
 
 
 class Cia402Axis(Axis):
@@ -245,8 +256,7 @@ class Cia402Axis(Axis):
             # enable only at standstill and with last cycle's position as the setpoint: a
             # brake-less axis still falling is caught where it comes to rest, not mid-fall
             return SWITCH_ON
-        return {"SWITCH ON DISABLED": SHUTDOWN, "READY TO SWITCH ON": SWITCH_ON,
-                "SWITCHED ON": ENABLE, "OPERATION ENABLED": ENABLE}.get(state, SHUTDOWN)
+        return _WALK_UP.get(state, SHUTDOWN)
 
     def rpdo(self, controlword: int, target: float) -> bytes:
         counts = round(target * self.counts_per_rad)

@@ -331,32 +331,32 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         pdo = rpdo.pdo
         data = pdo.data = self._latched.get(number, pdo.data)
         layout = rpdo.layout
-        if layout is not None:
-            fields = dict(zip(layout.indices, layout.codec.unpack(data)))
-        else:
-            fields = {variable.index: variable.raw for variable in pdo.map}
+        values = (layout.codec.unpack(data) if layout is not None
+                  else [variable.raw for variable in pdo.map])
+        at = rpdo.at            # each mapped object's place in values (no dict made a frame)
         objects = self.objects
         if rpdo.mode:
-            objects.set_mode(fields[0x6060])
+            objects.set_mode(values[at[0x6060]])
         for index in rpdo.profile:
-            objects.set_profile_parameter(index, fields[index])
+            objects.set_profile_parameter(index, values[at[index]])
         # the controlword after the targets (profile position's new set-point takes the
         # target of its own PDO), but in ip mode before them: bit 4 gates its own PDO's record
         interpolated = self.machine.mode_code == INTERPOLATED_POSITION
         if rpdo.controlword and interpolated:
-            self.machine.controlword(fields[0x6040])
+            self.machine.controlword(values[at[0x6040]])
         for index in rpdo.targets:
-            objects.set_target_position(index, fields[index])
+            objects.set_target_position(index, values[at[index]])
         if rpdo.torque:
-            objects.set_target_torque(fields[0x6071])
+            objects.set_target_torque(values[at[0x6071]])
         if rpdo.offsets:
+            per_rad = self._counts_per_rad
             self.core.new_setpoint(
-                velocity=fields[0x60FF] / self._counts_per_rad if 0x60FF in fields else None,
-                velocity_ff=fields[0x60B1] / self._counts_per_rad if 0x60B1 in fields else None,
-                torque_ff=fields[0x60B2] * self.rated_torque / 1000 if 0x60B2 in fields
+                velocity=values[at[0x60FF]] / per_rad if 0x60FF in at else None,
+                velocity_ff=values[at[0x60B1]] / per_rad if 0x60B1 in at else None,
+                torque_ff=values[at[0x60B2]] * self.rated_torque / 1000 if 0x60B2 in at
                 else None)
         if rpdo.controlword and not interpolated:
-            self.machine.controlword(fields[0x6040])
+            self.machine.controlword(values[at[0x6040]])
 
     def after_update(self) -> None:
         """After the inner loops ran: state machine follow-ups and EMCY for new faults."""

@@ -50,6 +50,8 @@ class Rpdo:
     controlword: bool = False              # 0x6040
     targets: tuple[int, ...] = ()          # target positions mapped: 0x607A, 0x60C1
     torque: bool = False                   # target torque (0x6071)
+    #: each mapped object's place in the mapping (an object mapped twice: its last place)
+    at: dict[int, int] = field(default_factory=dict)
 
     @classmethod
     def of(cls, pdo) -> Rpdo:
@@ -59,7 +61,8 @@ class Rpdo:
                    PdoLayout.of(pdo), tuple(i for i in indices if i in PROFILE_PARAMETERS),
                    any(i in indices for i in (0x60FF, 0x60B1, 0x60B2)),
                    0x6060 in indices, 0x6040 in indices,
-                   tuple(i for i in (0x607A, 0x60C1) if i in indices), 0x6071 in indices)
+                   tuple(i for i in (0x607A, 0x60C1) if i in indices), 0x6071 in indices,
+                   {index: place for place, index in enumerate(indices)})
 
 
 @dataclass
