@@ -26,6 +26,8 @@ _RPDO1 = struct.Struct("<Hi")       # controlword, target position
 _TPDO1 = struct.Struct("<Hi")       # statusword, position actual
 _TPDO2 = struct.Struct("<ih")       # velocity actual, torque actual
 _RPDO4 = struct.Struct("<ih")       # velocity offset, torque offset
+# their sizes as ints: a Struct's size is a C getter, read unspecialised at every answer
+_TPDO1_SIZE, _TPDO2_SIZE = _TPDO1.size, _TPDO2.size
 
 
 def _int32(value: float) -> int:
@@ -92,14 +94,14 @@ class Cia402Axis(Axis):
         super().attach(network)
 
     def _on_tpdo1(self, can_id, data, timestamp) -> None:
-        if len(data) == _TPDO1.size:
+        if len(data) == _TPDO1_SIZE:
             statusword, counts = _TPDO1.unpack(data)
             self.take_statusword(statusword)
             self.feedback.position = counts / self.counts_per_rad
             self.answered()
 
     def _on_tpdo2(self, can_id, data, timestamp) -> None:
-        if len(data) == _TPDO2.size:
+        if len(data) == _TPDO2_SIZE:
             velocity, torque = _TPDO2.unpack(data)
             self.feedback.velocity = velocity / self.counts_per_rad
             self.feedback.torque = torque * self.rated_torque / 1000

@@ -360,9 +360,8 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
 
     def after_update(self) -> None:
         """After the inner loops ran: state machine follow-ups and EMCY for new faults."""
-        self.machine.after_update()
         # (called at every plant step: the common case, nothing new, asks no more)
-        events = self.take_events() if self.core.events else ()
+        events = self.take_events() if self.machine.after_update() else ()
         if self.network is None:            # detached: silent
             return
         for fault in events:

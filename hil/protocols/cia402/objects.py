@@ -160,8 +160,10 @@ class DriveObjects:
             return
         if interpolated and not self.machine.following_setpoints():
             return
-        self.machine.target_position = counts / self.counts_per_rad
-        self.core.new_setpoint(position=self.machine.target_position)
+        # the machine's attribute written, not read back: from interpreted code each access
+        # to a compiled object's attribute is a generic lookup
+        position = self.machine.target_position = counts / self.counts_per_rad
+        self.core.new_setpoint(position=position)
 
     def set_target_torque(self, value: int) -> None:
         """0x6071 (per mille of the rated torque): cyclic synchronous torque's setpoint, or

@@ -243,10 +243,13 @@ class Cia402StateMachine:
         return (self.mode_code != INTERPOLATED_POSITION
                 or bool(self._last_controlword & ENABLE_IP))
 
-    def after_update(self) -> None:
+    def after_update(self) -> bool:
         """Quick stop option 1-4: once stopped, fall to switch on disabled. A drive that
         disabled itself (a silence reaction, 0x6007 = 2) is in switch on disabled too.
-        Profile position: a buffered set-point starts once the move in progress has ended."""
+        Profile position: a buffered set-point starts once the move in progress has ended.
+        Returns whether the core has faults not yet taken (its ``events``): asked here, in
+        compiled code, the drive's interpreted caller reads no attribute of the core at
+        every plant step."""
         power = self.core.power
         if power is Power.DISABLED and self._last_power in (Power.ENABLED, Power.QUICK_STOP):
             self._disabled_state = State.SWITCH_ON_DISABLED
@@ -265,6 +268,7 @@ class Cia402StateMachine:
             self._buffered = None
             if not self._last_controlword & NEW_SETPOINT:
                 self.setpoint_acknowledged = False
+        return bool(self.core.events)
 
     def reset_homing(self) -> None:
         """A node reset: the drive forgets its home (its position scale is the encoder's)."""
