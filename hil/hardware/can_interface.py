@@ -300,7 +300,7 @@ class CanHardwareInterface(HardwareInterface):
             if fault is not None:
                 self._report(axis.label, fault.message, fault)
             silence = now - axis.last_heard
-            if silence > self.answer_silence_limit and silence > axis.silence_limit:  # both
+            if silence > self.answer_silence_limit and silence > axis.silence_limit:
                 self._report(axis.label, "heartbeat", axis.found(
                     FaultKind.SILENT, f"is silent: not heard for {silence * 1e3:.0f} ms",
                     silent_for=silence))
