@@ -129,6 +129,18 @@ def test_a_forward_velocity_controller_moves_the_position_setpoint_by_the_veloci
     assert position[0] == pytest.approx(10 * 0.5 * PERIOD) and velocity[0] == 0.5
 
 
+def test_a_velocity_beside_another_controllers_position_is_its_feed_forward_not_integrated(
+        manager):
+    """A joint whose position one controller claims and whose velocity another does gets
+    that position, with the velocity as its feed-forward (it is not advanced by it)."""
+    assert manager.switch([POSITION, VELOCITY], [JTC]).ok
+    manager.forward(POSITION).command([0.1, 0, 0, 0, 0, 0])
+    manager.forward(VELOCITY).command([0.5, 0, 0, 0, 0, 0])
+    for k in range(5):
+        position, velocity = manager.update(0.01 * k, np.zeros(6), np.zeros(6))
+    assert position[0] == pytest.approx(0.1) and velocity[0] == 0.5
+
+
 def test_after_a_fault_a_streaming_controller_forgets_its_command(manager):
     assert manager.switch([VELOCITY], [JTC]).ok
     manager.forward(VELOCITY).command([0.5, 0, 0, 0, 0, 0])

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from hil.protocols.cia402.state import Cia402StateMachine, State, int16, int32, statusword
 from hil.drives.core import DriveCore
 from hil.drives.definitions import DriveParameters, Fault, Mode, Power, round_half_even
+from hil.drives.group import CoreGroup
 from conftest import TEST_MOTOR_DRIVE
 
 DT = 0.001
@@ -44,6 +45,28 @@ def test_csp_follows_interpolated_setpoints():
     motor.run(core, 0.5)
     assert motor.position == pytest.approx(5.0, abs=2 * 2 * math.pi / 4096)
     assert core.status().target_reached
+
+
+def test_a_group_of_cores_steps_each_as_alone_and_orders_torques_by_actuator():
+    """CoreGroup: each core measured and updated as on its own, its torque at its plant
+    actuator's place; an actuator no drive drives gets none."""
+    alone = [DriveCore(parameters()) for _ in range(2)]
+    grouped = [DriveCore(parameters()) for _ in range(2)]
+    group = CoreGroup(3)
+    for core, actuator in zip(grouped, (2, 0)):
+        group.add(core, actuator)
+    for core in alone + grouped:
+        core.enable()
+    for k in range(1, 50):
+        positions, velocities = [0.001 * k, 0.7, -0.002 * k], [0.1, 0.0, -0.2]
+        for core, target in zip(alone + grouped, (0.3, -0.2, 0.3, -0.2)):
+            core.new_setpoint(position=target, now=0.0)
+        alone[0].measure(positions[2], velocities[2], DT)
+        alone[1].measure(positions[0], velocities[0], DT)
+        group.measure(positions, velocities, DT)
+        torques = group.update(DT)
+        assert torques == [alone[1].update(DT), 0.0, alone[0].update(DT)]
+    assert torques[0] != 0.0 and torques[2] != 0.0
 
 
 def test_torque_saturates_at_peak():

@@ -38,6 +38,24 @@ def test_feedback_beyond_a_joints_reach_is_named_and_not_used():
     assert used.positions[1] == 1.0                     # its last plausible value
 
 
+def test_with_every_drive_heard_every_joint_is_judged():
+    check = PlausibilityCheck(_robot(), ("shoulder", "elbow"))
+    used, implausible = check.check(_feedback([0.0, -5.0]))            # heard: None, all
+    assert [k for k, _ in implausible] == [1]
+
+
+def test_a_nan_or_infinite_measurement_is_implausible_and_never_used():
+    check = PlausibilityCheck(_robot(), ("shoulder", "elbow"))
+    (_, low), (_, high) = check.reach                   # the elbow's reach
+    for bad in (np.nan, np.inf, -np.inf):               # no plausible feedback before them
+        used, implausible = check.check(_feedback([0.1, bad]))
+        assert [k for k, _ in implausible] == [1] and low <= used.positions[1] <= high
+    check.check(_feedback([0.1, 1.0]))
+    for bad in (np.nan, np.inf, -np.inf):
+        used, implausible = check.check(_feedback([0.1, bad]))
+        assert [k for k, _ in implausible] == [1] and used.positions[1] == 1.0
+
+
 def test_the_plant_starts_a_joint_whose_range_excludes_zero_inside_its_range():
     plant = Plant(_robot())
     shoulder, elbow = plant.joint_positions()

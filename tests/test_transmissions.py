@@ -168,3 +168,18 @@ def test_a_stack_refuses_a_joint_in_two_transmissions():
     with pytest.raises(ValueError, match="exactly one transmission"):
         TransmissionStack((SimpleTransmission("j", "m1", 2.0), SimpleTransmission("j", "m2", 3.0)),
                           ("j",), ("m1", "m2"))
+
+
+@given(ar=ratios, jr=ratios, reduction=ratio, off=pair,
+       a=st.tuples(*[finite] * 9))
+def test_a_cycles_feedback_in_one_product_maps_as_the_three_maps(ar, jr, reduction, off, a):
+    """actuator_to_joint_feedback: positions, velocities and efforts one after the other."""
+    stack = TransmissionStack((DifferentialTransmission(("j1", "j2"), ("m1", "m2"), ar, jr, off),
+                               SimpleTransmission("j3", "m3", reduction, 0.25)),
+                              ("j3", "j1", "j2"), ("m2", "m3", "m1"))
+    measured = np.array(a)
+    expected = np.concatenate([stack.actuator_to_joint_position(measured[:3]),
+                               stack.actuator_to_joint_velocity(measured[3:6]),
+                               stack.actuator_to_joint_effort(measured[6:])])
+    scale = 1e-12 * max(1.0, float(np.abs(expected).max()))
+    assert stack.actuator_to_joint_feedback(measured) == pytest.approx(expected, abs=scale)

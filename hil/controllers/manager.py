@@ -223,27 +223,40 @@ class ControllerManager:
                 self._started = True
                 self._switch(self._pending, [], Strictness.BEST_EFFORT)
             position = self._position.copy()
-            count = len(position)
             # np.zeros, not zeros_like: the latter is a Python function around it (a cycle)
-            velocity = np.zeros(count)
-            position_claimed = np.zeros(count, dtype=bool)
-            velocity_claimed = np.zeros(count, dtype=bool)
+            velocity = np.zeros(len(position))
+            claimed_positions, velocities_alone = [], []     # each controller's joints
             for name in self._active:
                 controller, idx = self._controllers[name], self._indices[name]
                 out_position, out_velocity = controller.update(now, positions[idx],
                                                                velocities[idx])
                 interfaces = controller.command_interfaces
-                if out_position is not None and "position" in interfaces:
-                    position[idx], position_claimed[idx] = out_position, True
+                claims_position = out_position is not None and "position" in interfaces
+                if claims_position:
+                    position[idx] = out_position
+                    claimed_positions.append(idx)
                 if out_velocity is not None and "velocity" in interfaces:
-                    velocity[idx], velocity_claimed[idx] = out_velocity, True
-            integrate = velocity_claimed & ~position_claimed
-            if np.count_nonzero(integrate):   # not .any(): a Python call in numpy, 4x the time
-                position[integrate] = np.clip(
-                    self._position[integrate] + velocity[integrate] * self.period,
-                    self.limits.lower[integrate], self.limits.upper[integrate])
+                    velocity[idx] = out_velocity
+                    if not claims_position:
+                        velocities_alone.append(idx)
+            if velocities_alone:          # (the masks made only then: a cycle's numpy calls)
+                self._integrate(position, velocity, velocities_alone, claimed_positions)
             self._position = position
             return position.copy(), velocity
+
+    def _integrate(self, position: np.ndarray, velocity: np.ndarray,
+                   velocities_alone: list[np.ndarray], claimed_positions: list[np.ndarray]
+                   ) -> None:
+        """The joints whose velocity alone is claimed (by any controller: another may claim
+        a joint's position) advance their last position command by it, within limits."""
+        integrate = np.zeros(len(position), dtype=bool)
+        integrate[np.concatenate(velocities_alone)] = True
+        for idx in claimed_positions:
+            integrate[idx] = False
+        if np.count_nonzero(integrate):   # not .any(): a Python call in numpy, 4x the time
+            position[integrate] = np.clip(
+                self._position[integrate] + velocity[integrate] * self.period,
+                self.limits.lower[integrate], self.limits.upper[integrate])
 
     def hold(self, positions: np.ndarray) -> None:
         """After a hardware fault: every joint holds ``positions`` and each active controller

@@ -10,7 +10,7 @@ from hil.compiled import import_fresh
 # CiA 402 device, one build (compiled modules of one build call each other directly: all or
 # none)
 import_fresh("hil.drives.definitions", "hil.drives.references", "hil.drives.core",
-             "hil.protocols.cia402.state")
+             "hil.drives.group", "hil.protocols.cia402.state")
 
 from hil.drives.core import DriveCore  # noqa: E402
 from hil.drives.definitions import DriveParameters, DriveStatus, Fault, Mode, Power  # noqa: E402

@@ -78,7 +78,6 @@ class CanHardwareInterface(HardwareInterface):
                                                                        self._on_feedback)
                                  for bus in config.buses for drive in bus.drives]
         self._sync_buses = sorted({a.bus_name for a in self.axes if a.protocol.uses_sync})
-        self._every_joint = np.ones(len(self.joint_names), dtype=bool)
         self._all_heard = False
         self.actuator_names = tuple(a.config.actuator for a in self.axes)
         # joints (joint_names order) <-> actuators (axes order) in one map
@@ -253,12 +252,12 @@ class CanHardwareInterface(HardwareInterface):
 
     def _joint_feedback(self) -> JointFeedback:
         feedback = [axis.feedback for axis in self.axes]
-        torques = np.array([f.torque for f in feedback])
-        return JointFeedback(
-            self.transmissions.actuator_to_joint_position([f.position for f in feedback]),
-            self.transmissions.actuator_to_joint_velocity([f.velocity for f in feedback]),
-            self.transmissions.actuator_to_joint_effort(torques), torques,
-            tuple(a.state for a in self.axes))
+        n = len(feedback)
+        measured = np.array([f.position for f in feedback] + [f.velocity for f in feedback]
+                            + [f.torque for f in feedback])
+        joint = self.transmissions.actuator_to_joint_feedback(measured)
+        return JointFeedback(joint[:n], joint[n:2 * n], joint[2 * n:], measured[2 * n:],
+                             tuple([a.state for a in self.axes]))
 
     def _checked(self, feedback: JointFeedback) -> JointFeedback:
         """Feedback no joint can produce is a fault, never a joint state (see
@@ -270,13 +269,13 @@ class CanHardwareInterface(HardwareInterface):
             self._report(name, "implausible", axis.found(FaultKind.IMPLAUSIBLE, text))
         return checked
 
-    def _heard_joints(self) -> np.ndarray:
+    def _heard_joints(self) -> np.ndarray | None:
         """Per joint: all its drives have answered at least once (before that, their values
-        are defaults, not measurements)."""
+        are defaults, not measurements); None: every joint's have."""
         # once every drive has answered (from the first cycles on) that stays so
         self._all_heard = self._all_heard or all(axis.feedback.heard for axis in self.axes)
         if self._all_heard:
-            return self._every_joint
+            return None
         heard = {j: True for j in self.joint_names}
         for axis in self.axes:
             for joint in axis.config.joints:

@@ -98,6 +98,10 @@ class ControlSamples:
                    np.asarray(message.cycle_period), np.asarray(message.round_trip))
 
 
+#: ControlSampleBuffer keeps the codes of this many combinations of drive states at most
+STATE_ROWS = 64
+
+
 class ControlSampleBuffer:
     """Collects one row per control cycle; :meth:`take` empties it into a batch."""
 
@@ -111,6 +115,9 @@ class ControlSampleBuffer:
         self._torque = np.zeros((capacity, actuators))
         self._state = np.zeros((capacity, actuators), dtype=np.uint8)
         self._state_index: dict[str, int] = {}
+        #: the row of state codes of each tuple of drive states seen (a few: the states the
+        #: drives pass through together), at most STATE_ROWS of them
+        self._state_rows: dict[tuple[str, ...], np.ndarray] = {}
         self._rows = 0
         self._first_cycle = 0
 
@@ -135,10 +142,20 @@ class ControlSampleBuffer:
                                                       feedback.efforts)):
             table[row] = values
         self._torque[row] = feedback.motor_torques
-        index = self._state_index
-        self._state[row] = [index.setdefault(state, len(index))
-                            for state in feedback.drive_states]
+        codes = self._state_rows.get(feedback.drive_states)
+        if codes is None:
+            codes = self._state_codes(feedback.drive_states)
+        self._state[row] = codes
         self._rows = row + 1
+
+    def _state_codes(self, states: tuple[str, ...]) -> np.ndarray:
+        index = self._state_index
+        codes = np.array([index.setdefault(state, len(index)) for state in states],
+                         dtype=np.uint8)
+        if len(self._state_rows) == STATE_ROWS:
+            self._state_rows.clear()
+        self._state_rows[states] = codes
+        return codes
 
     def take(self) -> ControlSamples | None:
         """The rows recorded since the last call (None if there are none)."""

@@ -334,18 +334,18 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         values = (layout.codec.unpack(data) if layout is not None
                   else [variable.raw for variable in pdo.map])
         at = rpdo.at            # each mapped object's place in values (no dict made a frame)
-        objects = self.objects
+        objects, machine = self.objects, self.machine
         if rpdo.mode:
             objects.set_mode(values[at[0x6060]])
         for index in rpdo.profile:
             objects.set_profile_parameter(index, values[at[index]])
         # the controlword after the targets (profile position's new set-point takes the
         # target of its own PDO), but in ip mode before them: bit 4 gates its own PDO's record
-        interpolated = self.machine.mode_code == INTERPOLATED_POSITION
+        interpolated = machine.mode_code == INTERPOLATED_POSITION
         if rpdo.controlword and interpolated:
-            self.machine.controlword(values[at[0x6040]])
-        for index in rpdo.targets:
-            objects.set_target_position(index, values[at[index]])
+            machine.controlword(values[at[0x6040]])
+        for index in rpdo.targets:      # objects.set_target_position's, a call less a frame
+            machine.take_target_position(index, values[at[index]] / objects.counts_per_rad)
         if rpdo.torque:
             objects.set_target_torque(values[at[0x6071]])
         if rpdo.offsets:
@@ -356,7 +356,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
                 torque_ff=values[at[0x60B2]] * self.rated_torque / 1000 if 0x60B2 in at
                 else None)
         if rpdo.controlword and not interpolated:
-            self.machine.controlword(values[at[0x6040]])
+            machine.controlword(values[at[0x6040]])
 
     def after_update(self) -> None:
         """After the inner loops ran: state machine follow-ups and EMCY for new faults."""

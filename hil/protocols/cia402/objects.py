@@ -21,8 +21,7 @@ from hil.protocols.cia402.node import DriveNode
 from hil.protocols.cia402.personality import Personality
 from hil.protocols.cia402.storage import ParameterStore
 from hil.protocols.cia402.eds import LIVE_OBJECTS
-from hil.protocols.cia402.state import (HOMING_METHODS, INTERPOLATED_POSITION, MODE_CODES,
-                                        PROFILE_TORQUE,
+from hil.protocols.cia402.state import (HOMING_METHODS, MODE_CODES, PROFILE_TORQUE,
                                         Cia402StateMachine, int32, live_value, uint32)
 
 
@@ -153,17 +152,7 @@ class DriveObjects:
     def set_target_position(self, index: int, counts: int) -> None:
         """0x607A (profile and cyclic synchronous position) or 0x60C1:01 (interpolated
         position: taken while ip mode is active)."""
-        interpolated = self.machine.mode_code == INTERPOLATED_POSITION
-        if (index == 0x60C1) != interpolated:
-            if index == 0x607A:
-                self.machine.target_position = counts / self.counts_per_rad
-            return
-        if interpolated and not self.machine.following_setpoints():
-            return
-        # the machine's attribute written, not read back: from interpreted code each access
-        # to a compiled object's attribute is a generic lookup
-        position = self.machine.target_position = counts / self.counts_per_rad
-        self.core.new_setpoint(position=position)
+        self.machine.take_target_position(index, counts / self.counts_per_rad)
 
     def set_target_torque(self, value: int) -> None:
         """0x6071 (per mille of the rated torque): cyclic synchronous torque's setpoint, or

@@ -243,6 +243,21 @@ class Cia402StateMachine:
         return (self.mode_code != INTERPOLATED_POSITION
                 or bool(self._last_controlword & ENABLE_IP))
 
+    def take_target_position(self, index: int, position: float) -> None:
+        """0x607A (profile and cyclic synchronous position) or 0x60C1:01 (interpolated
+        position: taken while ip mode is active), in rad at the motor. Here, compiled, and
+        not in the drive's interpreted objects: each access of theirs to this machine's
+        attributes would be a generic lookup, at every RPDO."""
+        interpolated = self.mode_code == INTERPOLATED_POSITION
+        if (index == 0x60C1) != interpolated:
+            if index == 0x607A:
+                self.target_position = position
+            return
+        if interpolated and not self.following_setpoints():
+            return
+        self.target_position = position
+        self.core.new_setpoint(position=position)
+
     def after_update(self) -> bool:
         """Quick stop option 1-4: once stopped, fall to switch on disabled. A drive that
         disabled itself (a silence reaction, 0x6007 = 2) is in switch on disabled too.
