@@ -79,9 +79,13 @@ class Plant:
         self._position_map = np.zeros((len(self.actuator_names), self.model.nq))
         self._position_map[:, driven_qpos] = motors.position_matrix
         self._position_bias = motors.position_matrix @ motors.joint_offsets
+        self._biased = bool(np.count_nonzero(self._position_bias))   # else x - 0 is x
         self._velocity_map = np.zeros((len(self.actuator_names), self.model.nv))
         self._velocity_map[:, driven_dof] = motors.position_matrix
         self._actuator_ids = np.array([self.model.actuator(n).id for n in self.actuator_names])
+        # all of ctrl in order (as the builder makes it): set by a slice, not a gather
+        self._ctrl_slots = (slice(None) if list(self._actuator_ids) == list(range(self.model.nu))
+                            else self._actuator_ids)
         base = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, FLOATING_BASE)
         self._base = int(self.model.jnt_qposadr[base]) if base >= 0 else None
         self.set_joint_positions({**initial_pose(description), **(start_pose or {})})
@@ -143,14 +147,15 @@ class Plant:
 
     # ndarray.dot, not @ (read at every plant step; see hil.transmissions.base)
     def motor_positions(self) -> np.ndarray:
-        return self._position_map.dot(self._qpos_view) - self._position_bias
+        positions = self._position_map.dot(self._qpos_view)
+        return positions - self._position_bias if self._biased else positions
 
     def motor_velocities(self) -> np.ndarray:
         return self._velocity_map.dot(self._qvel_view)
 
     def set_motor_torques(self, torques) -> None:
         """Command motor torques; MuJoCo saturates them at :attr:`torque_limits`."""
-        self._ctrl_view[self._actuator_ids] = torques
+        self._ctrl_view[self._ctrl_slots] = torques
 
     def motor_torques(self) -> np.ndarray:
         """Torques the motors actually apply (after saturation)."""
