@@ -83,9 +83,11 @@ class Plant:
         self._velocity_map = np.zeros((len(self.actuator_names), self.model.nv))
         self._velocity_map[:, driven_dof] = motors.position_matrix
         self._actuator_ids = np.array([self.model.actuator(n).id for n in self.actuator_names])
-        # all of ctrl in order (as the builder makes it): set by a slice, not a gather
-        self._ctrl_slots = (slice(None) if list(self._actuator_ids) == list(range(self.model.nu))
-                            else self._actuator_ids)
+        # the builder adds exactly the bindings' actuators, in their order: ctrl is theirs,
+        # set whole by a slice at every step (not a gather)
+        if list(self._actuator_ids) != list(range(self.model.nu)):
+            raise RuntimeError(f"the model's actuators {self._actuator_ids.tolist()} are not "
+                               "the bindings' in order (a defect of hil.plant.builder)")
         base = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, FLOATING_BASE)
         self._base = int(self.model.jnt_qposadr[base]) if base >= 0 else None
         self.set_joint_positions({**initial_pose(description), **(start_pose or {})})
@@ -155,7 +157,7 @@ class Plant:
 
     def set_motor_torques(self, torques) -> None:
         """Command motor torques; MuJoCo saturates them at :attr:`torque_limits`."""
-        self._ctrl_view[self._ctrl_slots] = torques
+        self._ctrl_view[:] = torques
 
     def motor_torques(self) -> np.ndarray:
         """Torques the motors actually apply (after saturation)."""
