@@ -79,7 +79,8 @@ class Plant:
         self._position_map = np.zeros((len(self.actuator_names), self.model.nq))
         self._position_map[:, driven_qpos] = motors.position_matrix
         self._position_bias = motors.position_matrix @ motors.joint_offsets
-        self._biased = bool(np.count_nonzero(self._position_bias))   # else x - 0 is x
+        # most robots have none: then x - 0 is x, and motor_positions skips a numpy call
+        self._has_position_bias = bool(np.count_nonzero(self._position_bias))
         self._velocity_map = np.zeros((len(self.actuator_names), self.model.nv))
         self._velocity_map[:, driven_dof] = motors.position_matrix
         self._actuator_ids = np.array([self.model.actuator(n).id for n in self.actuator_names])
@@ -150,7 +151,7 @@ class Plant:
     # ndarray.dot, not @ (read at every plant step; see hil.transmissions.base)
     def motor_positions(self) -> np.ndarray:
         positions = self._position_map.dot(self._qpos_view)
-        return positions - self._position_bias if self._biased else positions
+        return positions - self._position_bias if self._has_position_bias else positions
 
     def motor_velocities(self) -> np.ndarray:
         return self._velocity_map.dot(self._qvel_view)

@@ -28,7 +28,7 @@ class Transmission(ABC):
         self.actuators = tuple(actuators)
         self.joint_offsets = np.asarray(joint_offsets, dtype=float)
         # most transmissions have none: then x - 0 is x, and the maps skip a numpy call
-        self._offset = bool(np.count_nonzero(self.joint_offsets))
+        self._has_offsets = bool(np.count_nonzero(self.joint_offsets))
         self.position_matrix = np.asarray(self._position_matrix(), dtype=float)
         self.effort_matrix = np.asarray(self._effort_matrix(), dtype=float)
         self._position_inverse = np.linalg.inv(self.position_matrix)
@@ -52,7 +52,7 @@ class Transmission(ABC):
     # same result to the bit (docs/performance.md, 2026-12-01)
     def joint_to_actuator_position(self, q) -> np.ndarray:
         q = np.asarray(q, dtype=float)
-        return self.position_matrix.dot(q - self.joint_offsets if self._offset else q)
+        return self.position_matrix.dot(q - self.joint_offsets if self._has_offsets else q)
 
     def actuator_to_joint_position(self, a) -> np.ndarray:
         return self._position_inverse.dot(np.asarray(a, dtype=float)) + self.joint_offsets
@@ -74,7 +74,7 @@ class Transmission(ABC):
         to the joints' in the same layout: the three maps above in one product (a cycle's
         feedback, one numpy call instead of three; the same numbers for finite values)."""
         joint = self._feedback_map.dot(np.asarray(measured, dtype=float))
-        return joint + self._feedback_offsets if self._offset else joint
+        return joint + self._feedback_offsets if self._has_offsets else joint
 
     def actuator_effort_limits(self, joint_efforts) -> np.ndarray:
         """Largest actuator effort needed to reach the joints' effort limits."""
