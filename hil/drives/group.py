@@ -13,17 +13,17 @@ class CoreGroup:
     def __init__(self, actuators: int):
         self._cores: list[DriveCore] = []
         self._actuators: list[int] = []
-        #: the torque of each plant actuator, as the last update left it (0 where no core)
-        self.torques: list[float] = [0.0] * actuators
+        # the torque of each plant actuator, as the last update left it (0 where no core)
+        self._torques: list[float] = [0.0] * actuators
 
     def add(self, core: DriveCore, actuator: int) -> None:
         self._cores.append(core)
         self._actuators.append(actuator)
 
     def update(self, dt: float) -> list[float]:
-        """Each core's inner loops advanced by ``dt``: the torques of the plant's actuators
-        (:attr:`torques`, in the plant's order)."""
-        torques = self.torques
+        """Each core's inner loops advanced by ``dt``: the torques of the plant's actuators,
+        in the plant's order (0 where no core drives one; the same list each call)."""
+        torques = self._torques
         actuators = self._actuators
         for k, core in enumerate(self._cores):
             torques[actuators[k]] = core.update(dt)
