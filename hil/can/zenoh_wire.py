@@ -124,55 +124,64 @@ def decode_frames(payload: bytes) -> list[Message]:
 
 
 def _decode_section(payload: bytes, offset: int, number: int) -> tuple[Message, int]:
-    """The section at ``offset``, and where the next one begins."""
-    where = f"section {number}: " if number > 1 else ""
-    if len(payload) < offset + 1:
-        raise ValueError(f"{where}no channel name: the message is empty")
+    """The section at ``offset``, and where the next one begins. (Every check is made; the
+    words of a refusal are put together only once there is one: a section's two prefixes and
+    a frame's three length checks were a fifth of a well-formed section's decoding.)"""
+    size = len(payload)
+    if size < offset + 1:
+        raise ValueError(f"{_where(number)}no channel name: the message is empty")
     length = payload[offset]
     offset += 1
-    if len(payload) < offset + length:
-        raise ValueError(f"{where}the channel's name is cut short")
+    if size < offset + length:
+        raise ValueError(f"{_where(number)}the channel's name is cut short")
     try:
         channel = payload[offset:offset + length].decode()
     except UnicodeDecodeError:
-        raise ValueError(f"{where}the channel's name is not UTF-8") from None
+        raise ValueError(f"{_where(number)}the channel's name is not UTF-8") from None
     offset += length
-    where = f"{where}channel '{channel}': "
-    if len(payload) < offset + _HEADER.size:
-        raise ValueError(f"{where}{len(payload) - offset} bytes is shorter than a section "
-                         "header")
+    if size < offset + _HEADER.size:
+        raise ValueError(f"{_where(number, channel)}{size - offset} bytes is shorter than a "
+                         "section header")
     sender, sequence, sent_at, echo_sender, echo_sequence, held, count = \
         _HEADER.unpack_from(payload, offset)
     if count == 0:
-        raise ValueError(f"{where}a section of no frames")
+        raise ValueError(f"{_where(number, channel)}a section of no frames")
     if not math.isfinite(sent_at):
-        raise ValueError(f"{where}the sender's clock reads {sent_at}")
+        raise ValueError(f"{_where(number, channel)}the sender's clock reads {sent_at}")
     if not (math.isfinite(held) and held >= 0):
-        raise ValueError(f"{where}the echo was held {held} s")
-    frames = []
+        raise ValueError(f"{_where(number, channel)}the echo was held {held} s")
+    frames: list[FrameParts] = []
+    append, unpack, frame_size = frames.append, _FRAME.unpack_from, _FRAME.size
     all_data = True
     offset += _HEADER.size
     for index in range(count):
-        if len(payload) < offset + _FRAME.size:
-            raise ValueError(f"{where}frame {index + 1} of {count} is cut short")
-        arbitration_id, flags, dlc = _FRAME.unpack_from(payload, offset)
-        offset += _FRAME.size
-        length = 0 if flags & _REMOTE else dlc
-        if dlc > 8 or len(payload) < offset + length:
-            raise ValueError(f"{where}frame {index + 1} of {count}: DLC {dlc} does not match "
-                             f"{min(len(payload) - offset, 8)} data bytes")
+        if size < offset + frame_size:
+            raise ValueError(f"{_where(number, channel)}frame {index + 1} of {count} is cut "
+                             "short")
+        arbitration_id, flags, dlc = unpack(payload, offset)
+        offset += frame_size
+        end = offset + (0 if flags & _REMOTE else dlc)
+        if dlc > 8 or end > size:
+            raise ValueError(f"{_where(number, channel)}frame {index + 1} of {count}: DLC {dlc} "
+                             f"does not match {min(size - offset, 8)} data bytes")
         if flags == 0 and arbitration_id <= 0x7FF:      # a standard data frame
-            frames.append((arbitration_id, payload[offset:offset + length]))
-            offset += length
+            append((arbitration_id, payload[offset:end]))
+            offset = end
             continue
         if arbitration_id > (0x1FFFFFFF if flags & _EXTENDED else 0x7FF):
-            raise ValueError(f"{where}frame {index + 1} of {count}: identifier "
-                             f"0x{arbitration_id:X} out of range")
+            raise ValueError(f"{_where(number, channel)}frame {index + 1} of {count}: "
+                             f"identifier 0x{arbitration_id:X} out of range")
         key = extended(arbitration_id) if flags & _EXTENDED else arbitration_id
         if flags & (_REMOTE | _ERROR):
             all_data = False
             key |= (REMOTE if flags & _REMOTE else 0) | (ERROR if flags & _ERROR else 0)
-        frames.append((key, bytes(dlc) if flags & _REMOTE else payload[offset:offset + length]))
-        offset += length
+        append((key, bytes(dlc) if flags & _REMOTE else payload[offset:end]))
+        offset = end
     return Message(channel, sender, sequence, sent_at, Echo(echo_sender, echo_sequence, held),
                    frames, all_data), offset
+
+
+def _where(number: int, channel: str | None = None) -> str:
+    """A refusal's prefix: which section (the first goes unnamed) and channel it is in."""
+    where = f"section {number}: " if number > 1 else ""
+    return where if channel is None else f"{where}channel '{channel}': "
