@@ -327,6 +327,20 @@ def test_frames_sent_in_a_batch_arrive_as_one_message_in_order(bus_pair):
     assert (b.counters.messages_received, b.counters.received, b.counters.lost) == (1, 7, 0)
 
 
+def test_a_block_over_buses_of_two_sessions_sends_one_message_from_each_at_its_end(bus_pair):
+    """sent_together holds each session's buses once: over two sessions, each sends what
+    its buses sent in the block as one message, when the block ends."""
+    a, b = bus_pair
+    with sent_together([a, b]):
+        for i in range(3):
+            a.send(can.Message(arbitration_id=0x300 + i, data=bytes([i]), is_extended_id=False))
+            b.send(can.Message(arbitration_id=0x400 + i, data=bytes([i]), is_extended_id=False))
+        assert a.recv(0.2) is None and b.recv(0.1) is None, "a frame left before the block ended"
+    assert [m.arbitration_id for m in (b.recv(2) for _ in range(3))] == [0x300, 0x301, 0x302]
+    assert [m.arbitration_id for m in (a.recv(2) for _ in range(3))] == [0x400, 0x401, 0x402]
+    assert (a.counters.messages_sent, b.counters.messages_sent) == (1, 1)
+
+
 def test_answers_sent_inside_a_delivery_go_out_as_one_message(bus_pair):
     a, b = bus_pair
 

@@ -29,10 +29,14 @@ def sent_together(buses: Iterable[can.BusABC]) -> AbstractContextManager:
     """A block (``with sent_together(buses):``) whose frames go out together where the bus
     can do that (``zenoh``: one message for all the buses of a Zenoh session); others send
     each frame as it is sent, as ever."""
-    batches = [batch for batch in (capabilities(bus).batch() for bus in buses)
+    # one block for the buses that share it (a Zenoh session's): entered once, it holds them
+    # all
+    batches = [batch for batch in dict.fromkeys(capabilities(bus).batch() for bus in buses)
                if batch is not UNBATCHED]
     if not batches:             # no ExitStack a cycle where none batches (hil-virtual)
         return UNBATCHED
+    if len(batches) == 1:       # nor where one block holds them all
+        return batches[0]
     together = ExitStack()
     for batch in batches:
         together.enter_context(batch)

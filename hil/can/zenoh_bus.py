@@ -58,8 +58,8 @@ import random
 import threading
 import time
 import weakref
-from collections.abc import Callable, Iterable, Iterator, Sequence
-from contextlib import AbstractContextManager, contextmanager
+from collections.abc import Callable, Iterable, Sequence
+from contextlib import AbstractContextManager
 from pathlib import Path
 
 import can
@@ -297,17 +297,12 @@ class ZenohBus(can.BusABC, BusCapabilities):
         if self._direct is delivery:
             self._direct = None
 
-    @contextmanager
-    def batch(self) -> Iterator[None]:
+    def batch(self) -> AbstractContextManager:
         """Frames this thread sends inside the block, on this bus and on every other bus of
         its Zenoh session, go out in one message at its end (nested blocks: at the
-        outermost's end), in the order sent."""
-        channels = self._channels
-        channels.hold()
-        try:
-            yield
-        finally:
-            channels.release()
+        outermost's end), in the order sent. Every bus of a session returns the same block,
+        so that :func:`hil.can.sent_together` enters it once for them all."""
+        return self._channels.together
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self.send_frames((wire_frame(msg),))
