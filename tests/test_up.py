@@ -416,7 +416,13 @@ def test_a_recording_in_segments_loses_at_most_its_last_to_a_sigkill(tmp_path, p
               "--segment", "1s")
     processes.append(viz)
     assert "long-0001.rrd and on, segments of 1 s" in viz.stdout.readline()
-    time.sleep(4.5)
+    published = []
+    listener = RunSubscriber(session(ZenohSettings(connect=(endpoint,))), "pigot",
+                             published.append, lambda *_: None, pytest.fail)
+    started = time.monotonic()
+    wait_for_cycles(published, 2000)         # the host's pace: 4 s of a quiet one
+    time.sleep(max(0.0, 4.5 - (time.monotonic() - started)))     # and four segments' time
+    listener.close()
     viz.kill()
     viz.wait(timeout=20)
     segments = sorted(tmp_path.glob("long-*.rrd"))
