@@ -136,6 +136,8 @@ class ZenohSettings:
 
 
 _sessions: dict[ZenohSettings, zenoh.Session] = {}
+#: the environment variable Zenoh reads its runtime's thread settings from
+RUNTIME_VARIABLE = "ZENOH_RUNTIME"
 _lock = threading.Lock()
 
 
@@ -160,18 +162,36 @@ _joined: set[ZenohSettings] = set()
 def _open(settings: ZenohSettings) -> zenoh.Session:
     if settings.meet is not None:
         try:     # the first at the meeting point listens there; the OS decides who is first
-            return zenoh.open(settings.hosting().to_config())
+            return _zenoh_open(settings.hosting().to_config())
         except zenoh.ZError:
             _joined.add(settings)
             settings = settings.joining()
     try:
-        return zenoh.open(settings.to_config())
+        return _zenoh_open(settings.to_config())
     except zenoh.ZError as exc:
         raise HilError.single(
             f"cannot open a Zenoh session (listen {list(settings.listen)}, connect "
             f"{list(settings.connect)}): {exc}",
             hint="is the listen port already taken by another hil process? "
                  "choose another with --listen") from None
+
+
+def _zenoh_open(config: zenoh.Config) -> zenoh.Session:
+    """``zenoh.open``; Zenoh's runtime failing to start (it panics in Rust: pyo3's
+    PanicException, which derives from BaseException and has no importable name) raised as
+    a HilError that names the cause a user can change."""
+    try:
+        return zenoh.open(config)
+    except BaseException as exc:
+        if type(exc).__name__ != "PanicException":
+            raise
+        runtime = os.environ.get(RUNTIME_VARIABLE)
+        # Zenoh reads its runtime's settings from this variable as RON, and panics on any it
+        # cannot parse (an empty one too)
+        hint = (f"{RUNTIME_VARIABLE}={runtime!r} in the environment is not a Zenoh runtime "
+                f"configuration (RON, e.g. '(rx: (worker_threads: 2))'): fix it, or unset it "
+                "for Zenoh's defaults" if runtime is not None else None)
+        raise HilError.single(f"Zenoh failed to start: {exc}", hint=hint) from None
 
 
 def why_unreached(settings: ZenohSettings) -> str | None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import re
 import subprocess
 import sys
@@ -566,3 +567,14 @@ def test_a_logging_bus_stamps_frames_with_their_senders_clock(endpoint):
     finally:
         for bus in (sender, logging, plain):
             bus.shutdown()
+
+
+def test_a_zenoh_runtime_variable_zenoh_cannot_read_is_named_not_a_traceback():
+    """Zenoh reads $ZENOH_RUNTIME as RON and panics (in Rust) on one it cannot parse, an
+    empty one too: hil names the variable and what to do, as for any user error."""
+    result = subprocess.run([sys.executable, "-m", "hil", "ls"], capture_output=True,
+                            text=True, timeout=60, env={**os.environ, "ZENOH_RUNTIME": ""})
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "error: Zenoh failed to start" in result.stderr
+    assert "ZENOH_RUNTIME='' in the environment" in result.stderr and "unset it" in result.stderr
+    assert "Traceback" not in result.stderr
