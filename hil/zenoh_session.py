@@ -136,8 +136,6 @@ class ZenohSettings:
 
 
 _sessions: dict[ZenohSettings, zenoh.Session] = {}
-#: the environment variable Zenoh reads its runtime's thread settings from
-RUNTIME_VARIABLE = "ZENOH_RUNTIME"
 _lock = threading.Lock()
 
 
@@ -174,6 +172,10 @@ def _open(settings: ZenohSettings) -> zenoh.Session:
             f"{list(settings.connect)}): {exc}",
             hint="is the listen port already taken by another hil process? "
                  "choose another with --listen") from None
+
+
+#: the environment variable Zenoh reads its runtime's thread settings from
+RUNTIME_VARIABLE = "ZENOH_RUNTIME"
 
 
 def _zenoh_open(config: zenoh.Config) -> zenoh.Session:

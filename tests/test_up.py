@@ -57,8 +57,8 @@ def wait_for_cycles(published: list, count: int, timeout: float = 60) -> None:
     Counting from the call, not from the listener's start, keeps a slow start of the process
     under test (seconds on a loaded host) from eating the cycles it is meant to record."""
     deadline = time.monotonic() + timeout
-    count += sum(len(b) for b in published)
-    while sum(len(b) for b in published) < count:
+    target = count + sum(len(b) for b in published)
+    while sum(len(b) for b in published) < target:
         assert time.monotonic() < deadline, f"{count} cycles not published in {timeout} s"
         time.sleep(0.1)
 
@@ -419,10 +419,12 @@ def test_a_recording_in_segments_loses_at_most_its_last_to_a_sigkill(tmp_path, p
     published = []
     listener = RunSubscriber(session(ZenohSettings(connect=(endpoint,))), "pigot",
                              published.append, lambda *_: None, pytest.fail)
-    started = time.monotonic()
-    wait_for_cycles(published, 2000)         # the host's pace: 4 s of a quiet one
-    time.sleep(max(0.0, 4.5 - (time.monotonic() - started)))     # and four segments' time
-    listener.close()
+    try:
+        started = time.monotonic()
+        wait_for_cycles(published, 2000)         # the host's pace: 4 s of a quiet one
+        time.sleep(max(0.0, 4.5 - (time.monotonic() - started)))     # and four segments' time
+    finally:
+        listener.close()
     viz.kill()
     viz.wait(timeout=20)
     segments = sorted(tmp_path.glob("long-*.rrd"))

@@ -25,14 +25,14 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from hil.bench.floor import floor_across_processes
+from hil.bench.processes import stack_across_processes
 from hil.bench.settings import BenchSettings
 from hil.bus_config import load_bus_config
-from hil.realtime import lock_step_cpus
-from hil.supervisor import cpus_argument
-from hil.zenoh_session import free_loopback_port
+from hil.realtime import LOCK_STEP, lock_step_cpus
 
 #: the names Zenoh's runtime gives its threads
 ZENOH_THREADS = ("tx-", "rx-", "net-", "acc-", "app-")
@@ -68,50 +68,50 @@ def main() -> int:
 
 
 def floor_run(config_path: Path, cpu: int) -> tuple[float, dict]:
-    """The floor (its answering process is this one's only child), sampled mid-run."""
+    """The floor, as ``hil bench`` runs it (its answering process is this one's only
+    child), sampled mid-run."""
     config = load_bus_config(config_path)
-    result: dict = {}
-    thread = threading.Thread(target=lambda: result.update(
-        floor_across_processes(config, SETTLE + WINDOW + 2, paced=False)))
-    thread.start()
-    responder = None
-    while responder is None and thread.is_alive():
-        time.sleep(0.1)
-        responder = next(iter(_children()), None)
-    time.sleep(SETTLE)
-    samples = _sampled(cpu)
-    thread.join()
+    result, samples, children = _sampled_mid_run(
+        lambda seconds: floor_across_processes(config, seconds, paced=False), 1, cpu)
     if "speedup_over_real_time" not in result:
         raise SystemExit("error: the floor did not run")
     cycle_us = 1e6 / (result["speedup_over_real_time"] * config.cycle_hz)
+    (responder,) = children
     return cycle_us, _shares(samples, {responder: "sim", os.getpid(): "control"})
 
 
 def stack_run(config_path: Path, cpu: int) -> tuple[float, dict]:
-    """``hil sim`` and ``hil control --lock-step`` on ``cpu``, sampled mid-run."""
-    endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
-    hil = [sys.executable, "-m", "hil"]
-    placed = ["--lock-step", *cpus_argument({cpu})]
-    with tempfile.TemporaryDirectory(prefix="hil-across-") as folder:
-        report = Path(folder) / "control.json"
-        sim = subprocess.Popen([*hil, "sim", str(config_path), "--listen", endpoint,
-                                "--status-period", "0", *placed],
-                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-        control = None
-        try:
-            sim.stdout.readline()                       # its "hil sim:" line: listening
-            control = subprocess.Popen([*hil, "control", str(config_path), "--connect",
-                                        endpoint, "--report", str(report), *placed],
-                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-            time.sleep(SETTLE)
-            samples = _sampled(cpu)
-        finally:
-            for process in filter(None, (control, sim)):   # the controller first, as hil up
-                process.terminate()
-                process.wait(30)
-        figures = json.loads(report.read_text())
-    cycle_us = 1e6 / (figures["speedup_over_real_time"] * load_bus_config(config_path).cycle_hz)
-    return cycle_us, _shares(samples, {sim.pid: "sim", control.pid: "control"})
+    """``hil sim`` and ``hil control --lock-step``, as ``hil bench`` runs and places them
+    (:func:`hil.bench.processes.stack_across_processes`), sampled mid-run."""
+    result, samples, children = _sampled_mid_run(
+        lambda seconds: stack_across_processes(config_path, seconds, False, LOCK_STEP), 2, cpu)
+    # each child by its role: its hil sub-command (python -m hil ROLE ...)
+    roles = {pid: argv[3] for pid, argv in children.items()}
+    cycle_us = 1e6 / (result["speedup_over_real_time"] * load_bus_config(config_path).cycle_hz)
+    return cycle_us, _shares(samples, roles)
+
+
+def _sampled_mid_run(run: Callable[[float], dict], children: int, cpu: int
+                     ) -> tuple[dict, list[tuple[int, str]], dict[int, list[str]]]:
+    """``run(seconds)`` in a thread; once it has started ``children`` child processes and
+    they have settled, ``cpu`` sampled for WINDOW: its result, the samples, and each child's
+    command line (read while it runs) by its pid."""
+    result: dict = {}
+    thread = threading.Thread(target=lambda: result.update(run(SETTLE + WINDOW + 2)))
+    thread.start()
+    started: list[int] = []
+    while len(started) < children and thread.is_alive():
+        time.sleep(0.1)
+        started = _children()
+    if len(started) < children:
+        thread.join()
+        raise SystemExit(f"error: the run ended before its {children} process(es) started")
+    argv = {pid: Path(f"/proc/{pid}/cmdline").read_bytes().decode().split("\0")
+            for pid in started}
+    time.sleep(SETTLE)
+    samples = _sampled(cpu)
+    thread.join()
+    return result, samples, argv
 
 
 def _children() -> list[int]:
