@@ -1,6 +1,10 @@
 """CyclePacer: absolute deadlines, what it records, and the scheduling it reports."""
 
+import ast
 import os
+import resource
+import subprocess
+import sys
 
 import pytest
 
@@ -181,3 +185,39 @@ def test_lock_step_puts_sim_and_controller_on_one_cpu_and_real_time_on_one_each(
     assert real_time_cpus({0, 1, 2, 3}) == ({2}, {3}, {0, 1})
     assert real_time_cpus({0, 1}) == ({0}, {1}, None)
     assert lock_step_cpus({5}) == real_time_cpus({5}) == (None, None, None)
+
+
+#: a background process with a thread started under SCHED_IDLE leaves it: whether it did,
+#: and every thread's policy after
+LEAVING_THE_BACKGROUND = """
+import os, threading
+from hil.realtime import enter_background, leave_background
+enter_background()
+held = threading.Event()
+thread = threading.Thread(target=held.wait)
+thread.start()
+left = leave_background()
+print(left, [os.sched_getscheduler(int(tid)) for tid in os.listdir("/proc/self/task")])
+held.set()
+"""
+
+
+def _may_leave_sched_idle() -> bool:
+    """Whether Linux lets this user leave SCHED_IDLE at nice 0 (sched(7)): CAP_SYS_NICE, or
+    an RLIMIT_NICE of 20."""
+    with open("/proc/self/status") as status:
+        effective = int(next(line for line in status if line.startswith("CapEff:")).split()[1],
+                        16)
+    return bool(effective & (1 << 23)) or resource.getrlimit(resource.RLIMIT_NICE)[0] >= 20
+
+
+def test_a_background_process_leaves_sched_idle_with_every_thread_where_linux_allows():
+    done = subprocess.run([sys.executable, "-c", LEAVING_THE_BACKGROUND], capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    left, policies = done.stdout.split(" ", 1)
+    idle = os.SCHED_IDLE in ast.literal_eval(policies)
+    if _may_leave_sched_idle():
+        assert left == "True" and not idle, done.stdout
+    else:           # refused: it says so, and the threads stay where they were
+        assert left == "False" and idle, done.stdout

@@ -15,7 +15,7 @@ from hil.bus_config import SystemConfig, check_together, load_bus_config, open_b
 from hil.can.monitor import BusMonitor
 from hil.cli import common
 from hil.errors import HilError
-from hil.realtime import enter_background
+from hil.realtime import enter_background, leave_background
 from hil.visualisation import BenchParts, RunRecorder
 from hil.visualisation.blueprint import run_blueprint
 from hil.visualisation.urdf_export import viewer_urdf
@@ -54,6 +54,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                               "visualiser runs under SCHED_IDLE, never taking the drives' or "
                               "the controller's time; in lock-step nothing has a deadline, and "
                               "starved it would lose CAN frames from its sockets' buffers)")
+    parser.add_argument("--normal-scheduling", action="store_true",
+                        help="in real time too, schedule normally, not under SCHED_IDLE: for a "
+                             "visualiser on a host of its own (no real-time process to give "
+                             "way to), or beside a load that would starve it under SCHED_IDLE "
+                             "(its summary counts the cycles it lost)")
     parser.add_argument("--status-period", type=common.duration_or_zero, default=0.0,
                         metavar="TIME",
                         help="print a status line every TIME, e.g. 5s (cycles, losses, the "
@@ -74,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
         raise HilError.single("--channel and --interface are for one robot's buses",
                               hint="give the robots' channels in their bus configs")
     zenoh = common.zenoh_settings(args)
-    if not args.timing.lock_step:
+    background = not (args.timing.lock_step or args.normal_scheduling)
+    if background:
         enter_background()      # never the real-time processes' time (its threads inherit it)
     common.keep_on_cpus(args)
     names = "+".join(c.robot.name for c in configs)
@@ -105,7 +111,13 @@ def run(args: argparse.Namespace) -> int:
         monitor = None if args.no_can else _monitor(configs, recorders, zenoh, args)
         node = VizNode(recorders, session(zenoh), monitor, roll,
                        status_period=args.status_period)
-        previous = common.on_stop_signals(node.stop)
+
+        def stop() -> None:
+            if background:      # what is left to do is bounded (VizNode's drain, the flush)
+                leave_background()
+            node.stop()
+
+        previous = common.on_stop_signals(stop)
         print(f"hil viz: {', '.join(c.robot.name for c in configs)}; {sinks.described}"
               + (f"; CAN log {args.can_log}" if args.can_log else ""), flush=True)
         buses = []

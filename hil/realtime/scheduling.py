@@ -112,3 +112,23 @@ def enter_background() -> str:
     except (OSError, AttributeError) as exc:
         return f"normal scheduling (SCHED_IDLE refused: {exc})"
     return "SCHED_IDLE"
+
+
+def leave_background() -> bool:
+    """Every thread of this process that runs under SCHED_IDLE back under the normal
+    scheduler, for bounded work that must end soon (a stopped visualiser's last batches and
+    its recording's flush): starved by a busy host, SCHED_IDLE threads left a SIGTERM
+    unanswered for more than 30 s (seen in CI). Whether every such thread left it: Linux
+    lets an unprivileged thread leave SCHED_IDLE only within its RLIMIT_NICE (0 by default,
+    sched(7)), so without root or CAP_SYS_NICE it stays, and the work ends when the host
+    lets it."""
+    left = True
+    for tid in map(int, os.listdir("/proc/self/task")):
+        try:
+            if os.sched_getscheduler(tid) == os.SCHED_IDLE:
+                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+        except ProcessLookupError:
+            continue                    # the thread ended meanwhile
+        except PermissionError:
+            left = False
+    return left
