@@ -537,6 +537,20 @@ def processes():
         process.communicate()
 
 
+def linked(settings: ZenohSettings, robot: str, process: str, timeout: float = 60) -> bool:
+    """Whether ``robot``'s ``process`` (``sim``, ``control/held``, ...) is seen within
+    ``timeout`` through the session of ``settings`` (a test's bus): Zenoh peers relay
+    nothing, so its token seen there says that session and the process are linked directly,
+    and a frame either sends from now on reaches the other. A bus opened just before a
+    one-shot frame (a controller's NMT reset) may otherwise not be linked yet: gossip links
+    new peers in their own time (the reset went unheard on a loaded CI host)."""
+    watch = ProcessWatch(session(settings), robot)
+    try:
+        return watch.wait_alive(process, timeout)
+    finally:
+        watch.close()
+
+
 @pytest.fixture
 def watched_robot():
     """A Zenoh session listening on a loopback port, watching the ur3's processes: (the

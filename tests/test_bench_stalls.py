@@ -18,10 +18,10 @@ import pytest
 
 from hil.control_node.attribution import GRACE, FaultAttribution
 from hil.hardware import AxisFault, FaultKind
-from hil.messaging.zenoh_api import ProcessWatch
 from hil.realtime.stalls import Stall, StallDetector
-from hil.zenoh_session import ZenohSettings, session
+from hil.zenoh_session import ZenohSettings
 from hil.cli.run_progress import Progress
+from conftest import linked
 from test_up import hil, read_rrd
 
 #: judged against the host's stalls (tests/host_stalls.py): stalls and silences of real-time runs
@@ -242,16 +242,11 @@ def test_a_drive_silenced_on_purpose_is_a_device_fault_the_bench_does_not_explai
 
 @pytest.fixture
 def arm_bus(watched_robot):
-    """The ur3's arm bus over the watched robot's Zenoh, opened before any controller starts,
-    and a watch of the ur3's processes through the bus' own session: Zenoh peers relay
-    nothing, so a controller's frames reach the bus only once the two are linked directly,
-    and the controller's token seen through that session says they are (a bus opened just
-    before the controller's release missed its one NMT reset on a loaded CI host)."""
+    """The ur3's arm bus over the watched robot's Zenoh, and the settings of its session."""
     endpoint, _ = watched_robot
-    bus = can.Bus(interface="zenoh", channel="ur3/arm", connect=(endpoint,))
-    watch = ProcessWatch(session(ZenohSettings(connect=(endpoint,))), "ur3")
-    yield bus, watch
-    watch.close()
+    settings = ZenohSettings(connect=(endpoint,))
+    bus = can.Bus(interface="zenoh", channel="ur3/arm", settings=settings)
+    yield bus, settings
     bus.shutdown()
 
 
@@ -264,7 +259,7 @@ def test_a_bring_up_that_fails_while_the_simulator_is_stopped_is_told_as_the_ben
     simulator's stall (reported once it resumes, within the grace the controller waits)
     explains it: exit status 3."""
     endpoint, watch = watched_robot
-    bus, linked = arm_bus
+    bus, bus_settings = arm_bus
     boot = 1.0
     sim = hil("sim", "ur3", "--connect", endpoint, "--status-period", "0", cwd=tmp_path)
     processes.append(sim)
@@ -272,7 +267,7 @@ def test_a_bring_up_that_fails_while_the_simulator_is_stopped_is_told_as_the_ben
     control = hil("control", "ur3", "--connect", endpoint, "--hold", "--boot-timeout",
                   f"{boot:g}", stdin=subprocess.PIPE, cwd=tmp_path)
     processes.append(control)
-    assert linked.wait_alive("control/held", 60), control.stderr.read()
+    assert linked(bus_settings, "ur3", "control/held"), control.stderr.read()
     os.kill(sim.pid, signal.SIGSTOP)
     try:
         control.stdin.write("\n")

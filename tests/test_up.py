@@ -26,7 +26,7 @@ from hil.cli.up.children import make_children
 from hil.cli.up.robots import RobotRun
 from hil.messaging.zenoh_api import RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
-from conftest import ROOT, free_port, read_rrd, rrd_series, rrd_verify_errors
+from conftest import ROOT, free_port, linked, read_rrd, rrd_series, rrd_verify_errors
 
 #: judged against the host's stalls (tests/host_stalls.py): `hil up` and its processes run in
 #: real time (the demos at their pace)
@@ -262,6 +262,7 @@ def test_up_prints_a_fault_nobody_injected_as_it_happens_and_ends_nonzero(tmp_pa
     connect = (endpoint.group(1),)
     bus = can.Bus(interface="zenoh", channel="pigot/arm", connect=connect)
     try:
+        assert linked(ZenohSettings(connect=connect), "pigot", "sim"), "the sim is not linked"
         for _ in range(3):          # idempotent; sent a few times so that none is left in
             bus.send(can.Message(arbitration_id=0x000, data=[0x02, 2], is_extended_id=False))
             time.sleep(0.2)         # Zenoh's batch when the session closes
