@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import contextlib
 import json
 import os
 import re
@@ -67,25 +68,35 @@ def wait_for_cycles(published: list, count: int, timeout: float = 60) -> None:
         time.sleep(0.1)
 
 
+@contextlib.contextmanager
+def published_cycles(endpoint: str):
+    """The batches the pigot's controller at ``endpoint`` publishes, heard until the block
+    ends (a list, for :func:`wait_for_cycles`)."""
+    published: list = []
+    listener = RunSubscriber(session(ZenohSettings(connect=(endpoint,))), "pigot",
+                             published.append, lambda *_: None, pytest.fail)
+    try:
+        yield published
+    finally:
+        listener.close()
+
+
 def test_viz_records_every_published_cycle_of_the_controller(tmp_path, processes):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     control = hil("control", PIGOT_CONFIG, "--fake", "--listen", endpoint)
     processes.append(control)
     assert "hil control:" in control.stdout.readline()
-    published = []
-    listener = RunSubscriber(session(ZenohSettings(connect=(endpoint,))), "pigot",
-                             published.append, lambda *_: None, pytest.fail)
-    viz = hil("viz", PIGOT_CONFIG, "--no-can", "--connect", endpoint, *KEEPING_UP,
-              "--save", str(tmp_path / "run.rrd"))
-    processes.append(viz)
-    assert "hil viz:" in viz.stdout.readline()
-    wait_for_cycles(published, 1500)         # from the viz's start: 3 s of a quiet host
-    control.send_signal(signal.SIGTERM)      # its last batch goes out as it stops
-    control.communicate(timeout=20)
-    time.sleep(0.5)
-    viz.send_signal(signal.SIGTERM)
-    out, err = viz.communicate(timeout=30)
-    listener.close()
+    with published_cycles(endpoint) as published:
+        viz = hil("viz", PIGOT_CONFIG, "--no-can", "--connect", endpoint, *KEEPING_UP,
+                  "--save", str(tmp_path / "run.rrd"))
+        processes.append(viz)
+        assert "hil viz:" in viz.stdout.readline()
+        wait_for_cycles(published, 1500)         # from the viz's start: 3 s of a quiet host
+        control.send_signal(signal.SIGTERM)      # its last batch goes out as it stops
+        control.communicate(timeout=20)
+        time.sleep(0.5)
+        viz.send_signal(signal.SIGTERM)
+        out, err = viz.communicate(timeout=30)
     assert viz.returncode == 0, err
     # the viz may have joined after the first batches: compare from its first one on
     rows, _ = read_rrd(tmp_path / "run.rrd")
@@ -107,11 +118,8 @@ def test_a_recording_cut_off_by_sigkill_reads_back_up_to_its_last_flush(tmp_path
               "--save", str(save))
     processes.append(viz)
     assert "hil viz:" in viz.stdout.readline()
-    published = []
-    listener = RunSubscriber(session(ZenohSettings(connect=(endpoint,))), "pigot",
-                             published.append, lambda *_: None, pytest.fail)
-    wait_for_cycles(published, 2000)         # 500 Hz: 4 s, several flushes
-    listener.close()
+    with published_cycles(endpoint) as published:
+        wait_for_cycles(published, 2000)         # 500 Hz: 4 s, several flushes
     viz.kill()
     viz.wait(timeout=20)
     # no footer (it never closed): rerun scans the stream, as its viewer does
@@ -422,15 +430,10 @@ def test_a_recording_in_segments_loses_at_most_its_last_to_a_sigkill(tmp_path, p
               "--save", str(save), "--segment", "1s")
     processes.append(viz)
     assert "long-0001.rrd and on, segments of 1 s" in viz.stdout.readline()
-    published = []
-    listener = RunSubscriber(session(ZenohSettings(connect=(endpoint,))), "pigot",
-                             published.append, lambda *_: None, pytest.fail)
-    try:
+    with published_cycles(endpoint) as published:
         started = time.monotonic()
         wait_for_cycles(published, 2000)         # the host's pace: 4 s of a quiet one
         time.sleep(max(0.0, 4.5 - (time.monotonic() - started)))     # and four segments' time
-    finally:
-        listener.close()
     viz.kill()
     viz.wait(timeout=20)
     segments = sorted(tmp_path.glob("long-*.rrd"))
