@@ -119,17 +119,20 @@ def _check_load(reader: Reader, bus: BusConfig) -> None:
                f"({load.nominal_bits_per_second / 1e3:,.0f} nominal, "
                f"{load.frames_per_second:,.0f} frames/s) on a {bus.bitrate / 1e3:,.0f} kbit/s bus: "
                f"{load.worst_ratio:.0%}")
+    if load.worst_ratio <= LOAD_WARNING:
+        return
     sync_bits = bus_load(bus.bitrate, [(SYNC_PAYLOAD, bus.cycle_hz)]).worst_bits_per_second
     per_drive = (load.worst_bits_per_second - sync_bits) / len(bus.drives)
     budget = LOAD_WARNING * bus.bitrate
-    fitting_drives = max(int((budget - sync_bits) // per_drive), 1)
-    fitting_rate = budget / (load.worst_bits_per_second / bus.cycle_hz)
-    hint = (f"split the drives over buses of at most {fitting_drives} drive(s) each, or lower "
-            f"cycle_hz to {fitting_rate:,.0f} Hz or less (either keeps the load under "
-            f"{LOAD_WARNING:.0%})")
+    fitting_rate = budget / (load.worst_bits_per_second / bus.cycle_hz)   # the load is > 0 here
+    split = (f"split the drives over buses of at most "
+             f"{max(int((budget - sync_bits) // per_drive), 1)} drive(s) each, or "
+             if per_drive > 0 else "")         # SYNC alone over the line: no split helps
+    hint = (f"{split}lower cycle_hz to {fitting_rate:,.0f} Hz or less (either keeps the load "
+            f"under {LOAD_WARNING:.0%})")
     if load.worst_ratio > 1.0:
         reader.fail(f"{summary}: infeasible", bus.line, hint=hint)
-    elif load.worst_ratio > LOAD_WARNING:
+    else:
         reader.warn(f"{summary}: above {LOAD_WARNING:.0%}, no room for SDO, EMCY and retries",
                     bus.line, hint=hint)
 

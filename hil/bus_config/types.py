@@ -145,24 +145,35 @@ class BusConfig:
     def uses_sync(self) -> bool:
         return any(protocol(d.protocol).uses_sync for d in self.drives)
 
-    def frames(self, drive: DriveConfig) -> list[tuple[int, int, float]]:
-        """(id, payload bytes, frames/s) of one drive's traffic, as its profile says."""
+    def frames(self, drive: DriveConfig, node_id: int | None = None
+               ) -> list[tuple[int, int, float]]:
+        """(id, payload bytes, frames/s) of one drive's traffic, as its profile says (as
+        node ``node_id`` where given, else its own)."""
         spec = protocol(drive.protocol)
-        frames = spec.bus_frames(drive.node_id, self.cycle_hz, drive.heartbeat_period,
-                                 drive.options)
+        node_id = drive.node_id if node_id is None else node_id
+        frames = spec.bus_frames(node_id, self.cycle_hz, drive.heartbeat_period, drive.options)
         if drive.torque_feed_forward != "none":
-            frames += spec.torque_feed_forward_frames(drive.node_id, self.cycle_hz,
-                                                      drive.options)
+            frames += spec.torque_feed_forward_frames(node_id, self.cycle_hz, drive.options)
         return frames
+
+    def running_frames(self, drive: DriveConfig) -> list[tuple[int, int, float]]:
+        """The drive's traffic once it runs: one that boots waiting for a master to assign
+        its node id (LSS) is counted with the exchange it has after that (payloads and rates
+        do not depend on the id, so any configured id stands for it)."""
+        spec = protocol(drive.protocol)
+        if drive.node_id == spec.unconfigured_node_id:
+            return self.frames(drive, min(spec.node_ids))
+        return self.frames(drive)
 
     def load(self) -> BusLoad:
         """Worst-case traffic of every drive's cyclic exchange and timed messages (each
-        profile's own frames and lengths), plus SYNC where a CANopen drive needs it."""
+        profile's own frames and lengths) once running, plus SYNC where a CANopen drive
+        needs it."""
         streams = [(SYNC_PAYLOAD, self.cycle_hz)] if self.uses_sync else []
         for drive in self.drives:
             # an id above 0x7FF (or carrying hil.can.messages.EXTENDED) is an extended one
             streams += [(payload, rate, can_id > 0x7FF)
-                        for can_id, payload, rate in self.frames(drive) if rate > 0]
+                        for can_id, payload, rate in self.running_frames(drive) if rate > 0]
         return bus_load(self.bitrate, streams)
 
 
