@@ -1,6 +1,7 @@
 """Controllers listed and switched as ros2_control's controller_manager does
 (controller_manager.cpp, jazzy: switch_controller_cb), forward command controllers, and a
-user's controller_manager YAML (tests/controllers: Universal Robots' own, unchanged)."""
+user's controller_manager YAML running (tests/controllers: Universal Robots' own, unchanged;
+how such files are read: tests/test_controller_files.py)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import subprocess
 import sys
 import threading
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,11 +20,13 @@ from hil.bus_config import load_bus_config
 from hil.controllers import (
     GoalRejected, GoalStatus, JointTolerance, TrajectoryGoal, TrajectoryPoint,
 )
-from hil.controllers.config import DEFAULT_GOAL_TOLERANCE, controllers_for, hil_controllers
+from hil.controllers.config import (
+    DEFAULT_GOAL_TOLERANCE, ForwardSpec, hil_controllers,
+)
 from hil.controllers.goal import DEACTIVATED
-from hil.controllers.manager import ControllerManager, Strictness
-from hil.errors import HilError
-from hil.messaging.controller_manager import ControllerManagerClient
+from hil.controllers.manager import ControllerManager, Strictness, SwitchResult
+from hil.messaging import cdr
+from hil.messaging.controller_manager import ControllerManagerClient, switch_response
 from hil.messaging.zenoh_api import TrajectoryActionClient
 from hil.realtime import LOCK_STEP
 from hil.stack import running_stack
@@ -58,31 +62,132 @@ def test_the_list_names_each_controller_its_state_type_and_claims(manager):
     assert listed[POSITION].required_command_interfaces[0] == "joint1/position"
 
 
+def test_required_state_interfaces_are_each_controllers_own(ur3):
+    """list_controllers_srv_cb lists state_interface_configuration(): the JTC's is each of its
+    joints with each of its state_interfaces (joint_trajectory_controller.cpp), a forward
+    controller's is NONE, so it requires no state interface (forward_controllers_base.cpp)."""
+    joints = tuple(j.name for j in ur3.driven_joints)
+    config = hil_controllers(joints, DEFAULT_GOAL_TOLERANCE)
+    config = replace(config, trajectory=replace(config.trajectory, state_interfaces=("position",)))
+    listed = {info.name: info for info in
+              ControllerManager.from_config(ur3, joints, config, PERIOD).list()}
+    assert listed[JTC].required_state_interfaces == tuple(f"{j}/position" for j in joints)
+    assert listed[POSITION].required_state_interfaces == ()
+    assert listed[VELOCITY].required_state_interfaces == ()
+
+
 def test_a_switch_onto_a_claimed_interface_fails_in_either_strictness(manager):
     """check_for_interfaces_availability_to_activate: an interface another active controller
-    keeps is not available."""
+    keeps, or one another controller of the same switch takes, is not available; the
+    switch fails whatever its strictness, and nothing is switched."""
     for strictness in Strictness:
         result = manager.switch([POSITION], [], strictness)
-        assert not result.ok and "joint1/position" in result.message and f"'{JTC}'" in \
-            result.message
-    assert states(manager)[JTC] == "active"
+        assert result == SwitchResult(False, f"Unable to activate controller '{POSITION}' "
+                                      "since the command interface 'joint1/position' is "
+                                      "currently claimed by another controller.")
+    assert states(manager) == {JTC: "active", POSITION: "inactive", VELOCITY: "inactive"}
 
 
-def test_strict_refuses_the_whole_switch_for_one_bad_name_best_effort_drops_it(manager):
-    """switch_controller_cb: STRICT "Aborting, no controller is switched!"; BEST_EFFORT goes
-    on without the controller that does not exist."""
-    result = manager.switch([POSITION, "no_such"], [JTC], Strictness.STRICT)
-    assert not result.ok and "no controller with this name exists" in result.message
-    assert states(manager)[JTC] == "active"
-    result = manager.switch([POSITION, "no_such"], [JTC], Strictness.BEST_EFFORT)
-    assert result.ok and "no_such" in result.message
-    assert states(manager) == {JTC: "inactive", POSITION: "active", VELOCITY: "inactive"}
+def test_two_controllers_of_one_switch_never_take_the_same_interface(ur3):
+    """check_for_interfaces_availability_to_activate: "... will be used by another controller
+    that is being activated." in either strictness; nothing is switched."""
+    joints = tuple(j.name for j in ur3.driven_joints)
+    config = hil_controllers(joints, DEFAULT_GOAL_TOLERANCE)
+    second = ForwardSpec("joint1_position_controller", config.forwards[0].type, joints[:1],
+                         "position")
+    manager = ControllerManager.from_config(
+        ur3, joints, replace(config, forwards=(*config.forwards, second)), PERIOD)
+    manager.update(0.0, np.zeros(6), np.zeros(6))
+    for strictness in Strictness:
+        result = manager.switch([POSITION, second.name], [JTC], strictness)
+        assert result == SwitchResult(False, f"Unable to activate controller '{second.name}' "
+                                      "since the command interface 'joint1/position' will be "
+                                      "used by another controller that is being activated.")
+        assert manager.is_active(JTC) and not manager.is_active(POSITION)
 
 
-def test_strict_refuses_activating_an_active_controller_best_effort_skips_it(manager):
-    assert not manager.switch([JTC], [], Strictness.STRICT).ok
-    result = manager.switch([JTC], [], Strictness.BEST_EFFORT)
-    assert result.ok and "no controllers need to be activated" in result.message
+UNKNOWN = "nonexistent_controller"
+STRICT, BEST_EFFORT = Strictness.STRICT, Strictness.BEST_EFFORT
+
+
+@pytest.mark.parametrize("ok, strictness, activate, deactivate", [
+    (True, STRICT, [], []),
+    (True, BEST_EFFORT, [], []),
+    (False, STRICT, [UNKNOWN], []),
+    (False, BEST_EFFORT, [UNKNOWN], []),
+    (False, STRICT, [], [UNKNOWN]),
+    (False, BEST_EFFORT, [], [UNKNOWN]),
+    (False, STRICT, [UNKNOWN], [UNKNOWN]),
+    (False, BEST_EFFORT, [UNKNOWN], [UNKNOWN]),
+    (False, STRICT, [UNKNOWN], [JTC]),
+    (False, BEST_EFFORT, [UNKNOWN], [JTC]),
+    (False, STRICT, [POSITION, UNKNOWN], [JTC]),
+    (True, BEST_EFFORT, [POSITION, UNKNOWN], [JTC]),
+    (True, BEST_EFFORT, [UNKNOWN, POSITION], [JTC]),
+    (False, STRICT, [POSITION], [JTC, UNKNOWN]),
+    (True, BEST_EFFORT, [POSITION], [JTC, UNKNOWN]),
+])
+def test_each_switch_outcome_with_unknown_controllers_is_controller_managers(
+        manager, ok, strictness, activate, deactivate):
+    """test_load_controller.cpp (SwitchTest, EmptyListOrNonExistentTest) and
+    test_controller_manager_srvs.cpp (switch_controller_failure_behaviour_on_unknown_controller):
+    empty lists are OK; a list naming only unknown controllers is an ERROR in either
+    strictness (switch_controller_cb: "not a critical error" only while another of the
+    list exists), and so is STRICT with any unknown one. An ERROR switches nothing."""
+    before = states(manager)
+    result = manager.switch(activate, deactivate, strictness)
+    assert result.ok is ok, result.message
+    if not ok:
+        assert "no controller with this name exists" in result.message
+        assert states(manager) == before
+    elif activate:
+        assert states(manager) == {JTC: "inactive", POSITION: "active", VELOCITY: "inactive"}
+
+
+def test_an_active_controller_to_activate_or_an_inactive_one_to_deactivate(manager):
+    """switch_controller_cb: STRICT aborts ("Controller with name '...' is already active.",
+    "... can not be deactivated since it is not active."); BEST_EFFORT drops it and, with
+    nothing left, answers OK "After checking the controllers, no controllers need to be
+    activated or deactivated." (test_controller_manager.cpp, controller_lifecycle)."""
+    assert manager.switch([JTC], [], STRICT) == SwitchResult(
+        False, f"Controller with name '{JTC}' is already active.")
+    assert manager.switch([], [POSITION], STRICT) == SwitchResult(
+        False, f"Controller with name '{POSITION}' can not be deactivated since it is not "
+               "active.")
+    nothing = SwitchResult(True, "After checking the controllers, no controllers need to be "
+                                 "activated or deactivated.")
+    assert manager.switch([JTC], [], BEST_EFFORT) == nothing
+    assert manager.switch([], [POSITION], BEST_EFFORT) == nothing
+    assert states(manager) == {JTC: "active", POSITION: "inactive", VELOCITY: "inactive"}
+
+
+def test_a_switch_reports_as_controller_manager_does(manager):
+    """evaluate_switch_result: "Successfully switched controllers!"; a switch that is not
+    STRICT also lists what it deactivated and activated (a controller named in both lists
+    is restarted)."""
+    assert manager.switch([POSITION], [JTC], STRICT) == SwitchResult(
+        True, "Successfully switched controllers!")
+    assert manager.switch([JTC, UNKNOWN], [POSITION, VELOCITY], BEST_EFFORT) == SwitchResult(
+        True, f"Successfully switched controllers!\nDeactivated controllers: [ {POSITION} ]"
+              f"\nActivated controllers: [ {JTC} ]")
+    assert manager.switch([JTC], [JTC], STRICT).ok
+    assert states(manager) == {JTC: "active", POSITION: "inactive", VELOCITY: "inactive"}
+
+
+@pytest.mark.parametrize("activate_asap", [False, True])
+@pytest.mark.parametrize("strictness, expected", [(0, False), (STRICT, False),
+                                                  (BEST_EFFORT, True)])
+def test_a_switch_request_as_the_service_takes_it(manager, activate_asap, strictness, expected):
+    """SwitchController: strictness 0 is controller_manager's default (strict); activate_asap
+    changes when, not whether (switch_controller_test_activate_asap): hil switches between
+    two cycles either way."""
+    request = cdr.encode(cdr.msg(
+        cdr.SWITCH_CONTROLLER_REQUEST, activate_controllers=[POSITION, UNKNOWN],
+        deactivate_controllers=[JTC], strictness=int(strictness), activate_asap=activate_asap,
+        timeout=cdr.duration_msg(0.0)))
+    response = cdr.decode(switch_response(manager, request), cdr.SWITCH_CONTROLLER_RESPONSE)
+    assert response.ok is expected and states(manager)[POSITION] == (
+        "active" if expected else "inactive")
 
 
 def test_strict_refuses_a_switch_that_leaves_a_joint_without_a_controller(manager):
@@ -150,71 +255,6 @@ def test_after_a_fault_a_streaming_controller_forgets_its_command(manager):
     assert position == pytest.approx(np.full(6, 0.2)) and velocity == pytest.approx(np.zeros(6))
 
 
-# --- a user's controller_manager YAML ---------------------------------------------------------
-
-def test_universal_robots_controller_file_loads_unchanged_onto_the_ur3():
-    controllers = controllers_for(load_bus_config(UR_BENCH))
-    jtc = controllers.trajectory
-    assert controllers.trajectory_name == JTC and controllers.active == (JTC,)
-    assert jtc.joints == ("joint1", "joint2", "joint3", "joint4", "joint5", "joint6")
-    assert jtc.command_interfaces == ("position",) and jtc.stopped_velocity_tolerance == 0.2
-    assert jtc.goal_time == 0.0 and jtc.constraint("joint3").goal == 0.1
-    assert jtc.constraint("joint3").trajectory == 0.2 and not jtc.allow_partial_joints_goal
-    assert {f.name for f in controllers.forwards} == {POSITION, VELOCITY}
-    warned = "\n".join(str(w) for w in controllers.warnings)
-    assert "ur_controllers.yaml:24: warning: controller 'forward_effort_controller'" in warned
-    assert "'state_publish_rate' is not a parameter" in warned
-    assert "speed_scaling: state_interface" in warned
-
-
-@pytest.mark.parametrize("text, words", [
-    ("joint_trajectory_controller:\n  ros__parameters:\n    joints: [$(command ls)]\n",
-     "controllers.yaml:7: error: launch substitution '$(command ls)'"),
-    ("joint_trajectory_controller:\n  ros__parameters:\n    joints: [$(var prefix)joint1]\n",
-     "controllers.yaml:7: error: $(var prefix): no value for 'prefix'"),
-    ("joint_trajectory_controller:\n  ros__parameters:\n    joints: [shoulder]\n",
-     "controllers.yaml:7: error: controller 'joint_trajectory_controller': joint 'shoulder' "
-     "is not a driven joint"),
-    ("joint_trajectory_controller:\n  ros__parameters:\n    joints: [joint1]\n"
-     "    command_interfaces: [effort]\n",
-     "controllers.yaml:8: error: controller 'joint_trajectory_controller': command_interfaces "
-     "['effort']"),
-    ("joint_trajectory_controller:\n  ros__parameters:\n    joints: [joint1]\n"
-     "    constraints: {goal_time: -1}\n",
-     "controllers.yaml:8: error: controller 'joint_trajectory_controller': constraints: "
-     "goal_time must be >= 0"),
-    ("    fwd:\n      type: position_controllers/JointGroupPositionController\n"
-     "joint_trajectory_controller:\n  ros__parameters:\n    joints: [joint1]\n"
-     "fwd:\n  ros__parameters:\n    joints: [joint1, joint1]\n",
-     "controllers.yaml:12: error: controller 'fwd': a joint is named twice in 'joints'"),
-], ids=["command substitution", "var without a value", "unknown joint", "effort commands",
-        "negative goal_time", "forward controller's joint twice"])
-def test_a_controller_file_hil_cannot_honour_is_refused_naming_the_line(tmp_path, text, words):
-    manager = ("controller_manager:\n  ros__parameters:\n    joint_trajectory_controller:\n"
-               "      type: joint_trajectory_controller/JointTrajectoryController\n")
-    refused = _refusal(tmp_path, manager + text)
-    expected = words.replace("controllers.yaml:", f"{tmp_path / 'controllers.yaml'}:")
-    assert expected in refused, refused
-
-
-def test_an_update_rate_that_is_no_number_is_one_error_and_no_made_up_rate(tmp_path):
-    refused = _refusal(tmp_path, "controller_manager:\n  ros__parameters:\n"
-                                 "    update_rate: fast\n")
-    assert "'update_rate' must be a number, not 'fast'" in refused
-    assert "update_rate 1 Hz" not in refused, refused
-
-
-def _refusal(tmp_path, text: str) -> str:
-    """What hil says of a controllers file ``text`` on the ur3 fixture's bench (HilError)."""
-    (tmp_path / "controllers.yaml").write_text(text)
-    bench = (HERE / "fixtures" / "ur3_virtual.yaml").read_text().replace(
-        "../../robots", str(HERE.parent / "robots"))
-    (tmp_path / "bench.yaml").write_text(bench + "controllers: {file: controllers.yaml}\n")
-    with pytest.raises(HilError) as caught:
-        controllers_for(load_bus_config(tmp_path / "bench.yaml"))
-    return str(caught.value)
-
-
 def test_the_ur_files_constraints_take_effect_on_the_ur3_in_lock_step():
     """Its JTC takes only full goals; a goal ends within the file's goal tolerance (0.1)
     and succeeds; goal_time 0 waits; a goal's own goal_time_tolerance aborts it."""
@@ -260,7 +300,7 @@ def test_a_streaming_client_switches_to_forward_position_and_back():
             time.sleep(0.05)
         with pytest.raises(ValueError, match="is not active"):
             manager.command(VELOCITY, [0.0] * 6, wait=True)
-        assert manager.switch([JTC], [POSITION]) == (True, "")
+        assert manager.switch([JTC], [POSITION]) == (True, "Successfully switched controllers!")
         goal = TrajectoryGoal(("joint1",), (TrajectoryPoint(1.0, (-0.1,)),))
         assert action.wait_result(action.send_goal(goal), 60).status is GoalStatus.SUCCEEDED
         action.close()

@@ -225,6 +225,20 @@ def test_a_broken_path_tolerance_aborts_with_the_jtcs_string_and_holds_measured(
     assert follower.q[0] == pytest.approx(held, abs=1e-6)
 
 
+def test_a_path_and_a_goal_tolerance_set_in_one_change_both_take_effect(ur3):
+    """rclcpp's set_parameters_atomically hands the JTC's parameter listener every parameter
+    of the request at once; each one it names is set (generate_parameter_library's
+    update(): one assignment per parameter). Setting constraints.joint1.trajectory and
+    .goal together keeps both: the path tolerance still aborts the lagging move."""
+    jtc = controller(ur3)
+    jtc.set_parameters({"constraints.joint1.trajectory": 0.05, "constraints.joint1.goal": 0.1})
+    assert jtc.parameters.constraint("joint1") == JointConstraint(trajectory=0.05, goal=0.1)
+    follower = started(jtc, lag=0.3)
+    jtc.submit("g", full((1.0, 0.8)))
+    (done,) = follower.run(1.0)
+    assert (done[1].status, done[1].error_code) == (GoalStatus.ABORTED, PATH_TOLERANCE_VIOLATED)
+
+
 def test_a_path_tolerance_of_minus_one_erases_the_default(ur3):
     """resolve_tolerance_source: -1 erases a default path tolerance."""
     jtc = controller(ur3, constraints={"joint1": JointConstraint(trajectory=0.05)})

@@ -647,5 +647,7 @@ def test_controller_manager_lists_and_switches_the_controllers_over_ros(client):
         return response.ok, response.message
     ok, message = request([], ["joint_trajectory_controller"])
     assert not ok and "without a controller" in message
-    assert request(["forward_position_controller"], ["joint_trajectory_controller"]) == (True, "")
-    assert request(["joint_trajectory_controller"], ["forward_position_controller"]) == (True, "")
+    assert request(["forward_position_controller"], ["joint_trajectory_controller"]) == (
+        True, "Successfully switched controllers!")
+    assert request(["joint_trajectory_controller"], ["forward_position_controller"]) == (
+        True, "Successfully switched controllers!")

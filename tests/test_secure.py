@@ -441,8 +441,8 @@ def test_an_observer_lists_controllers_but_cannot_switch_or_command_them(
         observer.switch(["forward_position_controller"], ["joint_trajectory_controller"])
     with pytest.raises(TimeoutError):
         observer.command("forward_position_controller", [0.0] * 6, wait=True)
-    assert operator.switch(["forward_position_controller"],
-                           ["joint_trajectory_controller"]) == (True, "")
+    assert operator.switch(["forward_position_controller"], ["joint_trajectory_controller"]) == (
+        True, "Successfully switched controllers!")
     operator.command("forward_position_controller", [0.0] * 6, wait=True)
-    assert operator.switch(["joint_trajectory_controller"],
-                           ["forward_position_controller"]) == (True, "")
+    assert operator.switch(["joint_trajectory_controller"], ["forward_position_controller"]) == (
+        True, "Successfully switched controllers!")

@@ -41,6 +41,8 @@ def run(args: argparse.Namespace) -> int:
             ok, message = client.switch(args.activate, args.deactivate,
                                         Strictness.BEST_EFFORT if args.best_effort
                                         else Strictness.STRICT)
+            # (controller_manager ends each line of a best-effort refusal with a newline)
+            message = message.rstrip("\n")
             print(f"hil controllers: {'switched' if ok else 'refused'}"
                   + (f": {message}" if message else ""),
                   file=sys.stdout if ok else sys.stderr)

@@ -1,8 +1,9 @@
 """A user's controller_manager YAML (ros2_controllers.yaml) read into the controllers hil
 runs: the joint trajectory controller with its parameters, forward command controllers.
 
-Read as ROS reads a parameters file: each node's ``ros__parameters`` under its name (``/``,
-``/**/`` prefixes allowed), the controller_manager's ``<controller>: {type: ...}`` entries.
+Read as ROS reads a parameters file (:mod:`hil.controllers.param_file`); the controllers
+are the controller_manager's ``<controller>: {type: ...}`` entries and those whose own
+``ros__parameters`` give their ``type`` (the spawner's ``--param-file`` layout).
 What hil cannot honour in a controller it runs is an error naming the key and line;
 controllers of types hil does not run, and parameters ROS would ignore (undeclared), are
 warnings: the file loads unchanged. ``$(var NAME)`` is substituted from values the user
@@ -18,6 +19,7 @@ from hil.bus_config.types import ControllersSource, SystemConfig
 from hil.bus_config.yaml_reader import LineMapping, Reader, parse_yaml
 from hil.controllers.forward import FORWARD_TYPES
 from hil.controllers.jtc_section import read_jtc, read_joint_names
+from hil.controllers.param_file import NodeSection, named, node_sections, parameters_for
 from hil.controllers.parameters import COMMAND_INTERFACES, JointConstraint, JtcParameters
 from hil.errors import Diagnostic, HilError, Severity
 from hil.input_files import read_input_file
@@ -106,21 +108,16 @@ def load_controllers(source: ControllersSource, driven: tuple[str, ...],
     text = _substitute(reader, text, dict(source.variables))
     _raise_errors(reader)
     document = reader.mapping(parse_yaml(text, path, "a controllers file"), "the file", 1)
-    nodes = _nodes(reader, document)
-    manager = nodes.get("controller_manager")
-    if manager is None:
-        raise HilError.single("no controller_manager: ros__parameters: in the file", path,
-                              hint="a ros2_controllers.yaml lists its controllers under "
-                                   "controller_manager: ros__parameters: <name>: {type: ...}")
+    sections = node_sections(reader, document)
+    types = _controller_types(reader, sections, cycle_hz)
     rename = dict(source.joint_names)
     joints = lambda names: tuple(rename.get(n, n) for n in names)  # noqa: E731
-    types = _manager_section(reader, manager, cycle_hz)
     trajectory_name, trajectory, forwards = None, None, []
     for name, (type_name, line) in types.items():
-        params = nodes.get(name, LineMapping())
+        params = parameters_for(sections, name)
         if type_name == JTC_TYPE and trajectory is None:
             trajectory_name = name
-            trajectory = read_jtc(reader, params, name, joints, driven)
+            trajectory = read_jtc(reader, params, name, joints, driven, line)
         elif type_name == JTC_TYPE:
             reader.warn(f"controller '{name}': hil runs one joint trajectory controller "
                         f"('{trajectory_name}'); this one is not loaded", line)
@@ -133,9 +130,10 @@ def load_controllers(source: ControllersSource, driven: tuple[str, ...],
                         "type; it is not loaded", line,
                         hint="hil runs the joint trajectory controller and forward "
                              "position and velocity command controllers")
-    if trajectory is None:
+    if trajectory is None and types:
+        first_line = next(iter(types.values()))[1]
         reader.fail("the file has no joint_trajectory_controller/JointTrajectoryController",
-                    manager.line, hint="hil's action server is a JTC's: add one")
+                    first_line, hint="hil's action server is a JTC's: add one")
     _raise_errors(reader)
     loaded = [trajectory_name, *(f.name for f in forwards)]
     active = source.active if source.active is not None else (trajectory_name,)
@@ -178,26 +176,56 @@ def _substitute(reader: Reader, text: str, variables: dict[str, str]) -> str:
     return _SUBSTITUTION.sub(replace, text)
 
 
-def _nodes(reader: Reader, document: LineMapping) -> dict[str, LineMapping]:
-    """Each node's ros__parameters by its bare name."""
-    nodes = {}
-    for key, section in document.items():
-        name = str(key).removeprefix("/**/").lstrip("/").rsplit("/", 1)[-1]
-        section = reader.mapping(section, f"'{key}'", document.key_lines.get(key))
-        params = section.get("ros__parameters")
-        if params is None:
-            reader.warn(f"'{key}' has no ros__parameters: ignored (as ROS ignores it)",
-                        document.key_lines.get(key))
+def _controller_types(reader: Reader, sections: list[NodeSection],
+                      cycle_hz: float) -> dict[str, tuple[str, int | None]]:
+    """Each controller's (type, line), in the file's order: those controller_manager lists
+    (``<name>: {type: ...}``), then those whose own ros__parameters give a ``type``: the
+    layout of the spawner's ``--param-file`` (controller_manager_services.py,
+    set_controller_parameters_from_param_files: it sets ``<name>.type`` on the
+    controller_manager from the controller's section, so that type wins)."""
+    names = named(sections)
+    types = {}
+    if "controller_manager" in names:
+        types = _manager_section(reader, parameters_for(sections, "controller_manager"),
+                                 _own_keys(sections, "controller_manager"), cycle_hz)
+    for name in names:
+        params = parameters_for(sections, name)
+        if name == "controller_manager":
             continue
-        nodes[name] = reader.mapping(params, f"'{key}: ros__parameters'",
-                                     section.key_lines.get("ros__parameters"))
-    return nodes
+        if "type" not in params:
+            if name not in types:
+                reader.warn(f"'{name}': controller_manager does not list it and its "
+                            "ros__parameters give no type: not loaded",
+                            _first_line(sections, name))
+            continue
+        type_name = reader.text(params, "type", f"controller '{name}'")
+        line = params.key_lines.get("type", params.line)
+        if name in types and types[name][0] != type_name:
+            reader.warn(f"controller '{name}': its own type {type_name} replaces "
+                        f"controller_manager's {types[name][0]}, as the spawner sets it", line)
+        types[name] = (type_name, line)
+    if not types:
+        reader.fail("no controllers: no controller_manager: ros__parameters: <name>: "
+                    "{type: ...} and no controller's own <name>: ros__parameters: "
+                    "{type: ...}", 1, hint="a ros2_controllers.yaml lists its controllers "
+                                           "either way (the spawner's --param-file layout)")
+    return types
 
 
-def _manager_section(reader: Reader, manager: LineMapping,
+def _own_keys(sections: list[NodeSection], node: str) -> set[str]:
+    """The parameters ``node``'s own sections set (not those a wildcard gives every node)."""
+    return {key for s in sections if s.name == node for key in s.params}
+
+
+def _first_line(sections: list[NodeSection], node: str) -> int | None:
+    return next(s.line for s in sections if s.name == node)
+
+
+def _manager_section(reader: Reader, manager: LineMapping, own: set[str],
                      cycle_hz: float) -> dict[str, tuple[str, int | None]]:
     """Each controller's (type, line) in the file's order; an update_rate other than the
-    bus cycle, and other parameters, are warned about."""
+    bus cycle, and other parameters of controller_manager's own sections, are warned
+    about."""
     types = {}
     for key, value in manager.items():
         line = manager.key_lines.get(key, manager.line)
@@ -211,7 +239,7 @@ def _manager_section(reader: Reader, manager: LineMapping,
                             hint="set the buses' cycle_hz to run them at this rate")
         elif isinstance(value, LineMapping) and "type" in value:
             types[key] = (reader.text(value, "type", f"controller '{key}'"), line)
-        else:
+        elif key in own:
             reader.warn(f"controller_manager parameter '{key}' is not used by hil", line)
     return types
 

@@ -40,6 +40,9 @@ class ForwardCommandController:
     def command_interfaces(self) -> tuple[str, ...]:
         return (self.interface,)
 
+    #: none: its state_interface_configuration is NONE (forward_controllers_base.cpp)
+    state_interfaces: tuple[str, ...] = ()
+
     def command(self, values: Sequence[float]) -> None:
         """Take a command array; ValueError, naming the joint, for one it refuses."""
         data = np.asarray(values, dtype=float)

@@ -21,34 +21,39 @@ _NUMBERS = ("action_monitor_rate", "cmd_timeout")
 #: declared by the JTC; hil honours them only at these values
 _FIXED = {"allow_integration_in_goal_trajectories": False, "interpolation_method": "splines",
           "set_last_command_interface_value_as_state_on_activation": True}
-_KNOWN = {"joints", "command_joints", "command_interfaces", "state_interfaces", "gains",
+#: ``type``: the controller's type, where its own section gives it (the spawner's
+#: --param-file layout)
+_KNOWN = {"type", "joints", "command_joints", "command_interfaces", "state_interfaces", "gains",
           "constraints", "speed_scaling", "open_loop_control", *_BOOLS, *_NUMBERS, *_FIXED}
 _COMMANDS = (("position",), ("position", "velocity"))
 
 
 def read_jtc(reader: Reader, params: LineMapping, name: str,
              rename: Callable[[list[str]], tuple[str, ...]],
-             driven: tuple[str, ...]) -> JtcParameters:
+             driven: tuple[str, ...], declared: int | None = None) -> JtcParameters:
     """The controller ``name``'s parameters (joints renamed onto the bench's); problems
-    go to ``reader`` with their lines."""
+    go to ``reader`` with their lines (a parameter the file does not give: its section's,
+    else ``declared``, where the controller is declared)."""
     what = f"controller '{name}'"
-    line = lambda key: params.key_lines.get(key, params.line)  # noqa: E731
+    line = lambda key: params.key_lines.get(key, params.line or declared)  # noqa: E731
     for key in params:
         if key not in _KNOWN:
             reader.warn(f"{what}: '{key}' is not a parameter of the joint_trajectory_controller"
                         " (jazzy): ignored, as ROS ignores undeclared parameters", line(key))
-    joints = read_joint_names(reader, params, what, rename, driven)
-    command_joints = params.get("command_joints") or []
-    if command_joints and list(rename(command_joints)) != list(joints):
+    joints = read_joint_names(reader, params, what, rename, driven, declared)
+    command_joints = _names(reader, params, "command_joints", what, "joint names")
+    if command_joints and rename(list(command_joints)) != joints:
         reader.fail(f"{what}: command_joints differ from joints: hil's JTC commands the "
                     "joints it tracks", line("command_joints"))
-    commands = tuple(params.get("command_interfaces") or ())
-    if commands not in _COMMANDS:
+    commands = _names(reader, params, "command_interfaces", what, "interface names")
+    if commands is not None and commands not in _COMMANDS:
         reader.fail(f"{what}: command_interfaces {list(commands)}: hil's hardware takes "
                     "[position] or [position, velocity]", line("command_interfaces"),
                     hint="its drives run cyclic synchronous position")
-    states = tuple(params.get("state_interfaces") or ())
-    if "position" not in states or not set(states) <= {"position", "velocity"}:
+    states = _names(reader, params, "state_interfaces", what, "interface names")
+    # the JTC declares it unique<> (joint_trajectory_controller_parameters.yaml)
+    if states is not None and ("position" not in states or len(set(states)) < len(states)
+                               or not set(states) <= {"position", "velocity"}):
         reader.fail(f"{what}: state_interfaces {list(states)}: hil's hardware gives "
                     "[position] or [position, velocity]", line("state_interfaces"))
     values = {key: _bool(reader, params, key, what) for key in _BOOLS if key in params}
@@ -63,7 +68,7 @@ def read_jtc(reader: Reader, params: LineMapping, name: str,
         if key in params and params[key] != honoured:
             reader.fail(f"{what}: {key} {params[key]!r}: hil runs the JTC with {honoured!r}",
                         line(key))
-    _notes(reader, params, what, commands)
+    _notes(reader, params, what, commands or ())
     constraints = reader.mapping(params.get("constraints", LineMapping()),
                                  f"{what}: constraints", line("constraints"))
     return JtcParameters(joints=joints, command_interfaces=commands or ("position",),
@@ -92,6 +97,18 @@ def read_joint_names(reader: Reader, params: LineMapping, what: str,
     if len(set(mapped)) != len(mapped):
         reader.fail(f"{what}: a joint is named twice in '{key}'", at)
     return mapped
+
+
+def _names(reader: Reader, params: LineMapping, key: str, what: str,
+           kind: str) -> tuple[str, ...] | None:
+    """A string_array parameter (the JTC declares these so): its names, () where it is not
+    given, None after reporting a value that is no list of names."""
+    value = params.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(n, str) and n for n in value):
+        reader.fail(f"{what}: '{key}' must be a list of {kind}, not {value!r}",
+                    params.key_lines.get(key, params.line))
+        return None
+    return tuple(value)
 
 
 def _bool(reader: Reader, params: LineMapping, key: str, what: str) -> bool:
@@ -134,9 +151,10 @@ def _constraints(reader: Reader, constraints: LineMapping, what: str, rename,
                 reader.fail(f"{what}: constraints: {key} must be >= 0", at)
         elif key == "decelerate_on_cancel":
             values[key] = _bool(reader, constraints, key, f"{what}: constraints")
-        elif rename([key])[0] in joints and isinstance(value, LineMapping):
-            per_joint[rename([key])[0]] = _joint_constraint(reader, value, f"{what}: "
-                                                            f"constraints: {key}")
+        elif rename([key])[0] in joints:
+            per_joint[rename([key])[0]] = _joint_constraint(
+                reader, reader.mapping(value, f"{what}: constraints: {key}", at),
+                f"{what}: constraints: {key}")
         else:
             reader.warn(f"{what}: constraints: '{key}' is neither a parameter nor one of the "
                         "controller's joints: ignored, as ROS ignores it", at)

@@ -17,7 +17,6 @@ active controllers' outputs make the hardware's commands:
 
 from __future__ import annotations
 
-import enum
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -28,15 +27,9 @@ import numpy as np
 from hil.controllers.config import ControllersConfig
 from hil.controllers.forward import ForwardCommandController
 from hil.controllers.planning import JointLimitTable
+from hil.controllers.switch import Strictness, SwitchResult, plan_switch
 from hil.controllers.trajectory import JointTrajectoryController
 from hil.description import RobotDescription
-
-
-class Strictness(enum.IntEnum):
-    """controller_manager_msgs/SwitchController's strictness."""
-
-    BEST_EFFORT = 1
-    STRICT = 2
 
 
 class Controller(Protocol):
@@ -49,6 +42,9 @@ class Controller(Protocol):
 
     @property
     def command_interfaces(self) -> tuple[str, ...]: ...
+
+    @property
+    def state_interfaces(self) -> tuple[str, ...]: ...
 
     def activate(self, now: float, positions: np.ndarray) -> None: ...
 
@@ -68,12 +64,6 @@ class ControllerInfo:
     claimed_interfaces: tuple[str, ...]
     required_command_interfaces: tuple[str, ...]
     required_state_interfaces: tuple[str, ...]
-
-
-@dataclass(frozen=True)
-class SwitchResult:
-    ok: bool
-    message: str = ""
 
 
 class ControllerManager:
@@ -143,7 +133,7 @@ class ControllerManager:
             name, "active" if name in active else "inactive", c.type_name,
             self.claims(name) if name in active else (), self.claims(name),
             tuple(f"{joint}/{state}" for joint in c.joint_names
-                  for state in ("position", "velocity")))
+                  for state in c.state_interfaces))
             for name, c in self._controllers.items()]
 
     def is_active(self, name: str) -> bool:
@@ -152,65 +142,27 @@ class ControllerManager:
 
     def switch(self, activate: Sequence[str], deactivate: Sequence[str],
                strictness: Strictness = Strictness.STRICT) -> SwitchResult:
-        """Deactivate, then activate, as controller_manager's switch_controller: STRICT
-        changes nothing unless every request can be honoured; BEST_EFFORT drops those it
-        cannot and switches the rest. A claimed interface conflict fails either way; in
-        STRICT, so does a switch that leaves a joint without a controller (hil's rule)."""
+        """Deactivate, then activate, as controller_manager's switch_controller decides it
+        (:func:`hil.controllers.switch.plan_switch`), between two cycles: activate_asap or
+        not, the next cycle runs the new controllers."""
         with self._lock:
             return self._switch(list(activate), list(deactivate), strictness)
 
     def _switch(self, activate: list[str], deactivate: list[str],
                 strictness: Strictness) -> SwitchResult:
-        messages = []
-        for action, names in (("activate", activate), ("deactivate", deactivate)):
-            for name in list(names):
-                if name not in self._controllers:
-                    problem = (f"Could not {action} controller with name '{name}' because no "
-                               "controller with this name exists")
-                    if strictness is Strictness.STRICT:
-                        return SwitchResult(False, problem)
-                    messages.append(problem)
-                    names.remove(name)
-        for name in list(deactivate):
-            if name not in self._active:
-                problem = f"Could not deactivate controller '{name}' since it is not active"
-                if strictness is Strictness.STRICT:
-                    return SwitchResult(False, problem)
-                messages.append(problem)
-                deactivate.remove(name)
-        for name in list(activate):
-            if name in self._active and name not in deactivate:
-                problem = f"Could not activate controller '{name}' since it is already active"
-                if strictness is Strictness.STRICT:
-                    return SwitchResult(False, problem)
-                messages.append(problem)
-                activate.remove(name)
-        if not activate and not deactivate:
-            return SwitchResult(True, "After checking the controllers, no controllers need to "
-                                      "be activated or deactivated.")
-        staying = [n for n in self._active if n not in deactivate]
-        claimed = {claim: n for n in staying for claim in self.claims(n)}
-        for name in activate:
-            for claim in self.claims(name):
-                if claim in claimed:
-                    return SwitchResult(False, f"Unable to activate controller '{name}' since "
-                                        f"the command interface '{claim}' is not available "
-                                        f"(claimed by '{claimed[claim]}')")
-                claimed[claim] = name
-        uncovered = [j for j in self.joint_names
-                     if f"{j}/position" not in claimed and f"{j}/velocity" not in claimed]
-        if uncovered and strictness is Strictness.STRICT:
-            return SwitchResult(False, f"the switch would leave joint(s) "
-                                f"{', '.join(uncovered)} without a controller (STRICT; with "
-                                "BEST_EFFORT they hold their last command)")
-        for name in deactivate:
+        plan = plan_switch(activate, deactivate, strictness,
+                           {name: self.claims(name) for name in self._controllers},
+                           self._active, self.joint_names)
+        if isinstance(plan, SwitchResult):
+            return plan
+        for name in plan.deactivate:
             self._controllers[name].deactivate()
             self._active.remove(name)
-        for name in activate:
+        for name in plan.activate:
             self._controllers[name].activate(self._now,
                                              self._position[self._indices[name]].copy())
             self._active.append(name)
-        return SwitchResult(True, "\n".join(messages))
+        return SwitchResult(True, plan.message)
 
     def update(self, now: float, positions: np.ndarray, velocities: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray]:

@@ -117,7 +117,11 @@ class JtcParameters:
             if name.startswith("constraints.") and name.endswith((".trajectory", ".goal")) \
                     and name.count(".") >= 2:
                 joint, what = name.removeprefix("constraints.").rsplit(".", 1)
-                constraints[joint] = replace(self.constraint(joint), **{what: float(value)})
+                # onto this change's constraint, not the original: a joint's trajectory and
+                # goal set together both take effect (each parameter is its own assignment
+                # in the JTC's generated parameter listener)
+                constraints[joint] = replace(constraints.get(joint, JointConstraint()),
+                                             **{what: float(value)})
             else:
                 updated[name.removeprefix("constraints.")] = value
         return replace(self, constraints=constraints, **updated)

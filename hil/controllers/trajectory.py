@@ -119,6 +119,11 @@ class JointTrajectoryController:
     def command_interfaces(self) -> tuple[str, ...]:
         return self.parameters.command_interfaces
 
+    @property
+    def state_interfaces(self) -> tuple[str, ...]:
+        """Each joint's state interfaces it requires (state_interface_configuration)."""
+        return self.parameters.state_interfaces
+
     def set_parameters(self, changes: dict[str, float | bool]) -> None:
         """Change settable parameters (:meth:`JtcParameters.settable`, ROS names) for the
         goals accepted from now on (the active goal keeps its tolerances, as in the JTC);

@@ -37,8 +37,10 @@ def commands_key(robot: str, controller: str) -> str:
 def strictness_of(value: int) -> Strictness:
     """A request's strictness: 0 takes controller_manager's default (its parameter
     defaults.switch_controller.strictness, "strict"); 3 and 4 (AUTO, FORCE_AUTO, for
-    chained controllers, which hil has none of) and unknown values are BEST_EFFORT, as
-    controller_manager defaults them."""
+    chained controllers, which hil has none of) are BEST_EFFORT, as switch_controller_cb
+    defaults them. Another value, which SwitchController does not define, is taken as
+    BEST_EFFORT too (hil's choice: controller_manager passes it on to checks that test
+    for STRICT and BEST_EFFORT only)."""
     if value in (0, Strictness.STRICT):
         return Strictness.STRICT
     return Strictness.BEST_EFFORT
