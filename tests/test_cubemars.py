@@ -13,21 +13,25 @@ from __future__ import annotations
 
 import math
 import struct
+import threading
 import time
 
 import can
 import pytest
 
-from conftest import TESTS, ClientBench, hils_master_moves, socketcan_missing
-from hil.drives import Power
+from conftest import TEST_MOTOR_DRIVE, TESTS, ClientBench, hils_master_moves, socketcan_missing
+from hil.bus_config import load_bus_config
+from hil.drives import DriveCore, DriveParameters, Power
 from hil.protocols.cubemars import (
     Answer, CubeMarsOptions, ErrorCode, pack_mit_answer, pack_status, unpack_status,
     unpack_v3_command,
 )
+from hil.protocols.cubemars.drive import CubeMarsDrive
 from hil.protocols.cubemars.models import MODELS, model
 from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, pack_command,
 )
+from test_mit_profile import LockStep
 
 #: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
 #: the client libraries
@@ -154,6 +158,32 @@ def test_set_zero_makes_here_the_answers_zero(bench):
     bench.ask(0x001, SET_ZERO)
     reply = bench.ask(0x001, ENTER_MOTOR_MODE)
     assert abs(((reply.data[1] << 8) | reply.data[2]) - 32767) <= 30      # about 0 rad
+
+
+def test_re_enabling_after_a_pause_does_not_trip_the_watchdog():
+    """Issue 64: enter motor mode, command, exit, 0.4 s, enter, a command every 2 ms: the
+    motor dropped to rest mode at once (the command before the exit counted). Every frame to
+    the motor feeds the watchdog and the silence counts only in motor mode, as in the
+    mini-cheetah firmware (Hobbyking_Cheetah_Compact main.cpp, onMsgReceived) whose MIT
+    mode the AK's descends from (the manual documents no timeout of its own)."""
+    core = DriveCore(DriveParameters(**{**TEST_MOTOR_DRIVE, "watchdog_timeout": 0.1}))
+    core.measure(0.0, 0.0)
+    motor = LockStep(CubeMarsDrive(1, core, threading.RLock(), 1.0, 0.1, CubeMarsOptions()))
+    hold = pack_command(MitCommand(0.0, 0.0, 5.0, 0.3, 0.0), AK80_9)
+    assert motor.states_re_enabled_after_a_pause(0x001, ENTER_MOTOR_MODE, EXIT_MOTOR_MODE,
+                                                 hold) == {"MOTOR MODE"}
+
+
+def test_no_watchdog_by_default(tmp_path):
+    """Issue 64: hil's 0.1 s was tighter than published clients assume (TMotorCANControl
+    1.2.6's check_can_connection enters motor mode, then sleeps 0.1 s). The AK manual V1.0.8
+    documents no CAN timeout, so none is on unless the bus config asks for one."""
+    text = CONFIG.read_text().replace("defaults: {protocol: cubemars, watchdog_timeout: 0.5}",
+                                      "defaults: {protocol: cubemars}")
+    path = tmp_path / "cubemars.yaml"
+    path.write_text(text.replace("robot: damiao_one_axis.urdf",
+                                 f"robot: {TESTS / 'fixtures' / 'damiao_one_axis.urdf'}"))
+    assert load_bus_config(path).buses[0].drives[0].watchdog_timeout == 0.0
 
 
 # --- servo mode ------------------------------------------------------------------------

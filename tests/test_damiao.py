@@ -11,19 +11,22 @@ communication-protocol page: D0 state << 4 | id, D6 MOSFET and D7 rotor temperat
 from __future__ import annotations
 
 import struct
+import threading
 import time
 
 import pytest
 
-from conftest import TESTS, ClientBench, hils_master_moves, socketcan_missing
+from conftest import TEST_MOTOR_DRIVE, TESTS, ClientBench, hils_master_moves, socketcan_missing
 from hil.bus_config import load_bus_config
-from hil.drives import Power
+from hil.drives import DriveCore, DriveParameters, Power
 from hil.protocols.damiao import (
     CLEAR_ERROR, DISABLE, ENABLE, SAVE_ZERO, ControlMode, DamiaoOptions, Feedback, State,
     pack_feedback, unpack_feedback,
 )
+from hil.protocols.damiao.drive import DamiaoDrive
 from hil.protocols.damiao.models import MODELS, model
 from hil.protocols.mit import MitCommand, MitRanges, pack_command
+from test_mit_profile import LockStep
 
 #: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
 #: the client libraries
@@ -148,6 +151,59 @@ def test_silence_past_the_timeout_is_lost_communication_until_cleared(bench):
     assert bench.ask(0x001, ENABLE).data[0] >> 4 == State.LOST_COMMUNICATION   # not cleared
     assert bench.ask(0x001, CLEAR_ERROR).data[0] >> 4 == State.DISABLED
     assert bench.ask(0x001, ENABLE).data[0] >> 4 == State.ENABLED
+
+
+# --- the TIMEOUT watchdog, lock-step ----------------------------------------------------
+
+def lock_step_dm4310() -> LockStep:
+    """Motor 1 (a DM4310, MIT mode) at rest at 0 rad, TIMEOUT 2000 x 50 us (0.1 s)."""
+    core = DriveCore(DriveParameters(**{**TEST_MOTOR_DRIVE, "watchdog_timeout": 0.1}))
+    core.measure(0.0, 0.0)
+    return LockStep(DamiaoDrive(1, core, threading.RLock(), 1.0, 0.1, DamiaoOptions()))
+
+
+HOLD = pack_command(MitCommand(0.0, 0.0, 5.0, 0.3, 0.0), DM4310)
+
+
+def test_re_enabling_after_a_pause_is_not_lost_communication():
+    """Issue 64: enable, command, disable, 0.4 s, enable, a command every 2 ms: the motor
+    reported LOST COMMUNICATION (0xD) at once, the command before the disable counting. The
+    DM4310's firmware counts its communication age only while enabled and zeroes it on every
+    frame for the motor (recovered in github.com/umeow0716/damiao_firmware, app/src/safety.c)."""
+    motor = lock_step_dm4310()
+    assert motor.states_re_enabled_after_a_pause(0x001, ENABLE, DISABLE, HOLD) == {"ENABLED"}
+
+
+def test_the_enable_frame_starts_the_timeout_and_any_frame_for_the_motor_feeds_it():
+    """The firmware's communication age restarts on every frame whose id addresses the motor,
+    before the command's mode is looked at (github.com/umeow0716/damiao_firmware,
+    app/src/safety.c, safety_note_control_frame): a velocity-mode frame to an MIT-mode motor
+    moves nothing but feeds it; enabled and silent, the motor is lost after TIMEOUT."""
+    motor = lock_step_dm4310()
+    motor.send(0x001, ENABLE)
+    motor.send(0x001, HOLD)
+    for _ in range(15):
+        motor.wait(0.02)
+        motor.send(0x201, struct.pack("<f", 0.0) + bytes(4))       # VEL, CTRL_MODE is MIT
+    assert motor.drive.state is State.ENABLED
+    motor.send(0x001, CLEAR_ERROR)
+    motor.send(0x001, DISABLE)
+    motor.send(0x001, ENABLE)
+    motor.wait(0.2)                                   # never commanded since the enable
+    assert motor.drive.state is State.LOST_COMMUNICATION
+
+
+def test_timeout_is_off_by_default(tmp_path):
+    """Issue 64: hil's 0.1 s was tighter than published clients assume. TIMEOUT (register 9)
+    ships as 0, off (the DM4310 firmware's factory configuration, recovered in
+    github.com/umeow0716/damiao_firmware, app/src/app_config.c)."""
+    text = CONFIG.read_text().replace("defaults: {protocol: damiao, watchdog_timeout: 0.5}",
+                                      "defaults: {protocol: damiao}")
+    path = tmp_path / "damiao.yaml"
+    path.write_text(text.replace("robot: damiao_one_axis.urdf",
+                                 f"robot: {CONFIG.parent / 'damiao_one_axis.urdf'}"))
+    drive = load_bus_config(path).buses[0].drives[0]
+    assert drive.watchdog_timeout == 0.0
 
 
 # --- published client libraries ---------------------------------------------------------

@@ -123,6 +123,32 @@ def test_watchdog_quick_stops_then_holds():
     assert core.status().stopped and abs(motor.velocity) < 0.05
 
 
+def _leave_by_fault(core: DriveCore) -> None:
+    core.raise_fault(Fault.FOLLOWING_ERROR)
+    core.reset_fault()
+
+
+@pytest.mark.parametrize("leave", [DriveCore.disable, DriveCore.quick_stop, _leave_by_fault],
+                         ids=["disable", "quick-stop", "fault"])
+def test_the_watchdog_counts_only_while_enabled(leave):
+    """Issue 64: the time of the last setpoint before a disable tripped the watchdog at the
+    next enable. The watchdog counts only while enabled (Ben Katz's mini-cheetah firmware,
+    Hobbyking_Cheetah_Compact main.cpp: its timeout counter runs in motor mode only)."""
+    core = DriveCore(parameters())                # watchdog 0.1 s
+    core.set_mode(Mode.VELOCITY)
+    core.enable()
+    core.new_setpoint(velocity=0.0, now=0.0)
+    leave(core)
+    core.enable()
+    core.check_watchdog(now=0.4)                  # enabled again 0.4 s later, no setpoint yet
+    assert core.power is Power.ENABLED and Fault.CONTROLLER_SILENT not in core.events
+    core.new_setpoint(velocity=0.0, now=0.41)
+    core.check_watchdog(now=0.5)
+    assert core.power is Power.ENABLED
+    core.check_watchdog(now=0.52)                 # silent 0.11 s since the last setpoint
+    assert core.power is Power.QUICK_STOP
+
+
 def test_disabled_drive_with_brake_holds_against_load():
     core, motor = DriveCore(parameters()), Motor()
     core.measure(1.0, 0.0)

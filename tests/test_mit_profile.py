@@ -12,11 +12,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import TESTS
+from hil.bus_config import load_bus_config
 from hil.drives import DriveCore, DriveParameters, Mode, Power
+from hil.drives.profile import DriveProfile
 from hil.can.network import start_network
 from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitOptions, MitRanges, MitReply,
-    float_to_uint, pack_command, pack_reply, unpack_command, unpack_reply,
+    TimeoutReaction, float_to_uint, pack_command, pack_reply, unpack_command, unpack_reply,
 )
 from hil.protocols.mit.drive import MitDrive
 
@@ -75,12 +78,12 @@ def test_float_to_uint_truncates_like_the_firmware():
     assert float_to_uint(12.5, -12.5, 12.5, 16) == 65535
 
 
-def core(peak: float = 2.0) -> DriveCore:
+def core(peak: float = 2.0, watchdog: float = 0.0) -> DriveCore:
     return DriveCore(DriveParameters(
         counts_per_rev=1 << 20, rated_torque=1.0, peak_torque=peak, position_kp=10,
         velocity_kp=0.1, velocity_ki=1.0, max_velocity=100.0, following_error_limit=0.0,
-        following_error_timeout=0.01, quick_stop_deceleration=100.0, watchdog_timeout=0.0,
-        holding_brake=False))
+        following_error_timeout=0.01, quick_stop_deceleration=100.0,
+        watchdog_timeout=watchdog, holding_brake=False))
 
 
 def test_impedance_mode_applies_kp_kd_and_feed_forward_and_saturates():
@@ -172,3 +175,113 @@ def test_options_are_validated_with_the_key_named():
         MitOptions.from_mapping({"v_max": -1, "kp": 1})
     with pytest.raises(ValueError, match="reply_id"):
         MitOptions.from_mapping({"reply_id": 4096, "kp": 1})
+    with pytest.raises(ValueError, match="'timeout_reaction' 'stop' is not one of zero, rest"):
+        MitOptions.from_mapping({"timeout_reaction": "stop", "kp": 1})
+
+
+# --- the CAN timeout, lock-step --------------------------------------------------------
+
+class LockStep:
+    """A MIT-family drive off any bus, in lock-step: the test hands it its frames and steps
+    its clock; at each step the simulator's watchdog check and after_update run (the plant
+    stands still). The clock starts where time.monotonic is, so a drive that fed its
+    watchdog on the real clock (as before issue 64) is judged on the same scale; from there
+    only the test moves it."""
+
+    def __init__(self, drive: DriveProfile):
+        self.drive, self.core = drive, drive.core
+        self.now = time.monotonic()
+        drive.clock = lambda: self.now
+        self.handlers = drive.subscriptions()
+
+    def send(self, can_id: int, data: bytes) -> None:
+        self.handlers[can_id](can_id, data, self.now)
+
+    def wait(self, seconds: float, step: float = 0.002) -> None:
+        for _ in range(round(seconds / step)):
+            self.now += step
+            self.core.check_watchdog(self.now)
+            self.drive.after_update()
+
+    def states_re_enabled_after_a_pause(self, can_id: int, enable: bytes, disable: bytes,
+                                        command: bytes) -> set[str]:
+        """Issue 64's sequence: enable, command, disable, 0.4 s, enable, then a command every
+        2 ms for 0.2 s; the drive's states after each of those commands."""
+        for frame in (enable, command, disable):
+            self.send(can_id, frame)
+        self.wait(0.4)
+        self.send(can_id, enable)
+        states = set()
+        for _ in range(100):
+            self.wait(0.002)
+            self.send(can_id, command)
+            states.add(self.drive.state_text)
+        return states
+
+
+def lock_step_mit(reaction: TimeoutReaction = TimeoutReaction.ZERO) -> LockStep:
+    """Motor 5 at rest at 0 rad, its CAN timeout 0.1 s."""
+    options = MitOptions(ranges=CLASSIC, kp=10.0, kd=0.1, timeout_reaction=reaction)
+    drive = MitDrive(5, core(peak=CLASSIC.t_max, watchdog=0.1), threading.RLock(), 1.0, 0.1,
+                     options)
+    drive.core.measure(0.0, 0.0)
+    return LockStep(drive)
+
+
+#: 1 rad from the motor at kp 10: about 10 N·m (kp and the position as the frame carries them)
+PULL = pack_command(MitCommand(1.0, 0.0, 10.0, 0.0, 0.0), CLASSIC)
+PULLED = unpack_command(PULL, CLASSIC).kp * unpack_command(PULL, CLASSIC).position
+
+
+def test_re_enabling_after_a_pause_does_not_trip_the_can_timeout():
+    """Issue 64: enable, command, disable, 0.4 s, enable, a command every 2 ms: the motor fell
+    to rest mode at once (the time of the command before the disable counted). Ben Katz's
+    Hobbyking_Cheetah_Compact main.cpp: every frame to the motor zeroes the timeout counter
+    (onMsgReceived), which counts in motor mode only."""
+    motor = lock_step_mit(TimeoutReaction.REST)      # a trip would show as rest mode
+    assert motor.states_re_enabled_after_a_pause(5, ENTER_MOTOR_MODE, EXIT_MOTOR_MODE,
+                                                 PULL) == {"MOTOR MODE"}
+    assert motor.core.update(0.001) == pytest.approx(PULLED, abs=0.01)
+
+
+def test_a_can_timeout_zeroes_the_gains_and_the_next_command_drives_again():
+    """Issue 64: after a timeout hil's motor left motor mode, so later commands moved nothing.
+    Hobbyking_Cheetah_Compact (its 40 kHz interrupt, MOTOR_MODE) and bgkatz/motorcontrol
+    (fsm.c, zero_commands) zero kp, kd and the feed-forward and stay in motor mode."""
+    motor = lock_step_mit()
+    motor.send(5, ENTER_MOTOR_MODE)
+    motor.send(5, PULL)
+    assert motor.core.update(0.001) == pytest.approx(PULLED, abs=0.01)
+    motor.wait(0.2)                                   # silent past the 0.1 s timeout
+    assert motor.drive.state_text == "MOTOR MODE" and motor.core.update(0.001) == 0.0
+    motor.send(5, PULL)
+    assert motor.core.update(0.001) == pytest.approx(PULLED, abs=0.01)
+
+
+def test_timeout_reaction_rest_leaves_motor_mode_until_entered_again():
+    """The forks that drop to the menu on a timeout: ``timeout_reaction: rest``."""
+    motor = lock_step_mit(TimeoutReaction.REST)
+    motor.send(5, ENTER_MOTOR_MODE)
+    motor.send(5, PULL)
+    motor.wait(0.2)
+    assert motor.drive.state_text == "REST MODE"
+    motor.send(5, PULL)
+    assert motor.core.update(0.001) == 0.0
+    motor.send(5, ENTER_MOTOR_MODE)
+    motor.send(5, PULL)
+    assert motor.core.update(0.001) == pytest.approx(PULLED, abs=0.01)
+
+
+def test_the_default_watchdog_is_the_firmwares_none(tmp_path):
+    """Issue 64: hil's 0.1 s was tighter than published clients assume. A drive's
+    ``watchdog_timeout`` defaults to the firmware's CAN_TIMEOUT where the flash holds none:
+    0, "none" (Hobbyking_Cheetah_Compact main.cpp, main())."""
+    fixture = TESTS / "fixtures" / "damiao_one_axis.yaml"
+    text = fixture.read_text().replace(
+        "defaults: {protocol: damiao, watchdog_timeout: 0.5}", "defaults: {protocol: mit}")
+    text = text.replace("options: {model: DM4310, master_id: 0x11, kp: 5.0, kd: 0.3}",
+                        "options: {kp: 5.0, kd: 0.3}")
+    path = tmp_path / "mit.yaml"
+    path.write_text(text.replace("robot: damiao_one_axis.urdf",
+                                 f"robot: {fixture.parent / 'damiao_one_axis.urdf'}"))
+    assert load_bus_config(path).buses[0].drives[0].watchdog_timeout == 0.0

@@ -55,6 +55,9 @@ class DriveCore:
         self._following_time = 0.0
         self._following_error = 0.0
         self._internal_limit = False
+        #: the last sign of life, forgotten on leaving ENABLED: the watchdog counts only while
+        #: enabled (Ben Katz's mini-cheetah firmware, Hobbyking_Cheetah_Compact main.cpp: its
+        #: counter runs in motor mode only; Damiao's DM-J zeroes its own while disarmed)
         self._last_setpoint: float | None = None
         # profile modes: the drive's own reference (position, velocity) and where it goes
         self._profile = ProfileReference()
@@ -102,6 +105,7 @@ class DriveCore:
         loaded axis creep by the brake's sag each time)."""
         if self.power in (Power.ENABLED, Power.QUICK_STOP):
             self._engage_brake()
+            self._last_setpoint = None      # the silence so far no longer counts
             self.power = Power.DISABLED
 
     def quick_stop(self) -> None:
@@ -110,6 +114,7 @@ class DriveCore:
             self._stop_velocity = self._velocity
             self._hold = self._position       # a standing axis holds where it stands
             self._integral_from_torque()
+            self._last_setpoint = None      # the silence so far no longer counts
             self.power = Power.QUICK_STOP
 
     def reset_fault(self) -> None:
@@ -237,6 +242,7 @@ class DriveCore:
     def raise_fault(self, fault: Fault) -> None:
         if self.power is not Power.FAULT:
             self._engage_brake()
+            self._last_setpoint = None      # the silence so far no longer counts
             self.power = Power.FAULT
             self.fault = fault
             self.events.append(fault)

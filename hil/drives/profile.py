@@ -19,6 +19,7 @@ command.
 from __future__ import annotations
 
 import logging
+import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
@@ -112,6 +113,9 @@ class DriveProfile(ABC):
         #: called (lock held) when this cycle's command has arrived; set by the simulator
         self.on_command: Callable[[DriveProfile], None] = lambda drive: None
         self.malformed = 0          # frames refused (wrong length, bad values)
+        #: the clock the drive's frames feed its watchdog on: the simulator checks the
+        #: watchdogs on time.monotonic too; a lock-step test steps a clock of its own
+        self.clock: Callable[[], float] = time.monotonic
 
     # --- what a profile must say ----------------------------------------------------
 
@@ -147,6 +151,12 @@ class DriveProfile(ABC):
         for can_id in self.remote_subscriptions():
             self.network.frame_listener.remote_handlers.pop(can_id, None)
         self.network = None
+
+    def heard(self) -> None:
+        """A frame for this drive arrived: the watchdog's sign of life, whatever the frame
+        (lock held). Where a protocol's firmware counts only some frames, its profile feeds
+        on those instead."""
+        self.core.new_setpoint(now=self.clock())
 
     def send(self, can_id: int, data: bytes, remote: bool = False) -> None:
         """Send a frame, if on a bus."""

@@ -74,6 +74,10 @@ class ProtocolOptions:
     #: keys whose values are files: the bus config parser makes them relative to the
     #: config's own directory before :meth:`from_mapping` sees them
     PATH_KEYS: ClassVar[tuple[str, ...]] = ()
+    #: the product's own controller-silence timeout as it ships (s; 0: off): the default of
+    #: a drive's ``watchdog_timeout`` (:meth:`drive_defaults`); None where the product has
+    #: no CAN timeout of its own (the bus config's reader then takes hil's 0.1 s)
+    WATCHDOG_TIMEOUT: ClassVar[float | None] = None
 
     @property
     def sends_velocity(self) -> bool:
@@ -88,9 +92,11 @@ class ProtocolOptions:
 
     def drive_defaults(self) -> dict[str, float | bool]:
         """Drive keys of the bus config (``peak_torque``, ``rated_torque``,
-        ``max_velocity``, ``holding_brake``) that the product these settings name sets where
-        the config does not: a motor model's published figures. None by default."""
-        return {}
+        ``max_velocity``, ``holding_brake``, ``watchdog_timeout``) that the product these
+        settings name sets where the config does not: a motor model's published figures,
+        the firmware's own timeout (:attr:`WATCHDOG_TIMEOUT`). None by default."""
+        timeout = self.WATCHDOG_TIMEOUT
+        return {} if timeout is None else {"watchdog_timeout": timeout}
 
 
 class Protocol(ABC):

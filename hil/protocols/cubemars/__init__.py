@@ -119,6 +119,8 @@ class CubeMarsOptions(ProtocolOptions):
 
     KEYS = ("model", "firmware", "control", "reply_id", "status_rate", "p_max", "v_max",
             "t_max", "kp", "kd")
+    #: off: the AK manual (V1.0.8) documents no CAN timeout, so none is on by default
+    WATCHDOG_TIMEOUT = 0.0
 
     @classmethod
     def from_mapping(cls, values: dict) -> CubeMarsOptions:
@@ -146,10 +148,12 @@ class CubeMarsOptions(ProtocolOptions):
         return options
 
     def drive_defaults(self) -> dict[str, float | bool]:
-        """The model's published output figures, where the sources give them."""
+        """The model's published output figures, where the sources give them; no
+        watchdog."""
         if not self.model.sizes:
-            return {}
-        return {"peak_torque": self.model.peak_torque, "rated_torque": self.model.rated_torque,
+            return super().drive_defaults()
+        return {**super().drive_defaults(), "peak_torque": self.model.peak_torque,
+                "rated_torque": self.model.rated_torque,
                 "max_velocity": self.model.no_load_speed, "holding_brake": False}
 
     def ranges(self) -> MitRanges:

@@ -5,17 +5,19 @@ MIT mode: motor mode is entered and left by the special frames; a command moves 
 only in motor mode; every frame is answered. Servo mode: the manual knows no enable, so
 the first command powers the motor in its mode, as the product does; the status is
 uploaded at the configured rate whatever the motor does. In both, a silence beyond the bus
-config's ``watchdog_timeout`` (0: none) releases the motor (hil's choice: the manual
-documents no CAN timeout). A fault hil injects (``hil sim --fault``) is reported with
-the error code OVER_CURRENT, the manual's nearest (hil's choice), the motor released,
-until motor mode is entered again (MIT) or the next command (servo).
+config's ``watchdog_timeout`` (by default 0: none) releases the motor (hil's choice: the
+manual documents no CAN timeout); every frame to the motor is a sign of life, and the
+silence counts only while the motor runs, as the mini-cheetah firmware's timeout counter
+that the AK's MIT mode descends from (hil's reading). A fault hil injects (``hil sim
+--fault``) is reported with the error code OVER_CURRENT, the manual's nearest (hil's
+choice), the motor released, until motor mode is entered again (MIT) or the next command
+(servo).
 """
 
 from __future__ import annotations
 
 import math
 import struct
-import time
 from contextlib import AbstractContextManager
 from dataclasses import replace
 
@@ -79,6 +81,7 @@ class CubeMarsDrive(DriveProfile):
             self.malformed += 1          # the firmware takes 8-byte frames only
             return
         with self.lock:
+            self.heard()
             self._on_mit_frame(bytes(data))
             self._reply = self._mit_answer()
             self.on_command(self)
@@ -120,6 +123,7 @@ class CubeMarsDrive(DriveProfile):
                 self.malformed += 1      # too short for the mode's field
                 return
             with self.lock:
+                self.heard()
                 SERVO[mode](self, bytes(data))
                 self.on_command(self)
         return receive
@@ -144,7 +148,7 @@ class CubeMarsDrive(DriveProfile):
         self._powered(Mode.TORQUE)
         self._limit_torque(self._peak)
         amperes = _INT32.unpack_from(data)[0] / 1000
-        self.core.new_setpoint(torque=amperes * self.model.torque_constant, now=time.monotonic())
+        self.core.new_setpoint(torque=amperes * self.model.torque_constant)
 
     def _current_brake(self, data: bytes) -> None:
         """Held where it is with at most the brake current's torque."""
@@ -152,7 +156,6 @@ class CubeMarsDrive(DriveProfile):
         if self.core.mode is not Mode.PROFILE_POSITION or self.core.power is not Power.ENABLED:
             self._powered(Mode.PROFILE_POSITION)
         self._limit_torque(min(self._peak, amperes * self.model.torque_constant))
-        self.core.new_setpoint(now=time.monotonic())
 
     def _erpm(self, data: bytes) -> None:
         self._speed(self.model.output_speed(_INT32.unpack_from(data)[0]))
@@ -161,7 +164,7 @@ class CubeMarsDrive(DriveProfile):
         self._powered(Mode.PROFILE_VELOCITY)
         # the manual gives the speed loop no ramp: the reference steps (hil's reading)
         self._profile(abs(speed) or 1.0, 1e9)
-        self.core.new_setpoint(velocity=speed, now=time.monotonic())
+        self.core.new_setpoint(velocity=speed)
 
     def _position(self, data: bytes) -> None:
         degrees = _INT32.unpack_from(data)[0] / 10000
@@ -175,7 +178,6 @@ class CubeMarsDrive(DriveProfile):
         self._powered(Mode.PROFILE_POSITION)
         self._profile(self.model.output_speed(erpm), self.model.output_speed(erpm_per_s))
         self.core.move_to(math.radians(degrees) + self._zero)
-        self.core.new_setpoint(now=time.monotonic())            # the watchdog's sign of life
 
     def _origin(self, data: bytes) -> None:
         """0 a temporary, 1 a permanent origin here; 2 the default origin back (§5.1.6).

@@ -92,6 +92,10 @@ class DamiaoOptions(ProtocolOptions):
     kd: float = 0.0
 
     KEYS = ("model", "master_id", "p_max", "v_max", "t_max", "control_mode", "kp", "kd")
+    #: off: TIMEOUT (register 9) is 0 in the factory configuration, as the DM4310's firmware
+    #: writes it to an erased flash (recovered in github.com/umeow0716/damiao_firmware,
+    #: app/src/app_config.c, ``communication_timeout = 0``)
+    WATCHDOG_TIMEOUT = 0.0
 
     @classmethod
     def from_mapping(cls, values: dict) -> DamiaoOptions:
@@ -124,8 +128,9 @@ class DamiaoOptions(ProtocolOptions):
 
     def drive_defaults(self) -> dict[str, float | bool]:
         """The model's output-shaft figures: peak and rated torque, no-load speed; no
-        holding brake (the DM-J manuals list none)."""
-        return {"peak_torque": self.model.peak_torque, "rated_torque": self.model.rated_torque,
+        holding brake (the DM-J manuals list none); TIMEOUT's factory value."""
+        return {**super().drive_defaults(), "peak_torque": self.model.peak_torque,
+                "rated_torque": self.model.rated_torque,
                 "max_velocity": self.model.no_load_speed, "holding_brake": False}
 
     def reply_id(self, node_id: int) -> int:

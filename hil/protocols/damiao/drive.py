@@ -6,13 +6,17 @@ does).
 What the registers mean here: CTRL_MODE selects which command id moves the motor; PMAX, VMAX
 and TMAX map MIT commands and every feedback; TIMEOUT (x 50 us, 0 off) is the watchdog
 after which the motor disables itself and reports LOST_COMMUNICATION until a clear-error
-frame; ACC and DEC (rad/s², DEC negative; 0: no ramp) ramp the position-velocity and
-velocity modes; p_m and xout read the position; VBus, Tpcb and Tmtr read the supply and no
+frame (it counts only while the motor is enabled, and every frame on the motor's id, of
+any mode, special frames included, restarts it, as the DM4310's firmware does: its
+communication age, recovered in github.com/umeow0716/damiao_firmware app/src/safety.c);
+ACC and DEC (rad/s², DEC negative; 0: no ramp) ramp the position-velocity and velocity
+modes; p_m and xout read the position; VBus, Tpcb and Tmtr read the supply and no
 heating. MST_ID and ESC_ID are kept, saved and read back, and the motor keeps answering on
 the bus config's ids (hil's choice: the maker's documents do not say when a new id applies,
 and a bench's ids are its config's). A write the register cannot take (CTRL_MODE outside
 1-4, a range of 0, a value that is not a number) leaves it as it was, and the answer
-carries the value it kept. The others are kept and read back as written. Saved values (0xAA) survive a restart within the run (``hil sim --fault
+carries the value it kept. The others are kept and read back as written. Saved values
+(0xAA) survive a restart within the run (``hil sim --fault
 restart:...``); unsaved ones are lost with it.
 """
 
@@ -20,7 +24,6 @@ from __future__ import annotations
 
 import math
 import struct
-import time
 from contextlib import AbstractContextManager
 from dataclasses import replace
 
@@ -89,6 +92,7 @@ class DamiaoDrive(DriveProfile):
                 self.malformed += 1          # every command of the firmware is 8 bytes
                 return
             with self.lock:
+                self.heard()
                 self._on_command_frame(mode, bytes(data))
                 self._reply = self._feedback()
                 self.on_command(self)
@@ -162,7 +166,7 @@ class DamiaoDrive(DriveProfile):
         velocity = struct.unpack_from("<f", data)[0]
         if math.isfinite(velocity):
             self._profile(abs(velocity), self._peak)
-            self.core.new_setpoint(velocity=velocity, now=time.monotonic())
+            self.core.new_setpoint(velocity=velocity)
 
     def _force_position(self, data: bytes) -> None:
         position, speed, share = _FORCE_POSITION.unpack(data)
@@ -174,7 +178,6 @@ class DamiaoDrive(DriveProfile):
         if math.isfinite(position) and math.isfinite(speed):
             self._profile(speed, torque_limit)
             self.core.move_to(position + self._zero)
-            self.core.new_setpoint(now=time.monotonic())       # the watchdog's sign of life
 
     def _profile(self, speed: float, torque_limit: float) -> None:
         self.core.parameters = replace(

@@ -16,10 +16,10 @@ nibbles with per-motor ranges.
 
 from __future__ import annotations
 
+import enum
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-
-import math
 
 from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender
 
@@ -39,6 +39,18 @@ class MitRanges:
     t_max: float = 18.0        # N·m
 
 
+class TimeoutReaction(enum.Enum):
+    """What the motor does when its CAN timeout expires in motor mode."""
+
+    #: zero kp, kd and the feed-forward and stay in motor mode: the next command drives
+    #: again (Hobbyking_Cheetah_Compact main.cpp, the 40 kHz interrupt's MOTOR_MODE case;
+    #: bgkatz/motorcontrol fsm.c, ``zero_commands``)
+    ZERO = "zero"
+    #: leave motor mode (rest) until the next enter-motor-mode frame, as some forks of
+    #: bgkatz/motorcontrol do (they drop to the menu)
+    REST = "rest"
+
+
 @dataclass(frozen=True)
 class MitOptions(ProtocolOptions):
     """A MIT motor's settings in a bus config (``options:`` of the drive)."""
@@ -47,8 +59,14 @@ class MitOptions(ProtocolOptions):
     reply_id: int = 0          # the master's CAN id, which every reply is sent to
     kp: float = 0.0            # the master's gains (motor side); required by the master
     kd: float = 0.0
+    timeout_reaction: TimeoutReaction = TimeoutReaction.ZERO
 
-    KEYS = ("p_max", "v_max", "kp_max", "kd_max", "t_max", "reply_id", "kp", "kd")
+    KEYS = ("p_max", "v_max", "kp_max", "kd_max", "t_max", "reply_id", "kp", "kd",
+            "timeout_reaction")
+    #: off: Hobbyking_Cheetah_Compact's main() sets CAN_TIMEOUT to 0 ("0 = none", its setup
+    #: menu says) where the flash holds none (bgkatz/motorcontrol's main.c: 1000 cycles of
+    #: its 25 us loop, hw_config.h's DT: 25 ms)
+    WATCHDOG_TIMEOUT = 0.0
 
     @classmethod
     def from_mapping(cls, values: dict) -> MitOptions:
@@ -58,8 +76,12 @@ class MitOptions(ProtocolOptions):
         for name in ("p_max", "v_max", "kp_max", "kd_max", "t_max"):
             if not getattr(ranges, name) > 0:
                 raise ValueError(f"'{name}' must be > 0")
+        reaction = str(values.get("timeout_reaction", "zero"))
+        if reaction not in {r.value for r in TimeoutReaction}:
+            raise ValueError(f"'timeout_reaction' {reaction!r} is not one of "
+                             f"{', '.join(r.value for r in TimeoutReaction)}")
         options = cls(ranges, int(values.get("reply_id", 0)), float(values.get("kp", 0.0)),
-                      float(values.get("kd", 0.0)))
+                      float(values.get("kd", 0.0)), TimeoutReaction(reaction))
         if not 0 <= options.reply_id <= 0x7FF:
             raise ValueError(f"'reply_id' {options.reply_id} is not an 11-bit CAN id")
         if not (0 < options.kp <= ranges.kp_max and 0 <= options.kd <= ranges.kd_max):

@@ -1,16 +1,22 @@
-"""A simulated MIT-protocol motor (the protocol: :mod:`hil.protocols.mit`)."""
+"""A simulated MIT-protocol motor (the protocol: :mod:`hil.protocols.mit`).
+
+Its CAN timeout follows Ben Katz's mini-cheetah firmware (Hobbyking_Cheetah_Compact,
+main.cpp): every frame to the motor, enter-motor-mode included, zeroes the timeout counter
+(``onMsgReceived``), which counts only in motor mode; when it expires the firmware zeroes
+kp, kd and the feed-forward and stays in motor mode, so the next command drives again
+(``timeout_reaction: rest`` leaves motor mode instead, as some forks do).
+"""
 
 from __future__ import annotations
 
-import time
 from contextlib import AbstractContextManager
 
 from hil.drives.core import DriveCore
-from hil.drives.definitions import Fault, Mode, Power
+from hil.drives.definitions import Fault, Mode, Power, SilenceReaction
 from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, Mit, MitCommand, MitOptions, MitReply,
-    pack_reply, unpack_command, unpack_reply,
+    TimeoutReaction, pack_reply, unpack_command, unpack_reply,
 )
 
 
@@ -24,10 +30,15 @@ def enter_motor_mode(core: DriveCore) -> None:
 
 def follow(core: DriveCore, command: MitCommand, zero: float) -> None:
     """An MIT command: ``t = kp (p - q) + kd (v - q') + t_ff``, its position from the motor's
-    zero; the watchdog's sign of life."""
+    zero."""
     core.new_setpoint(position=command.position + zero, velocity=command.velocity,
-                      torque=command.torque, stiffness=command.kp, damping=command.kd,
-                      now=time.monotonic())
+                      torque=command.torque, stiffness=command.kp, damping=command.kd)
+
+
+def zero_commands(core: DriveCore) -> None:
+    """The firmware's reaction to its CAN timeout: kp, kd and the feed-forward torque zeroed
+    (no torque), motor mode kept."""
+    core.new_setpoint(torque=0.0, stiffness=0.0, damping=0.0)
 
 
 class MitDrive(DriveProfile):
@@ -44,6 +55,9 @@ class MitDrive(DriveProfile):
         self._zero = 0.0             # motor position at "set zero"
         self._reply = b""
         core.set_mode(Mode.IMPEDANCE)
+        # the core reports the silence; the reaction is the firmware's (after_update)
+        core.silence_reaction = (SilenceReaction.DISABLE if self.options.timeout_reaction
+                                 is TimeoutReaction.REST else SilenceReaction.NONE)
 
     def subscriptions(self):
         return {self.node_id: self._on_frame}
@@ -54,6 +68,7 @@ class MitDrive(DriveProfile):
             return
         with self.lock:
             data = bytes(data)
+            self.heard()                 # every frame to the motor zeroes its timeout counter
             if data == ENTER_MOTOR_MODE:
                 enter_motor_mode(self.core)
             elif data == EXIT_MOTOR_MODE:
@@ -73,9 +88,8 @@ class MitDrive(DriveProfile):
 
     def after_update(self) -> None:
         events = self.take_events()
-        if Fault.CONTROLLER_SILENT in events:
-            # the firmware's CAN timeout: leave motor mode (no torque), nothing is reported
-            self.core.disable()
+        if Fault.CONTROLLER_SILENT in events and self.core.power is Power.ENABLED:
+            zero_commands(self.core)     # the firmware reports nothing
 
     def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
         """A reply: the motor id exact, position (rad from the zero), velocity, torque."""
