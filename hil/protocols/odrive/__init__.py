@@ -19,12 +19,21 @@ import enum
 import math
 import struct
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
 
 from hil.protocols.base import (DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender,
                                 SettingField)
+from hil.protocols.odrive.endpoints import EndpointFile, load_endpoints
 
 TURN = 2 * math.pi
+#: the unaddressed node, whose Address id every ODrive hears (ODrive's CAN protocol page)
+BROADCAST_NODE_ID = 0x3F
+#: V: the simulated supply (Get_Bus_Voltage_Current, ``vbus_voltage``)
+BUS_VOLTAGE = 24.0
+#: the serial numbers hil gives drives without ``serial_number``: "HIL" and the node id
+#: (hil's choice: the maker's are the MCU's unique id, 48 bits)
+SERIAL_NUMBER_BASE = 0x48494C000000
 
 
 class Cmd(enum.IntEnum):
@@ -34,6 +43,9 @@ class Cmd(enum.IntEnum):
     HEARTBEAT = 0x01
     ESTOP = 0x02
     GET_ERROR = 0x03
+    RX_SDO = 0x04
+    TX_SDO = 0x05
+    ADDRESS = 0x06
     SET_AXIS_STATE = 0x07
     GET_ENCODER_ESTIMATES = 0x09
     SET_CONTROLLER_MODE = 0x0B
@@ -130,7 +142,7 @@ class ODriveError(enum.IntFlag):
 
 #: the command ids whose data frames an axis sends (the answers to RTRs, the heartbeat); a
 #: master sends every other one, and the RTRs
-AXIS_SENDS = frozenset({Cmd.GET_VERSION, Cmd.HEARTBEAT, Cmd.GET_ERROR,
+AXIS_SENDS = frozenset({Cmd.GET_VERSION, Cmd.HEARTBEAT, Cmd.GET_ERROR, Cmd.TX_SDO, Cmd.ADDRESS,
                         Cmd.GET_ENCODER_ESTIMATES, Cmd.GET_IQ, Cmd.GET_TEMPERATURE,
                         Cmd.GET_BUS_VOLTAGE_CURRENT, Cmd.GET_TORQUES, Cmd.GET_POWERS})
 
@@ -162,13 +174,33 @@ class ODriveOptions(ProtocolOptions):
     bus_voltage_msg_rate_ms: int = 0
     powers_msg_rate_ms: int = 0
     torque_constant: float = 0.0827   # N·m/A (8.27 / KV, KV 100)
+    #: the user's flat_endpoints.json (ODrive's, of the firmware release to simulate): the
+    #: endpoints served over RxSdo/TxSdo and the versions Get_Version gives; None: no
+    #: endpoint is answered
+    endpoints: Path | None = None
+    #: the 48-bit serial number Address gives (None: SERIAL_NUMBER_BASE + node id)
+    serial_number: int | None = None
+    #: the endpoints file as read (from ``endpoints``)
+    endpoint_file: EndpointFile | None = field(default=None, compare=False, repr=False)
 
-    KEYS = (*RATE_OPTIONS, "torque_constant")
+    KEYS = (*RATE_OPTIONS, "torque_constant", "endpoints", "serial_number")
+    PATH_KEYS = ("endpoints",)
 
     @classmethod
     def from_mapping(cls, values: dict) -> ODriveOptions:
+        values = dict(values)
+        endpoints, serial = values.pop("endpoints", None), values.pop("serial_number", None)
+        if endpoints is not None and not isinstance(endpoints, str):
+            raise ValueError(f"'endpoints' is the path of a flat_endpoints.json, not "
+                             f"{endpoints!r}")
+        if serial is not None and (not isinstance(serial, int) or isinstance(serial, bool)
+                                   or not 0 <= serial < 2**48):
+            raise ValueError(f"'serial_number' is 48 bits (0..{2**48 - 1}), not {serial!r}")
         options = cls(**{k: (float(v) if k == "torque_constant" else int(v))
-                         for k, v in values.items()})
+                         for k, v in values.items()},
+                      endpoints=Path(endpoints) if endpoints is not None else None,
+                      serial_number=serial,
+                      endpoint_file=load_endpoints(Path(endpoints)) if endpoints else None)
         if options.torque_constant <= 0:
             raise ValueError("'torque_constant' must be > 0")
         if any(not 0 <= getattr(options, k) < 2**32 for k in RATE_OPTIONS):
@@ -210,6 +242,9 @@ class ODrive(Protocol):
     def frame_source(cls, can_id: int, data: bytes, remote: bool,
                      drives: Mapping[int, object]) -> FrameSource | None:
         node, cmd = can_id >> 5, can_id & 0x1F
+        if node == BROADCAST_NODE_ID and cmd == Cmd.ADDRESS and node not in drives:
+            # discovery's RTR and a client's set-address / connect, to every ODrive
+            return FrameSource(Sender.MASTER, None, "Address request" if remote else "Address")
         if node not in drives:
             return None
         name = Cmd(cmd).name.title() if cmd in Cmd.__members__.values() else f"cmd 0x{cmd:02X}"

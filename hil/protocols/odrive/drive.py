@@ -24,9 +24,11 @@ from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power
 from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.odrive import (
-    LAYOUT, TURN, AxisState, Cmd, ControlMode, InputMode, ODrive, ODriveError, ODriveOptions,
-    can_id,
+    BROADCAST_NODE_ID, BUS_VOLTAGE, LAYOUT, SERIAL_NUMBER_BASE, TURN, AxisState, Cmd,
+    ControlMode, InputMode, ODrive, ODriveError, ODriveOptions, can_id,
 )
+from hil.protocols.odrive.backed import backings
+from hil.protocols.odrive.sdo import Address, EndpointServer, Responders
 
 CONTROL_MODES = {ControlMode.TORQUE_CONTROL: Mode.TORQUE,
                  ControlMode.VELOCITY_CONTROL: Mode.VELOCITY,
@@ -37,8 +39,10 @@ FAULT_ERRORS = {Fault.POSITION_LIMIT: ODriveError.POSITION_LIMIT_VIOLATION,
                 Fault.EMERGENCY_STOP: ODriveError.ESTOP_REQUESTED}
 #: ODrive's vel_limit_tolerance: overspeed beyond this x the limit disarms
 VELOCITY_TOLERANCE = 1.2
-BUS_VOLTAGE = 24.0
-FIRMWARE = (0, 6, 10)
+#: Get_Version without an endpoints file: hardware 4.0.0, firmware 0.6.10
+HARDWARE, FIRMWARE = (4, 0, 0), (0, 6, 10)
+#: the RTRs of discovery, on the unaddressed node's Address id (0x7E6)
+ADDRESS_BROADCAST = can_id(BROADCAST_NODE_ID, Cmd.ADDRESS)
 
 
 class ODriveDrive(DriveProfile):
@@ -78,7 +82,18 @@ class ODriveDrive(DriveProfile):
                     Cmd.SET_POS_GAIN: self._set_pos_gain, Cmd.SET_VEL_GAINS: self._set_vel_gains}
         self._receivers = {can_id(node_id, cmd): self._receiver(cmd, handler)
                            for cmd, handler in handlers.items()}
+        self._receivers[ADDRESS_BROADCAST] = self._on_address
+        file = self.options.endpoint_file
+        self.hardware_version = file.hw_version if file else HARDWARE
+        self.firmware_version = file.fw_version if file else FIRMWARE
+        self.address = Address(node_id, self.options.serial_number
+                               if self.options.serial_number is not None
+                               else SERIAL_NUMBER_BASE + node_id)
+        self._endpoints = EndpointServer(file, backings(self, handlers)) if file else None
+        self._receivers[can_id(node_id, Cmd.RX_SDO)] = self._on_rx_sdo
         self._requests = {can_id(node_id, cmd): self._on_request for cmd in ANSWERS}
+        if node_id != BROADCAST_NODE_ID:    # node 63's own Address id is the broadcast's
+            self._requests[can_id(node_id, Cmd.ADDRESS)] = self._answer_address
         self._receivers.update({can_id(node_id, cmd): self._data_request for cmd in ANSWERS
                                 if cmd is not Cmd.HEARTBEAT})
         #: Set_Traj_* (turns/s, turns/s², N·m/(turns/s²)), gains as sent: the firmware's
@@ -97,7 +112,38 @@ class ODriveDrive(DriveProfile):
 
     def attach(self, network) -> None:
         super().attach(network)
+        Responders.of(network.frame_listener.remote_handlers, ADDRESS_BROADCAST).join(
+            self._answer_address)
         self._due = {Cmd.HEARTBEAT: 0.0, **{cmd: 0.0 for cmd in self.options.rates()}}
+
+    def detach(self) -> None:
+        if self.network is not None:
+            Responders.of(self.network.frame_listener.remote_handlers,
+                          ADDRESS_BROADCAST).leave(self._answer_address)
+        super().detach()
+
+    # --- discovery and endpoints (hil.protocols.odrive.sdo) -------------------------
+
+    def _answer_address(self, arbitration_id: int) -> None:
+        """An Address RTR, broadcast or to this node: node id, serial, connection id."""
+        with self.lock:
+            payload = self.address.payload()
+        self.send(can_id(self.node_id, Cmd.ADDRESS), payload)
+
+    def _on_address(self, arbitration_id: int, data: bytes, timestamp: float) -> None:
+        """A set-address / connect frame on the broadcast id: this drive's when it names
+        its serial number."""
+        with self.lock:
+            self.address.take(bytes(data))
+
+    def _on_rx_sdo(self, arbitration_id: int, data: bytes, timestamp: float) -> None:
+        """An endpoint read or write: answered from the endpoints file (none: silent), the
+        watchdog fed as by every frame to the axis."""
+        with self.lock:
+            self.core.new_setpoint(now=time.monotonic())
+            answer = self._endpoints.answer(bytes(data)) if self._endpoints else None
+        if answer is not None:
+            self.send(can_id(self.node_id, Cmd.TX_SDO), answer)
 
     def _receiver(self, cmd: Cmd, handler):
         """A frame handler: the frame's 8-byte buffer decoded by the layout (the module
@@ -316,7 +362,8 @@ def _power(status) -> float:
 
 #: what each Get_* message (and the heartbeat) carries: (drive, core status) -> values
 ANSWERS = {
-    Cmd.GET_VERSION: lambda drive, status: (2, 4, 0, 0, *FIRMWARE, 0),
+    Cmd.GET_VERSION: lambda drive, status: (2, *drive.hardware_version,
+                                            *drive.firmware_version, 0),
     Cmd.HEARTBEAT: lambda drive, status: (int(drive.active_errors), int(drive.axis_state), 0,
                                           int(drive.trajectory_done(status))),
     Cmd.GET_ERROR: lambda drive, status: (int(drive.active_errors), int(drive.disarm_reason)),
