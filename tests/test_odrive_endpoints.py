@@ -273,3 +273,10 @@ def test_a_serial_number_is_48_bits_as_the_address_message_carries():
     for bad in (2**48, -1, "0x12", True):
         with pytest.raises(ValueError, match="48 bits"):
             ODriveOptions.from_mapping({"serial_number": bad})
+
+
+def test_node_63_is_refused_as_the_broadcast_and_unaddressed_id(tmp_path):
+    config = _config(tmp_path)
+    config.write_text(config.read_text().replace("{node_id: 0, joint: yaw", "{node_id: 63, joint: yaw"))
+    with pytest.raises(HilError, match="node id 63 is outside 0..62"):
+        load_bus_config(config)

@@ -184,6 +184,9 @@ class ODriveOptions(ProtocolOptions):
     endpoint_file: EndpointFile | None = field(default=None, compare=False, repr=False)
 
     KEYS = (*RATE_OPTIONS, "torque_constant", "endpoints", "serial_number")
+    #: the watchdog off, as the firmware ships (``axis.config.enable_watchdog`` false): a
+    #: bus config's ``watchdog_timeout`` turns it on
+    WATCHDOG_TIMEOUT = 0.0
     PATH_KEYS = ("endpoints",)
 
     @classmethod
@@ -208,11 +211,6 @@ class ODriveOptions(ProtocolOptions):
             raise ValueError("message rates must be 0..4294967295 ms")
         return options
 
-    def drive_defaults(self) -> dict[str, float | bool]:
-        """The watchdog off, as the firmware ships (``axis.config.enable_watchdog`` false):
-        a bus config's ``watchdog_timeout`` turns it on."""
-        return {"watchdog_timeout": 0.0}
-
     def rates(self) -> dict[Cmd, float]:
         """Cyclic messages (besides the heartbeat) and their periods in s."""
         return {cmd: getattr(self, key) / 1000 for key, cmd in RATE_OPTIONS.items()
@@ -220,12 +218,15 @@ class ODriveOptions(ProtocolOptions):
 
 
 class ODrive(Protocol):
-    """ODrive axes on CANSimple: node ids 0-63, no SYNC."""
+    """ODrive axes on CANSimple: node ids 0-62, no SYNC."""
 
     name = "odrive"
     Options = ODriveOptions
     carries_torque_feed_forward = True
-    node_ids = range(0, 64)
+    #: 6-bit node ids; 0x3F is the broadcast's and an unaddressed axis' (ODrive's library
+    #: discovers by asking node 63's Address; odrive-messages calls 0x3F
+    #: UNADDRESSED_NODE_ID), so no configured axis has it
+    node_ids = range(0, BROADCAST_NODE_ID)
     has_following_error = False
     setting_fields = {"heartbeat_period": SettingField(
         1000, 1, 0xFFFFFFFF, "axis.config.can.heartbeat_msg_rate_ms, uint32 ms")}
