@@ -303,13 +303,16 @@ def test_a_tpdo_remapped_by_sdo_carries_its_new_objects_after_nmt_start(bench, m
 
 def test_the_heartbeat_keeps_its_phase_and_sends_one_beat_after_a_stall():
     from hil.protocols.cia402.node import ClockedNmtSlave
-    nmt = ClockedNmtSlave(1, local_node=None)
+    # the drive's clock, injected: a value of the host's (its uptime) would make the sums
+    # below round differently from host to host
+    start = 1000.0
+    nmt = ClockedNmtSlave(1, local_node=None, clock=lambda: start)
     nmt._state = 0x7F                               # PRE-OPERATIONAL
     nmt.start_heartbeat(50)
-    start = nmt._due
+    assert nmt._due == start
     beats = [now for now in (start + 0.001 * ms for ms in range(0, 400))
              if nmt.heartbeat_due(now) is not None]
-    assert beats == pytest.approx([start + 0.05 * k for k in range(8)])
+    assert beats == pytest.approx([start + 0.05 * k for k in range(8)], abs=1e-6)
     # a stall of three periods: one beat when the clock runs again, the next a period on
     later = start + 0.55
     assert nmt.heartbeat_due(later) == bytes([0x7F])

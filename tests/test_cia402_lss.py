@@ -10,6 +10,7 @@ CO_LSSslave.c implements it.
 from __future__ import annotations
 
 import time
+import uuid
 from pathlib import Path
 
 import canopen
@@ -43,7 +44,7 @@ def _config(tmp_path: Path, first: str = "{node_id: 255, joint: joint1, "
 
 @pytest.fixture
 def unconfigured(tmp_path):
-    bench = Bench("virtual", f"lss-{time.monotonic_ns()}", REAL_TIME, _config(tmp_path))
+    bench = Bench("virtual", f"lss-{uuid.uuid4().hex}", REAL_TIME, _config(tmp_path))
     yield bench
     bench.close()
 
@@ -62,7 +63,7 @@ def test_drives_without_a_node_id_send_nothing_until_assigned(unconfigured):
     with FrameTap(unconfigured) as tap:
         time.sleep(0.5)
     own = {0x700 + n for n in range(3, 7)}
-    assert {msg.arbitration_id for _, msg in tap.frames if msg.arbitration_id >= 0x700} == own
+    assert {msg.arbitration_id for msg in tap.frames if msg.arbitration_id >= 0x700} == own
 
 
 def test_an_lss_master_assigns_node_ids_by_fastscan_and_brings_the_drives_up(unconfigured):

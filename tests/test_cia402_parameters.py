@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import time
+import uuid
 from pathlib import Path
 
 import can
@@ -69,7 +70,7 @@ def kept_config(tmp_path) -> Path:
 
 
 def test_a_parameter_file_keeps_what_was_saved_across_restarts(kept_config):
-    bench = Bench("virtual", f"store-{time.monotonic_ns()}", REAL_TIME, kept_config)
+    bench = Bench("virtual", f"store-{uuid.uuid4().hex}", REAL_TIME, kept_config)
     try:
         node = pre_operational(bench)
         configured = node.sdo[0x6065].raw
@@ -78,7 +79,7 @@ def test_a_parameter_file_keeps_what_was_saved_across_restarts(kept_config):
     finally:
         bench.close()
     assert (kept_config.parent / "drive1.json").is_file()
-    bench = Bench("virtual", f"store-{time.monotonic_ns()}", REAL_TIME, kept_config)
+    bench = Bench("virtual", f"store-{uuid.uuid4().hex}", REAL_TIME, kept_config)
     try:
         assert pre_operational(bench).sdo[0x6065].raw == configured + 777
     finally:
@@ -87,7 +88,7 @@ def test_a_parameter_file_keeps_what_was_saved_across_restarts(kept_config):
 
 def test_a_parameter_file_hil_did_not_write_is_refused_with_its_name(kept_config):
     (kept_config.parent / "drive1.json").write_text("[1, 2")
-    bus = can.Bus(interface="virtual", channel=f"store-{time.monotonic_ns()}")
+    bus = can.Bus(interface="virtual", channel=f"store-{uuid.uuid4().hex}")
     try:
         with pytest.raises(HilError) as refused:
             Simulator(load_bus_config(kept_config), {"arm": bus}, REAL_TIME)

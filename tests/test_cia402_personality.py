@@ -13,9 +13,11 @@ through the plant.
 
 from __future__ import annotations
 
+import math
 import struct
 import threading
 import time
+import uuid
 from pathlib import Path
 
 import canopen
@@ -27,6 +29,7 @@ from conftest import UR3_VIRTUAL, Bench, judged_in_real_time, patient
 from hil.bus_config import load_bus_config
 from hil.errors import HilError
 from hil.protocols.cia402.node import normalise_access_types
+from hil.protocols.cia402.ranges import RATES
 from hil.realtime import REAL_TIME
 
 EDS_DIR = Path(__file__).parent / "eds"
@@ -63,19 +66,22 @@ class VendorBench(Bench):
     """The vendors' bus in a real-time Simulator, python canopen's master beside it."""
 
     def __init__(self, tmp_path: Path):
-        super().__init__("virtual", f"vendors-{time.monotonic_ns()}", REAL_TIME,
+        super().__init__("virtual", f"vendors-{uuid.uuid4().hex}", REAL_TIME,
                          _config(tmp_path))
 
     def master_of(self, node_id: int) -> canopen.RemoteNode:
         """A master's node from the vendor's file, made a DCF: each writable object's
-        ParameterValue is its DefaultValue (the store commands aside)."""
+        ParameterValue is its DefaultValue (the store commands aside, and a rate of 0 a
+        file ships, as Yiyou's 0x6083-0x6085: the drive refuses it, hil.protocols.cia402.
+        ranges.RATES, and a DCF for it configures the rates the axis needs)."""
         node = patient(canopen.RemoteNode(node_id, str(EDS_DIR / VENDORS[node_id])))
         normalise_access_types(node.object_dictionary)    # "RW" as a master reads it
         for entry in _variables(node.object_dictionary):
             # 0x1010/0x1011 are commands ("save", "load"), not values: a DCF leaves them out,
             # and a device aborts any other value written there (0x08000020)
             if entry.writable and entry.default is not None and entry.value is None \
-                    and entry.index not in (0x1010, 0x1011):
+                    and entry.index not in (0x1010, 0x1011) \
+                    and not (entry.index in RATES and entry.default == 0):
                 entry.value = entry.default
         self.network.add_node(node)
         return node
@@ -264,3 +270,58 @@ def test_an_eds_option_that_names_no_eds_is_refused_without_echoing_the_file(tmp
     with pytest.raises(HilError) as refused:
         load_bus_config(config)
     assert said in str(refused.value) and "root:" not in str(refused.value)
+
+
+def test_a_vendors_interpolation_period_of_0_is_taken_as_its_file_allows(vendors):
+    """CiA 402 gives 0x60C2:01 (UNSIGNED8) its whole range and Technosoft's file no limits:
+    a DCF's 0 is taken (it aborted with 0x06090032, hil's own limit over the file's); hil
+    cannot time a period of 0, so the drive keeps the one it has."""
+    node = vendors.master_of(1)
+    drive = vendors.sim.drives[0]
+    cycle = drive.core.cycle
+    node.sdo[0x60C2][1].raw = 0
+    assert node.sdo[0x60C2][1].raw == 0
+    assert drive.core.cycle == cycle
+
+
+def test_a_vendors_velocity_unit_0x60a9_gives_0x6080_and_0x607f_their_units(tmp_path):
+    """CiA 402's SI unit velocity 0x60A9 (rpm: 0x00B44700, as Nanotec and Synapticon give
+    it): the max motor speed 0x6080 a master writes from the file is rpm, not
+    increments/s, and what the drive reports (0x607F) is in rpm too."""
+    rpm_file = tmp_path / "rpm.eds"            # Yiyou's file (it has 0x607F), in rpm
+    rpm_file.write_text((EDS_DIR / VENDORS[4]).read_text() + "".join(
+        f"\n[{index}]\nParameterName={name}\nObjectType=0x7\nDataType=0x0007\n"
+        f"AccessType=rw\nDefaultValue={default}\nPDOMapping=0\n"
+        for index, name, default in (("60A9", "SI unit velocity", "0x00B44700"),
+                                     ("6080", "Max motor speed", 1000))))
+    config = _config(tmp_path)
+    config.write_text(config.read_text().replace(str(EDS_DIR / VENDORS[4]), str(rpm_file)))
+    bench = Bench("virtual", f"vendors-{uuid.uuid4().hex}", REAL_TIME, config)
+    try:
+        node = patient(canopen.RemoteNode(4, str(rpm_file)))
+        bench.network.add_node(node)
+        drive = bench.sim.drives[3]
+        top = drive.core.parameters.max_velocity                  # rad/s of the motor
+        assert node.sdo[0x607F].raw == round(top * 60 / (2 * math.pi))
+        node.sdo[0x6080].raw = 3000                                # rpm
+        assert drive.core.parameters.max_velocity == pytest.approx(3000 * 2 * math.pi / 60)
+    finally:
+        bench.close()
+
+
+@pytest.mark.parametrize("value, limits", [("nan", ""), ("inf", ""),
+                                           ("200", "LowLimit=0\nHighLimit=100\n")])
+def test_a_vendors_file_whose_own_value_its_object_does_not_take_is_refused(tmp_path, value,
+                                                                            limits):
+    """The drive starts with the file's values (a DCF's ParameterValue, else DefaultValue):
+    one outside the object's limits, or a REAL32 that is not a finite number, would reach
+    the drive unchecked, so the file is refused, the object named."""
+    bad = tmp_path / "bad.dcf"
+    bad.write_text((EDS_DIR / VENDORS[1]).read_text() + (
+        f"\n[2FF0]\nParameterName=vendor gain\nObjectType=0x7\nDataType=0x0008\n"
+        f"AccessType=rw\n{limits}DefaultValue=1\nParameterValue={value}\nPDOMapping=0\n"))
+    config = _config(tmp_path)
+    config.write_text(config.read_text().replace(str(EDS_DIR / VENDORS[1]), str(bad)))
+    with pytest.raises(HilError) as refused:
+        load_bus_config(config)
+    assert "bad.dcf" in str(refused.value) and "0x2FF0" in str(refused.value)

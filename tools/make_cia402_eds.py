@@ -18,6 +18,11 @@ OUTPUT = Path(__file__).resolve().parents[1] / "bus_config" / "cia402_drive.eds"
 BOOLEAN, INT8, INT16, INT32, UINT8, UINT16, UINT32, REAL32, VISIBLE_STRING = (
     0x0001, 0x0002, 0x0003, 0x0004, 0x0005, 0x0006, 0x0007, 0x0008, 0x0009)
 VAR, ARRAY, RECORD = 0x7, 0x8, 0x9
+#: 0x2000's HighLimit by sub-index: position loop gain (1/s), velocity loop proportional
+#: (N m s/rad) and integral (N m/rad) gains; hil's bounds, far above what
+#: hil.drives.tuning gives a motor (its LowLimit is 0). Integers: canopen reads a limit with
+#: int(text, 0), a REAL32's too (10000.0 would be no limit there)
+GAIN_LIMITS = {1: 10000, 2: 1000, 3: 1000000}
 
 HEADER = """\
 ; hil virtual CiA 402 servo drive: object dictionary and default PDO mapping.
@@ -26,6 +31,10 @@ HEADER = """\
 ; ratio 0x6091 and feed constant 0x6092 say otherwise; velocity in units/s,
 ; acceleration in increments/s^2, torque in per mille of the motor rated torque 0x6076
 ; (which is in mN m).
+; Every write is checked against the object's LowLimit/HighLimit, else its data type's range
+; (abort 0x06090031 too high, 0x06090032 too low, 0x06090030 a REAL32 that is NaN); the
+; gains 0x2000 are finite, 0 up to their HighLimit; 0x6083-0x6085 take no 0 (a stop must
+; decelerate); 0x6065 = 0xFFFFFFFF switches the following error check off (CiA 402).
 ; Modes (0x6502): profile position 1, profile velocity 3, profile torque 4 (0x6071 on the
 ; slope 0x6087), homing 6 (methods 1, 2, 17, 18, 33, 34, 35, 37: the limit switches are
 ; the position limits 0x607D, the index pulse the encoder's zero),
@@ -48,9 +57,14 @@ HEADER = """\
 """
 
 
-def var(name, data_type, access, default, mappable=False):
+def var(name, data_type, access, default, mappable=False, low=None, high=None):
+    """One variable; ``low``/``high``: its LowLimit/HighLimit (CiA 306), where the drive takes
+    less than the data type's range (a write outside: abort 0x06090032/0x06090031)."""
+    limits = {key: value for key, value in (("LowLimit", low), ("HighLimit", high))
+              if value is not None}
     return {"ParameterName": name, "ObjectType": hex(VAR), "DataType": f"0x{data_type:04X}",
-            "AccessType": access, "DefaultValue": default, "PDOMapping": int(mappable)}
+            "AccessType": access, **limits, "DefaultValue": default,
+            "PDOMapping": int(mappable)}
 
 
 def compound(name, object_type, entries, first=None):
@@ -131,10 +145,14 @@ OBJECTS = {
         1: var("Vendor-ID", UINT32, "ro", 0), 2: var("Product code", UINT32, "ro", 402),
         3: var("Revision number", UINT32, "ro", 2), 4: var("Serial number", UINT32, "ro", 0)}),
     **pdo_objects(),
+    # hil's own gains: finite, 0 (the loop's term off) up to a bound far above any tuning
+    # (hil's choice; NaN or inf would command the peak torque): docs/protocols/cia402.md
     0x2000: compound("hil inner-loop gains", RECORD, {
-        1: var("Position loop gain (1/s)", REAL32, "rw", 50),
-        2: var("Velocity loop proportional gain (N m s/rad)", REAL32, "rw", 0.01),
-        3: var("Velocity loop integral gain (N m/rad)", REAL32, "rw", 0.1)}),
+        1: var("Position loop gain (1/s)", REAL32, "rw", 50, low=0, high=GAIN_LIMITS[1]),
+        2: var("Velocity loop proportional gain (N m s/rad)", REAL32, "rw", 0.01, low=0,
+               high=GAIN_LIMITS[2]),
+        3: var("Velocity loop integral gain (N m/rad)", REAL32, "rw", 0.1, low=0,
+               high=GAIN_LIMITS[3])}),
     0x2010: var("hil controller watchdog timeout (ms)", UINT16, "rw", 100),
     0x6007: var("Abort connection option code", INT16, "rw", 3),
     0x603F: var("Error code", UINT16, "ro", 0, mappable=True),
@@ -157,11 +175,14 @@ OBJECTS = {
         1: var("Min position limit", INT32, "rw", -2147483648),
         2: var("Max position limit", INT32, "rw", 2147483647)}),
     0x607F: var("Max profile velocity", UINT32, "rw", 0),
-    0x6080: var("Max motor speed", UINT32, "rw", 0),
+    0x6080: var("Max motor speed", UINT32, "rw", 1, low=1),
     0x6081: var("Profile velocity", UINT32, "rw", 0, mappable=True),
-    0x6083: var("Profile acceleration", UINT32, "rw", 0, mappable=True),
-    0x6084: var("Profile deceleration", UINT32, "rw", 0, mappable=True),
-    0x6085: var("Quick stop deceleration", UINT32, "rw", 0),
+    # a rate of 0 would never start a move or never end one (a quick stop, the watchdog's
+    # stop, a halt): refused, as the makers' manuals give these objects (EPOS4: 1..); the
+    # defaults are placeholders: the drive stores the bus config's values at start
+    0x6083: var("Profile acceleration", UINT32, "rw", 1, mappable=True, low=1),
+    0x6084: var("Profile deceleration", UINT32, "rw", 1, mappable=True, low=1),
+    0x6085: var("Quick stop deceleration", UINT32, "rw", 1, low=1),
     0x608F: compound("Position encoder resolution", ARRAY, {
         1: var("Encoder increments", UINT32, "rw", 131072),
         2: var("Motor revolutions", UINT32, "rw", 1)}),
@@ -171,11 +192,11 @@ OBJECTS = {
     0x6087: var("Torque slope", UINT32, "rw", 0, mappable=True),
     0x6088: var("Torque profile type", INT16, "rw", 0),
     0x6091: compound("Gear ratio", ARRAY, {
-        1: var("Motor revolutions", UINT32, "rw", 1),
-        2: var("Shaft revolutions", UINT32, "rw", 1)}),
+        1: var("Motor revolutions", UINT32, "rw", 1, low=1),
+        2: var("Shaft revolutions", UINT32, "rw", 1, low=1)}),
     0x6092: compound("Feed constant", ARRAY, {
-        1: var("Feed", UINT32, "rw", 131072),
-        2: var("Shaft revolutions", UINT32, "rw", 1)}),
+        1: var("Feed", UINT32, "rw", 131072, low=1),
+        2: var("Shaft revolutions", UINT32, "rw", 1, low=1)}),
     0x6098: var("Homing method", INT8, "rw", 35),
     0x6099: compound("Homing speeds", ARRAY, {
         1: var("Speed during search for switch", UINT32, "rw", 0),
@@ -188,8 +209,10 @@ OBJECTS = {
     0x60C1: compound("Interpolation data record", ARRAY, {
         1: var("Interpolation position", INT32, "rw", 0, mappable=True)}),
     0x60C2: compound("Interpolation time period", RECORD, {
-        1: var("Interpolation time period value", UINT8, "rw", 2),
-        2: var("Interpolation time index", INT8, "rw", -3)}),
+        # hil's drive takes periods of 1 us to 255 ms: value 1-255, index -6..0 (CiA 402
+        # allows more; a vendor file's own limits govern a personality)
+        1: var("Interpolation time period value", UINT8, "rw", 2, low=1),
+        2: var("Interpolation time index", INT8, "rw", -3, low=-6, high=0)}),
     0x60F4: var("Following error actual value", INT32, "ro", 0, mappable=True),
     0x60FF: var("Target velocity", INT32, "rw", 0, mappable=True),
     0x6502: var("Supported drive modes", UINT32, "ro", "0x000003ED"),
@@ -201,7 +224,8 @@ DEVICE_INFO = {
     **{f"BaudRate_{rate}": 1 for rate in (10, 20, 50, 125, 250, 500, 800, 1000)},
     "SimpleBootUpMaster": 0, "SimpleBootUpSlave": 1, "Granularity": 8,
     "DynamicChannelsSupported": 0, "GroupMessaging": 0, "NrOfRXPDO": 4, "NrOfTXPDO": 4,
-    "LSS_Supported": 0,
+    # CiA 306: the drive is an LSS slave (CiA 305, hil.protocols.cia402.lss)
+    "LSS_Supported": 1,
 }
 
 

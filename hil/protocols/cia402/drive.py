@@ -45,7 +45,8 @@ from hil.drives.profile import DriveProfile
 from hil.protocols.cia402 import (LSS_ANSWER_ID, LSS_REQUEST_ID, NMT_ID, SYNC_ID, UNCONFIGURED,
                                   Cia402)
 from hil.protocols.cia402.errors import (COMMUNICATION_ERROR, EMCY_NO_ERROR, EMCY_PDO_LENGTH,
-                                         EMCY_PDO_LENGTH_EXCEEDED, EMCY_SYNC_LENGTH, ErrorRecord)
+                                         EMCY_PDO_LENGTH_EXCEEDED, EMCY_SYNC_LENGTH, PDO_ERRORS,
+                                         ErrorRecord)
 from hil.protocols.cia402.lss import Identity, LssSlave
 from hil.protocols.cia402.node import DriveNode
 from hil.protocols.cia402.objects import DriveObjects
@@ -60,7 +61,7 @@ from hil.protocols.cia402.state import (ERROR_REGISTER, INTERPOLATED_POSITION,
 
 log = logging.getLogger(__name__)
 
-OPERATIONAL = "OPERATIONAL"
+OPERATIONAL, STOPPED = "OPERATIONAL", "STOPPED"
 SYNC_COUNTER_OVERFLOW = 0x1019
 
 #: a refused frame is logged the first time, then every this many
@@ -278,15 +279,15 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
             return                            # PDOs are off outside OPERATIONAL (CiA 301)
         rpdo = self._rpdos[number]
         expected, size = rpdo.length, len(data)
-        if size < expected:
-            self.node.emcy.send(EMCY_PDO_LENGTH, COMMUNICATION_ERROR,
-                                struct.pack("<HB", size, expected) + b"\0\0")
-            return
-        if size > expected:
-            self.node.emcy.send(EMCY_PDO_LENGTH_EXCEEDED, COMMUNICATION_ERROR,
-                                struct.pack("<HB", size, expected) + b"\0\0")
-            data = data[:expected]
         with self.lock:
+            if size != expected:
+                code = EMCY_PDO_LENGTH if size < expected else EMCY_PDO_LENGTH_EXCEEDED
+                self._frame_error(code, struct.pack("<HB", size, expected) + b"\0\0")
+                if size < expected:
+                    return
+                data = data[:expected]
+            elif self.errors.active and self.errors.end(PDO_ERRORS):
+                self._error_changed(EMCY_NO_ERROR)      # an RPDO of its length again
             self._latched[number] = bytes(data)
             self.core.new_setpoint(now=time.monotonic())
             if rpdo.immediate:
@@ -303,8 +304,11 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         counter where 0x1019 (its overflow value) is over 0, none otherwise (CiA 301)."""
         operational = self.node.nmt.operational
         if len(data) != self._sync_length:
-            self.node.emcy.send(EMCY_SYNC_LENGTH, COMMUNICATION_ERROR)    # not in STOPPED
+            self._frame_error(EMCY_SYNC_LENGTH)
             return
+        if EMCY_SYNC_LENGTH in self.errors.active:
+            self.errors.end((EMCY_SYNC_LENGTH,))
+            self._error_changed(EMCY_NO_ERROR)          # a SYNC of its length again
         if not operational:
             return
         for number in sorted(self._latched):
@@ -349,7 +353,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         if rpdo.torque:
             objects.set_target_torque(values[at[0x6071]])
         if rpdo.offsets:
-            per_rad = self._counts_per_rad
+            per_rad = objects.velocity_per_rad
             self.core.new_setpoint(
                 velocity=values[at[0x60FF]] / per_rad if 0x60FF in at else None,
                 velocity_ff=values[at[0x60B1]] / per_rad if 0x60B1 in at else None,
@@ -369,11 +373,20 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
             self._error_changed(fault.code)
         if self.errors.active and self.errors.over(self.core.fault is not None,
                                                    self.core.power is Power.ENABLED):
-            self.errors.active.clear()
+            self.errors.end_drive_errors()
             self._error_changed(EMCY_NO_ERROR)
 
-    def _error_changed(self, code: int) -> None:
+    def _frame_error(self, code: int, data: bytes = b"") -> None:
+        """A frame the drive could not take: recorded and signalled (errors' module doc),
+        except in STOPPED, where no EMCY goes out (CiA 301) and so none is recorded
+        (caller holds the lock)."""
+        if self.node.nmt.state == STOPPED:
+            return
+        self.errors.enter(code, COMMUNICATION_ERROR)
+        self._error_changed(code, data)
+
+    def _error_changed(self, code: int, data: bytes = b"") -> None:
         """0x1001 and 0x1003 as the error record has them, and the EMCY that says so."""
         self.machine.error_register = self.errors.register
         self.objects.store_errors()
-        self.node.emcy.send(code, self.errors.register)
+        self.node.emcy.send(code, self.errors.register, data)

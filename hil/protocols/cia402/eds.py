@@ -8,7 +8,9 @@ import configparser
 from pathlib import Path
 
 import canopen
-from canopen.objectdictionary import ODVariable
+from canopen.objectdictionary import NUMBER_TYPES, ODVariable
+
+from hil.protocols.cia402.ranges import outside
 
 #: objects read from the drive's state, not stored in its object dictionary
 LIVE_OBJECTS = frozenset({0x6041, 0x6061, 0x6064, 0x606C, 0x6077, 0x60F4, 0x603F, 0x1001})
@@ -22,7 +24,7 @@ MEANINGFUL = frozenset({
     *range(0x1A00, 0x1A04),
     0x6007, 0x6040, 0x605A, 0x6060, 0x6065, 0x6066, 0x6071, 0x6072, 0x6076, 0x607A,
     0x607C, 0x607D, 0x607F, 0x6080, 0x6081, 0x6083, 0x6084, 0x6085, 0x6087, 0x6088,
-    0x608F, 0x6091, 0x6092, 0x6098, 0x6099, 0x609A, 0x60B1, 0x60B2, 0x60C1, 0x60C2,
+    0x608F, 0x6091, 0x6092, 0x6098, 0x6099, 0x609A, 0x60A9, 0x60B1, 0x60B2, 0x60C1, 0x60C2,
     0x60FF, 0x6502,
     *LIVE_OBJECTS})
 #: CiA 402 0x1000: device profile number in the low word
@@ -44,6 +46,7 @@ def read_dictionary(eds: Path) -> canopen.ObjectDictionary:
         where = f" at line {line}" if line else ""
         raise ValueError(f"eds: {eds} is not a readable EDS/DCF ({type(exc).__name__}"
                          f"{where})") from None
+    _check_values(eds, od)
     device_type = file_value(od, 0x1000)
     missing = [f"0x{i:04X}" for i in (0x6040, 0x6041) if i not in od]
     if missing or (device_type and device_type & 0xFFFF != PROFILE_402):
@@ -65,3 +68,20 @@ def file_value(od: canopen.ObjectDictionary, index: int) -> int | None:
     if not isinstance(entry, ODVariable):
         return None
     return entry.value if entry.value is not None else entry.default
+
+
+def _check_values(eds: Path, od: canopen.ObjectDictionary) -> None:
+    """Each number the file gives (a DCF's ParameterValue, else DefaultValue) is one its
+    object takes (:func:`.ranges.outside`: the file's own limits, finite): the drive starts
+    with these values, as a master's SDO download of them would be checked."""
+    for obj in od.values():
+        for entry in [obj] if isinstance(obj, ODVariable) else obj.values():
+            value = entry.value if entry.value is not None else entry.default
+            if entry.data_type not in NUMBER_TYPES or not isinstance(value, (int, float)):
+                continue
+            if outside(entry, value) is not None:
+                where = f"0x{entry.index:04X}" + (f" sub-index {entry.subindex}"
+                                                  if not isinstance(obj, ODVariable) else "")
+                raise ValueError(f"eds: {eds} gives {where} ({entry.name}) the value {value}, "
+                                 f"outside what the object takes (LowLimit {entry.min}, "
+                                 f"HighLimit {entry.max}, a finite number): correct the file")

@@ -38,11 +38,12 @@ import canopen
 from canopen.emcy import EmcyProducer
 from canopen.nmt import NmtSlave
 
+from hil.protocols.cia402.ranges import check_range
 from hil.protocols.cia402.sdo import DriveSdoServer
 from canopen.sdo import SdoAbortedError
 from canopen.sdo.constants import (
     ABORT_INVALID_VALUE, ABORT_NO_SUBINDEX, ABORT_NOT_IN_OD, ABORT_PARAMETER_INCOMPATIBLE,
-    ABORT_PDO_CANNOT_MAP, ABORT_PDO_LENGTH_EXCEEDED, ABORT_VALUE_TOO_HIGH, ABORT_VALUE_TOO_LOW,
+    ABORT_PDO_CANNOT_MAP, ABORT_PDO_LENGTH_EXCEEDED, ABORT_VALUE_TOO_HIGH,
 )
 from canopen.objectdictionary import NUMBER_TYPES
 
@@ -115,8 +116,10 @@ class ClockedNmtSlave(NmtSlave):
     #: and SYNC asks, and canopen's ``state`` property is a Python call and a name lookup
     operational = False
 
-    def __init__(self, node_id: int, local_node):
+    def __init__(self, node_id: int, local_node, clock: Callable[[], float] = time.monotonic):
         super().__init__(node_id, local_node)
+        #: the drive's clock, the one :meth:`heartbeat_due` is asked with
+        self._clock = clock
         self._period = 0.0
         self._due: float | None = None
 
@@ -134,7 +137,7 @@ class ClockedNmtSlave(NmtSlave):
     def start_heartbeat(self, heartbeat_time_ms: int) -> None:
         self._heartbeat_time_ms = heartbeat_time_ms
         self._period = heartbeat_time_ms / 1000
-        self._due = time.monotonic() if heartbeat_time_ms > 0 else None
+        self._due = self._clock() if heartbeat_time_ms > 0 else None
 
     def stop_heartbeat(self) -> None:
         self._due = None
@@ -269,13 +272,7 @@ class DriveNode(canopen.LocalNode):
         return not self.value(communication_index, 1) & NOT_VALID
 
     def _check_write(self, index: int, subindex: int, od, data: bytes, **_) -> None:
-        if od.data_type in NUMBER_TYPES:
-            # the object's LowLimit/HighLimit (canopen's encoder only logs them)
-            value = od.decode_raw(data)
-            if od.min is not None and value < od.min:
-                raise SdoAbortedError(ABORT_VALUE_TOO_LOW)
-            if od.max is not None and value > od.max:
-                raise SdoAbortedError(ABORT_VALUE_TOO_HIGH)
+        check_range(od, data)
         parameter = PdoParameter.of(index)
         if parameter is not None:
             value = od.decode_raw(data)

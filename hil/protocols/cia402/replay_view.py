@@ -42,7 +42,8 @@ class ReplayView:
                 continue
             if len(data) != schedule.codec.size:
                 return None
-            scales = {"position": 1 / self._counts_per_rad, "velocity": 1 / self._counts_per_rad,
+            scales = {"position": 1 / self._counts_per_rad,
+                      "velocity": 1 / self.objects.velocity_per_rad,
                       "torque": self.rated_torque / 1000}
             found = []
             for index, value in zip(schedule.indices, schedule.codec.unpack(data)):

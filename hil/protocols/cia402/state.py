@@ -313,8 +313,11 @@ def statusword(state: State, status: DriveStatus, mode_bits: int) -> int:
 
 
 def live_value(index: int, machine: Cia402StateMachine, status: DriveStatus,
-               counts_per_rad: float, rated_torque: float) -> int:
-    """The value of live object ``index`` (one of :data:`LIVE_OBJECTS`)."""
+               counts_per_rad: float, rated_torque: float,
+               velocity_per_rad: float | None = None) -> int:
+    """The value of live object ``index`` (one of :data:`LIVE_OBJECTS`); positions in
+    ``counts_per_rad`` units, velocities in ``velocity_per_rad`` (by default the same: per
+    second), as the drive's units have them (:mod:`hil.protocols.cia402.units`)."""
     if index == 0x6041:
         word = statusword(machine.state, status, machine.mode_bits(status))
         if machine.mode_code == PROFILE_TORQUE and status.mode is Mode.TORQUE:
@@ -324,7 +327,7 @@ def live_value(index: int, machine: Cia402StateMachine, status: DriveStatus,
     if index == 0x6064:
         return int32(status.position * counts_per_rad)
     if index == 0x606C:
-        return int32(status.velocity * counts_per_rad)
+        return int32(status.velocity * (velocity_per_rad or counts_per_rad))
     if index == 0x6077:
         return int16(status.torque / rated_torque * 1000)
     if index == 0x60F4:
@@ -342,9 +345,10 @@ def live_value(index: int, machine: Cia402StateMachine, status: DriveStatus,
 
 
 def live_values(indices: tuple[int, ...], machine: Cia402StateMachine, status: DriveStatus,
-                counts_per_rad: float, rated_torque: float) -> list[int]:
+                counts_per_rad: float, rated_torque: float,
+                velocity_per_rad: float | None = None) -> list[int]:
     """The values of a PDO's live objects, in its mapping's order."""
-    return [live_value(index, machine, status, counts_per_rad, rated_torque)
+    return [live_value(index, machine, status, counts_per_rad, rated_torque, velocity_per_rad)
             for index in indices]
 
 

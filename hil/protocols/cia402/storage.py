@@ -22,6 +22,7 @@ import canopen
 from canopen.sdo import SdoAbortedError
 
 from hil.errors import HilError
+from hil.protocols.cia402.ranges import check_range
 
 log = logging.getLogger(__name__)
 
@@ -61,14 +62,18 @@ class ParameterStore:
         the drive no longer takes is skipped)."""
         for (index, subindex), data in sorted(self.saved.items()):
             communication = _within(index, (COMMUNICATION,))
-            if communication:
-                node.data_store.setdefault(index, {})[subindex] = data
-            elif not communication_only:
-                try:
+            try:
+                if communication:
+                    # as stored (a PDO's parameters in the order a write would refuse), but
+                    # only a value the object takes (:mod:`.ranges`)
+                    check_range(node._find_object(index, subindex), data)
+                    node.data_store.setdefault(index, {})[subindex] = data
+                elif not communication_only:
                     node.set_data(index, subindex, data)
-                except (SdoAbortedError, KeyError) as exc:
-                    log.warning("node %d: saved 0x%04X:%02X not restored (%s)", node.id,
-                                index, subindex, exc)
+            except (SdoAbortedError, KeyError) as exc:
+                log.warning("node %d: saved 0x%04X:%02X not restored from %s (%s): save the "
+                            "parameters again", node.id, index, subindex,
+                            self.file or "this run's store", exc)
 
     def _read(self) -> dict[tuple[int, int], bytes]:
         if not self.file.exists():

@@ -28,8 +28,9 @@ class TpdoProducer:
             return
         status = self.core.status()
         pending = self._pending
-        machine, counts_per_rad, rated = self.machine, self.objects.counts_per_rad, \
-            self.rated_torque
+        objects = self.objects
+        machine, counts_per_rad, rated = self.machine, objects.counts_per_rad, self.rated_torque
+        velocity_per_rad = objects.velocity_per_rad
         for schedule in self._tpdos:
             kind = schedule.transmission_type
             if kind == SYNCHRONOUS_RTR:
@@ -43,7 +44,7 @@ class TpdoProducer:
                 schedule.syncs = 0
             codec = schedule.codec      # _pack's common case here: a call less a TPDO
             data = (codec.pack(*live_values(schedule.indices, machine, status, counts_per_rad,
-                                            rated))
+                                            rated, velocity_per_rad))
                     if codec is not None else self._pack(schedule, status))
             if kind == 0:
                 if data == schedule.last_data:
@@ -55,7 +56,7 @@ class TpdoProducer:
         if schedule.codec is not None:
             return schedule.codec.pack(*live_values(
                 schedule.indices, self.machine, status, self.objects.counts_per_rad,
-                self.rated_torque))
+                self.rated_torque, self.objects.velocity_per_rad))
         pdo = schedule.pdo
         for variable in pdo.map:     # through the object dictionary, live or stored
             variable.set_data(self.node.get_data(variable.index, variable.subindex))
