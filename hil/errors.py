@@ -72,3 +72,12 @@ class HilError(Exception):
     def single(cls, message: str, file: Path | None = None, line: int | None = None,
                hint: str | None = None) -> "HilError":
         return cls(error(message, file, line, hint))
+
+
+def did_you_mean(word: str, choices) -> str:
+    """`` (did you mean 'x'?)`` where a choice is close to a misspelt ``word`` (difflib's
+    ratio, its default cutoff 0.6, as Python's own NameError suggestions), else ''."""
+    import difflib                                  # noqa: PLC0415 (only on an error)
+
+    close = difflib.get_close_matches(word, list(choices), n=1)
+    return f" (did you mean '{close[0]}'?)" if close else ""

@@ -120,6 +120,14 @@ def test_heavy_but_feasible_load_warns(tmp_path):
      "unknown key 'cogging'"),
     (ALL_SIX.replace("joint: joint2}", "joint: joint2, effects: {delay: -0.001}}"),
      "effects: 'delay' must be >= 0 (0: off), not -0.001"),
+    # issue 64: a misspelt name is answered with the closest known one (difflib's, as
+    # Python's own NameError suggests one), not the whole list alone
+    (ALL_SIX.replace("joint: joint1}", "joint: joint1, rated_torqe: 3}"),
+     "unknown key 'rated_torqe' in bus 'arm' drive (did you mean 'rated_torque'?)"),
+    (ALL_SIX.replace("joint: joint5}", "joint: joint5, protocol: odrve}"),
+     "unknown protocol 'odrve' (did you mean 'odrive'?)"),
+    (ALL_SIX.replace("joint: joint4", "joint: jiont4"),
+     "joint 'jiont4' does not exist in robot 'ur3' (did you mean 'joint4'?)"),
 ])
 def test_config_errors_name_the_drive_and_line(tmp_path, drives, message):
     diagnostics = errors_of(write_config(tmp_path, one_bus(drives)))
@@ -199,3 +207,30 @@ def test_benches_that_would_share_keys_or_a_bus_are_refused_naming_both(tmp_path
     assert "pigot.yaml:" in message and "ur3.yaml" in message
     assert "bus 'wrist' of robot 'pigot' is on channel 'ur3/wrist'" in message
     check_together([ur3, load_bus_config(ROOT / "bus_config" / "pigot.yaml")])
+
+
+def test_a_misspelt_robot_name_is_answered_with_the_closest_known(tmp_path, monkeypatch,
+                                                                 capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["check", "pigott"]) == 1
+    assert "no bus config for robot 'pigott' (did you mean 'pigot'?)" in capsys.readouterr().err
+
+
+def test_a_robot_name_finds_its_bus_config_in_this_folder_first(tmp_path, monkeypatch, capsys):
+    """Issue 64: `hil check myarm` beside `hil init`'s ./myarm.yaml said there was no bus
+    config for it; the search order (docs/configuration.md): ./NAME.yaml, ./bus_config/,
+    the shipped ones."""
+    (tmp_path / "myarm.yaml").write_text(f"robot: {ROOT / UR3}\n" + one_bus(ALL_SIX, 250))
+    (tmp_path / "bus_config").mkdir()
+    (tmp_path / "bus_config" / "ur3.yaml").write_text("not: [a bus config")
+    monkeypatch.chdir(tmp_path)
+    assert main(["check", "myarm"]) == 0
+    assert "bus config myarm.yaml" in capsys.readouterr().out
+    assert main(["check", "ur3"]) == 1                 # ./bus_config/ before the shipped one
+    assert "bus_config/ur3.yaml" in capsys.readouterr().err
+
+
+def test_the_protocol_table_names_a_close_protocol_for_a_misspelt_one():
+    from hil.protocols import protocol
+    with pytest.raises(KeyError, match="no protocol 'cubemar' \\(did you mean 'cubemars'\\?\\)"):
+        protocol("cubemar")

@@ -36,3 +36,12 @@ def test_an_unknown_robot_is_an_error_naming_the_known_ones(capsys):
     assert main(["describe", "nosuch"]) == 1
     said = capsys.readouterr().err
     assert "no bus config for robot 'nosuch'" in said and "ur3" in said
+
+
+def test_a_prismatic_joints_reduction_is_given_per_metre(capsys):
+    """Issue 64: the pigot's gripper slide was described "rad per joint rad"; a reduction is
+    per unit of its first joint (RobotDescription.reduction): a prismatic joint's metre."""
+    assert main(["describe", "pigot"]) == 0
+    said = capsys.readouterr().out
+    assert "node 7: finger_pri_1 (cia402); the motor turns 3141.59 rad per joint m;" in said
+    assert "node 2: arm_rot_2 (cia402); the motor turns" in said and "per joint rad;" in said

@@ -67,6 +67,25 @@ def test_the_readme_is_one_screen_of_front_door():
     assert len((ROOT / "README.md").read_text().splitlines()) <= 200
 
 
+@pytest.mark.parametrize("page", ["README.md", "docs/configuration.md"])
+def test_the_front_pages_name_every_protocol_hil_ships(page):
+    """Issue 64: the README and the bus config reference named three of the five."""
+    from hil.protocols import BUILTIN
+
+    text = (ROOT / page).read_text().lower()
+    words = {"cia402": "cia 402", "odrive": "odrive", "mit": "mit", "damiao": "damiao",
+             "cubemars": "cubemars"}
+    assert set(words) == set(BUILTIN)
+    assert [name for name, word in words.items() if word not in text] == []
+
+
+def test_the_readme_keeps_its_two_set_up_commands():
+    text = (ROOT / "README.md").read_text()
+    venv = "python3 -m venv .venv && .venv/bin/pip install -e '.[test]' && "
+    assert f"{venv}.venv/bin/hil up pigot --demo\n" in text
+    assert f"{venv}.venv/bin/python -m pytest -n 2\n" in text
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("page", ["README.md", "docs/testing.md"])
 def test_the_pytest_examples_pass_as_they_stand_from_an_empty_folder(page, tmp_path):

@@ -217,6 +217,52 @@ def test_log_channels_are_the_config_buses_by_number_name_or_mapping(pigot_confi
     assert mapped.bus("can0", 1) == 1 and mapped.bus("can1", 2) is None
 
 
+def test_a_drives_bench_logs_folder_replays_each_file_on_the_bus_it_is_named_after(
+        tmp_path, capsys):
+    """Issue 64: a DrivesBench's logs (hil_drives keeps them: one BLF per bus, BUS.blf, each
+    frame on BLF channel 0, the only number python-can gives a channel named without one)
+    needed --channel 0=arm; their folder replays by itself, each file on its bus."""
+    from hil.testing import DrivesBench
+
+    # no heartbeat in the test's second: a bench's heartbeats run on the wall clock, and one
+    # sent as the NMT start came would be the log's and not the replay's (docs/replay.md)
+    config = tmp_path / "ur3.yaml"
+    config.write_text((ROOT / "bus_config" / "ur3.yaml").read_text()
+                      .replace("../robots/", f"{ROOT}/robots/")
+                      .replace("heartbeat_period: 0.1", "heartbeat_period: 60"))
+    with DrivesBench(config, lock_step=True) as bench:
+        folder = tmp_path / "hil-can-1"
+        assert sorted(p.name for p in bench.log_to(folder)) == ["arm.blf", "wrist.blf"]
+        arm, wrist = bench.bus("arm"), bench.bus("wrist")
+        for bus in (arm, wrist):                      # CiA 301 NMT: start every node
+            bus.send(can.Message(arbitration_id=0x000, is_extended_id=False, data=[1, 0]))
+        for _ in range(30):                           # a SYNC on each bus closes a cycle
+            for bus in (arm, wrist):
+                bus.send(can.Message(arbitration_id=0x080, is_extended_id=False, data=b""))
+            time.sleep(0.01)
+        # every frame taken from the logs' buses before the bench closes: log_to's python-can
+        # Notifier stops leaving what its bus still queues unlogged (a condition, not a margin)
+        deadline = time.monotonic() + 30
+        while any(not listener.queue.empty() for _, listener in bench._logs) \
+                and time.monotonic() < deadline:
+            time.sleep(0.01)
+    assert {msg.channel for msg in can.LogReader(str(folder / "arm.blf"))} == {0}
+    status, out = replay(capsys, folder, config, "--clock", "cycles")
+    assert status == 0, out
+    assert "0 divergences: every answer as logged, bit for bit" in out
+    assert int(re.search(r"(\d+) answers compared", out).group(1)) > 30 * 6   # TPDOs, 6 drives
+
+
+def test_a_folder_file_named_after_no_bus_is_refused_naming_it(tmp_path, capsys):
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    with can.Logger(str(folder / "elbow.blf")) as log:
+        log.on_message_received(can.Message(arbitration_id=0x080, is_extended_id=False))
+    status, out = replay(capsys, folder, "ur3")
+    assert status == 1 and "Traceback" not in out
+    assert "channel(s) elbow (1 frames from frame 1) are not the config's buses" in out
+
+
 def test_frames_written_out_of_order_come_in_time_order():
     source = FrameSource(Sender.MASTER, None, "SYNC", cycle=True)
     written = [LoggedFrame(n, t, 0, 0x80, b"", False, source)

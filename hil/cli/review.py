@@ -32,7 +32,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     shown.add_argument("--web", action="store_true",
                        help="serve rerun's web viewer with the recording on this host's "
                             "loopback and print its address (for a host without a display: "
-                            "forward the port, e.g. ssh -L 9090:localhost:9090); until Ctrl-C")
+                            "forward the port, e.g. ssh -L 9090:localhost:9090); until Ctrl-C. "
+                            "The browser needs WebGL (a software rasteriser will do) and some "
+                            "30 s to show the run: a headless screenshot taken at once shows "
+                            "'Loading'")
     parser.add_argument("--web-port", type=int, default=9090, metavar="PORT",
                         help="the web viewer's HTTP port (default 9090; its data on PORT+1)")
 
@@ -83,8 +86,12 @@ def run(args: argparse.Namespace) -> int:
 def _print_run(run: RunSummary) -> None:
     period = (f"; loop period mean {run.period_mean_ms:.3f} ms, max {run.period_max_ms:.3f} ms"
               if run.period_mean_ms is not None else "; no loop period (lock-step)")
+    # one time base: the controller's clock, as the largest errors' times, the diagnostics'
+    # and the viewer's control_time timeline give it (it began before the first recorded
+    # cycle: the controller's bring-up, or a recorder that joined later)
     print(f"hil review: {run.robot or 'the run'}: {run.cycles} cycles over "
-          f"{run.duration:.3f} s of control time{period}")
+          f"{run.duration:.3f} s of control time, {run.first:.3f} s to {run.last:.3f} s"
+          f"{period}")
     print(f"  {'joint':24s} {'error rms':>12s} {'error max':>12s}  at control time")
     for joint in run.joints.values():
         at = f"{joint.max_at:.3f} s" if joint.max_at is not None else "-"
@@ -100,6 +107,7 @@ def _document(recording: Path, files: list[Path], reviewed) -> dict:
         "recording": str(recording), "files": [str(path) for path in files],
         "damaged": [{"file": str(d.segment), "reason": d.reason} for d in reviewed.damaged],
         "runs": [{"robot": run.robot, "cycles": run.cycles, "duration_s": run.duration,
+                  "first_control_time_s": run.first, "last_control_time_s": run.last,
                   "period_mean_ms": run.period_mean_ms, "period_max_ms": run.period_max_ms,
                   "stalls": {process: {"count": count, "longest_ms": longest}
                              for process, (count, longest) in run.stalls.items()},
@@ -120,6 +128,16 @@ def _serve_web(files: list[Path], port: int) -> int:
                "--port", str(port + 1), *map(str, files)]
     print(f"hil review: web viewer at http://127.0.0.1:{port}/?url=rerun%2Bhttp://127.0.0.1:"
           f"{port + 1}/proxy (Ctrl-C ends it)", flush=True)
+    # measured (2026-12-06, headless Chromium 156 on this project's 2-CPU host): `chromium
+    # --headless --screenshot URL` shot a blank page, with --virtual-time-budget "Loading
+    # Application Bundle": it shoots at the page's load, before the viewer's wasm has
+    # compiled and streamed the recording (real time, which virtual time does not wait
+    # for); through DevTools, 35 s after navigating, the whole run showed (tools/
+    # web_screenshot.py), on SwiftShader's WebGL ("Software rasterizer")
+    print("hil review: a browser needs WebGL (a software rasteriser will do) and some 30 s to "
+          "load the viewer and the recording; a headless `chromium --screenshot` shoots at "
+          "once and catches \"Loading\": wait before the screenshot (DevTools, as hil's "
+          "tools/web_screenshot.py does)", flush=True)
     return run_foreground(command)
 
 

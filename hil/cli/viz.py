@@ -16,10 +16,10 @@ from hil.can.monitor import BusMonitor
 from hil.cli import common
 from hil.errors import HilError
 from hil.realtime import enter_background, leave_background
-from hil.visualisation import BenchParts, RunRecorder
+from hil.visualisation import RunRecorder
 from hil.visualisation.blueprint import run_blueprint
-from hil.visualisation.urdf_export import viewer_urdf
 from hil.visualisation.node import VizNode
+from hil.visualisation.of_config import config_recorder
 from hil.visualisation.segments import SegmentLimit, Segments
 from hil.zenoh_session import ZenohSettings, close_all, session
 
@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     sinks = _sinks(args)
     sinks.attach(recording)
     with tempfile.TemporaryDirectory(prefix="hil-viz-") as folder:
-        recorders = [_recorder(recording, config, Path(folder), len(configs) > 1)
+        recorders = [config_recorder(recording, config, Path(folder), len(configs) > 1)
                      for config in configs]
 
         def begin() -> None:
@@ -139,16 +139,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"hil viz: CAN monitor, {line}", flush=True)
     print(f"hil viz: {node.summary()}", flush=True)
     return 0
-
-
-def _recorder(recording: rr.RecordingStream, config: SystemConfig, folder: Path,
-              namespaced: bool) -> RunRecorder:
-    urdf = folder / f"{config.robot.name}.urdf"
-    urdf.write_bytes(viewer_urdf(config.robot))
-    parts = BenchParts(config.scene, {d.actuator: d.peak_torque for d in config.drives},
-                       config.floating_base, {b.name: b.load().worst_ratio for b in config.buses})
-    return RunRecorder(recording, config.robot, urdf, _actuator_joints(config),
-                       tuple(b.name for b in config.buses), namespaced, parts)
 
 
 class _Sinks:
@@ -207,11 +197,6 @@ def _sinks(args: argparse.Namespace) -> _Sinks:
         else:
             words.append(f"recording to {save}")
     return _Sinks(live, save, segments, ", ".join(words))
-
-
-def _actuator_joints(config: SystemConfig) -> dict[str, tuple[str, ...]]:
-    return {a.name: tuple(tj.name for tj in t.joints)
-            for t in config.robot.transmissions for a in t.actuators}
 
 
 def _monitor(configs: list[SystemConfig], recorders: list[RunRecorder], zenoh: ZenohSettings,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import functools
 from importlib.metadata import entry_points
 
+from hil.errors import did_you_mean
 from hil.protocols.base import FrameSource, Protocol, Sender, SettingField, load
 
 #: hil's own protocols: name -> "module:Class" of their Protocol
@@ -36,7 +37,10 @@ def names() -> list[str]:
 
 @functools.cache
 def protocol(name: str) -> type[Protocol]:
-    """The protocol of that name; KeyError if none is registered."""
+    """The protocol of that name; KeyError, naming a close one, if none is registered."""
+    if name not in _registered():
+        raise KeyError(f"no protocol '{name}'{did_you_mean(name, _registered())}; hil knows "
+                       f"{', '.join(names())}")
     found = load(_registered()[name])
     if not (isinstance(found, type) and issubclass(found, Protocol)):
         raise TypeError(f"protocol '{name}' ({_registered()[name]}) is not a "

@@ -10,8 +10,9 @@ beside the bench: it runs the simulator, never a master.
 from __future__ import annotations
 
 from hil.replay.compare import Divergence, JointStatistics, Tolerances
+from hil.replay.files import not_whole
 from hil.replay.log import (
-    REORDER_WINDOW, LoggedFrame, Survey, frames, not_whole, parse_channels, survey,
+    REORDER_WINDOW, LoggedFrame, Survey, frames, parse_channels, survey,
 )
 from hil.replay.replay import Replay
 from hil.replay.report import Report

@@ -2,10 +2,15 @@
 or a drive's by its protocol (:meth:`hil.protocols.base.Protocol.frame_source`).
 
 Any format python-can's ``LogReader`` opens (BLF, ASC, candump text, CSV, TRC, MF4 with
-asammdf): hil's own logs, or a candump of a real robot. A log's channels are matched to the
-config's buses by ``--channel`` (``LOGCHANNEL=BUS``), else by number (BLF and ASC number
-channels from 1, in the config's bus order, as ``hil viz`` writes them), else by name (the
-bus' python-can channel or its name), else one channel to a config of one bus.
+asammdf): hil's own logs, or a candump of a real robot; or a folder of a log per bus, each
+named after its bus (``arm.blf``, ``wrist.blf``: what :meth:`hil.testing.DrivesBench.log_to`
+and the ``hil_drives`` fixture write), its files read as one log in time order, each
+file's frames on the bus of its name (a BLF stores a channel number only: python-can's
+writer puts a channel named without a number on its default, read back as 0, so a bench's
+files could not say their bus otherwise). A log's channels are matched to the config's buses
+by ``--channel`` (``LOGCHANNEL=BUS``), else by number (BLF and ASC number channels from 1, in
+the config's bus order, as ``hil viz`` writes them), else by name (the bus' python-can channel
+or its name; a folder's file's), else one channel to a config of one bus.
 
 :func:`survey` reads a log once before anything is replayed and refuses one that does not
 fit the config (a node the bus has no drive of, a frame no protocol of the bus knows, a
@@ -16,19 +21,15 @@ from __future__ import annotations
 
 import heapq
 import math
-import struct
 import time
-import zlib
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import can
-from can.io.blf import BLFParseError
-
 from hil.bus_config import BusConfig, SystemConfig
 from hil.errors import HilError, error
 from hil.protocols import FrameSource, Sender, protocol
+from hil.replay.files import read_log
 
 #: misfits listed in a refusal before "and N more"
 MISFITS_SHOWN = 8
@@ -153,47 +154,6 @@ class Survey:
                    default=0)
 
 
-#: what python-can's readers raise on a damaged file (BLF: a bad header or object, a
-#: container whose zlib stream is corrupt)
-_DAMAGED = (ValueError, OSError, EOFError, struct.error, BLFParseError, zlib.error)
-
-
-def read_log(path: Path) -> Iterator[can.Message]:
-    """The frames of a log file, as python-can reads it (a clear error where it cannot)."""
-    try:
-        reader = can.LogReader(str(path))
-    except (*_DAMAGED, ImportError) as exc:
-        raise HilError.single(f"cannot read CAN log '{path}': {exc}",
-                              hint="give a .blf, .asc, .log (candump), .csv, .trc or .mf4 "
-                                   "file") from None
-    try:
-        yield from reader
-    except _DAMAGED as exc:
-        raise HilError.single(f"CAN log '{path}' is damaged: {exc}",
-                              hint="a log cut off mid-frame replays up to there only if its "
-                                   "format allows: cut it at a whole frame") from None
-    finally:
-        reader.stop()
-
-
-def not_whole(path: Path) -> str | None:
-    """Why a log is not whole, where its format can tell (a BLF's header gives the file's
-    size, written when the log is closed): None where it is whole or its format cannot say.
-    python-can reads such a log up to its last whole frame without a word."""
-    if path.suffix.lower() != ".blf":
-        return None
-    try:
-        reader = can.BLFReader(str(path))
-    except _DAMAGED:
-        return None                           # read_log names what is wrong with it
-    said, size = reader.file_size, path.stat().st_size
-    reader.stop()
-    if said == size:
-        return None
-    return (f"its header gives {said} bytes and it has {size}: cut off, or never closed (a "
-            "crash?); replayed up to its last whole frame")
-
-
 def parse_channels(pairs: list[str], config: SystemConfig) -> dict[str, int]:
     """``--channel LOGCHANNEL=BUS`` pairs: the log's channel (as text) -> bus index."""
     names = [bus.name for bus in config.buses]
@@ -254,7 +214,8 @@ class ChannelMap:
             f"{path}: the log's channel(s) {listed} are not the config's buses "
             f"({', '.join(f'{b.name} on {b.channel}' for b in config.buses)})",
             hint="map them: --channel LOGCHANNEL=BUS for each (BLF and ASC number channels "
-                 "from 1 in the config's bus order)")
+                 "from 1 in the config's bus order); a bench's logs, one per bus (hil_drives' "
+                 "BUS.blf files): give their folder")
 
 
 def frames(path: Path, config: SystemConfig, channels: dict[object, int],

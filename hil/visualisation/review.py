@@ -26,7 +26,12 @@ import rerun.chunk
 #: the entities a review reads, at the root or under a robot's name
 _WANTED = re.compile(r"^(?:/(?P<robot>[^/]+))?/(?P<what>diagnostics|cycle|loop/stalls/"
                      r"(?P<process>[^/]+))$")
-_COMPONENTS = ("TextLog:text", "TextLog:level", "Scalars:scalars", "SeriesLines:names")
+#: the model of the one robot of a recording at its root: rerun's URDF loader puts the tree
+#: under the prefix hil's recorder gives ("robot"), rooted at the robot's name
+#: (hil.visualisation.recorder.RunRecorder); a namespaced robot's name is its entities' root
+_MODEL = re.compile(r"^/robot/(?P<robot>[^/]+)$")
+_COMPONENTS = ("TextLog:text", "TextLog:level", "Scalars:scalars", "SeriesLines:names",
+               "CoordinateFrame:frame")
 #: a ``cycle`` series of a joint's tracking error (hil.visualisation.blueprint.CycleSeries)
 _ERROR_SERIES = re.compile(r"^(?P<joint>.+) error \[(?P<unit>[^\]]+)\]$")
 
@@ -87,7 +92,7 @@ class RunSummary:
     the controller's clock, each joint's tracking, the loop's period (ms; None in lock-step,
     which records none)."""
 
-    robot: str                       # "" for a recording of one robot
+    robot: str                       # the robot's name ("" where the recording has none)
     cycles: int = 0
     first: float | None = None       # the controller's clock, s
     last: float | None = None
@@ -122,6 +127,7 @@ def review(files: list[Path]) -> Review:
     that could not be read whole, and each robot's run summary."""
     found, damaged = [], []
     runs: dict[str, RunSummary] = {}
+    at_root = ""                     # the name of the robot whose entities are at the root
     for path in files:
         try:
             chunks, damage = _chunks(path)
@@ -131,6 +137,10 @@ def review(files: list[Path]) -> Review:
         if damage is not None:
             damaged.append(DamagedSegment(path, damage, is_recording=True))
         for chunk in chunks:
+            model = _MODEL.match(chunk.entity_path)
+            if model:
+                at_root = model["robot"]
+                continue
             wanted = _WANTED.match(chunk.entity_path)
             robot = wanted["robot"] or ""
             if wanted["what"] == "diagnostics":
@@ -139,6 +149,8 @@ def review(files: list[Path]) -> Review:
                 _count_stalls(runs.setdefault(robot, RunSummary(robot)), wanted["process"], chunk)
             else:
                 _summarise(runs.setdefault(robot, RunSummary(robot)), chunk)
+    if "" in runs:
+        runs[""].robot = at_root
     return Review(sorted(found, key=lambda d: d.wall_time), damaged,
                   [run for _, run in sorted(runs.items()) if run.cycles])
 
@@ -200,8 +212,9 @@ def _chunks(path: Path) -> tuple[list, str | None]:
         chunks = stream.filter(components=list(_COMPONENTS)).to_chunks()
     # one robot's at the root, several robots' each under its name; the series' names
     # (static) before the rows they name
-    return sorted((chunk for chunk in chunks if _WANTED.match(chunk.entity_path) and not (
-        chunk.is_static and chunk.entity_path.endswith("/diagnostics"))),
+    return sorted((chunk for chunk in chunks if (_WANTED.match(chunk.entity_path) and not (
+        chunk.is_static and chunk.entity_path.endswith("/diagnostics"))) or (
+        chunk.is_static and _MODEL.match(chunk.entity_path))),
         key=lambda chunk: not chunk.is_static), damage
 
 

@@ -26,6 +26,7 @@ from hil.cli import common
 from hil.cli.run_progress import Progress
 from hil.cli.up.children import make_children, start_in_order
 from hil.cli.up.demo import supervise
+from hil.cli.up.outputs import replace_previous
 from hil.cli.up.robots import RobotRun
 from hil.errors import HilError
 from hil.realtime.stalls import BENCH_STALL_STATUS
@@ -72,7 +73,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "until Ctrl-C)")
     parser.add_argument("--save", type=Path, default=Path("run.rrd"), metavar="FILE.rrd",
                         help="the rerun recording (default run.rrd); the CAN log "
-                             "(FILE.can.blf) and the processes' logs (FILE.logs/) go beside it")
+                             "(FILE.can.blf) and the processes' logs (FILE.logs/) go beside it; "
+                             "a previous run's are replaced, each named first")
     parser.add_argument("--segment", type=_segment_limit, metavar="LIMIT",
                         help="record in segments FILE-0001.rrd, FILE-0002.rrd, ... each closed at "
                              "LIMIT, a size (500MB) or a time (10m): a crash loses at most the "
@@ -129,8 +131,12 @@ def run(args: argparse.Namespace) -> int:
     faults = [parse_fault(text) for text in args.fault]
     save = args.save
     logs = save.with_name(save.stem + ".logs")
-    logs.mkdir(parents=True, exist_ok=True)
     can_log = args.can_log or save.with_name(save.stem + ".can.blf")
+    replaced = replace_previous(save, can_log, logs)
+    if replaced:
+        print(f"hil up: replacing the previous run's {', '.join(replaced)} (keep a run: move "
+              "it, or give --save another name)", flush=True)
+    logs.mkdir(parents=True, exist_ok=True)
     timing = args.timing
     stop = threading.Event()
     robots = [RobotRun(path, config, Progress(None if timing.lock_step else args.max_stalls,
