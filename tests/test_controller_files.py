@@ -8,12 +8,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from hil.bus_config import load_bus_config
-from hil.controllers import JointConstraint
+from hil.controllers import (
+    GoalStatus, JointConstraint, JointTrajectoryController, TrajectoryGoal, TrajectoryPoint,
+)
 from hil.controllers.config import controllers_for
 from hil.errors import HilError
+from trajectory_follower import Follower
 
 HERE = Path(__file__).parent
 UR_BENCH = HERE / "controllers" / "ur3_with_ur_controllers.yaml"
@@ -106,20 +110,41 @@ def test_a_ros2_control_demos_controller_file_is_read_as_the_spawner_reads_it(tm
     """ros2_control_demos (jazzy) example_1's rrbot_jtc.yaml, unchanged: a controller's type
     in its own ros__parameters, no controller_manager section, as `spawner
     joint_trajectory_position_controller --param-file rrbot_jtc.yaml` takes it
-    (controller_manager_services.py: set_controller_parameters_from_param_files). Its JTC is
-    read: hil refuses the one value it cannot honour, naming file, line and key."""
-    refused = _refusal(tmp_path, RRBOT_JTC.read_text())
-    assert (f"{tmp_path / 'controllers.yaml'}:19: error: controller "
-            "'joint_trajectory_position_controller': allow_integration_in_goal_trajectories "
-            "True") in refused, refused
-    loaded = _loaded(tmp_path, RRBOT_JTC.read_text().replace(
-        "allow_integration_in_goal_trajectories: true",
-        "allow_integration_in_goal_trajectories: false"))
+    (controller_manager_services.py: set_controller_parameters_from_param_files). Every
+    value it sets is honoured, allow_integration_in_goal_trajectories: true included."""
+    loaded = _loaded(tmp_path, RRBOT_JTC.read_text())
     jtc = loaded.trajectory
     assert loaded.trajectory_name == "joint_trajectory_position_controller"
     assert loaded.active == ("joint_trajectory_position_controller",) and not loaded.forwards
     assert jtc.joints == ("joint1", "joint2") and jtc.command_interfaces == ("position",)
     assert jtc.state_interfaces == ("position",) and jtc.interpolate_from_desired_state
+    assert jtc.allow_integration_in_goal_trajectories and not loaded.warnings
+
+
+def test_rrbot_jtc_yaml_moves_a_goal_of_velocities_by_their_integral(tmp_path):
+    """rrbot_jtc.yaml's JTC takes a goal whose points give velocities alone and integrates
+    their positions from the state before the trajectory (here at rest at 0) by the trapezoid
+    rule (ros2_controllers jazzy trajectory.cpp, deduce_from_derivatives; test_trajectory.cpp,
+    sample_trajectory_velocity_with_interpolation): v at 1 s and 2 s, 0 at 3 s passes
+    p(1) = (0 + v) / 2 * 1 = v / 2, p(2) = p(1) + (v + v) / 2 * 1 = 1.5 v and ends at
+    p(3) = p(2) + (v + 0) / 2 * 1 = 2 v."""
+    (tmp_path / "controllers.yaml").write_text(RRBOT_JTC.read_text())
+    config = load_bus_config(_bench(tmp_path))
+    loaded = controllers_for(config)
+    jtc = JointTrajectoryController(config.robot, loaded.trajectory, loaded.trajectory_name)
+    follower = Follower(jtc)
+    follower.run(0.01)
+    v = np.array([0.2, -0.1])
+    jtc.submit("g", TrajectoryGoal(("joint1", "joint2"), (
+        TrajectoryPoint(1.0, (), tuple(v)), TrajectoryPoint(2.0, (), tuple(v)),
+        TrajectoryPoint(3.0, (), (0.0, 0.0)))))
+    follower.run(1.0)
+    assert jtc.state().desired_positions == pytest.approx(v / 2)
+    follower.run(1.0)
+    assert jtc.state().desired_positions == pytest.approx(1.5 * v)
+    (done,) = follower.run(1.02)
+    assert done[1].status is GoalStatus.SUCCEEDED
+    assert follower.q == pytest.approx(2 * v)
 
 
 def test_a_bare_wildcard_section_gives_every_controller_its_parameters(tmp_path):
@@ -226,3 +251,17 @@ def test_a_controllers_own_type_wins_and_an_untyped_section_is_not_loaded(tmp_pa
            "velocity_controllers/JointGroupVelocityController" in warned, warned
     assert "controllers.yaml:15: warning: 'robot_state_publisher': controller_manager does " \
            "not list it" in warned, warned
+
+
+def test_a_list_of_controllers_files_is_refused_saying_how_to_make_one(tmp_path):
+    """jazzy's spawner takes several --param-file (spawner.py: `action="append"`; the
+    controller loads them in order); the bus config's `controllers: file:` names one
+    file: a list is an error naming the line, with how to make one file of them."""
+    (tmp_path / "controllers.yaml").write_text(RRBOT_JTC.read_text())
+    bench = _bench(tmp_path).read_text().replace(
+        "controllers: {file: controllers.yaml}", "controllers: {file: [controllers.yaml]}")
+    (tmp_path / "bench.yaml").write_text(bench)
+    with pytest.raises(HilError) as caught:
+        load_bus_config(tmp_path / "bench.yaml")
+    assert "controllers: 'file' names one controllers file, not a list" in str(caught.value)
+    assert "--param-file order" in str(caught.value)

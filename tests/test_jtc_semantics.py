@@ -48,23 +48,29 @@ def started(jtc, lag=0.0) -> Follower:
 
 def test_parameters_default_as_the_jtc_declares_them():
     """parameters.yaml: allow_partial_joints_goal false, allow_nonzero_velocity_at_trajectory_end
-    false, interpolate_from_desired_state false, action_monitor_rate 20, cmd_timeout 0,
+    false, interpolate_from_desired_state false, allow_integration_in_goal_trajectories
+    false, action_monitor_rate 20, cmd_timeout 0,
     constraints.stopped_velocity_tolerance 0.01, constraints.goal_time 0, per joint trajectory
     and goal 0, decelerate_on_cancel false."""
     p = JtcParameters(joints=JOINTS)
     assert (p.allow_partial_joints_goal, p.allow_nonzero_velocity_at_trajectory_end,
-            p.interpolate_from_desired_state, p.decelerate_on_cancel) == (False,) * 4
+            p.interpolate_from_desired_state, p.decelerate_on_cancel,
+            p.allow_integration_in_goal_trajectories) == (False,) * 5
     assert (p.action_monitor_rate, p.cmd_timeout, p.stopped_velocity_tolerance,
             p.goal_time) == (20.0, 0.0, 0.01, 0.0)
     assert p.constraint("joint1") == JointConstraint(0.0, 0.0, 0.0)
 
 
 def test_parameters_set_at_run_time_apply_to_the_next_goal(ur3):
-    """The JTC's parameter listener updates its default tolerances for goals to come."""
+    """The JTC's parameter listener updates its default tolerances for goals to come, and
+    the parameters validate_trajectory_msg reads (parameters.yaml declares none of these
+    read_only)."""
     jtc = controller(ur3)
     jtc.set_parameters({"constraints.goal_time": 0.5, "constraints.joint1.goal": 0.01,
-                        "allow_partial_joints_goal": True})
+                        "allow_partial_joints_goal": True,
+                        "allow_integration_in_goal_trajectories": True})
     assert jtc.parameters.goal_time == 0.5 and jtc.parameters.constraint("joint1").goal == 0.01
+    assert jtc.parameters.allow_integration_in_goal_trajectories
     with pytest.raises(ValueError, match="no settable parameter 'joints'"):
         jtc.set_parameters({"joints": ("joint1",)})
     with pytest.raises(ValueError, match="constraints.goal_time must be a finite number"):
@@ -96,6 +102,14 @@ def test_a_last_point_still_moving_is_rejected_unless_allowed(ur3):
     jtc = controller(ur3, allow_nonzero_velocity_at_trajectory_end=True)
     started(jtc).controller.submit("g", moving)
     assert jtc.active_goal == "g"
+
+
+def test_a_last_point_still_moving_is_rejected_where_the_others_give_no_velocities(ur3):
+    """validate_trajectory_msg checks trajectory.points.back().velocities as the goal gives
+    them, whatever the other points give (hil interpolates such a goal linearly)."""
+    moving = full((0.5, 0.1), (1.0, 0.3, 0.1))
+    with pytest.raises(GoalRejected, match="Velocity of last trajectory point of joint joint1"):
+        started(controller(ur3)).controller.submit("g", moving)
 
 
 def test_effort_fields_are_rejected_without_an_effort_command_interface(ur3):

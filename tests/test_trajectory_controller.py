@@ -9,10 +9,11 @@ import pytest
 
 from hil.controllers import (
     INVALID_GOAL, INVALID_JOINTS, PATH_TOLERANCE_VIOLATED,
-    GoalRejected, GoalStatus, JointTolerance, JointTrajectoryController, TrajectoryGoal,
-    TrajectoryPoint, TrajectoryPoints,
+    GoalRejected, GoalStatus, JointTolerance, JointTrajectoryController, JtcParameters,
+    TrajectoryGoal, TrajectoryPoint, TrajectoryPoints,
 )
 from hil.controllers.config import DEFAULT_GOAL_TOLERANCE, hil_controllers
+from hil.controllers import planning
 from hil.controllers import trajectory as trajectory_module
 from hil.controllers.goal import MAX_POINTS
 from trajectory_follower import Follower, goal
@@ -204,3 +205,64 @@ def test_a_decoded_goal_keeps_its_points_as_arrays():
     assert [p.positions for p in decoded.points] == [p.positions for p in sent.points]
     assert [p.time_from_start for p in decoded.points] == pytest.approx(   # whole nanoseconds
         [p.time_from_start for p in sent.points], abs=1e-9)
+
+
+def _integrating(robot, **parameters) -> JointTrajectoryController:
+    """A JTC over every driven joint with allow_integration_in_goal_trajectories."""
+    return JointTrajectoryController(robot, JtcParameters(
+        joints=tuple(j.name for j in robot.driven_joints),
+        allow_integration_in_goal_trajectories=True, **parameters))
+
+
+def _integrations(jtc, monkeypatch) -> list[bool]:
+    """Whether the controller's lock was held at each integration of a goal's points."""
+    held = []
+    integrate = planning.integrated
+
+    def watched(*args, **kwargs):
+        held.append(jtc._lock.locked())
+        return integrate(*args, **kwargs)
+
+    monkeypatch.setattr(planning, "integrated", watched)
+    return held
+
+
+def test_an_integrated_goal_from_an_unchanged_state_is_planned_without_the_lock(ur3, monkeypatch):
+    """allow_integration_in_goal_trajectories: the points are integrated from the state
+    when the goal arrives, without the controller's lock; at rest, holding the last
+    command (interpolate_from_desired_state), the state it starts from is that one, and the
+    control cycle does not wait for the integration again."""
+    jtc = _integrating(ur3, interpolate_from_desired_state=True)
+    follower = Follower(jtc)
+    follower.run(0.01)
+    held_while_integrating = _integrations(jtc, monkeypatch)
+    times = np.arange(1, 10_001) * 0.002
+    velocities = np.zeros((len(times), 6))
+    velocities[:-1, 0] = 0.05
+    jtc.submit("long", TrajectoryGoal(jtc.joint_names, tuple(
+        TrajectoryPoint(t, (), tuple(v)) for t, v in zip(times.tolist(), velocities.tolist()))))
+    assert held_while_integrating == [False] and jtc.active_goal == "long"
+    follower.run(20.02)
+    assert follower.q[0] == pytest.approx(0.05 * (20.0 - 0.002), abs=1e-9)
+
+
+def test_an_integrated_goal_is_integrated_again_from_the_state_it_starts_from(ur3, monkeypatch):
+    """Where a cycle changes the state while the goal is planned, its points are integrated
+    again, under the lock, from the state the goal starts from (the JTC's point before the
+    trajectory is the state at its first sample): from 0.1, v = 0.1 at 1 s passes 0.15."""
+    jtc = _integrating(ur3, allow_nonzero_velocity_at_trajectory_end=True)
+    follower = Follower(jtc)
+    follower.run(0.01)
+    held_while_integrating = _integrations(jtc, monkeypatch)
+    plan = trajectory_module.plan_goal
+
+    def moved_while_planning(*args):
+        follower.q[0] = 0.1                  # measured at the next cycle
+        follower.run(0.002)
+        return plan(*args)
+
+    monkeypatch.setattr(trajectory_module, "plan_goal", moved_while_planning)
+    jtc.submit("g", goal(jtc.joint_names, (1.0, [], [0.1, 0, 0, 0, 0, 0])))
+    assert held_while_integrating == [False, True]
+    follower.run(1.0)
+    assert jtc.state().desired_positions[0] == pytest.approx(0.1 + 0.1 / 2)

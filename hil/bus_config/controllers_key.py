@@ -30,7 +30,16 @@ def read_controllers(reader: Reader, top: LineMapping) -> ControllersSource | No
     line = top.key_lines.get("controllers", 1)
     entry = reader.mapping(top["controllers"], "'controllers'", line)
     reader.unknown_keys(entry, _KEYS, "'controllers'")
-    file = reader.text(entry, "file", "controllers", "")
+    file = ""
+    if isinstance(entry.get("file"), list):
+        # the spawner takes several --param-file (spawner.py, jazzy: the controller loads
+        # them in order, a later value replacing an earlier); hil reads one file
+        reader.fail("controllers: 'file' names one controllers file, not a list",
+                    entry.key_lines.get("file", line),
+                    hint="put the files' sections into one file, in the spawner's "
+                         "--param-file order (a later section's value replaces an earlier)")
+    else:
+        file = reader.text(entry, "file", "controllers", "")
     names = _pairs(reader, entry, "joint_names", line)
     variables = _pairs(reader, entry, "vars", line)
     for name, value in variables:

@@ -118,44 +118,99 @@ def check_start_time(goal: TrajectoryGoal) -> None:
         raise GoalRejected(f"the start time {goal.start_time} is not a time")
 
 #: ros2_controllers' trajectory interpolates linearly (positions), cubically (and
-#: velocities) or quinticly (and accelerations); accelerations without velocities fit none,
-#: and hil guesses no velocity: refused
+#: velocities) or quinticly (and accelerations); accelerations without velocities fit none
+#: (trajectory.cpp interpolate_between_points leaves such a sample at zero), and hil guesses
+#: no velocity: refused, but where the point's positions are integrated
 _ACCELERATIONS_ALONE = "{} gives accelerations without velocities: give both, or neither"
+_FIELDS = ("positions", "velocities", "accelerations")
 
 
-def goal_arrays(goal: TrajectoryGoal):
-    """The points as arrays (times; positions, velocities, accelerations: points x
-    joints, zeros where the order does not use them) and the interpolation order, after
-    checking their shapes, values and times."""
+@dataclass
+class GivenFields:
+    """Which fields each point gives (booleans, one per point)."""
+
+    positions: np.ndarray
+    velocities: np.ndarray
+    accelerations: np.ndarray
+
+
+@dataclass
+class GoalArrays:
+    """A goal's points as arrays: times (points,); positions, velocities and accelerations
+    (points x joints), zeros where a point gives none (``given`` says which it gave)."""
+
+    times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    accelerations: np.ndarray
+    given: GivenFields
+
+    @property
+    def integrates(self) -> bool:
+        """Whether a point leaves its positions to allow_integration_in_goal_trajectories."""
+        return not bool(self.given.positions.all())
+
+    def interpolation_order(self) -> int:
+        """1, 3 or 5: linear, cubic or quintic, by what every point gives; the velocities and
+        accelerations an order does not use are zeroed (linear: velocities given on some
+        points only)."""
+        order = (5 if self.given.accelerations.all() else
+                 3 if self.given.velocities.all() else 1)
+        if order < 3:
+            self.velocities[:] = 0.0
+        if order < 5:
+            self.accelerations[:] = 0.0
+        return order
+
+
+def goal_arrays(goal: TrajectoryGoal, integrate: bool = False) -> GoalArrays:
+    """The points as arrays, after checking their shapes, values and times as
+    validate_trajectory_msg does (joint_trajectory_controller.cpp, jazzy): without
+    ``integrate`` every point gives positions, and velocities and accelerations or none;
+    with it (allow_integration_in_goal_trajectories) a point may leave out any of the three
+    but not all, and what it gives has a value per joint."""
     names, points = goal.joint_names, goal.points
-    n = len(names)
     if isinstance(points, TrajectoryPoints):
         return _arrays_given(names, points)
+    n = len(names)
     for p, point in enumerate(points):
-        if point.accelerations and not point.velocities:
-            raise GoalRejected(_ACCELERATIONS_ALONE.format(f"point {p}"))
-        if len(point.positions) != n:
-            raise GoalRejected(f"point {p} has {len(point.positions)} positions for "
-                               f"{n} joints")
-        for what in ("velocities", "accelerations"):
-            values = getattr(point, what)
-            if values and len(values) != n:
-                raise GoalRejected(f"point {p} has {len(values)} {what} for {n} joints")
-    order = (5 if all(p.accelerations for p in points) else
-             3 if all(p.velocities for p in points) else 1)
+        _check_point(p, point, n, integrate)
     arrays = []
-    for what in ("positions", "velocities", "accelerations"):
+    for what in _FIELDS:
         values = np.zeros((len(points), n))
         for p, point in enumerate(points):
             given = getattr(point, what)
             if given:
                 values[p] = given
         arrays.append(values)
+    given = GivenFields(*(np.array([bool(getattr(point, what)) for point in points])
+                          for what in _FIELDS))
     times = np.array([point.time_from_start for point in points], dtype=float)
-    return _checked(names, times, *arrays, order)
+    return _checked(names, GoalArrays(times, *arrays, given))
 
-def _arrays_given(names: tuple[str, ...], points: TrajectoryPoints):
-    """:func:`goal_arrays` of points that are arrays already."""
+
+def _check_point(p: int, point: TrajectoryPoint, n: int, integrate: bool) -> None:
+    """GoalRejected for a point validate_trajectory_msg refuses (and hil's accelerations
+    without velocities)."""
+    if integrate and not (point.positions or point.velocities or point.accelerations):
+        raise GoalRejected(f"point {p} gives no positions, velocities or accelerations (\"The "
+                           "given trajectory has no position, velocity, or acceleration "
+                           "points.\")")
+    if point.accelerations and not point.velocities and point.positions:
+        raise GoalRejected(_ACCELERATIONS_ALONE.format(f"point {p}"))
+    if not integrate and len(point.positions) != n:
+        hint = ("; a point without positions needs allow_integration_in_goal_trajectories"
+                if not point.positions else "")
+        raise GoalRejected(f"point {p} has {len(point.positions)} positions for {n} "
+                           f"joints{hint}")
+    for what in _FIELDS:
+        values = getattr(point, what)
+        if values and len(values) != n:
+            raise GoalRejected(f"point {p} has {len(values)} {what} for {n} joints")
+
+
+def _arrays_given(names: tuple[str, ...], points: TrajectoryPoints) -> GoalArrays:
+    """:func:`goal_arrays` of points that are arrays already (each gives positions)."""
     n = len(names)
     shaped = lambda values: values is not None and values.shape == (len(points), n)  # noqa: E731
     for what, values in (("positions", points.positions), ("velocities", points.velocities),
@@ -165,34 +220,33 @@ def _arrays_given(names: tuple[str, ...], points: TrajectoryPoints):
                                f" for {len(points)} points of {n} joints")
     if points.accelerations is not None and points.velocities is None:
         raise GoalRejected(_ACCELERATIONS_ALONE.format("the goal"))
-    order = (5 if shaped(points.accelerations) else 3 if shaped(points.velocities) else 1)
-    zeros = np.zeros((len(points), n))
-    return _checked(
-        names, points.times.copy(), points.positions.copy(),
-        points.velocities.copy() if order >= 3 else zeros,
-        points.accelerations.copy() if order == 5 else zeros.copy(), order)
+    copied = lambda values: (values.copy() if values is not None  # noqa: E731
+                             else np.zeros((len(points), n)))
+    every = lambda condition: np.full(len(points), condition)  # noqa: E731
+    given = GivenFields(every(True), every(points.velocities is not None),
+                        every(points.accelerations is not None))
+    return _checked(names, GoalArrays(points.times.copy(), points.positions.copy(),
+                                      copied(points.velocities), copied(points.accelerations),
+                                      given))
 
-def _checked(names, times, positions, velocities, accelerations, order):
-    """The arrays after checking their values and times; velocities and accelerations
-    zeroed where the order does not use them."""
-    for values, singular in ((positions, "position"), (velocities, "velocity"),
-                             (accelerations, "acceleration")):
+
+def _checked(names, arrays: GoalArrays) -> GoalArrays:
+    """The arrays after checking their values and times."""
+    for values, singular in ((arrays.positions, "position"), (arrays.velocities, "velocity"),
+                             (arrays.accelerations, "acceleration")):
         bad = ~np.isfinite(values)
         if bad.any():
             p, k = first_index(bad)
             raise GoalRejected(f"point {p} joint '{names[k]}' {singular} is "
                                f"{values[p, k]}")
-    if order < 3:
-        velocities[:] = 0.0            # linear: velocities given on some points only
-    if order < 5:
-        accelerations[:] = 0.0
+    times = arrays.times
     previous = np.concatenate(([-math.inf], times[:-1]))
     bad = ~np.isfinite(times) | (times <= previous) | (times < 0)
     if bad.any():
         p = int(np.argmax(bad))
         raise GoalRejected(f"point {p} time_from_start {times[p]} is not after the "
                            "previous point's (times must increase, from >= 0)")
-    return times, positions, velocities, accelerations, order
+    return arrays
 
 
 def first_index(mask: np.ndarray) -> tuple[int, int]:

@@ -16,10 +16,11 @@ from hil.controllers.parameters import JointConstraint, JtcParameters
 #: the JTC's, and hil's own reject_unreachable_first_point (a real JTC ignores it, as it
 #: ignores any undeclared parameter)
 _BOOLS = ("allow_partial_joints_goal", "allow_nonzero_velocity_at_trajectory_end",
-          "interpolate_from_desired_state", "reject_unreachable_first_point")
+          "interpolate_from_desired_state", "allow_integration_in_goal_trajectories",
+          "reject_unreachable_first_point")
 _NUMBERS = ("action_monitor_rate", "cmd_timeout")
 #: declared by the JTC; hil honours them only at these values
-_FIXED = {"allow_integration_in_goal_trajectories": False, "interpolation_method": "splines",
+_FIXED = {"interpolation_method": "splines",
           "set_last_command_interface_value_as_state_on_activation": True}
 #: ``type``: the controller's type, where its own section gives it (the spawner's
 #: --param-file layout)

@@ -44,6 +44,9 @@ class JtcParameters:
     allow_partial_joints_goal: bool = False
     allow_nonzero_velocity_at_trajectory_end: bool = False
     interpolate_from_desired_state: bool = False
+    #: a point may leave out positions (and velocities): integrated from the point before
+    #: (hil.controllers.integration)
+    allow_integration_in_goal_trajectories: bool = False
     action_monitor_rate: float = 20.0
     cmd_timeout: float = 0.0
     stopped_velocity_tolerance: float = 0.01
@@ -89,6 +92,8 @@ class JtcParameters:
             "allow_nonzero_velocity_at_trajectory_end":
                 self.allow_nonzero_velocity_at_trajectory_end,
             "interpolate_from_desired_state": self.interpolate_from_desired_state,
+            "allow_integration_in_goal_trajectories":
+                self.allow_integration_in_goal_trajectories,
             "reject_unreachable_first_point": self.reject_unreachable_first_point,
             "cmd_timeout": self.cmd_timeout,
             "constraints.stopped_velocity_tolerance": self.stopped_velocity_tolerance,

@@ -4,17 +4,22 @@ does this without its lock: a 10,000-point goal takes milliseconds)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from hil.controllers.goal import (
-    INVALID_JOINTS, MAX_POINTS, GoalRejected, JointTolerance, TrajectoryGoal, check_start_time,
-    first_index, goal_arrays,
+    INVALID_JOINTS, MAX_POINTS, GoalArrays, GoalRejected, JointTolerance, TrajectoryGoal,
+    check_start_time, first_index, goal_arrays,
 )
+from hil.controllers.integration import integrated
 from hil.controllers.parameters import FLOAT_EPSILON, JtcParameters, SegmentTolerances, resolve
 from hil.controllers.spline import Spline
 from hil.description import Joint, JointType, RobotDescription
+
+#: a first point due now may lie this far from where a joint is when its constraint sets no
+#: goal tolerance (hil's choice: the JTC would jump there)
+FIRST_POINT_SLACK = 0.02
 
 
 @dataclass(frozen=True)
@@ -47,19 +52,46 @@ class GoalPlan:
     """A goal checked and planned between its points."""
 
     indices: np.ndarray            # controller joint index of each goal joint
-    spline: Spline
+    #: None where points are integrated from the state the goal starts from
+    #: (:attr:`integrating`) until :meth:`spline_from` plans them
+    spline: Spline | None
     #: over every controller joint (the JTC fills a partial goal with the others' holds)
     tolerances: SegmentTolerances
     #: why the goal's own tolerances were not taken (the JTC logs it and runs the goal with
     #: its defaults), or None
     tolerance_warning: str | None = None
+    #: the points, where some leave their positions to allow_integration_in_goal_trajectories
+    integrating: GoalArrays | None = None
+    #: the state (p0, v0, a0, at) an integrating goal's spline was planned from
+    _planned_from: tuple | None = field(default=None, init=False, repr=False)
+
+    @property
+    def end(self) -> float:
+        """The last point's time on the goal's clock."""
+        return self.spline.end if self.spline is not None else float(
+            self.integrating.times[-1])
+
+    def spline_from(self, joints: JointLimitTable, names: tuple[str, ...], p0: np.ndarray,
+                    v0: np.ndarray, a0: np.ndarray, at: float) -> Spline:
+        """The segments; a goal whose points are integrated, from the state (``p0``, ``v0``,
+        ``a0``: the point before the trajectory) at ``at`` on the goal's clock, after checking
+        them against the limits: planned again only from a state other than the last."""
+        state = (p0, v0, a0, np.array(at))
+        planned = self._planned_from is not None and all(
+            np.array_equal(mine, other) for mine, other in zip(state, self._planned_from))
+        if self.integrating is not None and not planned:
+            self.spline = _planned(joints, self.indices, names,
+                                   integrated(self.integrating, p0, v0, a0, at), unwrap=False)
+            self._planned_from = state
+        return self.spline
 
 
 def plan_goal(joints: JointLimitTable, parameters: JtcParameters,
               goal: TrajectoryGoal) -> GoalPlan:
     """Check a goal as the JTC's validate_trajectory_msg does, and against the joints'
     limits, and plan its segments between points; raise GoalRejected naming the joint and
-    point at the first problem."""
+    point at the first problem. A goal whose points are integrated is checked against the
+    limits when it is planned from a state (:meth:`GoalPlan.spline_from`)."""
     indices = _check_joints(joints, goal)
     if not parameters.allow_partial_joints_goal and len(indices) != len(joints.names):
         raise GoalRejected(
@@ -77,43 +109,80 @@ def plan_goal(joints: JointLimitTable, parameters: JtcParameters,
         raise GoalRejected(f"the trajectory has {len(goal.points)} points; this controller "
                            f"takes at most {MAX_POINTS} (split it into several goals, or "
                            "sample it more coarsely)")
-    times, positions, velocities, accelerations, order = goal_arrays(goal)
+    arrays = goal_arrays(goal, parameters.allow_integration_in_goal_trajectories)
+    # validate_trajectory_msg checks the last point's velocities as the goal gives them
+    # (before a linear goal's are zeroed)
+    last = arrays.velocities[-1].copy() if arrays.given.velocities[-1] else np.zeros(0)
+    spline = None if arrays.integrates else _planned(joints, indices, goal.joint_names, arrays)
+    moving = np.abs(last) > FLOAT_EPSILON
+    if not parameters.allow_nonzero_velocity_at_trajectory_end and moving.any():
+        k = int(np.argmax(moving))
+        raise GoalRejected(
+            f"Velocity of last trajectory point of joint {goal.joint_names[k]} is not "
+            f"zero: {last[k]:.15f} (allow_nonzero_velocity_at_trajectory_end is false)")
+    check_start_time(goal)
+    tolerances, warning = goal_tolerances(parameters, goal)
+    return GoalPlan(indices, spline, tolerances, warning,
+                    arrays if arrays.integrates else None)
+
+
+def _planned(joints: JointLimitTable, indices: np.ndarray, names: tuple[str, ...],
+             arrays: GoalArrays, unwrap: bool = True) -> Spline:
+    """The segments between the points, after checking them against the joints' limits."""
+    order = arrays.interpolation_order()
+    times, positions, velocities = arrays.times, arrays.positions, arrays.velocities
     lower, upper = joints.lower[indices], joints.upper[indices]
     limit, continuous = joints.velocity[indices], joints.continuous[indices]
     outside = ~continuous & ((positions < lower) | (positions > upper))
     if outside.any():
         p, k = first_index(outside)
-        raise GoalRejected(f"point {p} joint '{goal.joint_names[k]}' position "
+        raise GoalRejected(f"point {p} joint '{names[k]}' position "
                            f"{positions[p, k]:g} is outside its limits [{lower[k]:g}, "
                            f"{upper[k]:g}]")
     too_fast = np.abs(velocities) > limit
     if too_fast.any():
         p, k = first_index(too_fast)
-        raise GoalRejected(f"point {p} joint '{goal.joint_names[k]}' velocity "
+        raise GoalRejected(f"point {p} joint '{names[k]}' velocity "
                            f"{velocities[p, k]:g} exceeds its limit {limit[k]:g}")
     # continuous joints: each point on the turn nearest the point before (the first is
-    # put on the turn nearest the joint's state when the goal starts)
-    positions[:, continuous] = np.unwrap(positions[:, continuous], axis=0)
+    # put on the turn nearest the joint's state when the goal starts); not a goal whose
+    # points are integrated: its positions are taken as given and integrated (hil's choice)
+    if unwrap:
+        positions[:, continuous] = np.unwrap(positions[:, continuous], axis=0)
     if len(times) > 1:
         implied = np.diff(positions, axis=0) / np.diff(times)[:, None]
         too_fast = np.abs(implied) > limit * (1 + 1e-9)
         if too_fast.any():
             p, k = first_index(too_fast)
             raise GoalRejected(
-                f"point {p + 1} joint '{goal.joint_names[k]}' needs {abs(implied[p, k]):.4g}"
+                f"point {p + 1} joint '{names[k]}' needs {abs(implied[p, k]):.4g}"
                 f" on average from point {p}, above its velocity limit {limit[k]:g}")
-    if not parameters.allow_nonzero_velocity_at_trajectory_end:
-        moving = np.abs(velocities[-1]) > FLOAT_EPSILON
-        if moving.any():
-            k = int(np.argmax(moving))
+    return Spline.between(times, positions, velocities, arrays.accelerations, order)
+
+
+def check_reachable(joints: JointLimitTable, parameters: JtcParameters, indices: np.ndarray,
+                    here: np.ndarray, spline: Spline, at: float, available: float) -> None:
+    """hil's own check (reject_unreachable_first_point): the joints reach the first point in
+    its time (``available`` s from ``at``, the goal's clock now) within their velocity
+    limits; where it is due now or past, the trajectory's position now is where they are
+    (the JTC would command the jump)."""
+    distance = np.abs(spline.points[0] - here)
+    jump = np.abs(spline.sample(at)[0] - here)
+    for k, i in enumerate(indices):
+        name = joints.names[i]
+        slack = parameters.constraint(name).goal or FIRST_POINT_SLACK
+        if available <= 0:
+            if jump[k] > slack:
+                raise GoalRejected(
+                    f"point 0 joint '{name}' is due {-available:.4g} s ago on the goal's "
+                    f"clock and the trajectory is {jump[k]:.4g} from the current position "
+                    "there: give the first point a time to get there "
+                    "(reject_unreachable_first_point)")
+        elif distance[k] / available > joints.velocity[i] * (1 + 1e-9):
             raise GoalRejected(
-                f"Velocity of last trajectory point of joint {goal.joint_names[k]} is not "
-                f"zero: {velocities[-1, k]:.15f} (allow_nonzero_velocity_at_trajectory_end "
-                "is false)")
-    check_start_time(goal)
-    tolerances, warning = goal_tolerances(parameters, goal)
-    return GoalPlan(indices, Spline.between(times, positions, velocities, accelerations, order),
-                    tolerances, warning)
+                f"point 0 joint '{name}' needs {distance[k] / available:.4g} on "
+                f"average from the current position, above its velocity limit "
+                f"{joints.velocity[i]:g} (reject_unreachable_first_point)")
 
 
 def goal_tolerances(parameters: JtcParameters,

@@ -10,7 +10,9 @@
 * Interpolation follows what the points give: positions only -> linear, + velocities ->
   cubic, + accelerations -> quintic. The goal's clock starts at its header stamp (0: now);
   the first segment runs from the measured state now (the desired one with
-  ``interpolate_from_desired_state``) to point 0.
+  ``interpolate_from_desired_state``) to point 0. With
+  ``allow_integration_in_goal_trajectories`` a point may leave out positions (and
+  velocities): integrated from the point before (:mod:`hil.controllers.integration`).
 * Path tolerances are checked while the trajectory runs, goal tolerances from its last point
   on: within ``goal_time`` (0: without a time limit) the goal succeeds, after it it aborts; a
   violation holds the measured position (or ramps down with ``decelerate_on_cancel``), as a
@@ -33,16 +35,14 @@ from hil.controllers.goal import (
     GoalResult, GoalStatus, TrajectoryGoal,
 )
 from hil.controllers.parameters import JtcParameters, SegmentTolerances
-from hil.controllers.planning import GoalPlan, JointLimitTable, plan_goal
+from hil.controllers.planning import (
+    GoalPlan, JointLimitTable, check_reachable, plan_goal,
+)
 from hil.controllers.spline import Spline
 from hil.controllers.stop_ramp import StopRamp
 from hil.description import RobotDescription
 
 log = logging.getLogger(__name__)
-
-#: a first point due now may lie this far from where a joint is when its constraint sets no
-#: goal tolerance (hil's choice: the JTC would jump there)
-FIRST_POINT_SLACK = 0.02
 
 
 @dataclass
@@ -164,11 +164,17 @@ class JointTrajectoryController:
 
         The goal is checked and planned without the controller's lock (a 10,000-point goal
         takes milliseconds): the control cycle waits only for the first segment, planned
-        from its state under the lock."""
+        from its state under the lock. Points integrated from the state are planned from
+        the state when the goal arrives, and again under the lock only if it has changed
+        (hil's choice: the goal is judged on that state)."""
         with self._lock:
             self._check_accepting()
-            parameters = self.parameters
+            parameters, now, before = self.parameters, self._now, self._state_before()
         plan = plan_goal(self.limits, parameters, goal)
+        if plan.integrating is not None:
+            stamp = now if goal.start_time is None else goal.start_time
+            plan.spline_from(self.limits, goal.joint_names,
+                             *(values[plan.indices] for values in before), at=now - stamp)
         if plan.tolerance_warning:
             log.warning("goal %s: %s", goal_id, plan.tolerance_warning)
         with self._lock:
@@ -334,49 +340,41 @@ class JointTrajectoryController:
     def _start(self, goal_id: str, goal: TrajectoryGoal, plan: GoalPlan) -> _ActiveGoal:
         """The planned goal from the controller's state now (lock held): its clock from its
         stamp (now when none), continuous joints on the turn nearest where they are, the
-        first segment from the measured (or desired) state now to point 0."""
-        indices, spline, now = plan.indices, plan.spline, self._now
+        first segment from the measured (or desired) state now to point 0. Points it leaves
+        to allow_integration_in_goal_trajectories are integrated from that state: planned
+        again here only where it differs from the state when the goal arrived."""
+        indices, now = plan.indices, self._now
         stamp = now if goal.start_time is None else goal.start_time
-        if stamp + spline.end < now:
+        if stamp + plan.end < now:
             raise GoalRejected(f"Received trajectory with non-zero start time ({stamp:f}) that "
-                               f"ends in the past ({stamp + spline.end:f}); now is {now:f}")
-        if self.parameters.interpolate_from_desired_state:
-            here = self._desired[indices].copy()
-            v0, a0 = (self._desired_velocity[indices].copy(),
-                      self._desired_acceleration[indices].copy())
-        else:
-            here, v0 = self._actual[indices].copy(), self._actual_velocity[indices].copy()
-            a0 = np.zeros_like(here)
-        turns = np.round((spline.points[0] - here) / (2 * np.pi))
-        spline.shift(np.where(self.limits.continuous[indices], -turns * 2 * np.pi, 0.0))
+                               f"ends in the past ({stamp + plan.end:f}); now is {now:f}")
+        here, v0, a0 = self._state_before(indices)
+        spline = plan.spline_from(self.limits, goal.joint_names, here, v0, a0, at=now - stamp)
+        if plan.integrating is None or plan.integrating.given.positions[0]:
+            # point 0 as given goes on the turn nearest the joints; integrated, it is there
+            turns = np.round((spline.points[0] - here) / (2 * np.pi))
+            spline.shift(np.where(self.limits.continuous[indices], -turns * 2 * np.pi, 0.0))
         available = float(spline.t1[0]) - (now - stamp)
         spline.start_from(here, v0, a0, at=now - stamp)
         if self.parameters.reject_unreachable_first_point:
-            self._check_reachable(indices, here, spline, now - stamp, available)
+            check_reachable(self.limits, self.parameters, indices, here, spline,
+                            now - stamp, available)
         return _ActiveGoal(goal_id, indices, spline, stamp, stamp + spline.end, plan.tolerances)
 
-    def _check_reachable(self, indices: np.ndarray, here: np.ndarray, spline: Spline,
-                         at: float, available: float) -> None:
-        """hil's own check: the joints reach the first point in its time within their
-        velocity limits; where it is due now or past, the trajectory's position now is where
-        they are (the JTC would command the jump)."""
-        distance = np.abs(spline.points[0] - here)
-        jump = np.abs(spline.sample(at)[0] - here)
-        for k, i in enumerate(indices):
-            name = self.joint_names[i]
-            slack = self.parameters.constraint(name).goal or FIRST_POINT_SLACK
-            if available <= 0:
-                if jump[k] > slack:
-                    raise GoalRejected(
-                        f"point 0 joint '{name}' is due {-available:.4g} s ago on the goal's "
-                        f"clock and the trajectory is {jump[k]:.4g} from the current position "
-                        "there: give the first point a time to get there "
-                        "(reject_unreachable_first_point)")
-            elif distance[k] / available > self.limits.velocity[i] * (1 + 1e-9):
-                raise GoalRejected(
-                    f"point 0 joint '{name}' needs {distance[k] / available:.4g} on "
-                    f"average from the current position, above its velocity limit "
-                    f"{self.limits.velocity[i]:g} (reject_unreachable_first_point)")
+    def _state_before(self, indices: np.ndarray | slice = slice(None)
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The JTC's point before the trajectory (set_point_before_trajectory_msg): the last
+        command with interpolate_from_desired_state, else the measured state, whose velocity
+        is 0 without a velocity state interface (read_state_from_state_interfaces leaves it
+        empty, and the trajectory fills it with 0) and whose acceleration is 0 (hil's
+        hardware has no acceleration state interface)."""
+        if self.parameters.interpolate_from_desired_state:
+            return (self._desired[indices].copy(), self._desired_velocity[indices].copy(),
+                    self._desired_acceleration[indices].copy())
+        here = self._actual[indices].copy()
+        measured = "velocity" in self.parameters.state_interfaces
+        v0 = self._actual_velocity[indices].copy() if measured else np.zeros_like(here)
+        return here, v0, np.zeros_like(here)
 
 
 def _outside(error: np.ndarray, velocity_error: np.ndarray, position: np.ndarray,

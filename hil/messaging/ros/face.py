@@ -179,6 +179,8 @@ PARAMETER_DESCRIPTIONS = {
     "allow_nonzero_velocity_at_trajectory_end": "a goal's last point may have a velocity",
     "interpolate_from_desired_state": "a new goal starts from the last command, not the "
                                       "measured state",
+    "allow_integration_in_goal_trajectories": "a point may leave out positions (and "
+                                              "velocities): integrated from the one before",
     "reject_unreachable_first_point": "hil's own: refuse a goal whose first point the joints "
                                       "cannot reach in time (false: the JTC's jump)",
     "cmd_timeout": "s after a goal's last point after which it holds (0: never; must exceed "
