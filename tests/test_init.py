@@ -28,6 +28,7 @@ from hil.plant.plant import INITIAL_MARGIN
 REAL_WORLD = CORPUS / "real_world"
 ARM = REAL_WORLD / "arm_folder" / "urdf" / "arm.urdf.xacro"
 HAND = REAL_WORLD / "hand_without_limits.urdf"
+ROOT_WITHOUT_INERTIAL = REAL_WORLD / "root_without_inertial.urdf"
 
 
 def _joint(kind: JointType, effort: float, velocity: float) -> Joint:
@@ -75,6 +76,31 @@ def test_init_writes_a_config_that_loads_with_a_drive_per_joint(protocol, tmp_pa
         assert spec.actuators[0].rotor_inertia == pytest.approx(sizing.motor.rotor_inertia)
     assert hashlib.sha256(ARM.read_bytes()).hexdigest() == before    # untouched
     assert "left passive" not in output.read_text()
+
+
+@pytest.mark.parametrize("protocol", ["cia402", "odrive", "mit", "damiao", "cubemars"])
+def test_init_leaves_the_watchdog_to_the_protocols_default_and_says_which(protocol, tmp_path,
+                                                                          capsys):
+    """A drive out of its box keeps its maker's watchdog (an ODrive's is off until
+    axis.config.enable_watchdog; MIT-family clients assume their motor's own): `hil init`
+    writes none (it wrote 0.1 s for every protocol) and says what each protocol's drives
+    run with, and whose default that is."""
+    output = tmp_path / "arm.yaml"
+    assert main(["init", str(ARM), "--package-path", str(REAL_WORLD), "--protocol", protocol,
+                 "-o", str(output)]) == 0
+    printed = capsys.readouterr().out
+    assert not [line for line in output.read_text().splitlines()
+                if line.strip().startswith("watchdog_timeout")]
+    config = load_bus_config(output, PackagePath((REAL_WORLD,)))
+    own = set()
+    for drive in config.drives:
+        product = drive.options.drive_defaults() if drive.options is not None else {}
+        own.add("watchdog_timeout" in product)
+        if "watchdog_timeout" in product:
+            assert drive.watchdog_timeout == product["watchdog_timeout"]
+    (said,) = [line for line in printed.splitlines() if line.strip().startswith("watchdog")]
+    assert f"for the {protocol} drives on bus1" in said
+    assert ("the protocol's own default" in said) == own.pop()
 
 
 def test_init_spreads_drives_over_buses_by_the_load_check(tmp_path):
@@ -141,6 +167,33 @@ def test_check_and_init_agree_on_the_joints_a_drive_moves(name, tmp_path, capsys
     assert main(["init", str(REAL_WORLD / name), "-o", str(tmp_path / "c.yaml"), *package]) == 0
     config = load_bus_config(tmp_path / "c.yaml", PackagePath((REAL_WORLD,)))
     assert {j for d in config.drives for j in d.joints} == promised
+
+
+def test_init_and_check_agree_that_a_root_link_without_inertial_is_fixed(tmp_path, capsys):
+    """A root link without <inertial> (most hand-written URDFs) is fixed to the world, as
+    URDF's tools take it (kdl_parser warns of a root link *with* one) and MuJoCo welds it:
+    `hil check` says nothing of it, and `hil init` writes a fixed-base bench (it tried the
+    robot on a floating base to see whether it stands, and MuJoCo refused the massless base:
+    "mass and inertia of moving bodies must be larger than mjMINVAL")."""
+    assert main(["check", str(ROOT_WITHOUT_INERTIAL)]) == 0
+    assert "no warnings" in capsys.readouterr().out
+    output = tmp_path / "arm.yaml"
+    assert main(["init", str(ROOT_WITHOUT_INERTIAL), "-o", str(output)]) == 0
+    config = load_bus_config(output)
+    assert not config.floating_base and [d.joints for d in config.drives] == [("shoulder",)]
+
+
+def test_a_floating_base_without_mass_is_an_error_on_its_line_that_says_what_to_do(tmp_path):
+    config = tmp_path / "arm.yaml"
+    config.write_text(f"robot: {ROOT_WITHOUT_INERTIAL}\nbase: floating\nscene:\n  - {{name: "
+                      "floor, shape: plane}\ntransmissions:\n  shoulder: {reduction: 10}\n"
+                      "buses:\n  - name: a\n    cycle_hz: 500\n    drives:\n      - "
+                      "{node_id: 1, joint: shoulder}\n")
+    with pytest.raises(HilError) as caught:
+        load_bus_config(config)
+    (error,) = caught.value.diagnostics
+    assert error.line == 2 and "frees link 'base_link', which has no mass" in error.message
+    assert "give link 'base_link' an <inertial>" in error.hint
 
 
 def test_init_refuses_a_robot_without_a_joint_to_drive_and_says_why(tmp_path, capsys):

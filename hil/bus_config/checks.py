@@ -6,6 +6,7 @@ from __future__ import annotations
 from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD, BusConfig, DriveConfig, SystemConfig
 from hil.bus_config.yaml_reader import LineMapping, Reader
 from hil.can import bus_load
+from hil.description.corrections import massless_free_links
 from hil.errors import HilError
 from hil.protocols import names as protocol_names
 from hil.protocols import protocol
@@ -59,6 +60,14 @@ def check_system(reader: Reader, config: SystemConfig, transmissions, top: LineM
                 reader.fail(f"actuator '{actuator}' (joint {', '.join(transmission.joints)}) "
                             "has no drive", top.key_lines.get("buses"),
                             hint="add a drive for it to one of the buses")
+    if config.floating_base:
+        for link in massless_free_links(config.robot.links, config.robot.joints):
+            reader.fail(f"base: floating frees link '{link}', which has no mass (nor any link "
+                        "fixed to it): MuJoCo cannot move a body without mass",
+                        top.key_lines.get("base", top.line),
+                        hint=f"give link '{link}' an <inertial> with the base's real mass, or "
+                             "leave out 'base: floating' (a root link without <inertial> is "
+                             "fixed to the world, as URDF's tools take it)")
     if config.floating_base and not any(not thing.movable for thing in config.scene):
         reader.warn("base: floating, and nothing fixed in the scene to stand on: the robot "
                     "falls for as long as the run lasts", top.key_lines.get("base", top.line),

@@ -7,7 +7,9 @@ import argparse
 from pathlib import Path
 
 from hil.bus_config import load_bus_config
+from hil.commissioning.coupled_loops import coupled_gains
 from hil.commissioning.initial import initial_config
+from hil.commissioning.watchdog import watchdog_choices
 from hil.cli import common
 from hil.description import load_description
 from hil.errors import HilError
@@ -56,6 +58,12 @@ def run(args: argparse.Namespace) -> int:
                                    "check that this is the robot's main file, not an include")
     output.write_text(written.text)
     config = load_bus_config(output, package_path)      # as `hil check` and `hil up` will
+    coupled = coupled_gains(config)
+    if coupled.gains:                    # the drives' loops as hil sim would tune them fail
+        written = initial_config(robot, args.description, output, args.protocol, args.rate,
+                                 motor, coupled.gains)
+        output.write_text(written.text)
+        config = load_bus_config(output, package_path)
     print(f"hil init: wrote {output}: {written.drives} {args.protocol} drive(s)"
           f"{f' ({motor})' if motor else ''} on "
           f"{written.buses} bus(es) at {args.rate:g} Hz for '{robot.name}'"
@@ -64,6 +72,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"  it stands ({written.standing.kind}, on {', '.join(written.standing.feet)}): a "
               f"floating base on a floor, starting with each foot under its hip; the demo "
               f"holds the {len(written.standing.carrying)} joint(s) it stands on")
+    if coupled.gains:
+        print(f"  {len(coupled.gains)} drive(s) get gains: tuned on the least inertia their "
+              f"motor sees, their loops would move up to {coupled.ratio:.3g} times it "
+              "together, past what they hold stably (hil/commissioning/coupled_loops.py)")
+    for note in written.notes:
+        print(f"  warning: {note}")
+    for line in watchdog_choices(config):
+        print(f"  {line}")
     for joint in written.defaulted:
         print(f"  warning: joint '{joint.joint}': {joint.note}; review 'joint_limits:' in "
               f"{output}")

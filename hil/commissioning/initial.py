@@ -11,8 +11,8 @@ node ids from 1. Comments in the file say what was assumed.
 
 from __future__ import annotations
 
-import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from datetime import date
 from pathlib import Path
@@ -21,14 +21,14 @@ import mujoco
 import numpy as np
 
 from hil.commissioning.demo_pace import paced_demo
+from hil.commissioning.drive_options import STANCE_BANDWIDTH_HZ, Drive, with_options
 from hil.commissioning.stance import Stance, stance, standing_pose
 from hil.commissioning.sizing import (
-    MOTOR_CLASSES, MotorClass, Sizing, default_limits, fitting, models_catalogue,
-    needs_default_limits, size_joint,
+    MOTOR_CLASSES, Sizing, default_limits, models_catalogue, needs_default_limits, size_joint,
 )
 from hil.bus_config.joint_limits import KEYS as LIMIT_KEYS
 from hil.bus_config.transmissions import SIMPLE, actuator_of
-from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD
+from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD, Gains
 from hil.can import bus_load
 from hil.description import (
     Joint, JointLimits, RobotDescription, TransmissionActuator, TransmissionJoint,
@@ -36,32 +36,9 @@ from hil.description import (
 )
 from hil.plant import Plant
 from hil.protocols import protocol
-from hil.protocols.base import DriveSetting
 
 BITRATE = 1_000_000
 HEARTBEAT_PERIOD = 0.1
-#: MIT motors hold position with the master's kp/kd: a critically damped loop at this
-#: bandwidth on the joint's inertia at the zero pose, reflected to the motor
-MIT_BANDWIDTH_HZ = 10.0
-#: the velocity loops of the joints a standing robot stands on (Hz): under the ground's own
-#: contact (a 4 ms time constant, hil.plant's CONTACT_SOLREF): at the default 40 Hz a Go1's
-#: calves chattered between their peak torques and it shuffled across the floor; at 20 Hz
-#: (and 10) it stood still, 0.1 of its peak torque, no drift (lock-step, measured)
-STANCE_BANDWIDTH_HZ = 20.0
-
-
-@dataclass(frozen=True)
-class Drive:
-    """One drive to write: its joint, actuator, what the config adds for it (if anything)."""
-
-    joint: str
-    actuator: str
-    sizing: Sizing | None          # None: the description's own transmission
-    rated_torque: float | None
-    options: dict | None = None
-    velocity_bandwidth_hz: float | None = None     # None: the bus config's default
-
-
 @dataclass(frozen=True)
 class DefaultedJoint:
     """A joint given the default class: the limits written, and what the description had."""
@@ -78,15 +55,19 @@ class InitialConfig:
     buses: int
     defaulted: tuple[DefaultedJoint, ...]
     standing: Stance | None = None      # a floating base, standing so
+    notes: tuple[str, ...] = ()         # what the drives cannot do that the demo asks
 
 
 def initial_config(robot: RobotDescription, description: Path, output: Path,
-                   protocol_name: str, rate: float, motor: str | None = None) -> InitialConfig:
+                   protocol_name: str, rate: float, motor: str | None = None,
+                   gains: Mapping[str, Gains] | None = None) -> InitialConfig:
     """The YAML text of a bus config for ``robot`` (read from ``description``), to be
     written at ``output``: a drive for every joint of ``robot.undriven_joints``; a robot
     that stands (:mod:`hil.commissioning.stance`) gets a floating base, a standing start
     pose and a floor, and drives that hold it standing. ``motor``: the product every drive
-    is (a key of the protocol's ``models``), else the smallest of them that fits each."""
+    is (a key of the protocol's ``models``), else the smallest of them that fits each;
+    ``gains``: the drives' loop gains to write, by actuator (:mod:`hil.commissioning.
+    coupled_loops`), else ``hil sim`` tunes them."""
     worst = worst_gravity_loads(robot)
     defaulted = tuple(_defaulted(j, worst[j.name]) for j in robot.undriven_joints
                       if needs_default_limits(j))
@@ -110,7 +91,9 @@ def initial_config(robot: RobotDescription, description: Path, output: Path,
     drives += [Drive(s.joint, actuator_of(s.joint), s,
                      min(s.motor.rated_torque, sized.joint(s.joint).limits.effort / s.reduction))
                for s in sizings]
-    drives = _with_options(sized, drives, spec, catalogue)
+    drives, notes = with_options(sized, drives, spec, catalogue, holding,
+                                 standing.loads if standing is not None else {})
+    drives = [replace(d, gains=(gains or {}).get(d.actuator)) for d in drives]
     if standing is not None:
         carrying = set(standing.carrying)
         drives = [replace(d, velocity_bandwidth_hz=STANCE_BANDWIDTH_HZ)
@@ -119,7 +102,7 @@ def initial_config(robot: RobotDescription, description: Path, output: Path,
     buses = [drives[i:i + per_bus] for i in range(0, len(drives), per_bus)]
     text = _yaml(robot, description, output, protocol_name, rate, sizings, buses, per_bus,
                  defaulted, standing, pose)
-    return InitialConfig(text, len(drives), len(buses), defaulted, standing)
+    return InitialConfig(text, len(drives), len(buses), defaulted, standing, tuple(notes))
 
 
 def stands(robot: RobotDescription) -> tuple[Stance | None, dict[str, float]]:
@@ -199,32 +182,6 @@ def _drives_per_bus(protocol_name: str, rate: float) -> int:
     return max(1, min(int(budget // per_drive), len(spec.node_ids) - 1))
 
 
-def _with_options(robot: RobotDescription, drives: list[Drive], spec,
-                  catalogue: tuple[MotorClass, ...]) -> list[Drive]:
-    """Each drive with the options its protocol writes (``Protocol.initial_options``): from
-    the motor side of its joint, the master's gains (see MIT_BANDWIDTH_HZ) and, where the
-    protocol knows its products, the model sized for it."""
-    inertias = Plant(robot).motor_inertias()       # at the start pose
-    omega = 2 * math.pi * MIT_BANDWIDTH_HZ
-    result = []
-    for drive in drives:
-        joint = robot.joint(drive.joint.split(", ")[0])
-        reduction = abs(robot.reduction(drive.actuator))
-        inertia = inertias[drive.actuator]
-        limits = joint.limits
-        reach = (max(abs(limits.lower), abs(limits.upper)) if limits.lower is not None
-                 else 2 * math.pi)                           # unlimited: two turns each way
-        peak, speed = limits.effort / reduction, limits.velocity * reduction
-        model = None
-        if spec.models:
-            model = (drive.sizing.motor if drive.sizing is not None
-                     else fitting(catalogue, peak, speed)).name
-        setting = DriveSetting(reach * reduction, speed, peak, inertia * omega ** 2,
-                               2 * inertia * omega, model)
-        result.append(replace(drive, options=spec.initial_options(setting)))
-    return result
-
-
 def _number(value: float) -> str:
     """A float as YAML 1.1 (PyYAML) reads it back as one: ``1e-07`` is a string there."""
     text = f"{value:.4g}"
@@ -279,9 +236,19 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
         lines += ["", "transmissions:"]
         lines += [f"  {s.joint}: {{reduction: {s.reduction:.6g}, rotor_inertia: "
                   f"{_number(s.motor.rotor_inertia)}}}   # {s.note}" for s in sizings]
+    if any(d.gravity_feed_forward for bus in buses for d in bus):
+        lines += ["", "# torque_feed_forward: gravity where the drive holds its joint with the "
+                      "master's PD alone,", "# no integral (MIT family): the master sends the "
+                      "weight's torque from the description", "# (hil/commissioning/"
+                      "drive_options.py)."]
+    if any(d.gains is not None for bus in buses for d in bus):
+        lines += ["", "# gains: where the drives' own loops, tuned on the least inertia each "
+                      "motor sees,", "# would be unstable together (hil/commissioning/"
+                      "coupled_loops.py)."]
     lines += ["", "defaults:", f"  protocol: {protocol_name}",
               "  encoder_counts_per_rev: 131072   # 17-bit encoder on the motor",
-              "  watchdog_timeout: 0.1            # s without commands before a drive stops",
+              "  # watchdog_timeout (s without commands before a drive stops): left to each",
+              "  # protocol's default, the maker's where it documents one (hil init says which)",
               f"  heartbeat_period: {HEARTBEAT_PERIOD:g}", "", "buses:"]
     for number, drives in enumerate(buses, 1):
         node_id = 1
@@ -294,8 +261,14 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
             fields = [f"node_id: {node_id}", key]
             if drive.rated_torque is not None:
                 fields.append(f"rated_torque: {_number(drive.rated_torque)}")
+            if drive.gravity_feed_forward:
+                fields.append("torque_feed_forward: gravity")
             if drive.velocity_bandwidth_hz is not None:
                 fields.append(f"velocity_bandwidth_hz: {_number(drive.velocity_bandwidth_hz)}")
+            if drive.gains is not None:
+                fields.append("gains: {" + ", ".join(
+                    f"{key}: {_number(getattr(drive.gains, key))}"
+                    for key in ("position_kp", "velocity_kp", "velocity_ki")) + "}")
             if drive.options:
                 fields.append("options: {" + ", ".join(
                     f"{k}: {v if isinstance(v, str) else _number(v)}"

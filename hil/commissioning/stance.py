@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from hil.description import RobotDescription
+from hil.description.corrections import massless_free_links
 from hil.plant import INITIAL_MARGIN, Plant
 
 #: the centre of mass must lie this far inside the support polygon (m)
@@ -50,7 +51,11 @@ class Stance:
 
 def stance(robot: RobotDescription, pose: Mapping[str, float] | None = None) -> Stance | None:
     """How ``robot`` stands on level ground in its start pose (``pose`` over hil's own), or
-    None if it does not."""
+    None if it does not. A base without mass does not (a root link without ``<inertial>``,
+    as hand-written URDFs leave it): URDF's tools take it as fixed to the world, and MuJoCo
+    cannot float it."""
+    if massless_free_links(robot.links, robot.joints):
+        return None
     plant = Plant(robot, floating_base=True, start_pose=pose)
     root = plant.base_body
     if root is None:                  # every body on the world has a movable joint of its own

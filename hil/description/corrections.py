@@ -9,6 +9,7 @@ that names the link and what changed (``--strict`` makes them errors).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -54,9 +55,9 @@ def physical_inertia(inertial: Inertial) -> tuple[Inertial, str | None]:
                     f"-> ({', '.join(f'{m:.4g}' for m in fixed)}) kg m^2")
 
 
-def massless_moving_links(links: tuple[Link, ...], joints: tuple[Joint, ...]) -> list[str]:
-    """Links that a movable joint moves and that carry no mass, counting the links fixed to
-    them (MuJoCo rejects a moving body whose rigid part has none)."""
+def _rigid_mass(links: tuple[Link, ...], joints: tuple[Joint, ...]) -> Callable[[str], float]:
+    """The mass (kg) of a link with the links fixed to it, down the tree: MuJoCo's body
+    and the bodies welded to it, which move as one."""
     mass = {link.name: link.inertial.mass if link.inertial else 0.0 for link in links}
     fixed_children: dict[str, list[str]] = {}
     for joint in joints:
@@ -70,8 +71,33 @@ def massless_moving_links(links: tuple[Link, ...], joints: tuple[Joint, ...]) ->
         return mass.get(link, 0.0) + sum(rigid_mass(child, seen)
                                          for child in fixed_children.get(link, ()))
 
-    return [j.child for j in joints if j.is_movable and j.child in mass
-            and rigid_mass(j.child, set()) <= 0.0]
+    return lambda link: rigid_mass(link, set())
+
+
+def massless_moving_links(links: tuple[Link, ...], joints: tuple[Joint, ...]) -> list[str]:
+    """Links that a movable joint moves and that carry no mass, counting the links fixed to
+    them (MuJoCo rejects a moving body whose rigid part has none)."""
+    names = {link.name for link in links}
+    rigid_mass = _rigid_mass(links, joints)
+    return [j.child for j in joints if j.is_movable and j.child in names
+            and rigid_mass(j.child) <= 0.0]
+
+
+def massless_free_links(links: tuple[Link, ...], joints: tuple[Joint, ...]) -> list[str]:
+    """The links a floating base frees (the root; under a root named WORLD, each link fixed
+    to it) that carry no mass, counting the links fixed to them. MuJoCo's compiler refuses
+    to move a body without mass ("mass and inertia of moving bodies must be larger than
+    mjMINVAL") and keeps a welded one without; URDF's tools take a root link without
+    ``<inertial>`` as fixed to the world (kdl_parser's treeFromUrdfModel warns of a root
+    link *with* one: KDL's root does not move)."""
+    children = {j.child for j in joints}
+    roots = [link.name for link in links if link.name not in children]
+    if len(roots) != 1:              # no tree: reported by the tree check
+        return []
+    tops = ([j.child for j in joints if j.parent == WORLD and not j.is_movable]
+            if roots[0] == WORLD else roots)
+    rigid_mass = _rigid_mass(links, joints)
+    return [link for link in tops if rigid_mass(link) <= 0.0]
 
 
 def placeholder_inertial(link: Link) -> Inertial:
