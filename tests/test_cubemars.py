@@ -22,8 +22,9 @@ import pytest
 from conftest import TEST_MOTOR_DRIVE, TESTS, ClientBench, hils_master_moves, socketcan_missing
 from hil.bus_config import load_bus_config
 from hil.drives import DriveCore, DriveParameters, Power
+from hil.can.messages import extended
 from hil.protocols.cubemars import (
-    Answer, CubeMarsOptions, ErrorCode, pack_mit_answer, pack_status, unpack_status,
+    Answer, Control, CubeMarsOptions, ErrorCode, pack_mit_answer, pack_status, unpack_status,
     unpack_v3_command,
 )
 from hil.protocols.cubemars.drive import CubeMarsDrive
@@ -31,7 +32,8 @@ from hil.protocols.cubemars.models import MODELS, model
 from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, pack_command,
 )
-from test_mit_profile import LockStep
+from hil.testing import DrivesBench
+from test_mit_profile import LockStep, PlantMaster
 
 #: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
 #: the client libraries
@@ -102,9 +104,8 @@ def test_options_refuse_an_unknown_model_and_a_rate_outside_the_manual():
 
 # --- a simulated motor on a bus: MIT mode, firmware V2 ------------------------------------
 
-def _bench(tmp_path, options: str, node_id: int = 1, interface="zenoh", channel=None,
-           watchdog: float = 0.5):
-    """A bench of the fixture's config with the drive's options (and watchdog) replaced."""
+def _config(tmp_path, options: str, node_id: int = 1, watchdog: float = 0.5):
+    """The fixture's config with the drive's options (and watchdog) replaced."""
     text = CONFIG.read_text().replace("watchdog_timeout: 0.5", f"watchdog_timeout: {watchdog}")
     text = text.replace(
         "{node_id: 1, joint: yaw, options: {model: AK80-9, kp: 5.0, kd: 0.3}}",
@@ -112,7 +113,13 @@ def _bench(tmp_path, options: str, node_id: int = 1, interface="zenoh", channel=
     path = tmp_path / "bench.yaml"
     path.write_text(text.replace("robot: damiao_one_axis.urdf",
                                  f"robot: {TESTS / 'fixtures' / 'damiao_one_axis.urdf'}"))
-    return ClientBench(path, interface, channel)
+    return path
+
+
+def _bench(tmp_path, options: str, node_id: int = 1, interface="zenoh", channel=None,
+           watchdog: float = 0.5):
+    """A bench of the fixture's config with the drive's options (and watchdog) replaced."""
+    return ClientBench(_config(tmp_path, options, node_id, watchdog), interface, channel)
 
 
 @pytest.fixture
@@ -261,6 +268,62 @@ def test_set_origin_moves_nothing(tmp_path, origin):
         assert bench.joint() == pytest.approx(before, abs=0.01)
     finally:
         bench.close()
+
+
+# --- servo commands while a move is in progress, lock-step on the plant ------------------
+
+@pytest.fixture
+def moving(tmp_path):
+    """A servo-mode AK80-9 on its plant, lock-step, half a second into a position-speed move
+    to 150 degrees at 3000 erpm (about 1.7 rad/s at the output)."""
+    config = _config(tmp_path, "{model: AK80-9, control: servo}", watchdog=0)
+    with DrivesBench(config, lock_step=True) as bench:
+        master = PlantMaster(bench)
+        master.send(6 << 8 | 1, struct.pack(">ihh", 150 * 10000, 300, 3000), extended=True)
+        master.wait(0.5)
+        assert 0.3 < master.joint() < 2.0
+        yield master
+
+
+#: a command sent mid-move, and where the joint ends: None where the command took hold
+MID_MOVE = {"current brake": (2, struct.pack(">i", 10000), None),
+            "duty 0": (0, struct.pack(">i", 0), None),
+            "speed 0": (3, struct.pack(">i", 0), None),
+            "position 0": (4, struct.pack(">i", 0), 0.0),
+            "position-speed 0": (6, struct.pack(">ihh", 0, 300, 3000), 0.0),
+            "set origin": (5, bytes([0]), math.radians(150))}
+
+
+@pytest.mark.parametrize("name", MID_MOVE)
+def test_a_servo_command_mid_move_drops_the_move(moving, name):
+    """Issue 65: a current brake mid-move let the move run on 1.94 rad to its target. §5.1:
+    current brake "the motor is fixed at the current position" with the brake current; duty,
+    speed, position and position-speed are the motor's command from then on. Set origin
+    moves nothing and leaves the move to its target where it is (hil's choice: §5.1.6 is
+    silent on a move in progress)."""
+    mode, data, end = MID_MOVE[name]
+    start = moving.joint()
+    moving.send(mode << 8 | 1, data, extended=True)
+    moving.wait(2.0)
+    assert moving.joint() == pytest.approx(start if end is None else end, abs=0.05)
+
+
+def test_a_current_command_mid_move_drops_the_move(moving):
+    """§5.1.2: the current loop's current is the motor's torque (Iq x KT), the move gone."""
+    moving.send(1 << 8 | 1, struct.pack(">i", 0), extended=True)
+    moving.wait(0.01)
+    assert moving.bench.sim.drives[0].core.status().torque == 0.0
+
+
+def test_a_servo_current_beyond_the_manuals_range_is_taken_at_its_end():
+    """§5.1.2: the current is -60..60 A; 1000 A asks for no more torque than 60 A gives."""
+    core = DriveCore(DriveParameters(**{**TEST_MOTOR_DRIVE, "peak_torque": 1000.0,
+                                        "watchdog_timeout": 0.0}))
+    core.measure(0.0, 0.0)
+    motor = LockStep(CubeMarsDrive(1, core, threading.RLock(), 1.0, 0.1,
+                                   CubeMarsOptions(control=Control.SERVO)))
+    motor.send(extended(1 << 8 | 1), struct.pack(">i", 1000 * 1000))
+    assert core.update(0.001) == pytest.approx(60 * MODELS["AK80-9"].torque_constant)
 
 
 # --- published client libraries, over SocketCAN inside User-Mode Linux ----------------------

@@ -26,7 +26,8 @@ from hil.protocols.damiao import (
 from hil.protocols.damiao.drive import DamiaoDrive
 from hil.protocols.damiao.models import MODELS, model
 from hil.protocols.mit import MitCommand, MitRanges, pack_command
-from test_mit_profile import LockStep
+from hil.testing import DrivesBench
+from test_mit_profile import LockStep, PlantMaster
 
 #: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
 #: the client libraries
@@ -151,6 +152,119 @@ def test_silence_past_the_timeout_is_lost_communication_until_cleared(bench):
     assert bench.ask(0x001, ENABLE).data[0] >> 4 == State.LOST_COMMUNICATION   # not cleared
     assert bench.ask(0x001, CLEAR_ERROR).data[0] >> 4 == State.DISABLED
     assert bench.ask(0x001, ENABLE).data[0] >> 4 == State.ENABLED
+
+
+# --- what a master writes never moves the motor where the firmware would not, lock-step ----
+# (the DM4310's firmware, recovered in github.com/umeow0716/damiao_firmware:
+# app/src/parameter_protocol.c write_register, app/src/app_commands.c, motor_control.c)
+
+@pytest.fixture
+def dm4310():
+    """A master of the fixture's DM4310 on its plant, lock-step, TIMEOUT off; the motor
+    enabled in MIT mode, held at rest at 0 rad."""
+    with DrivesBench(CONFIG, lock_step=True) as bench:
+        master = PlantMaster(bench)
+        master.send(0x7FF, write(9, 0))
+        master.send(0x001, ENABLE)
+        master.send(0x001, pack_command(MitCommand(0.0, 0.0, 20.0, 0.5, 0.0), DM4310))
+        master.wait(0.5)
+        yield master
+
+
+def write(register: int, value: float, kind: str = "<I") -> bytes:
+    return bytes([1, 0, 0x55, register]) + struct.pack(kind, value)
+
+
+#: at rest in each mode, with fields that would move the motor read as another mode's: an
+#: MIT hold with a velocity of 5 rad/s and no damping; velocity 0; a position-velocity move
+#: to where it is at 5 rad/s; a force-position move 2 rad away with no torque
+AT_REST = {ControlMode.MIT: (0x001, pack_command(MitCommand(0.0, 5.0, 20.0, 0.0, 0.0), DM4310)),
+           ControlMode.POSITION_VELOCITY: (0x101, struct.pack("<ff", 0.0, 5.0)),
+           ControlMode.VELOCITY: (0x201, struct.pack("<f", 0.0) + bytes(4)),
+           ControlMode.FORCE_POSITION: (0x301, struct.pack("<fHH", 2.0, 500, 0))}
+
+
+@pytest.mark.parametrize("before, after", [(a, b) for a in ControlMode for b in ControlMode
+                                           if a is not b], ids=lambda mode: mode.name)
+def test_a_control_mode_change_takes_no_stale_field_as_a_command(dm4310, before, after):
+    """Issue 65: CTRL_MODE 3 written to an enabled motor turned it at the last MIT command's
+    velocity (5 rad/s, 3 rad in 1 s). The firmware takes the write while enabled and zeroes
+    its command (write_register, register 0x0A), so the new mode runs a zeroed command."""
+    dm4310.send(0x7FF, write(10, before))
+    dm4310.send(*AT_REST[before])
+    dm4310.wait(0.1)
+    start = dm4310.joint()
+    answer = dm4310.send(0x7FF, write(10, after))[0]
+    assert struct.unpack("<I", bytes(answer.data[4:]))[0] == after
+    dm4310.wait(1.0)
+    assert dm4310.joint() == pytest.approx(start, abs=0.02)
+    assert dm4310.send(*AT_REST[after])[0].data[0] >> 4 == State.ENABLED
+
+
+@pytest.mark.parametrize("register, value, kind", [
+    (21, float("nan"), "<f"), (21, float("inf"), "<f"), (22, -1.0, "<f"), (23, 0.0, "<f"),
+    (10, 0, "<I"), (10, 5, "<I"), (3, 1.5, "<f"), (4, 0.0, "<f"), (5, 10.0, "<f"),
+    (27, -1.0, "<f"), (28, float("-inf"), "<f"), (24, 50.0, "<f"), (29, 48.0, "<f"),
+    (35, 12, "<I")], ids=lambda x: str(x))
+def test_a_write_out_of_the_firmwares_range_is_refused_and_moves_nothing(dm4310, register,
+                                                                         value, kind):
+    """The firmware checks each write (write_register: PMAX/VMAX/TMAX > 0, CTRL_MODE 1-4,
+    OC_Value in (0, 1), ACC > 0, DEC < 0, KP_APR/KI_APR >= 0, I_BW 100-10000, OV_Value up
+    to 32 V, can_br up to 11; NaN and infinity: hil's choice) and answers with the value it
+    kept."""
+    dm4310.send(0x001, pack_command(MitCommand(0.5, 0.0, 20.0, 0.5, 0.0), DM4310))
+    dm4310.wait(0.5)
+    start = dm4310.joint()
+    kept = struct.unpack(kind, bytes(dm4310.send(0x7FF, bytes([1, 0, 0x33, register, 0, 0, 0,
+                                                                 0]))[0].data[4:]))[0]
+    answer = dm4310.send(0x7FF, write(register, value, kind))[0]
+    assert struct.unpack(kind, bytes(answer.data[4:]))[0] == kept
+    dm4310.wait(0.5)
+    assert dm4310.joint() == pytest.approx(start, abs=0.005)
+
+
+def test_new_ranges_while_enabled_move_nothing(dm4310):
+    """PMAX, VMAX and TMAX are taken while enabled, any positive value (write_register); the
+    command already decoded stands: the motor holds where it was."""
+    dm4310.send(0x001, pack_command(MitCommand(0.5, 0.0, 20.0, 0.5, 0.0), DM4310))
+    dm4310.wait(0.5)
+    start = dm4310.joint()
+    for register, value in ((21, 3.0e38), (22, 1e-6), (23, 1e6)):
+        answer = dm4310.send(0x7FF, write(register, value, "<f"))[0]
+        assert struct.unpack("<f", bytes(answer.data[4:]))[0] == pytest.approx(value, rel=1e-6)
+    dm4310.wait(0.5)
+    assert dm4310.joint() == pytest.approx(start, abs=0.005)
+
+
+def test_save_zero_ends_a_move_in_progress_where_it_is(dm4310):
+    """FE sets the command's position to 0, the new zero (app_commands.c,
+    CAN_COMMAND_SET_ZERO): a position-velocity move in progress stops here."""
+    dm4310.send(0x7FF, write(10, ControlMode.POSITION_VELOCITY))
+    dm4310.send(0x7FF, write(5, -20.0, "<f"))              # DEC: 20 rad/s²
+    dm4310.send(0x101, struct.pack("<ff", 2.5, 2.0))
+    dm4310.wait(0.3)
+    start = dm4310.joint()
+    assert 0.2 < start < 1.5
+    dm4310.send(0x001, SAVE_ZERO)
+    dm4310.wait(1.0)
+    assert dm4310.joint() == pytest.approx(start, abs=2.0 ** 2 / (2 * 20))
+
+
+def test_clear_error_disables_an_enabled_motor(dm4310):
+    """FB clears the error and disarms the motor (app_commands.c, CAN_COMMAND_CLEAR_FAULT)."""
+    assert dm4310.send(0x001, CLEAR_ERROR)[0].data[0] >> 4 == State.DISABLED
+
+
+def test_registers_are_saved_only_while_disabled():
+    """The firmware stores its registers on 0xAA only while disarmed (parameter_protocol.c)."""
+    motor = lock_step_dm4310()
+    motor.send(0x001, ENABLE)
+    motor.send(0x7FF, write(27, 42.0, "<f"))
+    motor.send(0x7FF, bytes([1, 0, 0xAA, 0, 0, 0, 0, 0]))
+    assert motor.drive.saved[27] != 42.0
+    motor.send(0x001, DISABLE)
+    motor.send(0x7FF, bytes([1, 0, 0xAA, 0, 0, 0, 0, 0]))
+    assert motor.drive.saved[27] == 42.0
 
 
 # --- the TIMEOUT watchdog, lock-step ----------------------------------------------------

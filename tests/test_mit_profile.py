@@ -22,6 +22,7 @@ from hil.protocols.mit import (
     TimeoutReaction, float_to_uint, pack_command, pack_reply, unpack_command, unpack_reply,
 )
 from hil.protocols.mit.drive import MitDrive
+from hil.testing import DrivesBench
 
 #: judged against the host's stalls (tests/host_stalls.py): the drive answers in its own thread;
 #: a test gives it a few ms
@@ -285,3 +286,25 @@ def test_the_default_watchdog_is_the_firmwares_none(tmp_path):
     path.write_text(text.replace("robot: damiao_one_axis.urdf",
                                  f"robot: {fixture.parent / 'damiao_one_axis.urdf'}"))
     assert load_bus_config(path).buses[0].drives[0].watchdog_timeout == 0.0
+
+
+# --- a master on the plant, lock-step ----------------------------------------------------
+
+class PlantMaster:
+    """A master on a lock-step DrivesBench of a one-joint bus config (the drive on its
+    plant): each frame sent closes a cycle of its own, and brings the answers to it."""
+
+    def __init__(self, bench: DrivesBench):
+        self.bench, self.bus = bench, bench.bus()
+        self.period = 1 / bench.config.buses[0].cycle_hz
+
+    def send(self, can_id: int, data: bytes, extended: bool = False) -> list[can.Message]:
+        self.bus.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=extended))
+        self.bench.step()
+        return list(iter(lambda: self.bus.recv(0), None))
+
+    def wait(self, seconds: float) -> None:
+        self.bench.step(round(seconds / self.period))
+
+    def joint(self) -> float:
+        return next(iter(self.bench.joints().values()))

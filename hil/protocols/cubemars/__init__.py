@@ -45,6 +45,11 @@ STATUS_MODE = 0x29
 #: servo position mode's profile when none is given (§5.1: "default speed 12000 erpm,
 #: acceleration 40000 erpm")
 DEFAULT_ERPM, DEFAULT_ERPM_PER_S = 12000.0, 40000.0
+#: the servo-mode commands' ranges: current (and brake current) -60..60 A (§5.1.2), speed
+#: -100000..100000 erpm (§5.1.4). A value beyond is taken at the range's end, as the VESC
+#: firmware the servo mode descends from truncates its current and speed commands (hil's
+#: reading: the manual gives the ranges only)
+MAX_AMPERES, MAX_ERPM = 60.0, 100000.0
 
 
 class Firmware(enum.Enum):
@@ -318,6 +323,6 @@ class CubeMars(Protocol):
 
 
 __all__ = ["Answer", "Control", "CubeMars", "CubeMarsOptions", "ErrorCode", "Firmware",
-           "KD_MAX", "KP_MAX", "SPECIAL_FRAMES", "STATUS_MODE", "ServoMode", "command_id",
-           "pack_mit_answer", "pack_status", "status_id", "unpack_mit_answer",
-           "unpack_status", "unpack_v3_command"]
+           "KD_MAX", "KP_MAX", "MAX_AMPERES", "MAX_ERPM", "SPECIAL_FRAMES", "STATUS_MODE",
+           "ServoMode", "command_id", "pack_mit_answer", "pack_status", "status_id",
+           "unpack_mit_answer", "unpack_status", "unpack_v3_command"]

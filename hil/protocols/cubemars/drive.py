@@ -25,9 +25,9 @@ from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power, SilenceReaction
 from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.cubemars import (
-    DEFAULT_ERPM, DEFAULT_ERPM_PER_S, SPECIAL_FRAMES, Answer, Control, CubeMars,
-    CubeMarsOptions, ErrorCode, Firmware, ServoMode, command_id, pack_mit_answer, pack_status,
-    status_id, unpack_mit_answer, unpack_v3_command,
+    DEFAULT_ERPM, DEFAULT_ERPM_PER_S, MAX_AMPERES, MAX_ERPM, SPECIAL_FRAMES, Answer, Control,
+    CubeMars, CubeMarsOptions, ErrorCode, Firmware, ServoMode, command_id, pack_mit_answer,
+    pack_status, status_id, unpack_mit_answer, unpack_v3_command,
 )
 from hil.protocols.mit import ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, unpack_command
 from hil.protocols.mit.drive import enter_motor_mode, follow
@@ -57,6 +57,7 @@ class CubeMarsDrive(DriveProfile):
         self._peak = core.parameters.peak_torque
         self._reply: tuple[int, bytes] | None = None
         self._next_status = 0.0
+        self._servo_mode: ServoMode | None = None      # the last servo-mode command's
         core.silence_reaction = SilenceReaction.DISABLE
 
     # --- bus ----------------------------------------------------------------------------
@@ -125,6 +126,7 @@ class CubeMarsDrive(DriveProfile):
             with self.lock:
                 self.heard()
                 SERVO[mode](self, bytes(data))
+                self._servo_mode = mode
                 self.on_command(self)
         return receive
 
@@ -147,18 +149,22 @@ class CubeMarsDrive(DriveProfile):
     def _current(self, data: bytes) -> None:
         self._powered(Mode.TORQUE)
         self._limit_torque(self._peak)
-        amperes = _INT32.unpack_from(data)[0] / 1000
+        amperes = _within(_INT32.unpack_from(data)[0] / 1000, MAX_AMPERES)
         self.core.new_setpoint(torque=amperes * self.model.torque_constant)
 
     def _current_brake(self, data: bytes) -> None:
-        """Held where it is with at most the brake current's torque."""
-        amperes = abs(_INT32.unpack_from(data)[0] / 1000)
-        if self.core.mode is not Mode.PROFILE_POSITION or self.core.power is not Power.ENABLED:
+        """Held where it is with at most the brake current's torque: "the motor is fixed at
+        the current position by the specified brake current" (§5.1), so a move or a speed in
+        progress is dropped where the brake takes hold, and held there while braking."""
+        amperes = min(abs(_INT32.unpack_from(data)[0] / 1000), MAX_AMPERES)
+        if self._servo_mode is not ServoMode.CURRENT_BRAKE or (
+                self.core.power is not Power.ENABLED):
             self._powered(Mode.PROFILE_POSITION)
+            self.core.hold_position()
         self._limit_torque(min(self._peak, amperes * self.model.torque_constant))
 
     def _erpm(self, data: bytes) -> None:
-        self._speed(self.model.output_speed(_INT32.unpack_from(data)[0]))
+        self._speed(self.model.output_speed(_within(_INT32.unpack_from(data)[0], MAX_ERPM)))
 
     def _speed(self, speed: float) -> None:
         self._powered(Mode.PROFILE_VELOCITY)
@@ -176,7 +182,8 @@ class CubeMarsDrive(DriveProfile):
 
     def _move(self, degrees: float, erpm: float, erpm_per_s: float) -> None:
         self._powered(Mode.PROFILE_POSITION)
-        self._profile(self.model.output_speed(erpm), self.model.output_speed(erpm_per_s))
+        self._profile(self.model.output_speed(min(erpm, MAX_ERPM)),
+                      self.model.output_speed(erpm_per_s))
         self.core.move_to(math.radians(degrees) + self._zero)
 
     def _origin(self, data: bytes) -> None:
@@ -240,6 +247,10 @@ class CubeMarsDrive(DriveProfile):
         if self.options.control is Control.SERVO:
             return "SERVO " + ("RUNNING" if self.core.power is Power.ENABLED else "RELEASED")
         return "MOTOR MODE" if self.core.power is Power.ENABLED else "REST MODE"
+
+
+def _within(value: float, limit: float) -> float:
+    return max(-limit, min(limit, value))
 
 
 SERVO = {ServoMode.DUTY: CubeMarsDrive._duty, ServoMode.CURRENT: CubeMarsDrive._current,

@@ -13,11 +13,19 @@ ACC and DEC (rad/s², DEC negative; 0: no ramp) ramp the position-velocity and v
 modes; p_m and xout read the position; VBus, Tpcb and Tmtr read the supply and no
 heating. MST_ID and ESC_ID are kept, saved and read back, and the motor keeps answering on
 the bus config's ids (hil's choice: the maker's documents do not say when a new id applies,
-and a bench's ids are its config's). A write the register cannot take (CTRL_MODE outside
-1-4, a range of 0, a value that is not a number) leaves it as it was, and the answer
-carries the value it kept. The others are kept and read back as written. Saved values
-(0xAA) survive a restart within the run (``hil sim --fault
+and a bench's ids are its config's). A write is range-checked as the DM4310's firmware
+checks it (:data:`hil.protocols.damiao.registers.WRITABLE`): one the register cannot take
+leaves it as it was, and the answer carries the value it kept. The others are kept and
+read back as written. Saved values (0xAA, taken only while the motor is disabled, as the
+firmware takes them) survive a restart within the run (``hil sim --fault
 restart:...``); unsaved ones are lost with it.
+
+A command is never left over from another mode or another enable: as the firmware keeps
+one command and zeroes it when CTRL_MODE changes (parameter_protocol.c, write_register)
+and when the motor is disabled (app_commands.c), the motor enabled, or switched to a new
+mode while enabled, runs that mode's zeroed command (:meth:`DamiaoDrive._zero_command`)
+until the master sends one. The firmware takes a CTRL_MODE write while enabled, and so
+does hil.
 """
 
 from __future__ import annotations
@@ -35,10 +43,10 @@ from hil.protocols.damiao import (
     REGISTER_ID, State, is_register_answer, pack_feedback, unpack_feedback,
 )
 from hil.protocols.damiao.registers import (
-    AMBIENT, REGISTERS, TIMEOUT_UNIT, initial_values,
+    AMBIENT, ID_REGISTERS, REGISTERS, TIMEOUT_UNIT, accepts, initial_values,
 )
 from hil.protocols.mit import MitRanges, unpack_command
-from hil.protocols.mit.drive import enter_motor_mode, follow
+from hil.protocols.mit.drive import follow
 
 #: the core's mode for each control mode
 CORE_MODES = {ControlMode.MIT: Mode.IMPEDANCE, ControlMode.POSITION_VELOCITY:
@@ -133,22 +141,53 @@ class DamiaoDrive(DriveProfile):
     # --- special frames ---------------------------------------------------------------
 
     def _enable(self) -> None:
-        if self.error is not None:
-            return                       # an error stands until it is cleared (FB)
+        if self.error is not None or self.core.power is Power.ENABLED:
+            return                       # an error stands until cleared (FB); enabled: as is
         self.core.set_mode(CORE_MODES[self.control_mode])
-        enter_motor_mode(self.core)
-        self.core.hold_position()        # the modes other than MIT hold where they are
+        self.core.enable()
+        self._zero_command()             # the command a disable left: zeroed
 
     def _disable(self) -> None:
         self.core.disable()
 
     def _save_zero(self) -> None:
-        self._zero = self.core.status().position
+        """The zero here, and the command's position with it: the firmware sets it to 0,
+        the new zero (app_commands.c, CAN_COMMAND_SET_ZERO), so a move in progress ends
+        here."""
+        here = self.core.status().position
+        self._zero = here
+        if self.core.power is not Power.ENABLED:
+            return
+        if self.control_mode is ControlMode.MIT:
+            self.core.new_setpoint(position=here)
+        elif self.control_mode is not ControlMode.VELOCITY:
+            self.core.move_to(here)
 
     def _clear_error(self) -> None:
+        """The error cleared and the motor disabled, as the firmware does
+        (app_commands.c, CAN_COMMAND_CLEAR_FAULT: the motor disarmed)."""
         self.error = None
         if self.core.power is Power.FAULT:
             self.core.reset_fault()
+        self.core.disable()
+
+    def _zero_command(self) -> None:
+        """The firmware's command zeroed (position, velocity, kp, kd, torque 0), as the
+        enabled motor runs it in each mode (motor_control.c): MIT, no torque (kp, kd and
+        the feed-forward 0); velocity, the speed brought to 0; position-velocity, a
+        velocity limit of 0: stopped where it is; force-position, a current limit of 0: no
+        torque."""
+        mode = self.control_mode
+        self.core.set_mode(CORE_MODES[mode])
+        if mode is ControlMode.MIT:
+            self.core.new_setpoint(position=self.core.status().position, velocity=0.0,
+                                   torque=0.0, stiffness=0.0, damping=0.0)
+        elif mode is ControlMode.VELOCITY:
+            self._profile(0.0, self._peak)
+            self.core.new_setpoint(velocity=0.0)
+        else:
+            self._profile(0.0, 0.0 if mode is ControlMode.FORCE_POSITION else self._peak)
+            self.core.hold_position()
 
     # --- commands, one per control mode --------------------------------------------------
 
@@ -196,18 +235,27 @@ class DamiaoDrive(DriveProfile):
                 self.send(self.reply_id, self._feedback())
                 return
             if op == Op.SAVE:
-                self.saved = dict(self.registers)     # no answer: the sources show none
+                if self.core.power is not Power.ENABLED:    # the firmware saves disarmed only
+                    self.saved = dict(self.registers)     # no answer: the sources show none
                 return
             register = REGISTERS.get(number)
             if register is None or op not in (Op.READ, Op.WRITE):
                 self.malformed += 1      # an unknown register or op: no answer (hil's choice)
                 return
             if op == Op.WRITE and register.writable:
-                value = register.decode(bytes(data[4:8]))
-                if _acceptable(number, value):
-                    self.registers[number] = value
-                    self._apply_registers()
+                self._write(number, register.decode(bytes(data[4:8])))
             self.send(self.reply_id, bytes(data[:4]) + register.encode(self._read(number)))
+
+    def _write(self, number: int, value: float) -> None:
+        """A register write the register can take (the module doc); a new CTRL_MODE zeroes
+        the command of an enabled motor."""
+        if not accepts(number, value, self.registers):
+            return
+        mode = self.control_mode
+        self.registers[number] = int(value) & 0x7FF if number in ID_REGISTERS else value
+        self._apply_registers()
+        if self.control_mode is not mode and self.core.power is Power.ENABLED:
+            self._zero_command()
 
     def _read(self, number: int) -> float:
         if number in (80, 81):           # p_m (the rotor's), xout (the output's)
@@ -219,9 +267,6 @@ class DamiaoDrive(DriveProfile):
         """What the registers mean to the motor now (the module doc)."""
         self.core.parameters = replace(self.core.parameters,
                                        watchdog_timeout=self.registers[9] * TIMEOUT_UNIT)
-        if self.core.power is Power.ENABLED and self.core.mode is not CORE_MODES[
-                self.control_mode]:
-            self.core.set_mode(CORE_MODES[self.control_mode])
 
     # --- the simulator's side ----------------------------------------------------------
 
@@ -249,17 +294,6 @@ class DamiaoDrive(DriveProfile):
     @property
     def state_text(self) -> str:
         return self.state.name.replace("_", " ")
-
-
-def _acceptable(number: int, value: float) -> bool:
-    """Whether register ``number`` can take ``value``."""
-    if not math.isfinite(value):
-        return False
-    if number == 10:
-        return value in tuple(ControlMode)
-    if number in (21, 22, 23):
-        return value > 0
-    return True
 
 
 SPECIAL_FRAMES = {ENABLE: DamiaoDrive._enable, DISABLE: DamiaoDrive._disable,

@@ -10,7 +10,9 @@ the rest are kept and read back as written.
 from __future__ import annotations
 
 import enum
+import math
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from hil.protocols.damiao.models import DamiaoModel
@@ -69,6 +71,66 @@ REGISTERS = _table(
     (81, "xout", F32, RO),
 )
 BY_NAME = {register.name: register.number for register in REGISTERS.values()}
+
+@dataclass(frozen=True)
+class Bounds:
+    """The values a register write is taken with: ``low < value < high``, each end
+    included where its flag says so."""
+
+    low: float = -math.inf
+    high: float = math.inf
+    with_low: bool = True
+    with_high: bool = True
+
+    def admit(self, value: float) -> bool:
+        above = value >= self.low if self.with_low else value > self.low
+        below = value <= self.high if self.with_high else value < self.high
+        return above and below
+
+
+_POSITIVE, _NOT_NEGATIVE = Bounds(0.0, with_low=False), Bounds(0.0)
+_BANDWIDTH = Bounds(100.0, 10000.0)
+#: what a DM4310 takes in a write, by register, as its firmware checks each one (recovered
+#: in github.com/umeow0716/damiao_firmware, app/src/parameter_protocol.c, write_register;
+#: its bit-pattern comparisons read here as the floats they bound). OV_Value must also be
+#: above UV_Value (:func:`accepts`). A register not here takes no write.
+WRITABLE = {
+    0: Bounds(10.0, with_low=False),        # UV_Value, V
+    1: _NOT_NEGATIVE,                       # KT_Value
+    2: Bounds(80.0, 200.0, with_high=False),  # OT_Value, °C
+    3: Bounds(0.0, 1.0, False, False),      # OC_Value, a share of the driver's current
+    4: _POSITIVE,                           # ACC
+    5: Bounds(high=0.0, with_high=False),   # DEC (negative)
+    6: _POSITIVE,                           # MAX_SPD
+    7: Bounds(0, 0xFFFFFFFF), 8: Bounds(0, 0xFFFFFFFF),   # MST_ID, ESC_ID: kept & 0x7FF
+    9: Bounds(0, 0xFFFFFFFF),               # TIMEOUT
+    10: Bounds(1, 4),                       # CTRL_MODE: MIT .. force-position
+    21: _POSITIVE, 22: _POSITIVE, 23: _POSITIVE,          # PMAX, VMAX, TMAX
+    24: _BANDWIDTH,                         # I_BW
+    25: _NOT_NEGATIVE, 26: _NOT_NEGATIVE,   # KP_ASR, KI_ASR
+    27: _NOT_NEGATIVE, 28: _NOT_NEGATIVE,   # KP_APR, KI_APR
+    29: Bounds(high=32.0),                  # OV_Value, V (and above UV_Value)
+    30: Bounds(0.0, 1.0, with_low=False),   # GREF
+    31: Bounds(1.0, 30.0),                  # Deta
+    32: _POSITIVE,                          # V_BW
+    33: _BANDWIDTH,                         # IQ_c1
+    34: Bounds(0.0, 10000.0, with_low=False),  # VL_c1
+    35: Bounds(0, 11),                      # can_br: a rate code
+}
+#: the id registers keep their value's low 11 bits, as the firmware stores them
+ID_REGISTERS = (7, 8)
+
+
+def accepts(number: int, value: float, registers: Mapping[int, float]) -> bool:
+    """Whether register ``number`` takes ``value`` in a write. Never a value that is not a
+    finite number: where the firmware's own check lets infinity or NaN through (PMAX's
+    ``value > 0``, V_BW's sign test), its mapping and loops would then compute with it
+    (hil's choice: refused, the register kept)."""
+    bounds = WRITABLE.get(number)
+    if bounds is None or not math.isfinite(value) or not bounds.admit(value):
+        return False
+    return number != 29 or value > registers[0]          # OV_Value above UV_Value
+
 
 #: TIMEOUT's unit (s): "1 register unit = 50 microseconds" (the maker's register table)
 TIMEOUT_UNIT = 50e-6
