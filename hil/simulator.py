@@ -63,8 +63,8 @@ def drive_parameters(drive: DriveConfig, motor_inertia: float) -> DriveParameter
     (:func:`hil.drives.tuning.tuned_gains`)."""
     gains = drive.gains
     if gains is None:
-        position_kp, velocity_kp, velocity_ki = tuned_gains(motor_inertia,
-                                                            drive.velocity_bandwidth_hz)
+        position_kp, velocity_kp, velocity_ki = tuned_gains(
+            motor_inertia, drive.velocity_bandwidth_hz, f"drive {drive.label}")
     else:
         position_kp, velocity_kp, velocity_ki = (gains.position_kp, gains.velocity_kp,
                                                  gains.velocity_ki)

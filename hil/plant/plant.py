@@ -20,6 +20,7 @@ from hil.errors import Diagnostic, warning
 from hil.plant.builder import (
     DEFAULT_TIMESTEP, FLOATING_BASE, GEAR_STAGE, ActuatorLosses, build_spec, compile_model,
 )
+from hil.plant.inertia import motor_inertias
 from hil.plant.shapes import MUJOCO_MESHES, ROBOT_CONTACT, ScenePart, unreadable_mesh
 from hil.transmissions import Transmission, TransmissionStack, build_transmissions
 
@@ -107,25 +108,12 @@ class Plant:
         axis gave way, and a braked elbow beside an enabled shoulder oscillated at about
         350 Hz, never at standstill.
 
-        A floating robot standing moves with the links that rest on the ground staying where
-        they are (its feet): the mobility is the one under that constraint, ``J qdot = 0``,
-        M^-1 - M^-1 J^T (J M^-1 J^T)^+ J M^-1. A leg then carries the body: tuned on the leg
-        alone, a standing quadruped's drives saw a hundred times the inertia they were tuned
-        for, their velocity loops far slower than their position loops, and it hopped."""
-        mass = np.zeros((self.model.nv, self.model.nv))
-        mujoco.mj_fullM(self.model, self.data, mass)
-        mobility = np.linalg.inv(mass)
-        pinned = self._resting_jacobian()
-        if pinned is not None:
-            coupling = mobility @ pinned.T
-            mobility = mobility - coupling @ np.linalg.pinv(pinned @ coupling) @ coupling.T
-        inertias = {}
-        for transmission in self.transmissions:
-            dofs = [self.model.joint(j).dofadr[0] for j in transmission.joints]
-            matrix = transmission.position_matrix
-            motor_mobility = matrix @ mobility[np.ix_(dofs, dofs)] @ matrix.T
-            inertias.update(zip(transmission.actuators, 1.0 / np.diag(motor_mobility)))
-        return inertias
+        A floating robot standing moves under what it rests on the ground on: its feet stay
+        where they are, its wheels roll, a caster slides
+        (:func:`hil.plant.inertia.ground_constraints`). math.inf for a motor that the ground
+        holds still: no drive can be tuned on it (:func:`hil.drives.tuning.tuned_gains`
+        refuses it)."""
+        return motor_inertias(self)
 
     @property
     def warnings(self) -> tuple[Diagnostic, ...]:
@@ -261,20 +249,6 @@ class Plant:
             if len(bottom):
                 resting.setdefault(int(model.geom_bodyid[geom]), []).extend(bottom)
         return resting
-
-    def _resting_jacobian(self) -> np.ndarray | None:
-        """A floating robot's bodies resting on the ground: the translation Jacobian of each
-        at the middle of its bottom (3 rows a body), or None (a fixed base, or nothing
-        resting)."""
-        if self._base is None:
-            return None
-        resting = self.resting_points()
-        rows = []
-        for body, corners in resting.items():
-            jacobian = np.zeros((3, self.model.nv))
-            mujoco.mj_jac(self.model, self.data, jacobian, None, np.mean(corners, axis=0), body)
-            rows.append(jacobian)
-        return np.vstack(rows) if rows else None
 
     def lowest_point(self) -> float:
         """The height of the robot's lowest point now (m), of its :attr:`ground_shapes`
