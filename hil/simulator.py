@@ -347,6 +347,11 @@ class Simulator:
         with self.lock:
             self._complete_cycle()
 
+    def cycle_begun(self) -> bool:
+        """Lock-step: whether a drive on its bus has had its command of the open cycle."""
+        with self.lock:
+            return any(d.network is not None and d not in self._waiting for d in self.drives)
+
     def _complete_cycle(self) -> None:
         for _ in range(self.steps_per_cycle):
             self._step()

@@ -155,8 +155,7 @@ def bus_pair(endpoint):
     """Two buses on one channel, in two Zenoh sessions joined over loopback."""
     channel = f"test/{time.monotonic_ns()}"
     a = can.Bus(interface="zenoh", channel=channel, listen=[endpoint])
-    b = can.Bus(interface="zenoh", channel=channel, connect=[endpoint])
-    time.sleep(0.5)                               # the sessions find each other
+    b = can.Bus(interface="zenoh", channel=channel, connect=[endpoint])  # linked to a
     yield a, b
     a.shutdown()
     b.shutdown()
@@ -402,12 +401,12 @@ def stop_process(process: subprocess.Popen, timeout: float = 20) -> str:
 
 class DelayingRelay:
     """A TCP relay on loopback that holds every byte ``delay`` seconds each way: a slow link
-    (the kernel here has no netem). Listens on ``port``, forwards to ``target`` (a port on
-    127.0.0.1); ``close`` ends it and its connections."""
+    (the kernel here has no netem). Listens on ``port`` (given, or a free one), forwards to
+    ``target`` (a port on 127.0.0.1); ``close`` ends it and its connections."""
 
-    def __init__(self, target: int, delay: float):
+    def __init__(self, target: int, delay: float, port: int = 0):
         self.target, self.delay = target, delay
-        self._server = socket.create_server(("127.0.0.1", 0))
+        self._server = socket.create_server(("127.0.0.1", port))
         self.port = self._server.getsockname()[1]
         self._sockets: list[socket.socket] = [self._server]
         self._closed = threading.Event()
@@ -541,9 +540,10 @@ def linked(settings: ZenohSettings, robot: str, process: str, timeout: float = 6
     """Whether ``robot``'s ``process`` (``sim``, ``control/held``, ...) is seen within
     ``timeout`` through the session of ``settings`` (a test's bus): Zenoh peers relay
     nothing, so its token seen there says that session and the process are linked directly,
-    and a frame either sends from now on reaches the other. A bus opened just before a
-    one-shot frame (a controller's NMT reset) may otherwise not be linked yet: gossip links
-    new peers in their own time (the reset went unheard on a loaded CI host)."""
+    and a frame either sends from now on reaches the other. A bus' open waits for the peers
+    on its channel that its linked peers report (hil.can.zenoh_links); where the session
+    they meet at has no bus (a test's bare watch), none reports the others, and a process
+    that opens its bus after the test's is linked to it in gossip's own time."""
     watch = ProcessWatch(session(settings), robot)
     try:
         return watch.wait_alive(process, timeout)

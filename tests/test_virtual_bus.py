@@ -146,6 +146,25 @@ def test_python_cans_own_virtual_bus_on_the_channel_hears_and_is_heard(pair, cha
         plain.shutdown()
 
 
+def test_python_cans_own_virtual_bus_hands_its_frame_to_a_direct_delivery_at_once(
+        pair, channel):
+    """Issue 64: a frame of python-can's ``virtual`` bus waited in the queue of a bus that
+    delivered directly, read by no one (a lock-step DrivesBench lost the MIT answers of its
+    master's commands). python-can's VirtualBus.send puts each frame into every receiver's
+    queue: a hil-virtual bus' queue hands it to the delivery, in the sender's thread."""
+    _, receiver = pair
+    recorder = FrameRecorder()
+    receiver.deliver_to([recorder])
+    plain = can.Bus(interface="virtual", channel=channel)
+    try:
+        plain.send(frame(0x203))
+        (received, thread), = recorder.frames        # already there when send returns
+        assert received.arbitration_id == 0x203 and thread == threading.get_ident()
+        assert receiver.recv(0) is None
+    finally:
+        plain.shutdown()
+
+
 def test_a_faulty_bus_applies_its_receive_faults_to_direct_delivery(pair):
     sender, receiver = pair
     faulty = FaultyBus(receiver, [])

@@ -17,8 +17,11 @@ measured in ``hil bench``:
   a listener of yours).
 
 Channels are python-can's own, so ``hil-virtual`` and ``virtual`` buses on one channel
-hear each other; a bus without direct delivery queues its frames for ``recv`` as usual.
-Picked by ``interface="hil-virtual"``.
+hear each other; a bus without direct delivery queues its frames for ``recv`` as usual. A
+frame that python-can's own ``virtual`` bus sends to a bus with direct delivery is handed
+over in the sender's thread too (:class:`Inbox`): a user's master on ``virtual`` in front of
+hil's drives (``hil.testing.DrivesBench``) has its frame taken by the drive when its ``send``
+returns, as a lock-step bench needs. Picked by ``interface="hil-virtual"``.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
+from typing import Any
 
 import can
 from can.interfaces import virtual
@@ -40,8 +44,34 @@ _DIRECT: dict[queue.Queue, DirectDelivery] = {}
 _DIRECT_LOCK = threading.Lock()
 
 
+class Inbox(queue.Queue):
+    """A ``hil-virtual`` bus' receive queue: a frame put into it (python-can's own senders
+    put every frame into each receiver's queue) goes to the bus' direct delivery where it
+    has one, in the sender's thread, else into the queue for ``recv``. Without it a frame of
+    a python-can ``virtual`` bus waited in the queue of a bus that delivered directly, read
+    by no one (hil's own senders look the delivery up themselves, in :meth:`VirtualBus.send`)."""
+
+    def put(self, item: can.Message, block: bool = True, timeout: float | None = None) -> None:
+        direct = _DIRECT.get(self)
+        if direct is None:
+            super().put(item, block, timeout)
+        else:
+            direct.deliver(item)
+
+
 class VirtualBus(virtual.VirtualBus, BusCapabilities):
     """python-can's VirtualBus, sending without ``copy.deepcopy``, with direct delivery."""
+
+    def __init__(self, channel: Any = "channel-0", **kwargs):
+        super().__init__(channel, **kwargs)
+        # python-can's queue, swapped for one that also delivers: a frame a sender put into
+        # the old one meanwhile (a bus opened mid-burst) moves over, in order
+        inbox = Inbox(self.queue.maxsize)
+        with virtual.channels_lock:
+            while not self.queue.empty():
+                inbox.put_nowait(self.queue.get_nowait())
+            self.channel[self.channel.index(self.queue)] = inbox
+            self.queue = inbox
 
     def deliver_to(self, listeners: Iterable[can.Listener],
                    accept: Callable[[can.Message], can.Message | None] | None = None

@@ -70,6 +70,7 @@ from hil.can.delivery import DirectDelivery
 from hil.can.link_statistics import SEQUENCE_MASK, FrameCounters, Quickest, SenderSequences
 from hil.can.messages import FrameParts
 from hil.can.zenoh_channels import Channels
+from hil.can.zenoh_links import not_linked
 from hil.can.zenoh_receipts import LINGER, wait_until_heard
 from hil.can.zenoh_wire import (KEY_PREFIX, NO_ECHO, NOT_DATA, Echo, Message, encode_frames,
                                 message_of, wire_frame)
@@ -89,6 +90,10 @@ LOG_EVERY = 1000
 PUTS_KEPT = 1024
 #: a link is slow when this many round trips in a row are over STALL_THRESHOLD
 SLOW_LINK_ECHOES = 4
+#: how long opening a bus waits to be linked to every peer on its channel (s): hil's choice,
+#: where gossip linked a new peer within milliseconds on an idle host and a loaded CI host
+#: took long enough for a one-shot frame to go unheard (the ``link_timeout`` option)
+LINK_TIMEOUT = 20.0
 
 
 #: buses not shut down yet: shut down at exit (see _shut_down_at_exit)
@@ -120,19 +125,22 @@ class ZenohBus(can.BusABC, BusCapabilities):
     clock when it came) or ``"sent"`` (its sender's clock when it was put: when it was on
     the bus, as an interface on the bus stamps it; what a log of the bus wants, the logger
     being a process that may be late); ``lossless``: a send waits for room in a congested
-    link instead of dropping the frame (see the module doc).
+    link instead of dropping the frame (see the module doc); ``link_timeout`` (s): how long
+    the open may wait to be linked to every peer on the channel (:meth:`_await_links`).
     ``watch_stalls`` sets who is told (in Zenoh's delivering thread) of each late delivery.
     """
 
     def __init__(self, channel: str, listen=(), connect=(), zenoh_config=None,
                  receive_own_messages: bool = False, settings: ZenohSettings | None = None,
-                 timestamps: str = "arrival", lossless: bool = False, **kwargs):
+                 timestamps: str = "arrival", lossless: bool = False,
+                 link_timeout: float | str = LINK_TIMEOUT, **kwargs):
         self.channel_info = f"Zenoh {KEY_PREFIX}{channel}"
         self._channel = str(channel)
         if len(self._channel.encode()) > 255:
             raise ValueError(f"channel '{channel}': a name of at most 255 bytes (UTF-8)")
         if timestamps not in ("arrival", "sent"):
             raise ValueError(f"timestamps '{timestamps}': 'arrival' or 'sent'")
+        link_timeout = float(link_timeout)      # python-can's config files give strings
         #: a log's bus (stamped with the senders' clocks): it answers for what it heard
         self.monitors = timestamps == "sent"
         self._lossless = lossless
@@ -173,6 +181,17 @@ class ZenohBus(can.BusABC, BusCapabilities):
         self._channels, self._neighbours = Channels.join(self._session, key, self)
         super().__init__(channel=channel, **kwargs)
         _open_buses.add(self)
+        self._await_links(link_timeout)
+
+    def _await_links(self, timeout: float) -> None:
+        """Return once this bus' session is linked directly to every peer already on the
+        channel (:mod:`hil.can.zenoh_links`): a frame sent at once reaches them all, as on a
+        CAN bus once it is open; else, after ``timeout`` s, shut down and raise
+        CanInitializationError naming the peers."""
+        unlinked = self._channels.links[self._key].wait_linked(timeout)
+        if unlinked:
+            self.shutdown()
+            raise can.CanInitializationError(not_linked(self.channel_info, unlinked, timeout))
 
     def watch_stalls(self, on_stall: Callable[[Stall], None] | None) -> None:
         self._on_stall = on_stall

@@ -13,6 +13,7 @@ import can
 import zenoh
 
 from hil.can.messages import FrameParts
+from hil.can.zenoh_links import ChannelLinks, seen_by_others
 from hil.can.zenoh_receipts import declare_receipts
 from hil.can.zenoh_wire import KEY_PREFIX, decode_frames
 
@@ -57,6 +58,8 @@ class Channels:
 
     def __init__(self, session: zenoh.Session):
         self.buses: dict[str, list[ZenohBus]] = {}
+        #: per key with buses: who else is on its channel, linked or not (hil.can.zenoh_links)
+        self.links: dict[str, ChannelLinks] = {}
         self.outbox = Outbox()
         self.send_lock = threading.Lock()
         #: the block whose sends go out together (every bus of the session hands out this one)
@@ -78,6 +81,9 @@ class Channels:
                 channels = cls._of_session[id(session)] = Channels(session)
             on_key = channels.buses.setdefault(key, [])
             on_key.append(bus)
+            if key not in channels.links:
+                channels.links[key] = ChannelLinks(session, key.removeprefix(KEY_PREFIX),
+                                                   seen_by_others(bus._settings))
             if bus.monitors and channels._receipts is None:
                 channels._receipts = declare_receipts(session, channels._heard)
             return channels, on_key
@@ -87,11 +93,15 @@ class Channels:
         with cls._lock:
             channels = cls._of_session[id(session)]
             channels.buses[key].remove(bus)
+            links = None
             if not channels.buses[key]:
                 del channels.buses[key]
+                links = channels.links.pop(key)
             last = not channels.buses
             if last:
                 del cls._of_session[id(session)]
+        if links is not None:   # outside the lock, as below
+            links.close()
         if last:          # outside the lock: Zenoh may wait for a callback under way
             channels._subscriber.undeclare()
             if channels._receipts is not None:

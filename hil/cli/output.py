@@ -9,8 +9,9 @@ control running and then waited for good on Zenoh's threads at exit (seen 2026-1
 Here a reader that leaves ends the command as SIGPIPE ends a Unix filter, but through the
 command's own stop: the stream is pointed at /dev/null (later writes go nowhere and never
 fail), and where the command handles SIGTERM (sim, control, viz, up, router: drives
-disabled, children stopped, sessions closed) it gets one, as if the user had sent it. A
-command that does not handle SIGTERM (short ones: describe, ls, send ...) finishes
+disabled, children stopped, sessions closed; send while it waits for its goal: the goal
+cancelled) it gets one, as if the user had sent it. A
+command that does not handle SIGTERM (short ones: describe, ls ...) finishes
 without output; SIGTERM's default action would end it without any of its clean-up. Either
 way the exit status is 141 (128 + SIGPIPE), as a shell reports a filter ended by SIGPIPE.
 """

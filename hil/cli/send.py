@@ -5,7 +5,11 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import signal
 import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import yaml
@@ -97,7 +101,16 @@ def _follow(client, goal: TrajectoryGoal, args: argparse.Namespace,
     try:
         goal_id = client.send_goal(goal)
         print(f"hil send: goal {goal_id[:8]} accepted{by}", flush=True)
-        result = client.wait_result(goal_id, args.timeout, _feedback_printer(args))
+        try:
+            with _terminate_raised():
+                result = client.wait_result(goal_id, args.timeout, _feedback_printer(args))
+        except (KeyboardInterrupt, Terminated) as stop:
+            _cancel(client, goal_id, failures, "stopped")
+            return 128 + (signal.SIGTERM if isinstance(stop, Terminated) else signal.SIGINT)
+        except failures as exc:
+            if not isinstance(exc, ControllerGone):      # else no one runs it any more
+                _cancel(client, goal_id, failures, "no result")
+            raise
     except failures as exc:
         print(f"hil send: {exc}", file=sys.stderr)
         _hint_after_a_fault(exc.error_code if isinstance(exc, GoalRejected) else None, args)
@@ -106,6 +119,44 @@ def _follow(client, goal: TrajectoryGoal, args: argparse.Namespace,
     print(f"hil send: {result.status.name.lower()}, error_code {result.error_code}{text}")
     _hint_after_a_fault(result.error_code, args)
     return 0 if result.status is GoalStatus.SUCCEEDED else 1
+
+
+class Terminated(Exception):
+    """SIGTERM while a goal ran (raised in the main thread, as SIGINT raises
+    KeyboardInterrupt)."""
+
+
+@contextmanager
+def _terminate_raised() -> Iterator[None]:
+    """A block in which SIGTERM raises :class:`Terminated`: stopped, the client cancels its
+    goal as it does on Ctrl-C (SIGTERM's default action would end it without)."""
+    def terminated(signum, frame) -> None:
+        raise Terminated()
+
+    if threading.current_thread() is not threading.main_thread():
+        yield                   # only the main thread may set a handler (run in a thread)
+        return
+    before = signal.signal(signal.SIGTERM, terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
+
+
+def _cancel(client, goal_id: str, failures: tuple[type[Exception], ...], why: str) -> None:
+    """A client that stops mid-goal (``why``: stopped by a signal, or given up waiting) asks
+    for the goal to be cancelled and says so, as ``ros2 action send_goal`` does in its
+    ``finally`` for a goal still accepted or executing (ros2cli,
+    ros2action/verb/send_goal.py: "Canceling goal...", then "Goal canceled."): else the
+    controller moves the arm on to its target after the client is gone."""
+    print(f"hil send: {why}: cancelling goal {goal_id[:8]}", file=sys.stderr, flush=True)
+    try:
+        cancelled = client.cancel(goal_id)
+    except failures as exc:
+        print(f"hil send: goal {goal_id[:8]} not cancelled: {exc}", file=sys.stderr)
+        return
+    print(f"hil send: goal {goal_id[:8]} " + ("canceled" if cancelled else
+          "not cancelled: the controller no longer runs it (it had ended)"), file=sys.stderr)
 
 
 def _hint_after_a_fault(error_code: int | None, args: argparse.Namespace) -> None:

@@ -16,6 +16,13 @@ plant advances one cycle when every drive of the config has had its cycle's fram
 master's SYNC on every CiA 402 bus, a command to every other drive), or when the test calls
 :meth:`DrivesBench.step`, which closes the cycle whatever the master sent; answers to a
 cycle's frames leave after its step, as on the real bus they follow the SYNC.
+
+Lock-step is lossless: the drives' side of each bus is ``hil-virtual``, which takes a frame
+from the master's python-can ``virtual`` bus in the master's own thread (no Notifier between
+them), so a frame whose ``send`` returned before ``step()`` is in that step's cycle, and the
+answers are in the master's bus when ``step()`` returns. (Read by a Notifier thread, a step
+closed the cycle before the drives had its frames: 97 answers to 1,001 MIT commands.) Over
+SocketCAN (``vcan``) the kernel carries the frames, and a step cannot know what is in flight.
 """
 
 from __future__ import annotations
@@ -30,6 +37,7 @@ import can
 from hil.bus_config import DriveConfig, SystemConfig, config_path, load_bus_config, open_buses
 from hil.description import PackagePath
 from hil.errors import HilError
+from hil.file_names import file_stem
 from hil.realtime import LOCK_STEP, REAL_TIME
 from hil.resources import BUS_CONFIGS, data_dir
 from hil.simulator import Simulator
@@ -38,6 +46,9 @@ from hil.zenoh_session import ZenohSettings
 #: python-can's in-process interface: a master joins with ``can.Bus(interface="virtual",
 #: channel=bench.channel(name))`` or takes :meth:`DrivesBench.bus`
 INTERFACE = "virtual"
+#: the drives' side of those channels: hil's ``virtual``, which takes a master's frame in the
+#: master's thread (the module doc)
+DRIVES_INTERFACE = "hil-virtual"
 #: the fault kinds :meth:`DrivesBench.fault` injects, as ``hil sim --fault`` names them
 FAULT_KINDS = ("fault", "silence", "restart")
 
@@ -79,7 +90,8 @@ class DrivesBench:
         self.interface = INTERFACE if vcan is None else "socketcan"
         self.channels = dict(vcan) if vcan is not None else {
             bus.name: f"hil-bench-{tag}-{bus.name}" for bus in config.buses}
-        self._sim_buses = open_buses(config, ZenohSettings.meeting(), self.interface,
+        self._sim_buses = open_buses(config, ZenohSettings.meeting(),
+                                     DRIVES_INTERFACE if vcan is None else self.interface,
                                      self.channels)
         self.sim = Simulator(config, self._sim_buses, LOCK_STEP if lock_step else REAL_TIME)
         self.sim.start()
@@ -88,6 +100,7 @@ class DrivesBench:
         self._thread.start()
         self._masters: list[can.BusABC] = []
         self._logs: list[tuple[can.Notifier, can.BusABC]] = []
+        self._stepped_at = 0           # the plant's cycles when the last step() returned
         self._closed = False
 
     # --- the master's side --------------------------------------------------------------
@@ -130,7 +143,7 @@ class DrivesBench:
         paths = []
         for name, channel in self.channels.items():
             listener = can.Bus(interface=self.interface, channel=channel)
-            path = folder / f"{name}.blf"
+            path = folder / f"{file_stem(name)}.blf"   # a name over NAME_MAX: cut
             self._logs.append((can.Notifier(listener, [can.Logger(path)]), listener))
             paths.append(path)
         return paths
@@ -158,12 +171,20 @@ class DrivesBench:
 
     def step(self, cycles: int = 1) -> None:
         """Lock-step: close ``cycles`` cycles now, each one control period of the plant, and
-        send the drives' answers; HilError in real time (the wall clock steps it)."""
+        send the drives' answers; HilError in real time (the wall clock steps it).
+
+        The first is the cycle of the frames sent since the last step: where they closed it
+        themselves (a frame to every drive), it counts, and ``cycles - 1`` more close. So a
+        master that commands every drive and steps gets one period a step, as one that
+        commands some of them does (hil's choice: the bench's cycle is the master's)."""
         if not self.sim.lock_step:
             raise HilError.single("step() advances a lock-step bench",
                                   hint="DrivesBench(config, lock_step=True)")
-        for _ in range(cycles):
+        with self.sim.lock:
+            closed = self.sim.cycles > self._stepped_at and not self.sim.cycle_begun()
+        for _ in range(cycles - closed):
             self.sim.close_cycle()
+        self._stepped_at = self.sim.cycles
 
     def fault(self, joint: str, kind: str = "fault") -> None:
         """Inject a fault into the drive of ``joint``, as ``hil sim --fault KIND:...``: a
