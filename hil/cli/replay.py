@@ -11,6 +11,7 @@ from pathlib import Path
 
 from hil.bus_config import load_bus_config
 from hil.cli import common
+from hil.cli.written_files import previous_outputs
 from hil.replay import (
     LOG_CLOCK_TOLERANCES, REAL_TIME_SHARE, REORDER_WINDOW, Replay, Report, Tolerances, frames,
     log_clock, not_whole, parse_channels, survey,
@@ -22,9 +23,9 @@ CLOCKS = ("auto", "cycles", "log")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", type=Path,
-                        help="the CAN log: .blf, .asc, .log (candump), .csv, .trc, .mf4; or a "
-                             "folder of a log per bus, each named after its bus (arm.blf: "
-                             "what hil_drives and DrivesBench.log_to keep)")
+                        help="the CAN log: .blf, .asc, .log (candump), .csv, .trc (.mf4 "
+                             "with asammdf); or a folder of a log per bus, each named after "
+                             "its bus (arm.blf: what hil_drives and DrivesBench.log_to keep)")
     parser.add_argument("config", help="the bus config to replay against (name or .yaml)")
     parser.add_argument("--channel", action="append", default=[], metavar="LOGCHANNEL=BUS",
                         help="the bus of a channel of the log (repeat; default: BLF and ASC "
@@ -52,6 +53,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.record is not None:                 # before the replay, not at its end
+        replaced = previous_outputs({"--record": args.record}, recording=args.record)
+        if replaced:
+            print(f"hil replay: replacing {', '.join(replaced)} (keep it: move it, or give "
+                  "--record another name)", flush=True)
     config = load_bus_config(common.config_path(args.config), common.package_path(args))
     found = survey(args.log, config, parse_channels(args.channel, config))
     clock = log_clock(found) if args.clock == "auto" else args.clock

@@ -41,8 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    files = [path for path in segment_files(args.recording) if path.is_file()]
-    if not files:
+    files = segment_files(args.recording)
+    if files == [args.recording] and not args.recording.exists():
         raise HilError.single(f"no recording {args.recording} (nor its segments "
                               f"{args.recording.stem}-0001{args.recording.suffix}, ...)",
                               hint="give the --save of hil up or hil viz (default run.rrd)")

@@ -14,6 +14,7 @@ import rerun as rr
 from hil.bus_config import SystemConfig, check_together, load_bus_config, open_buses
 from hil.can.monitor import BusMonitor
 from hil.cli import common
+from hil.cli.written_files import previous_outputs
 from hil.errors import HilError
 from hil.realtime import enter_background, leave_background
 from hil.visualisation import RunRecorder
@@ -175,6 +176,11 @@ def _sinks(args: argparse.Namespace) -> _Sinks:
         raise HilError.single("--segment and --serve together: the web viewer's server would "
                               "start again with each segment",
                               hint="stream to a viewer with --viewer URL, or --spawn")
+    outputs = {"--save": save} if save else {}
+    if args.can_log:
+        outputs["--can-log"] = args.can_log
+    # checked before a viewer starts (hil.cli.written_files)
+    replaced = previous_outputs(outputs, recording=save)
     live, words = [], []
     if spawn:
         rr.spawn(connect=False)
@@ -188,9 +194,10 @@ def _sinks(args: argparse.Namespace) -> _Sinks:
         live.append(server)
         rr.serve_web_viewer(connect_to=server.uri, open_browser=False)
         words.append(f"web viewer at http://localhost:9090 (data at {server.uri})")
+    if replaced:
+        words.append(f"replacing {', '.join(replaced)}")
     segments = None
     if save:
-        save.parent.mkdir(parents=True, exist_ok=True)
         if args.segment is not None:
             segments = Segments(save, args.segment)
             words.append(f"recording to {segments.current} and on, segments of {args.segment}")

@@ -1,10 +1,11 @@
 """A CAN log as a replay reads it: each frame on a bus of the bus config, told the master's
 or a drive's by its protocol (:meth:`hil.protocols.base.Protocol.frame_source`).
 
-Any format python-can's ``LogReader`` opens (BLF, ASC, candump text, CSV, TRC, MF4 with
-asammdf): hil's own logs, or a candump of a real robot; or a folder of a log per bus, each
-named after its bus (``arm.blf``, ``wrist.blf``: what :meth:`hil.testing.DrivesBench.log_to`
-and the ``hil_drives`` fixture write), its files read as one log in time order, each
+Any format python-can reads here, within bounds (BLF, ASC, candump text, CSV, TRC, MF4
+with asammdf: :mod:`hil.replay.files`): hil's own logs, or a candump of a real robot; or a
+folder of a log per bus, each named after its bus (``arm.blf``, ``wrist.blf``: what
+:meth:`hil.testing.DrivesBench.log_to` and the ``hil_drives`` fixture write; a name too
+long for a file's cut, :mod:`hil.file_names`), its files read as one log in time order, each
 file's frames on the bus of its name (a BLF stores a channel number only: python-can's
 writer puts a channel named without a number on its default, read back as 0, so a bench's
 files could not say their bus otherwise). A log's channels are matched to the config's buses
@@ -28,6 +29,7 @@ from pathlib import Path
 
 from hil.bus_config import BusConfig, SystemConfig
 from hil.errors import HilError, error
+from hil.file_names import file_stem
 from hil.protocols import FrameSource, Sender, protocol
 from hil.replay.files import read_log
 
@@ -178,6 +180,7 @@ class ChannelMap:
         for index, bus in enumerate(config.buses):
             self._by_name.setdefault(str(bus.channel), index)
             self._by_name.setdefault(bus.name, index)
+            self._by_name.setdefault(file_stem(bus.name), index)   # a folder's file's
         self.buses: dict[object, int] = {}
         #: channels of no bus -> [first frame number, frames]
         self.unmatched: dict[object, list[int]] = {}

@@ -11,7 +11,8 @@ Fixtures, each a factory whose products are closed when the test ends:
 
 What a test's run leaves goes to its ``tmp_path``, as ``hil up`` leaves a run's: every bus
 of a drives bench logged, frame by frame, to a BLF file per bus (``hil-can-N/BUS.blf``:
-``hil replay hil-can-N CONFIG`` reads the folder); of a whole stack, every bus to one BLF
+``hil replay hil-can-N CONFIG`` reads the folder; a bus' name too long for a file's is cut
+and a hash of it added, :mod:`hil.file_names`); of a whole stack, every bus to one BLF
 and the controller's cycles, faults and resets to a rerun recording
 (``hil-stack-N/run.can.blf`` for ``hil replay``, ``run.rrd`` for ``hil review``;
 :mod:`hil.testing.recording`). A failed test's report lists them ("hil artefacts"), each

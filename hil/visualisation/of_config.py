@@ -8,6 +8,7 @@ from pathlib import Path
 import rerun as rr
 
 from hil.bus_config import SystemConfig
+from hil.file_names import file_stem
 from hil.visualisation.recorder import BenchParts, RunRecorder
 from hil.visualisation.urdf_export import viewer_urdf
 
@@ -16,7 +17,7 @@ def config_recorder(recording: rr.RecordingStream, config: SystemConfig, folder:
                     namespaced: bool) -> RunRecorder:
     """A recorder of ``config``'s robot on ``recording`` (its viewer URDF written to
     ``folder``); ``namespaced``: one of several robots (RunRecorder)."""
-    urdf = folder / f"{config.robot.name}.urdf"
+    urdf = folder / f"{file_stem(config.robot.name)}.urdf"    # a name over NAME_MAX: cut
     urdf.write_bytes(viewer_urdf(config.robot))
     parts = BenchParts(config.scene, {d.actuator: d.peak_torque for d in config.drives},
                        config.floating_base, {b.name: b.load().worst_ratio for b in config.buses})

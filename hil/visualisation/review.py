@@ -8,7 +8,10 @@ Only the diagnostics' chunks are read: a segment closed properly has rerun's man
 (its footer), and the store loads the chunks the filter asks for; one cut off by a crash
 has none and is scanned whole, up to its last flush, as rerun's viewer scans it. A segment
 rerun cannot read (cut in the middle of a message, or not a recording at all) is named with
-rerun's reason, which gives the offset, and the others are read all the same.
+rerun's reason, which gives the offset, and the others are read all the same. A file that
+is no regular file (a FIFO: rerun's RrdReader waited on one for good, measured
+2026-12-06 with rerun-sdk 0.41; a device) or over MAX_RECORDING_BYTES is
+refused before rerun opens it (:func:`hil.input_streams.open_input_stream`).
 """
 
 from __future__ import annotations
@@ -22,6 +25,13 @@ from pathlib import Path
 
 import numpy as np
 import rerun.chunk
+
+from hil.input_streams import open_input_stream
+
+#: the largest recording file a review reads (hil's choice): a run records 0.08 MB a second,
+#: 0.26 on a loaded host (docs/performance.md, "Recording"), so some 18 hours of a run at
+#: the most; a longer one is recorded in segments (--segment), each a file of its own
+MAX_RECORDING_BYTES = 16 * 2**30
 
 #: the entities a review reads, at the root or under a robot's name
 _WANTED = re.compile(r"^(?:/(?P<robot>[^/]+))?/(?P<what>diagnostics|cycle|loop/stalls/"
@@ -125,6 +135,10 @@ class Review:
 def review(files: list[Path]) -> Review:
     """Every fault and reset logged in ``files`` (a recording's segments), every segment
     that could not be read whole, and each robot's run summary."""
+    for path in files:
+        open_input_stream(path, "recording", "give the --save of hil up or hil viz (a .rrd "
+                          "file; a longer run in segments: --segment)",
+                          MAX_RECORDING_BYTES).close()
     found, damaged = [], []
     runs: dict[str, RunSummary] = {}
     at_root = ""                     # the name of the robot whose entities are at the root
