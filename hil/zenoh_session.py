@@ -26,6 +26,7 @@ from pathlib import Path
 import zenoh
 
 from hil.errors import HilError
+from hil.input_files import read_input_file
 from hil.zenoh_security import Identity, secured_endpoint
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7450"     # 7447 is Zenoh's and ROS 2's router port
@@ -106,8 +107,7 @@ class ZenohSettings:
 
     def to_config(self) -> zenoh.Config:
         try:
-            config = (zenoh.Config.from_file(str(self.config_file)) if self.config_file
-                      else zenoh.Config())
+            config = _config_file(self.config_file) if self.config_file else zenoh.Config()
             if self.config_file is None:
                 config.insert_json5("mode", '"peer"')
                 config.insert_json5("scouting/multicast/enabled", "false")
@@ -133,6 +133,26 @@ class ZenohSettings:
             raise HilError.single(f"invalid Zenoh configuration: {exc}", self.config_file,
                                   hint="check the endpoints (e.g. tcp/127.0.0.1:7447)") from None
         return config
+
+
+#: the Zenoh config file's suffixes Zenoh reads as JSON5 (zenoh-config's Config::from_file:
+#: .json and .json5; .yaml as YAML; any other it refuses)
+_JSON5_SUFFIXES = (".json", ".json5")
+
+
+def _config_file(path: Path) -> zenoh.Config:
+    """The Zenoh config of ``path``, read through the bounded reader: Zenoh's own reader
+    follows a FIFO or /dev/zero without end, and its parsers recurse (a JSON5 object
+    nested 50,000 deep kills the process with SIGSEGV, measured with eclipse-zenoh 1.10)."""
+    path = Path(path)
+    syntax = "json" if path.suffix in _JSON5_SUFFIXES else "yaml"
+    text = read_input_file(path, "Zenoh config", syntax=syntax,
+                           hint="give a Zenoh JSON5 config file (e.g. zenoh.json5)")
+    if syntax == "json":
+        return zenoh.Config.from_json5(text)
+    # Zenoh reads YAML by YAML 1.2 (serde_yaml), PyYAML by 1.1 (``on`` is a boolean there):
+    # Zenoh reads the file itself, now that it is known to be a small, shallow regular file
+    return zenoh.Config.from_file(str(path))
 
 
 _sessions: dict[ZenohSettings, zenoh.Session] = {}

@@ -7,6 +7,8 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -17,10 +19,14 @@ from hil.bus_config import load_bus_config
 from hil.description import PackagePath, load_description
 from hil.can.zenoh_bus import MAX_SENDERS
 from hil.can.zenoh_wire import Echo, Message
+from hil.cli import main
 from hil.controllers import GoalResult, GoalStatus
+from hil.durations import parse_duration
 from hil.errors import HilError
 from hil.input_files import read_input_file
 from hil.protocols.odrive import ODriveOptions
+from hil.simulator import bench_plant
+from hil.zenoh_session import ZenohSettings
 
 
 def _alias_bomb(levels: int = 9) -> str:
@@ -212,3 +218,126 @@ def test_a_mesh_path_the_system_cannot_take_is_a_missing_mesh(tmp_path):
                             '.stl"/></geometry></visual>'))
     robot = load_description(description, PackagePath(()))
     assert any("not found" in warning.message for warning in robot.warnings)
+
+
+# --- issue 65: hostile input, round two -----------------------------------------------------
+
+def test_a_zenoh_config_nested_50000_deep_is_an_error_not_a_sigsegv(tmp_path):
+    """Zenoh's JSON5 parser recurses: 50,000 levels overflowed the stack of `hil ls` and
+    `hil sim` (SIGSEGV). The bounded reader counts the levels first."""
+    config = tmp_path / "zenoh.json5"
+    config.write_text('{"a": ' * 50_000 + "1" + "}" * 50_000)
+    run = subprocess.run([sys.executable, "-m", "hil", "ls", "--zenoh-config", str(config),
+                          "--timeout", "1s"], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 1, (run.returncode, run.stderr[-2000:])
+    assert "zenoh.json5:1: error: Zenoh config is nested more than 100 deep" in run.stderr
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("make", [lambda path: os.mkfifo(path) or path,
+                                  lambda _: Path("/dev/zero")])
+def test_a_zenoh_config_that_is_a_fifo_or_a_device_is_refused(tmp_path, make):
+    config = make(tmp_path / "zenoh.json5")     # Zenoh waited on the FIFO, read /dev/zero on
+    with pytest.raises(HilError, match="Zenoh config .* is not a regular file"):
+        ZenohSettings(config_file=config).to_config()
+
+
+def test_a_zenoh_config_file_is_still_read_as_json5_or_yaml(tmp_path):
+    json5 = tmp_path / "zenoh.json5"
+    json5.write_text('{mode: "client", // JSON5: comments and bare keys\n}')
+    yaml_file = tmp_path / "zenoh.yaml"
+    yaml_file.write_text("mode: client\n")
+    for config in (json5, yaml_file):
+        assert ZenohSettings(config_file=config).to_config().get_json("mode") == '"client"'
+
+
+@pytest.mark.parametrize("option", ["99999999999999999999s", "9000h", "525601min"])
+def test_an_absurd_duration_is_refused_with_a_clear_message(option, capsys):
+    """`hil ls --timeout 99999999999999999999s` reached Zenoh's get as "negative timeout"
+    (a ValueError traceback); every duration option reads through hil.durations."""
+    with pytest.raises(SystemExit) as exited:
+        main(["ls", "--timeout", option])
+    assert exited.value.code == 2
+    assert "--timeout" in capsys.readouterr().err
+
+
+def test_the_longest_duration_is_a_year():
+    assert parse_duration("8760h") == 365 * 24 * 3600.0
+    with pytest.raises(ValueError, match="longer than a year"):
+        parse_duration("8761h")
+
+
+def _scene_config(folder: Path, scene: str, extra: str = "") -> Path:
+    """The one-axis Damiao config in ``folder`` with ``scene`` (YAML list items)."""
+    config = _damiao_config(folder, "defaults:", f"{extra}defaults:")
+    config.write_text(config.read_text() + "scene:\n" + scene)
+    return config
+
+
+def test_a_scene_of_more_than_64_objects_is_refused(tmp_path):
+    """2000 cubes placed inside each other took 6 GB and 23 s to build the plant in
+    `hil check`; 100 overran MuJoCo's arena (FatalError traceback)."""
+    items = "".join(f"  - {{name: c{n}, shape: box, size: [0.1, 0.1, 0.1], mass: 0.1}}\n"
+                    for n in range(65))
+    with pytest.raises(HilError, match="'scene' holds 65 objects, over the 64 hil builds"):
+        load_bus_config(_scene_config(tmp_path, items))
+
+
+@pytest.mark.parametrize("entry, said", [
+    ("{name: c, shape: box, size: [1.0e+300, 1, 1], mass: 1}", "at most 100"),
+    ("{name: c, shape: mesh, mesh: m.stl, size: [1000, 1, 1]}", "at most 100"),
+    ("{name: c, shape: sphere, size: [0.1], xyz: [0, 0, 1.0e+30]}", "each within ±100"),
+])
+def test_a_scene_objects_size_and_place_are_bounded(tmp_path, entry, said):
+    (tmp_path / "m.stl").write_bytes(b"\0" * 84)
+    with pytest.raises(HilError, match=said):
+        load_bus_config(_scene_config(tmp_path, f"  - {entry}\n"))
+
+
+@pytest.mark.parametrize("name", ["world", "base", "yaw"])
+def test_a_scene_object_named_as_the_robots_link_or_joint_is_refused(tmp_path, name):
+    """MuJoCo names one body 'world' and each link a body (a scene object of that name
+    was a ValueError traceback: "repeated name 'base' in body")."""
+    config = _scene_config(tmp_path, f"  - {{name: {name}, shape: box, size: [0.1, 0.1, 0.1]}}\n")
+    with pytest.raises(HilError, match=f"scene object '{name}': the robot's model has a link"):
+        load_bus_config(config)
+
+
+@pytest.mark.parametrize("base", ["[fixed]", "{floating: true}"])
+def test_a_base_that_is_no_word_is_an_error_not_a_traceback(tmp_path, base):
+    config = _damiao_config(tmp_path, "defaults:", f"base: {base}\ndefaults:")
+    with pytest.raises(HilError, match="'base' must be fixed or floating"):
+        load_bus_config(config)
+
+
+def test_a_yaml_escape_of_half_a_character_is_an_error_not_a_traceback(tmp_path):
+    """YAML's "\\ud800" escape (YAML 1.2, 5.7: 16-bit escapes) gives PyYAML a lone UTF-16
+    surrogate, no character at all: as a scene object's name MuJoCo's add_body raised a
+    TypeError traceback (found by test_any_scene_gives_a_plant_or_a_config_error)."""
+    config = _scene_config(tmp_path, '  - {name: "\\ud800\\udc00", shape: box, '
+                                     'size: [0.1, 0.1, 0.1]}\n')
+    with pytest.raises(HilError, match="surrogate"):
+        bench_plant(load_bus_config(config))                # as hil check builds it
+
+
+@pytest.mark.timeout(60)
+def test_a_folder_or_fifo_beside_a_description_is_no_file_to_search(tmp_path):
+    """Where a joint names a link no file defines, hil looks for the .xacro/.urdf beside the
+    description that does: a folder named like one was read (IsADirectoryError traceback),
+    a FIFO waited for a writer without end."""
+    description = tmp_path / "robot.urdf"
+    description.write_text(_chain(1).replace('<child link="l1"/>', '<child link="gone"/>'))
+    (tmp_path / "arm.xacro").mkdir()
+    os.mkfifo(tmp_path / "gripper.urdf")
+    with pytest.raises(HilError, match="gone"):
+        load_description(description, PackagePath(()))
+
+
+@pytest.mark.parametrize("mesh, said", [
+    ("x" * 300 + ".stl", "has a name of 304 bytes, over the 255"),   # was an OSError traceback
+    ("/dev/zero", "is not a regular file"),
+])
+def test_a_scene_mesh_the_system_cannot_take_is_named(tmp_path, mesh, said):
+    config = _scene_config(tmp_path, f"  - {{name: c, shape: mesh, mesh: {mesh}}}\n")
+    with pytest.raises(HilError, match=f"mesh file .* {said}"):
+        load_bus_config(config)

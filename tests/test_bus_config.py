@@ -108,7 +108,7 @@ def test_heavy_but_feasible_load_warns(tmp_path):
      "'peak_torque' must be > 0"),
     (ALL_SIX.replace("joint: joint1}", "joint: joint1, gian: 3}"), "unknown key 'gian'"),
     (ALL_SIX.replace("node_id: 6, joint: joint6}", "node_id: 64, joint: joint6, protocol: odrive}"),
-     "node id 64 is outside 0..63"),
+     "node id 64 is outside 0..62"),
     (ALL_SIX.replace("joint: joint6}", "joint: joint6, protocol: mit}"), "options: 'kp' must be"),
     (ALL_SIX.replace("joint: joint6}", "joint: joint6, protocol: mit, options: {kp: 1, kq: 2}}"),
      "unknown option(s) kq for protocol 'mit'"),

@@ -1,5 +1,5 @@
 """ODrive CANSimple against ODrive's own DBC (PyPI ``odrive-can``), checked with cantools,
-for node ids 0..63; and the axis behaviour a real ODrive shows."""
+for node ids 0..63 (the codec; a bus config takes 0..62); and the axis behaviour a real ODrive shows."""
 
 from __future__ import annotations
 

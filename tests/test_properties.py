@@ -10,6 +10,7 @@ import json
 import os
 import re
 import shutil
+import struct
 import subprocess
 import sys
 import uuid
@@ -31,6 +32,8 @@ from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.zenoh_api import decode_stall
 from hil.plant import Plant
 from hil.replay.log import read_log
+from hil.simulator import bench_plant
+from hil.zenoh_session import ZenohSettings
 
 FIXTURES = Path(__file__).parent / "fixtures"
 #: examples per property: 200 in CI; more for a longer search (HIL_PROPERTY_EXAMPLES=5000)
@@ -151,6 +154,71 @@ def test_any_bytes_as_a_can_log_give_frames_or_a_clear_error(tmp_path_factory, d
     try:
         for _ in read_log(path):
             pass
+    except HilError:
+        pass
+
+
+#: the keys of a Zenoh config a value is put at (hil's own settings, and sections of
+#: zenoh's DEFAULT_CONFIG.json5)
+ZENOH_KEYS = [("mode",), ("connect", "endpoints"), ("listen", "endpoints"),
+              ("scouting", "multicast", "enabled"), ("timestamping", "enabled"),
+              ("transport", "link", "tcp", "so_sndbuf"), ("access_control", "rules"), ("x",)]
+#: text a Zenoh config file may hold besides a document: JSON5's own syntax, and nesting
+JSON5_TEXT = st.one_of(st.text(st.characters(blacklist_categories=("Cs",)), max_size=60),
+                       st.text(alphabet='{}[]"\':,/* \nab1', max_size=300),
+                       st.integers(0, 5000).map(lambda n: "{a:" * n + "1" + "}" * n))
+
+
+def _nested(path: tuple[str, ...], value) -> dict:
+    for key in reversed(path):
+        value = {key: value}
+    return value
+
+
+@BOUNDED
+@given(st.one_of(st.tuples(st.sampled_from(ZENOH_KEYS), YAML_VALUES).map(
+                     lambda pair: json.dumps(_nested(*pair))), JSON5_TEXT),
+       st.sampled_from(["json5", "json", "yaml", "txt"]))
+@example("{a:" * 50_000 + "1" + "}" * 50_000, "json5")          # once SIGSEGV in zenoh
+def test_any_zenoh_config_file_is_a_config_or_a_clear_error(tmp_path_factory, text, suffix):
+    path = tmp_path_factory.mktemp("zenoh") / f"zenoh.{suffix}"
+    path.write_text(text)
+    try:
+        ZenohSettings(config_file=path).to_config()
+    except HilError:
+        pass
+
+
+#: a scene object of each shape, for values put at their keys
+SCENE_OBJECTS = [{"name": "floor", "shape": "plane"},
+                 {"name": "cube", "shape": "box", "size": [0.04, 0.04, 0.04], "xyz": [0, 0, 0.1],
+                  "mass": 0.05},
+                 {"name": "post", "shape": "cylinder", "size": [0.02, 0.3], "friction": 0.5},
+                 {"name": "ball", "shape": "sphere", "size": [0.03], "rpy": [0, 0, 1], "mass": 1},
+                 {"name": "part", "shape": "mesh", "mesh": "part.stl", "mass": 0.1}]
+SCENE_KEYS = ["name", "shape", "size", "mesh", "xyz", "rpy", "mass", "friction"]
+#: a binary STL of one tetrahedron (80-byte header, a count, 50 bytes a triangle)
+_CORNERS = [(0, 0, 0), (0.1, 0, 0), (0, 0.1, 0), (0, 0, 0.1)]
+TETRAHEDRON = (bytes(80) + struct.pack("<I", 4) + b"".join(
+    struct.pack("<12fH", 0, 0, 0, *_CORNERS[a], *_CORNERS[b], *_CORNERS[c], 0)
+    for a, b, c in [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]))
+
+
+@BOUNDED
+@given(st.lists(st.sampled_from(range(len(SCENE_OBJECTS))), max_size=4),
+       st.sampled_from(SCENE_KEYS), YAML_VALUES, st.integers(0, 3))
+@example([1] * 65, "name", "c", 0)              # more objects than a scene may hold
+@example([1], "name", "world", 0)               # once a ValueError from MuJoCo
+def test_any_scene_gives_a_plant_or_a_config_error(damiao_folder, objects, key, value, at):
+    (damiao_folder / "part.stl").write_bytes(TETRAHEDRON)
+    scene = [dict(SCENE_OBJECTS[n], name=f"o{i}") for i, n in enumerate(objects)]
+    if scene:
+        scene[at % len(scene)][key] = value
+    config = damiao_folder / "bus.yaml"
+    config.write_text((FIXTURES / "damiao_one_axis.yaml").read_text() + "scene: "
+                      + yaml.safe_dump(scene, default_flow_style=True, width=10_000))
+    try:
+        bench_plant(load_bus_config(config))                # as hil check builds it
     except HilError:
         pass
 

@@ -78,7 +78,7 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
         raise HilError(reader.diagnostics)
     buses = tuple(_read_bus(reader, raw, index, robot, transmissions, defaults)
                   for index, raw in enumerate(raw_buses))
-    scene = read_scene(reader, top)
+    scene = read_scene(reader, top, robot)
     config = SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses,
                           scene=scene, floating_base=_read_base(reader, top),
                           start_pose=read_start_pose(reader, top, robot),
@@ -94,7 +94,7 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
 def _read_base(reader: Reader, top: LineMapping) -> bool:
     """``base:`` fixed (the default) or floating."""
     base = top.get("base", "fixed")
-    if base not in BASES:
+    if not isinstance(base, str) or base not in BASES:
         reader.fail(f"'base' must be {' or '.join(BASES)}, not {base!r}",
                     top.key_lines.get("base", top.line),
                     hint="floating: the robot's root is free and stands on the scene (a legged "

@@ -14,19 +14,34 @@ import math
 
 from hil.bus_config.types import SceneObject
 from hil.bus_config.yaml_reader import LineMapping, Reader
-from hil.description import Geometry, GeometryKind, Pose
+from hil.description import Geometry, GeometryKind, Pose, RobotDescription
+from hil.description.reader import MAX_MESH_BYTES
+from hil.input_files import file_problem
 
+#: the most objects a scene may hold (hil's choice: a bench's world is a floor, tables and
+#: a few things to pick). Moving objects that start inside each other make contacts that
+#: grow with the square of their count: 2000 overlapping cubes took 6 GB and 23 s to build
+#: the plant, 100 overran MuJoCo's arena (FatalError), 80 took 130 MB (measured 2026-12-06)
+MAX_OBJECTS = 64
+#: the largest size (m, or a mesh's scale) and distance from the origin (m) a scene object
+#: may have (hil's choice: a bench's world; a box of 1e300 m has an infinite inertia)
+MAX_EXTENT = 100.0
+#: the name of MuJoCo's world body, which no scene object may take
+WORLD = "world"
 _KEYS = {"name", "shape", "size", "mesh", "xyz", "rpy", "mass", "friction"}
 #: how many numbers ``size`` takes per shape, and what they are
-_SIZES = {GeometryKind.BOX: (3, "[x, y, z] edge lengths"),
-          GeometryKind.CYLINDER: (2, "[radius, length]"),
-          GeometryKind.SPHERE: (1, "[radius]"),
+_SIZES = {GeometryKind.BOX: (3, "[x, y, z] edge lengths (m)"),
+          GeometryKind.CYLINDER: (2, "[radius, length] (m)"),
+          GeometryKind.SPHERE: (1, "[radius] (m)"),
           GeometryKind.MESH: (3, "[x, y, z] scale"),
           GeometryKind.PLANE: (0, "nothing: a plane is endless")}
 
 
-def read_scene(reader: Reader, top: LineMapping) -> tuple[SceneObject, ...]:
-    """The ``scene:`` list (none: the robot alone)."""
+def read_scene(reader: Reader, top: LineMapping,
+               robot: RobotDescription) -> tuple[SceneObject, ...]:
+    """The ``scene:`` list (none: the robot alone); names the ``robot``'s links and joints
+    take are refused (each scene object is a body, a geom and, moving, a joint of the plant's
+    MuJoCo model beside the robot's, where a name is one thing's)."""
     if "scene" not in top:
         return ()
     raw = top["scene"]
@@ -34,13 +49,22 @@ def read_scene(reader: Reader, top: LineMapping) -> tuple[SceneObject, ...]:
     if not isinstance(raw, list):
         reader.fail("'scene' must be a list of objects ({name: ..., shape: ..., ...})", line)
         return ()
+    if len(raw) > MAX_OBJECTS:
+        reader.fail(f"'scene' holds {len(raw)} objects, over the {MAX_OBJECTS} hil builds",
+                    line, hint="a scene is the few things the robot touches: a floor, tables, "
+                               "what it picks")
+        return ()
     objects = tuple(o for o in (_read_object(reader, item, number + 1, line)
                                 for number, item in enumerate(raw)) if o is not None)
+    taken = {WORLD} | {part.name for part in (*robot.links, *robot.joints)}
     seen: set[str] = set()
     for thing in objects:
         if thing.name in seen:
             reader.fail(f"scene: two objects are named '{thing.name}'", thing.line,
                         hint="give every scene object its own name")
+        elif thing.name in taken:
+            reader.fail(f"scene object '{thing.name}': the robot's model has a link, joint or "
+                        "body of that name", thing.line, hint="give the object another name")
         seen.add(thing.name)
     return objects
 
@@ -63,8 +87,9 @@ def _read_object(reader: Reader, raw, number: int, list_line: int | None) -> Sce
     mesh = None
     if kind is GeometryKind.MESH:
         mesh = reader.path.parent / reader.text(item, "mesh", what, "")
-        if not mesh.is_file():
-            reader.fail(f"{what}: mesh file '{mesh}' does not exist",
+        problem = file_problem(mesh, MAX_MESH_BYTES)     # MuJoCo reads the file by its name
+        if problem:
+            reader.fail(f"{what}: mesh file '{mesh}' {problem}",
                         item.key_lines.get("mesh", item.line),
                         hint="'mesh' is an STL or OBJ path relative to the config file")
     elif "mesh" in item:
@@ -96,8 +121,8 @@ def _read_size(reader: Reader, item: LineMapping, kind: GeometryKind,
     value = item.get("size")
     if (not isinstance(value, list) or len(value) != count
             or not all(_positive_number(v) for v in value)):
-        reader.fail(f"{what}: 'size' of a {kind.value} is {meaning} (m, each > 0), not {value!r}",
-                    line)
+        reader.fail(f"{what}: 'size' of a {kind.value} is {meaning}, each > 0 and at most "
+                    f"{MAX_EXTENT:g}, not {value!r}", line)
         return (0.01,) * count
     return tuple(float(v) for v in value)
 
@@ -107,8 +132,9 @@ def _read_vector(reader: Reader, item: LineMapping, key: str,
     value = item.get(key, [0.0, 0.0, 0.0])
     if (not isinstance(value, list) or len(value) != 3
             or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                       and math.isfinite(v) for v in value)):
-        unit = "m" if key == "xyz" else "rad, roll pitch yaw"
+                       and math.isfinite(v) and (key != "xyz" or abs(v) <= MAX_EXTENT)
+                       for v in value)):
+        unit = f"m, each within ±{MAX_EXTENT:g}" if key == "xyz" else "rad, roll pitch yaw"
         reader.fail(f"{what}: '{key}' must be three numbers ({unit}), not {value!r}",
                     item.key_lines.get(key, item.line))
         return (0.0, 0.0, 0.0)
@@ -117,5 +143,5 @@ def _read_vector(reader: Reader, item: LineMapping, key: str,
 
 def _positive_number(value) -> bool:
     return (isinstance(value, (int, float)) and not isinstance(value, bool)
-            and math.isfinite(value) and value > 0)
+            and math.isfinite(value) and 0 < value <= MAX_EXTENT)
 

@@ -79,6 +79,16 @@ class LineLoader(yaml.SafeLoader):
             raise ConfigTooLarge(f"a number of {len(node.value)} characters is no value a "
                                  "config takes", node.start_mark) from None
 
+    def construct_yaml_str(self, node):
+        # a "\ud800" escape makes a str that is no text (half a UTF-16 surrogate pair):
+        # MuJoCo's names and Python's encoders raise on it far from the config's line
+        value = super().construct_yaml_str(node)
+        if any("\ud800" <= c <= "\udfff" for c in value):
+            raise yaml.constructor.ConstructorError(
+                None, None, "a \\u escape of half a UTF-16 surrogate pair is no character: "
+                "write the character itself", node.start_mark)
+        return value
+
     def construct_mapping(self, node, deep=False):
         mapping = LineMapping(super().construct_mapping(node, deep=True))
         mapping.line = node.start_mark.line + 1
@@ -90,6 +100,7 @@ class LineLoader(yaml.SafeLoader):
 LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
                         LineLoader.construct_mapping)
 LineLoader.add_constructor("tag:yaml.org,2002:int", LineLoader.construct_yaml_int)
+LineLoader.add_constructor("tag:yaml.org,2002:str", LineLoader.construct_yaml_str)
 
 
 def parse_yaml(text: str, path: Path, what: str):

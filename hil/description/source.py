@@ -90,7 +90,8 @@ def read_robot_source(path: Path, package_path: PackagePath) -> RobotSource:
     """Expand ``path`` (.xacro, or plain .urdf) into URDF text."""
     path = Path(path)
     text, corrections = lenient_text(path.resolve(), read_input_file(
-        path, "robot description", hint="give the path of a .urdf or .xacro file"))
+        path, "robot description", hint="give the path of a .urdf or .xacro file",
+        syntax="xml"))
     if path.suffix == ".urdf":
         try:
             root = ET.fromstring(text)

@@ -11,7 +11,8 @@ from pathlib import Path
 from hil.description.model import Joint, Link
 from hil.description.packages import PackagePath, own_package
 from hil.description.reader import ElementReader, start_tag
-from hil.errors import error, warning
+from hil.errors import HilError, error, warning
+from hil.input_files import read_input_file
 
 
 def check_tree(reader: ElementReader, links: tuple[Link, ...], joints: tuple[Joint, ...]) -> None:
@@ -81,7 +82,11 @@ def _missing_link_hint(reader: ElementReader, link: str, role: str) -> str:
     for candidate in _package_files(reader.source.path):
         if candidate.suffix not in (".xacro", ".urdf") or candidate.resolve() in loaded:
             continue
-        if pattern.search(candidate.read_text(errors="replace")):
+        try:        # a folder or a FIFO named *.xacro, an unreadable file: no answer here
+            text = read_input_file(candidate, "description", hint="")
+        except HilError:
+            continue
+        if pattern.search(text):
             return (f"'{link}' is defined in {candidate}, which is not included: add "
                     f"<xacro:include filename=\"{_find_form(candidate, reader.package_path)}\"/>")
     if role == "parent":
