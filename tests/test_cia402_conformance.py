@@ -300,6 +300,10 @@ def test_canopen_pdo_save_remaps_a_tpdo_with_three_objects_in_cia301_order(bench
     ("a new CAN-ID for a valid PDO", 0x06090030),
     ("a reserved transmission type", 0x06090030),
     ("an 11-bit COB-ID above 0x7FF", 0x06090030),
+    # CiA 301 7.3.5's restricted CAN-IDs for a valid PDO (CANopenNode's CO_PDO.c refuses
+    # them with ODR_INVALID_VALUE), and the SYNC's the drive consumes (hil's reading)
+    ("a valid PDO on a heartbeat's CAN-ID", 0x06090030),
+    ("a valid PDO on the SYNC's CAN-ID", 0x06090030),
 ])
 def test_invalid_pdo_parameters_are_refused_with_the_cia301_abort_code(bench, what, code):
     node = pre_operational(bench)
@@ -333,6 +337,10 @@ def test_invalid_pdo_parameters_are_refused_with_the_cia301_abort_code(bench, wh
         "a reserved transmission type": lambda: sdo.download(0x1800, 2, bytes([245])),
         "an 11-bit COB-ID above 0x7FF": lambda: sdo.download(
             0x1802, 1, struct.pack("<L", 0x80000900)),
+        "a valid PDO on a heartbeat's CAN-ID": lambda: (
+            invalid_tpdo3(), sdo.download(0x1802, 1, struct.pack("<L", 0x701))),
+        "a valid PDO on the SYNC's CAN-ID": lambda: (
+            invalid_tpdo3(), sdo.download(0x1802, 1, struct.pack("<L", 0x080))),
     }
     assert abort_code(actions[what]) == code
     # nothing half-written survives: the node still starts and its default PDOs still work

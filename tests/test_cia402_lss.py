@@ -17,7 +17,7 @@ import canopen
 import pytest
 
 from conftest import UR3_VIRTUAL, Bench
-from test_cia402_conformance import FrameTap
+from test_cia402_conformance import FrameTap, wait_until
 from test_cia402_drive import enable_csp
 
 from hil.bus_config import load_bus_config
@@ -127,3 +127,38 @@ def test_an_unconfigured_drive_without_a_serial_number_is_refused(tmp_path):
     with pytest.raises(HilError) as refused:
         load_bus_config(config)
     assert "serial_number" in str(refused.value)
+
+
+def _states(bench, node_id: int) -> list[str]:
+    with bench.sim.lock:
+        return [drive.node.nmt.state for drive in bench.sim.drives if drive.node_id == node_id]
+
+
+@pytest.mark.parametrize("command, target", [(0x01, 1), (0x01, 0), (0x02, 1), (0x02, 0)],
+                         ids=["start node", "start all", "stop node", "stop all"])
+def test_two_drives_given_one_node_id_both_stay_on_the_bus(tmp_path, caplog, command, target):
+    """CiA 305 configure node id answers only 'out of range' (error 1): the drive cannot
+    know the ids of the others (CANopenNode's CO_LSSslave.c takes any 1-127). A master
+    that gives a taken id makes two nodes of one id, as on a real bus: both answer NMT and
+    both send on the id's COB-IDs (their frames collide where a master can see it). The
+    drive that took the id replaced the other in canopen's node dictionary, which then
+    heard no NMT at all. The simulator says so (a warning) where a bus shows collisions."""
+    bench = Bench("virtual", f"lss-{uuid.uuid4().hex}", REAL_TIME, _config(
+        tmp_path, "{node_id: 1, joint: joint1, options: {serial_number: 1}}"))
+    try:
+        lss = bench.network.lss
+        found, _ = lss.fast_scan()                     # the one without a node id
+        assert found
+        lss.configure_node_id(1)                       # taken: answered 0 all the same
+        lss.send_switch_state_global(lss.WAITING_STATE)
+        assert wait_until(lambda: _states(bench, 1) == ["PRE-OPERATIONAL"] * 2)
+        assert "node id 1 given by LSS is another drive's too" in caplog.text
+        with FrameTap(bench) as tap:
+            bench.network.send_message(0x000, bytes([command, target]))
+            want = "OPERATIONAL" if command == 0x01 else "STOPPED"
+            assert wait_until(lambda: _states(bench, 1) == [want] * 2), _states(bench, 1)
+            time.sleep(0.5)
+        beats = [msg.data[0] for msg in tap.of(0x701)]
+        assert beats.count(0x05 if command == 0x01 else 0x04) >= 2   # from each drive
+    finally:
+        bench.close()

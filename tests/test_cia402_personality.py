@@ -259,9 +259,9 @@ def test_hil_check_lists_the_objects_a_personality_stores_without_meaning(tmp_pa
 
 
 @pytest.mark.parametrize("given, said", [
-    ("/etc/passwd", "is not a readable EDS/DCF (ValueError)"),
+    ("/etc/passwd", "is no EDS, DCF or EPF"),
     ("5", "'eds' is the path of an EDS or DCF file, not 5"),
-    ("missing.eds", "is not a file"),
+    ("missing.eds", "does not exist"),
 ])
 def test_an_eds_option_that_names_no_eds_is_refused_without_echoing_the_file(tmp_path, given,
                                                                               said):

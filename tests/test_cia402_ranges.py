@@ -23,6 +23,7 @@ from test_cia402_conformance import abort_code, pre_operational, raw, wait_until
 from test_cia402_drive import emcy_logged_after, enable_csp
 
 from hil.protocols.cia402.node import DriveNode
+from hil.protocols.cia402.personality import Personality
 from hil.protocols.cia402.storage import ParameterStore
 from hil.resources import eds_path
 
@@ -88,7 +89,7 @@ def test_a_parameter_file_value_the_object_does_not_take_is_not_restored(tmp_pat
     kept.write_text(json.dumps({"2000:01": struct.pack("<f", math.nan).hex(),
                                 "2000:02": struct.pack("<f", 0.5).hex(),
                                 "1017:00": (250).to_bytes(2, "little").hex()}))
-    node = DriveNode(1, eds_path())
+    node = DriveNode(1, Personality.of(None).dictionary(1))
     default = node.object_dictionary[0x2000][1].default
     ParameterStore(kept).restore(node, communication_only=False)
     assert node.value(0x2000, 1) == pytest.approx(default)     # NaN refused, default kept

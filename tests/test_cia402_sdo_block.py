@@ -84,3 +84,21 @@ def test_a_stalled_segmented_upload_is_aborted_by_the_server(bench):
         raw(bench, SDO_REQUEST, bytes([0x60, 0, 0, 0, 0, 0, 0, 0]))
         assert wait_until(lambda: _answers(tap))
     assert struct.unpack_from("<I", _answers(tap)[0], 4)[0] == 0x05040001
+
+
+@pytest.mark.parametrize("initiate", [0xC6, 0xC4], ids=["size indicated", "size not indicated"])
+def test_a_block_download_past_its_size_is_aborted_data_too_long(bench, initiate):
+    """CiA 301 0x06070012 (length too high), where CANopenNode's CO_SDOserver.c aborts with
+    CO_SDO_AB_DATA_LONG: a segment that comes when the 4 bytes of 0x6081 (the indicated
+    size, else the object's) are taken already; nothing is written."""
+    node = pre_operational(bench)
+    before = node.sdo[0x6081].raw
+    with FrameTap(bench) as tap:
+        raw(bench, SDO_REQUEST, bytes([initiate, 0x81, 0x60, 0x00, 4, 0, 0, 0]))
+        assert wait_until(lambda: _answers(tap))
+        for seq in (1, 2, 3):                            # no last-segment bit: 21 bytes
+            raw(bench, SDO_REQUEST, bytes([seq]) + bytes(7))
+        assert wait_until(lambda: len(_answers(tap)) >= 2)
+    abort = _answers(tap)[1]
+    assert abort[0] == 0x80 and struct.unpack_from("<I", abort, 4)[0] == 0x06070012
+    assert node.sdo[0x6081].raw == before

@@ -157,11 +157,16 @@ class Cia402(Protocol):
 
     @classmethod
     def drive_problem(cls, node_id: int, options=None) -> str | None:
+        """A drive without a node id and no serial number; else what in its files (a vendor's
+        EDS, a parameter file) it would not start with (:mod:`.start_check`)."""
         if node_id == UNCONFIGURED and (options is None or options.serial_number is None):
             return ("a drive that boots without a node id (255, for an LSS master to assign) "
                     "needs options: {serial_number: N}, distinct on its bus: the identity "
                     "the master tells it by")
-        return None
+        if options is None or options.eds is None and options.parameter_file is None:
+            return None
+        from hil.protocols.cia402.start_check import start_problem     # canopen: lazily
+        return start_problem(node_id, options)
 
     @classmethod
     def shared_ids(cls, options=None) -> set[int]:

@@ -107,37 +107,44 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
     def _make_node(self, node_id: int) -> None:
         """The CANopen node of ``node_id`` (UNCONFIGURED: one that waits for LSS)."""
         self.node_id = node_id
-        self.node = DriveNode(node_id, self.personality.eds, self._refused)
+        self.node = DriveNode(node_id, self.personality.dictionary(node_id), self._refused)
         self.objects = DriveObjects(self.node, self.machine, self.core, self.lock,
                                     self.rated_torque, self._heartbeat_ms, self._configure_pdos,
                                     self.errors, self.personality, self._serial, self.store)
         self.objects.store_configuration()
-        self.store.restore(self.node, communication_only=False)
+        self._restore(communication_only=False)
         self.node.on_stored(self._on_stored)
         self._refresh_sync_length()
+
+    def _restore(self, communication_only: bool) -> None:
+        for refused in self.store.restore(self.node, communication_only):
+            log.warning("node %d: saved %s not restored from %s: save them again", self.node_id,
+                        refused, self.store.file or "this run's store")
 
     def _on_stored(self, index: int, subindex: int) -> None:
         if index == SYNC_COUNTER_OVERFLOW:
             self._refresh_sync_length()
 
     def _refresh_sync_length(self) -> None:
-        """The SYNC's data length 0x1019 asks for (a counter where it is over 0), kept at hand:
-        every SYNC checks it, and reading it through the object dictionary was 5 % of a
-        lock-step cycle. Refreshed where 0x1019 can change: a write, a reset, a restore."""
+        """The SYNC's data length 0x1019 asks for (a counter where over 0), kept at hand for
+        every SYNC (read from the dictionary it was 5 % of a lock-step cycle)."""
         self._sync_length = 1 if self.node.value(SYNC_COUNTER_OVERFLOW) else 0
 
     def _take_node_id(self, node_id: int) -> None:
-        """LSS gave the drive a node id: it leaves the network under the old one (if any)
-        and boots with the new one (CiA 305; caller holds the lock)."""
+        """LSS gave the drive a node id (CiA 305; caller holds the lock), a taken one too
+        (CiA 305 refuses only one out of range): as on a real bus, both nodes then hear its NMT
+        and SDO and send on its COB-IDs (``associate_network``: canopen's one-per-id
+        ``add_node`` dropped the other node's network); a warning shows the collision."""
         network = self.network
+        if network.subscribers.get(0x600 + node_id) and node_id != UNCONFIGURED:
+            log.warning("node id %d given by LSS is another drive's too: both answer", node_id)
         if self.node.has_network():
             self.node.nmt.stop_heartbeat()
             self._unsubscribe_rpdos(network)
             self.node.remove_network()
-            del network[self.node.id]
         self._make_node(node_id)
         if node_id != UNCONFIGURED:
-            network.add_node(self.node)
+            self.node.associate_network(network)
             network.unsubscribe(NMT_ID, self._after_nmt)     # again after the node's NMT
             network.subscribe(NMT_ID, self._after_nmt)
             self._configure_pdos()
@@ -152,7 +159,8 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         """Join the network: PDO maps from the object dictionary, boot-up, heartbeat (a
         drive without a node id only listens for LSS)."""
         if self.node_id != UNCONFIGURED:
-            network.add_node(self.node)      # its NMT slave before this drive's _after_nmt
+            # its NMT slave before this drive's _after_nmt; not network.add_node (above)
+            self.node.associate_network(network)
         super().attach(network)
         if self.node_id != UNCONFIGURED:
             self._configure_pdos()
@@ -230,7 +238,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
             for index in [i for i in self.node.data_store if 0x1000 <= i < 0x2000]:
                 del self.node.data_store[index]
             self.objects.store_communication()
-        self.store.restore(self.node, communication_only)     # what 0x1010 saved
+        self._restore(communication_only)                    # what 0x1010 saved
         self._refresh_sync_length()
         self._latched.clear()
         if self.node.has_network():

@@ -4,12 +4,13 @@ drive's side is :mod:`.personality`)."""
 
 from __future__ import annotations
 
-import configparser
 from pathlib import Path
 
 import canopen
 from canopen.objectdictionary import NUMBER_TYPES, ODVariable
 
+from hil.protocols.cia402.eds_file import parse, read_text
+from hil.protocols.cia402.eds_types import check_types
 from hil.protocols.cia402.ranges import outside
 
 #: objects read from the drive's state, not stored in its object dictionary
@@ -32,20 +33,18 @@ PROFILE_402 = 402
 
 
 def read_dictionary(eds: Path) -> canopen.ObjectDictionary:
-    """The object dictionary of an EDS/DCF, checked to be a CiA 402 drive's: it has a
-    controlword and a statusword, and 0x1000 (where the file gives it) names profile 402;
-    a ValueError that names the file and what is wrong otherwise."""
-    if not eds.is_file():
-        raise ValueError(f"eds: {eds} is not a file (give the drive vendor's EDS or DCF, "
-                         f"relative to the bus config)")
-    try:
-        od = canopen.import_od(str(eds), 1)
-    except (OSError, configparser.Error, ValueError, KeyError, TypeError) as exc:
-        # the error's kind and line, never the file's text (it may be any file)
-        line = getattr(exc, "lineno", None)
-        where = f" at line {line}" if line else ""
-        raise ValueError(f"eds: {eds} is not a readable EDS/DCF ({type(exc).__name__}"
-                         f"{where})") from None
+    """The object dictionary of an EDS/DCF/EPF (its $NODEID values for node 1), checked to
+    be a CiA 402 drive's: read within bounds (:mod:`.eds_file`), every entry of a type hil
+    runs with (:mod:`.eds_types`), every value one its object takes, a controlword and a
+    statusword, and 0x1000 (where the file gives it) naming profile 402; a ValueError that
+    names the file and what is wrong otherwise."""
+    return checked_dictionary(eds, read_text(eds), 1)
+
+
+def checked_dictionary(eds: Path, text: str, node_id: int) -> canopen.ObjectDictionary:
+    """:func:`read_dictionary` of the file's text, read already, for ``node_id``."""
+    od = parse(eds, text, node_id)
+    check_types(eds, od, MEANINGFUL)
     _check_values(eds, od)
     device_type = file_value(od, 0x1000)
     missing = [f"0x{i:04X}" for i in (0x6040, 0x6041) if i not in od]

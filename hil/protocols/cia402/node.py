@@ -18,8 +18,9 @@ stack under ros2_canopen) has them:
   object missing (0x06020000), sub-index missing (0x06090011), not mappable or the wrong
   direction (0x06040041), a length other than the object's (0x06040043), over 64 bits
   (0x06040042), more entries than the mapping has (0x06090031); a changed CAN-ID of a valid
-  PDO, an 11-bit COB-ID over 0x7FF, a reserved or unsupported transmission type, an
-  inhibit time or SYNC start value changed while valid: 0x06090030;
+  PDO, an 11-bit COB-ID over 0x7FF or a restricted one (:mod:`.pdo_parameters`), a
+  reserved or unsupported transmission type, an inhibit time or SYNC start value changed
+  while valid: 0x06090030 (the checks that need no order: :mod:`.written`);
 * heartbeat consumer (0x1016): monitors each producer configured there from its first
   heartbeat; :meth:`DriveNode.lost_heartbeats` names those overdue.
 
@@ -32,19 +33,17 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 import canopen
 from canopen.emcy import EmcyProducer
 from canopen.nmt import NmtSlave
 
-from hil.protocols.cia402.ranges import check_range
+from hil.protocols.cia402.pdo_parameters import NOT_VALID, PdoParameter, mapping_abort
+from hil.protocols.cia402.ranges import range_abort
+from hil.protocols.cia402.written import CONSUMER_HEARTBEAT, write_abort
 from hil.protocols.cia402.sdo import DriveSdoServer
 from canopen.sdo import SdoAbortedError
-from canopen.sdo.constants import (
-    ABORT_INVALID_VALUE, ABORT_NO_SUBINDEX, ABORT_NOT_IN_OD, ABORT_PARAMETER_INCOMPATIBLE,
-    ABORT_PDO_CANNOT_MAP, ABORT_PDO_LENGTH_EXCEEDED, ABORT_VALUE_TOO_HIGH,
-)
+from canopen.sdo.constants import ABORT_INVALID_VALUE, ABORT_NO_SUBINDEX
 from canopen.objectdictionary import NUMBER_TYPES
 
 log = logging.getLogger(__name__)
@@ -52,20 +51,10 @@ log = logging.getLogger(__name__)
 STOPPED = "STOPPED"
 #: canopen's code of OPERATIONAL (the heartbeat's state byte, CiA 301)
 NMT_OPERATIONAL = 5
-#: COB-ID bits (CiA 301): 31 PDO not valid, 29 29-bit frame
-NOT_VALID, EXTENDED_FRAME = 0x80000000, 0x20000000
-#: transmission types a PDO of this drive may have: synchronous (acyclic 0, every n-th SYNC
-#: 1-240), RTR only (252 synchronous, 253 asynchronous; TPDOs only) and event-driven (254,
-#: 255); 241-251 are reserved
-TRANSMISSION_TYPES = frozenset(range(241)) | {252, 253, 254, 255}
 #: NMT commands that reset a node (application, communication)
 RESETS = (0x81, 0x82)
-#: bits of the dummy entries (data types 0x0002-0x0007) an RPDO may map
-DUMMY_BITS = {0x0002: 8, 0x0003: 16, 0x0004: 32, 0x0005: 8, 0x0006: 16, 0x0007: 32}
 #: SDO abort "resource not available" (canopen: an object without a value)
 ABORT_NO_DATA = 0x060A0023
-#: consumer heartbeat time (0x1016) entries: node id in bits 16-23, time (ms) in bits 0-15
-CONSUMER_HEARTBEAT = 0x1016
 
 
 def normalise_access_types(od: canopen.ObjectDictionary) -> None:
@@ -75,22 +64,6 @@ def normalise_access_types(od: canopen.ObjectDictionary) -> None:
         entries = [obj] if isinstance(obj, canopen.objectdictionary.ODVariable) else obj.values()
         for entry in entries:
             entry.access_type = entry.access_type.strip().lower()
-
-
-class PdoParameter:
-    """Where an index falls among the PDO parameters, if it does."""
-
-    def __init__(self, index: int):
-        self.receive = 0x1400 <= index < 0x1800
-        base = index & 0xFE00          # 0x1400, 0x1600, 0x1800, 0x1A00
-        self.mapping = base in (0x1600, 0x1A00)
-        self.number = index - base
-        self.communication_index = (0x1400 if self.receive else 0x1800) + self.number
-        self.mapping_index = (0x1600 if self.receive else 0x1A00) + self.number
-
-    @staticmethod
-    def of(index: int) -> PdoParameter | None:
-        return PdoParameter(index) if 0x1400 <= index < 0x1C00 else None
 
 
 class DriveEmcyProducer(EmcyProducer):
@@ -161,9 +134,9 @@ class ClockedNmtSlave(NmtSlave):
 class DriveNode(canopen.LocalNode):
     """A canopen LocalNode that refuses what a real CiA 301 slave refuses (module doc)."""
 
-    def __init__(self, node_id: int, eds: Path,
+    def __init__(self, node_id: int, dictionary: canopen.ObjectDictionary,
                  on_refused: Callable[[int, str], None] = lambda can_id, why: None):
-        super().__init__(node_id, str(eds))
+        super().__init__(node_id, dictionary)
         normalise_access_types(self.object_dictionary)
         self.sdo = DriveSdoServer(0x600 + self.id, 0x580 + self.id, self)
         self.emcy = DriveEmcyProducer(0x80 + self.id, self)
@@ -272,88 +245,40 @@ class DriveNode(canopen.LocalNode):
         return not self.value(communication_index, 1) & NOT_VALID
 
     def _check_write(self, index: int, subindex: int, od, data: bytes, **_) -> None:
-        check_range(od, data)
+        """A write as :func:`.written.write_abort` checks it, after the order CiA 301 gives
+        a PDO's remapping (:meth:`_order_abort`)."""
+        code = range_abort(od, data)
         parameter = PdoParameter.of(index)
-        if parameter is not None:
-            value = od.decode_raw(data)
-            if parameter.mapping:
-                self._check_mapping(parameter, subindex, value)
-            else:
-                self._check_communication(parameter, subindex, value)
-        elif index == CONSUMER_HEARTBEAT and subindex > 0:
-            self._check_consumer(subindex, od.decode_raw(data))
-        elif index == 0x1019 and od.decode_raw(data) in (1, *range(241, 256)):
-            raise SdoAbortedError(ABORT_INVALID_VALUE)     # 0 or 2-240 (CiA 301)
+        if code is None and parameter is not None and od.data_type in NUMBER_TYPES:
+            code = self._order_abort(parameter, subindex, od.decode_raw(data))
+        if code is None:
+            code = write_abort(self, index, subindex, od, data)
+        if code is not None:
+            raise SdoAbortedError(code)
 
-    def _check_communication(self, parameter: PdoParameter, subindex: int, value: int) -> None:
+    def _order_abort(self, parameter: PdoParameter, subindex: int, value: int) -> int | None:
+        """A PDO's parameters change while it is not valid (CiA 301 7.5.2.35-38: COB-ID's
+        CAN-ID, inhibit time, SYNC start value, the mapping), a mapping's entries while its
+        count is 0; the count is checked over the entries it then counts."""
         valid = self.pdo_valid(parameter.communication_index)
+        if parameter.mapping:
+            if valid:
+                return ABORT_INVALID_VALUE                   # make the PDO not valid first
+            if subindex == 0:
+                return mapping_abort(self, parameter, value)
+            if self.value(parameter.mapping_index, 0) != 0:
+                return ABORT_INVALID_VALUE                   # set the count to 0 first
+            return None
         if subindex == 1:
             old = self.value(parameter.communication_index, 1)
             if valid and not value & NOT_VALID and (value ^ old) & 0x1FFFFFFF:
-                raise SdoAbortedError(ABORT_INVALID_VALUE)   # make it not valid first
-            if not value & EXTENDED_FRAME and value & 0x1FFFF800:
-                raise SdoAbortedError(ABORT_INVALID_VALUE)   # an 11-bit CAN-ID over 0x7FF
-        elif subindex == 2 and (value not in TRANSMISSION_TYPES
-                                or parameter.receive and value in (252, 253)):
-            raise SdoAbortedError(ABORT_INVALID_VALUE)
+                return ABORT_INVALID_VALUE                   # make it not valid first
         elif subindex in (3, 6) and valid and value != self.value(
                 parameter.communication_index, subindex):
-            raise SdoAbortedError(ABORT_INVALID_VALUE)       # inhibit time, SYNC start value
-
-    def _check_mapping(self, parameter: PdoParameter, subindex: int, value: int) -> None:
-        if self.pdo_valid(parameter.communication_index):
-            raise SdoAbortedError(ABORT_INVALID_VALUE)       # make the PDO not valid first
-        mapping = parameter.mapping_index
-        if subindex == 0:
-            entries = [sub for sub in self.object_dictionary[mapping].subindices if sub > 0]
-            if value > len(entries):
-                raise SdoAbortedError(ABORT_VALUE_TOO_HIGH)
-            bits = sum(self._mapped_bits(self.value(mapping, sub), parameter.receive)
-                       for sub in range(1, value + 1) if self.value(mapping, sub))
-            if bits > 64:
-                raise SdoAbortedError(ABORT_PDO_LENGTH_EXCEEDED)
-        else:
-            if self.value(mapping, 0) != 0:
-                raise SdoAbortedError(ABORT_INVALID_VALUE)   # set the count to 0 first
-            if value:
-                self._mapped_bits(value, parameter.receive)
-
-    def _mapped_bits(self, entry: int, receive: bool) -> int:
-        """The length of a mapping entry, after checking it names an object a PDO of this
-        direction may carry, with the object's own length."""
-        index, subindex, bits = entry >> 16, (entry >> 8) & 0xFF, entry & 0xFF
-        if index in DUMMY_BITS:          # a dummy entry fills a gap in an RPDO
-            if not receive or subindex != 0:
-                raise SdoAbortedError(ABORT_PDO_CANNOT_MAP)
-            if bits != DUMMY_BITS[index]:
-                raise SdoAbortedError(ABORT_PARAMETER_INCOMPATIBLE)
-            return bits
-        if index not in self.object_dictionary:
-            raise SdoAbortedError(ABORT_NOT_IN_OD)
-        obj = self.object_dictionary[index]
-        if isinstance(obj, canopen.objectdictionary.ODVariable):
-            if subindex != 0:
-                raise SdoAbortedError(ABORT_NO_SUBINDEX)
-        elif subindex not in obj:
-            raise SdoAbortedError(ABORT_NO_SUBINDEX)
-        else:
-            obj = obj[subindex]
-        if not obj.pdo_mappable or not (obj.writable if receive else obj.readable):
-            raise SdoAbortedError(ABORT_PDO_CANNOT_MAP)
-        if bits != len(obj):
-            raise SdoAbortedError(ABORT_PARAMETER_INCOMPATIBLE)
-        return bits
+            return ABORT_INVALID_VALUE                       # inhibit time, SYNC start value
+        return None
 
     # --- heartbeat consumer ------------------------------------------------------------
-
-    def _check_consumer(self, subindex: int, value: int) -> None:
-        producer, period = (value >> 16) & 0xFF, value & 0xFFFF
-        if not producer or not period:
-            return
-        for sub in self.object_dictionary[CONSUMER_HEARTBEAT].subindices:
-            other = self.value(CONSUMER_HEARTBEAT, sub) if sub not in (0, subindex) else 0
-            if (other >> 16) & 0xFF == producer and other & 0xFFFF:
-                raise SdoAbortedError(ABORT_PARAMETER_INCOMPATIBLE)   # one entry per node
 
     def configure_heartbeat_consumers(self) -> None:
         """(Re)start monitoring the producers 0x1016 names; each from its first heartbeat."""

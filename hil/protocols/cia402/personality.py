@@ -13,10 +13,13 @@ which ``hil check`` lists). Without a file the drive is hil's own
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from hil.protocols.cia402.eds import file_value, read_dictionary
+import canopen
+
+from hil.protocols.cia402.eds import checked_dictionary, file_value
+from hil.protocols.cia402.eds_file import read_text
 from hil.protocols.cia402.state import MODE_CODES
 from hil.resources import eds_path
 
@@ -31,16 +34,25 @@ class Personality:
     #: the operation modes (0x6060 codes) the drive takes: hil's, less those the file's
     #: 0x6502 does not offer
     modes: frozenset[int]
+    #: the file's text, read once (bounded) and checked: each node's dictionary is parsed
+    #: from it, with the node's own id for $NODEID
+    text: str = field(repr=False, compare=False, default="")
 
     @classmethod
     def of(cls, eds: Path | None) -> Personality:
         """The personality of a file (None: hil's own); a file that is no CiA 402 drive's
-        EDS/DCF is a ValueError naming it (:func:`read_dictionary`)."""
-        if eds is None:
-            return cls(eds_path(), True, frozenset(MODE_CODES))
-        od = read_dictionary(eds)
+        EDS/DCF is a ValueError naming it (:func:`.eds.read_dictionary`)."""
+        own = eds is None
+        path = eds_path() if own else eds
+        text = read_text(path)
+        od = checked_dictionary(path, text, 1)
         modes = frozenset(MODE_CODES)
-        offered = file_value(od, 0x6502)
+        offered = None if own else file_value(od, 0x6502)
         if offered:       # bit (code - 1) of each mode offered (CiA 402 0x6502)
             modes = frozenset(code for code in MODE_CODES if offered >> (code - 1) & 1)
-        return cls(eds, False, modes)
+        return cls(path, own, modes, text)
+
+    def dictionary(self, node_id: int) -> canopen.ObjectDictionary:
+        """A fresh object dictionary of the file for the node ``node_id`` (checked at
+        :meth:`of`; the $NODEID values are the node's)."""
+        return checked_dictionary(self.eds, self.text, node_id)

@@ -19,11 +19,18 @@ from canopen.sdo.constants import ABORT_INVALID_VALUE, ABORT_VALUE_TOO_HIGH, ABO
 RATES = frozenset({0x6083, 0x6084, 0x6085, 0x60C5, 0x60C6})
 
 
+#: CiA 301 "data type does not match, length of service parameter does not match"
+ABORT_LENGTH = 0x06070010
+
+
 def range_abort(od, data: bytes) -> int | None:
-    """The CiA 301 abort code (0x06090030/31/32) of a value an object does not take, None where
-    it takes it: :func:`outside` its range, or a rate of :data:`RATES` of 0."""
+    """The CiA 301 abort code of a value an object does not take, None where it takes it:
+    bytes of another length than a number's (0x06070010, where canopen's decoder raises),
+    :func:`outside` its range (0x06090030/31/32), or a rate of :data:`RATES` of 0."""
     if od.data_type not in NUMBER_TYPES:
         return None
+    if len(data) != len(od) // 8:
+        return ABORT_LENGTH
     value = od.decode_raw(data)
     code = outside(od, value)
     if code is None and od.index in RATES and value <= 0:

@@ -50,7 +50,11 @@ class DriveSdoServer(SdoServer):
         self._last_request = time.monotonic()
         if isinstance(self._block, BlockDownload) and self._block.receiving \
                 and data[0] != REQUEST_ABORTED:
-            self._block.segment(data)          # a sub-block's segment: no command specifier
+            try:
+                self._block.segment(data)      # a sub-block's segment: no command specifier
+            except SdoAbortedError as exc:
+                self._block = None
+                self.abort(exc.code)
             return
         specifier = data[0] & 0xE0
         if specifier in (REQUEST_BLOCK_UPLOAD, REQUEST_BLOCK_DOWNLOAD):
@@ -106,7 +110,8 @@ class DriveSdoServer(SdoServer):
                 raise SdoAbortedError(0x06010002)
             self._block = BlockDownload(self._index, self._subindex,
                                         size if data[0] & SIZE_INDICATED else None,
-                                        bool(data[0] & CRC_SUPPORTED), self.send_response)
+                                        bool(data[0] & CRC_SUPPORTED), self.send_response,
+                                        len(entry) // 8 if entry.fixed_size else None)
             self.send_response(self._block.initiate_response())
         elif isinstance(self._block, BlockUpload) and specifier == REQUEST_BLOCK_UPLOAD:
             if self._block.on_request(data):

@@ -7,9 +7,11 @@ CiA 301 allows; CANopenNode does so); then sub-blocks of up to blksize segments,
 acknowledged by the client, and the end with the bytes unused in the last segment and the
 CRC. Download: the initiate answered with the server's blksize (127), the segments taken
 in sequence (one out of sequence ends the sub-block: the acknowledgement names the last
-good one, which the client repeats from), the end checked for the CRC (0x05040004) and the
-indicated size (0x06070010), then written. CRC-16 as canopen's client computes it
-(CCITT, the XMODEM variant).
+good one, which the client repeats from), none past the size (a segment that comes when the
+bytes taken already fill it: 0x06070012, as CANopenNode's CO_SDOserver.c
+validateAndWriteToOD aborts with CO_SDO_AB_DATA_LONG where sizeTran passes sizeInd), the end
+checked for the CRC (0x05040004) and the indicated size (0x06070010), then written. CRC-16
+as canopen's client computes it (CCITT, the XMODEM variant).
 """
 
 from __future__ import annotations
@@ -29,6 +31,11 @@ LAST_SEGMENT = 0x80
 #: the sub-block size this server asks for (the largest CiA 301 allows)
 SERVER_BLOCK_SIZE = 127
 ABORT_LENGTH = 0x06070010
+#: CiA 301 "data type does not match, length of service parameter too high"
+ABORT_LENGTH_TOO_HIGH = 0x06070012
+#: the most bytes a block download without indicated size takes into an object of no fixed
+#: size (a string, a domain): hil's bound, CiA 301 gives none (CANopenNode's is its buffer's)
+MAX_BLOCK_DOWNLOAD = 0x10000
 ABORT_ABORTED_BY_CLIENT = 0x80
 
 
@@ -91,8 +98,10 @@ class BlockDownload:
     """One block download in progress: the bytes taken so far, in sequence."""
 
     def __init__(self, index: int, subindex: int, size: int | None, crc: bool,
-                 send: Callable[[bytes], None]):
+                 send: Callable[[bytes], None], object_size: int | None = None):
         self.index, self.subindex, self.size, self.crc = index, subindex, size, crc
+        #: the bytes the transfer may bring: the size it indicated, else the object's
+        self.limit = size if size is not None else object_size or MAX_BLOCK_DOWNLOAD
         self._send = send
         self.buffer = bytearray()
         self._next = 1                   # the sequence number expected
@@ -106,6 +115,8 @@ class BlockDownload:
     def segment(self, data: bytes) -> None:
         seq, last = data[0] & 0x7F, bool(data[0] & LAST_SEGMENT)
         in_sequence = seq == self._next
+        if in_sequence and len(self.buffer) >= self.limit:
+            raise SdoAbortedError(ABORT_LENGTH_TOO_HIGH)     # past what it said it brings
         if in_sequence:
             self.buffer += data[1:8]
             self._last_good, self._next = seq, seq + 1

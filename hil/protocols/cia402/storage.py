@@ -9,22 +9,23 @@ comes back with the defaults. Any other value: abort 0x08000020. Both read 1 ("s
 command"). A parameter is an object that is writable and not PDO-mappable (a controlword,
 target or mode saved and restored at boot would move a motor that nobody commanded: hil's
 reading where CiA 301 says "parameters"). With a file (``options: {parameter_file: F}``)
-what is saved lasts across ``hil sim`` restarts: JSON of ``"index:sub": "hex bytes"``.
+what is saved lasts across ``hil sim`` restarts: JSON of ``"index:sub": "hex bytes"``
+(:mod:`.parameter_file`), checked as a restore checks it where ``hil check`` runs
+(:func:`.start_check.start_problem`).
 """
 
 from __future__ import annotations
 
 import json
-import logging
 from pathlib import Path
 
 import canopen
 from canopen.sdo import SdoAbortedError
 
-from hil.errors import HilError
-from hil.protocols.cia402.ranges import check_range
+from hil.protocols.cia402.parameter_file import read_saved
+from hil.protocols.cia402.pdo_parameters import configuration_problems
+from hil.protocols.cia402.written import write_abort
 
-log = logging.getLogger(__name__)
 
 SAVE, LOAD = 0x65766173, 0x64616F6C
 ABORT_CANNOT_STORE = 0x08000020
@@ -41,7 +42,7 @@ class ParameterStore:
 
     def __init__(self, file: Path | None = None):
         self.file = file
-        self.saved: dict[tuple[int, int], bytes] = self._read() if file else {}
+        self.saved: dict[tuple[int, int], bytes] = read_saved(file) if file else {}
 
     def command(self, index: int, subindex: int, value: int, node: canopen.LocalNode) -> None:
         """A write to 0x1010 or 0x1011 (raises the CiA 301 abort where it cannot be done)."""
@@ -56,36 +57,41 @@ class ParameterStore:
                                if _within(i, areas) and _parameter(node, i, s)})
         self._write()
 
-    def restore(self, node: canopen.LocalNode, communication_only: bool) -> None:
-        """Put the saved values back (after a reset put the defaults): the communication
-        area's as stored, the others through the node's write checks and callbacks (a value
-        the drive no longer takes is skipped)."""
+    def restore(self, node, communication_only: bool) -> list[str]:
+        """Put the saved values back into ``node`` (a drive's, or a
+        :class:`.written.StoredDictionary`) after a reset put the defaults: the communication
+        area's as stored, the others through the node's write checks and callbacks. A value
+        the drive does not take is not restored (returned: '0x1017:00: why', each):
+        each as a write checks it (:mod:`.ranges`, the length; a PDO's parameters as they
+        stand together, :func:`.pdo_parameters.configuration_problems`, the communication
+        area left as it was where they do not)."""
+        if not self.saved:
+            return []
+        refused = []
+        before = {index: dict(subs) for index, subs in node.data_store.items()
+                  if _within(index, (COMMUNICATION,))}
         for (index, subindex), data in sorted(self.saved.items()):
             communication = _within(index, (COMMUNICATION,))
             try:
                 if communication:
                     # as stored (a PDO's parameters in the order a write would refuse), but
-                    # only a value the object takes (:mod:`.ranges`)
-                    check_range(node._find_object(index, subindex), data)
+                    # only a value the object takes, as a write checks it
+                    code = write_abort(node, index, subindex,
+                                       node._find_object(index, subindex), data)
+                    if code is not None:
+                        raise SdoAbortedError(code)
                     node.data_store.setdefault(index, {})[subindex] = data
                 elif not communication_only:
                     node.set_data(index, subindex, data)
             except (SdoAbortedError, KeyError) as exc:
-                log.warning("node %d: saved 0x%04X:%02X not restored from %s (%s): save the "
-                            "parameters again", node.id, index, subindex,
-                            self.file or "this run's store", exc)
-
-    def _read(self) -> dict[tuple[int, int], bytes]:
-        if not self.file.exists():
-            return {}
-        try:
-            raw = json.loads(self.file.read_text())
-            return {(int(k.split(":")[0], 16), int(k.split(":")[1], 16)): bytes.fromhex(v)
-                    for k, v in raw.items()}
-        except (OSError, ValueError, AttributeError, IndexError) as exc:
-            raise HilError.single(f"{self.file}: not a parameter file hil wrote ({exc})",
-                                  hint="remove it (the drive then starts from its "
-                                       "defaults)") from None
+                refused.append(f"0x{index:04X}:{subindex:02X}: {_why(exc)}")
+        pdo = configuration_problems(node)
+        if pdo:
+            refused.extend(pdo)
+            for index in [i for i in node.data_store if _within(i, (COMMUNICATION,))]:
+                del node.data_store[index]
+            node.data_store.update(before)
+        return refused
 
     def _write(self) -> None:
         if self.file is None:
@@ -96,6 +102,12 @@ class ParameterStore:
                 indent=1))
         except OSError as exc:
             raise SdoAbortedError(ABORT_CANNOT_STORE) from exc
+
+
+def _why(exc: Exception) -> str:
+    if isinstance(exc, SdoAbortedError):
+        return f"abort 0x{exc.code:08X}"
+    return "no such object in the drive's object dictionary"
 
 
 def _within(index: int, areas) -> bool:
