@@ -1,7 +1,9 @@
 """Reading a file a user names (a bus config, a robot description, a trajectory, a Zenoh
 config, an EDS, a log): a regular file of bounded size, UTF-8 where it is text, nested no
 deeper than a file of its kind needs, or a clear error naming the file. Every reader of a
-named file goes through here before its parser sees the file.
+named file goes through here before its parser sees the file: one that streams it (a CAN
+log, a recording: gigabytes) is handed the checked file open (open_input_stream), any other
+reads it whole (read_input_bytes, read_input_file: the same open, then the bytes).
 
 What each check stops: a FIFO waits for a writer without end and a device (``/dev/zero``)
 fills the memory, so the file's kind is checked on a descriptor opened without blocking,
@@ -21,7 +23,7 @@ import re
 import stat
 import xml.parsers.expat
 from pathlib import Path
-from typing import Literal
+from typing import BinaryIO, Literal
 
 import yaml
 
@@ -38,9 +40,13 @@ NAME_MAX = 255
 Syntax = Literal["json", "yaml", "xml"]
 
 
-def read_input_bytes(path: Path, what: str, hint: str, limit: int = MAX_FILE_BYTES) -> bytes:
-    """The bytes of ``path`` (a ``what``: "bus config", ...); HilError naming the file
-    where it is missing, no regular file, over ``limit`` bytes, or cannot be read."""
+def open_input_stream(path: os.PathLike | str, what: str, hint: str,
+                      limit: int = MAX_FILE_BYTES) -> BinaryIO:
+    """``path`` (a ``what``: "CAN log", "bus config", ...) open for reading in binary, for a
+    reader that streams it (a log, a recording) or reads it whole (read_input_bytes);
+    HilError naming it where it is missing, no regular file, over ``limit`` bytes, or cannot
+    be opened (``hint``: what to do). The descriptor checked is the one read, so nothing can
+    be put in the file's place between the check and the read."""
     path = Path(path)
     try:
         # O_NONBLOCK: opening a FIFO with no writer returns at once instead of waiting
@@ -49,14 +55,25 @@ def read_input_bytes(path: Path, what: str, hint: str, limit: int = MAX_FILE_BYT
         raise _refused(path, what, hint, _os_problem(path, exc)) from None
     try:
         problem = _status_problem(os.fstat(descriptor), limit)    # the file that is read
-        if problem:
-            raise _refused(path, what, hint, problem)
-        with os.fdopen(descriptor, "rb", closefd=False) as file:
-            data = file.read(limit + 1)              # a file that grew since: still bounded
+        if problem is None:
+            os.set_blocking(descriptor, True)       # a regular file: read as any file is
+            return os.fdopen(descriptor, "rb")
     except OSError as exc:
-        raise _refused(path, what, hint, _os_problem(path, exc)) from None
-    finally:
-        os.close(descriptor)
+        problem = _os_problem(path, exc)
+    os.close(descriptor)
+    raise _refused(path, what, hint, problem)
+
+
+def read_input_bytes(path: Path, what: str, hint: str, limit: int = MAX_FILE_BYTES) -> bytes:
+    """The bytes of ``path`` (a ``what``: "bus config", ...) as open_input_stream opens it;
+    HilError naming the file where it is missing, no regular file, over ``limit`` bytes, or
+    cannot be read."""
+    path = Path(path)
+    with open_input_stream(path, what, hint, limit) as file:
+        try:
+            data = file.read(limit + 1)              # a file that grew since: still bounded
+        except OSError as exc:
+            raise _refused(path, what, hint, _os_problem(path, exc)) from None
     if len(data) > limit:
         raise _refused(path, what, hint, f"is over the {limit} bytes hil reads")
     return data
@@ -90,6 +107,14 @@ def read_input_file(path: Path, what: str, hint: str, limit: int = MAX_FILE_BYTE
     if syntax is not None:
         check_nesting(text, syntax, path, what)
     return text
+
+
+def refusal_text(refused: HilError) -> str:
+    """What a reader here refused, as one phrase (``trajectory is nested more than 100 deep
+    (goal.json:2)``), for a caller that reports it in its own words: a library's exception,
+    the line of the config that named the file."""
+    said = refused.diagnostics[0]
+    return said.message + (f" ({said.location})" if said.file else "")
 
 
 #: an XML declaration's encoding (XML 1.0, 4.3.3: a document not in UTF-8 says which)
@@ -134,11 +159,38 @@ def check_nesting(text: str, syntax: Syntax, path: Path, what: str,
 
 
 def _status_problem(status: os.stat_result, limit: int) -> str | None:
+    if stat.S_ISDIR(status.st_mode):
+        return "is a folder"
     if not stat.S_ISREG(status.st_mode):
-        return "is not a regular file"
+        return "is not a regular file (a FIFO, a device, a socket)"
     if status.st_size > limit:
-        return f"is {status.st_size} bytes, over the {limit} hil reads"
+        return _over_limit(status.st_size, limit)
     return None
+
+
+#: the units a size is given in, largest first
+_UNITS = (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10))
+
+
+def size_in_words(count: int) -> str:
+    """A size as people read it: ``512 bytes``, ``3.2 MiB``, ``4 GiB``."""
+    for unit, scale in _UNITS:
+        if count >= scale:
+            return f"{count / scale:.3g} {unit}"
+    return f"{count} bytes"
+
+
+def _over_limit(size: int, limit: int) -> str:
+    """``is 4.88 KiB, over the 4 KiB hil reads``: the size in the unit the limit is a whole
+    number of, so the two compare at a glance (in bytes where rounding would hide the
+    difference: 4097 bytes is no "4 KiB, over the 4 KiB")."""
+    unit, scale = next(((unit, scale) for unit, scale in _UNITS
+                        if limit >= scale and limit % scale == 0), ("bytes", 1))
+    most = f"{limit // scale} {unit}" if scale > 1 else f"{limit}"    # "bytes" said before
+    shown = f"{size / scale:.3g}"
+    if scale > 1 and float(shown) * scale > limit:
+        return f"is {shown} {unit}, over the {most} hil reads"
+    return f"is {size} bytes, over the {most} hil reads"
 
 
 def _os_problem(path: Path, exc: OSError) -> str:

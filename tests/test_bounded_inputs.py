@@ -296,8 +296,10 @@ def test_a_scene_objects_size_and_place_are_bounded(tmp_path, entry, said):
 
 @pytest.mark.parametrize("name", ["world", "base", "yaw"])
 def test_a_scene_object_named_as_the_robots_link_or_joint_is_refused(tmp_path, name):
-    """MuJoCo names one body 'world' and each link a body (a scene object of that name
-    was a ValueError traceback: "repeated name 'base' in body")."""
+    """A scene object's name is no link's or joint's, nor MuJoCo's world's (hil's choice: a
+    name in hil's messages names one thing; such a name was a ValueError traceback,
+    "repeated name 'base' in body", before the plant put the scene in a namespace of its
+    own, hil/plant/shapes.py)."""
     config = _scene_config(tmp_path, f"  - {{name: {name}, shape: box, size: [0.1, 0.1, 0.1]}}\n")
     with pytest.raises(HilError, match=f"scene object '{name}': the robot's model has a link"):
         load_bus_config(config)

@@ -4,6 +4,7 @@ CiA 402 drives, in lock-step and in real time, and the recording follows the sce
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 import time
@@ -16,11 +17,12 @@ from hil.bus_config import load_bus_config
 from hil.bus_config.types import SceneObject
 from hil.cli import main
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
-from hil.description import Pose, load_description
+from hil.description import Geometry, GeometryKind, Pose, load_description
 from hil.errors import HilError
 from hil.messaging.scene import SceneState
 from hil.messaging.zenoh_api import TrajectoryActionClient
 from hil.plant import Plant
+from hil.plant.shapes import scene_name
 from hil.stack import running_stack
 from hil.realtime import LOCK_STEP, REAL_TIME
 from conftest import ROOT, read_rrd, shipped_at_100hz
@@ -86,7 +88,52 @@ def test_links_touch_the_scene_and_never_each_other(pick):
     bodies = {model.body(model.geom_bodyid[g]).name
               for contact in plant.data.contact[:plant.data.ncon]
               for g in (contact.geom1, contact.geom2)}
-    assert bodies == {"block", "arm_link_3"}
+    assert bodies == {scene_name("block"), "arm_link_3"}
+
+
+#: a binary STL of the test corpus
+STL = ROOT / "tests" / "corpus" / "real_world" / "arm_folder" / "meshes" / "base.stl"
+
+
+def test_a_scene_object_may_take_any_name_the_plant_makes_for_the_robot(tmp_path):
+    """The plant names a link's shapes ``<link>_collision_<n>`` (geom and mesh) and
+    ``<link>_visual_<n>`` (mesh), a floating base's joint ``floating_base``; a scene object
+    of such a name was MuJoCo's "repeated name" ValueError traceback. The scene's objects
+    are in a namespace of their own in the model (``scene/<name>``: hil/plant/shapes.py);
+    hil's messages, the recording and Plant.object_pose use their own names."""
+    shutil.copy(STL, tmp_path / "arm.stl")
+    urdf = tmp_path / "arm.urdf"
+    shape = '<geometry><mesh filename="arm.stl" scale="0.001 0.001 0.001"/></geometry>'
+    urdf.write_text(
+        '<robot name="arm"><link name="base"><inertial><mass value="1"/><inertia ixx="0.01" '
+        'iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link><link name="arm">'
+        '<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.005" ixy="0" '
+        f'ixz="0" iyz="0"/></inertial><visual>{shape}</visual><collision>{shape}</collision>'
+        '</link><joint name="j" type="revolute"><parent link="base"/><child link="arm"/>'
+        '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        '</robot>')
+    box = load_bus_config(PICK).scene[1].geometry
+    mesh = Geometry(GeometryKind.MESH, (0.001, 0.001, 0.001), mesh=tmp_path / "arm.stl")
+    scene = (SceneObject("arm_collision_0", box, Pose((1.0, 0.0, 0.0))),
+             SceneObject("arm_visual_0", mesh, Pose((2.0, 0.0, 0.0))),
+             SceneObject("floating_base", box, Pose((3.0, 0.0, 0.5)), mass=0.05))
+    plant = Plant(load_description(urdf), scene=scene, floating_base=True)
+    assert plant.moving_objects() == ("floating_base",)
+    position, _ = plant.object_pose("floating_base")
+    assert np.allclose(position, (3.0, 0.0, 0.5))
+
+
+def test_a_link_named_in_the_scenes_namespace_is_refused_beside_a_scene(tmp_path):
+    """The one name the scene's namespace leaves a clash to (hil/plant/shapes.py): a link or
+    joint of the robot named ``scene/...``; named as such, not MuJoCo's traceback."""
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text('<robot name="arm"><link name="scene/cube"><inertial><mass value="1"/>'
+                    '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/>'
+                    '</inertial></link></robot>')
+    cube = load_bus_config(PICK).scene[1]
+    with pytest.raises(HilError, match="link or joint 'scene/cube' is named as hil names the "
+                                       "scene's objects"):
+        Plant(load_description(urdf), scene=(cube,))
 
 
 def test_a_robot_without_a_scene_skips_collision_detection(pick):
@@ -213,7 +260,7 @@ def test_contact_forces_carry_a_resting_objects_weight(pick):
     plant.step(1000)
     points, forces = plant.contacts()
     model, data = plant.model, plant.data
-    load = model.body("load").id
+    load = model.body(scene_name("load")).id
     on_load = sum(force if model.geom_bodyid[contact.geom1] == load else -force
                   for contact, force in zip(data.contact[:data.ncon], forces))
     assert len(points) >= 1 and np.allclose(points[:, 2], 0.74, atol=1e-3)

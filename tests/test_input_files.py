@@ -8,12 +8,16 @@ from __future__ import annotations
 
 import json
 import os
+import re
+from pathlib import Path
 
 import pytest
 
+from hil.bus_config import load_bus_config
+from hil.description import PackagePath
 from hil.errors import HilError
-from hil.input_files import (MAX_NESTING, check_nesting, read_input_bytes,
-                             read_input_file)
+from hil.input_files import (MAX_NESTING, check_nesting, open_input_stream,
+                             read_input_bytes, read_input_file)
 
 
 def test_a_fifo_is_refused_without_waiting_for_a_writer(tmp_path):
@@ -30,6 +34,20 @@ def test_a_file_over_its_kinds_cap_is_refused(tmp_path):
     with pytest.raises(HilError, match="2001 bytes, over the 2000 hil reads"):
         log.write_bytes(b"x" * 2001)
         read_input_bytes(log, "CAN log", "give a log", limit=2000)
+
+
+@pytest.mark.parametrize("size, limit, said", [
+    (5000, 4096, "is 4.88 KiB, over the 4 KiB hil reads"),
+    (4097, 4096, "is 4097 bytes, over the 4 KiB hil reads"),     # not "4 KiB, over the 4 KiB"
+    (2001, 2000, "is 2001 bytes, over the 2000 hil reads"),
+])
+def test_a_size_over_the_cap_is_said_in_the_caps_unit(tmp_path, size, limit, said):
+    """One reader for a config and a log alike (open_input_stream under read_input_bytes):
+    the size and the cap are compared in one unit."""
+    log = tmp_path / "run.blf"
+    log.write_bytes(b"x" * size)
+    with pytest.raises(HilError, match=re.escape(said)):
+        open_input_stream(log, "CAN log", "give a log", limit)
 
 
 def test_a_name_over_255_bytes_is_named(tmp_path):
@@ -102,3 +120,83 @@ def test_an_xml_file_in_the_encoding_it_declares_is_read(tmp_path):
     undeclared.write_bytes(b'<robot name="r"><!-- 90\xb0 --></robot>\n')
     with pytest.raises(HilError, match="not UTF-8 text: byte 0xB0"):
         read_input_file(undeclared, "description", "", syntax="xml")
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("manifest", [
+    # an entity named the package anything (ElementTree expanded it: 'evil' was found)
+    '<?xml version="1.0"?>\n<!DOCTYPE p [<!ENTITY n "evil">]>\n<package><name>&n;</name>'
+    '</package>\n',
+    "<package><name>evil</name>" + "<a>" * 101 + "</a>" * 101 + "</package>",
+    "fifo",                                         # a read would wait for a writer
+])
+def test_a_package_xml_hil_does_not_read_names_its_package_by_its_folder(tmp_path, manifest):
+    """A package.xml (REP 149) is read as every named file is (hil/input_files.py): bounded,
+    no document type, nested at most 100 deep; one that is not read leaves the package its
+    folder's name, as a package.xml without a <name> does."""
+    package = tmp_path / "arm"
+    package.mkdir()
+    if manifest == "fifo":
+        os.mkfifo(package / "package.xml")
+    else:
+        (package / "package.xml").write_text(manifest)
+    assert PackagePath((tmp_path,)).packages() == {"arm": package}
+
+
+def _read_trajectory(path: Path):
+    from hil.cli.send import goal_from_file
+    return goal_from_file(path)
+
+
+def _read_controllers(path: Path):
+    from hil.bus_config.types import ControllersSource
+    from hil.controllers.config import load_controllers
+    return load_controllers(ControllersSource(path), ("j1",), 100.0)
+
+
+def _read_bench_config(path: Path):
+    from hil.bench.processes import config_at
+    return config_at(path, 100.0, path.parent)
+
+
+@pytest.mark.parametrize("read, name, what", [
+    (load_bus_config, "bus.yaml", "bus config"),
+    (_read_trajectory, "goal.yaml", "trajectory"),
+    (_read_trajectory, "goal.json", "trajectory"),
+    (_read_controllers, "ros2_controllers.yaml", "controllers file"),
+    (_read_bench_config, "ur3.yaml", "bus config"),        # a RecursionError traceback
+])
+def test_a_file_nested_without_end_is_refused_at_its_line(tmp_path, read, name, what):
+    """Each YAML and JSON file a user names is read with its nesting counted before the
+    parser recurses (hil/input_files.py): the error names the line, where the parser's
+    RecursionError named none (or was a traceback)."""
+    path = tmp_path / name
+    deep = "[" * 5000 + "]" * 5000
+    path.write_text(f'{{"robot": "r.urdf",\n "points": {deep}}}\n' if name.endswith(".json")
+                    else f"robot: r.urdf\npoints: {deep}\n")
+    with pytest.raises(HilError, match=rf"{re.escape(name)}:2: error: {what} is nested more "
+                                       rf"than 100 deep"):
+        read(path)
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("endpoints, said", [
+    ('{"endpoints":\n' + "[" * 5000 + "]" * 5000 + "}", r"nested more than 100 deep \(.*:2\)"),
+    ("fifo", "is not a regular file"),                # a read waited for a writer
+])
+def test_an_odrive_endpoints_file_is_read_as_every_named_file(tmp_path, endpoints, said):
+    """An ODrive's flat_endpoints.json goes through the bounded reader (hil/input_files.py):
+    one 5000 deep was a RecursionError traceback from json.loads."""
+    fixtures = Path(__file__).parent / "fixtures"
+    if endpoints == "fifo":
+        os.mkfifo(tmp_path / "flat_endpoints.json")
+    else:
+        (tmp_path / "flat_endpoints.json").write_text(endpoints)
+    config = tmp_path / "odrive.yaml"
+    config.write_text((fixtures / "odrive_one_axis.yaml").read_text()
+                      .replace("robot: one_axis.urdf", f"robot: {fixtures / 'one_axis.urdf'}")
+                      .replace("{node_id: 0, joint: yaw}",
+                               "{node_id: 0, joint: yaw, options: "
+                               "{endpoints: flat_endpoints.json}}"))
+    with pytest.raises(HilError, match=f"odrive.yaml:.*endpoints file.* {said}"):
+        load_bus_config(config)

@@ -5,6 +5,7 @@ and includes of any file, /dev/zero among them, were honoured)."""
 from __future__ import annotations
 
 import math
+import os
 import shutil
 from pathlib import Path
 
@@ -137,3 +138,73 @@ def test_a_mesh_is_read_inside_the_descriptions_package_and_refused_outside(tmp_
     robot = load_description(refused, PackagePath(()))
     assert robot.link("a").visuals[0].geometry.mesh is None
     assert any("hil reads no file there" in warning.message for warning in robot.warnings)
+
+
+def test_a_glob_include_reads_each_file_it_matches(tmp_path):
+    """xacro includes every file a glob matches, sorted (xacro's get_include_files: "Globbing
+    behaviour", glob.glob of the name); each is checked as a file, the glob's folder is no
+    file to refuse (it was: "'.../parts' is not a regular file")."""
+    package = tmp_path / "my_robot"
+    (package / "parts").mkdir(parents=True)
+    (package / "package.xml").write_text("<package><name>my_robot</name></package>")
+    for part, width in (("a", 2), ("b", 3)):
+        (package / "parts" / f"{part}.xacro").write_text(
+            HEADER.replace("probe", part)
+            + f'<xacro:property name="w_{part}" value="{width}"/>\n</robot>\n')
+    robot = _load(package, '<xacro:include filename="parts/*.xacro"/>\n'
+                           + LINK.format(name="base_${w_a}_${w_b}"))
+    assert robot.root_link == "base_2_3"
+
+
+def test_a_glob_include_matching_a_file_hil_does_not_read_is_refused(tmp_path):
+    """Each file a glob matches is checked as a named include is: a FIFO among them waited
+    for a writer without end."""
+    (tmp_path / "parts").mkdir()
+    (tmp_path / "parts" / "a.xacro").write_text(HEADER.replace("probe", "a") + "</robot>\n")
+    os.mkfifo(tmp_path / "parts" / "b.xacro")
+    with pytest.raises(HilError, match=r"b\.xacro' is not a regular file"):
+        _load(tmp_path, '<xacro:include filename="parts/*.xacro"/>\n' + LINK.format(name="x"))
+
+
+def test_an_included_file_is_read_as_every_named_file(tmp_path):
+    """An include and xacro.load_yaml are read through hil's reader (hil/input_files.py), as
+    the description itself is: an include's document type declared an entity that xacro's
+    open() and minidom expanded (the description's link was named 'base_evil'); a YAML
+    nested 5000 deep was PyYAML's RecursionError, taken for "an expression nested too
+    deeply", naming neither the YAML file nor its line."""
+    (tmp_path / "part.xacro").write_text(
+        '<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY n "evil">]>\n'
+        + HEADER.split("\n", 1)[1].replace("probe", "part")
+        + '<xacro:property name="w" value="&n;"/>\n</robot>\n')
+    with pytest.raises(HilError, match=r"part\.xacro: error: xacro: included file declares an "
+                                       r"XML document type .*part\.xacro:2\)"):
+        _load(tmp_path, '<xacro:include filename="part.xacro"/>\n'
+                        + LINK.format(name="base_${w}"))
+    (tmp_path / "deep.yaml").write_text("a: " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(HilError, match=r"YAML file is nested more than 100 deep "
+                                       r"\(.*deep\.yaml:1\)"):
+        _load(tmp_path, '<xacro:property name="y" value="${xacro.load_yaml(\'deep.yaml\')}"/>\n'
+                        + LINK.format(name="l${len(y)}"), "yaml.xacro")
+
+
+def test_an_include_in_the_encoding_it_declares_is_read(tmp_path):
+    """XML 1.0, 4.3.3: a CAD exporter's file in ISO-8859-1 says so; read as it says."""
+    (tmp_path / "part.xacro").write_bytes(
+        b'<?xml version="1.0" encoding="ISO-8859-1"?>\n'
+        + HEADER.split("\n", 1)[1].replace("probe", "part").encode()
+        + b'<!-- 90\xb0 --><xacro:property name="w" value="2"/>\n</robot>\n')
+    robot = _load(tmp_path, '<xacro:include filename="part.xacro"/>\n'
+                            + LINK.format(name="base_${w}"))
+    assert robot.root_link == "base_2"
+
+
+def test_a_missing_include_is_named_by_xacro_or_skipped_where_optional(tmp_path):
+    """xacro's own handling of a file that is not there stays (its process_include: an
+    ``optional="true"`` include of it is skipped, any other an error naming it)."""
+    robot = _load(tmp_path, '<xacro:include filename="gone.xacro" optional="true"/>\n'
+                            + LINK.format(name="base"))
+    assert robot.root_link == "base"
+    with pytest.raises(HilError, match=r"strict\.xacro:3: error: included file "
+                                       r"'.*gone\.xacro' does not exist"):
+        _load(tmp_path, '<xacro:include filename="gone.xacro"/>\n' + LINK.format(name="base"),
+              "strict.xacro")

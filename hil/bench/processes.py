@@ -27,6 +27,7 @@ import yaml
 from hil.bench.floor import cpu_seconds, floor_across_processes
 from hil.bench.settings import DID_NOT_START, BenchSettings
 from hil.bus_config import load_bus_config
+from hil.input_files import read_input_file
 from hil.supervisor import Child, ChildFailed, Run, cpus_argument, viz_summary
 from hil.realtime import LOCK_STEP, REAL_TIME, Timing, lock_step_cpus, real_time_cpus
 from hil.zenoh_session import free_loopback_port
@@ -58,7 +59,9 @@ def across_processes(settings: BenchSettings, say: Callable[[str], None]) -> lis
 def config_at(path: Path, rate: float, folder: Path) -> Path:
     """The bus config at ``path`` with every bus at ``rate`` Hz (bitrates scaled with it),
     written into ``folder``."""
-    data = yaml.safe_load(path.read_text())
+    load_bus_config(path)           # a config that is not one: its file, line and what to do
+    data = yaml.safe_load(read_input_file(path, "bus config", hint="give a bus_config/*.yaml "
+                                          "file", syntax="yaml"))
     data["robot"] = str((path.parent / data["robot"]).resolve())
     for bus in data["buses"]:
         scale = rate / bus["cycle_hz"]

@@ -47,7 +47,8 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
     Raises :class:`HilError` with every error found (warnings travel along).
     """
     path = Path(path)
-    text = read_input_file(path, "bus config", hint="give the path of a bus_config/*.yaml file")
+    text = read_input_file(path, "bus config", hint="give the path of a bus_config/*.yaml file",
+                           syntax="yaml")
     document = parse_yaml(text, path, "a bus config")
     reader = Reader(path)
     top = reader.mapping(document, "the bus config", 1)

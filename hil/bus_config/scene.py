@@ -26,7 +26,7 @@ MAX_OBJECTS = 64
 #: the largest size (m, or a mesh's scale) and distance from the origin (m) a scene object
 #: may have (hil's choice: a bench's world; a box of 1e300 m has an infinite inertia)
 MAX_EXTENT = 100.0
-#: the name of MuJoCo's world body, which no scene object may take
+#: the name of MuJoCo's world body, which no scene object takes either (read_scene)
 WORLD = "world"
 _KEYS = {"name", "shape", "size", "mesh", "xyz", "rpy", "mass", "friction"}
 #: how many numbers ``size`` takes per shape, and what they are
@@ -40,8 +40,9 @@ _SIZES = {GeometryKind.BOX: (3, "[x, y, z] edge lengths (m)"),
 def read_scene(reader: Reader, top: LineMapping,
                robot: RobotDescription) -> tuple[SceneObject, ...]:
     """The ``scene:`` list (none: the robot alone); names the ``robot``'s links and joints
-    take are refused (each scene object is a body, a geom and, moving, a joint of the plant's
-    MuJoCo model beside the robot's, where a name is one thing's)."""
+    take are refused (hil's choice, so that a name in hil's messages and ``hil check``'s list
+    is one thing's; in the plant's MuJoCo model the scene's objects are apart anyway:
+    hil.plant.shapes.SCENE_NAMESPACE)."""
     if "scene" not in top:
         return ()
     raw = top["scene"]

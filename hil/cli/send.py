@@ -199,7 +199,8 @@ def _goal(args: argparse.Namespace) -> TrajectoryGoal:
 
 def goal_from_file(path: Path) -> TrajectoryGoal:
     """Read a trajectory file (YAML or JSON), with errors naming the file."""
-    text = read_input_file(path, "trajectory", hint="give a YAML or JSON trajectory file")
+    text = read_input_file(path, "trajectory", hint="give a YAML or JSON trajectory file",
+                           syntax="json" if path.suffix == ".json" else "yaml")
     try:
         # libyaml's loader where PyYAML has it: a 10,000-point goal parses in a fraction
         data = (yaml.load(text, Loader=_YAML_LOADER) if path.suffix != ".json"

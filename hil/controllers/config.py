@@ -103,7 +103,8 @@ def load_controllers(source: ControllersSource, driven: tuple[str, ...],
     every problem found (file, line, what to do)."""
     path = source.path
     text = read_input_file(path, "controllers file",
-                           hint="give a controller_manager YAML (ros2_controllers.yaml)")
+                           hint="give a controller_manager YAML (ros2_controllers.yaml)",
+                           syntax="yaml")
     reader = Reader(path)
     text = _substitute(reader, text, dict(source.variables))
     _raise_errors(reader)

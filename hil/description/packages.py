@@ -31,6 +31,8 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
+from hil.errors import HilError
+from hil.input_files import read_input_file
 from hil.resources import ROBOTS, data_dir
 
 PACKAGE_PATH_ENV = "HIL_PACKAGE_PATH"
@@ -104,7 +106,9 @@ def _packages_under(root: Path):
 
 
 def _manifests(folder: Path, depth: int):
-    if (folder / "package.xml").is_file():
+    # any package.xml marks a package, as in _packages_under: one that is no regular file
+    # leaves it its folder's name (_manifest_name), where is_file() lost the package
+    if (folder / "package.xml").exists():
         yield folder / "package.xml"
         return
     if depth >= _MAX_DEPTH:
@@ -115,9 +119,15 @@ def _manifests(folder: Path, depth: int):
 
 
 def _manifest_name(manifest: Path) -> str:
+    """The ``<name>`` of a package.xml (REP 149), read as every named file is (bounded, no
+    DOCTYPE: its entities could name the package anything, or expand without end); where it
+    cannot be read or gives none, the folder's name (hil's choice: the package is still
+    found by its folder, as the module doc says)."""
     try:
-        name = ET.parse(manifest).findtext("name")
-    except ET.ParseError:
+        text = read_input_file(manifest, "package manifest", "fix or remove the package.xml",
+                               syntax="xml")
+        name = ET.fromstring(text).findtext("name")
+    except (HilError, ET.ParseError):
         name = None
     return (name or manifest.parent.name).strip()
 

@@ -18,9 +18,13 @@ While :func:`guarded` is in force (hil enters it around every expansion):
   a list of harmless builtins (:data:`BUILTINS`). Nothing else: no attribute of any other
   object, no comprehension, lambda or f-string; results bounded (:data:`MAX_ITEMS`,
   :data:`MAX_INT_BITS`).
-* every file xacro opens (an include, ``xacro.load_yaml``) must be a regular file of at most
-  :data:`MAX_FILE_BYTES` inside the allowed folders: the description's own folder and the
-  package search path (``--package-path``, ``$HIL_PACKAGE_PATH``, ``$ROS_PACKAGE_PATH``).
+* every file xacro opens (an include, each file an include's glob matches,
+  ``xacro.load_yaml``) must be a regular file of at most
+  :data:`hil.input_files.MAX_FILE_BYTES` inside the allowed folders: the description's own
+  folder and the package search path (``--package-path``, ``$HIL_PACKAGE_PATH``,
+  ``$ROS_PACKAGE_PATH``), and is read as every file a user names is
+  (:func:`hil.input_files.read_input_file`: no XML document type, nesting counted), where
+  xacro's own ``open()`` expanded an include's entities.
 * ``$(env NAME)`` and ``$(optenv NAME ...)`` read only variables listed in
   ``$HIL_XACRO_ENV`` (comma-separated); any other is "not set" (``optenv``: its default).
 """
@@ -29,17 +33,24 @@ from __future__ import annotations
 
 import ast
 import contextvars
+import io
 import math
 import operator
 import os
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 from hil.description.packages import own_package
-from hil.input_files import MAX_FILE_BYTES
+from hil.errors import HilError
+from hil.input_files import file_problem, read_input_file, refusal_text
 
+#: a character that makes an include's name a glob (xacro's get_include_files: '[*[?]+')
+_GLOB = re.compile(r"[*?\[]")
+#: the files xacro.load_yaml reads (by name: xacro reads any other as XML)
+_YAML_SUFFIXES = (".yaml", ".yml", ".json")
 #: the environment variable naming the variables a description may read
 ALLOWED_ENV_VARIABLE = "HIL_XACRO_ENV"
 #: the longest sequence an expression may build, and the largest integer (bits)
@@ -88,19 +99,21 @@ class Allowed:
         names = os.environ.get(ALLOWED_ENV_VARIABLE, "")
         return cls(folders, frozenset(n.strip() for n in names.split(",") if n.strip()))
 
-    def check_file(self, path: str) -> None:
-        """Refused unless ``path`` is a regular file of at most MAX_FILE_BYTES inside one of
-        the folders (a name still to be globbed: its folder inside them)."""
-        resolved = Path(path).resolve()
-        if not any(resolved.is_relative_to(folder) for folder in self.folders):
+    def check_place(self, path: str) -> None:
+        """Refused unless ``path`` is inside one of the folders."""
+        if not any(Path(path).resolve().is_relative_to(folder) for folder in self.folders):
             raise Refused(f"'{path}' is outside the description's folder and the package "
                           "search path: hil reads no file there (add its folder with "
                           "--package-path to allow it)")
-        if resolved.exists() and not resolved.is_file():
-            raise Refused(f"'{path}' is not a regular file")
-        if resolved.is_file() and resolved.stat().st_size > MAX_FILE_BYTES:
-            raise Refused(f"'{path}' is {resolved.stat().st_size} bytes, over the "
-                          f"{MAX_FILE_BYTES} a description file may have")
+
+    def check_file(self, path: str) -> None:
+        """Refused unless ``path`` is inside one of the folders and, where it exists, a
+        regular file of at most MAX_FILE_BYTES (file_problem); a missing one xacro names
+        itself, where the include is not ``optional``."""
+        self.check_place(path)
+        problem = file_problem(Path(path)) if os.path.exists(path) else None
+        if problem:
+            raise Refused(f"'{path}' {problem}")
 
 
 _allowed: contextvars.ContextVar[Allowed | None] = contextvars.ContextVar("xacro_allowed",
@@ -272,21 +285,41 @@ def _install(xacro) -> None:
         except Refused as exc:
             raise xacro.XacroException(str(exc)) from None
 
-    def check_file(path: str) -> None:
+    def check(method, path: str) -> None:
         try:
-            _current().check_file(path)
+            method(_current(), path)
         except Refused as exc:
             raise xacro.XacroException(str(exc)) from None
 
     def abs_filename_spec(filename_spec):
         path = original_abs_filename(filename_spec)
-        check_file(os.path.dirname(path) if any(c in path for c in "*?[") else path)
+        if glob := _GLOB.search(path):
+            # an include of every file a glob matches (xacro's get_include_files): the folder
+            # its fixed part names must be allowed; each match is checked as a file below
+            check(Allowed.check_place, path[:glob.start()])
+        else:
+            check(Allowed.check_file, path)
         return path
 
     def get_include_files(filename_spec, symbols):
         for filename in original_includes(filename_spec, symbols):
-            check_file(filename)
+            check(Allowed.check_file, filename)
             yield filename
+
+    def read_file(name, mode="r", *args, **kwargs):
+        # xacro reads a file (an include: xacro.parse; xacro.load_yaml) by calling open() by
+        # its module's name: hil's reader instead, as for the description itself (no
+        # DOCTYPE: an include's entities were expanded; nesting counted). Writing (xacro's
+        # own --output, never hil's) is open()'s.
+        if mode != "r" or not os.path.exists(name):
+            # a missing file: open()'s error, which xacro names (or skips: optional="true")
+            return open(name, mode, *args, **kwargs)
+        syntax = "yaml" if Path(name).suffix.lower() in _YAML_SUFFIXES else "xml"
+        what = "YAML file" if syntax == "yaml" else "included file"
+        try:
+            return io.StringIO(read_input_file(Path(name), what, hint="", syntax=syntax))
+        except HilError as exc:
+            raise xacro.XacroException(refusal_text(exc)) from None
 
     def eval_env(name):
         if name not in _current().variables or name not in os.environ:
@@ -317,6 +350,7 @@ def _install(xacro) -> None:
     xacro.safe_eval = safe_eval
     xacro.abs_filename_spec = abs_filename_spec
     xacro.get_include_files = get_include_files
+    xacro.open = read_file
     substitution_args._eval_env = eval_env
     substitution_args._eval_optenv = eval_optenv
     substitution_args._eval = eval_substitution

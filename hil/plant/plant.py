@@ -21,7 +21,8 @@ from hil.plant.builder import (
     DEFAULT_TIMESTEP, FLOATING_BASE, GEAR_STAGE, ActuatorLosses, build_spec, compile_model,
 )
 from hil.plant.inertia import motor_inertias
-from hil.plant.shapes import MUJOCO_MESHES, ROBOT_CONTACT, ScenePart, unreadable_mesh
+from hil.plant.shapes import (MUJOCO_MESHES, ROBOT_CONTACT, ScenePart, scene_name,
+                              unreadable_mesh)
 from hil.transmissions import Transmission, TransmissionStack, build_transmissions
 
 #: a shape rests on the ground when its bottom is this close to the robot's lowest point (m)
@@ -267,7 +268,7 @@ class Plant:
         """The robot's shapes that may touch the ground (MuJoCo geom ids): its collision
         shapes, or all its shapes where it has none."""
         model = self.model
-        scene = [model.body(part.name).id for part in self.scene]
+        scene = [model.body(scene_name(part.name)).id for part in self.scene]
         robot = (model.geom_bodyid >= 1) & np.isin(model.geom_bodyid, scene, invert=True)
         colliding = robot & (model.geom_contype & ROBOT_CONTACT).astype(bool)
         return np.flatnonzero(colliding if colliding.any() else robot)
@@ -297,7 +298,7 @@ class Plant:
     def object_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Where a scene object is: its position (m) and orientation (quaternion w, x, y, z)
         in the world."""
-        body = self.data.body(name)
+        body = self.data.body(scene_name(name))
         return body.xpos.copy(), body.xquat.copy()
 
     def inverse_dynamics(self) -> np.ndarray:

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 from hil.description import Geometry, GeometryKind, Link, Pose
+from hil.errors import HilError
 
 _VISUAL_GROUP = 1
 #: MuJoCo's geom group of collision shapes (hidden in its viewer by default)
@@ -31,6 +32,13 @@ _ROLLING_FRICTION = 0.0001
 #: grippers; MuJoCo's default 20 ms lets a pinched object sink and slip)
 CONTACT_SOLREF = (0.004, 1.0)
 GRASP_IMPRATIO = 10.0
+#: the namespace of the scene's objects in the plant's MuJoCo model (hil's choice): every name
+#: the plant gives the robot's parts is a link's or joint's name, or one of them with a suffix
+#: (``<link>_collision_<n>``, ``<link>_visual_<n>``, ``<joint>_gear``), or ``floating_base``:
+#: a scene object's own name could be any of those (MuJoCo: "repeated name"), ``scene/<name>``
+#: none unless a link or joint is named so. hil's messages, the recording (``/scene/<name>``)
+#: and Plant.object_pose use the object's own name.
+SCENE_NAMESPACE = "scene/"
 #: mesh files MuJoCo reads itself; others are drawn as the link's box in the plant
 MUJOCO_MESHES = (".stl", ".obj")
 
@@ -116,28 +124,23 @@ class ScenePart(Protocol):
     friction: float
 
 
+def scene_name(name: str) -> str:
+    """The name of a scene object's body, geom, mesh and joint in the plant's MuJoCo model
+    (SCENE_NAMESPACE)."""
+    return SCENE_NAMESPACE + name
+
+
 def add_scene(spec: mujoco.MjSpec, scene: tuple[ScenePart, ...]) -> None:
     """Each part as a body of the world: with a mass, free to move (its inertia that of a
     uniform solid of its shape); without, fixed. Parts touch the robot and each other."""
+    # the robot's parts are in the spec: their names begin with their links' and joints'
+    claimed = [e.name for e in (*spec.bodies, *spec.joints) if e.name.startswith(SCENE_NAMESPACE)]
+    if scene and claimed:
+        raise HilError.single(f"the robot's link or joint '{claimed[0]}' is named as hil names "
+                              f"the scene's objects in the plant ('{SCENE_NAMESPACE}<name>')",
+                              hint="rename that link or joint, or leave out the scene")
     for part in scene:
-        body = spec.worldbody.add_body(name=part.name)
-        body.pos, body.quat = part.pose.xyz, rpy_to_quat(part.pose.rpy)
-        if part.geometry.kind is GeometryKind.MESH:
-            spec.add_mesh(name=part.name, file=str(part.geometry.mesh),
-                          scale=list(part.geometry.size))
-            geom = body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=part.name)
-        else:
-            kind, size = _primitive(part.geometry)
-            geom = body.add_geom(type=kind, size=size)
-        geom.name = part.name
-        geom.contype, geom.conaffinity = SCENE_CONTACT, ROBOT_CONTACT | SCENE_CONTACT
-        geom.friction = [part.friction, _TORSIONAL_FRICTION, _ROLLING_FRICTION]
-        geom.condim = _CONTACT_DIMENSIONS
-        geom.solref = CONTACT_SOLREF
-        if part.mass > 0:
-            body.add_freejoint(name=part.name)
-            geom.mass = part.mass        # MuJoCo takes the inertia of the solid from it
-            body.explicitinertial = False
+        _add_part(spec, part)
     if not scene:
         # nothing for the links to touch: no collision detection at all (about 0.6 us of a
         # 4-8 us plant step of the shipped arms, measured)
@@ -147,6 +150,27 @@ def add_scene(spec: mujoco.MjSpec, scene: tuple[ScenePart, ...]) -> None:
         # friction cones, and impratio 10 so that friction is as stiff as the normal force
         spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
         spec.option.impratio = GRASP_IMPRATIO
+
+
+def _add_part(spec: mujoco.MjSpec, part: ScenePart) -> None:
+    name = scene_name(part.name)
+    body = spec.worldbody.add_body(name=name)
+    body.pos, body.quat = part.pose.xyz, rpy_to_quat(part.pose.rpy)
+    if part.geometry.kind is GeometryKind.MESH:
+        spec.add_mesh(name=name, file=str(part.geometry.mesh), scale=list(part.geometry.size))
+        geom = body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name)
+    else:
+        kind, size = _primitive(part.geometry)
+        geom = body.add_geom(type=kind, size=size)
+    geom.name = name
+    geom.contype, geom.conaffinity = SCENE_CONTACT, ROBOT_CONTACT | SCENE_CONTACT
+    geom.friction = [part.friction, _TORSIONAL_FRICTION, _ROLLING_FRICTION]
+    geom.condim = _CONTACT_DIMENSIONS
+    geom.solref = CONTACT_SOLREF
+    if part.mass > 0:
+        body.add_freejoint(name=name)
+        geom.mass = part.mass        # MuJoCo takes the inertia of the solid from it
+        body.explicitinertial = False
 
 
 @functools.cache

@@ -4,7 +4,7 @@ folder of a log per bus, each named after its bus (``arm.blf``: what
 log in time order (the module doc of :mod:`hil.replay.log`); and whether a log is whole.
 
 Every file is read through bounds (hil's choices, where python-can sets none): a regular
-file (:func:`hil.input_streams.open_input_stream`: a FIFO hung the reader, ``/dev/zero``
+file (:func:`hil.input_files.open_input_stream`: a FIFO hung the reader, ``/dev/zero``
 filled the memory) of at most MAX_LOG_BYTES, at most MAX_LOG_FRAMES frames in all, a text
 log's line at most MAX_LINE_CHARS, a BLF object at most MAX_OBJECT_BYTES; the file
 python-can reads is the one checked (it is given the open file, never the name again)."""
@@ -26,7 +26,7 @@ from can.io.blf import BLFParseError
 from can.io.generic import MessageReader, TextIOMessageReader
 
 from hil.errors import HilError
-from hil.input_streams import open_input_stream, size_in_words
+from hil.input_files import open_input_stream, size_in_words
 
 #: the largest log file hil reads: a text log (ASC, candump: 45-70 bytes a frame) of
 #: MAX_LOG_FRAMES fits, as a BLF of far more does (about 5.3 bytes a frame:

@@ -11,7 +11,7 @@ rerun cannot read (cut in the middle of a message, or not a recording at all) is
 rerun's reason, which gives the offset, and the others are read all the same. A file that
 is no regular file (a FIFO: rerun's RrdReader waited on one for good, measured
 2026-12-06 with rerun-sdk 0.41; a device) or over MAX_RECORDING_BYTES is
-refused before rerun opens it (:func:`hil.input_streams.open_input_stream`).
+refused before rerun opens it (:func:`hil.input_files.open_input_stream`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import rerun.chunk
 
-from hil.input_streams import open_input_stream
+from hil.input_files import open_input_stream
 
 #: the largest recording file a review reads (hil's choice): a run records 0.08 MB a second,
 #: 0.26 on a loaded host (docs/performance.md, "Recording"), so some 18 hours of a run at

@@ -27,6 +27,9 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+from hil.errors import HilError
+from hil.input_files import read_input_file, refusal_text
+
 #: the value types of endpoints and their little-endian layouts (ODrive's CAN example's
 #: ``format_lookup``, the ``odrive`` library's ``codecs``)
 FORMATS = {"bool": "?", "uint8": "B", "int8": "b", "uint16": "H", "int16": "h",
@@ -110,13 +113,16 @@ def json_id(descriptor: bytes) -> int:
 
 
 def load_endpoints(path: Path) -> EndpointFile:
-    """Read ``path``; ValueError naming the file and what is wrong."""
+    """Read ``path`` as every named file is (hil/input_files.py: a regular file, bounded,
+    UTF-8 as JSON is, nested no deeper than json.loads may recurse); ValueError naming the
+    file and what is wrong (the bus config's reader names the drive's line)."""
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ValueError(f"endpoints file {path}: cannot be read ({exc.strerror or exc})") \
-            from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        text = read_input_file(Path(path), "endpoints file", hint="", syntax="json")
+    except HilError as exc:
+        raise ValueError(refusal_text(exc)) from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
         raise ValueError(f"endpoints file {path}: not JSON ({exc})") from None
     if not isinstance(data, dict) or not isinstance(data.get("endpoints"), dict):
         raise ValueError(f"endpoints file {path}: no 'endpoints' mapping: give ODrive's "
