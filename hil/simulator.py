@@ -39,12 +39,15 @@ import can
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig
 from hil.drives import DriveCore, DriveParameters, DriveProfile, Fault
 from hil.can import deliver_under
+from hil.can.faults import DriveFaultKind
 from hil.can.network import start_network
 from hil.drives.group import CoreGroup
 from hil.drives.profile import DriveNetwork
 from hil.drives.tuning import tuned_gains
+from hil.errors import HilError
 from hil.plant import Plant
 from hil.protocols import protocol
+from hil.realtime.present import PlantPresent
 from hil.realtime.stalls import Stall, StallDetector
 from hil.realtime.timing import REAL_TIME, Timing
 
@@ -94,35 +97,6 @@ def bench_plant(config: SystemConfig) -> Plant:
                  start_pose=dict(config.start_pose))
 
 
-class PlantPresent:
-    """The lock that drives hold around everything a frame does to them (``DriveProfile.lock``).
-
-    A re-entrant lock over the plant and every drive. Entering it (outermost entry only)
-    first calls ``advance``: in real time, the simulator's step of the plant up to the
-    present.
-    """
-
-    def __init__(self, advance: Callable[[], None]):
-        self._lock = threading.RLock()
-        self._advance = advance
-        self._depth = 0          # entries by the owning thread (changed only under the lock)
-
-    def __enter__(self) -> PlantPresent:
-        self._lock.acquire()
-        self._depth += 1
-        if self._depth == 1:
-            try:
-                self._advance()
-            except BaseException:
-                self.__exit__()
-                raise
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        self._depth -= 1
-        self._lock.release()
-
-
 @dataclass
 class SimulatedBus:
     """One bus of the simulator: its config, python-can bus and drives (in config order)."""
@@ -164,6 +138,8 @@ class Simulator:
         actuator_index = {name: i for i, name in enumerate(self.plant.actuator_names)}
         self.buses: list[SimulatedBus] = []
         self.drives = []
+        #: (bus name, config entry, its drive) in the config's order: a drive by its entry
+        self._entries: list[tuple[str, DriveConfig, DriveProfile]] = []
         #: each drive's core with its plant actuator index, walked at every plant step
         self._cores = CoreGroup(len(self.plant.actuator_names))
         for bus_config in config.buses:
@@ -180,6 +156,7 @@ class Simulator:
                     drive_config.heartbeat_period, drive_config.options)
                 drive.on_command = self._on_command
                 drives.append(drive)
+                self._entries.append((bus_config.name, drive_config, drive))
                 self._cores.add(core, actuator_index[drive_config.actuator])
             self.buses.append(SimulatedBus(bus_config, buses[bus_config.name], drives))
             self.drives += drives
@@ -216,31 +193,59 @@ class Simulator:
 
     # --- fault injection ------------------------------------------------------------
 
+    def configured(self, drive: DriveConfig) -> DriveProfile:
+        """The drive of an entry of the config, whatever node id an LSS master has given it
+        since (CiA 305 configure node id)."""
+        for _, entry, profile in self._entries:
+            if entry == drive:
+                return profile
+        raise KeyError(f"no drive {drive.label} in {self.config.path}")
+
     def drive(self, bus: str, node_id: int) -> DriveProfile:
-        for simulated in self.buses:
-            for drive in simulated.drives:
-                if simulated.config.name == bus and drive.node_id == node_id:
-                    return drive
-        raise KeyError(f"no drive with node id {node_id} on bus '{bus}'")
+        """The drive that has ``node_id`` on ``bus`` now (LSS may have changed the config's);
+        HilError where none has it, or two do (an LSS master gave a taken id: either would
+        be a guess)."""
+        with self.lock:
+            on_bus = [(entry, profile) for name, entry, profile in self._entries if name == bus]
+            found = [(entry, profile) for entry, profile in on_bus if profile.node_id == node_id]
+        if len(found) == 1:
+            return found[0][1]
+        if not found:
+            there = sorted({profile.node_id for _, profile in on_bus})
+            raise HilError.single(f"no drive has node id {node_id} on bus '{bus}' now",
+                                  self.config.path, hint="node ids there now: " + (
+                                      ", ".join(map(str, there)) or "none (no such bus)"))
+        joints = " and of ".join(", ".join(entry.joints) for entry, _ in found)
+        raise HilError.single(f"node id {node_id} on bus '{bus}' is the drive of {joints} (an "
+                              "LSS master gave it to each)", self.config.path,
+                              hint="name the drive by its joint (DrivesBench.state/fault(JOINT))"
+                                   ", or give each its own node id")
+
+    def inject(self, kind: DriveFaultKind, drive: DriveProfile) -> None:
+        """A drive fault (``hil sim --fault``'s kinds): ``silence``, it leaves its bus (its
+        physics runs on); ``restart``, as after a power cycle (it boots again, unconfigured);
+        ``fault``, as on a following error (it reports it in its protocol)."""
+        with self.lock:
+            if kind is DriveFaultKind.SILENCE:
+                drive.detach()
+                self._waiting.discard(drive)
+            elif kind is DriveFaultKind.RESTART:
+                drive.restart()
+            else:
+                drive.core.raise_fault(Fault.FOLLOWING_ERROR)
+                drive.after_update()
 
     def silence(self, bus: str, node_id: int) -> None:
-        """The drive leaves its bus: no frames in or out (its physics runs on)."""
-        with self.lock:
-            drive = self.drive(bus, node_id)
-            drive.detach()
-            self._waiting.discard(drive)
+        """The drive of ``node_id`` leaves its bus (:meth:`inject`)."""
+        self.inject(DriveFaultKind.SILENCE, self.drive(bus, node_id))
 
     def restart(self, bus: str, node_id: int) -> None:
-        """The drive restarts as after a power cycle: it boots again, unconfigured."""
-        with self.lock:
-            self.drive(bus, node_id).restart()
+        """The drive of ``node_id`` restarts as after a power cycle (:meth:`inject`)."""
+        self.inject(DriveFaultKind.RESTART, self.drive(bus, node_id))
 
     def raise_fault(self, bus: str, node_id: int) -> None:
-        """The drive faults as on a following error (it reports it in its protocol)."""
-        with self.lock:
-            drive = self.drive(bus, node_id)
-            drive.core.raise_fault(Fault.FOLLOWING_ERROR)
-            drive.after_update()
+        """The drive of ``node_id`` faults as on a following error (:meth:`inject`)."""
+        self.inject(DriveFaultKind.FAULT, self.drive(bus, node_id))
 
     # --- time -------------------------------------------------------------------
 

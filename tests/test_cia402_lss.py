@@ -23,6 +23,7 @@ from test_cia402_drive import enable_csp
 from hil.bus_config import load_bus_config
 from hil.errors import HilError
 from hil.realtime import REAL_TIME
+from hil.testing import DrivesBench
 
 #: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
 #: canopen's LSS master
@@ -162,3 +163,51 @@ def test_two_drives_given_one_node_id_both_stay_on_the_bus(tmp_path, caplog, com
         assert beats.count(0x05 if command == 0x01 else 0x04) >= 2   # from each drive
     finally:
         bench.close()
+
+
+@pytest.fixture
+def lss_bench(tmp_path):
+    """A drives-only bench of the two drives that boot without a node id, and a canopen
+    network (its LssMaster) on its bus."""
+    with DrivesBench(_config(tmp_path)) as bench:
+        network = canopen.Network(bench.bus("arm"))
+        network.connect()
+        yield bench, network
+        network.disconnect()
+
+
+def test_the_bench_names_the_drives_lss_gave_ids_by_their_joints(lss_bench):
+    """CiA 305: a drive takes the id configure node id gave it at its next reset; the bench's
+    state() and fault() name it by its joint (its config entry), not by the config's 255."""
+    bench, network = lss_bench
+    _assign(network, 7)                                            # serial 1: joint1
+    _assign(network, 8)
+    assert wait_until(lambda: [bench.state(joint).split()[0] for joint in SERIALS]
+                      == ["PRE-OPERATIONAL"] * 2)
+    bench.fault("joint2")
+    assert bench.state("joint2").endswith("FAULT")
+    assert not bench.state("joint1").endswith("FAULT")
+    assert bench.sim.drive("arm", 8) is bench.sim.configured(bench.drive("joint2").config)
+
+
+def test_a_node_id_lss_gave_two_drives_is_refused_by_id_and_named_by_joint(tmp_path):
+    """Two drives on one id (test_two_drives_given_one_node_id_both_stay_on_the_bus): a
+    lookup by that id would silently get one of them; it says which joints share it and
+    what to do, and the joints still name each."""
+    config = _config(tmp_path, "{node_id: 1, joint: joint1, options: {serial_number: 1}}")
+    with DrivesBench(config) as bench:
+        network = canopen.Network(bench.bus("arm"))
+        network.connect()
+        _assign(network, 1)                                        # taken by joint1
+        assert wait_until(lambda: [d.node_id for d in bench.sim.drives[:2]] == [1, 1])
+        with pytest.raises(HilError) as refused:
+            bench.sim.drive("arm", 1)
+        said = str(refused.value)
+        assert "node id 1 on bus 'arm' is the drive of joint1 and of joint2" in said
+        assert "name the drive by its joint" in said
+        bench.fault("joint2")
+        assert bench.state("joint2").endswith("FAULT")
+        assert not bench.state("joint1").endswith("FAULT")
+        with pytest.raises(HilError, match="no drive has node id 255 on bus 'arm' now"):
+            bench.sim.raise_fault("arm", 255)
+        network.disconnect()

@@ -18,11 +18,15 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
+from test_cia402_lss import _config
 
+from hil.bus_config import load_bus_config
 from hil.can.faults import DriveFault, FrameFault, ProcessFault, parse_fault
+from hil.cli.sim import _check_drive_faults, _inject
 from hil.controllers import HARDWARE_FAULT, GoalStatus
 from hil.drives import Power
 from hil.errors import HilError
@@ -99,6 +103,41 @@ def test_fault_specifications_parse(text, fault):
 def test_bad_fault_specifications_say_which_forms_exist(text):
     with pytest.raises(HilError, match="forms: drop:BUS:FRACTION"):
         parse_fault(text)
+
+
+def test_a_drive_fault_names_the_node_id_an_lss_master_gives_a_drive(tmp_path):
+    """CiA 305: a drive that boots without a node id (255) takes the one an LSS master gives
+    it. hil sim finds a fault's drive by the id it has when the fault fires (every drive
+    enabled), so --fault names a given id; 255, which no drive has by then, is refused."""
+    config = load_bus_config(_config(tmp_path))
+    _check_drive_faults(config, [DriveFault("fault", "arm", 7, 1.0)])
+    with pytest.raises(HilError) as refused:
+        _check_drive_faults(config, [DriveFault("fault", "arm", 255, 1.0)])
+    assert "on arm, the node id an LSS master gives a drive" in str(refused.value)
+
+
+class _SharedIdSimulator:
+    """A simulator whose drives are enabled and where two drives have node id 1 (an LSS
+    master gave a taken id): its lookup by that id refuses, as Simulator.drive does."""
+
+    drives: list = []
+
+    def now(self) -> float:
+        return 0.0
+
+    def inject(self, kind, drive) -> None:
+        raise AssertionError("a fault injected into a guessed drive")
+
+    def drive(self, bus: str, node_id: int):
+        raise HilError.single(f"node id {node_id} on bus '{bus}' is the drive of joint1 and "
+                              "of joint2 (an LSS master gave it to each)")
+
+
+def test_a_drive_fault_whose_node_id_two_drives_have_is_not_injected_and_says_so(capsys):
+    """Either drive would be a guess: hil sim says which joints share the id and runs on."""
+    _inject(_SharedIdSimulator(), [DriveFault("fault", "arm", 1, 0.0)], threading.Event())
+    said = capsys.readouterr().err
+    assert "--fault fault:arm/1 not injected" in said and "joint1 and of joint2" in said
 
 
 def test_up_with_an_injected_drive_fault_ends_the_demo_naming_the_drive(tmp_path):

@@ -7,7 +7,7 @@ import time
 from collections.abc import Callable
 
 from hil.bus_config import SystemConfig
-from hil.can.faults import FrameFault, FrameFaultKind
+from hil.can.faults import DriveFaultKind, FrameFault, FrameFaultKind
 from hil.bench.settings import DID_NOT_START
 from hil.simulator import Simulator
 from hil.stack import StackDidNotStart, running_stack
@@ -17,7 +17,7 @@ from hil.realtime.timing import REAL_TIME
 def fault_detection(config: SystemConfig, timeout: float = 3.0) -> list[dict]:
     """Inject each fault kind into a running stack; how soon does the controller say so?"""
     first = config.buses[0]
-    node_id = first.drives[1].node_id
+    drive = first.drives[1]         # by its config entry: an LSS master may change its id
     kinds = {
         "drop every frame": lambda sim, buses: buses[first.name].add(
             FrameFault(FrameFaultKind.DROP, first.name, 1.0)),
@@ -25,8 +25,10 @@ def fault_detection(config: SystemConfig, timeout: float = 3.0) -> list[dict]:
             FrameFault(FrameFaultKind.DELAY, first.name, 1.0, 0.2)),
         "corrupt payload bits": lambda sim, buses: buses[first.name].add(
             FrameFault("corrupt", first.name, 1.0)),
-        "silence a drive": lambda sim, buses: sim.silence(first.name, node_id),
-        "raise a drive fault": lambda sim, buses: sim.raise_fault(first.name, node_id),
+        "silence a drive": lambda sim, buses: sim.inject(DriveFaultKind.SILENCE,
+                                                          sim.configured(drive)),
+        "raise a drive fault": lambda sim, buses: sim.inject(DriveFaultKind.FAULT,
+                                                              sim.configured(drive)),
     }
     rows = []
     for kind, inject in kinds.items():

@@ -16,12 +16,13 @@ from hil.cli import common
 from hil.can import watch_deliveries
 from hil.simulator import Simulator
 from hil.can.faults import (
-    DriveFault, DriveFaultKind, FrameFault, ProcessFault, parse_fault, with_frame_faults,
+    DriveFault, FrameFault, ProcessFault, parse_fault, with_frame_faults,
 )
 from hil.drives import Power
 from hil.errors import HilError
 from hil.messaging.scene import SceneState
 from hil.messaging.zenoh_api import ScenePublisher, SimClockPublisher, StallPublisher
+from hil.protocols import protocol
 from hil.realtime import IO_PRIORITY, enter_real_time, enter_side_work
 from hil.zenoh_session import close_all, session
 
@@ -256,25 +257,30 @@ def _publish_ros_clock(simulator: Simulator, face, stop: threading.Event) -> Non
 
 
 def _check_drive_faults(config, faults: list[DriveFault]) -> None:
-    known = {(bus.name, drive.node_id) for bus in config.buses for drive in bus.drives}
+    """Each drive fault names a node id a drive may have on its bus when the fault fires
+    (found then: :func:`_inject`): one the config gives, or, where a drive boots without one
+    for an LSS master to give (CiA 305), one its protocol allows."""
+    known = {(bus.name, drive.node_id) for bus in config.buses for drive in bus.drives
+             if drive.node_id != protocol(drive.protocol).unconfigured_node_id}
+    given = {(bus.name, node_id) for bus in config.buses for drive in bus.drives
+             if drive.node_id == protocol(drive.protocol).unconfigured_node_id
+             for node_id in protocol(drive.protocol).node_ids}
     for fault in faults:
-        if (fault.bus, fault.node_id) not in known:
-            raise HilError.single(f"--fault {fault.kind.value}:{fault.bus}/{fault.node_id}: no such "
-                                  "drive", config.path,
-                                  hint="drives: " + ", ".join(f"{b}/{n}" for b, n in
-                                                              sorted(known)))
-
-
-#: what the simulator does for each kind of drive fault
-INJECTIONS = {DriveFaultKind.SILENCE: Simulator.silence,
-              DriveFaultKind.FAULT: Simulator.raise_fault,
-              DriveFaultKind.RESTART: Simulator.restart}
+        if (fault.bus, fault.node_id) in known | given:
+            continue
+        named = ", ".join(f"{bus}/{node_id}" for bus, node_id in sorted(known))
+        lss = "".join(f"; on {bus}, the node id an LSS master gives a drive"
+                      for bus in sorted({bus for bus, _ in given}))
+        raise HilError.single(f"--fault {fault.kind.value}:{fault.bus}/{fault.node_id}: "
+                              "no such drive", config.path, hint=f"drives: {named}{lss}")
 
 
 def _inject(simulator: Simulator, faults: list[DriveFault], stop: threading.Event) -> None:
     """Each drive fault at its time: seconds of the plant's time after every drive was
     first enabled (the controller has the bench running). In lock-step the plant's time is
-    the run's own, so a fault falls on the same moment of the run however fast it goes."""
+    the run's own, so a fault falls on the same moment of the run however fast it goes. The
+    drive is the one with the node id then (an LSS master may have given it); where none or
+    two have it, hil sim says so and goes on without that fault."""
     if not faults:
         return
     while not all(d.core.power is Power.ENABLED for d in simulator.drives):
@@ -285,5 +291,10 @@ def _inject(simulator: Simulator, faults: list[DriveFault], stop: threading.Even
         while simulator.now() < started + fault.at:
             if stop.wait(min(INJECT_POLL, started + fault.at - simulator.now())):
                 return
-        INJECTIONS[fault.kind](simulator, fault.bus, fault.node_id)
+        try:
+            simulator.inject(fault.kind, simulator.drive(fault.bus, fault.node_id))
+        except HilError as refused:
+            print(f"hil sim: --fault {fault.kind.value}:{fault.bus}/{fault.node_id} not "
+                  f"injected:\n{refused}", file=sys.stderr, flush=True)
+            continue
         print(f"hil sim: injected {fault.kind.value} on {fault.bus}/{fault.node_id}", flush=True)

@@ -35,6 +35,7 @@ from pathlib import Path
 import can
 
 from hil.bus_config import DriveConfig, SystemConfig, config_path, load_bus_config, open_buses
+from hil.can.faults import DRIVE_FAULT_WORDS, DriveFaultKind
 from hil.description import PackagePath
 from hil.errors import HilError
 from hil.file_names import file_stem
@@ -50,7 +51,7 @@ INTERFACE = "virtual"
 #: master's thread (the module doc)
 DRIVES_INTERFACE = "hil-virtual"
 #: the fault kinds :meth:`DrivesBench.fault` injects, as ``hil sim --fault`` names them
-FAULT_KINDS = ("fault", "silence", "restart")
+FAULT_KINDS = DRIVE_FAULT_WORDS
 
 
 @dataclass(frozen=True)
@@ -59,6 +60,8 @@ class DriveInfo:
 
     bus: str
     channel: str
+    #: the config's (255: none, until an LSS master gives one; the drive is named by its
+    #: joint, which LSS does not change)
     node_id: int
     protocol: str
     #: joint to motor: the motor turns ``reduction`` radians per radian of the joint
@@ -193,16 +196,13 @@ class DrivesBench:
         if kind not in FAULT_KINDS:
             raise HilError.single(f"no fault kind '{kind}'",
                                   hint=f"one of: {', '.join(FAULT_KINDS)}")
-        drive = self.drive(joint)
-        inject = {"fault": self.sim.raise_fault, "silence": self.sim.silence,
-                  "restart": self.sim.restart}[kind]
-        inject(drive.bus, drive.node_id)
+        self.sim.inject(DriveFaultKind(kind), self.sim.configured(self.drive(joint).config))
 
     def state(self, joint: str) -> str:
         """The drive's state in its protocol's words (``OPERATION ENABLED``, ``FAULT``, ...)."""
-        drive = self.drive(joint)
+        drive = self.sim.configured(self.drive(joint).config)     # by its entry: LSS ids move
         with self.sim.lock:
-            return self.sim.drive(drive.bus, drive.node_id).state_text
+            return drive.state_text
 
     # --- life cycle -------------------------------------------------------------------
 
