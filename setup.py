@@ -1,14 +1,14 @@
 """Build hook: the drive core compiled by mypyc where the machine has a C compiler.
 
-The drive core's inner loops (``hil/drives/core.py``, with its data types, and the loop
-over a plant's cores, ``hil/drives/group.py``) and the CiA 402 state machine
-(``hil/protocols/cia402/state.py``) run for every drive on every plant step and cycle.
-Compiled, the same typed Python takes about 30 % off a lock-step cycle
-(docs/performance.md). The Python files stay the only source: without a compiler the
-install goes on and they run interpreted (``hil.compiled`` tells which form runs).
+The drive core's inner loops and the CiA 402 state machine (``hil.compiled.COMPILED`` lists
+the modules) run for every drive on every plant step and cycle. Compiled, the same typed
+Python takes about 30 % off a lock-step cycle (docs/performance.md). The Python files stay
+the only source: without a compiler the install goes on and they run interpreted
+(``hil.compiled`` tells which form runs).
 """
 
 import hashlib
+import runpy
 import shutil
 from pathlib import Path
 
@@ -17,9 +17,9 @@ from setuptools import setup
 from setuptools.command.build_ext import build_ext
 from setuptools.command.build_py import build_py
 
-#: the modules mypyc compiles, together (each must type-check with mypy)
-COMPILED = ["hil/drives/definitions.py", "hil/drives/references.py", "hil/drives/core.py",
-            "hil/drives/group.py", "hil/protocols/cia402/state.py"]
+#: the modules mypyc compiles, together: hil.compiled's list, read from its file (importing
+#: hil would need its dependencies, which a build environment has not)
+MODULES = runpy.run_path("hil/compiled.py")["COMPILED"]
 
 
 class BuildExt(build_ext):
@@ -28,8 +28,8 @@ class BuildExt(build_ext):
 
     def run(self):
         super().run()
-        for source in map(Path, COMPILED):
-            module = ".".join(source.with_suffix("").parts)
+        for module in MODULES:
+            source = _source(module)
             compiled = Path(self.get_ext_fullpath(module))
             if compiled.exists():
                 digest = hashlib.sha256(source.read_bytes()).hexdigest()
@@ -52,11 +52,16 @@ class BuildPy(build_py):
                             dirs_exist_ok=True, ignore=shutil.ignore_patterns("__pycache__"))
 
 
+def _source(module: str) -> Path:
+    return Path(*module.split(".")).with_suffix(".py")
+
+
 def optional_extensions():
     # their imports are checked by the tests, not here: the build environment has only mypy
     # one shared library for the group, inside the package (by default it is a top-level
     # module named by a hash of the modules' names)
-    extensions = mypycify(["--follow-imports=skip", *COMPILED], opt_level="3",
+    sources = [str(_source(module)) for module in MODULES]
+    extensions = mypycify(["--follow-imports=skip", *sources], opt_level="3",
                           group_name="hil.drives.compiled")
     for extension in extensions:
         extension.optional = True        # a failed compile leaves the modules interpreted

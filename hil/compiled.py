@@ -1,5 +1,9 @@
 """Modules that the install compiles with mypyc (``setup.py``), and which form of them runs.
 
+:data:`COMPILED` is the one list of them: ``setup.py`` reads it from this file (it imports
+nothing but the standard library, which is all a build environment has of hil's needs) and
+``hil.drives`` loads them with :func:`import_fresh`.
+
 A compiled module sits beside its Python source and Python's import prefers it. After an
 edit to the source (an editable install is not rebuilt on edits) the compiled module would
 silently run the old code: :func:`import_fresh` then imports the sources instead and warns.
@@ -16,6 +20,12 @@ import sys
 import warnings
 from pathlib import Path
 from types import ModuleType
+
+#: the modules mypyc compiles, in one build (each must type-check with mypy): the drive core's
+#: inner loops with its data types, the loop over a plant's cores, and the CiA 402 state
+#: machine, which runs for every drive on every plant step and calls the core natively
+COMPILED = ("hil.drives.definitions", "hil.drives.references", "hil.drives.core",
+            "hil.drives.group", "hil.protocols.cia402.state")
 
 
 def import_fresh(*names: str) -> None:

@@ -9,10 +9,11 @@ import os
 import sys
 from pathlib import Path
 
+import grimp
 import pytest
 
 import hil.drives.core
-from hil.compiled import import_fresh, is_compiled
+from hil.compiled import COMPILED, import_fresh, is_compiled
 from conftest import TEST_MOTOR_DRIVE
 
 SUFFIX = importlib.machinery.EXTENSION_SUFFIXES[0]
@@ -88,8 +89,8 @@ def _torques(core_module, velocity_mode: bool) -> list[tuple]:
 
 @pytest.mark.skipif(not is_compiled(hil.drives.core),
                     reason="the drive core is not compiled in this install (setup.py found no "
-                           "C compiler, or a module it compiles (setup.py COMPILED) changed since "
-                           "`pip install -e .`)")
+                           "C compiler, or a module it compiles (hil.compiled.COMPILED) changed "
+                           "since `pip install -e .`)")
 @pytest.mark.parametrize("velocity_mode", [False, True])
 def test_the_compiled_drive_core_computes_what_its_source_does(velocity_mode):
     path = Path(hil.drives.core.__file__).with_name("core.py")
@@ -105,3 +106,19 @@ def test_the_compiled_drive_core_computes_what_its_source_does(velocity_mode):
     assert not is_compiled(source)
     assert compiled == interpreted                   # bit for bit: the same float operations
     assert any(fault for *_, fault in compiled)      # the run reached the fault
+
+
+def test_the_modules_of_the_build_load_with_the_drives_all_compiled_or_none():
+    # compiled modules of one build call each other's classes directly (hil.compiled)
+    forms = {name: is_compiled(sys.modules[name]) for name in COMPILED}
+    assert len(set(forms.values())) == 1, forms
+
+
+def test_each_module_of_the_build_outside_the_drives_is_an_import_the_contracts_see():
+    # hil.drives loads the build by name (import_fresh): one outside it is also imported
+    # there by a statement, which import-linter reads (pyproject.toml, "protocol-seams")
+    graph = grimp.build_graph("hil")
+    outside = [name for name in COMPILED if not name.startswith("hil.drives.")]
+    assert outside == ["hil.protocols.cia402.state"]
+    for name in outside:
+        assert graph.direct_import_exists(importer="hil.drives", imported=name), name

@@ -133,33 +133,54 @@ def lint_imports(package_root, *contracts: str) -> subprocess.CompletedProcess:
                           env={**os.environ, "PYTHONPATH": str(package_root)})
 
 
+def planted(tmp_path, module: str, line: str):
+    """A copy of the ``hil`` package in ``tmp_path``, ``line`` added to ``module``'s file
+    (a path under hil/); where to run :func:`lint_imports` on it."""
+    shutil.copytree(ROOT / "hil", tmp_path / "hil",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.so", "*.sha256"))
+    source = tmp_path / "hil" / module
+    source.write_text(source.read_text() + f"\n{line}\n")
+    return tmp_path
+
+
 def test_the_package_keeps_its_import_contracts():
     done = lint_imports(ROOT)
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
-    assert "3 kept, 0 broken" in done.stdout, done.stdout[-2000:]
+    assert "5 kept, 0 broken" in done.stdout, done.stdout[-2000:]
 
 
 def test_an_upward_import_breaks_the_stages_contract(tmp_path):
     # the same package with one planted import of the command line into the CAN plumbing
-    shutil.copytree(ROOT / "hil", tmp_path / "hil",
-                    ignore=shutil.ignore_patterns("__pycache__", "*.so", "*.sha256"))
-    frames = tmp_path / "hil" / "can" / "frames.py"
-    frames.write_text(frames.read_text() + "\nimport hil.cli.up\n")
-    done = lint_imports(tmp_path, "stages")
+    done = lint_imports(planted(tmp_path, "can/frames.py", "import hil.cli.up"), "stages")
     assert done.returncode == 1
     assert "hil.can is not allowed to import hil.cli" in done.stdout, done.stdout[-2000:]
     assert "hil.can.frames -> hil.cli.up" in done.stdout
 
 
+def test_two_files_of_a_package_that_import_each_other_break_the_no_circles_contract(tmp_path):
+    # the Zenoh bus builds on its session's channels: the channels importing the bus back
+    # (even for type checking alone, which import-linter counts) closes a circle
+    done = lint_imports(planted(tmp_path, "can/zenoh_channels.py", "import hil.can.zenoh_bus"),
+                        "no-circles")
+    assert done.returncode == 1
+    assert "No cycles are allowed in hil.can" in done.stdout, done.stdout[-2000:]
+
+
 def test_a_master_side_axis_that_reaches_a_simulated_drive_breaks_its_contract(tmp_path):
-    shutil.copytree(ROOT / "hil", tmp_path / "hil",
-                    ignore=shutil.ignore_patterns("__pycache__", "*.so", "*.sha256"))
-    axis = tmp_path / "hil" / "protocols" / "odrive" / "axis.py"
-    axis.write_text(axis.read_text() + "\nimport hil.protocols.odrive.drive\n")
-    done = lint_imports(tmp_path, "controller-side")
+    done = lint_imports(planted(tmp_path, "protocols/odrive/axis.py",
+                                "import hil.protocols.odrive.drive"), "controller-side")
     assert done.returncode == 1
     assert "hil.protocols.odrive.axis -> hil.protocols.odrive.drive" in done.stdout, \
         done.stdout[-2000:]
+
+
+def test_a_protocol_module_the_drive_core_imports_past_the_seam_breaks_its_contract(tmp_path):
+    # the drive core is protocol-free (docs/design.md, "Layout"): it knows a protocol as
+    # hil.protocols.base's Protocol, never one protocol's own modules
+    done = lint_imports(planted(tmp_path, "drives/core.py", "import hil.protocols.odrive.sdo"),
+                        "protocol-seams")
+    assert done.returncode == 1
+    assert "hil.drives.core -> hil.protocols.odrive.sdo" in done.stdout, done.stdout[-2000:]
 
 
 def test_the_bench_loads_no_command_line_module():

@@ -1,13 +1,17 @@
 """A Zenoh session's CAN channels (the fan-out under :class:`hil.can.zenoh_bus.ZenohBus`):
 one subscriber per session for every channel, feeding the process' buses on each, and the
-frames a thread sends held for one message."""
+frames a thread sends held for one message.
+
+The bus builds on its channels (it joins and leaves them); the channels know a bus only as
+a :class:`ChannelBus`, what they call of it, so that they need not import the bus back."""
 
 from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Sequence
 from contextlib import AbstractContextManager, nullcontext
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import can
 import zenoh
@@ -15,10 +19,32 @@ import zenoh
 from hil.can.messages import FrameParts
 from hil.can.zenoh_links import ChannelLinks, seen_by_others
 from hil.can.zenoh_receipts import declare_receipts
-from hil.can.zenoh_wire import KEY_PREFIX, decode_frames
+from hil.can.zenoh_wire import KEY_PREFIX, Message, decode_frames
+from hil.zenoh_session import ZenohSettings
 
-if TYPE_CHECKING:
-    from hil.can.zenoh_bus import ZenohBus
+
+class ChannelBus(Protocol):
+    """A bus on a session's channels, as the channels use it: the parts of its send and
+    receive that the session's one subscriber and one send lock serve
+    (:class:`hil.can.zenoh_bus.ZenohBus` is one)."""
+
+    channel_info: str
+    monitors: bool                 # a log's bus: it answers the session's receipt queries
+    _channel: str
+    _settings: ZenohSettings
+    _publisher: zenoh.Publisher
+    _is_shutdown: bool
+
+    def heard(self) -> dict[int, int]: ...
+
+    def _count_malformed(self, problem: ValueError) -> None: ...
+
+    def _on_message(self, message: Message, arrived: float, now: float) -> None: ...
+
+    def _section(self, frames: Sequence[FrameParts], sent_at: float, now: float
+                 ) -> tuple[int, bytes]: ...
+
+    def _to_neighbours(self, first: int, frames: Sequence[FrameParts]) -> None: ...
 
 
 class Outbox(threading.local):
@@ -28,7 +54,7 @@ class Outbox(threading.local):
     depth = 0
 
     def __init__(self):
-        self.held: dict[ZenohBus, list[FrameParts]] = {}
+        self.held: dict[ChannelBus, list[FrameParts]] = {}
 
 
 class Hold(AbstractContextManager):
@@ -57,7 +83,7 @@ class Channels:
     _lock = threading.Lock()
 
     def __init__(self, session: zenoh.Session):
-        self.buses: dict[str, list[ZenohBus]] = {}
+        self.buses: dict[str, list[ChannelBus]] = {}
         #: per key with buses: who else is on its channel, linked or not (hil.can.zenoh_links)
         self.links: dict[str, ChannelLinks] = {}
         self.outbox = Outbox()
@@ -71,8 +97,8 @@ class Channels:
         self._receipts = None        # the queryable, once a monitor joins (hil.can.zenoh_receipts)
 
     @classmethod
-    def join(cls, session: zenoh.Session, key: str, bus: ZenohBus
-             ) -> tuple[Channels, list[ZenohBus]]:
+    def join(cls, session: zenoh.Session, key: str, bus: ChannelBus
+             ) -> tuple[Channels, list[ChannelBus]]:
         """Add ``bus`` on ``key``; returns the session's channels and the buses of this
         process on ``key`` (kept current)."""
         with cls._lock:
@@ -89,7 +115,7 @@ class Channels:
             return channels, on_key
 
     @classmethod
-    def leave(cls, session: zenoh.Session, key: str, bus: ZenohBus) -> None:
+    def leave(cls, session: zenoh.Session, key: str, bus: ChannelBus) -> None:
         with cls._lock:
             channels = cls._of_session[id(session)]
             channels.buses[key].remove(bus)
@@ -126,7 +152,7 @@ class Channels:
             held, outbox.held = outbox.held, {}
             self.put(held)
 
-    def put(self, held: dict[ZenohBus, list[FrameParts]]) -> None:
+    def put(self, held: dict[ChannelBus, list[FrameParts]]) -> None:
         """One message of each bus' ``held`` frames (their wire parts: a section each, in the
         order the buses first sent), on the first bus' key; copies to this process' buses on
         each channel. Buses shut down meanwhile send nothing and raise CanOperationError,

@@ -4,14 +4,16 @@ The drives of each protocol live with it (``hil.protocols.<name>.drive``), found
 :func:`hil.protocols.protocol`.
 """
 
-from hil.compiled import import_fresh
+from hil.compiled import COMPILED, import_fresh
 
 # compiled by the install where it could be (setup.py): the core, its references and the
-# CiA 402 device, one build (compiled modules of one build call each other directly: all or
-# none)
-import_fresh("hil.drives.definitions", "hil.drives.references", "hil.drives.core",
-             "hil.drives.group", "hil.protocols.cia402.state")
+# CiA 402 state machine, one build whose modules call each other directly: all compiled or
+# none, so they load together, here, before anything imports one of them
+import_fresh(*COMPILED)
 
+# the one protocol module loaded with the core (above), named so that the import contracts
+# see it (pyproject.toml, contract "protocol-seams")
+import hil.protocols.cia402.state  # noqa: E402,F401
 from hil.drives.core import DriveCore  # noqa: E402
 from hil.drives.definitions import DriveParameters, DriveStatus, Fault, Mode, Power  # noqa: E402
 from hil.drives.profile import DriveProfile  # noqa: E402

@@ -10,15 +10,29 @@ mobility under them is M^-1 - M^-1 G^T (G M^-1 G^T)^+ G M^-1.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import Protocol
 
 import mujoco
 import numpy as np
 
-from hil.description import JointType
+from hil.description import JointType, RobotDescription
+from hil.transmissions import Transmission
 
-if TYPE_CHECKING:
-    from hil.plant.plant import Plant
+
+class StandingPlant(Protocol):
+    """What the inertias are computed from: :class:`hil.plant.plant.Plant`, which calls
+    here (named by what is read, so that the two modules import in one direction)."""
+
+    model: mujoco.MjModel
+    data: mujoco.MjData
+    description: RobotDescription
+    transmissions: Sequence[Transmission]
+
+    @property
+    def floating(self) -> bool: ...
+
+    def resting_points(self) -> dict[int, list[np.ndarray]]: ...
 
 #: the ground is level: the plant stands a floating robot on a horizontal plane
 UP = np.array([0.0, 0.0, 1.0])
@@ -34,7 +48,7 @@ ROLLING_AXLE = 0.1
 LOCKED = 1e-9
 
 
-def motor_inertias(plant: Plant) -> dict[str, float]:
+def motor_inertias(plant: StandingPlant) -> dict[str, float]:
     """Each actuator's inertia seen from its motor shaft, by actuator name (kg·m², or
     math.inf for a motor that the ground holds still); :meth:`Plant.motor_inertias`."""
     model = plant.model
@@ -57,7 +71,7 @@ def motor_inertias(plant: Plant) -> dict[str, float]:
     return inertias
 
 
-def ground_constraints(plant: Plant) -> np.ndarray | None:
+def ground_constraints(plant: StandingPlant) -> np.ndarray | None:
     """What a floating robot's links resting on the ground (:meth:`Plant.resting_points`)
     hold, as rows of ``G qdot = 0`` (each the Jacobian of a point at the middle of a body's
     bottom, along one direction), or None (a fixed base, or nothing resting).
