@@ -11,6 +11,7 @@ gives; no other launch substitution is evaluated (data never runs code)."""
 
 from __future__ import annotations
 
+import itertools
 import re
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -31,6 +32,9 @@ JTC_TYPE = "joint_trajectory_controller/JointTrajectoryController"
 BROADCASTER = "joint_state_broadcaster/JointStateBroadcaster"
 EFFORT_TYPE = "effort_controllers/JointGroupEffortController"
 _SUBSTITUTION = re.compile(r"\$\((\w[\w-]*)([^)]*)\)")
+#: distinct refused substitutions reported one by one: a file of more is no
+#: ros2_controllers.yaml, and its report stays readable (hil's choice)
+MAX_REFUSED_SUBSTITUTIONS = 20
 
 
 @dataclass(frozen=True)
@@ -154,27 +158,41 @@ def _raise_errors(reader: Reader) -> None:
 
 def _substitute(reader: Reader, text: str, variables: dict[str, str]) -> str:
     """``$(var NAME)`` replaced by the user's value; any other substitution refused (each
-    distinct one reported once, at its first line)."""
-    reported: set[str] = set()
+    distinct one reported once, at its first line; past MAX_REFUSED_SUBSTITUTIONS, one error
+    counts the rest). Linear in the file's size: a line is found only for a reported
+    substitution (issue 65 item 10: each scanned the text before it, and a million distinct
+    ones fit the 16 MB a file may hold)."""
+    refused: dict[str, int] = {}            # each distinct one, where it first stands
 
     def replace(match: re.Match) -> str:
-        line = text.count("\n", 0, match.start()) + 1
         command, argument = match.group(1), match.group(2).strip()
         if command == "var" and argument in variables:
             return variables[argument]
-        if match.group(0) in reported:
-            return match.group(0)
-        reported.add(match.group(0))
+        refused.setdefault(match.group(0), match.start())
+        return match.group(0)
+    substituted = _SUBSTITUTION.sub(replace, text)
+    starts = iter(refused.items())
+    for written, start in itertools.islice(starts, MAX_REFUSED_SUBSTITUTIONS):
+        line = _line_at(text, start)
+        command, argument = _SUBSTITUTION.fullmatch(written).groups()
         if command != "var":
-            reader.fail(f"launch substitution {match.group(0)!r}: hil substitutes only "
+            reader.fail(f"launch substitution {written!r}: hil substitutes only "
                         "$(var NAME), from values you give; nothing in the file is evaluated",
                         line, hint="write the value itself into the file")
         else:
-            reader.fail(f"{match.group(0)}: no value for '{argument}'", line,
+            reader.fail(f"{written}: no value for '{argument.strip()}'", line,
                         hint=f"give it in the bus config: controllers: vars: "
-                             f"{{{argument}: VALUE}}")
-        return match.group(0)
-    return _SUBSTITUTION.sub(replace, text)
+                             f"{{{argument.strip()}: VALUE}}")
+    if len(refused) > MAX_REFUSED_SUBSTITUTIONS:
+        reader.fail(f"{len(refused) - MAX_REFUSED_SUBSTITUTIONS} more launch substitutions hil "
+                    "cannot substitute", _line_at(text, next(starts)[1]),
+                    hint="hil substitutes only $(var NAME), from controllers: vars; write "
+                         "the other values themselves into the file")
+    return substituted
+
+
+def _line_at(text: str, index: int) -> int:
+    return text.count("\n", 0, index) + 1
 
 
 def _controller_types(reader: Reader, sections: list[NodeSection],

@@ -18,7 +18,11 @@ from hil.controllers.parameters import JointConstraint, JtcParameters
 _BOOLS = ("allow_partial_joints_goal", "allow_nonzero_velocity_at_trajectory_end",
           "interpolate_from_desired_state", "allow_integration_in_goal_trajectories",
           "reject_unreachable_first_point")
-_NUMBERS = ("action_monitor_rate", "cmd_timeout")
+#: each number's least value: action_monitor_rate as the JTC validates it (gt_eq: [0.1]; hil
+#: took any rate > 0, and one of 5e-324 Hz made the control node's feedback period, in
+#: cycles, infinite); cmd_timeout, which the JTC leaves unvalidated, >= 0 (hil's choice: a
+#: negative timeout means nothing)
+_NUMBERS = {"action_monitor_rate": 0.1, "cmd_timeout": 0.0}
 #: declared by the JTC; hil honours them only at these values
 _FIXED = {"interpolation_method": "splines",
           "set_last_command_interface_value_as_state_on_activation": True}
@@ -60,11 +64,12 @@ def read_jtc(reader: Reader, params: LineMapping, name: str,
     values = {key: _bool(reader, params, key, what) for key in _BOOLS if key in params}
     if params.get("open_loop_control") is True:     # the JTC takes it as the next one
         values["interpolate_from_desired_state"] = True
-    for key in _NUMBERS:
+    for key, least in _NUMBERS.items():
         if key in params:
-            values[key] = float(reader.number(params, key, what, positive=key != "cmd_timeout"))
-            if values[key] < 0:
-                reader.fail(f"{what}: {key} must be >= 0", line(key))
+            values[key] = float(reader.number(params, key, what, positive=False))
+            if values[key] < least:
+                reader.fail(f"{what}: {key} must be >= {least:g}, not {values[key]:g}",
+                            line(key))
     for key, honoured in _FIXED.items():
         if key in params and params[key] != honoured:
             reader.fail(f"{what}: {key} {params[key]!r}: hil runs the JTC with {honoured!r}",

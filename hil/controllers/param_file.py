@@ -68,7 +68,12 @@ def _collect(reader: Reader, mapping: LineMapping, prefix: str,
                 params = LineMapping()
             params = reader.mapping(params, f"'{where}: {PARAMETERS}'",
                                     value.key_lines.get(PARAMETERS, line))
-            sections.append(NodeSection(where, params, line))
+            section = NodeSection(where, params, line)
+            if section.name:
+                sections.append(section)
+            else:       # no node has an empty name (rmw_validate_node_name refuses it)
+                reader.warn(f"'{where}' names no node: its ros__parameters go to none",
+                            line, hint="write the node's name: <name>: ros__parameters:")
         _collect(reader, value, where, sections)
 
 
