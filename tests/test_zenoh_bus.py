@@ -173,6 +173,19 @@ def test_malformed_payloads_on_the_network_are_dropped(bus_pair, endpoint):
     assert msg is not None and bytes(msg.data) == b"ok"
 
 
+def test_a_message_heard_after_the_send_read_its_clock_is_echoed_as_held_0_s(bus_pair):
+    """The receiving thread may note a message after the sending thread read ``now``: the
+    echo was held 0 s, not a negative time that the receiver refuses as malformed (and with
+    it the message's frames: seen from `hil viz` beside a loaded host, 2026-12-06)."""
+    a, _ = bus_pair
+    now = time.monotonic()
+    a._last_heard = (7, 41, now + 5e-5)           # heard 50 us after the send's clock read
+    _, section = a._section([wire_frame(can.Message(arbitration_id=0x42, data=b"ok",
+                                                    is_extended_id=False))], time.time(), now)
+    (message,) = decode_frames(section)
+    assert message.echo == Echo(7, 41, 0.0)
+
+
 def test_canopen_master_drives_hil_sim_in_another_process(endpoint):
     """The acceptance path without vcan: `hil sim` in its own process, frames over Zenoh."""
     process = subprocess.Popen(

@@ -350,15 +350,15 @@ class ZenohBus(can.BusABC, BusCapabilities):
 
     def _section(self, frames: Sequence[FrameParts], sent_at: float, now: float
                  ) -> tuple[int, bytes]:
-        """This bus' section of a message of ``frames`` put now (under the session's send
-        lock, so that its numbers keep the order of the puts): its first sequence number and
-        its bytes."""
+        """This bus' section of a message of ``frames`` put now (under the session's send lock,
+        so that its numbers keep the order of the puts): its first sequence number and bytes."""
         first = self._sequence + 1
         self._sequence += len(frames)
         self.counters.sent += len(frames)
         self.counters.messages_sent += 1
         heard = self._last_heard
-        echo = NO_ECHO if heard is None else Echo(heard[0], heard[1], now - heard[2])
+        # heard after ``now`` was read (another thread): held 0 s; a negative hold is malformed
+        echo = NO_ECHO if heard is None else Echo(heard[0], heard[1], max(0.0, now - heard[2]))
         self._puts[first & SEQUENCE_MASK] = now
         if len(self._puts) > PUTS_KEPT:
             del self._puts[next(iter(self._puts))]       # the oldest
