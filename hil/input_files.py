@@ -17,6 +17,7 @@ one, so it is refused (as defusedxml's ``forbid_dtd`` does; defusedxml is not a 
 
 from __future__ import annotations
 
+import codecs
 import errno
 import os
 import re
@@ -124,8 +125,6 @@ _XML_ENCODING = re.compile(rb'^\s*<\?xml[^>]*?encoding\s*=\s*["\']([A-Za-z0-9._-
 def _declared_encoding(data: bytes) -> str:
     """The encoding an XML document declares (a CAD exporter's URDF in ISO-8859-1), where
     Python knows it; else UTF-8 (a byte order mark dropped)."""
-    import codecs                                    # noqa: PLC0415 (XML inputs only)
-
     declared = _XML_ENCODING.match(data)
     if declared:
         try:

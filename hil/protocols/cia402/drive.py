@@ -314,8 +314,7 @@ class Cia402Drive(TpdoProducer, ReplayView, DriveProfile):
         if len(data) != self._sync_length:
             self._frame_error(EMCY_SYNC_LENGTH)
             return
-        if EMCY_SYNC_LENGTH in self.errors.active:
-            self.errors.end((EMCY_SYNC_LENGTH,))
+        if self.errors.active and self.errors.end((EMCY_SYNC_LENGTH,)):
             self._error_changed(EMCY_NO_ERROR)          # a SYNC of its length again
         if not operational:
             return
