@@ -17,6 +17,7 @@ import pytest
 
 from hil.bus_config import load_bus_config
 from hil.description import PackagePath, load_description
+from hil.can.frame import Frame
 from hil.can.zenoh_bus import MAX_SENDERS
 from hil.can.zenoh_wire import Echo, Message
 from hil.cli import main
@@ -108,9 +109,9 @@ def test_an_odrive_message_rate_is_a_uint32_as_in_the_firmware():
 def test_a_bus_remembers_a_bounded_number_of_senders(tmp_path):
     bus = can.Bus(interface="zenoh", channel=f"senders-{time.monotonic_ns()}")
     try:
-        frame = (0x123, b"\x01")
+        frame = Frame(0x123, b"\x01")
         for sender in range(1, 3 * MAX_SENDERS):
-            bus._on_message(Message(bus._channel, sender, 1, time.time(), Echo(), [frame], True),
+            bus._on_message(Message(bus._channel, sender, 1, time.time(), Echo(), [frame]),
                             time.time(), time.monotonic())
         assert len(bus.heard()) <= MAX_SENDERS and len(bus._quickest) <= MAX_SENDERS
     finally:

@@ -287,7 +287,8 @@ def test_no_wider_query_of_a_role_reaches_the_controllers_commands(
 
 @pytest.mark.parametrize("role", ["observer", "operator"])
 def test_no_frame_put_on_a_wider_key_reaches_the_drives(keys, secure_sim, peers, role):
-    from hil.can.zenoh_wire import decode_frames, encode_frames, wire_frame
+    from hil.can.messages import frame_of
+    from hil.can.zenoh_wire import decode_frames, encode_frames
 
     peer = peers(keys, role, secure_sim)
     assert peer.linked()
@@ -295,9 +296,9 @@ def test_no_frame_put_on_a_wider_key_reaches_the_drives(keys, secure_sim, peers,
 
     def on_sample(sample) -> None:          # the drives' SDO answers (not the peer's own puts)
         for message in decode_frames(sample.payload.to_bytes()):
-            answers.extend(f for f in message.frames if f[0] == SDO_ANSWER)
+            answers.extend(f for f in message.frames if f.identifier == SDO_ANSWER)
     peer.session.declare_subscriber("hil/can/**", on_sample)
-    message = encode_frames("ur3/arm", 12345, 1, time.time(), [wire_frame(SDO_REQUEST)])
+    message = encode_frames("ur3/arm", 12345, 1, time.time(), [frame_of(SDO_REQUEST)])
     for expression in ("**", "hil/**", "hil/can/**", "hil/can/ur3/*", "hil/can/ur3/arm",
                        "hil/can/ur3/arm$*"):
         peer.session.put(expression, message)

@@ -10,8 +10,9 @@ import can
 import pytest
 
 from hil.can.faults import FaultyBus, FrameFault
-from hil.can.messages import EXTENDED, data_frame, extended
-from hil.can.network import start_network
+from hil.can.frame import Frame
+from hil.can.messages import frame_of, message_of
+from hil.can.router import FrameRouter, start_router
 from conftest import FrameRecorder
 
 
@@ -54,17 +55,49 @@ def test_each_receiver_gets_its_own_copy(pair):
     assert sent.data[0] == 0x27
 
 
-@pytest.mark.parametrize("arbitration_id, data, remote", [
-    (0x201, b"\x0f\x00\x10\x27\x00\x00", False), (0x1ABCDE, bytearray(b"\x01"), False),
-    (0x080, b"", False), (0x701, b"", True), (0x581, [1, 2, 3], False)])
-def test_data_frame_builds_what_the_message_constructor_builds(arbitration_id, data, remote):
-    expected = can.Message(arbitration_id=arbitration_id, data=data, is_remote_frame=remote,
-                           is_extended_id=arbitration_id > 0x7FF)
-    built = data_frame(arbitration_id, data, remote)
-    fields = [name for name in can.Message.__slots__ if name != "__weakref__"]
-    assert {name: getattr(built, name) for name in fields} == \
-        {name: getattr(expected, name) for name in fields}
-    assert (built.data is data) == (expected.data is data)     # a bytearray is not copied
+#: can.Message's fields (its slots but the weak reference)
+FIELDS = [name for name in can.Message.__slots__ if name != "__weakref__"]
+
+#: frames of every kind a Frame says: standard, extended (one a standard id could carry), a
+#: remote request with its DLC, CAN FD with and without the bit-rate switch, an error frame
+BUILT = [Frame(0x201, b"\x0f\x00\x10\x27\x00\x00"),
+         Frame(0x1ABCDE, b"\x01", extended=True),
+         Frame(0x101, b"", extended=True),
+         Frame(0x080, timestamp=12.5),
+         Frame(0x701, bytes(8), remote=True),
+         Frame(0x123, bytes(3), extended=True, remote=True),
+         Frame(0x1ABCDEF0, bytes(range(64)), extended=True, fd=True, bitrate_switch=True),
+         Frame(0x181, bytes(12), fd=True),
+         Frame(0x0, bytes(8), error=True)]
+
+
+def _constructed(frame: Frame, channel=None, is_rx: bool = False) -> can.Message:
+    """What python-can's constructor builds for ``frame`` (a remote frame: no data, its DLC)."""
+    return can.Message(timestamp=frame.timestamp, arbitration_id=frame.identifier,
+                       is_extended_id=frame.extended, is_remote_frame=frame.remote,
+                       is_error_frame=frame.error, channel=channel,
+                       dlc=len(frame.data) if frame.remote else None,
+                       data=None if frame.remote else frame.data, is_fd=frame.fd,
+                       is_rx=is_rx, bitrate_switch=frame.bitrate_switch)
+
+
+@pytest.mark.parametrize("channel, is_rx", [(None, False), ("arm", True)])
+@pytest.mark.parametrize("frame", BUILT, ids=str)
+def test_message_of_builds_what_the_message_constructor_builds(frame, channel, is_rx):
+    built = message_of(frame, channel, is_rx)
+    assert {name: getattr(built, name) for name in FIELDS} == \
+        {name: getattr(_constructed(frame, channel, is_rx), name) for name in FIELDS}
+    assert type(built.data) is bytearray                # a message's data, its own
+
+
+@pytest.mark.parametrize("frame", BUILT, ids=str)
+def test_frame_of_takes_every_field_of_what_the_message_constructor_builds(frame):
+    msg = _constructed(frame, "arm", True)
+    taken = frame_of(msg)
+    assert taken == frame and type(taken.data) is bytes
+    assert frame_of(msg, timestamp=3.25) == frame._replace(timestamp=3.25)
+    assert {name: getattr(message_of(taken, "arm", True), name) for name in FIELDS} == \
+        {name: getattr(msg, name) for name in FIELDS}
 
 
 def test_a_received_copy_has_every_field_of_the_frame_it_copies(pair):
@@ -188,144 +221,150 @@ def test_a_faulty_bus_over_a_bus_without_direct_delivery_offers_none(channel):
         faulty.shutdown()
 
 
-def test_a_networks_listener_feeds_subscribers_routes_rtr_and_survives_a_failing_one(
+def test_a_routers_subscribers_hear_pythoncan_sends_remote_frames_apart_a_failing_one_aside(
         pair, caplog):
     sender, receiver = pair
-    network = start_network(receiver)
+    router = start_router(receiver)
     heard, asked = [], []
 
-    def broken(can_id, data, timestamp):
+    def broken(frame):
         raise RuntimeError("broken subscriber")
 
-    def hear(can_id, data, timestamp):
-        heard.append((can_id, bytes(data)))
-
-    network.subscribe(0x181, broken)
-    network.subscribe(0x181, hear)        # after the failing one, on the same id
-    network.subscribe(0x182, hear)
-    network.frame_listener.remote_handlers[0x209] = asked.append
+    router.subscribe(0x181, broken)
+    router.subscribe(0x181, heard.append)      # after the failing one, on the same id
+    router.subscribe(0x182, heard.append)
+    router.subscribe(0x209, asked.append, remote=True)
     with caplog.at_level(logging.WARNING):
         sender.send(frame(0x181))
         sender.send(frame(0x182, b"\x01"))
         sender.send(can.Message(arbitration_id=0x209, is_remote_frame=True, dlc=8,
                                 is_extended_id=False))
-    assert heard == [(0x181, frame().data), (0x182, b"\x01")] and asked == [0x209]
+    assert [(each.identifier, each.data) for each in heard] == [(0x181, frame().data),
+                                                                (0x182, b"\x01")]
+    assert [(each.identifier, each.remote, each.data) for each in asked] == [
+        (0x209, True, bytes(8))]                  # a remote frame's DLC, as zero bytes
     assert "0x181" in caplog.text and "broken subscriber" in caplog.text
     assert "Traceback" not in caplog.text             # one line, counted
-    assert network.frame_listener.refused == 1
-    network.notifier.stop()
+    assert router.refused == 1
+    router.stop()
 
 
 @pytest.fixture
-def networks(pair):
+def routers(pair):
     sender, receiver = pair
-    ends = start_network(sender), start_network(receiver)
+    ends = start_router(sender), start_router(receiver)
     yield ends
-    for network in ends:
-        network.notifier.stop()
+    for router in ends:
+        router.stop()
 
 
-def _hear(network, key: int) -> list:
-    heard = []
-    network.subscribe(key, lambda can_id, data, timestamp: heard.append((can_id, data)))
+def _hear(router: FrameRouter, identifier: int, extended: bool = False) -> list[Frame]:
+    heard: list[Frame] = []
+    router.subscribe(identifier, heard.append, extended)
     return heard
 
 
-def test_hils_networks_exchange_frames_as_parts_without_building_a_message(
-        networks, monkeypatch):
-    sent, received = networks
-    import hil.can.network
+def test_hils_routers_exchange_frames_as_values_without_building_a_message(
+        routers, monkeypatch):
+    sent, received = routers
+    import hil.can.delivery
+    import hil.can.router
     import hil.can.virtual
 
     def no_message(*args, **kwargs):
-        raise AssertionError("a can.Message was built between two of hil's networks")
+        raise AssertionError("a can.Message was built between two of hil's routers")
 
-    for module, builder in ((hil.can.network, "data_frame"), (hil.can.virtual, "data_frame"),
-                            (hil.can.virtual, "received_copy")):
+    for module, builder in ((hil.can.router, "message_of"), (hil.can.virtual, "message_of"),
+                            (hil.can.virtual, "received_copy"),
+                            (hil.can.delivery, "message_of")):
         monkeypatch.setattr(module, builder, no_message)
     heard = _hear(received, 0x181)
-    payload = bytearray(b"\x27\x00\x10\x00")
-    sent.send_message(0x181, payload)
-    payload[0] = 0xFF                      # the sender's buffer is its own again
-    assert heard == [(0x181, bytearray(b"\x27\x00\x10\x00"))]
-    assert type(heard[0][1]) is bytearray  # the receiver's own copy, as a message's data
+    cycle = Frame(0x181, b"\x27\x00\x10\x00")
+    sent.send(cycle)
+    assert heard == [cycle] and heard[0] is cycle     # immutable: handed over as it is
 
 
-def test_a_frame_sent_as_parts_reaches_python_cans_buses_as_the_message_it_stands_for(
-        networks, channel):
-    sent, _ = networks
+@pytest.mark.parametrize("sent_frame", [
+    Frame(0x181, b"\x01\x02"), Frame(0x1ABCDE, b"\x03", extended=True),
+    Frame(0x101, b"", extended=True), Frame(0x080), Frame(0x209, bytes(8), remote=True),
+    Frame(0x1ABCDEF0, bytes(range(64)), extended=True, fd=True, bitrate_switch=True)],
+    ids=str)
+def test_a_frame_sent_as_a_value_reaches_python_cans_buses_as_the_message_it_stands_for(
+        routers, channel, sent_frame):
+    sent, _ = routers
     plain = can.Bus(interface="virtual", channel=channel)
     try:
-        for can_id, data in ((0x181, b"\x01\x02"), (0x1ABCDE, b"\x03"),
-                             (0x101 | EXTENDED, b""), (0x080, b"")):
-            sent.send_message(can_id, data)
-            expected = data_frame(can_id, data)
-            got = plain.recv(1)
-            assert (got.arbitration_id, got.is_extended_id, got.dlc, bytes(got.data),
-                    got.is_remote_frame, got.is_rx) == (
-                expected.arbitration_id, expected.is_extended_id, expected.dlc,
-                bytes(expected.data), False, True)
+        sent.send(sent_frame)
+        got = plain.recv(1)
+        assert got.is_rx and got.channel == channel
+        assert got.equals(_constructed(sent_frame), timestamp_delta=None,
+                          check_channel=False, check_direction=False)
     finally:
         plain.shutdown()
 
 
-def test_frames_as_parts_keep_standard_and_extended_ids_of_one_number_apart(networks):
-    sent, received = networks
-    standard, extended_heard = _hear(received, 0x101), _hear(received, extended(0x101))
-    long_id = _hear(received, 0x1ABCDE)
-    sent.send_message(0x101, b"\x01")
-    sent.send_message(0x101 | EXTENDED, b"\x02")
-    sent.send_message(0x1ABCDE, b"\x03")
-    assert standard == [(0x101, b"\x01")]
-    assert extended_heard == [(extended(0x101), b"\x02")]
-    assert long_id == [(0x1ABCDE, b"\x03")]
+def test_frames_as_values_keep_standard_and_extended_ids_of_one_number_apart(routers):
+    sent, received = routers
+    standard, extended_heard = _hear(received, 0x101), _hear(received, 0x101, extended=True)
+    long_id = _hear(received, 0x1ABCDE, extended=True)
+    sent.send(Frame(0x101, b"\x01"))
+    sent.send(Frame(0x101, b"\x02", extended=True))
+    sent.send(Frame(0x1ABCDE, b"\x03", extended=True))
+    assert standard == [Frame(0x101, b"\x01")]
+    assert extended_heard == [Frame(0x101, b"\x02", extended=True)]
+    assert long_id == [Frame(0x1ABCDE, b"\x03", extended=True)]
 
 
-def test_a_listener_that_wants_messages_added_later_gets_them_beside_the_network(
-        networks):
-    sent, received = networks
-    heard = _hear(received, 0x181)
+def test_a_listener_that_wants_messages_added_later_gets_them_beside_the_router(pair):
+    sender, receiver = pair
+    router = FrameRouter(receiver)
+    delivery = receiver.deliver_to([router])
+    heard = _hear(router, 0x181)
     recorder = FrameRecorder()
-    received.notifier.add_listener(recorder)
-    sent.send_message(0x181, b"\x05")
-    assert heard == [(0x181, b"\x05")]
+    delivery.add_listener(recorder)
+    FrameRouter(sender).send(Frame(0x181, b"\x05"))
+    assert [(each.identifier, each.data) for each in heard] == [(0x181, b"\x05")]
     (message, _), = recorder.frames
     assert (message.arbitration_id, bytes(message.data)) == (0x181, b"\x05")
+    delivery.stop()
 
 
-def test_a_remote_request_between_hils_networks_goes_as_a_message_to_its_handler(networks):
-    sent, received = networks
-    asked = []
-    received.frame_listener.remote_handlers[0x281] = asked.append
-    sent.send_message(0x281, b"", remote=True)
-    assert asked == [0x281]
+def test_a_remote_request_between_hils_routers_reaches_its_remote_subscriber_only(routers):
+    sent, received = routers
+    asked, data = [], _hear(received, 0x281)
+    received.subscribe(0x281, asked.append, remote=True)
+    request = Frame(0x281, b"", remote=True)
+    sent.send(request)
+    assert asked == [request] and data == []
 
 
-def test_frames_sent_at_once_reach_every_receiver_frame_by_frame_in_order(networks, channel):
-    sent, first = networks
-    second = start_network(can.Bus(interface="hil-virtual", channel=channel))
+def test_frames_sent_at_once_reach_every_receiver_frame_by_frame_in_order(routers, channel):
+    sent, first = routers
+    second = start_router(can.Bus(interface="hil-virtual", channel=channel))
+    cycle = [Frame(0x181, b"\x01"), Frame(0x101, b"\x02", extended=True),
+             Frame(0x1ABCDE, b"\x03", extended=True)]
     try:
         heard = []
-        for name, network in (("first", first), ("second", second)):
-            for key in (0x181, extended(0x101), 0x1ABCDE):
-                network.subscribe(key, lambda can_id, data, timestamp, name=name:
-                                  heard.append((name, can_id, bytes(data))))
-        sent.send_frames([(0x181, b"\x01"), (0x101 | EXTENDED, b"\x02"), (0x1ABCDE, b"\x03")])
+        for name, router in (("first", first), ("second", second)):
+            for each in cycle:
+                router.subscribe(each.identifier,
+                                 lambda got, name=name: heard.append((name, got)),
+                                 each.extended)
+        sent.send_frames(cycle)
         # as one send after another: each frame at every receiver before the next at any
-        assert [(can_id, data) for _, can_id, data in heard] == [
-            (0x181, b"\x01"), (0x181, b"\x01"), (extended(0x101), b"\x02"),
-            (extended(0x101), b"\x02"), (0x1ABCDE, b"\x03"), (0x1ABCDE, b"\x03")]
-        assert {name for name, _, _ in heard[:2]} == {"first", "second"}
+        assert [got for _, got in heard] == [cycle[0], cycle[0], cycle[1], cycle[1],
+                                             cycle[2], cycle[2]]
+        assert {name for name, _ in heard[:2]} == {"first", "second"}
     finally:
-        second.notifier.stop()
+        second.stop()
         second.bus.shutdown()
 
 
-def test_frames_sent_at_once_reach_python_cans_bus_as_messages_in_order(networks, channel):
-    sent, _ = networks
+def test_frames_sent_at_once_reach_python_cans_bus_as_messages_in_order(routers, channel):
+    sent, _ = routers
     plain = can.Bus(interface="virtual", channel=channel)
     try:
-        sent.send_frames([(0x181, b"\x01"), (0x182, b"\x02"), (0x181, b"\x03")])
+        sent.send_frames([Frame(0x181, b"\x01"), Frame(0x182, b"\x02"), Frame(0x181, b"\x03")])
         got = [plain.recv(1) for _ in range(3)]
         assert [(m.arbitration_id, bytes(m.data)) for m in got] == [
             (0x181, b"\x01"), (0x182, b"\x02"), (0x181, b"\x03")]
@@ -334,29 +373,29 @@ def test_frames_sent_at_once_reach_python_cans_bus_as_messages_in_order(networks
         plain.shutdown()
 
 
-def test_a_drive_network_counts_every_frame_of_a_batch_its_closed_bus_refuses(
+def test_a_keep_sending_router_counts_every_frame_of_a_batch_its_closed_bus_refuses(
         channel, caplog):
-    from hil.drives.profile import DriveNetwork
     bus = can.Bus(interface="hil-virtual", channel=channel)
-    network = start_network(bus, 0.1, DriveNetwork)
-    network.notifier.stop()
+    router = start_router(bus, keep_sending=True)
+    router.stop()
     bus.shutdown()
     with caplog.at_level(logging.WARNING):
-        network.send_frames([(0x181, b"\x01"), (0x281, b"\x02"), (0x381, b"\x03")])
-        network.send_frames([(0x181, b"\x01")])
-    assert network.lost_frames == 4
+        router.send_frames([Frame(0x181, b"\x01"), Frame(0x281, b"\x02"),
+                            Frame(0x381, b"\x03")])
+        router.send(Frame(0x181, b"\x01"))
+    assert router.lost_frames == 4
     assert len([r for r in caplog.records if "was lost" in r.getMessage()]) == 1
 
 
-def test_a_delivery_stopped_by_its_listener_mid_batch_delivers_no_more_of_it(networks):
-    sent, received = networks
+def test_a_delivery_stopped_by_its_listener_mid_batch_delivers_no_more_of_it(routers):
+    sent, received = routers
     heard = []
 
-    def stop_at_the_second(can_id, data, timestamp):
-        heard.append(bytes(data))
+    def stop_at_the_second(got):
+        heard.append(got.data)
         if len(heard) == 2:
-            received.notifier.stop()
+            received.stop()
 
     received.subscribe(0x181, stop_at_the_second)
-    sent.send_frames([(0x181, b"\x01"), (0x181, b"\x02"), (0x181, b"\x03")])
+    sent.send_frames([Frame(0x181, b"\x01"), Frame(0x181, b"\x02"), Frame(0x181, b"\x03")])
     assert heard == [b"\x01", b"\x02"]

@@ -16,9 +16,10 @@ import canopen
 import pytest
 
 from hil.can import sent_together
+from hil.can.frame import Frame
 from hil.can.link_statistics import Quickest as _Quickest
-from hil.can.messages import EXTENDED
-from hil.can.zenoh_wire import Echo, decode_frames, encode_frames, message_of, wire_frame
+from hil.can.messages import frame_of, message_of
+from hil.can.zenoh_wire import Echo, decode_frames, encode_frames
 from hil.realtime.stalls import STALL_THRESHOLD
 from hil.zenoh_session import ZenohSettings, close, session
 from conftest import EDS, ROOT, DelayingRelay, FrameRecorder, free_port
@@ -103,32 +104,36 @@ def test_closing_one_session_leaves_the_others_open(endpoint):
     close(second)
 
 
-def test_frame_codec_round_trips_extended_and_remote_frames_in_one_message():
+def test_frame_codec_round_trips_extended_remote_and_fd_frames_in_one_message():
     frames = [can.Message(arbitration_id=0x1ABCDEF0, data=b"\x01\x02", is_extended_id=True),
               can.Message(arbitration_id=0x123, is_remote_frame=True, dlc=4,
                           is_extended_id=False),
-              can.Message(arbitration_id=0x80, data=b"", is_extended_id=False)]
-    [message] = decode_frames(encode_frames("x", 42, 7, 1234.5, list(map(wire_frame, frames)),
+              can.Message(arbitration_id=0x80, data=b"", is_extended_id=False),
+              can.Message(arbitration_id=0x5, data=bytes(range(64)), is_extended_id=True,
+                          is_fd=True, bitrate_switch=True),
+              can.Message(arbitration_id=0x181, data=bytes(12), is_extended_id=False,
+                          is_fd=True)]
+    [message] = decode_frames(encode_frames("x", 42, 7, 1234.5, list(map(frame_of, frames)),
                                             Echo(9, 3, 0.25)))
     assert (message.channel, message.sender, message.sequence, message.sent_at) == (
         "x", 42, 7, 1234.5)
-    assert message.echo == Echo(9, 3, 0.25) and len(message.frames) == 3
-    assert not message.all_data                     # the remote frame
+    assert message.echo == Echo(9, 3, 0.25) and len(message.frames) == len(frames)
+    assert {got.timestamp for got in message.frames} == {1234.5}     # the sender's put
     for msg, got in zip(frames, message.frames):
-        assert message_of(got, 1235.0, "x").equals(msg, timestamp_delta=None,
-                                                   check_channel=False, check_direction=False)
+        assert message_of(got, "x").equals(msg, timestamp_delta=None, check_channel=False,
+                                           check_direction=False)
 
 
-def test_a_message_of_data_frames_only_says_so_and_keeps_an_extended_low_id_apart():
-    frames = [(0x80, b""), (0x5 | EXTENDED, b"\x01"), (0x1ABCDEF0, b"\x02\x03")]
-    [message] = decode_frames(encode_frames("x", 1, 1, 0.0, frames))
-    assert message.all_data and message.frames == frames
-    extended_low = message_of(message.frames[1], 0.0, "x")
-    assert (extended_low.arbitration_id, extended_low.is_extended_id) == (0x5, True)
+def test_the_frame_codec_keeps_an_extended_low_id_apart_from_the_standard_one():
+    frames = [Frame(0x80, timestamp=5.0), Frame(0x5, b"\x01", extended=True, timestamp=5.0),
+              Frame(0x5, b"\x01", timestamp=5.0),
+              Frame(0x1ABCDEF0, b"\x02\x03", extended=True, timestamp=5.0)]
+    [message] = decode_frames(encode_frames("x", 1, 1, 5.0, frames))
+    assert message.frames == frames
 
 
 def test_sections_of_several_channels_in_one_message_decode_each_with_its_own_numbers():
-    sync = [(0x80, b"")]
+    sync = [Frame(0x80, timestamp=5.0)]
     payload = (encode_frames("ur3/arm", 1, 10, 5.0, sync * 2)
                + encode_frames("ur3/wrist", 2, 20, 5.0, sync, Echo(7, 3, 0.5)))
     arm, wrist = decode_frames(payload)
@@ -139,7 +144,7 @@ def test_sections_of_several_channels_in_one_message_decode_each_with_its_own_nu
 
 
 def _one(arbitration_id: int = 1, data: bytes = b"\x01\x02") -> bytes:
-    return encode_frames("x", 1, 1, 0.0, [(arbitration_id, data)])
+    return encode_frames("x", 1, 1, 0.0, [Frame(arbitration_id, data)])
 
 
 @pytest.mark.parametrize("payload, reason", [
@@ -151,8 +156,8 @@ def _one(arbitration_id: int = 1, data: bytes = b"\x01\x02") -> bytes:
     (_one() + b"\x00", "section 2: channel '': 0 bytes is shorter than a section header"),
     (_one()[:-8], "channel 'x': frame 1 of 1 is cut short"),
     (encode_frames("x", 1, 1, 0.0, []), "channel 'x': a section of no frames"),
-    (encode_frames("x", 1, 1, 0.0, [(1, b"")], Echo(1, 1, -1.0)), "the echo was held -1.0 s"),
-    (encode_frames("x", 1, 1, math.nan, [(1, b"")]),
+    (encode_frames("x", 1, 1, 0.0, [Frame(1)], Echo(1, 1, -1.0)), "the echo was held -1.0 s"),
+    (encode_frames("x", 1, 1, math.nan, [Frame(1)]),
      "the sender's clock reads nan"),
     (_one(0x7FF).replace(b"\xff\x07\x00\x00", b"\xff\xff\x00\x00", 1),
      "identifier 0xFFFF out of range")])
@@ -180,8 +185,7 @@ def test_a_message_heard_after_the_send_read_its_clock_is_echoed_as_held_0_s(bus
     a, _ = bus_pair
     now = time.monotonic()
     a._last_heard = (7, 41, now + 5e-5)           # heard 50 us after the send's clock read
-    _, section = a._section([wire_frame(can.Message(arbitration_id=0x42, data=b"ok",
-                                                    is_extended_id=False))], time.time(), now)
+    _, section = a._section([Frame(0x42, b"ok")], time.time(), now)
     (message,) = decode_frames(section)
     assert message.echo == Echo(7, 41, 0.0)
 
@@ -268,7 +272,7 @@ def test_frames_lost_on_the_way_are_counted_from_the_senders_sequence_numbers(bu
     intruder = session(ZenohSettings(connect=(endpoint,),     # a session of its own:
                                      listen=(f"tcp/127.0.0.1:{free_port()}",)))   # a remote
     key = b.channel_info.split(" ", 1)[1]
-    frame = (0x181, b"\x01")
+    frame = Frame(0x181, b"\x01")
     deadline = time.monotonic() + 10
     while b.recv(0.1) is None:                       # until the new session's route is up
         assert time.monotonic() < deadline
@@ -287,7 +291,7 @@ def test_a_message_that_comes_late_out_of_order_is_not_counted_lost(bus_pair, en
     intruder = session(ZenohSettings(connect=(endpoint,),
                                      listen=(f"tcp/127.0.0.1:{free_port()}",)))
     key = b.channel_info.split(" ", 1)[1]
-    frame = (0x181, b"\x01")
+    frame = Frame(0x181, b"\x01")
     deadline = time.monotonic() + 10
     while b.recv(0.1) is None:                       # until the new session's route is up
         assert time.monotonic() < deadline
@@ -426,7 +430,7 @@ def _remote_sender(endpoint, bus):
     settings = ZenohSettings(connect=(endpoint,), listen=(f"tcp/127.0.0.1:{free_port()}",))
     remote = session(settings)
     key = bus.channel_info.split(" ", 1)[1]
-    probe = (0x7E5, b"")
+    probe = Frame(0x7E5)
     try:
         deadline = time.monotonic() + 10
         while bus.recv(0.1) is None:
@@ -444,7 +448,7 @@ def _four_from_a_remote(endpoint, bus, behind_last: float = 0.0, stall_before_la
     """Four frames from a remote sender (77), 20 ms apart, stamped when put; the last stamped
     ``behind_last`` s before its put (held on the way), after the sender stalled
     ``stall_before_last`` s. The frames as received."""
-    frame = (0x181, b"\x01")
+    frame = Frame(0x181, b"\x01")
     with _remote_sender(endpoint, bus) as put:
         for sequence in range(1, 5):
             if sequence == 4:

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import can
 
-from hil.can.messages import FrameParts
+from hil.can.frame import Frame
 from hil.realtime.stalls import Stall
 
 if TYPE_CHECKING:
@@ -42,9 +42,8 @@ class BusCapabilities:
         the bus cannot (a Notifier then reads ``recv``)."""
         return None
 
-    def frame_sender(self) -> Callable[[Sequence[FrameParts]], None] | None:
-        """A function that sends data frames, in order, from their parts (each its dispatch
-        key, as :func:`hil.can.messages.frame_key` has it, and its data), building a
+    def frame_sender(self) -> Callable[[Sequence[Frame]], None] | None:
+        """A function that sends :class:`~hil.can.frame.Frame` values, in order, building a
         ``can.Message`` only for receivers that want one; None where the bus sends messages
         only."""
         return None

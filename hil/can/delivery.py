@@ -7,15 +7,14 @@ A bus that already runs code when a frame arrives (``hil-virtual`` in the sender
 ``bus.deliver_to(listeners)`` returns a :class:`DirectDelivery`, which stands where the
 Notifier would (``stop``, ``add_listener``, ``exception``).
 
-Where every listener is a :class:`FrameListener` (hil's canopen networks) and nothing
-rewrites the frames on the way in (no ``accept``), the delivery also takes a data frame as
-its parts, a sender's frames in one call (:meth:`DirectDelivery.deliver_frames`): a bus
-that sends from parts (hil's own networks on ``hil-virtual`` and ``zenoh``) then builds no
-``can.Message`` for them at all. hil's cycle exchanges 20 frames (ur3) between hil's own
-ends; a message built and copied per frame was measured as a large share of a lock-step
-cycle (docs/performance.md). Where the only listener has :attr:`FrameListener.routes` (its
-callbacks by dispatch key: a canopen network's subscribers), the delivery calls them itself,
-one Python call less a frame.
+Where every listener is a :class:`FrameListener` (hil's frame routers) and nothing rewrites
+the frames on the way in (no ``accept``), the delivery also takes frames as
+:class:`~hil.can.frame.Frame` values, a sender's frames in one call
+(:meth:`DirectDelivery.deliver_frames`): a bus that sends frames as values (hil's routers on
+``hil-virtual`` and ``zenoh``) then builds no ``can.Message`` for them at all. hil's cycle
+exchanges 20 frames (ur3) between hil's own ends; a message built and copied per frame was
+measured as a large share of a lock-step cycle (docs/performance.md,
+"2026-11-28, third step: frames between hil's own ends as their parts (issue 48)").
 """
 
 from __future__ import annotations
@@ -23,34 +22,23 @@ from __future__ import annotations
 import logging
 import threading
 from abc import abstractmethod
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 
 import can
 
-from hil.can.messages import FrameParts, identifier, received_frame
+from hil.can.frame import Frame
+from hil.can.messages import message_of
 
 log = logging.getLogger(__name__)
 
 
 class FrameListener(can.Listener):
-    """A listener that also takes a data frame as its parts: its dispatch key
-    (:func:`hil.can.messages.frame_key`), its own data and its receive timestamp, in
-    place of a ``can.Message`` (never remote or error frames: those come as messages)."""
-
-    #: where this listener's frames go, by dispatch key (read live, at every frame): a
-    #: delivery whose one listener this is calls them itself, one Python call less a frame
-    #: than :meth:`on_frame` (docs/performance.md, 2026-12-01); None: through on_frame
-    routes: dict[int, list[Callable[[int, bytearray, float], None]]] | None = None
+    """A listener that also takes frames as :class:`~hil.can.frame.Frame` values, a
+    delivery's frames in one call, in place of a ``can.Message`` each."""
 
     @abstractmethod
-    def on_frame(self, key: int, data: bytearray, timestamp: float) -> None:
-        """One data frame, by its parts (to its :attr:`routes`, where it has them)."""
-
-    def refuse(self, key: int, data: bytearray,
-               callback: Callable[[int, bytearray, float], None], exc: Exception) -> None:
-        """A route's callback raised on a frame (its routes called by a delivery): by
-        default logged, as a failing listener is."""
-        log.exception("listener %r failed on frame 0x%X", callback, key, exc_info=exc)
+    def on_frames(self, frames: Sequence[Frame]) -> None:
+        """Frames of one delivery, in order."""
 
 
 class DirectDelivery:
@@ -75,13 +63,12 @@ class DirectDelivery:
         # each listener's own method, called straight (can.Listener.__call__ is one more
         # Python call per frame and listener; plain callables are listeners too)
         self._receivers = [_receiver(listener) for listener in self.listeners]
-        #: whether :meth:`deliver_frames` takes frames as parts (read by senders unlocked: a
-        #: frame that meets a change of it is still delivered, as a message if need be)
+        #: whether every listener takes frames as values (read by senders unlocked: a frame
+        #: that meets a change of it is still delivered, as a message if need be)
         self.takes_frames = accept is None and all(
             isinstance(listener, FrameListener) for listener in self.listeners)
-        self._frame_receivers = ([listener.on_frame for listener in self.listeners]
+        self._frame_receivers = ([listener.on_frames for listener in self.listeners]
                                  if self.takes_frames else [])
-        self._routed = self._one_routed_listener()
         self._accept = accept
         self._on_stop = on_stop
         self._lock = threading.RLock()
@@ -101,64 +88,30 @@ class DirectDelivery:
                 except Exception:          # as python-can's Notifier: one bad listener
                     log.exception("listener %r failed on %s", receive, msg)
 
-    def deliver_frames(self, frames: Iterable[FrameParts], timestamp: float) -> None:
-        """Data frames by their parts, in order, in one hold of the lock: each listener gets
-        its own copy of each frame's data."""
+    def deliver_frames(self, frames: Sequence[Frame], channel=None) -> None:
+        """Frames, in order, in one hold of the lock (as messages on ``channel`` where a
+        listener wants messages)."""
         with self._lock:
-            listener = self._routed
-            if listener is not None:
-                self._route(listener, frames, timestamp)
+            if self._stopped:
                 return
-            for key, data in frames:
-                if self._stopped:           # a listener stopped it
-                    return
-                if not self.takes_frames:   # a listener that wants messages came meanwhile
-                    self.deliver(received_frame(timestamp, *identifier(key), False, False,
-                                                len(data), data, None))
-                    continue
-                for receive in self._frame_receivers:
-                    try:
-                        receive(key, bytearray(data), timestamp)
-                    except Exception:          # as deliver
-                        log.exception("listener %r failed on frame 0x%X", receive, key)
-
-    def _route(self, listener: FrameListener, frames: Iterable[FrameParts],
-               timestamp: float) -> None:
-        """deliver_frames for one listener with routes (lock held): its callbacks of each
-        frame's key called here, as its on_frame would call them."""
-        routes = listener.routes
-        for key, data in frames:
-            if self._stopped:           # a listener stopped it
+            if not self.takes_frames:   # a listener that wants messages
+                for frame in frames:
+                    self.deliver(message_of(frame, channel, True))
                 return
-            if self._routed is not listener:    # a listener came meanwhile
-                self.deliver_frames(((key, data),), timestamp)
-                continue
-            callbacks = routes.get(key)
-            if callbacks:
-                data = bytearray(data)
-                for callback in callbacks:
-                    try:
-                        callback(key, data, timestamp)
-                    except Exception as exc:
-                        listener.refuse(key, data, callback, exc)
+            for receive in self._frame_receivers:
+                try:
+                    receive(frames)
+                except Exception:          # as deliver
+                    log.exception("listener %r failed on %d frame(s)", receive, len(frames))
 
     def add_listener(self, listener: can.Listener) -> None:
         with self._lock:
             self.listeners.append(listener)
             self._receivers.append(_receiver(listener))
             if isinstance(listener, FrameListener):
-                self._frame_receivers.append(listener.on_frame)
+                self._frame_receivers.append(listener.on_frames)
             else:
                 self.takes_frames = False
-            self._routed = self._one_routed_listener()
-
-    def _one_routed_listener(self) -> FrameListener | None:
-        # the delivery calls the routes itself only where they are all there is to call
-        if self.takes_frames and len(self.listeners) == 1:
-            listener = self.listeners[0]
-            if listener.routes is not None:
-                return listener
-        return None
 
     def stop(self, timeout: float = 5.0) -> None:
         """Stop delivering (the bus queues its frames again), after a delivery in progress

@@ -14,7 +14,7 @@ from pathlib import Path
 import can
 
 from hil.can.capabilities import capabilities
-from hil.can.frames import frame_bits
+from hil.can.frames import fd_frame_bits, frame_bits
 
 
 @dataclass(frozen=True)
@@ -50,8 +50,13 @@ class BusLoadMeter(can.Listener):
         if bus is None:
             self.unknown_channel_frames += 1
             return
-        nominal, worst = frame_bits(0 if msg.is_remote_frame else len(msg.data),
-                                    msg.is_extended_id)
+        if msg.is_fd:
+            # a switched data phase counted at the nominal rate: the monitor knows no data
+            # bit rate (an upper bound of the frame's time)
+            nominal, worst = fd_frame_bits(len(msg.data), msg.is_extended_id)
+        else:
+            nominal, worst = frame_bits(0 if msg.is_remote_frame else len(msg.data),
+                                        msg.is_extended_id)
         with self._lock:
             counts = self._counts[bus]
             counts[0] += 1

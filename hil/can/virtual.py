@@ -1,20 +1,22 @@
 """python-can's in-process ``virtual`` bus, made cheap enough for a control loop.
 
 Three differences from python-can's :class:`~can.interfaces.virtual.VirtualBus`, each
-measured in ``hil bench``:
+measured in ``hil bench`` (docs/performance.md,
+"How the cycle got here (measured at the time, on earlier commits)"):
 
 * ``send`` builds each receiver's copy of a frame field by field
   (:func:`hil.can.messages.received_copy`); python-can's goes through ``copy.deepcopy``,
-  which was half of the controller's time per cycle;
+  which took a large share of the controller's time per cycle;
 * :meth:`VirtualBus.deliver_to` hands a receiver's frames to its listeners in the
   sending thread (:mod:`hil.can.delivery`), where a Notifier thread would take them from
   a queue: a lock-step cycle becomes one chain of calls instead of a thread switch per
   burst of frames;
-* between hil's own ends (a canopen network of :mod:`hil.can.network` on each) a data
-  frame goes as its parts, a cycle's frames of one sender in one call
+* between hil's own ends (a frame router of :mod:`hil.can.router` on each) a frame goes
+  as its :class:`~hil.can.frame.Frame` value, a cycle's frames of one sender in one call
   (:meth:`VirtualBus.send_frames`, :meth:`~hil.can.delivery.DirectDelivery.deliver_frames`):
   no ``can.Message`` is built for it unless a receiver wants one (python-can's own buses,
-  a listener of yours).
+  a listener of yours). A frame handed over so keeps the sender's timestamp (0.0: none):
+  stamping each would cost a frame's build again, for a time no receiver of hil reads.
 
 Channels are python-can's own, so ``hil-virtual`` and ``virtual`` buses on one channel
 hear each other; a bus without direct delivery queues its frames for ``recv`` as usual. A
@@ -37,7 +39,8 @@ from can.interfaces import virtual
 
 from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
-from hil.can.messages import FrameParts, data_frame, frame_key, received_copy
+from hil.can.frame import Frame
+from hil.can.messages import frame_of, message_of, received_copy
 
 #: a receiving bus' queue -> who takes its frames directly (read without a lock in send)
 _DIRECT: dict[queue.Queue, DirectDelivery] = {}
@@ -88,22 +91,21 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
             if _DIRECT.get(self.queue) is delivery:
                 del _DIRECT[self.queue]
 
-    def frame_sender(self) -> Callable[[Sequence[FrameParts]], None]:
+    def frame_sender(self) -> Callable[[Sequence[Frame]], None]:
         return self.send_frames
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         if not self._open:                  # python-can's _check_if_open, one call less
             self._check_if_open()
         timestamp = msg.timestamp if self.preserve_timestamps else time.time()
-        as_parts = not (msg.is_remote_frame or msg.is_error_frame)
         all_sent = True
         for bus_queue in self.channel:
             if bus_queue is self.queue and not self.receive_own_messages:
                 continue
             direct = _DIRECT.get(bus_queue)
             if direct is not None:
-                if as_parts and direct.takes_frames and bus_queue is not self.queue:
-                    direct.deliver_frames(((frame_key(msg), msg.data),), timestamp)
+                if direct.takes_frames and bus_queue is not self.queue:
+                    direct.deliver_frames((frame_of(msg, timestamp),))
                 else:
                     direct.deliver(received_copy(msg, timestamp, self.channel_id,
                                                  bus_queue is not self.queue))
@@ -116,9 +118,9 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
         if not all_sent:
             raise can.CanOperationError("Could not send message to one or more recipients")
 
-    def send_frames(self, frames: Sequence[FrameParts]) -> None:
-        """Send data frames, in order, from their parts (dispatch key and data): handed over
-        as parts where every receiver takes them, else each built and sent as :meth:`send`
+    def send_frames(self, frames: Sequence[Frame]) -> None:
+        """Send frames, in order: handed over as they are where every receiver takes frames
+        as values, else each built and sent as :meth:`send`
         sends it. Each frame reaches every receiver before the next frame reaches any, as
         one :meth:`send` after another would; the receivers are the channel's when the call
         begins (a bus opened by a receiver meanwhile hears the frames after it, as a node
@@ -135,18 +137,16 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
             elif self.receive_own_messages:
                 break
         else:
-            # preserved: 0.0, the timestamp of the frame data_frame would have built
-            timestamp = 0.0 if self.preserve_timestamps else time.time()
             if len(directs) == 1:   # one receiver: frame by frame is receiver by receiver
-                directs[0].deliver_frames(frames, timestamp)
+                directs[0].deliver_frames(frames)
                 return
             for frame in frames:
                 for direct in directs:
-                    direct.deliver_frames((frame,), timestamp)
+                    direct.deliver_frames((frame,))
             return
         # a receiver that wants messages (python-can's bus, a listener of yours, this bus)
-        for key, data in frames:
-            self.send(data_frame(key, data))
+        for frame in frames:
+            self.send(message_of(frame))
 
     def shutdown(self) -> None:
         with _DIRECT_LOCK:

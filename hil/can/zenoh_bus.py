@@ -26,9 +26,9 @@ process' buses, which deliver to a bounded FIFO for ``recv`` (an overrun is coun
 straight to listeners (``deliver_to``); every frame carries its sender's sequence number,
 so a receiver counts what was lost on the way (docs/design.md: why each choice).
 
-Between hil's own ends a frame stays its parts (key and data) from the sender's canopen
-network (``frame_sender``) to the receiver's (``deliver_frames``): a ``can.Message`` is
-built only where one is wanted (``recv``, a listener of yours, a remote or error frame).
+Between hil's own ends a frame stays a :class:`~hil.can.frame.Frame` from the sender's
+router (``frame_sender``) to the receiver's (``deliver_frames``): a ``can.Message`` is
+built only where one is wanted (``recv``, a listener of yours).
 
 Frames sent together (inside ``with bus.batch():``, or in answer to a message being
 delivered) go in one Zenoh message of a section per bus (docs/design.md, "The Zenoh CAN
@@ -68,12 +68,12 @@ import zenoh
 from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
 from hil.can.link_statistics import SEQUENCE_MASK, FrameCounters, Quickest, SenderSequences
-from hil.can.messages import FrameParts
+from hil.can.frame import Frame
+from hil.can.messages import frame_of, message_of
 from hil.can.zenoh_channels import Channels
 from hil.can.zenoh_links import not_linked
 from hil.can.zenoh_receipts import LINGER, wait_until_heard
-from hil.can.zenoh_wire import (KEY_PREFIX, NO_ECHO, NOT_DATA, Echo, Message, encode_frames,
-                                message_of, wire_frame)
+from hil.can.zenoh_wire import KEY_PREFIX, NO_ECHO, Echo, Message, encode_frames
 from hil.realtime.stalls import STALL_THRESHOLD, Stall
 from hil.zenoh_session import ZenohSettings, session, why_unreached
 
@@ -168,9 +168,10 @@ class ZenohBus(can.BusABC, BusCapabilities):
         self._session = session(settings)
         key = KEY_PREFIX + self._channel
         # not express: Zenoh batches what a burst puts before its TX task sends it. Measured on
-        # loopback (8 frames answered by 12, as a cycle of the ur3): round trip p50 340 us
-        # against 860 us express, 4 us a put against 30-40 us; a lone frame's round trip is
-        # the same either way (300-375 us), Zenoh's batch time limit does not hold it back.
+        # loopback (8 frames answered by 12, as a cycle of the ur3): a cycle's round trip and
+        # each put shorter batched; a lone frame's round trip the same either way, Zenoh's
+        # batch time limit does not hold it back (docs/performance.md,
+        # "How the cycle got here (measured at the time, on earlier commits)").
         # DROP: a put never blocks (lossless, BLOCK: it waits for room); REMOTE: see the
         # module doc
         self._publisher = self._session.declare_publisher(
@@ -227,8 +228,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
         if on_stall is not None:
             for stall in filter(None, stalls):
                 on_stall(stall)
-        self._take(message.frames, message.all_data,
-                   message.sent_at if self.monitors else arrived)
+        self._take(message.frames, message.sent_at if self.monitors else arrived)
 
     def _count_round_trip(self, echo: Echo, now: float, arrived: float) -> Stall | None:
         """The link's round trip, if ``echo`` is of a message of this bus; a stall of the
@@ -254,24 +254,28 @@ class ZenohBus(can.BusABC, BusCapabilities):
             self._link_stall_end = arrived
         return Stall("link", arrived - round_trip, round_trip, where=self._channel)
 
-    def _take(self, frames: Sequence[FrameParts], all_data: bool, timestamp: float,
-              is_rx: bool = True) -> None:
-        """Frames for this bus (their wire parts; ``all_data``: every one a data frame), to
-        the listeners (as parts where they all take them) or the receive FIFO."""
+    def _take(self, frames: Sequence[Frame], timestamp: float, is_rx: bool = True) -> None:
+        """Frames for this bus, to the listeners (as they are where they all take frames)
+        or the receive FIFO (as messages stamped ``timestamp``)."""
         direct = self._direct
         if direct is not None:
-            if all_data and direct.takes_frames:
-                direct.deliver_frames(frames, timestamp)
+            if direct.takes_frames:
+                direct.deliver_frames(frames)
                 return
             for frame in frames:
-                direct.deliver(message_of(frame, timestamp, self._channel, is_rx))
+                direct.deliver(self._message(frame, timestamp, is_rx))
             return
         for frame in frames:
             try:
-                self._queue.put_nowait(message_of(frame, timestamp, self._channel, is_rx))
+                self._queue.put_nowait(self._message(frame, timestamp, is_rx))
             except queue.Full:
                 with self._count_lock:
                     self.counters.overrun += 1
+
+    def _message(self, frame: Frame, timestamp: float, is_rx: bool) -> can.Message:
+        msg = message_of(frame, self._channel, is_rx)
+        msg.timestamp = timestamp
+        return msg
 
     def _count_arrival(self, sender: int, sequence: int, frames: int, transit: float,
                        arrived: float) -> Stall | None:
@@ -324,19 +328,23 @@ class ZenohBus(can.BusABC, BusCapabilities):
         return self._channels.together
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        self.send_frames((wire_frame(msg),))
+        frame = frame_of(msg)
+        problem = frame.problem()     # hil's own senders' frames are valid by construction
+        if problem is not None:
+            raise can.CanOperationError(f"{self.channel_info}: cannot send {frame}: {problem}")
+        self.send_frames((frame,))
 
-    def frame_sender(self) -> Callable[[Sequence[FrameParts]], None]:
+    def frame_sender(self) -> Callable[[Sequence[Frame]], None]:
         return self.send_frames
 
-    def send_frames(self, frames: Sequence[FrameParts]) -> None:
-        """Send frames, in order, by their wire parts (data frames: their dispatch key and
-        data, :data:`~hil.can.messages.FrameParts`; see :func:`~hil.can.zenoh_wire.wire_frame`):
-        held for the batch's message inside :meth:`batch`, else in a message of their own."""
+    def send_frames(self, frames: Sequence[Frame]) -> None:
+        """Send frames, in order: held for the batch's message inside :meth:`batch`, else in
+        a message of their own."""
         if self._is_shutdown:
             raise can.CanOperationError(f"{self.channel_info}: the bus is shut down")
-        # copied: the sender may reuse its buffers once this returns, before the batch's put
-        frames = [(key, bytes(data)) for key, data in frames]
+        # a list of its own: the sender may reuse its list once this returns, before the
+        # batch's put (a frame itself is immutable)
+        frames = list(frames)
         channels = self._channels
         outbox = channels.outbox
         if outbox.depth:
@@ -348,7 +356,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
         else:
             channels.put({self: frames})
 
-    def _section(self, frames: Sequence[FrameParts], sent_at: float, now: float
+    def _section(self, frames: Sequence[Frame], sent_at: float, now: float
                  ) -> tuple[int, bytes]:
         """This bus' section of a message of ``frames`` put now (under the session's send lock,
         so that its numbers keep the order of the puts): its first sequence number and bytes."""
@@ -364,17 +372,16 @@ class ZenohBus(can.BusABC, BusCapabilities):
             del self._puts[next(iter(self._puts))]       # the oldest
         return first, encode_frames(self._channel, self._sender, first, sent_at, frames, echo)
 
-    def _to_neighbours(self, first: int, frames: Sequence[FrameParts]) -> None:
+    def _to_neighbours(self, first: int, frames: Sequence[Frame]) -> None:
         """Frames sent (the first numbered ``first``) to this process' buses on this channel
         (Zenoh carries them to other processes only)."""
         neighbours = [neighbour for neighbour in tuple(self._neighbours)
                       if neighbour is not self or self._receive_own]
         if not neighbours:
             return
-        all_data = not any(key & NOT_DATA for key, _ in frames)
         for neighbour in neighbours:
             neighbour._count_arrival(self._sender, first, len(frames), 0.0, 0.0)
-            neighbour._take(frames, all_data, time.time(), neighbour is not self)
+            neighbour._take(frames, time.time(), neighbour is not self)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         try:

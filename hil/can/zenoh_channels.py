@@ -16,7 +16,7 @@ from typing import Protocol
 import can
 import zenoh
 
-from hil.can.messages import FrameParts
+from hil.can.frame import Frame
 from hil.can.zenoh_links import ChannelLinks, seen_by_others
 from hil.can.zenoh_receipts import declare_receipts
 from hil.can.zenoh_wire import KEY_PREFIX, Message, decode_frames
@@ -41,10 +41,10 @@ class ChannelBus(Protocol):
 
     def _on_message(self, message: Message, arrived: float, now: float) -> None: ...
 
-    def _section(self, frames: Sequence[FrameParts], sent_at: float, now: float
+    def _section(self, frames: Sequence[Frame], sent_at: float, now: float
                  ) -> tuple[int, bytes]: ...
 
-    def _to_neighbours(self, first: int, frames: Sequence[FrameParts]) -> None: ...
+    def _to_neighbours(self, first: int, frames: Sequence[Frame]) -> None: ...
 
 
 class Outbox(threading.local):
@@ -54,14 +54,14 @@ class Outbox(threading.local):
     depth = 0
 
     def __init__(self):
-        self.held: dict[ChannelBus, list[FrameParts]] = {}
+        self.held: dict[ChannelBus, list[Frame]] = {}
 
 
 class Hold(AbstractContextManager):
     """A block whose sends on a session's buses go out in one message at its end (nested: at
     the outermost's); one per session, reused: its state is each thread's :class:`Outbox`.
-    (A ``contextmanager`` generator made and stepped each cycle cost the controller 3.7 us
-    a cycle for two buses, docs/performance.md.)"""
+    (A ``contextmanager`` generator made and stepped each cycle cost the controller more a
+    cycle, docs/performance.md, "2026-12-02: where a lock-step cycle across processes goes".)"""
 
     def __init__(self, channels: Channels):
         self._channels = channels
@@ -152,8 +152,8 @@ class Channels:
             held, outbox.held = outbox.held, {}
             self.put(held)
 
-    def put(self, held: dict[ChannelBus, list[FrameParts]]) -> None:
-        """One message of each bus' ``held`` frames (their wire parts: a section each, in the
+    def put(self, held: dict[ChannelBus, list[Frame]]) -> None:
+        """One message of each bus' ``held`` frames (a section each, in the
         order the buses first sent), on the first bus' key; copies to this process' buses on
         each channel. Buses shut down meanwhile send nothing and raise CanOperationError,
         after the rest went out."""

@@ -1,29 +1,32 @@
-"""Frames between hil's own ends on the ``zenoh`` interface go as their parts (dispatch key and
-data): no ``can.Message`` is built for them, and what is not a plain data frame still
-arrives as a message."""
+"""Frames between hil's own ends on the ``zenoh`` interface go as
+:class:`~hil.can.frame.Frame` values, remote and extended ones too: no ``can.Message`` is
+built for them where every listener takes frames."""
 
 from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Sequence
 
 import can
 
 from hil.can.delivery import FrameListener
-from hil.can.messages import EXTENDED
-from hil.can.network import start_network
+from hil.can.frame import Frame
+from hil.can.router import start_router
 
 
-class PartsRecorder(FrameListener):
-    """Records each frame with the way it came: ``("parts", key, data)`` or
+class ValuesRecorder(FrameListener):
+    """Records each frame with the way it came: ``("frame", frame)`` or
     ``("message", msg)``."""
 
     def __init__(self):
         self.got: list[tuple] = []
         self._arrived = threading.Condition()
 
-    def on_frame(self, key: int, data: bytearray, timestamp: float) -> None:
-        self._add(("parts", key, bytes(data)))
+    def on_frames(self, frames: Sequence[Frame]) -> None:
+        for frame in frames:
+            # the clock a frame carries is the transport's; the values are what is pinned
+            self._add(("frame", frame._replace(timestamp=0.0)))
 
     def on_message_received(self, msg: can.Message) -> None:
         self._add(("message", msg))
@@ -39,27 +42,33 @@ class PartsRecorder(FrameListener):
             return list(self.got)
 
 
-def test_hils_networks_send_and_receive_a_cycle_as_parts(bus_pair):
+def test_hils_routers_send_and_receive_a_cycle_as_values(bus_pair):
     a, b = bus_pair
-    master = start_network(a)
-    assert master.frame_sender is not None
-    recorder = PartsRecorder()
+    master = start_router(a)
+    recorder = ValuesRecorder()
     b.deliver_to([recorder])
-    master.send_frames([(0x201, b"\x01\x02"), (0x80, b"")])
-    assert recorder.wait_for(2) == [("parts", 0x201, b"\x01\x02"), ("parts", 0x80, b"")]
-    master.disconnect()
+    cycle = [Frame(0x201, b"\x01\x02"), Frame(0x80)]
+    master.send_frames(cycle)
+    assert recorder.wait_for(2) == [("frame", frame) for frame in cycle]
+    master.stop()
 
 
-def test_a_remote_frame_comes_as_a_message_and_an_extended_low_id_keeps_its_flag(
-        bus_pair):
+def test_a_remote_frame_and_an_extended_low_id_come_as_values_with_their_flags(bus_pair):
     a, b = bus_pair
-    recorder = PartsRecorder()
+    recorder = ValuesRecorder()
     b.deliver_to([recorder])
     a.send(can.Message(arbitration_id=0x5, data=b"\x07", is_extended_id=True))
     a.send(can.Message(arbitration_id=0x601, is_remote_frame=True, dlc=8, is_extended_id=False))
-    first, second = recorder.wait_for(2)
-    assert first == ("parts", 0x5 | EXTENDED, b"\x07")
-    kind, msg = second
+    assert recorder.wait_for(2) == [("frame", Frame(0x5, b"\x07", extended=True)),
+                                    ("frame", Frame(0x601, bytes(8), remote=True))]
+
+
+def test_a_remote_frame_reaches_a_listener_that_wants_messages_as_one(bus_pair):
+    a, b = bus_pair
+    recorder = ValuesRecorder()
+    b.deliver_to([recorder, lambda msg: None])     # a plain callable wants messages
+    a.send(can.Message(arbitration_id=0x601, is_remote_frame=True, dlc=8, is_extended_id=False))
+    (kind, msg), = recorder.wait_for(1)
     assert kind == "message" and msg.is_remote_frame and msg.is_rx
     assert (msg.arbitration_id, msg.dlc, msg.is_extended_id, bytes(msg.data)) == (
         0x601, 8, False, b"")
@@ -77,14 +86,14 @@ def test_a_frame_changed_after_its_send_goes_out_as_it_was_sent(bus_pair):
     assert received is not None and bytes(received.data) == b"\x01\x02"
 
 
-def test_buses_of_one_session_hand_a_frame_listener_parts(endpoint):
+def test_buses_of_one_session_hand_a_frame_listener_values(endpoint):
     channel = f"test/{time.monotonic_ns()}"
     a, b = (can.Bus(interface="zenoh", channel=channel, listen=[endpoint]) for _ in range(2))
     try:
-        recorder = PartsRecorder()
+        recorder = ValuesRecorder()
         b.deliver_to([recorder])
         a.send(can.Message(arbitration_id=0x1ABCDEF0, data=b"\x03", is_extended_id=True))
-        assert recorder.wait_for(1) == [("parts", 0x1ABCDEF0, b"\x03")]
+        assert recorder.wait_for(1) == [("frame", Frame(0x1ABCDEF0, b"\x03", extended=True))]
     finally:
         a.shutdown()
         b.shutdown()
