@@ -41,8 +41,9 @@ DROP_WAIT_US = 150
 #: TCP socket buffers of every link (bytes; Linux grows them to several MB by itself): what a
 #: link holds in flight, about 2000 CAN frames each way. A sender faster than its receiver
 #: then sees congestion and drops, as on a CAN bus, instead of queueing seconds of frames in
-#: the kernel for the receiver to work through long after (measured: a 20 s flood of
-#: 10,000 frames/s was still being answered 10 s after it ended)
+#: the kernel for the receiver to work through long after (a flood was still being
+#: answered seconds after it ended: docs/performance.md,
+#: "2026-12-06, later: figures from code comments")
 SOCKET_BUFFER = 65536
 
 

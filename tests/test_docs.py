@@ -86,6 +86,52 @@ def test_the_readme_keeps_its_two_set_up_commands():
     assert f"{venv}.venv/bin/python -m pytest -n 2\n" in text
 
 
+#: a comment's citation of the performance page and the entry it names: a heading in double
+#: quotes (`docs/performance.md, "Frames as their parts over Zenoh (...)"`) or a dated
+#: entry's date (`docs/performance.md, 2026-12-01`)
+PERFORMANCE_CITATION = re.compile(
+    r'docs/performance\.md(?:,\s*(?:"(?P<heading>[^"]+)"|(?P<date>\d{4}-\d{2}-\d{2})))?')
+#: what a comment's or a docstring's continuation line starts with
+CONTINUATION = re.compile(r"\n\s*(?:#:?\s*)?")
+
+
+def _performance_citations() -> list[tuple[str, str | None, str | None]]:
+    """('file:line', heading, date) of every citation of docs/performance.md in hil's
+    modules; a citation's next two lines joined on, where a heading wraps."""
+    found = []
+    for path in sorted((ROOT / "hil").rglob("*.py")):
+        lines = path.read_text().splitlines()
+        for number, line in enumerate(lines):
+            at = line.find("docs/performance.md")
+            if at < 0:
+                continue
+            text = CONTINUATION.sub(" ", "\n".join([line[at:], *lines[number + 1:number + 3]]))
+            citation = PERFORMANCE_CITATION.match(text)
+            found.append((f"{path.relative_to(ROOT)}:{number + 1}", citation["heading"],
+                          citation["date"]))
+    return found
+
+
+def test_every_performance_entry_the_code_cites_exists():
+    """Issue 66: measured figures stand in docs/performance.md, and a comment that cites the
+    page names its entry by heading or date; "Recording" and bare citations named none."""
+    headings = [re.sub(r"^#+\s*", "", line) for line in
+                (ROOT / "docs" / "performance.md").read_text().splitlines()
+                if line.startswith("#")]
+    citations = _performance_citations()
+    assert citations, "no citation of docs/performance.md found in hil/: the scan is broken"
+    wrong = []
+    for where, heading, date in citations:
+        if heading is None and date is None:
+            wrong.append(f"{where}: names no entry (give its heading in double quotes, or "
+                         "its date)")
+        elif heading is not None and " ".join(heading.split()) not in headings:
+            wrong.append(f"{where}: no heading {heading!r}")
+        elif date is not None and not any(date in text for text in headings):
+            wrong.append(f"{where}: no entry dated {date}")
+    assert wrong == [], "docs/performance.md cited wrongly:\n" + "\n".join(wrong)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("page", ["README.md", "docs/testing.md"])
 def test_the_pytest_examples_pass_as_they_stand_from_an_empty_folder(page, tmp_path):

@@ -45,9 +45,10 @@ class ControlSamplesPublisher:
     loop's thread). The thread runs at the process' side-work priority
     (:func:`hil.realtime.enter_side_work`): below its frame handling, above normal
     processes (under the normal scheduler it was preempted holding the GIL, and the loop
-    waited for it: 24 ms, measured). A
-    visualiser that falls behind by more than BACKLOG batches loses the newest ones, counted
-    in :attr:`dropped` (and its recording shows the gap)."""
+    waited for it for cycles: docs/performance.md,
+    "2026-12-06, later: figures from code comments"). A visualiser that falls behind by more
+    than BACKLOG batches loses the newest ones, counted in :attr:`dropped` (and its
+    recording shows the gap)."""
 
     BACKLOG = 600            # 60 s of batches at 10 Hz
 

@@ -16,7 +16,8 @@ def paused_collection():
     """Python's cyclic garbage collector off while the block runs (process-wide; nested and
     concurrent blocks are counted). For a burst of allocations outside the real-time loop
     (decoding a large goal): a collection the burst triggers runs in one stretch, whichever
-    thread it lands in, and held a 500 Hz control loop 3-4 ms (measured)."""
+    thread it lands in, and held a 500 Hz control loop longer than its period
+    (docs/performance.md, "2026-12-06, later: figures from code comments")."""
     global _collection_pauses, _collection_was_enabled
     with _collection_lock:
         _collection_pauses += 1
@@ -34,7 +35,8 @@ def paused_collection():
 
 def release_gradually(items: list, chunk: int = 200) -> None:
     """Empty ``items`` a chunk at a time: freeing a large list of objects in one go is one
-    uninterruptible stretch under the GIL (5 ms for a decoded 10,000-point goal, measured);
-    between chunks other threads get their turn."""
+    uninterruptible stretch under the GIL (a decoded 10,000-point goal's held the control
+    loop for cycles: docs/performance.md, "2026-12-06, later: figures from code comments"); between
+    chunks other threads get their turn."""
     while items:
         del items[-chunk:]

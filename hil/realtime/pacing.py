@@ -33,13 +33,14 @@ class CyclePacer:
       is the SPIN_QUANTILE of the thread's own wake-up lateness over its last SPIN_WINDOW
       sleeps (SPIN until it has them; at least MIN_SPIN, at most SPIN or half a period):
       the spin is CPU burnt every cycle, and what this host needs is measured, not
-      guessed (on these 2 vCPUs, under SCHED_FIFO: p50 27 us, p99 63 us late; a fixed
-      100 us spun about 73 us a cycle, 3.6 % of a CPU at 500 Hz);
+      guessed (a fixed spin burnt more than this host's wake-ups needed:
+      docs/performance.md, "2026-11-26, evening: issue 28's bounds on this commit");
     * the timer slack is 1 ns (under the normal scheduler the kernel may otherwise wake a
       sleeper 50 us late to batch wake-ups);
     * the interpreter switches threads every REAL_TIME_SWITCH_INTERVAL instead of 5 ms:
-      another thread in pure Python (a 10,000-point goal being decoded) held the loop up to
-      5 ms at each wake-up (a 500 Hz controller missed 21 cycles in one such goal, measured).
+      another thread in pure Python (a 10,000-point goal being decoded) held the loop a
+      whole switch interval at each wake-up, and a 500 Hz controller missed cycles
+      (docs/performance.md, "2026-12-06, later: figures from code comments").
     """
 
     #: a loop this many periods behind starts afresh instead of running its cycles back to back

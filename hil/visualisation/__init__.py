@@ -1,8 +1,9 @@
 """Visualisation: a run's control samples, drive states and bus load, logged to rerun.
 
 rerun is imported with the recorder's names, on their first use: ``hil up`` reads the
-segment names (:mod:`hil.visualisation.segments`) without loading rerun, which took 11 of
-its 21 s of start-up on a 2-vCPU host like CI's (2026-11-29)."""
+segment names (:mod:`hil.visualisation.segments`) without loading rerun, whose import
+was about half its start-up on a 2-vCPU host like CI's (docs/performance.md,
+"2026-12-06, later: figures from code comments")."""
 
 from hil.lazy import lazy_exports
 

@@ -5,7 +5,8 @@ A recording's bytes go to the rows of its entities (each row its row id and thre
 its values. So every signal of a control cycle shares one row of one entity, ``cycle``,
 as 4-byte floats (a 17-bit encoder's count is 5e-5 rad: a float's 24-bit mantissa holds a
 joint's position to 4e-7 rad), one chunk per batch of cycles; and every joint's transform
-shares the rows of ``joints`` (docs/performance.md has what each layout cost).
+shares the rows of ``joints`` (what each layout cost: docs/performance.md,
+"2026-11-26: the week's figures").
 
 ======================================  ==============================================
 ``cycle``                               every control cycle: per driven joint its
@@ -75,8 +76,9 @@ POSE_RATE = 20.0
 #: each drive's peak torque is logged this often (s): a line needs no more
 LIMITS_EVERY = 1.0
 #: the poses and the bus loads are sent in chunks of this many seconds: rerun's file sink
-#: keeps an index entry per chunk (and per column of it) until the file is closed, which
-#: grew the visualiser 3 MB a minute with a chunk of each every 100 ms
+#: keeps an index entry per chunk (and per column of it) until the file is closed, so a
+#: chunk of each every 100 ms grew the visualiser's memory without end (docs/performance.md,
+#: "2026-11-26: the week's figures")
 GROUPED = 0.5
 #: contact force arrows: metres of arrow per newton (a 50 g object's weight: 25 mm)
 CONTACT_ARROW = 0.05

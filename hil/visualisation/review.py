@@ -28,9 +28,9 @@ import rerun.chunk
 
 from hil.input_files import open_input_stream
 
-#: the largest recording file a review reads (hil's choice): a run records 0.08 MB a second,
-#: 0.26 on a loaded host (docs/performance.md, "Recording"), so some 18 hours of a run at
-#: the most; a longer one is recorded in segments (--segment), each a file of its own
+#: the largest recording file a review reads (hil's choice): some 18 hours of a run at what
+#: a loaded host's run records a second (docs/performance.md, "2026-11-26: the week's
+#: figures"); a longer one is recorded in segments (--segment), each a file of its own
 MAX_RECORDING_BYTES = 16 * 2**30
 
 #: the entities a review reads, at the root or under a robot's name

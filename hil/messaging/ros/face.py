@@ -292,8 +292,9 @@ class RosControlFace(ControlFace):
         self.publish_diagnostics(DiagnosticStatus("WARN", message, time.time(), self._clock(),
                                                   hardware_id=CONTROL_NODE).encode())
 
-    # Called from the control loop: a put of bytes already encoded (measured in hil up ur3
-    # --ros: p50 20 us, p99 30 us), which waits at most DROP_WAIT_US for a congested router
+    # Called from the control loop: a put of bytes already encoded (a small share of a cycle
+    # in hil up ur3 --ros: docs/performance.md, "2026-12-06, later: figures from code comments"),
+    # which waits at most DROP_WAIT_US for a congested router
     # link (zenoh_config). A thread of their own would add a GIL hand-over mid-cycle
     def publish_joint_states(self, payload: bytes) -> None:
         self._put(self._joint_states, payload, JOINT_STATE_STAMP)
