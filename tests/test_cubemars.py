@@ -19,13 +19,16 @@ import time
 import can
 import pytest
 
-from conftest import TEST_MOTOR_DRIVE, TESTS, ClientBench, hils_master_moves, socketcan_missing
+from conftest import (
+    TEST_MOTOR_DRIVE, TESTS, RealTimeMaster, hils_master_moves, socketcan_missing,
+)
 from hil.bus_config import load_bus_config
 from hil.drives import DriveCore, DriveParameters, Power
-from hil.can.messages import extended
+from hil.can.frame import Frame
+from hil.protocols.base import FrameSource, Sender
 from hil.protocols.cubemars import (
-    Answer, Control, CubeMarsOptions, ErrorCode, pack_mit_answer, pack_status, unpack_status,
-    unpack_v3_command,
+    Answer, Control, CubeMars, CubeMarsOptions, ErrorCode, pack_mit_answer, pack_status,
+    unpack_status, unpack_v3_command,
 )
 from hil.protocols.cubemars.drive import CubeMarsDrive
 from hil.protocols.cubemars.models import MODELS, model
@@ -33,7 +36,7 @@ from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, pack_command,
 )
 from hil.testing import DrivesBench
-from test_mit_profile import LockStep, PlantMaster
+from test_mit_profile import LockStep, PlantMaster, drive_config
 
 #: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
 #: the client libraries
@@ -93,6 +96,21 @@ def test_each_models_ranges_are_the_published_libraries():
             spec.gear_ratio, spec.pole_pairs, spec.peak_torque_nm), spec.model_name
 
 
+def test_a_monitor_tells_servo_and_v2_frames_of_one_number_apart_by_the_extended_flag():
+    """§5.1: a servo command rides the extended id ``mode << 8 | id``, duty's ``0 << 8 | 1`` the
+    number 1; §5.3: V2 MIT frames ride standard ids, motor 1's command too. The frame's flag
+    tells them (a bus with a servo or V3 drive was refused for a replay while a log's ids
+    carried no flag)."""
+    drives = {1: CubeMarsOptions(control=Control.SERVO), 2: CubeMarsOptions()}
+    assert CubeMars.frame_source(Frame(0x001, bytes(4), extended=True), drives) == \
+        FrameSource(Sender.MASTER, 1, "duty command", cycle=True)
+    assert CubeMars.frame_source(Frame(0x002, bytes(8)), drives) == \
+        FrameSource(Sender.MASTER, 2, "command", cycle=True)
+    assert CubeMars.frame_source(Frame(0x001, bytes(8)), drives) is None  # a servo motor's
+    assert CubeMars.frame_source(Frame(0x000, bytes([2]) + bytes(7)), drives) == \
+        FrameSource(Sender.DRIVE, 2, "answer")
+
+
 def test_options_refuse_an_unknown_model_and_a_rate_outside_the_manual():
     with pytest.raises(ValueError, match="no CubeMars model 'AK99-1'"):
         CubeMarsOptions.from_mapping({"model": "AK99-1"})
@@ -116,16 +134,17 @@ def _config(tmp_path, options: str, node_id: int = 1, watchdog: float = 0.5):
     return path
 
 
-def _bench(tmp_path, options: str, node_id: int = 1, interface="zenoh", channel=None,
+def _bench(tmp_path, options: str, node_id: int = 1, vcan: str | None = None,
            watchdog: float = 0.5):
-    """A bench of the fixture's config with the drive's options (and watchdog) replaced."""
-    return ClientBench(_config(tmp_path, options, node_id, watchdog), interface, channel)
+    """A master on a bench of the fixture's config with the drive's options (and watchdog)
+    replaced, its drive on SocketCAN interface ``vcan`` where given."""
+    return RealTimeMaster.of(_config(tmp_path, options, node_id, watchdog), vcan)
 
 
 @pytest.fixture
 def bench():
     """The AK80-9 of tests/fixtures/cubemars_one_axis.yaml, and a master's bus beside it."""
-    made = ClientBench(CONFIG)
+    made = RealTimeMaster.of(CONFIG)
     yield made
     made.close()
 
@@ -175,7 +194,8 @@ def test_re_enabling_after_a_pause_does_not_trip_the_watchdog():
     mode the AK's descends from (the manual documents no timeout of its own)."""
     core = DriveCore(DriveParameters(**{**TEST_MOTOR_DRIVE, "watchdog_timeout": 0.1}))
     core.measure(0.0, 0.0)
-    motor = LockStep(CubeMarsDrive(1, core, threading.RLock(), 1.0, 0.1, CubeMarsOptions()))
+    motor = LockStep(CubeMarsDrive(drive_config(1, "cubemars", CubeMarsOptions()), core,
+                                   threading.RLock()))
     hold = pack_command(MitCommand(0.0, 0.0, 5.0, 0.3, 0.0), AK80_9)
     assert motor.states_re_enabled_after_a_pause(0x001, ENTER_MOTOR_MODE, EXIT_MOTOR_MODE,
                                                  hold) == {"MOTOR MODE"}
@@ -196,14 +216,14 @@ def test_no_watchdog_by_default(tmp_path):
 # --- servo mode ------------------------------------------------------------------------
 
 def _send_extended(bench, mode: int, node_id: int, data: bytes) -> None:
-    bench.master.send(can.Message(arbitration_id=mode << 8 | node_id, data=data,
-                                  is_extended_id=True))
+    bench.bus.send(can.Message(arbitration_id=mode << 8 | node_id, data=data,
+                               is_extended_id=True))
 
 
 def _statuses(bench, node_id: int, seconds: float) -> list[can.Message]:
     found, deadline = [], time.monotonic() + seconds
     while time.monotonic() < deadline:
-        msg = bench.master.recv(0.05)
+        msg = bench.bus.recv(0.05)
         if msg is not None and msg.is_extended_id and msg.arbitration_id == 0x2900 | node_id:
             found.append(msg)
     return found
@@ -245,8 +265,8 @@ def test_a_standard_frame_of_a_servo_commands_number_is_not_that_command(tmp_pat
     try:
         before = bench.joint()
         for _ in range(10):
-            bench.master.send(can.Message(arbitration_id=0x401, is_extended_id=False,
-                                          data=struct.pack(">i", 90 * 10000)))
+            bench.bus.send(can.Message(arbitration_id=0x401, is_extended_id=False,
+                                       data=struct.pack(">i", 90 * 10000)))
             time.sleep(0.03)
         assert bench.joint() == pytest.approx(before, abs=1e-3)
         assert bench.drive.core.power is Power.DISABLED
@@ -315,14 +335,26 @@ def test_a_current_command_mid_move_drops_the_move(moving):
     assert moving.bench.sim.drives[0].core.status().torque == 0.0
 
 
+def test_a_silenced_servo_motor_hears_no_command(moving):
+    """``hil sim --fault silence``: the drive leaves its bus, "from now on the drive sends and
+    hears nothing" (DriveProfile.detach); its physics runs on, so the move goes on to its
+    target. A servo-mode drive left its command handlers subscribed (made anew for each
+    call, they were not the ones it had subscribed) and obeyed a position 0 sent after."""
+    moving.bench.fault("yaw", "silence")
+    moving.send(4 << 8 | 1, struct.pack(">i", 0), extended=True)
+    moving.wait(2.0)
+    assert moving.joint() == pytest.approx(math.radians(150), abs=0.05)
+
+
 def test_a_servo_current_beyond_the_manuals_range_is_taken_at_its_end():
     """§5.1.2: the current is -60..60 A; 1000 A asks for no more torque than 60 A gives."""
     core = DriveCore(DriveParameters(**{**TEST_MOTOR_DRIVE, "peak_torque": 1000.0,
                                         "watchdog_timeout": 0.0}))
     core.measure(0.0, 0.0)
-    motor = LockStep(CubeMarsDrive(1, core, threading.RLock(), 1.0, 0.1,
-                                   CubeMarsOptions(control=Control.SERVO)))
-    motor.send(extended(1 << 8 | 1), struct.pack(">i", 1000 * 1000))
+    motor = LockStep(CubeMarsDrive(drive_config(1, "cubemars",
+                                                CubeMarsOptions(control=Control.SERVO)),
+                                   core, threading.RLock()))
+    motor.send(1 << 8 | 1, struct.pack(">i", 1000 * 1000), extended=True)
     assert core.update(0.001) == pytest.approx(60 * MODELS["AK80-9"].torque_constant)
 
 
@@ -356,7 +388,7 @@ def test_tmotorcancontrol_drives_the_motor_through_its_readme_sequence(can0, tmp
     a module its own 1.2.6 wheel names ``mit_can``)."""
     from TMotorCANControl.mit_can import TMotorManager_mit_can
 
-    bench = _bench(tmp_path, "{model: AK80-9}", interface="socketcan", channel="hil-can0",
+    bench = _bench(tmp_path, "{model: AK80-9}", vcan="hil-can0",
                    watchdog=0)           # UML's stalls are not the client's silence
     try:
         with TMotorManager_mit_can(motor_type="AK80-9", motor_ID=1) as dev:
@@ -388,7 +420,7 @@ def test_motor_python_drives_an_ak60_6_v3_through_its_readme_sequence(can0, tmp_
     from motor_python import Motor
 
     bench = _bench(tmp_path, "{model: AK60-6 V3, firmware: v3}", node_id=3,
-                   interface="socketcan", channel="hil-can0", watchdog=0)
+                   vcan="hil-can0", watchdog=0)
     try:
         with Motor(motor_can_id=0x03) as motor:
             motor.enable_mit_mode()

@@ -16,7 +16,9 @@ import time
 
 import pytest
 
-from conftest import TEST_MOTOR_DRIVE, TESTS, ClientBench, hils_master_moves, socketcan_missing
+from conftest import (
+    TEST_MOTOR_DRIVE, TESTS, RealTimeMaster, hils_master_moves, socketcan_missing,
+)
 from hil.bus_config import load_bus_config
 from hil.drives import DriveCore, DriveParameters, Power
 from hil.protocols.damiao import (
@@ -27,7 +29,7 @@ from hil.protocols.damiao.drive import DamiaoDrive
 from hil.protocols.damiao.models import MODELS, model
 from hil.protocols.mit import MitCommand, MitRanges, pack_command
 from hil.testing import DrivesBench
-from test_mit_profile import LockStep, PlantMaster
+from test_mit_profile import LockStep, PlantMaster, drive_config
 
 #: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
 #: the client libraries
@@ -82,7 +84,7 @@ def test_options_name_the_model_and_refuse_an_unknown_one():
 @pytest.fixture
 def bench():
     """The DM4310 of tests/fixtures/damiao_one_axis.yaml, and a master's bus beside it."""
-    made = ClientBench(CONFIG)
+    made = RealTimeMaster.of(CONFIG)
     yield made
     made.close()
 
@@ -255,6 +257,17 @@ def test_clear_error_disables_an_enabled_motor(dm4310):
     assert dm4310.send(0x001, CLEAR_ERROR)[0].data[0] >> 4 == State.DISABLED
 
 
+def test_a_silenced_motor_hears_no_command_of_any_mode(dm4310):
+    """``hil sim --fault silence``: the drive leaves its bus, "from now on the drive sends and
+    hears nothing" (DriveProfile.detach). A DM-J drive left its command handlers subscribed
+    (made anew for each call, they were not the ones it had subscribed): disabled by a frame
+    it should not have heard."""
+    dm4310.bench.fault("yaw", "silence")
+    assert dm4310.send(0x001, DISABLE) == []
+    assert dm4310.send(0x201, struct.pack("<f", 5.0) + bytes(4)) == []
+    assert dm4310.bench.sim.drives[0].core.power is Power.ENABLED
+
+
 def test_registers_are_saved_only_while_disabled():
     """The firmware stores its registers on 0xAA only while disarmed (parameter_protocol.c)."""
     motor = lock_step_dm4310()
@@ -273,7 +286,8 @@ def lock_step_dm4310() -> LockStep:
     """Motor 1 (a DM4310, MIT mode) at rest at 0 rad, TIMEOUT 2000 x 50 us (0.1 s)."""
     core = DriveCore(DriveParameters(**{**TEST_MOTOR_DRIVE, "watchdog_timeout": 0.1}))
     core.measure(0.0, 0.0)
-    return LockStep(DamiaoDrive(1, core, threading.RLock(), 1.0, 0.1, DamiaoOptions()))
+    return LockStep(DamiaoDrive(drive_config(1, "damiao", DamiaoOptions()), core,
+                                threading.RLock()))
 
 
 HOLD = pack_command(MitCommand(0.0, 0.0, 5.0, 0.3, 0.0), DM4310)
@@ -328,7 +342,7 @@ def test_damiao_motor_drives_the_motor_through_its_readme_sequence(bench):
     the bus itself, here the ``zenoh`` interface)."""
     from damiao_motor import DaMiaoController
 
-    controller = DaMiaoController(channel=bench.channel, bustype="zenoh")
+    controller = DaMiaoController(channel=bench.channel, bustype=bench.interface)
     try:
         motor = controller.add_motor(motor_id=0x01, feedback_id=0x11, motor_type="4310")
         controller.enable_all()
@@ -359,7 +373,7 @@ def test_motorbridge_drives_the_motor_through_its_readme_sequence_over_socketcan
         pytest.skip(missing)
     from motorbridge import Controller, Mode
 
-    bench = ClientBench(CONFIG, "socketcan", "vcan0")
+    bench = RealTimeMaster.of(CONFIG, vcan="vcan0")
     try:
         with Controller("vcan0") as controller:
             motor = controller.add_damiao_motor(0x01, 0x11, "4310")

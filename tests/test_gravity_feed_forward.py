@@ -77,11 +77,11 @@ def drive(protocol: str, options=None, torque_feed_forward: str = "gravity") -> 
 def test_each_protocols_master_sends_the_torque_in_its_own_field(monkeypatch):
     cia402 = Cia402Axis(drive("cia402"), "bus")
     monkeypatch.setattr(Cia402Axis, "enabled", property(lambda self: True))
-    frames = dict((i, d) for i, d, _ in cia402.cycle_frames(AxisCommand(1.0, 0.0, 1.5)))
+    frames = {f.identifier: f.data for f in cia402.cycle_frames(AxisCommand(1.0, 0.0, 1.5))}
     assert int.from_bytes(frames[0x503][4:6], "little", signed=True) == 750   # 1.5 / 2.0 ‰
     odrive = ODriveAxis(drive("odrive"), "bus")
     monkeypatch.setattr(ODriveAxis, "enabled", property(lambda self: True))
-    sent = {i: d for i, d, _ in odrive.cycle_frames(AxisCommand(1.0, 0.0, 1.5))}
+    sent = {f.identifier: f.data for f in odrive.cycle_frames(AxisCommand(1.0, 0.0, 1.5))}
     (_, _, torque_ff), = [LAYOUT[Cmd.SET_INPUT_POS].unpack(d) for i, d in sent.items()
                           if i == (3 << 5) | Cmd.SET_INPUT_POS]
     assert torque_ff == 1500                                           # 0.001 N·m
@@ -90,8 +90,9 @@ def test_each_protocols_master_sends_the_torque_in_its_own_field(monkeypatch):
     mit = MitAxis(DriveConfig(**{**mit_drive.__dict__, "torque_feed_forward": "gravity"}),
                   "bus")
     mit.motor_mode = True
-    (_, data, _), = mit.cycle_frames(AxisCommand(0.1, 0.0, 0.4))
-    assert unpack_command(data, mit_drive.options.ranges).torque == pytest.approx(0.4, abs=0.01)
+    frame, = mit.cycle_frames(AxisCommand(0.1, 0.0, 0.4))
+    assert unpack_command(frame.data, mit_drive.options.ranges).torque == pytest.approx(
+        0.4, abs=0.01)
 
 
 def test_a_cia402_drive_with_torque_feed_forward_maps_rpdo4_and_counts_its_load(tmp_path):

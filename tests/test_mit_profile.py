@@ -14,9 +14,11 @@ from hypothesis import strategies as st
 
 from conftest import TESTS
 from hil.bus_config import load_bus_config
+from hil.bus_config.types import DriveConfig
+from hil.can.frame import Frame
+from hil.can.router import start_router
 from hil.drives import DriveCore, DriveParameters, Mode, Power
 from hil.drives.profile import DriveProfile
-from hil.can.network import start_network
 from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitOptions, MitRanges, MitReply,
     TimeoutReaction, float_to_uint, pack_command, pack_reply, unpack_command, unpack_reply,
@@ -99,6 +101,18 @@ def test_impedance_mode_applies_kp_kd_and_feed_forward_and_saturates():
     assert drive.update(0.001) == pytest.approx(2.0)                # the peak torque
 
 
+def drive_config(node_id: int, protocol: str, options) -> DriveConfig:
+    """The bus config entry a MIT-family drive is built from, off any bus config: its node id
+    and options (the rest is its core's, given apart)."""
+    return DriveConfig(node_id=node_id, actuator="motor", joints=("yaw",), protocol=protocol,
+                       encoder_counts_per_rev=1 << 20, rated_torque=1.0, peak_torque=2.0,
+                       max_velocity=100.0, following_error_limit=0.0,
+                       following_error_timeout=0.01, quick_stop_deceleration=100.0,
+                       watchdog_timeout=0.0, heartbeat_period=0.1, holding_brake=False,
+                       position_limits=None, gains=None, velocity_bandwidth_hz=40.0,
+                       options=options)
+
+
 class MitBench:
     """One MitDrive on a python-can virtual bus, and a master bus to talk to it."""
 
@@ -109,10 +123,10 @@ class MitBench:
         self.master = can.Bus(interface="virtual", channel=channel)
         self.lock = threading.RLock()
         self.core = core(peak=options.ranges.t_max)
-        self.drive = MitDrive(node_id, self.core, self.lock, 1.0, 0.1, options)
+        self.drive = MitDrive(drive_config(node_id, "mit", options), self.core, self.lock)
         self.drive.on_command = lambda d: d.send_replies()        # real time: answer at once
-        self.network = start_network(self.drive_bus)
-        self.drive.attach(self.network)
+        self.router = start_router(self.drive_bus, keep_sending=True)
+        self.drive.attach(self.router)
         self.options = options
 
     def send(self, data: bytes, can_id: int | None = None) -> MitReply | None:
@@ -123,7 +137,7 @@ class MitBench:
 
     def close(self):
         self.drive.detach()
-        self.network.notifier.stop(1)
+        self.router.stop(1)
         self.drive_bus.shutdown()
         self.master.shutdown()
 
@@ -193,10 +207,11 @@ class LockStep:
         self.drive, self.core = drive, drive.core
         self.now = time.monotonic()
         drive.clock = lambda: self.now
-        self.handlers = drive.subscriptions()
+        self.handlers = {(subscription.identifier, subscription.extended): subscription.handler
+                         for subscription in drive.subscriptions()}
 
-    def send(self, can_id: int, data: bytes) -> None:
-        self.handlers[can_id](can_id, data, self.now)
+    def send(self, can_id: int, data: bytes, extended: bool = False) -> None:
+        self.handlers[can_id, extended](Frame(can_id, data, extended))
 
     def wait(self, seconds: float, step: float = 0.002) -> None:
         for _ in range(round(seconds / step)):
@@ -223,8 +238,8 @@ class LockStep:
 def lock_step_mit(reaction: TimeoutReaction = TimeoutReaction.ZERO) -> LockStep:
     """Motor 5 at rest at 0 rad, its CAN timeout 0.1 s."""
     options = MitOptions(ranges=CLASSIC, kp=10.0, kd=0.1, timeout_reaction=reaction)
-    drive = MitDrive(5, core(peak=CLASSIC.t_max, watchdog=0.1), threading.RLock(), 1.0, 0.1,
-                     options)
+    drive = MitDrive(drive_config(5, "mit", options), core(peak=CLASSIC.t_max, watchdog=0.1),
+                     threading.RLock())
     drive.core.measure(0.0, 0.0)
     return LockStep(drive)
 

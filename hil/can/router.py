@@ -191,9 +191,10 @@ class FrameRouter(FrameListener):
         for routes in self._routes:
             routes.clear()
         self._masked.clear()
-        if self._delivery is not None:
-            self._delivery.stop(timeout)
-            self._delivery = None
+        # a python-can Notifier stops its listeners too (this again): taken first
+        delivery, self._delivery = self._delivery, None
+        if delivery is not None:
+            delivery.stop(timeout)
 
 
 def start_router(bus: can.BusABC, keep_sending: bool = False, timeout: float = 0.1

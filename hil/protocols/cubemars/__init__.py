@@ -30,16 +30,18 @@ import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.can.messages import EXTENDED, extended
+from hil.can.frame import Frame, FrameSpec
 from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender
 from hil.protocols.cubemars.models import MODELS, SIZED, CubeMarsModel, model
 from hil.protocols.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, float_to_uint,
-    uint_to_float,
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, pack_motion,
+    uint_to_float, unpack_motion,
+)
+from hil.protocols.mit.family import (
+    KD_MAX, KP_MAX, initial_model_options, model_figures, model_ranges, parse_gains,
+    parse_model, parse_ranges, parse_standard_id, told_by_motor_id,
 )
 
-#: kp and kd ranges of an MIT command on every AK model (TMotorCANControl, motor-python)
-KP_MAX, KD_MAX = 500.0, 5.0
 #: the id's mode byte of the status upload (0x29: motor-python's feedback id 0x2900 | id)
 STATUS_MODE = 0x29
 #: servo position mode's profile when none is given (§5.1: "default speed 12000 erpm,
@@ -92,12 +94,14 @@ class ErrorCode(enum.IntEnum):
 
 
 def command_id(node_id: int, mode: ServoMode) -> int:
-    """The dispatch key (:func:`hil.can.messages.extended`) of a mode's command."""
-    return extended(mode << 8 | node_id)
+    """The extended (29-bit) identifier of a mode's command to the motor (§5.1: the mode in
+    bits 8 and up, the driver's id in bits 0-7)."""
+    return mode << 8 | node_id
 
 
 def status_id(node_id: int) -> int:
-    return extended(STATUS_MODE << 8 | node_id)
+    """The extended identifier of the motor's status upload (§5.2.1)."""
+    return STATUS_MODE << 8 | node_id
 
 
 @dataclass(frozen=True)
@@ -130,40 +134,26 @@ class CubeMarsOptions(ProtocolOptions):
     @classmethod
     def from_mapping(cls, values: dict) -> CubeMarsOptions:
         """Raise ValueError naming the key for anything out of range."""
-        try:
-            found = model(str(values["model"])) if "model" in values else MODELS["AK80-9"]
-        except KeyError as exc:
-            raise ValueError(exc.args[0]) from None
+        found = parse_model(values, model, MODELS["AK80-9"])
         firmware = _choice(Firmware, "firmware", values.get("firmware", "v2"))
         control = _choice(Control, "control", values.get("control", "mit"))
-        ranges = {key: float(values[key]) for key in ("p_max", "v_max", "t_max")
-                  if key in values}
-        if any(not value > 0 for value in ranges.values()):
-            raise ValueError("'p_max', 'v_max' and 't_max' must be > 0")
-        reply_id = int(values.get("reply_id", 0))
-        if not 0 <= reply_id <= 0x7FF:
-            raise ValueError(f"'reply_id' {reply_id} is not an 11-bit CAN id")
+        ranges = parse_ranges(values)
+        reply_id = parse_standard_id(values, "reply_id", 0)
         rate = float(values.get("status_rate", 50.0))
         if not 1 <= rate <= 500:
             raise ValueError(f"'status_rate' {rate:g} is outside the manual's 1-500 Hz")
-        options = cls(found, firmware, control, reply_id, rate, kp=float(values.get("kp", 0)),
-                      kd=float(values.get("kd", 0)), **ranges)
-        if not (0 <= options.kp <= KP_MAX and 0 <= options.kd <= KD_MAX):
-            raise ValueError(f"'kp' must be in [0, {KP_MAX:g}] and 'kd' in [0, {KD_MAX:g}]")
-        return options
+        kp, kd = parse_gains(values)
+        return cls(found, firmware, control, reply_id, rate, kp=kp, kd=kd, **ranges)
 
     def drive_defaults(self) -> dict[str, float | bool]:
         """The model's published output figures, where the sources give them; no
         watchdog."""
         if not self.model.sizes:
             return super().drive_defaults()
-        return {**super().drive_defaults(), "peak_torque": self.model.peak_torque,
-                "rated_torque": self.model.rated_torque,
-                "max_velocity": self.model.no_load_speed, "holding_brake": False}
+        return {**super().drive_defaults(), **model_figures(self.model)}
 
     def ranges(self) -> MitRanges:
-        return MitRanges(self.p_max or self.model.p_max, self.v_max or self.model.v_max,
-                         KP_MAX, KD_MAX, self.t_max or self.model.t_max)
+        return model_ranges(self.model, self.p_max, self.v_max, self.t_max)
 
     @property
     def mit_on_standard_id(self) -> bool:
@@ -195,21 +185,15 @@ class Answer:
 def pack_mit_answer(answer: Answer, ranges: MitRanges) -> bytes:
     """The V2 MIT answer (§5.3): id, position 16, speed 12, current 12 (on the torque
     range), temperature, error."""
-    p = float_to_uint(answer.position, -ranges.p_max, ranges.p_max, 16)
-    v = float_to_uint(answer.velocity, -ranges.v_max, ranges.v_max, 12)
-    t = float_to_uint(answer.torque, -ranges.t_max, ranges.t_max, 12)
-    return bytes([answer.motor_id & 0xFF, p >> 8, p & 0xFF, v >> 4, ((v & 0xF) << 4) | (t >> 8),
-                  t & 0xFF, answer.temperature & 0xFF, int(answer.error)])
+    return bytes([answer.motor_id & 0xFF,
+                  *pack_motion(answer.position, answer.velocity, answer.torque, ranges),
+                  answer.temperature & 0xFF, int(answer.error)])
 
 
 def unpack_mit_answer(data: bytes, ranges: MitRanges) -> Answer:
     """ValueError for an error code the manual does not define."""
-    p, v = (data[1] << 8) | data[2], (data[3] << 4) | (data[4] >> 4)
-    t = ((data[4] & 0xF) << 8) | data[5]
-    return Answer(data[0], uint_to_float(p, -ranges.p_max, ranges.p_max, 16),
-                  uint_to_float(v, -ranges.v_max, ranges.v_max, 12),
-                  uint_to_float(t, -ranges.t_max, ranges.t_max, 12),
-                  struct.unpack("b", data[6:7])[0], ErrorCode(data[7]))
+    return Answer(data[0], *unpack_motion(data, ranges), struct.unpack("b", data[6:7])[0],
+                  ErrorCode(data[7]))
 
 
 _STATUS = struct.Struct(">hhhbB")
@@ -252,6 +236,10 @@ def unpack_v3_command(data: bytes, ranges: MitRanges) -> MitCommand:
 SPECIAL_FRAMES = (ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO)
 
 
+#: the modes an extended id's upper bits can name
+_MODES = frozenset(ServoMode)
+
+
 class CubeMars(Protocol):
     """CubeMars AK actuators in MIT or servo mode."""
 
@@ -268,52 +256,45 @@ class CubeMars(Protocol):
     def initial_options(cls, setting: DriveSetting) -> dict:
         """The model (sized for the drive, else the AK80-6) with its ranges, and the master's
         MIT gains within the command's ranges."""
-        found = MODELS[setting.model or "AK80-6"]
-        return {"model": found.name, "p_max": found.p_max, "v_max": found.v_max,
-                "t_max": found.t_max, "kp": float(f"{min(setting.kp, KP_MAX):.4g}"),
-                "kd": float(f"{min(setting.kd, KD_MAX):.4g}")}
+        return initial_model_options(setting, MODELS, "AK80-6")
 
     @classmethod
     def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float,
-                   options: CubeMarsOptions | None = None) -> list[tuple[int, int, float]]:
+                   options: CubeMarsOptions | None = None) -> list[FrameSpec]:
         options = options or CubeMarsOptions()
         if options.control is Control.SERVO:
-            return [(command_id(node_id, ServoMode.POSITION_SPEED), 8, cycle_hz),
-                    (status_id(node_id), 8, options.status_rate)]
+            return [FrameSpec(command_id(node_id, ServoMode.POSITION_SPEED), 8, cycle_hz,
+                              "position_speed command", extended=True),
+                    FrameSpec(status_id(node_id), 8, options.status_rate, "status",
+                              extended=True)]
         if options.firmware is Firmware.V3:
-            return [(command_id(node_id, ServoMode.MIT), 8, cycle_hz),
-                    (status_id(node_id), 8, cycle_hz)]
-        return [(node_id, 8, cycle_hz), (options.reply_id, 8, cycle_hz)]
+            return [FrameSpec(command_id(node_id, ServoMode.MIT), 8, cycle_hz, "mit command",
+                              extended=True),
+                    FrameSpec(status_id(node_id), 8, cycle_hz, "status", extended=True)]
+        return [FrameSpec(node_id, 8, cycle_hz, "command"),
+                FrameSpec(options.reply_id, 8, cycle_hz, "answer")]
 
     @classmethod
-    def frame_source(cls, can_id: int, data: bytes, remote: bool,
-                     drives: Mapping[int, object]) -> FrameSource | None:
-        """An extended frame (its id above 0x7FF or carrying hil.can.messages.EXTENDED):
-        ``mode << 8 | id``, a status upload or a command of that mode. A standard one: V2 MIT,
-        a command to the motor's id or an answer on the reply id naming the motor in byte 0;
-        on a bus with servo-mode or V3 drives a standard id alone cannot tell a frame (a
-        CAN log's ids lose the flag), and a replay of it is refused."""
-        if can_id & EXTENDED or can_id > 0x7FF:
-            ident = can_id & ~EXTENDED
-            node, mode = ident & 0xFF, ident >> 8
+    def frame_source(cls, frame: Frame, drives: Mapping[int, object]) -> FrameSource | None:
+        """An extended frame: ``mode << 8 | id``, a status upload or a command of that mode
+        (§5.1, §5.2.1). A standard one: V2 MIT, a command to the motor's id or an answer on
+        the reply id naming the motor in byte 0 (§5.3), of the drives in MIT mode on
+        firmware V2 only (the others' frames are all extended)."""
+        if frame.extended:
+            identifier = frame.identifier
+            node, mode = identifier & 0xFF, identifier >> 8
             if node not in drives:
                 return None
             if mode == STATUS_MODE:
                 return FrameSource(Sender.DRIVE, node, "status")
-            if mode in tuple(ServoMode):
+            if mode in _MODES:
                 return FrameSource(Sender.MASTER, node, f"{ServoMode(mode).name.lower()} "
                                    "command", cycle=True)
             return None
-        if any(not (options or CubeMarsOptions()).mit_on_standard_id
-               for options in drives.values()):
-            raise NotImplementedError("protocol 'cubemars' tells servo-mode and V3 frames by "
-                                      "their extended ids, which this log's ids do not flag")
-        if can_id in drives:
-            return FrameSource(Sender.MASTER, can_id, "command", cycle=True)
-        replies = {(options or CubeMarsOptions()).reply_id for options in drives.values()}
-        if can_id in replies and data and data[0] in drives:
-            return FrameSource(Sender.DRIVE, data[0], "answer")
-        return None
+        v2 = {node: options for node, options in drives.items()
+              if (options or CubeMarsOptions()).mit_on_standard_id}
+        return told_by_motor_id(frame, v2, {(options or CubeMarsOptions()).reply_id
+                                            for options in v2.values()}, "answer")
 
     @classmethod
     def shared_ids(cls, options: CubeMarsOptions | None = None) -> set[int]:

@@ -8,53 +8,51 @@ entering motor mode on a reset (the manual has no clear-error frame).
 from __future__ import annotations
 
 from hil.bus_config.types import DriveConfig
-from hil.errors import HilError
 from hil.hardware.axis import AxisFault, FaultKind
-from hil.protocols.cubemars import CubeMars, CubeMarsOptions, ErrorCode, unpack_mit_answer
+from hil.protocols.cubemars import Answer, CubeMars, CubeMarsOptions, ErrorCode, unpack_mit_answer
 from hil.protocols.mit import EXIT_MOTOR_MODE, MitRanges
-from hil.protocols.mit.axis import MitAxis
+from hil.protocols.mit.axis import MitAxis, MotorAnswers
+
+
+class CubeMarsAnswers(MotorAnswers):
+    """An AK motor's V2 MIT answer on the reply id: 8 bytes naming the driver in byte 0,
+    its error code last (§5.3)."""
+
+    NOTHING = ErrorCode.NONE
+
+    def read(self, data: bytes) -> Answer | None:
+        if len(data) != 8 or data[0] != self.node_id:
+            return None
+        try:
+            answer = unpack_mit_answer(data, self.ranges)
+        except ValueError:
+            return None                  # an error code the manual does not define
+        self.reported = answer.error
+        return answer
 
 
 class CubeMarsAxis(MitAxis):
     protocol = CubeMars
-
-    def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
-        super().__init__(config, bus_name, on_feedback)
-        self.reported = ErrorCode.NONE
+    Answers = CubeMarsAnswers
 
     @staticmethod
     def command_settings(config: DriveConfig) -> tuple[MitRanges, float, float, int]:
         options: CubeMarsOptions = config.options or CubeMarsOptions()
-        if not options.mit_on_standard_id or not options.kp > 0:
-            raise HilError.single(
-                f"drive node {config.node_id} ({', '.join(config.joints)}): hil's master "
-                "drives CubeMars motors in MIT mode on firmware V2 with its own gains",
-                hint="give the drive 'options: {control: mit, firmware: v2, kp: ..., kd: ...}' "
-                     "(hil init writes them)")
+        MitAxis.require(config, options.mit_on_standard_id and options.kp > 0,
+                        "CubeMars motors in MIT mode on firmware V2", "control: mit, firmware: v2")
         return options.ranges(), options.kp, options.kd, options.reply_id
 
-    def _on_reply(self, can_id, data, timestamp) -> None:
-        data = bytes(data)
-        if len(data) != 8 or data[0] != self.node_id:
-            return
-        try:
-            answer = unpack_mit_answer(data, self.ranges)
-        except ValueError:
-            return                       # an error code the manual does not define
-        self.reported = answer.error
-        self.feedback.position, self.feedback.velocity = answer.position, answer.velocity
-        self.feedback.torque = answer.torque
-        self.booted.set()
-        self.answered()
-
     def fault(self, stopping: bool = False) -> AxisFault | None:
-        if self.reported is not ErrorCode.NONE:
-            return self.found(FaultKind.FAULT, f"reports {self.reported.name.replace('_', ' ')}",
-                              int(self.reported))
+        reported = self.answers.reported
+        if reported is not ErrorCode.NONE:
+            return self.found(FaultKind.FAULT, f"reports {reported.name.replace('_', ' ')}",
+                              int(reported))
         return None
 
     def forget_faults(self) -> None:
         super().forget_faults()
         self.motor_mode = False
-        self.reported = ErrorCode.NONE
-        self._pending_special = EXIT_MOTOR_MODE     # then enabled again at standstill
+        # the manual has no clear-error frame: leaving motor mode, then entering it again at
+        # standstill, clears the error (the module doc)
+        self.answers.forget()
+        self.specials.send_next(EXIT_MOTOR_MODE)

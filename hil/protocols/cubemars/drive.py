@@ -21,16 +21,18 @@ import struct
 from contextlib import AbstractContextManager
 from dataclasses import replace
 
+from hil.bus_config.types import DriveConfig
+from hil.can.frame import Frame, frame_of_fields
+from hil.can.router import Subscription
 from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power, SilenceReaction
-from hil.drives.profile import DriveProfile, Reading
+from hil.drives.profile import Reading
 from hil.protocols.cubemars import (
     DEFAULT_ERPM, DEFAULT_ERPM_PER_S, MAX_AMPERES, MAX_ERPM, SPECIAL_FRAMES, Answer, Control,
     CubeMars, CubeMarsOptions, ErrorCode, Firmware, ServoMode, command_id, pack_mit_answer,
     pack_status, status_id, unpack_mit_answer, unpack_v3_command,
 )
-from hil.protocols.mit import ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, unpack_command
-from hil.protocols.mit.drive import enter_motor_mode, follow
+from hil.protocols.mit.drive import MitFamilyDrive, enter_motor_mode, motion_readings
 
 #: the driver board's temperature (°C): no heating is modelled
 AMBIENT = 25
@@ -40,95 +42,85 @@ _POSITION_SPEED = struct.Struct(">ihh")
 _SERVO_LENGTH = {ServoMode.ORIGIN: 1, ServoMode.POSITION_SPEED: 8}
 
 
-class CubeMarsDrive(DriveProfile):
+class CubeMarsDrive(MitFamilyDrive):
     """One AK actuator on a bus."""
 
     protocol = CubeMars
+    options: CubeMarsOptions
 
-    def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager,
-                 rated_torque: float, heartbeat_period: float = 0.1,
-                 options: CubeMarsOptions | None = None):
-        super().__init__(node_id, core, lock)
-        self.options = options or CubeMarsOptions()
+    def __init__(self, config: DriveConfig, core: DriveCore, lock: AbstractContextManager):
+        super().__init__(config, core, lock)
         self.model = self.options.model
         self.ranges = self.options.ranges()
+        if self.options.firmware is Firmware.V3:
+            self.decode_command = unpack_v3_command
         self.error = ErrorCode.NONE
-        self._zero = 0.0                 # output position at "set zero" / "set origin"
         self._peak = core.parameters.peak_torque
-        self._reply: tuple[int, bytes] | None = None
         self._next_status = 0.0
         self._servo_mode: ServoMode | None = None      # the last servo-mode command's
+        #: servo mode: each command id of the motor (extended), with its mode
+        self._servo_modes = {command_id(self.node_id, mode): mode for mode in ServoMode
+                             if mode is not ServoMode.MIT}
+        # a silence releases the motor (hil's choice, the module doc: the manual has no timeout)
         core.silence_reaction = SilenceReaction.DISABLE
 
     # --- bus ----------------------------------------------------------------------------
 
-    def subscriptions(self):
+    def subscriptions(self) -> list[Subscription]:
+        """Servo mode: the command of each mode on its extended id (§5.1: ``mode << 8 |
+        id``), one subscription a mode (a mask on the id's low byte would bring the drive
+        every extended frame naming its id, its status uploads and modes it lacks included,
+        to sort frame by frame); V3 MIT: the command on the extended id of mode 8, the
+        special frames on the extended id ``id``; V2 MIT: the standard id ``id``."""
         if self.options.control is Control.SERVO:
-            return {command_id(self.node_id, mode): self._servo_handler(mode)
-                    for mode in ServoMode if mode is not ServoMode.MIT}
+            return [Subscription(identifier, self._on_servo, extended=True)
+                    for identifier in self._servo_modes]
         if self.options.firmware is Firmware.V3:
-            return {command_id(self.node_id, ServoMode.MIT): self._on_mit,
-                    command_id(self.node_id, ServoMode.DUTY): self._on_v3_special}
-        return {self.node_id: self._on_mit}
-
-    def take_replies(self) -> list[tuple[int, bytes]]:
-        reply, self._reply = self._reply, None
-        return [reply] if reply is not None else []
+            return [Subscription(command_id(self.node_id, ServoMode.MIT), self.on_frame,
+                                 extended=True),
+                    Subscription(command_id(self.node_id, ServoMode.DUTY),
+                                 self._on_v3_special, extended=True)]
+        return [Subscription(self.node_id, self.on_frame)]
 
     # --- MIT mode --------------------------------------------------------------------------
 
-    def _on_mit(self, can_id: int, data: bytes, timestamp: float) -> None:
-        if len(data) != 8:
-            self.malformed += 1          # the firmware takes 8-byte frames only
-            return
-        with self.lock:
-            self.heard()
-            self._on_mit_frame(bytes(data))
-            self._reply = self._mit_answer()
-            self.on_command(self)
-
-    def _on_v3_special(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_v3_special(self, frame: Frame) -> None:
         """V3: the special frames come on the id ``id`` (mode 0); a duty frame to a motor in
         MIT mode moves nothing and is not answered."""
-        if bytes(data) in SPECIAL_FRAMES:
-            self._on_mit(can_id, data, timestamp)
+        if frame.data in SPECIAL_FRAMES:
+            self.on_frame(frame)
 
-    def _mit_answer(self) -> tuple[int, bytes]:
+    def enter(self) -> None:
+        """Motor mode entered: a reported error cleared (the module doc), an enabled motor
+        left as it is."""
+        self.error = ErrorCode.NONE
+        if self.core.power is Power.FAULT:
+            self.core.reset_fault()
+        if self.core.power is not Power.ENABLED:
+            self.core.set_mode(Mode.IMPEDANCE)
+            enter_motor_mode(self.core)
+
+    def answer(self) -> Frame:
         """V2: the 8-byte MIT answer on the reply id; V3: the status frame."""
         if self.options.firmware is Firmware.V3:
-            return status_id(self.node_id), pack_status(self._answer(), self.model)
-        return self.options.reply_id, pack_mit_answer(self._answer(), self.ranges)
-
-    def _on_mit_frame(self, data: bytes) -> None:
-        if data == ENTER_MOTOR_MODE:
-            self.error = ErrorCode.NONE
-            if self.core.power is Power.FAULT:
-                self.core.reset_fault()
-            if self.core.power is not Power.ENABLED:
-                self.core.set_mode(Mode.IMPEDANCE)
-                enter_motor_mode(self.core)
-        elif data == EXIT_MOTOR_MODE:
-            self.core.disable()
-        elif data == SET_ZERO:
-            self._zero = self.core.status().position
-        elif self.core.power is Power.ENABLED:
-            unpack = unpack_v3_command if self.options.firmware is Firmware.V3 else unpack_command
-            follow(self.core, unpack(data, self.ranges), self._zero)
-        # else: a command outside motor mode moves nothing; it is answered all the same
+            return Frame(status_id(self.node_id), pack_status(self._reported(), self.model),
+                         extended=True)
+        data = pack_mit_answer(self._reported(), self.ranges)
+        return frame_of_fields((self.options.reply_id, data, False, False, False, False, False,
+                                0.0))
 
     # --- servo mode --------------------------------------------------------------------
 
-    def _servo_handler(self, mode: ServoMode):
-        def receive(can_id: int, data: bytes, timestamp: float) -> None:
-            if len(data) < _SERVO_LENGTH.get(mode, 4):
-                self.malformed += 1      # too short for the mode's field
-                return
-            with self.lock:
-                self.heard()
-                SERVO[mode](self, bytes(data))
-                self._servo_mode = mode
-                self.on_command(self)
-        return receive
+    def _on_servo(self, frame: Frame) -> None:
+        mode, data = self._servo_modes[frame.identifier], frame.data
+        if len(data) < _SERVO_LENGTH.get(mode, 4):
+            self.malformed += 1          # too short for the mode's field
+            return
+        with self.lock:
+            self.heard()
+            SERVO[mode](self, data)
+            self._servo_mode = mode
+            self.on_command(self)
 
     def _powered(self, mode: Mode) -> None:
         """Servo mode: a command powers the motor in the core mode it needs."""
@@ -184,15 +176,15 @@ class CubeMarsDrive(DriveProfile):
         self._powered(Mode.PROFILE_POSITION)
         self._profile(self.model.output_speed(min(erpm, MAX_ERPM)),
                       self.model.output_speed(erpm_per_s))
-        self.core.move_to(math.radians(degrees) + self._zero)
+        self.core.move_to(math.radians(degrees) + self.zero)
 
     def _origin(self, data: bytes) -> None:
         """0 a temporary, 1 a permanent origin here; 2 the default origin back (§5.1.6).
         Nothing moves."""
         if data[0] in (0, 1):
-            self._zero = self.core.status().position
+            self.zero = self.core.status().position
         elif data[0] == 2:
-            self._zero = 0.0
+            self.zero = 0.0
 
     def _profile(self, speed: float, acceleration: float) -> None:
         self.core.parameters = replace(self.core.parameters, profile_velocity=speed,
@@ -205,9 +197,9 @@ class CubeMarsDrive(DriveProfile):
 
     # --- what the motor reports ----------------------------------------------------------
 
-    def _answer(self) -> Answer:
+    def _reported(self) -> Answer:
         status = self.core.status()
-        return Answer(self.node_id, status.position - self._zero, status.velocity,
+        return Answer(self.node_id, status.position - self.zero, status.velocity,
                       status.torque, AMBIENT, self.error)
 
     def tick(self, now: float) -> None:
@@ -216,7 +208,8 @@ class CubeMarsDrive(DriveProfile):
             return
         if now >= self._next_status:
             self._next_status = max(self._next_status + 1 / self.options.status_rate, now)
-            self.send(status_id(self.node_id), pack_status(self._answer(), self.model))
+            self.send(Frame(status_id(self.node_id), pack_status(self._reported(), self.model),
+                            extended=True))
 
     def after_update(self) -> None:
         for fault in self.take_events():
@@ -227,18 +220,16 @@ class CubeMarsDrive(DriveProfile):
     def restart(self) -> None:
         super().restart()
         self.error = ErrorCode.NONE
-        self._zero = 0.0                 # a temporary origin is lost with the power
+        self.zero = 0.0                  # a temporary origin is lost with the power
 
-    def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
+    def readings(self, frame: Frame) -> tuple[Reading, ...] | None:
         """A V2 MIT answer: id and error exact, position, velocity, torque."""
-        if (not self.options.mit_on_standard_id or can_id != self.options.reply_id
-                or len(data) != 8):
+        if (not self.options.mit_on_standard_id or frame.identifier != self.options.reply_id
+                or len(frame.data) != 8):
             return None
-        answer = unpack_mit_answer(data, self.ranges)
+        answer = unpack_mit_answer(frame.data, self.ranges)
         return (Reading("motor id", answer.motor_id), Reading("error", answer.error),
-                Reading("position", answer.position, "position"),
-                Reading("velocity", answer.velocity, "velocity"),
-                Reading("torque", answer.torque, "torque"))
+                *motion_readings(answer))
 
     @property
     def state_text(self) -> str:
@@ -246,7 +237,7 @@ class CubeMarsDrive(DriveProfile):
             return self.error.name.replace("_", " ")
         if self.options.control is Control.SERVO:
             return "SERVO " + ("RUNNING" if self.core.power is Power.ENABLED else "RELEASED")
-        return "MOTOR MODE" if self.core.power is Power.ENABLED else "REST MODE"
+        return self.mode_text()
 
 
 def _within(value: float, limit: float) -> float:

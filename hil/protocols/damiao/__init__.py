@@ -29,17 +29,20 @@ import enum
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from hil.can.frame import Frame, FrameSpec
 from hil.protocols.base import (DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender,
                                 SettingField)
 from hil.protocols.damiao.models import MODELS, DamiaoModel, model
 from hil.protocols.damiao.registers import REGISTER_ID, REGISTERS, TIMEOUT_UNIT, Op
-from hil.protocols.mit import MitRanges, float_to_uint, uint_to_float
+from hil.protocols.mit import MitRanges, pack_motion, unpack_motion
+from hil.protocols.mit.family import (
+    initial_model_options, model_figures, model_ranges, parse_gains, parse_model, parse_ranges,
+    parse_standard_id,
+)
 
 SPECIAL_PREFIX = bytes([0xFF] * 7)
 ENABLE, DISABLE, SAVE_ZERO, CLEAR_ERROR = (SPECIAL_PREFIX + bytes([last])
                                            for last in (0xFC, 0xFD, 0xFE, 0xFB))
-#: kp and kd ranges of an MIT command on every model (the maker's sample code)
-KP_MAX, KD_MAX = 500.0, 5.0
 
 
 class ControlMode(enum.IntEnum):
@@ -100,15 +103,8 @@ class DamiaoOptions(ProtocolOptions):
     @classmethod
     def from_mapping(cls, values: dict) -> DamiaoOptions:
         """Raise ValueError naming the key for anything out of range."""
-        try:
-            found = model(str(values["model"])) if "model" in values else MODELS["DM4310"]
-        except KeyError as exc:
-            raise ValueError(exc.args[0]) from None
-        ranges = {key: float(values[key]) for key in ("p_max", "v_max", "t_max")
-                  if key in values}
-        for key, value in ranges.items():
-            if not value > 0:
-                raise ValueError(f"'{key}' must be > 0")
+        found = parse_model(values, model, MODELS["DM4310"])
+        ranges = parse_ranges(values)
         mode = values.get("control_mode", "MIT")
         try:
             mode = ControlMode[str(mode).upper()] if not isinstance(mode, int) \
@@ -116,30 +112,21 @@ class DamiaoOptions(ProtocolOptions):
         except (KeyError, ValueError):
             raise ValueError(f"'control_mode' {mode!r} is not one of "
                              f"{', '.join(m.name for m in ControlMode)}") from None
-        master = values.get("master_id")
-        if master is not None and not 0 <= int(master) <= 0x7FF:
-            raise ValueError(f"'master_id' {master} is not an 11-bit CAN id")
-        options = cls(found, None if master is None else int(master), control_mode=mode,
-                      kp=float(values.get("kp", 0.0)), kd=float(values.get("kd", 0.0)),
-                      **ranges)
-        if not (0 <= options.kp <= KP_MAX and 0 <= options.kd <= KD_MAX):
-            raise ValueError(f"'kp' must be in [0, {KP_MAX:g}] and 'kd' in [0, {KD_MAX:g}]")
-        return options
+        master = parse_standard_id(values, "master_id", None)
+        kp, kd = parse_gains(values)
+        return cls(found, master, control_mode=mode, kp=kp, kd=kd, **ranges)
 
     def drive_defaults(self) -> dict[str, float | bool]:
         """The model's output-shaft figures: peak and rated torque, no-load speed; no
         holding brake (the DM-J manuals list none); TIMEOUT's factory value."""
-        return {**super().drive_defaults(), "peak_torque": self.model.peak_torque,
-                "rated_torque": self.model.rated_torque,
-                "max_velocity": self.model.no_load_speed, "holding_brake": False}
+        return {**super().drive_defaults(), **model_figures(self.model)}
 
     def reply_id(self, node_id: int) -> int:
         return self.master_id if self.master_id is not None else node_id + 0x10
 
     def ranges(self) -> MitRanges:
         """The MIT mapping the motor starts with (its PMAX/VMAX/TMAX registers)."""
-        return MitRanges(self.p_max or self.model.p_max, self.v_max or self.model.v_max,
-                         KP_MAX, KD_MAX, self.t_max or self.model.t_max)
+        return model_ranges(self.model, self.p_max, self.v_max, self.t_max)
 
 
 @dataclass(frozen=True)
@@ -154,23 +141,15 @@ class Feedback:
 
 
 def pack_feedback(feedback: Feedback, ranges: MitRanges) -> bytes:
-    p = float_to_uint(feedback.position, -ranges.p_max, ranges.p_max, 16)
-    v = float_to_uint(feedback.velocity, -ranges.v_max, ranges.v_max, 12)
-    t = float_to_uint(feedback.torque, -ranges.t_max, ranges.t_max, 12)
-    return bytes([(feedback.state << 4) | (feedback.motor_id & 0x0F), p >> 8, p & 0xFF, v >> 4,
-                  ((v & 0xF) << 4) | (t >> 8), t & 0xFF, feedback.mos_temperature & 0xFF,
-                  feedback.rotor_temperature & 0xFF])
+    return bytes([(feedback.state << 4) | (feedback.motor_id & 0x0F),
+                  *pack_motion(feedback.position, feedback.velocity, feedback.torque, ranges),
+                  feedback.mos_temperature & 0xFF, feedback.rotor_temperature & 0xFF])
 
 
 def unpack_feedback(data: bytes, ranges: MitRanges) -> Feedback:
     """ValueError for a state code the maker does not define."""
-    p = (data[1] << 8) | data[2]
-    v = (data[3] << 4) | (data[4] >> 4)
-    t = ((data[4] & 0xF) << 8) | data[5]
-    return Feedback(data[0] & 0x0F, State(data[0] >> 4),
-                    uint_to_float(p, -ranges.p_max, ranges.p_max, 16),
-                    uint_to_float(v, -ranges.v_max, ranges.v_max, 12),
-                    uint_to_float(t, -ranges.t_max, ranges.t_max, 12), data[6], data[7])
+    return Feedback(data[0] & 0x0F, State(data[0] >> 4), *unpack_motion(data, ranges),
+                    data[6], data[7])
 
 
 def is_register_answer(data: bytes) -> bool:
@@ -200,23 +179,25 @@ class Damiao(Protocol):
     def initial_options(cls, setting: DriveSetting) -> dict:
         """The model (sized for the drive, else the DM4310) with its ranges, and the
         master's MIT gains within the command's ranges."""
-        found = MODELS[setting.model or "DM4310"]
-        return {"model": found.name, "p_max": found.p_max, "v_max": found.v_max,
-                "t_max": found.t_max, "kp": float(f"{min(setting.kp, KP_MAX):.4g}"),
-                "kd": float(f"{min(setting.kd, KD_MAX):.4g}")}
+        return initial_model_options(setting, MODELS, "DM4310")
 
     @classmethod
     def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float,
-                   options: DamiaoOptions | None = None) -> list[tuple[int, int, float]]:
+                   options: DamiaoOptions | None = None) -> list[FrameSpec]:
         options = options or DamiaoOptions()
         command = node_id + options.control_mode.id_offset
-        return [(command, 8, cycle_hz), (options.reply_id(node_id), 8, cycle_hz)]
+        return [FrameSpec(command, 8, cycle_hz, "command"),
+                FrameSpec(options.reply_id(node_id), 8, cycle_hz, "feedback")]
 
     @classmethod
-    def frame_source(cls, can_id: int, data: bytes, remote: bool,
-                     drives: Mapping[int, object]) -> FrameSource | None:
+    def frame_source(cls, frame: Frame, drives: Mapping[int, object]) -> FrameSource | None:
         """Commands go to a motor's id (plus its mode's offset), register requests to 0x7FF
-        naming the motor in bytes 0-1; answers come on its master id."""
+        naming the motor in bytes 0-1; answers come on its master id; all of them 11-bit
+        frames (python ``damiao-motor`` sends ``is_extended_id=False``): an extended frame
+        is no DM-J motor's."""
+        if frame.extended:
+            return None
+        can_id, data = frame.identifier, frame.data
         if can_id == REGISTER_ID and len(data) >= 2:
             node = data[0] | (data[1] << 8)
             return FrameSource(Sender.MASTER, node, "register") if node in drives else None
@@ -230,7 +211,7 @@ class Damiao(Protocol):
         return None
 
     @classmethod
-    def source_reads_data(cls, can_id: int, drives: Mapping[int, object]) -> bool:
+    def source_reads_data(cls, frame: Frame, drives: Mapping[int, object]) -> bool:
         return True          # register requests and feedback name their motor in the data
 
     @classmethod

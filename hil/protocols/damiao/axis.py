@@ -8,62 +8,62 @@ communication, overload, ...) is a fault, cleared with the clear-error frame on 
 from __future__ import annotations
 
 from hil.bus_config.types import DriveConfig
-from hil.errors import HilError
 from hil.hardware.axis import AxisFault, FaultKind
 from hil.protocols.damiao import (
-    CLEAR_ERROR, ControlMode, Damiao, DamiaoOptions, State, is_register_answer, unpack_feedback,
+    CLEAR_ERROR, ControlMode, Damiao, DamiaoOptions, Feedback, State, is_register_answer,
+    unpack_feedback,
 )
 from hil.protocols.mit import MitRanges
-from hil.protocols.mit.axis import MitAxis
+from hil.protocols.mit.axis import MitAxis, MotorAnswers
+
+
+class DamiaoAnswers(MotorAnswers):
+    """A DM-J motor's feedback on the master's id: 8 bytes, the motor's id in the low nibble
+    of D0 and its state in the high one; a register answer shares the id (told apart as the
+    maker's sample code tells it: :func:`~hil.protocols.damiao.is_register_answer`)."""
+
+    NOTHING = State.DISABLED
+
+    def read(self, data: bytes) -> Feedback | None:
+        if (len(data) != 8 or is_register_answer(data)
+                or (data[0] & 0x0F) != (self.node_id & 0x0F)):
+            return None
+        try:
+            feedback = unpack_feedback(data, self.ranges)
+        except ValueError:
+            return None                  # a state code the maker does not define
+        self.reported = feedback.state
+        return feedback
 
 
 class DamiaoAxis(MitAxis):
     protocol = Damiao
-
-    def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
-        super().__init__(config, bus_name, on_feedback)
-        self.reported = State.DISABLED
+    Answers = DamiaoAnswers
 
     @staticmethod
     def command_settings(config: DriveConfig) -> tuple[MitRanges, float, float, int]:
         options: DamiaoOptions = config.options or DamiaoOptions()
-        if options.control_mode is not ControlMode.MIT or not options.kp > 0:
-            raise HilError.single(
-                f"drive node {config.node_id} ({', '.join(config.joints)}): hil's master "
-                "drives Damiao motors in MIT mode with its own gains",
-                hint="give the drive 'options: {control_mode: MIT, kp: ..., kd: ...}' (hil "
-                     "init writes them)")
+        MitAxis.require(config, options.control_mode is ControlMode.MIT and options.kp > 0,
+                        "Damiao motors in MIT mode", "control_mode: MIT")
         return options.ranges(), options.kp, options.kd, options.reply_id(config.node_id)
-
-    def _on_reply(self, can_id, data, timestamp) -> None:
-        data = bytes(data)
-        if (len(data) != 8 or is_register_answer(data)
-                or (data[0] & 0x0F) != (self.node_id & 0x0F)):
-            return
-        try:
-            feedback = unpack_feedback(data, self.ranges)
-        except ValueError:
-            return                       # a state code the maker does not define
-        self.reported = feedback.state
-        self.feedback.position, self.feedback.velocity = feedback.position, feedback.velocity
-        self.feedback.torque = feedback.torque
-        self.booted.set()
-        self.answered()
 
     @property
     def state(self) -> str:
-        return self.reported.name.replace("_", " ")
+        return self.answers.reported.name.replace("_", " ")
 
     @property
     def enabled(self) -> bool:
-        return self.motor_mode and self.reported is State.ENABLED
+        return self.motor_mode and self.answers.reported is State.ENABLED
 
     def fault(self, stopping: bool = False) -> AxisFault | None:
-        if self.reported.is_error:
-            return self.found(FaultKind.FAULT, f"reports {self.state}", int(self.reported))
+        if self.answers.reported.is_error:
+            return self.found(FaultKind.FAULT, f"reports {self.state}",
+                              int(self.answers.reported))
         return None
 
     def forget_faults(self) -> None:
         super().forget_faults()
         self.motor_mode = False
-        self._pending_special = CLEAR_ERROR       # then enabled again at standstill
+        # the maker's clear-error frame (FB; app_commands.c CAN_COMMAND_CLEAR_FAULT), then
+        # enabled again at standstill
+        self.specials.send_next(CLEAR_ERROR)

@@ -35,9 +35,12 @@ import struct
 from contextlib import AbstractContextManager
 from dataclasses import replace
 
+from hil.bus_config.types import DriveConfig
+from hil.can.frame import Frame, frame_of_fields
+from hil.can.router import Subscription
 from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power, SilenceReaction
-from hil.drives.profile import DriveProfile, Reading
+from hil.drives.profile import Reading
 from hil.protocols.damiao import (
     CLEAR_ERROR, DISABLE, ENABLE, SAVE_ZERO, ControlMode, Damiao, DamiaoOptions, Feedback, Op,
     REGISTER_ID, State, is_register_answer, pack_feedback, unpack_feedback,
@@ -46,7 +49,8 @@ from hil.protocols.damiao.registers import (
     AMBIENT, ID_REGISTERS, REGISTERS, TIMEOUT_UNIT, accepts, initial_values,
 )
 from hil.protocols.mit import MitRanges, unpack_command
-from hil.protocols.mit.drive import follow
+from hil.protocols.mit.drive import MitFamilyDrive, follow, motion_readings
+from hil.protocols.mit.family import KD_MAX, KP_MAX
 
 #: the core's mode for each control mode
 CORE_MODES = {ControlMode.MIT: Mode.IMPEDANCE, ControlMode.POSITION_VELOCITY:
@@ -61,62 +65,52 @@ _FORCE_POSITION = struct.Struct("<fHH")
 _TWO_FLOATS = struct.Struct("<ff")
 
 
-class DamiaoDrive(DriveProfile):
+class DamiaoDrive(MitFamilyDrive):
     """One DM-J motor on a bus."""
 
     protocol = Damiao
+    options: DamiaoOptions
 
-    def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager,
-                 rated_torque: float, heartbeat_period: float = 0.1,
-                 options: DamiaoOptions | None = None):
-        super().__init__(node_id, core, lock)
-        self.options = options or DamiaoOptions()
-        ranges = self.options.ranges()
-        self.registers = initial_values(self.options.model, node_id,
-                                        self.options.reply_id(node_id),
-                                        self.options.control_mode,
-                                        core.parameters.watchdog_timeout)
+    def __init__(self, config: DriveConfig, core: DriveCore, lock: AbstractContextManager):
+        super().__init__(config, core, lock)
+        node_id, options = self.node_id, self.options
+        ranges = options.ranges()
+        self.registers = initial_values(options.model, node_id, options.reply_id(node_id),
+                                        options.control_mode, core.parameters.watchdog_timeout)
         self.registers.update({21: ranges.p_max, 22: ranges.v_max, 23: ranges.t_max})
         self.saved = dict(self.registers)
-        self.reply_id = self.options.reply_id(node_id)
+        self.reply_id = options.reply_id(node_id)
         self.error: State | None = None
-        self._zero = 0.0                 # motor position at "save zero"
         self._peak = core.parameters.peak_torque
-        self._reply = b""
+        #: each command id of the motor, with the control mode whose commands it takes
+        self._modes = {node_id + mode.id_offset: mode for mode in ControlMode}
+        # TIMEOUT disables the motor, LOST_COMMUNICATION until cleared (the module doc)
         core.silence_reaction = SilenceReaction.DISABLE
         self._apply_registers()
 
     # --- bus ----------------------------------------------------------------------------
 
-    def subscriptions(self):
-        handlers = {self.node_id + mode.id_offset: self._command_handler(mode)
-                    for mode in ControlMode}
-        handlers[REGISTER_ID] = self._on_register
-        return handlers
+    def subscriptions(self) -> list[Subscription]:
+        return [*(Subscription(identifier, self.on_frame) for identifier in self._modes),
+                Subscription(REGISTER_ID, self._on_register)]
 
-    def _command_handler(self, mode: ControlMode):
-        def receive(can_id: int, data: bytes, timestamp: float) -> None:
-            if len(data) != 8:
-                self.malformed += 1          # every command of the firmware is 8 bytes
-                return
-            with self.lock:
-                self.heard()
-                self._on_command_frame(mode, bytes(data))
-                self._reply = self._feedback()
-                self.on_command(self)
-        return receive
-
-    def _on_command_frame(self, mode: ControlMode, data: bytes) -> None:
+    def apply(self, frame: Frame) -> Frame:
+        mode, data = self._modes[frame.identifier], frame.data
         if mode is ControlMode.MIT and data in SPECIAL_FRAMES:
             SPECIAL_FRAMES[data](self)
         elif mode is self.control_mode and self.core.power is Power.ENABLED:
             COMMANDS[mode](self, data)
         # else: a command for another mode than CTRL_MODE's, or to a disabled motor: it
         # moves nothing, and the motor answers with its feedback (its state says why)
+        return self.answer()
 
-    def take_replies(self) -> list[tuple[int, bytes]]:
-        reply, self._reply = self._reply, b""
-        return [(self.reply_id, reply)] if reply else []
+    def answer(self) -> Frame:
+        """The feedback frame."""
+        status = self.core.status()
+        data = pack_feedback(Feedback(self.node_id, self.state, status.position - self.zero,
+                                      status.velocity, status.torque, int(AMBIENT),
+                                      int(AMBIENT)), self.ranges)
+        return frame_of_fields((self.reply_id, data, False, False, False, False, False, 0.0))
 
     @property
     def control_mode(self) -> ControlMode:
@@ -124,13 +118,8 @@ class DamiaoDrive(DriveProfile):
 
     @property
     def ranges(self) -> MitRanges:
-        return MitRanges(self.registers[21], self.registers[22], 500.0, 5.0, self.registers[23])
-
-    def _feedback(self) -> bytes:
-        status = self.core.status()
-        return pack_feedback(Feedback(self.node_id, self.state, status.position - self._zero,
-                                      status.velocity, status.torque, int(AMBIENT),
-                                      int(AMBIENT)), self.ranges)
+        return MitRanges(self.registers[21], self.registers[22], KP_MAX, KD_MAX,
+                         self.registers[23])
 
     @property
     def state(self) -> State:
@@ -155,7 +144,7 @@ class DamiaoDrive(DriveProfile):
         the new zero (app_commands.c, CAN_COMMAND_SET_ZERO), so a move in progress ends
         here."""
         here = self.core.status().position
-        self._zero = here
+        self.zero = here
         if self.core.power is not Power.ENABLED:
             return
         if self.control_mode is ControlMode.MIT:
@@ -195,7 +184,7 @@ class DamiaoDrive(DriveProfile):
         command = unpack_command(data, self.ranges)
         if self.core.parameters.peak_torque != self._peak:          # after force-position
             self.core.parameters = replace(self.core.parameters, peak_torque=self._peak)
-        follow(self.core, command, self._zero)
+        follow(self.core, command, self.zero)
 
     def _position_velocity(self, data: bytes) -> None:
         position, velocity = _TWO_FLOATS.unpack(data)
@@ -216,7 +205,7 @@ class DamiaoDrive(DriveProfile):
     def _move(self, position: float, speed: float, torque_limit: float) -> None:
         if math.isfinite(position) and math.isfinite(speed):
             self._profile(speed, torque_limit)
-            self.core.move_to(position + self._zero)
+            self.core.move_to(position + self.zero)
 
     def _profile(self, speed: float, torque_limit: float) -> None:
         self.core.parameters = replace(
@@ -226,13 +215,14 @@ class DamiaoDrive(DriveProfile):
 
     # --- registers -------------------------------------------------------------------
 
-    def _on_register(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_register(self, frame: Frame) -> None:
+        data = frame.data
         if len(data) != 8 or (data[0] | (data[1] << 8)) != self.node_id:
             return                       # another motor's, or not a request
         with self.lock:
             op, number = data[2], data[3]
             if op == Op.REFRESH:
-                self.send(self.reply_id, self._feedback())
+                self.send(self.answer())
                 return
             if op == Op.SAVE:
                 if self.core.power is not Power.ENABLED:    # the firmware saves disarmed only
@@ -243,8 +233,8 @@ class DamiaoDrive(DriveProfile):
                 self.malformed += 1      # an unknown register or op: no answer (hil's choice)
                 return
             if op == Op.WRITE and register.writable:
-                self._write(number, register.decode(bytes(data[4:8])))
-            self.send(self.reply_id, bytes(data[:4]) + register.encode(self._read(number)))
+                self._write(number, register.decode(data[4:8]))
+            self.send(Frame(self.reply_id, data[:4] + register.encode(self._read(number))))
 
     def _write(self, number: int, value: float) -> None:
         """A register write the register can take (the module doc); a new CTRL_MODE zeroes
@@ -259,7 +249,7 @@ class DamiaoDrive(DriveProfile):
 
     def _read(self, number: int) -> float:
         if number in (80, 81):           # p_m (the rotor's), xout (the output's)
-            position = self.core.status().position - self._zero
+            position = self.core.status().position - self.zero
             return position * self.registers[20] if number == 80 else position
         return self.registers[number]
 
@@ -281,15 +271,14 @@ class DamiaoDrive(DriveProfile):
         self.error = None
         self._apply_registers()
 
-    def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
+    def readings(self, frame: Frame) -> tuple[Reading, ...] | None:
         """Feedback: the motor id and state exact, position, velocity and torque."""
-        if can_id != self.reply_id or len(data) != 8 or is_register_answer(data):
+        data = frame.data
+        if frame.identifier != self.reply_id or len(data) != 8 or is_register_answer(data):
             return None
         feedback = unpack_feedback(data, self.ranges)
         return (Reading("motor id", feedback.motor_id), Reading("state", feedback.state),
-                Reading("position", feedback.position, "position"),
-                Reading("velocity", feedback.velocity, "velocity"),
-                Reading("torque", feedback.torque, "torque"))
+                *motion_readings(feedback))
 
     @property
     def state_text(self) -> str:

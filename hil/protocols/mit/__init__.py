@@ -9,9 +9,8 @@ Every frame is answered with 6 bytes to the master's id: motor id, position
 (16), velocity (12), torque (12). In motor mode the motor applies
 ``tau = kp (p_des - p) + kd (v_des - v) + t_ff`` on its shaft, saturated.
 
-The packing is plain integer arithmetic: no library implements it (the
-firmware is C), and cantools has no signals for values packed across
-nibbles with per-motor ranges.
+The frames' packing: :mod:`hil.protocols.mit.codec`; what Damiao and CubeMars share with
+it: :mod:`hil.protocols.mit.family`.
 """
 
 from __future__ import annotations
@@ -21,22 +20,14 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender
-
-ENTER_MOTOR_MODE = bytes([0xFF] * 7 + [0xFC])
-EXIT_MOTOR_MODE = bytes([0xFF] * 7 + [0xFD])
-SET_ZERO = bytes([0xFF] * 7 + [0xFE])
-
-
-@dataclass(frozen=True)
-class MitRanges:
-    """Per-motor ranges of the packed values (firmware defaults: the classic mini-cheetah)."""
-
-    p_max: float = 12.5        # rad, position in [-p_max, p_max]
-    v_max: float = 65.0        # rad/s
-    kp_max: float = 500.0      # N·m/rad, kp in [0, kp_max]
-    kd_max: float = 5.0        # N·m·s/rad
-    t_max: float = 18.0        # N·m
+from hil.can.frame import Frame, FrameSpec
+from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions
+from hil.protocols.mit.codec import (
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, MitReply, float_to_uint,
+    pack_command, pack_motion, pack_reply, uint_to_float, unpack_command, unpack_motion,
+    unpack_reply,
+)
+from hil.protocols.mit.family import parse_standard_id, told_by_motor_id
 
 
 class TimeoutReaction(enum.Enum):
@@ -80,86 +71,13 @@ class MitOptions(ProtocolOptions):
         if reaction not in {r.value for r in TimeoutReaction}:
             raise ValueError(f"'timeout_reaction' {reaction!r} is not one of "
                              f"{', '.join(r.value for r in TimeoutReaction)}")
-        options = cls(ranges, int(values.get("reply_id", 0)), float(values.get("kp", 0.0)),
-                      float(values.get("kd", 0.0)), TimeoutReaction(reaction))
-        if not 0 <= options.reply_id <= 0x7FF:
-            raise ValueError(f"'reply_id' {options.reply_id} is not an 11-bit CAN id")
+        options = cls(ranges, parse_standard_id(values, "reply_id", 0),
+                      float(values.get("kp", 0.0)), float(values.get("kd", 0.0)),
+                      TimeoutReaction(reaction))
         if not (0 < options.kp <= ranges.kp_max and 0 <= options.kd <= ranges.kd_max):
             raise ValueError(f"'kp' must be in (0, {ranges.kp_max:g}] and 'kd' in "
                              f"[0, {ranges.kd_max:g}] (the master's motor-side gains)")
         return options
-
-
-def float_to_uint(value: float, low: float, high: float, bits: int) -> int:
-    """The firmware's packing: clamp, scale onto 0..2^bits-1, truncate."""
-    value = min(max(value, low), high)
-    return int((value - low) * ((1 << bits) - 1) / (high - low))
-
-
-def uint_to_float(value: int, low: float, high: float, bits: int) -> float:
-    return value * (high - low) / ((1 << bits) - 1) + low
-
-
-def _field(ranges: MitRanges, name: str) -> tuple[float, float, int]:
-    """(low, high, bits) of a packed value."""
-    return {"position": (-ranges.p_max, ranges.p_max, 16),
-            "velocity": (-ranges.v_max, ranges.v_max, 12),
-            "kp": (0.0, ranges.kp_max, 12), "kd": (0.0, ranges.kd_max, 12),
-            "torque": (-ranges.t_max, ranges.t_max, 12)}[name]
-
-
-def _pack(values, ranges: MitRanges, names: tuple[str, ...]) -> list[int]:
-    return [float_to_uint(getattr(values, name), *_field(ranges, name)) for name in names]
-
-
-def _unpack(raw: tuple[int, ...], ranges: MitRanges, names: tuple[str, ...]) -> list[float]:
-    return [uint_to_float(value, *_field(ranges, name)) for value, name in zip(raw, names)]
-
-
-@dataclass(frozen=True)
-class MitCommand:
-    position: float
-    velocity: float
-    kp: float
-    kd: float
-    torque: float
-
-    FIELDS = ("position", "velocity", "kp", "kd", "torque")
-
-
-def pack_command(command: MitCommand, ranges: MitRanges) -> bytes:
-    p, v, kp, kd, t = _pack(command, ranges, MitCommand.FIELDS)
-    return bytes([p >> 8, p & 0xFF, v >> 4, ((v & 0xF) << 4) | (kp >> 8), kp & 0xFF, kd >> 4,
-                  ((kd & 0xF) << 4) | (t >> 8), t & 0xFF])
-
-
-def unpack_command(data: bytes, ranges: MitRanges) -> MitCommand:
-    raw = ((data[0] << 8) | data[1], (data[2] << 4) | (data[3] >> 4),
-           ((data[3] & 0xF) << 8) | data[4], (data[5] << 4) | (data[6] >> 4),
-           ((data[6] & 0xF) << 8) | data[7])
-    return MitCommand(*_unpack(raw, ranges, MitCommand.FIELDS))
-
-
-@dataclass(frozen=True)
-class MitReply:
-    motor_id: int
-    position: float
-    velocity: float
-    torque: float
-
-    FIELDS = ("position", "velocity", "torque")
-
-
-def pack_reply(reply: MitReply, ranges: MitRanges) -> bytes:
-    p, v, t = _pack(reply, ranges, MitReply.FIELDS)
-    return bytes([reply.motor_id, p >> 8, p & 0xFF, v >> 4, ((v & 0xF) << 4) | (t >> 8),
-                  t & 0xFF])
-
-
-def unpack_reply(data: bytes, ranges: MitRanges) -> MitReply:
-    raw = ((data[1] << 8) | data[2], (data[3] << 4) | (data[4] >> 4),
-           ((data[4] & 0xF) << 8) | data[5])
-    return MitReply(data[0], *_unpack(raw, ranges, MitReply.FIELDS))
 
 
 class Mit(Protocol):
@@ -174,9 +92,10 @@ class Mit(Protocol):
 
     @classmethod
     def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float,
-                   options: MitOptions | None = None) -> list[tuple[int, int, float]]:
+                   options: MitOptions | None = None) -> list[FrameSpec]:
         options = options or MitOptions()
-        return [(node_id, 8, cycle_hz), (options.reply_id, 6, cycle_hz)]
+        return [FrameSpec(node_id, 8, cycle_hz, "command"),
+                FrameSpec(options.reply_id, 6, cycle_hz, "reply")]
 
     @classmethod
     def initial_options(cls, setting: DriveSetting) -> dict:
@@ -188,20 +107,19 @@ class Mit(Protocol):
                 "kp": float(f"{setting.kp:.4g}"), "kd": float(f"{setting.kd:.4g}")}
 
     @classmethod
-    def frame_source(cls, can_id: int, data: bytes, remote: bool,
-                     drives: Mapping[int, object]) -> FrameSource | None:
+    def frame_source(cls, frame: Frame, drives: Mapping[int, object]) -> FrameSource | None:
         """A command goes to the motor's id; a reply to the master's, naming the motor in
-        its first byte."""
-        if can_id in drives:
-            return FrameSource(Sender.MASTER, can_id, "command", cycle=True)
-        replies = {(options or MitOptions()).reply_id for options in drives.values()}
-        if can_id in replies and data and data[0] in drives:
-            return FrameSource(Sender.DRIVE, data[0], "reply")
-        return None
+        its first byte; both are 11-bit frames (an extended one is no MIT motor's)."""
+        if frame.extended:
+            return None
+        return told_by_motor_id(frame, drives, {(options or MitOptions()).reply_id
+                                                for options in drives.values()}, "reply")
 
     @classmethod
-    def source_reads_data(cls, can_id: int, drives: Mapping[int, object]) -> bool:
-        return can_id not in drives        # a reply names its motor in its first byte
+    def source_reads_data(cls, frame: Frame, drives: Mapping[int, object]) -> bool:
+        # a reply names its motor in its first byte; an extended frame: told by its flag,
+        # kept apart from the 11-bit frame of its number whatever a reader keys its answers by
+        return frame.extended or frame.identifier not in drives
 
     @classmethod
     def shared_ids(cls, options: MitOptions | None = None) -> set[int]:
@@ -215,3 +133,9 @@ def _round_up(value: float) -> float:
         return 1.0
     scale = 10 ** (math.floor(math.log10(value)) - 1)
     return float(f"{math.ceil(value / scale) * scale:.6g}")
+
+
+__all__ = ["ENTER_MOTOR_MODE", "EXIT_MOTOR_MODE", "SET_ZERO", "Mit", "MitCommand", "MitOptions",
+           "MitRanges", "MitReply", "TimeoutReaction", "float_to_uint", "pack_command",
+           "pack_motion", "pack_reply", "uint_to_float", "unpack_command", "unpack_motion",
+           "unpack_reply"]

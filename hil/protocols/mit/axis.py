@@ -1,4 +1,5 @@
-"""The master's side of a MIT-protocol motor (the protocol: :mod:`hil.protocols.mit`).
+"""The master's side of a MIT-protocol motor (the protocol: :mod:`hil.protocols.mit`), and of
+every motor of its family (Damiao's and CubeMars' axes are this one with their answers).
 
 Exactly one frame per motor per cycle, always answered: the enter/exit
 motor-mode special frames when the mode changes, otherwise a command. In
@@ -6,26 +7,85 @@ rest mode the command carries zero gains (its answer is the feedback);
 stopping holds the motor where it is with the configured gains. The protocol
 reports no state and no faults: the mode is what the master last commanded,
 and a motor that stops answering is found silent.
+
+What a family changes is in two objects the axis owns: its :class:`MotorAnswers` (which
+frames on the master's id are its motor's answers, what they carry) and the special frame
+its next cycle sends instead of a command (:class:`SpecialFrames`).
 """
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from hil.bus_config.types import DriveConfig
-from hil.hardware.axis import Axis, AxisCommand, Frame
+from hil.can.frame import Frame
+from hil.can.router import Subscription
+from hil.errors import ConfigError
+from hil.hardware.axis import Axis, AxisCommand
 from hil.protocols.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitCommand, MitOptions, MitRanges, pack_command,
-    unpack_reply,
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitCommand, MitOptions, MitRanges, MitReply,
+    pack_command, unpack_reply,
 )
+
+
+class SpecialFrames:
+    """The special frame an axis sends in place of its next cycle's command (exit motor
+    mode on a reset, a family's clear-error): one deep, a later one replacing an earlier,
+    as the master sends one frame a motor a cycle."""
+
+    __slots__ = ("next",)
+
+    def __init__(self) -> None:
+        #: the data of the frame the next cycle sends (None: a command)
+        self.next: bytes | None = None
+
+    def send_next(self, data: bytes) -> None:
+        self.next = data
+
+    def take(self) -> bytes | None:
+        """The frame's data, now sent (None: none was waiting)."""
+        data, self.next = self.next, None
+        return data
+
+
+class MotorAnswers:
+    """Which frames on the master's id are one motor's answers, and what each carries: a
+    MIT motor's, 6 bytes naming it in byte 0 (Hobbyking_Cheetah_Compact CAN_com.cpp,
+    ``pack_reply``). A family whose answers say more subclasses it, keeping what they report
+    beside the motion in :attr:`reported`."""
+
+    #: what a motor has reported before its first answer, and after :meth:`forget`
+    NOTHING: ClassVar[object] = None
+
+    def __init__(self, node_id: int, ranges: MitRanges):
+        self.node_id = node_id
+        self.ranges = ranges
+        #: what the last answer reported beside the motion (a family's state or error)
+        self.reported = self.NOTHING
+
+    def read(self, data: bytes) -> MitReply | None:
+        """The answer ``data`` carries if it is this motor's (it has ``position``,
+        ``velocity`` and ``torque``), else None."""
+        if len(data) != 6 or data[0] != self.node_id:
+            return None
+        return unpack_reply(data, self.ranges)
+
+    def forget(self) -> None:
+        """Before a fault reset: what the motor reported is forgotten until it answers."""
+        self.reported = self.NOTHING
 
 
 class MitAxis(Axis):
     protocol = Mit
+    #: the answers of this family's motors
+    Answers: ClassVar[type[MotorAnswers]] = MotorAnswers
 
     def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
         super().__init__(config, bus_name, on_feedback)
         self.ranges, self.kp, self.kd, self.reply_id = self.command_settings(config)
+        self.answers = self.Answers(config.node_id, self.ranges)
+        self.specials = SpecialFrames()
         self.motor_mode = False
-        self._pending_special: bytes | None = None
         self._hold: float | None = None
 
     @staticmethod
@@ -34,23 +94,35 @@ class MitAxis(Axis):
         options: MitOptions = config.options          # kp > 0: checked with the bus config
         return options.ranges, options.kp, options.kd, options.reply_id
 
-    def subscriptions(self):
-        # every motor answers on the master's id; each axis keeps the answers with its id
-        return {self.reply_id: self._on_reply}
+    @staticmethod
+    def require(config: DriveConfig, met: bool, how: str, options: str) -> None:
+        """A ConfigError unless ``met``: hil's master drives the family's motors ``how``
+        with its own gains, which the drive's ``options`` give."""
+        if not met:
+            raise ConfigError.single(
+                f"drive node {config.node_id} ({', '.join(config.joints)}): hil's master "
+                f"drives {how} with its own gains",
+                hint=f"give the drive 'options: {{{options}, kp: ..., kd: ...}}' (hil init "
+                     "writes them)")
 
-    def _on_reply(self, can_id, data, timestamp) -> None:
-        if len(data) != 6 or data[0] != self.node_id:
+    def subscriptions(self) -> list[Subscription]:
+        # every motor answers on the master's id; each axis keeps the answers with its id
+        return [Subscription(self.reply_id, self._on_reply)]
+
+    def _on_reply(self, frame: Frame) -> None:
+        answer = self.answers.read(frame.data)
+        if answer is None:
             return
-        reply = unpack_reply(bytes(data), self.ranges)
-        self.feedback.position, self.feedback.velocity = reply.position, reply.velocity
-        self.feedback.torque = reply.torque
+        feedback = self.feedback
+        feedback.position, feedback.velocity = answer.position, answer.velocity
+        feedback.torque = answer.torque
         self.booted.set()
         self.answered()
 
     def reset(self) -> None:
         """Rest mode first: the next cycle's frame is EXIT MOTOR MODE."""
         super().reset()
-        self._pending_special = EXIT_MOTOR_MODE
+        self.specials.send_next(EXIT_MOTOR_MODE)
         self.motor_mode = False
 
     @property
@@ -64,13 +136,12 @@ class MitAxis(Axis):
     def cycle_frames(self, command: AxisCommand) -> list[Frame]:
         target, velocity, torque = command.target, command.velocity, command.torque
         stopping, enabling = command.stopping, command.holding
-        if self._pending_special is not None:
-            special, self._pending_special = self._pending_special, None
-            return [(self.node_id, special, False)]
+        if self.specials.next is not None:
+            return [Frame(self.node_id, self.specials.take())]
         if not self.motor_mode and not stopping and self.at_standstill():
             self.motor_mode = True
             self._hold = self.feedback.position
-            return [(self.node_id, ENTER_MOTOR_MODE, False)]
+            return [Frame(self.node_id, ENTER_MOTOR_MODE)]
         if not self.motor_mode:
             sent = MitCommand(self.feedback.position, 0.0, 0.0, 0.0, 0.0)
         elif stopping or enabling:
@@ -80,11 +151,11 @@ class MitAxis(Axis):
         else:
             self._hold = None
             sent = MitCommand(target, velocity, self.kp, self.kd, torque)
-        return [(self.node_id, pack_command(sent, self.ranges), False)]
+        return [Frame(self.node_id, pack_command(sent, self.ranges))]
 
     def disable_rounds(self) -> list[list[Frame]]:
         self.motor_mode = False
-        return [[(self.node_id, EXIT_MOTOR_MODE, False)]]
+        return [[Frame(self.node_id, EXIT_MOTOR_MODE)]]
 
     def forget_faults(self) -> None:
         self._hold = None

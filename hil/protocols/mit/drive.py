@@ -5,17 +5,23 @@ main.cpp): every frame to the motor, enter-motor-mode included, zeroes the timeo
 (``onMsgReceived``), which counts only in motor mode; when it expires the firmware zeroes
 kp, kd and the feed-forward and stays in motor mode, so the next command drives again
 (``timeout_reaction: rest`` leaves motor mode instead, as some forks do).
+
+What every motor of the family (Damiao's, CubeMars') does alike is :class:`MitFamilyDrive`.
 """
 
 from __future__ import annotations
 
+from abc import abstractmethod
 from contextlib import AbstractContextManager
 
+from hil.bus_config.types import DriveConfig
+from hil.can.frame import Frame, frame_of_fields
+from hil.can.router import Subscription
 from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power, SilenceReaction
 from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, Mit, MitCommand, MitOptions, MitReply,
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, Mit, MitCommand, MitRanges, MitReply,
     TimeoutReaction, pack_reply, unpack_command, unpack_reply,
 )
 
@@ -41,68 +47,114 @@ def zero_commands(core: DriveCore) -> None:
     core.new_setpoint(torque=0.0, stiffness=0.0, damping=0.0)
 
 
-class MitDrive(DriveProfile):
+def motion_readings(answer) -> tuple[Reading, Reading, Reading]:
+    """The motion an answer of the family carries (bytes 1-5 in every family's:
+    :func:`hil.protocols.mit.pack_motion`), for a replay's comparison within tolerances."""
+    return (Reading("position", answer.position, "position"),
+            Reading("velocity", answer.velocity, "velocity"),
+            Reading("torque", answer.torque, "torque"))
+
+
+class MitFamilyDrive(DriveProfile):
+    """What a motor of the MIT family does alike, whoever made it: it is built from its
+    drive's config with its protocol's options (:attr:`options`); a command frame is 8 bytes
+    (another length is malformed, ignored as each firmware ignores it: the mini-cheetah's
+    ``onMsgReceived``, Damiao's and CubeMars' 8-byte commands), heard (it restarts the CAN
+    timeout whatever it says) and answered once applied (:meth:`apply`: by default as the
+    mini-cheetah firmware takes it), its answer taken once."""
+
+    #: the commands' ranges (each family's drive sets them)
+    ranges: MitRanges
+    #: an MIT command's layout (CubeMars' firmware V3 has its own)
+    decode_command = staticmethod(unpack_command)
+
+    def __init__(self, config: DriveConfig, core: DriveCore, lock: AbstractContextManager):
+        super().__init__(config, core, lock)
+        self.options = config.options or self.protocol.Options()
+        #: the motor's position at its zero (set zero, save zero, set origin)
+        self.zero = 0.0
+        self._reply: Frame | None = None
+
+    def on_frame(self, frame: Frame) -> None:
+        """A command frame to the motor (special frames included)."""
+        if len(frame.data) != 8:
+            self.malformed += 1
+            return
+        with self.lock:
+            self.heard()
+            self._reply = self.apply(frame)
+            self.on_command(self)
+
+    def apply(self, frame: Frame) -> Frame:
+        """What an 8-byte command frame does to the motor (the lock held); its answer. Here
+        the mini-cheetah firmware's (main.cpp ``onMsgReceived``): enter motor mode, exit it,
+        set the zero here, else a command, followed in motor mode only (answered all the
+        same)."""
+        data = frame.data
+        if data == ENTER_MOTOR_MODE:
+            self.enter()
+        elif data == EXIT_MOTOR_MODE:
+            self.core.disable()
+        elif data == SET_ZERO:
+            self.zero = self.core.status().position
+        elif self.core.power is Power.ENABLED:
+            follow(self.core, self.decode_command(data, self.ranges), self.zero)
+        return self.answer()
+
+    def enter(self) -> None:
+        """Enter motor mode."""
+        enter_motor_mode(self.core)
+
+    @abstractmethod
+    def answer(self) -> Frame:
+        """The frame that answers a command now (the lock held): a frame every cycle, built
+        with :func:`~hil.can.frame.frame_of_fields` (from C) where it is a standard one."""
+
+    def take_replies(self) -> list[Frame]:
+        reply, self._reply = self._reply, None
+        return [reply] if reply is not None else []
+
+    def mode_text(self) -> str:
+        return "MOTOR MODE" if self.core.power is Power.ENABLED else "REST MODE"
+
+
+class MitDrive(MitFamilyDrive):
     """A quasi-direct-drive motor speaking the MIT protocol, around a DriveCore."""
 
     protocol = Mit
 
-    def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager,
-                 rated_torque: float, heartbeat_period: float = 0.1,
-                 options: MitOptions | None = None):
-        super().__init__(node_id, core, lock)
-        self.options = options or MitOptions()
+    def __init__(self, config: DriveConfig, core: DriveCore, lock: AbstractContextManager):
+        super().__init__(config, core, lock)
         self.ranges = self.options.ranges
-        self._zero = 0.0             # motor position at "set zero"
-        self._reply = b""
         core.set_mode(Mode.IMPEDANCE)
         # the core reports the silence; the reaction is the firmware's (after_update)
         core.silence_reaction = (SilenceReaction.DISABLE if self.options.timeout_reaction
                                  is TimeoutReaction.REST else SilenceReaction.NONE)
 
-    def subscriptions(self):
-        return {self.node_id: self._on_frame}
+    def subscriptions(self) -> list[Subscription]:
+        return [Subscription(self.node_id, self.on_frame)]
 
-    def _on_frame(self, can_id: int, data: bytes, timestamp: float) -> None:
-        if len(data) != 8:
-            self.malformed += 1          # the firmware ignores frames that are not 8 bytes
-            return
-        with self.lock:
-            data = bytes(data)
-            self.heard()                 # every frame to the motor zeroes its timeout counter
-            if data == ENTER_MOTOR_MODE:
-                enter_motor_mode(self.core)
-            elif data == EXIT_MOTOR_MODE:
-                self.core.disable()
-            elif data == SET_ZERO:
-                self._zero = self.core.status().position
-            elif self.core.power is Power.ENABLED:
-                follow(self.core, unpack_command(data, self.ranges), self._zero)
-            status = self.core.status()
-            self._reply = pack_reply(MitReply(self.node_id, status.position - self._zero,
-                                              status.velocity, status.torque), self.ranges)
-            self.on_command(self)
-
-    def take_replies(self) -> list[tuple[int, bytes]]:
-        reply, self._reply = self._reply, b""
-        return [(self.options.reply_id, reply)] if reply else []
+    def answer(self) -> Frame:
+        status = self.core.status()
+        data = pack_reply(MitReply(self.node_id, status.position - self.zero, status.velocity,
+                                   status.torque), self.ranges)
+        return frame_of_fields((self.options.reply_id, data, False, False, False, False, False,
+                                0.0))
 
     def after_update(self) -> None:
         events = self.take_events()
         if Fault.CONTROLLER_SILENT in events and self.core.power is Power.ENABLED:
             zero_commands(self.core)     # the firmware reports nothing
 
-    def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
+    def readings(self, frame: Frame) -> tuple[Reading, ...] | None:
         """A reply: the motor id exact, position (rad from the zero), velocity, torque."""
-        if can_id != self.options.reply_id or len(data) != 6:
+        if frame.identifier != self.options.reply_id or len(frame.data) != 6:
             return None
-        reply = unpack_reply(data, self.ranges)
-        return (Reading("motor id", reply.motor_id),
-                Reading("position", reply.position, "position"),
-                Reading("velocity", reply.velocity, "velocity"),
-                Reading("torque", reply.torque, "torque"))
+        reply = unpack_reply(frame.data, self.ranges)
+        return (Reading("motor id", reply.motor_id), *motion_readings(reply))
 
     @property
     def state_text(self) -> str:
         if self.core.power is Power.FAULT:
             return f"FAULT ({self.core.fault.text})"
-        return "MOTOR MODE" if self.core.power is Power.ENABLED else "REST MODE"
+        return self.mode_text()
