@@ -26,11 +26,14 @@ def frame_of(msg: can.Message, timestamp: float | None = None) -> Frame:
                             msg.timestamp if timestamp is None else timestamp))
 
 
-def message_of(frame: Frame, channel=None, is_rx: bool = False) -> can.Message:
+def message_of(frame: Frame, channel=None, is_rx: bool = False,
+               timestamp: float | None = None) -> can.Message:
     """What ``can.Message(timestamp=..., arbitration_id=..., is_extended_id=..., ...)``
-    builds for ``frame`` (its data in a bytearray of its own) on ``channel``."""
+    builds for ``frame`` (its data in a bytearray of its own) on ``channel``, stamped
+    ``timestamp`` (default: the frame's)."""
     data = bytearray() if frame.remote else bytearray(frame.data)
-    return _filled(_new_message(can.Message), frame.timestamp, frame.identifier,
+    return _filled(_new_message(can.Message),
+                   frame.timestamp if timestamp is None else timestamp, frame.identifier,
                    frame.extended, frame.remote, frame.error, channel, len(frame.data), data,
                    frame.fd, is_rx, frame.bitrate_switch, False)
 

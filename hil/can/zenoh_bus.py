@@ -1,17 +1,15 @@
 """A python-can interface that carries CAN frames over Zenoh.
 
-Registered as python-can interface ``zenoh`` (entry point group
-``can.interface``), so ``can.Bus(interface="zenoh", channel="ur3/arm")``
-works in any program. Every bus on the same channel, in any process that
-reaches the same Zenoh network, sees every frame the others send, in order
-per sender, like a CAN bus; a bus does not receive its own frames unless
-``receive_own_messages=True``. There is no arbitration or bandwidth limit:
-``hil check`` estimates the load a real bus would carry.
+Registered as python-can interface ``zenoh`` (entry point group ``can.interface``), so
+``can.Bus(interface="zenoh", channel="ur3/arm")`` works in any program. Every bus on the
+same channel, in any process that reaches the same Zenoh network, sees every frame the
+others send, in order per sender, like a CAN bus; a bus does not receive its own frames
+unless ``receive_own_messages=True``. There is no arbitration or bandwidth limit: ``hil
+check`` estimates the load a real bus would carry.
 
-Why: SocketCAN ``vcan`` needs a Linux kernel with CAN; python-can's
-``virtual`` bus is one process only and ``udp_multicast`` sends to the
-network. Zenoh over loopback TCP is cross-process, loopback-only by default,
-and also lets a bench put drives and controller on different hosts.
+Why: SocketCAN ``vcan`` needs a Linux kernel with CAN; python-can's ``virtual`` bus is one
+process only and ``udp_multicast`` sends to the network. Zenoh over loopback TCP is
+cross-process, loopback-only by default, and lets drives and controller run on two hosts.
 
 Back-pressure, as a CAN controller has it: a send never blocks its thread (a drive answers
 from inside a delivery, holding the simulator's lock): under congestion Zenoh drops the
@@ -263,19 +261,14 @@ class ZenohBus(can.BusABC, BusCapabilities):
                 direct.deliver_frames(frames)
                 return
             for frame in frames:
-                direct.deliver(self._message(frame, timestamp, is_rx))
+                direct.deliver(message_of(frame, self._channel, is_rx, timestamp))
             return
         for frame in frames:
             try:
-                self._queue.put_nowait(self._message(frame, timestamp, is_rx))
+                self._queue.put_nowait(message_of(frame, self._channel, is_rx, timestamp))
             except queue.Full:
                 with self._count_lock:
                     self.counters.overrun += 1
-
-    def _message(self, frame: Frame, timestamp: float, is_rx: bool) -> can.Message:
-        msg = message_of(frame, self._channel, is_rx)
-        msg.timestamp = timestamp
-        return msg
 
     def _count_arrival(self, sender: int, sequence: int, frames: int, transit: float,
                        arrived: float) -> Stall | None:
