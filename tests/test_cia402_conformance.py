@@ -148,8 +148,13 @@ def test_the_boot_up_is_the_first_frame_a_node_sends_after_a_reset(bench, comman
     # master sent it, and a heartbeat the drive sent meanwhile is one from before the reset
     # (CI saw one: [7f, 00, 7f] from the master's send on)
     took: list[float] = []
-    subscribers = bench.sim.buses[0].network.subscribers[0x000]
-    subscribers.insert(0, lambda can_id, data, timestamp: took.append(time.time()))
+    router = bench.sim.buses[0].router          # the tap first, then the drives' handlers
+    handlers = router.handlers(0x000)
+    for handler in handlers:
+        router.unsubscribe(0x000, handler)
+    router.subscribe(0x000, lambda frame: took.append(time.time()))
+    for handler in handlers:
+        router.subscribe(0x000, handler)
     for _ in range(10):
         took.clear()
         with FrameTap(bench) as tap:

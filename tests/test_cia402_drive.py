@@ -18,8 +18,8 @@ import pytest
 
 from conftest import EDS, MASTER_PATIENCE, patient
 
+from hil.protocols.cia402 import EMCY_FOLLOWING_ERROR
 from hil.protocols.cia402.state import SUPPORTED_MODES
-from hil.drives.definitions import Fault
 
 CYCLE = 0.01          # the fixture config's 100 Hz SYNC
 COUNTS = 131072       # encoder counts per motor revolution (fixture default)
@@ -121,8 +121,8 @@ def test_following_error_faults_with_emcy_and_fault_reset_recovers(bench):
     start = node.tpdo[1]["Position actual value"].raw
     jump = round(1.0 * REDUCTION / (2 * math.pi) * COUNTS)   # 1 rad in one 10 ms cycle
     node.rpdo[1]["Target position"].raw = start + jump
-    assert emcy_logged_after(node, Fault.FOLLOWING_ERROR.code, timeout=2)
-    assert next(e for e in node.emcy.log if e.code == Fault.FOLLOWING_ERROR.code).register & 0x01
+    assert emcy_logged_after(node, EMCY_FOLLOWING_ERROR, timeout=2)
+    assert next(e for e in node.emcy.log if e.code == EMCY_FOLLOWING_ERROR).register & 0x01
     node.tpdo[1].wait_for_reception(1)
     node.tpdo[1].wait_for_reception(1)
     assert node.state == "FAULT"
@@ -131,7 +131,7 @@ def test_following_error_faults_with_emcy_and_fault_reset_recovers(bench):
     node.rpdo[1]["Target position"].raw = here
     node.reset_from_fault()                      # rising edge of bit 7, then back to enabled
     assert node.state == "OPERATION ENABLED"
-    assert emcy_logged_after(node, 0x0000, Fault.FOLLOWING_ERROR.code)   # "error reset" EMCY
+    assert emcy_logged_after(node, 0x0000, EMCY_FOLLOWING_ERROR)   # "error reset" EMCY
 
 
 @pytest.mark.wire("any frame the kernel delivers")

@@ -21,7 +21,8 @@ import pytest
 
 from conftest import EDS, TEST_MOTOR_DRIVE
 
-from hil.can.network import start_network
+from hil.bus_config.types import DriveConfig
+from hil.can.router import start_router
 from hil.drives.core import DriveCore
 from hil.drives.definitions import DriveParameters
 from hil.errors import HilError
@@ -54,18 +55,34 @@ def checked(node_id: int = 1, **options) -> str | None:
     return Cia402.drive_problem(node_id, given)
 
 
+def drive_config(node_id: int, options: Cia402Options | None = None) -> DriveConfig:
+    """A CiA 402 drive's config, TEST_MOTOR_DRIVE's ratings, a heartbeat every 0.1 s."""
+    motor = TEST_MOTOR_DRIVE
+    return DriveConfig(
+        node_id=node_id, actuator="motor", joints=("joint",), protocol="cia402",
+        encoder_counts_per_rev=motor["counts_per_rev"], rated_torque=motor["rated_torque"],
+        peak_torque=motor["peak_torque"], max_velocity=motor["max_velocity"],
+        following_error_limit=motor["following_error_limit"],
+        following_error_timeout=motor["following_error_timeout"],
+        quick_stop_deceleration=motor["quick_stop_deceleration"],
+        watchdog_timeout=motor["watchdog_timeout"], heartbeat_period=0.1,
+        holding_brake=True, position_limits=motor["position_limits"], gains=None,
+        velocity_bandwidth_hz=0.0, options=options)
+
+
 def started(node_id: int = 1, **options) -> Cia402Drive:
-    """The drive ``hil sim`` starts with these options, on a network of its own."""
+    """The drive ``hil sim`` starts with these options, on a bus of its own."""
     given = Cia402Options.from_mapping({key: str(value) for key, value in options.items()})
-    drive = Cia402Drive(node_id, DriveCore(DriveParameters(**TEST_MOTOR_DRIVE)),
-                        threading.Lock(), 1.0, options=given)
+    drive = Cia402Drive(drive_config(node_id, given),
+                        DriveCore(DriveParameters(**TEST_MOTOR_DRIVE)), threading.Lock())
     bus = can.Bus(interface="virtual", channel=f"files-{uuid.uuid4().hex}")
-    network = start_network(bus)
+    router = start_router(bus, keep_sending=True)
     try:
-        drive.attach(network)
+        drive.attach(router)
         drive.detach()
     finally:
-        network.disconnect()
+        router.stop()
+        bus.shutdown()
     return drive
 
 

@@ -17,8 +17,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import EDS, TEST_MOTOR_DRIVE
+from test_cia402_files import drive_config
 
-from hil.can.network import start_network
+from hil.can.frame import Frame
+from hil.can.router import start_router
 from hil.drives.core import DriveCore
 from hil.drives.definitions import DriveParameters
 from hil.errors import HilError
@@ -68,20 +70,22 @@ def _verdict(node_id: int, options: dict) -> Cia402Options | None:
 
 def _starts(node_id: int, options: Cia402Options) -> None:
     """Start the drive, read every object as a master's SDO upload would, NMT start it."""
-    drive = Cia402Drive(node_id, DriveCore(DriveParameters(**TEST_MOTOR_DRIVE)),
-                        threading.Lock(), 1.0, options=options)
-    network = start_network(can.Bus(interface="virtual", channel=f"p-{uuid.uuid4().hex}"))
+    drive = Cia402Drive(drive_config(node_id, options),
+                        DriveCore(DriveParameters(**TEST_MOTOR_DRIVE)), threading.Lock())
+    bus = can.Bus(interface="virtual", channel=f"p-{uuid.uuid4().hex}")
+    router = start_router(bus, keep_sending=True)
     try:
-        drive.attach(network)
+        drive.attach(router)
         for obj in drive.node.object_dictionary.values():
             for entry in [obj] if isinstance(obj, ODVariable) else obj.values():
                 if entry.readable:
                     drive.node.sdo.upload(entry.index, entry.subindex)
-        network.notify(0x000, bytes([0x01, 0]), 0.0)          # NMT start all, as heard
+        router.on_frames([Frame(0x000, bytes([0x01, 0]))])    # NMT start all, as heard
         assert drive.node.nmt.state == "OPERATIONAL"
         drive.detach()
     finally:
-        network.disconnect()
+        router.stop()
+        bus.shutdown()
 
 
 _SETTINGS = settings(max_examples=60, deadline=None,

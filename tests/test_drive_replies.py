@@ -10,6 +10,7 @@ import pytest
 
 from conftest import Bench
 
+from hil.can.frame import Frame
 from hil.drives.profile import DriveProfile
 from hil.protocols.cia402 import Cia402
 from hil.realtime import LOCK_STEP
@@ -19,12 +20,12 @@ class Silent(DriveProfile):
     protocol = Cia402
 
     def subscriptions(self):
-        return {}
+        return []
 
 
 def test_a_profile_that_defines_neither_way_of_replying_is_refused_when_made():
     with pytest.raises(TypeError, match="neither take_replies nor send_replies"):
-        Silent(1, None, None)
+        Silent(None, None, None)
 
 
 @pytest.fixture
@@ -39,7 +40,7 @@ def test_lock_step_replies_leave_in_config_order_with_a_self_sending_profile_in_
     bench = lock_step_bench
     third = bench.sim.drive("arm", 3)
     third.take_replies = lambda: None                      # as a profile of an older hil
-    third.send_replies = lambda: (third._pending.clear(), third.send(0x7AA, b"\x03"))
+    third.send_replies = lambda: (third.tpdos.take(), third.send(Frame(0x7AA, b"\x03")))
     reader = can.BufferedReader()
     bench.network.notifier.add_listener(reader)
     # NMT start: handled in this thread (the drives' bus delivers in the sender's)

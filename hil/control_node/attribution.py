@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from hil.hardware import AxisFault, FaultKind
+from hil.protocols import names, protocol
 from hil.realtime.stalls import PROCESS_WORDS, Stall, clock_time
 
 #: how long a fault waits for stalls that explain it before it is attributed (s): another
@@ -24,10 +25,15 @@ GRACE = 1.0
 RETAIN = 5.0
 #: slack for the clocks' readings around when a silence began (s)
 MARGIN = 0.005
-#: EMCY codes of a drive that lost its master's frames (CiA 402: RPDO timeout 0x8250,
-#: heartbeat consumer 0x8130): a stall of the controller, of the transport or of the
-#: simulator's own clock can trip them as it can a silence
-LINK_LOSS_CODES = frozenset({0x8250, 0x8130})
+
+
+def link_loss_codes() -> frozenset[int]:
+    """The error codes with which a drive says it lost its master's frames, as each protocol
+    hil knows declares them (:attr:`hil.protocols.base.Protocol.link_loss_codes`; CiA 402:
+    its RPDO timeout and heartbeat consumer EMCYs): a stall of the controller, of the
+    transport or of the simulator's own clock can trip those watchdogs as it can a
+    silence."""
+    return frozenset().union(*(protocol(name).link_loss_codes for name in names()))
 
 
 def stalls_in_words(stalls: Sequence[Stall]) -> list[str]:
@@ -78,11 +84,11 @@ class Attribution:
 
 class FaultAttribution:
     """Holds faults that losing frames causes against stalls. A drive found silent, and a
-    drive that reported losing its master's frames (LINK_LOSS_CODES, where ``link_timeouts``
-    gives its watchdog time), can be the bench's. A stall explains such a fault if it was
-    under way when the drive's silence began (found at ``t`` after the drive had not
-    answered for its ``silent_for``, or ``silence_cycles`` of ``period``; for a lost link,
-    its watchdog time before the EMCY was read) and lasted at least two cycles (a lost
+    drive that reported losing its master's frames (:func:`link_loss_codes`, where
+    ``link_timeouts`` gives its watchdog time), can be the bench's. A stall explains such a
+    fault if it was under way when the drive's silence began (found at ``t`` after the drive
+    had not answered for its ``silent_for``, or ``silence_cycles`` of ``period``; for a lost
+    link, its watchdog time before the EMCY was read) and lasted at least two cycles (a lost
     link: at least half its watchdog time): a stall that comes later, such as the
     controller's own work of reporting the fault, or a short one inside a long silence, is
     no cause. Not thread-safe: the control loop feeds and asks it."""
@@ -92,6 +98,7 @@ class FaultAttribution:
         self.period = period
         self.window = silence_cycles * period
         self.link_timeouts = dict(link_timeouts or {})
+        self.link_loss_codes = link_loss_codes()
         # (when its silence began, found, the fault, the shortest stall that can cause it)
         self._faults: list[tuple[float, float, AxisFault, float]] = []
         self._stalls: list[Stall] = []
@@ -113,7 +120,7 @@ class FaultAttribution:
             self._faults.append((wall - silence, wall, fault, 2 * self.period))
             return
         timeout = self.link_timeouts.get((fault.bus, fault.node_id))
-        if fault.code in LINK_LOSS_CODES and timeout is not None:
+        if fault.code in self.link_loss_codes and timeout is not None:
             self._faults.append((wall - timeout, wall, fault, timeout / 2))
 
     def stall(self, stall: Stall) -> None:

@@ -1,6 +1,6 @@
 """What a drive core is configured with and what it reports: its parameters, the power
-stage's states, the operation modes, faults with their EMCY codes, the reaction to a
-silent master, and the status of each cycle. Compiled with the core (setup.py)."""
+stage's states, the operation modes, faults, the reaction to a silent master, and the
+status of each cycle. Compiled with the core (setup.py)."""
 
 from __future__ import annotations
 
@@ -62,21 +62,18 @@ class SilenceReaction(enum.Enum):
 
 
 class Fault(enum.Enum):
-    """Drive faults, each with its CANopen EMCY error code (CiA 301/402)."""
+    """Drive faults, in the core's words: each protocol reports them in its own (an error
+    code, an error bit, a state), as its drive profile maps them."""
 
-    FOLLOWING_ERROR = (0x8611, "following error")
-    POSITION_LIMIT = (0x8612, "position limit exceeded")
-    CONTROLLER_SILENT = (0x8250, "setpoints stopped arriving (RPDO timeout)")
-    HEARTBEAT_LOST = (0x8130, "the master's heartbeat stopped (heartbeat consumer)")
-    EMERGENCY_STOP = (0x9000, "emergency stop requested")
-
-    @property
-    def code(self) -> int:
-        return self.value[0]
+    FOLLOWING_ERROR = "following error"
+    POSITION_LIMIT = "position limit exceeded"
+    CONTROLLER_SILENT = "setpoints stopped arriving (RPDO timeout)"
+    HEARTBEAT_LOST = "the master's heartbeat stopped (heartbeat consumer)"
+    EMERGENCY_STOP = "emergency stop requested"
 
     @property
     def text(self) -> str:
-        return self.value[1]
+        return self.value
 
 
 @dataclass(frozen=True)

@@ -5,8 +5,9 @@ base, concrete drives found through their protocol (:func:`hil.protocols.protoco
 Physics, limits, faults, the watchdog and the brake live in the core; a drive profile only
 turns frames into core commands and core state into frames.
 
-Every profile uses a ``canopen.Network`` as its bus (:mod:`hil.can.network`): a frame
-dispatcher by arbitration id over a python-can bus, whatever the protocol.
+Every profile talks through its bus' :class:`~hil.can.router.FrameRouter` (the drives' side
+of it loses a frame the bus refuses, as a drive's CAN controller does, and runs on): it
+subscribes its handlers by identifier and sends :class:`~hil.can.frame.Frame` values.
 
 Cycle contract with the simulator: when a drive receives its cyclic command
 (SYNC for CiA 402, a command frame for MIT and ODrive), it applies it,
@@ -21,53 +22,19 @@ from __future__ import annotations
 import logging
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from typing import ClassVar
 
-import can
-import canopen
-
-from hil.can.network import CanopenNetwork
+from hil.bus_config.types import DriveConfig
+from hil.can.frame import Frame
+from hil.can.router import FrameRouter, Subscription
 from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault
 from hil.protocols.base import Protocol
 
 log = logging.getLogger(__name__)
-
-
-class DriveNetwork(CanopenNetwork):
-    """The drives' side of a bus. A frame the bus refuses (its transmit queue full, the bus
-    gone) is lost and counted in :attr:`lost_frames`, as a drive's CAN controller loses it,
-    and the drive runs on: a send error must not stop the plant mid-step. (A master's
-    ``canopen.Network`` raises instead: the controller must know.)"""
-
-    #: first lost frame, then every this many, logged
-    LOG_EVERY = 1000
-
-    def __init__(self, bus: can.BusABC | None = None):
-        super().__init__(bus)
-        self.lost_frames = 0
-
-    def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
-        try:
-            super().send_message(can_id, data, remote)
-        except can.CanError as exc:
-            self._lost(can_id, 1, exc)
-
-    def send_frames(self, frames: Sequence[tuple[int, bytes]]) -> None:
-        try:
-            super().send_frames(frames)
-        except can.CanError as exc:     # from a bus taking them all at once: all lost
-            self._lost(frames[0][0], len(frames), exc)
-
-    def _lost(self, can_id: int, count: int, exc: can.CanError) -> None:
-        before, self.lost_frames = self.lost_frames, self.lost_frames + count
-        # the first, the 1001st, ...: whichever of them this loss counted
-        if (before - 1) // self.LOG_EVERY != (self.lost_frames - 1) // self.LOG_EVERY:
-            log.warning("a drive's frame 0x%03X was lost (%d so far): %s", can_id,
-                        self.lost_frames, exc)
 
 
 #: what a :class:`Reading` measures; None for what must match exactly (states, codes)
@@ -95,8 +62,9 @@ class DriveProfile(ABC):
     #: the protocol it speaks
     protocol: ClassVar[type[Protocol]]
 
-    def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager):
-        """``lock`` is held around everything a frame does to the drive; its owner holds it
+    def __init__(self, config: DriveConfig, core: DriveCore, lock: AbstractContextManager):
+        """The drive of ``config`` (its node id, ratings, heartbeat and the protocol's
+        ``options``) around ``core``. ``lock`` is held around everything a frame does to the drive; its owner holds it
         while stepping the physics (the simulator's also brings the plant up to the present
         on entry: hil.simulator.PlantPresent)."""
         profile = type(self)
@@ -106,10 +74,11 @@ class DriveProfile(ABC):
             # either will do
             raise TypeError(f"Can't instantiate {profile.__name__}: it defines neither "
                             "take_replies nor send_replies")
-        self.node_id = node_id
+        self.config = config
+        self.node_id = config.node_id
         self.core = core
         self.lock = lock
-        self.network: canopen.Network | None = None
+        self.router: FrameRouter | None = None
         #: called (lock held) when this cycle's command has arrived; set by the simulator
         self.on_command: Callable[[DriveProfile], None] = lambda drive: None
         self.malformed = 0          # frames refused (wrong length, bad values)
@@ -120,37 +89,29 @@ class DriveProfile(ABC):
     # --- what a profile must say ----------------------------------------------------
 
     @abstractmethod
-    def subscriptions(self) -> dict[int, Callable[[int, bytes, float], None]]:
-        """The arbitration ids this drive listens to, with their handlers."""
-
-    def remote_subscriptions(self) -> dict[int, Callable[[int], None]]:
-        """Remote (RTR) frame ids this drive answers, with their handlers."""
-        return {}
+    def subscriptions(self) -> list[Subscription]:
+        """The frames this drive listens to, each with its handler."""
 
     # --- shared behaviour ------------------------------------------------------------
 
     @property
     def attached(self) -> bool:
         """On a bus; a detached drive is silent (its physics runs on)."""
-        return self.network is not None
+        return self.router is not None
 
-    def attach(self, network: canopen.Network) -> None:
+    def attach(self, router: FrameRouter) -> None:
         """Join a bus and start talking (boot-up, cyclic messages)."""
-        self.network = network
-        for can_id, handler in self.subscriptions().items():
-            network.subscribe(can_id, handler)
-        network.frame_listener.remote_handlers.update(self.remote_subscriptions())
+        self.router = router
+        for subscription in self.subscriptions():
+            subscription.join(router)
 
     def detach(self) -> None:
         """Leave the bus: from now on the drive sends and hears nothing (idempotent)."""
-        if self.network is None:
+        if self.router is None:
             return
-        for can_id, handler in self.subscriptions().items():
-            if handler in self.network.subscribers.get(can_id, []):
-                self.network.unsubscribe(can_id, handler)
-        for can_id in self.remote_subscriptions():
-            self.network.frame_listener.remote_handlers.pop(can_id, None)
-        self.network = None
+        for subscription in self.subscriptions():
+            subscription.leave(self.router)
+        self.router = None
 
     def heard(self) -> None:
         """A frame for this drive arrived: the watchdog's sign of life, whatever the frame
@@ -158,16 +119,16 @@ class DriveProfile(ABC):
         on those instead."""
         self.core.new_setpoint(now=self.clock())
 
-    def send(self, can_id: int, data: bytes, remote: bool = False) -> None:
+    def send(self, frame: Frame) -> None:
         """Send a frame, if on a bus."""
-        if self.network is not None:
-            self.network.send_message(can_id, data, remote)
+        if self.router is not None:
+            self.router.send(frame)
 
     # --- the reply to a cycle's command: a profile defines one of the two --------------
 
-    def take_replies(self) -> list[tuple[int, bytes]] | None:
-        """The reply to this cycle's command, as sampled when it arrived: its frames
-        (arbitration id, data), each taken once, which the simulator sends with the other
+    def take_replies(self) -> list[Frame] | None:
+        """The reply to this cycle's command, as sampled when it arrived: its frames, each
+        taken once, which the simulator sends with the other
         replies of the bus in one go. None (this default): the profile sends its reply
         itself (:meth:`send_replies`)."""
         return None
@@ -176,8 +137,8 @@ class DriveProfile(ABC):
         """Send the reply to this cycle's command, as sampled when it arrived (by default the
         frames of :meth:`take_replies`), if on a bus."""
         replies = self.take_replies()
-        if replies and self.network is not None:
-            self.network.send_frames(replies)
+        if replies and self.router is not None:
+            self.router.send_frames(replies)
 
     def after_update(self) -> None:
         """After each plant step (lock held): report new faults, state follow-ups."""
@@ -189,8 +150,13 @@ class DriveProfile(ABC):
         if events:
             self.core.events = []
             for fault in events:
-                log.warning("node %d: %s (0x%04X)", self.node_id, fault.text, fault.code)
+                log.warning("node %d: %s", self.node_id, self.fault_words(fault))
         return events
+
+    def fault_words(self, fault: Fault) -> str:
+        """A fault as the drive's log says it: the core's words, and where the protocol
+        has one, its own code for it."""
+        return fault.text
 
     def restart(self) -> None:
         """Restart as after a power cycle (lock held): disabled, faults cleared; a protocol
@@ -208,21 +174,22 @@ class DriveProfile(ABC):
 
     # --- what a replay compares (hil.replay) -------------------------------------------
 
-    def timed(self, can_id: int, data: bytes) -> bool:
+    def timed(self, frame: Frame) -> bool:
         """Whether this frame of the drive's is one it sends on its own clock (a heartbeat,
         a timed message), not in answer to its master: a replay checks what it reports
         against :meth:`timed_content`, not frame by frame."""
         return False
 
     def timed_ids(self) -> tuple[int, ...]:
-        """The ids of the timed frames whose content is the drive's state (its heartbeat)."""
+        """The identifiers of the timed frames whose content is the drive's state (its
+        heartbeat)."""
         return ()
 
-    def timed_content(self, can_id: int) -> bytes | None:
+    def timed_content(self, identifier: int) -> bytes | None:
         """What the drive would send now on one of :meth:`timed_ids` (its state)."""
         return None
 
-    def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
+    def readings(self, frame: Frame) -> tuple[Reading, ...] | None:
         """The values one of this drive's own frames carries, for a comparison within
         tolerances; None: the frame is compared byte for byte (an SDO answer, an EMCY)."""
         return None

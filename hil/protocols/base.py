@@ -17,6 +17,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from hil.can.frame import Frame, FrameSpec
+
 
 class Sender(enum.Enum):
     """Which side of a bus sends a frame."""
@@ -104,8 +106,13 @@ class Protocol(ABC):
 
     #: the ``protocol`` string of bus configs
     name: ClassVar[str]
-    #: whether the bus needs a CANopen SYNC after every cycle's frames
-    uses_sync: ClassVar[bool] = False
+    #: what the master sends once on a bus after every cycle's frames when a drive of this
+    #: protocol is on it (CANopen: SYNC, CiA 301 7.2.5); none by default
+    cycle_end_frames: ClassVar[tuple[Frame, ...]] = ()
+    #: the error codes (:attr:`hil.hardware.axis.AxisFault.code`) with which its drives say
+    #: they lost their master's frames (a watchdog's, CiA 402's RPDO timeout): a stall of the
+    #: bench can cause them as it can a silence (hil.control_node.attribution); none by default
+    link_loss_codes: ClassVar[frozenset[int]] = frozenset()
     #: the node ids the protocol can address
     node_ids: ClassVar[range] = range(1, 128)
     #: a node id with which a drive boots without one, for a master to assign it (CiA 305
@@ -133,21 +140,27 @@ class Protocol(ABC):
     @classmethod
     @abstractmethod
     def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float, options=None
-                   ) -> list[tuple[int, int, float]]:
-        """Every (arbitration id, payload bytes, frames per second) a drive of this protocol
-        and its master use on the bus; rate 0 for ids used only on events. For bus load and
-        for id collisions between drives."""
+                   ) -> list[FrameSpec]:
+        """Every frame a drive of this protocol and its master use on the bus (rate 0 for
+        frames sent only on events). For bus load, ``hil describe`` and identifier
+        collisions between drives."""
+
+    @classmethod
+    def bus_wide_frames(cls, cycle_hz: float) -> list[FrameSpec]:
+        """The frames of the bus as a whole once a drive of this protocol is on it, whoever
+        they address (CANopen: NMT and SYNC): counted once per bus in its load and owned by
+        the protocol in its identifier checks. None by default."""
+        return []
 
     @classmethod
     def torque_feed_forward_frames(cls, node_id: int, cycle_hz: float, options=None
-                                   ) -> list[tuple[int, int, float]]:
+                                   ) -> list[FrameSpec]:
         """The frames a master adds to :meth:`bus_frames` to send a torque feed-forward
         (none where the setpoint's own frame carries one)."""
         return []
 
     @classmethod
-    def frame_source(cls, can_id: int, data: bytes, remote: bool,
-                     drives: Mapping[int, object]) -> FrameSource | None:
+    def frame_source(cls, frame: Frame, drives: Mapping[int, object]) -> FrameSource | None:
         """Who sent a frame seen on a bus whose drives of this protocol are ``drives`` (node
         id -> the drive's options), told by the protocol's ids alone, as a bus monitor tells
         them; None where it is no frame of theirs (another node, another protocol). What a
@@ -157,9 +170,9 @@ class Protocol(ABC):
                                   "from its drives' (Protocol.frame_source)")
 
     @classmethod
-    def source_reads_data(cls, can_id: int, drives: Mapping[int, object]) -> bool:
-        """Whether :meth:`frame_source` of ``can_id`` depends on the frame's bytes (else the
-        id and the remote flag tell it, and a reader may keep the answer)."""
+    def source_reads_data(cls, frame: Frame, drives: Mapping[int, object]) -> bool:
+        """Whether :meth:`frame_source` of frames like ``frame`` depends on their bytes
+        (else its identifier and flags tell it, and a reader may keep the answer)."""
         return True
 
     @classmethod

@@ -2,7 +2,9 @@
 
 The simulated drive is :mod:`.drive` (over :mod:`.node`, the CiA 301 slave, and
 :mod:`.state`, the 402 device without CAN); the master's side is :mod:`.axis`. Both read
-their object dictionary from the EDS hil ships (:func:`hil.resources.eds_path`).
+their object dictionary from the EDS hil ships (:func:`hil.resources.eds_path`), and both
+use python ``canopen`` on the bus' frame router (:mod:`.network`): canopen stays behind
+this folder.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from hil.can.frame import Frame, FrameSpec
 from hil.protocols.base import FrameSource, Protocol, ProtocolOptions, Sender, SettingField
 
 SYNC_ID = 0x080          # CiA 301's SYNC COB-ID
@@ -28,14 +31,24 @@ FUNCTION_CODES = {0x080: (Sender.DRIVE, "EMCY"), 0x180: (Sender.DRIVE, "TPDO1"),
                   0x500: (Sender.MASTER, "RPDO4"), 0x580: (Sender.DRIVE, "SDO answer"),
                   0x600: (Sender.MASTER, "SDO request"), 0x700: (Sender.DRIVE, "heartbeat")}
 
+#: EMCY error codes of the drive's faults (CiA 301 table 21, CiA 402 for 0x86xx): a following
+#: error, a position limit, the setpoints stopped (RPDO timeout), the master's heartbeat lost
+#: (heartbeat consumer), an emergency stop (the drive's faults, as the core names them:
+#: :data:`.errors.EMCY_CODES`)
+EMCY_FOLLOWING_ERROR, EMCY_POSITION_LIMIT = 0x8611, 0x8612
+EMCY_RPDO_TIMEOUT, EMCY_HEARTBEAT_LOST, EMCY_EMERGENCY_STOP = 0x8250, 0x8130, 0x9000
 #: EMCY error codes a hil CiA 402 drive sends (CiA 301 / 402), for messages
-EMCY_TEXT = {0x8611: "following error", 0x8612: "position limit exceeded",
-             0x8250: "RPDO timeout (setpoints stopped arriving)",
+EMCY_TEXT = {EMCY_FOLLOWING_ERROR: "following error",
+             EMCY_POSITION_LIMIT: "position limit exceeded",
+             EMCY_RPDO_TIMEOUT: "RPDO timeout (setpoints stopped arriving)",
              0x8210: "PDO too short (not processed)", 0x8220: "PDO longer than its mapping",
-             0x8240: "unexpected SYNC length", 0x8130: "heartbeat/life guard error",
-             0x9000: "emergency stop requested", 0x0000: "error reset"}
+             0x8240: "unexpected SYNC length", EMCY_HEARTBEAT_LOST: "heartbeat/life guard error",
+             EMCY_EMERGENCY_STOP: "emergency stop requested", 0x0000: "error reset"}
 #: EMCY codes for a frame the drive ignored: the next cycle's frame replaces it
 FRAME_ERRORS = frozenset({0x8210, 0x8220, 0x8240})
+#: EMCY codes of a drive that lost its master's frames (its RPDO watchdog, its heartbeat
+#: consumer): the errors of the master's silence
+LINK_LOSS = frozenset({EMCY_RPDO_TIMEOUT, EMCY_HEARTBEAT_LOST})
 
 
 def emcy_words(code: int) -> str:
@@ -116,7 +129,9 @@ class Cia402(Protocol):
     """CiA 402 drives with the EDS's default PDOs, synchronised by SYNC."""
 
     name = "cia402"
-    uses_sync = True
+    # the SYNC (CiA 301 7.2.5), without a counter: hil's master leaves 0x1019 at 0
+    cycle_end_frames = (Frame(SYNC_ID),)
+    link_loss_codes = LINK_LOSS
     carries_torque_feed_forward = True
     unconfigured_node_id = UNCONFIGURED
     Options = Cia402Options
@@ -141,19 +156,29 @@ class Cia402(Protocol):
 
     @classmethod
     def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float, options=None
-                   ) -> list[tuple[int, int, float]]:
-        """(arbitration id, payload bytes, frames/s) of the default mapping's exchange:
-        RPDO1 (controlword, target), TPDO1, TPDO2 per SYNC, and RPDO4 (velocity and torque
-        offsets) with velocity feed-forward; heartbeat; EMCY and SDO only on events (their
-        ids are reserved)."""
+                   ) -> list[FrameSpec]:
+        """The default mapping's exchange: RPDO1 (controlword, target), TPDO1, TPDO2 per
+        SYNC, and RPDO4 (velocity and torque offsets) with velocity feed-forward; heartbeat;
+        EMCY and SDO only on events (their ids are reserved)."""
         if node_id == UNCONFIGURED:
             # LSS only, until a master assigns the node id (whose frames are then that id's)
-            return [(LSS_REQUEST_ID, 8, 0.0), (LSS_ANSWER_ID, 8, 0.0)]
+            return [FrameSpec(LSS_REQUEST_ID, 8, 0.0, "LSS request"),
+                    FrameSpec(LSS_ANSWER_ID, 8, 0.0, "LSS answer")]
         feed_forward = options is not None and options.sends_velocity
-        return [(0x200 + node_id, 6, cycle_hz), (0x180 + node_id, 6, cycle_hz),
-                (0x280 + node_id, 6, cycle_hz), (0x700 + node_id, 1, 1.0 / heartbeat_period),
-                *([(0x500 + node_id, 6, cycle_hz)] if feed_forward else []),
-                (0x080 + node_id, 8, 0.0), (0x580 + node_id, 8, 0.0), (0x600 + node_id, 8, 0.0)]
+        return [FrameSpec(0x200 + node_id, 6, cycle_hz, "RPDO1"),
+                FrameSpec(0x180 + node_id, 6, cycle_hz, "TPDO1"),
+                FrameSpec(0x280 + node_id, 6, cycle_hz, "TPDO2"),
+                FrameSpec(0x700 + node_id, 1, 1.0 / heartbeat_period, "heartbeat"),
+                *([FrameSpec(0x500 + node_id, 6, cycle_hz, "RPDO4")] if feed_forward else []),
+                FrameSpec(0x080 + node_id, 8, 0.0, "EMCY"),
+                FrameSpec(0x580 + node_id, 8, 0.0, "SDO answer"),
+                FrameSpec(0x600 + node_id, 8, 0.0, "SDO request")]
+
+    @classmethod
+    def bus_wide_frames(cls, cycle_hz: float) -> list[FrameSpec]:
+        """The master's NMT commands (on events; the node addressed in byte 1) and its SYNC,
+        empty, every cycle (CiA 301 7.2.8.3.1, 7.2.5)."""
+        return [FrameSpec(NMT_ID, 2, 0.0, "NMT"), FrameSpec(SYNC_ID, 0, cycle_hz, "SYNC")]
 
     @classmethod
     def drive_problem(cls, node_id: int, options=None) -> str | None:
@@ -174,11 +199,14 @@ class Cia402(Protocol):
         return {LSS_REQUEST_ID, LSS_ANSWER_ID}
 
     @classmethod
-    def frame_source(cls, can_id: int, data: bytes, remote: bool,
-                     drives: Mapping[int, object]) -> FrameSource | None:
+    def frame_source(cls, frame: Frame, drives: Mapping[int, object]) -> FrameSource | None:
         """By CiA 301's predefined connection set (PDOs moved to other COB-IDs are not
-        told). A heartbeat of a node that is no drive is the master's own (or another
+        told), whose identifiers are 11-bit ones (CiA 301 7.3.5): no 29-bit frame is a
+        drive's. A heartbeat of a node that is no drive is the master's own (or another
         master's on the bus): it goes to the drives, which may consume it (0x1016)."""
+        if frame.extended:
+            return None
+        can_id, data = frame.identifier, frame.data
         if can_id == SYNC_ID:
             return FrameSource(Sender.MASTER, None, "SYNC", cycle=True)
         if can_id == TIME_ID:
@@ -200,14 +228,15 @@ class Cia402(Protocol):
         return FrameSource(sender, node, what)
 
     @classmethod
-    def source_reads_data(cls, can_id: int, drives: Mapping[int, object]) -> bool:
-        return can_id == NMT_ID            # the node addressed is the command's second byte
+    def source_reads_data(cls, frame: Frame, drives: Mapping[int, object]) -> bool:
+        # the node addressed is the command's second byte
+        return frame.identifier == NMT_ID and not frame.extended
 
     @classmethod
     def torque_feed_forward_frames(cls, node_id: int, cycle_hz: float, options=None
-                                   ) -> list[tuple[int, int, float]]:
+                                   ) -> list[FrameSpec]:
         """RPDO4 (the torque offset 0x60B2 beside the velocity offset), unless the velocity
         feed-forward sends it already."""
         if options is not None and options.sends_velocity:
             return []
-        return [(0x500 + node_id, 6, cycle_hz)]
+        return [FrameSpec(0x500 + node_id, 6, cycle_hz, "RPDO4")]

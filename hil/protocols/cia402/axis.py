@@ -1,8 +1,9 @@
 """The master's side of one CiA 402 drive: bring-up over SDO/NMT, cyclic PDOs.
 
-Bring-up uses python ``canopen`` (NMT, SDO client, PDO map upload); the cyclic
-exchange packs and parses its PDOs by hand with ``struct`` because it runs
-every cycle for every axis and must stay cheap and allocation-light.
+Bring-up uses python ``canopen`` (NMT, SDO client, PDO map upload) on the bus' router
+(:mod:`.network`); the cyclic exchange packs and parses its PDOs by hand with ``struct``, as
+the router's own frames and handlers, because it runs every cycle for every axis and must
+stay cheap and allocation-light.
 """
 
 from __future__ import annotations
@@ -15,9 +16,12 @@ import canopen
 from canopen.profiles.p402 import State402
 
 from hil.bus_config.types import DriveConfig
+from hil.can.frame import Frame, frame_of_fields
+from hil.can.router import FrameRouter, Subscription
 from hil.errors import HilError
-from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind, Frame
+from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind
 from hil.protocols.cia402 import FRAME_ERRORS, UNCONFIGURED, Cia402, Cia402Options, emcy_words
+from hil.protocols.cia402.network import RoutedNetwork
 from hil.resources import eds_path
 
 #: NMT states in a heartbeat (CiA 301)
@@ -85,28 +89,36 @@ class Cia402Axis(Axis):
 
     # --- network hooks ----------------------------------------------------------
 
-    def subscriptions(self):
-        return {0x180 + self.node_id: self._on_tpdo1, 0x280 + self.node_id: self._on_tpdo2,
-                0x080 + self.node_id: self._on_emcy, 0x700 + self.node_id: self._on_heartbeat}
+    def subscriptions(self) -> list[Subscription]:
+        node_id = self.node_id
+        return [Subscription(0x180 + node_id, self._on_tpdo1),
+                Subscription(0x280 + node_id, self._on_tpdo2),
+                Subscription(0x080 + node_id, self._on_emcy),
+                Subscription(0x700 + node_id, self._on_heartbeat)]
 
-    def attach(self, network: canopen.Network) -> None:
-        network.add_node(self.node)
-        super().attach(network)
+    def attach(self, router: FrameRouter) -> None:
+        """canopen's node (SDO client, NMT, PDO maps) on a network of its own on ``router``,
+        before this axis' own handlers."""
+        RoutedNetwork(router).add_node(self.node)
+        super().attach(router)
 
-    def _on_tpdo1(self, can_id, data, timestamp) -> None:
+    def _on_tpdo1(self, frame: Frame) -> None:
+        data = frame.data
         if len(data) == _TPDO1_SIZE:
             statusword, counts = _TPDO1.unpack(data)
             self.take_statusword(statusword)
             self.feedback.position = counts / self.counts_per_rad
             self.answered()
 
-    def _on_tpdo2(self, can_id, data, timestamp) -> None:
+    def _on_tpdo2(self, frame: Frame) -> None:
+        data = frame.data
         if len(data) == _TPDO2_SIZE:
             velocity, torque = _TPDO2.unpack(data)
             self.feedback.velocity = velocity / self.counts_per_rad
             self.feedback.torque = torque * self.rated_torque / 1000
 
-    def _on_emcy(self, can_id, data, timestamp) -> None:
+    def _on_emcy(self, frame: Frame) -> None:
+        data = frame.data
         if len(data) >= 2:
             code = struct.unpack_from("<H", data)[0]
             if code == 0x0000:
@@ -117,8 +129,9 @@ class Cia402Axis(Axis):
             self.last_emcy = code
             self._emcy_cycle = self._cycle
 
-    def _on_heartbeat(self, can_id, data, timestamp) -> None:
+    def _on_heartbeat(self, frame: Frame) -> None:
         self.last_heard = time.monotonic()
+        data = frame.data
         if not data:
             return
         state = data[0]
@@ -218,8 +231,11 @@ class Cia402Axis(Axis):
         controlword = self.next_controlword(stopping)
         # until the axis follows setpoints, its setpoint is where it is (no jump on enable)
         following = self.enabled and not enabling
-        frames = [(0x200 + self.node_id, self.rpdo(controlword, target if following
-                                                    else self.feedback.position), False)]
+        # built from C (Frame's own __new__ is a Python call a frame)
+        frames = [frame_of_fields((0x200 + self.node_id,
+                                   self.rpdo(controlword, target if following
+                                             else self.feedback.position),
+                                   False, False, False, False, False, 0.0))]
         if self.feed_forward:
             moving = following and not stopping
             speed = velocity * self.counts_per_rad if moving and self.sends_velocity else 0.0
@@ -229,11 +245,13 @@ class Cia402Axis(Axis):
             offset = (max(-32768, min(32767, round(1000 * torque / self.rated_torque)))
                       if torque and self.rated_torque > 0 and self.enabled and not stopping
                       else 0)
-            frames.append((0x500 + self.node_id, _RPDO4.pack(_int32(speed), offset), False))
+            frames.append(frame_of_fields((0x500 + self.node_id,
+                                           _RPDO4.pack(_int32(speed), offset),
+                                           False, False, False, False, False, 0.0)))
         return frames
 
     def disable_rounds(self) -> list[list[Frame]]:
-        return [[(0x200 + self.node_id, self.rpdo(word, self.feedback.position), False)]
+        return [[Frame(0x200 + self.node_id, self.rpdo(word, self.feedback.position))]
                 for word in (SHUTDOWN, DISABLE_VOLTAGE)]
 
     def forget_faults(self) -> None:

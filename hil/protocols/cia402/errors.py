@@ -23,8 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from hil.drives.definitions import Fault
-from hil.protocols.cia402 import FRAME_ERRORS     # the frame errors (module doc)
+from hil.protocols.cia402 import FRAME_ERRORS, LINK_LOSS     # (module doc)
 
 #: EMCY codes that are not drive faults (CiA 301)
 EMCY_PDO_LENGTH = 0x8210            # PDO not processed: shorter than its mapping
@@ -38,7 +37,7 @@ HISTORY = 8
 GENERIC = 0x01
 PDO_ERRORS = (EMCY_PDO_LENGTH, EMCY_PDO_LENGTH_EXCEEDED)
 #: errors of the master's silence, which a drive may survive without a fault (0x6007 2, 3)
-SILENCE = frozenset({Fault.CONTROLLER_SILENT.code, Fault.HEARTBEAT_LOST.code})
+SILENCE = LINK_LOSS
 
 
 @dataclass

@@ -84,7 +84,8 @@ class LssSlave:
         self._selective, self._identify, self._fastscan_part = [], [], 0
         return self.active_node_id
 
-    def on_request(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def on_request(self, data: bytes) -> None:
+        """One request's data (a frame on 0x7E5)."""
         if len(data) != 8:
             return
         command = data[0]

@@ -7,6 +7,8 @@ import math
 import struct
 from dataclasses import dataclass, field
 
+from hil.protocols.cia402.eds import LIVE_OBJECTS
+from hil.protocols.cia402.network import extended_cob_id
 from hil.protocols.cia402.objects import PROFILE_PARAMETERS
 
 
@@ -82,6 +84,13 @@ class TpdoSchedule:
     rtr_allowed: bool = False              # COB-ID bit 30 clear
     start: int = 0                         # SYNC start value (sub-index 6; 0: none)
     running: bool = False                  # past its SYNC start value
+    #: its COB-ID (the PdoMap's, kept at hand for every frame) and frame format
+    cob_id: int = field(init=False)
+    extended: bool = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.cob_id = self.pdo.cob_id
+        self.extended = extended_cob_id(self.cob_id)
 
     @property
     def event_driven(self) -> bool:
@@ -93,3 +102,23 @@ class TpdoSchedule:
         if not self.running and (not self.start or counter is None or counter == self.start):
             self.running = True
         return self.running
+
+
+def tpdo_schedules(node) -> list[TpdoSchedule]:
+    """The schedules of a canopen LocalNode's TPDOs as its maps and communication parameters
+    (0x1800+n: 3 inhibit time, 5 event timer, 6 SYNC start value) have them now: those
+    valid and of a transmission type; packed from one struct where every object they map is
+    a live one (hil.protocols.cia402.state), else by canopen."""
+    schedules = []
+    for number, pdo in node.tpdo.map.items():
+        if not pdo.enabled or pdo.trans_type is None:
+            continue
+        layout = PdoLayout.of(pdo)
+        live = layout is not None and LIVE_OBJECTS >= set(layout.indices)
+        communication = 0x1800 + number - 1
+        schedules.append(TpdoSchedule(
+            pdo, layout.codec if live else None, layout.indices if live else (),
+            pdo.trans_type, node.value(communication, 5) / 1000.0,
+            node.value(communication, 3) / 10000.0, rtr_allowed=pdo.rtr_allowed,
+            start=node.value(communication, 6)))
+    return schedules

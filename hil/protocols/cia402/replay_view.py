@@ -5,7 +5,11 @@ from __future__ import annotations
 
 import canopen
 
+from hil.can.frame import Frame
 from hil.drives.profile import Reading
+from hil.protocols.cia402.node import DriveNode
+from hil.protocols.cia402.objects import DriveObjects
+from hil.protocols.cia402.tpdo import TpdoSet
 
 #: the heartbeat's NMT state codes (CiA 301)
 NMT_CODES = {name: code for code, name in canopen.nmt.NMT_STATES.items()}
@@ -17,36 +21,47 @@ MEASURED_STATUS = 0x2C00
 
 
 class ReplayView:
-    """The replay contract of :class:`hil.protocols.cia402.drive.Cia402Drive` (a mixin over
-    its node, TPDO schedules and scales)."""
+    """The replay contract of one :class:`hil.protocols.cia402.drive.Cia402Drive` over its
+    node (its id and NMT state), its TPDOs as mapped now and its objects' units; the drive
+    makes a new one with each new TPDO set."""
 
-    def timed(self, can_id: int, data: bytes) -> bool:
+    def __init__(self, node: DriveNode, tpdos: TpdoSet, objects: DriveObjects,
+                 rated_torque: float):
+        self._node, self._tpdos, self._objects = node, tpdos, objects
+        self._rated_torque = rated_torque
+
+    @property
+    def heartbeat_id(self) -> int:
+        return 0x700 + self._node.id
+
+    def timed(self, frame: Frame) -> bool:
         """The heartbeat (not the boot-up, which answers a reset) and event-driven TPDOs."""
-        if can_id == 0x700 + self.node_id:
-            return bytes(data[:1]) != b"\x00"
-        return any(s.event_driven and s.pdo.cob_id == can_id for s in self._tpdos)
+        if frame.identifier == self.heartbeat_id:
+            return frame.data[:1] != b"\x00"
+        return any(s.event_driven and s.cob_id == frame.identifier
+                   for s in self._tpdos.schedules)
 
     def timed_ids(self) -> tuple[int, ...]:
-        return (0x700 + self.node_id,)
+        return (self.heartbeat_id,)
 
-    def timed_content(self, can_id: int) -> bytes | None:
-        if can_id == 0x700 + self.node_id:
-            return bytes([NMT_CODES[self.node.nmt.state]])
+    def timed_content(self, identifier: int) -> bytes | None:
+        if identifier == self.heartbeat_id:
+            return bytes([NMT_CODES[self._node.nmt.state]])
         return None
 
-    def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
+    def readings(self, frame: Frame) -> tuple[Reading, ...] | None:
         """A TPDO's live objects (as mapped now): positions and velocities in counts,
         torque in per mille of the rated torque, the rest exact."""
-        for schedule in self._tpdos:
-            if schedule.pdo.cob_id != can_id or schedule.codec is None:
+        for schedule in self._tpdos.schedules:
+            if schedule.cob_id != frame.identifier or schedule.codec is None:
                 continue
-            if len(data) != schedule.codec.size:
+            if len(frame.data) != schedule.codec.size:
                 return None
-            scales = {"position": 1 / self._counts_per_rad,
-                      "velocity": 1 / self.objects.velocity_per_rad,
-                      "torque": self.rated_torque / 1000}
+            scales = {"position": 1 / self._objects.counts_per_rad,
+                      "velocity": 1 / self._objects.velocity_per_rad,
+                      "torque": self._rated_torque / 1000}
             found = []
-            for index, value in zip(schedule.indices, schedule.codec.unpack(data)):
+            for index, value in zip(schedule.indices, schedule.codec.unpack(frame.data)):
                 if index == 0x6041:      # the state exact; what the position loop sets, derived
                     found += [Reading("0x6041", value & ~MEASURED_STATUS, None),
                               Reading("0x6041 bits 10, 11, 13", value & MEASURED_STATUS,

@@ -13,6 +13,8 @@ import math
 
 from hil.drives.core import DriveCore
 from hil.drives.definitions import DriveStatus, Fault, Mode, Power, round_half_even
+from hil.protocols.cia402 import (EMCY_EMERGENCY_STOP, EMCY_FOLLOWING_ERROR,
+                                  EMCY_HEARTBEAT_LOST, EMCY_POSITION_LIMIT, EMCY_RPDO_TIMEOUT)
 from hil.protocols.cia402.homing import METHODS, Homing, HomingSpeeds
 
 #: CiA 402 modes of operation (0x6060/0x6061) this drive supports: profile position (1),
@@ -37,6 +39,12 @@ HOMING_METHODS = METHODS
 ERROR_REGISTER = {Fault.FOLLOWING_ERROR: 0x21, Fault.POSITION_LIMIT: 0x21,
                   Fault.CONTROLLER_SILENT: 0x11, Fault.HEARTBEAT_LOST: 0x11,
                   Fault.EMERGENCY_STOP: 0x81}
+#: the EMCY error code (and 0x603F's) of each fault (CiA 301 table 21, CiA 402)
+EMCY_CODES = {Fault.FOLLOWING_ERROR: EMCY_FOLLOWING_ERROR,
+              Fault.POSITION_LIMIT: EMCY_POSITION_LIMIT,
+              Fault.CONTROLLER_SILENT: EMCY_RPDO_TIMEOUT,
+              Fault.HEARTBEAT_LOST: EMCY_HEARTBEAT_LOST,
+              Fault.EMERGENCY_STOP: EMCY_EMERGENCY_STOP}
 
 # controlword bits of the operation modes (CiA 402): profile position's new set-point,
 # change set immediately and relative target; homing's start (the same bit 4); halt
@@ -338,7 +346,7 @@ def live_value(index: int, machine: Cia402StateMachine, status: DriveStatus,
         return CODE_OF_MODE[status.mode]
     fault = status.fault
     if index == 0x603F:
-        return fault.code if fault is not None else 0
+        return EMCY_CODES[fault] if fault is not None else 0
     if index == 0x1001:
         return machine.error_register
     raise KeyError(f"0x{index:04X} is not a live object")
