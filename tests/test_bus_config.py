@@ -178,10 +178,11 @@ def test_mixed_protocols_share_a_bus_when_their_ids_do_not_collide(tmp_path):
 @pytest.mark.parametrize("drives, clash", [
     # MIT motors answer on the master's id 0 by default: CANopen's NMT id
     ("- {node_id: 1, joint: joint1}\n" + f"- {{node_id: 2, joint: joint2, {MIT}}}\n",
-     "CAN id 0x000 is used by CANopen NMT and by node 2 (joint2) (mit)"),
+     "CAN id 0x000 is used by the master's NMT (cia402) and by node 2 (joint2) (mit)"),
     # ODrive node 4 uses ids 0x080-0x09F: SYNC and the CiA 402 drives' EMCY ids
     ("- {node_id: 1, joint: joint1}\n- {node_id: 4, joint: joint2, protocol: odrive}\n",
-     "CAN id 0x080 is used by CANopen SYNC and by node 4 (joint2) (odrive)"),
+     "CAN id 0x080 is used by the master's SYNC (cia402) and by node 4 (joint2) "
+     "(odrive)"),
     # an ODrive command id that is a MIT motor's id
     (f"- {{node_id: 33, joint: joint1, {MIT}}}\n- {{node_id: 1, joint: joint2, protocol: odrive}}\n",
      "CAN id 0x021 is used by node 33 (joint1) (mit) and by node 1 (joint2) (odrive)"),
@@ -190,6 +191,27 @@ def test_colliding_can_ids_of_mixed_protocols_are_rejected(tmp_path, drives, cla
     rest = "".join(f"- {{node_id: {i + 90}, joint: joint{i}}}\n" for i in range(3, 7))
     diagnostics = errors_of(write_config(tmp_path, one_bus(drives + rest, 250)))
     assert any(clash in d.message for d in diagnostics), [d.message for d in diagnostics]
+
+
+def two_odrive_buses(arm: int, bitrate: int, cycle_hz: int) -> str:
+    """The ur3's six joints on ODrives: ``arm`` of them on bus 'arm', the rest on 'wrist'."""
+    def bus(name: str, joints: range) -> str:
+        drives = "".join(f"      - {{node_id: {j}, joint: joint{j}, protocol: odrive}}\n"
+                         for j in joints)
+        return (f"  - name: {name}\n    interface: virtual\n    channel: {name}\n"
+                f"    bitrate: {bitrate}\n    cycle_hz: {cycle_hz}\n    drives:\n{drives}")
+    return "buses:\n" + bus("arm", range(1, arm + 1)) + bus("wrist", range(arm + 1, 7))
+
+
+def test_the_split_hint_of_a_bus_without_canopen_counts_no_sync(tmp_path):
+    """A bus of ODrives carries no SYNC (CANSimple has none: the bus-wide frames are its
+    protocols' own, Protocol.bus_wide_frames): the drives per bus the hint offers are those
+    that fit under the warning's 80%, not fewer for a SYNC no drive needs (it offered 2)."""
+    (diag,) = [d for d in errors_of(write_config(tmp_path, two_odrive_buses(4, 250000, 100)))
+               if "infeasible" in d.message]
+    assert "split the drives over buses of at most 3 drive(s) each" in diag.hint
+    three = load_bus_config(write_config(tmp_path, two_odrive_buses(3, 250000, 100)))
+    assert three.buses[0].load().worst_ratio <= 0.8
 
 
 def test_benches_that_would_share_keys_or_a_bus_are_refused_naming_both(tmp_path):

@@ -18,6 +18,7 @@ import pytest
 import yaml
 
 from hil.bus_config import load_bus_config
+from hil.can.frame import Frame
 from hil.cli import main
 from hil.errors import HilError
 from hil.replay import LOG_CLOCK_TOLERANCES, Tolerances, log_clock, survey
@@ -265,7 +266,7 @@ def test_a_folder_file_named_after_no_bus_is_refused_naming_it(tmp_path, capsys)
 
 def test_frames_written_out_of_order_come_in_time_order():
     source = FrameSource(Sender.MASTER, None, "SYNC", cycle=True)
-    written = [LoggedFrame(n, t, 0, 0x80, b"", False, source)
+    written = [LoggedFrame(n, t, 0, Frame(0x080), source)
                for n, t in enumerate((0.0, 0.002, 0.001, 0.003, 0.0025, 2.0), 1)]
     assert [f.number for f in in_time_order(written, window=1.0)] == [1, 3, 2, 5, 4, 6]
 

@@ -9,7 +9,7 @@ import can
 from hil.bus_config.types import SystemConfig
 from hil.can import open_bus
 from hil.can.zenoh_receipts import AWAIT_MONITOR, wait_for_monitor
-from hil.errors import HilError
+from hil.errors import HilError, UsageError
 from hil.zenoh_session import ZenohSettings, session
 
 log = logging.getLogger(__name__)
@@ -30,9 +30,9 @@ def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None
     channels = channels or {}
     unknown = set(channels) - {bus.name for bus in config.buses}
     if unknown:
-        raise HilError.single(f"--channel names unknown bus(es) {', '.join(sorted(unknown))}",
-                              config.path,
-                              hint=f"buses: {', '.join(bus.name for bus in config.buses)}")
+        raise UsageError.single(f"--channel names unknown bus(es) {', '.join(sorted(unknown))}",
+                                config.path,
+                                hint=f"buses: {', '.join(bus.name for bus in config.buses)}")
     opened: dict[str, can.BusABC] = {}
     zenoh_buses = []
     try:

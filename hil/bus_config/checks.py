@@ -3,11 +3,11 @@ against the physics of its buses (node and CAN id collisions, worst-case load)."
 
 from __future__ import annotations
 
-from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD, BusConfig, DriveConfig, SystemConfig
+from hil.bus_config.types import LOAD_WARNING, BusConfig, DriveConfig, SystemConfig
 from hil.bus_config.yaml_reader import LineMapping, Reader
 from hil.can import bus_load
 from hil.description.corrections import massless_free_links
-from hil.errors import HilError
+from hil.errors import ConfigError, HilError
 from hil.protocols import names as protocol_names
 from hil.protocols import protocol
 
@@ -97,26 +97,30 @@ def _check_gear(reader: Reader, drive: DriveConfig, transmissions) -> None:
 
 
 def _check_ids(reader: Reader, bus: BusConfig) -> None:
-    """Two drives (of any protocols) must not use the same CAN id on one bus."""
-    owners: dict[int, str] = {}
-    if bus.uses_sync:
-        owners.update({0x000: "CANopen NMT", 0x080: "CANopen SYNC"})
-    shared: dict[int, str] = {}
+    """Two drives (of any protocols) must not use the same CAN id on one bus, nor a drive
+    an id of the bus as a whole (CANopen's NMT and SYNC)."""
+    # an 11-bit and a 29-bit identifier of one number are two frames (ISO 11898-1's IDE bit)
+    owners: dict[tuple[int, bool], str] = {
+        (spec.identifier, spec.extended): f"the master's {spec.what} ({family.name})"
+        for family in bus.protocols for spec in family.bus_wide_frames(bus.cycle_hz)}
+    shared: dict[tuple[int, bool], str] = {}
     for drive in bus.drives:
         spec = protocol(drive.protocol)
         label = f"{drive.label} ({drive.protocol})"
-        for can_id in sorted({frame[0] for frame in bus.frames(drive)}):
-            if can_id in spec.shared_ids(drive.options) and shared.get(can_id) == drive.protocol:
+        sharable = spec.shared_ids(drive.options)
+        for key in sorted({(frame.identifier, frame.extended) for frame in bus.frames(drive)}):
+            can_id, extended = key
+            if can_id in sharable and shared.get(key) == drive.protocol:
                 continue
-            if can_id in owners:
-                reader.fail(f"bus '{bus.name}': CAN id 0x{can_id:03X} is used by {owners[can_id]} "
-                            f"and by {label}", drive.line,
+            if key in owners:
+                reader.fail(f"bus '{bus.name}': CAN id 0x{can_id:03X}{' ext' if extended else ''}"
+                            f" is used by {owners[key]} and by {label}", drive.line,
                             hint="change a node id (or a protocol option such as reply_id), or "
                                  "put the drives on separate buses")
                 continue
-            owners[can_id] = label
-            if can_id in spec.shared_ids(drive.options):
-                shared[can_id] = drive.protocol
+            owners[key] = label
+            if can_id in sharable:
+                shared[key] = drive.protocol
 
 
 def _check_load(reader: Reader, bus: BusConfig) -> None:
@@ -130,13 +134,15 @@ def _check_load(reader: Reader, bus: BusConfig) -> None:
                f"{load.worst_ratio:.0%}")
     if load.worst_ratio <= LOAD_WARNING:
         return
-    sync_bits = bus_load(bus.bitrate, [(SYNC_PAYLOAD, bus.cycle_hz)]).worst_bits_per_second
-    per_drive = (load.worst_bits_per_second - sync_bits) / len(bus.drives)
+    # the bus-wide frames (a SYNC) stay however the drives are split
+    shared_bits = bus_load(bus.bitrate, [spec for spec in bus.bus_wide_frames()
+                                         if spec.rate > 0]).worst_bits_per_second
+    per_drive = (load.worst_bits_per_second - shared_bits) / len(bus.drives)
     budget = LOAD_WARNING * bus.bitrate
     fitting_rate = budget / (load.worst_bits_per_second / bus.cycle_hz)   # the load is > 0 here
     split = (f"split the drives over buses of at most "
-             f"{max(int((budget - sync_bits) // per_drive), 1)} drive(s) each, or "
-             if per_drive > 0 else "")         # SYNC alone over the line: no split helps
+             f"{max(int((budget - shared_bits) // per_drive), 1)} drive(s) each, or "
+             if per_drive > 0 else "")     # bus-wide frames alone over the line: no split helps
     hint = (f"{split}lower cycle_hz to {fitting_rate:,.0f} Hz or less (either keeps the load "
             f"under {LOAD_WARNING:.0%})")
     if load.worst_ratio > 1.0:
@@ -147,7 +153,7 @@ def _check_load(reader: Reader, bus: BusConfig) -> None:
 
 
 def check_together(configs: list[SystemConfig]) -> None:
-    """HilError unless benches can share one Zenoh network and one recording: every robot
+    """ConfigError unless benches can share one Zenoh network and one recording: every robot
     named once (its keys are ``hil/<robot>/...``), every CAN channel used by one bus only
     (two benches' drives on one bus would answer each other's master)."""
     robots: dict[str, SystemConfig] = {}
@@ -155,14 +161,14 @@ def check_together(configs: list[SystemConfig]) -> None:
     for config in configs:
         other = robots.setdefault(config.robot.name, config)
         if other is not config:
-            raise HilError.single(
+            raise ConfigError.single(
                 f"robot '{config.robot.name}' is named by two configs ({other.path} and "
                 f"{config.path}): its processes and keys would be one robot's", config.path,
                 hint="give each robot once (two of one robot need URDFs of different names)")
         for bus in config.buses:
             first = channels.setdefault(bus.channel, (config, bus))
             if first[1] is not bus:
-                raise HilError.single(
+                raise ConfigError.single(
                     f"bus '{bus.name}' of robot '{config.robot.name}' is on channel "
                     f"'{bus.channel}', which bus '{first[1].name}' of robot "
                     f"'{first[0].robot.name}' ({first[0].path}) uses too", config.path, bus.line,

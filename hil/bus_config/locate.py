@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hil.errors import HilError, did_you_mean
+from hil.errors import UsageError, did_you_mean
 from hil.resources import BUS_CONFIGS, data_dir
 
 
@@ -27,6 +27,6 @@ def config_path(name: str) -> Path:
             return candidate
     shipped = sorted(p.stem for p in data_dir(BUS_CONFIGS).glob("*.yaml"))
     near = sorted({p.stem for folder in search_folders() for p in folder.glob("*.yaml")})
-    raise HilError.single(f"no bus config for robot '{name}'{did_you_mean(name, near)}",
-                          hint="give a bus config path, or a robot's name: NAME.yaml here, "
-                               f"in ./bus_config/ or one hil ships ({', '.join(shipped)})")
+    raise UsageError.single(f"no bus config for robot '{name}'{did_you_mean(name, near)}",
+                            hint="give a bus config path, or a robot's name: NAME.yaml here, "
+                                 f"in ./bus_config/ or one hil ships ({', '.join(shipped)})")

@@ -17,7 +17,7 @@ from hil.bus_config.types import (
 )
 from hil.bus_config.yaml_reader import LineMapping, Reader, parse_yaml
 from hil.description import JointType, PackagePath, RobotDescription, load_description
-from hil.errors import HilError, Severity, did_you_mean
+from hil.errors import ConfigError, Severity, did_you_mean
 from hil.input_files import read_input_file
 from hil.zenoh_session import key_name_problem
 from hil.protocols import names as protocol_names
@@ -44,7 +44,7 @@ FOLLOWING_ERROR_TIME = 0.02
 def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -> SystemConfig:
     """Parse and validate a bus config and the robot it names.
 
-    Raises :class:`HilError` with every error found (warnings travel along).
+    Raises :class:`ConfigError` with every error found (warnings travel along).
     """
     path = Path(path)
     text = read_input_file(path, "bus config", hint="give the path of a bus_config/*.yaml file",
@@ -58,16 +58,16 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
         reader.fail(f"robot description '{robot_path}' does not exist",
                     top.key_lines.get("robot", 1),
                     hint="'robot' is a .xacro/.urdf path relative to the config file")
-        raise HilError(reader.diagnostics)
+        raise ConfigError(reader.diagnostics)
     robot = load_description(robot_path, package_path)
     problem = key_name_problem(robot.name)
     if problem:
-        raise HilError.single(f"robot name {robot.name!r}: {problem}", robot_path,
-                              hint="name the robot with letters, digits, '_', '-' or '.' "
-                                   "(<robot name=\"...\">): its keys are hil/<name>/...")
+        raise ConfigError.single(f"robot name {robot.name!r}: {problem}", robot_path,
+                                 hint="name the robot with letters, digits, '_', '-' or '.' "
+                                      "(<robot name=\"...\">): its keys are hil/<name>/...")
     robot = add_transmissions(reader, top, apply_joint_limits(reader, top, robot))
     if any(d.severity is Severity.ERROR for d in reader.diagnostics):
-        raise HilError(reader.diagnostics + list(robot.warnings))
+        raise ConfigError(reader.diagnostics + list(robot.warnings))
     transmissions = build_transmissions(robot)
     plant_rate = reader.number(top, "plant_rate_hz", "the bus config", 1000.0)
     defaults = reader.mapping(top.get("defaults", LineMapping()), "'defaults'",
@@ -76,7 +76,7 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
     raw_buses = top.get("buses")
     if not isinstance(raw_buses, list) or not raw_buses:
         reader.fail("'buses' must be a non-empty list of buses", top.key_lines.get("buses", 1))
-        raise HilError(reader.diagnostics)
+        raise ConfigError(reader.diagnostics)
     buses = tuple(_read_bus(reader, raw, index, robot, transmissions, defaults)
                   for index, raw in enumerate(raw_buses))
     scene = read_scene(reader, top, robot)
@@ -88,7 +88,7 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
     errors = [d for d in reader.diagnostics if d.severity is Severity.ERROR]
     warnings = tuple(d for d in reader.diagnostics if d.severity is Severity.WARNING)
     if errors:
-        raise HilError(errors + list(warnings))
+        raise ConfigError(errors + list(warnings))
     return replace(config, warnings=robot.warnings + warnings)
 
 

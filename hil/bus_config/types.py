@@ -7,15 +7,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hil.can import BusLoad, bus_load
+from hil.can.frame import Frame, FrameSpec
 from hil.description import Geometry, Pose, RobotDescription
 from hil.errors import Diagnostic
 from hil.protocols import protocol
-from hil.protocols.base import ProtocolOptions
+from hil.protocols.base import Protocol, ProtocolOptions
 
 #: Bus load above which a bus has no room left for SDO, EMCY, heartbeats and retries.
 LOAD_WARNING = 0.8
-HEARTBEAT_PAYLOAD = 1
-SYNC_PAYLOAD = 0
 
 
 @dataclass(frozen=True)
@@ -142,13 +141,24 @@ class BusConfig:
         return 1.0 / self.cycle_hz
 
     @property
-    def uses_sync(self) -> bool:
-        return any(protocol(d.protocol).uses_sync for d in self.drives)
+    def protocols(self) -> tuple[type[Protocol], ...]:
+        """The protocols of its drives, each once, in the drives' order."""
+        return tuple(dict.fromkeys(protocol(d.protocol) for d in self.drives))
 
-    def frames(self, drive: DriveConfig, node_id: int | None = None
-               ) -> list[tuple[int, int, float]]:
-        """(id, payload bytes, frames/s) of one drive's traffic, as its profile says (as
-        node ``node_id`` where given, else its own)."""
+    def bus_wide_frames(self) -> list[FrameSpec]:
+        """The frames of the bus as a whole (CANopen's NMT and SYNC), each of its protocols'
+        once however many of its drives the bus has."""
+        return [spec for kind in self.protocols for spec in kind.bus_wide_frames(self.cycle_hz)]
+
+    @property
+    def cycle_end_frames(self) -> tuple[Frame, ...]:
+        """What the master sends on the bus after every cycle's frames (CANopen: SYNC), each
+        of its protocols' once."""
+        return tuple(frame for kind in self.protocols for frame in kind.cycle_end_frames)
+
+    def frames(self, drive: DriveConfig, node_id: int | None = None) -> list[FrameSpec]:
+        """One drive's traffic, as its profile says (as node ``node_id`` where given, else its
+        own)."""
         spec = protocol(drive.protocol)
         node_id = drive.node_id if node_id is None else node_id
         frames = spec.bus_frames(node_id, self.cycle_hz, drive.heartbeat_period, drive.options)
@@ -156,7 +166,7 @@ class BusConfig:
             frames += spec.torque_feed_forward_frames(node_id, self.cycle_hz, drive.options)
         return frames
 
-    def running_frames(self, drive: DriveConfig) -> list[tuple[int, int, float]]:
+    def running_frames(self, drive: DriveConfig) -> list[FrameSpec]:
         """The drive's traffic once it runs: one that boots waiting for a master to assign
         its node id (LSS) is counted with the exchange it has after that (payloads and rates
         do not depend on the id, so any configured id stands for it)."""
@@ -167,14 +177,12 @@ class BusConfig:
 
     def load(self) -> BusLoad:
         """Worst-case traffic of every drive's cyclic exchange and timed messages (each
-        profile's own frames and lengths) once running, plus SYNC where a CANopen drive
-        needs it."""
-        streams = [(SYNC_PAYLOAD, self.cycle_hz)] if self.uses_sync else []
+        profile's own frames and lengths) once running, plus the bus-wide frames of its
+        protocols (CANopen's SYNC)."""
+        specs = self.bus_wide_frames()
         for drive in self.drives:
-            # an id above 0x7FF (or carrying hil.can.messages.EXTENDED) is an extended one
-            streams += [(payload, rate, can_id > 0x7FF)
-                        for can_id, payload, rate in self.running_frames(drive) if rate > 0]
-        return bus_load(self.bitrate, streams)
+            specs += self.running_frames(drive)
+        return bus_load(self.bitrate, [spec for spec in specs if spec.rate > 0])
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import yaml
 
-from hil.errors import Diagnostic, HilError, did_you_mean, error, warning
+from hil.errors import ConfigError, Diagnostic, did_you_mean, error, warning
 
 
 class LineMapping(dict):
@@ -105,21 +105,23 @@ LineLoader.add_constructor("tag:yaml.org,2002:str", LineLoader.construct_yaml_st
 
 def parse_yaml(text: str, path: Path, what: str):
     """The document of ``text`` (from ``path``, a ``what``: "a bus config", ...), mappings
-    as LineMappings; HilError with the file and line for YAML it cannot take."""
+    as LineMappings; ConfigError with the file and line for YAML it cannot take."""
     try:
         return yaml.load(text, Loader=LineLoader)
     except RecursionError:
-        raise HilError.single("YAML nested too deeply to read", path,
-                              hint=f"{what} nests a few levels") from None
+        raise ConfigError.single("YAML nested too deeply to read", path,
+                                 hint=f"{what} nests a few levels") from None
     except ConfigTooLarge as exc:
-        raise HilError.single(f"YAML too large: {exc.problem}", path, exc.problem_mark.line + 1,
-                              hint=f"{what} is a few hundred small values: "
-                                   "remove what is not one") from None
+        raise ConfigError.single(f"YAML too large: {exc.problem}", path,
+                                 exc.problem_mark.line + 1,
+                                 hint=f"{what} is a few hundred small values: "
+                                      "remove what is not one") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        raise HilError.single(f"YAML syntax: {getattr(exc, 'problem', exc)}", path,
-                              mark.line + 1 if mark else None,
-                              hint="fix the YAML at that line (indentation, ':' and '-')") from None
+        raise ConfigError.single(f"YAML syntax: {getattr(exc, 'problem', exc)}", path,
+                                 mark.line + 1 if mark else None,
+                                 hint="fix the YAML at that line (indentation, ':' and "
+                                      "'-')") from None
 
 
 def _fits_a_float(value: int | float) -> bool:

@@ -1,8 +1,9 @@
 """The ``hil`` command: one sub-command per module in this package, imported only when it
 runs (``hil control`` loads the master's modules and none of the simulator's).
 
-User errors (:class:`~hil.errors.HilError`) are printed as diagnostics and
-exit with status 1; no traceback is shown for them.
+hil's errors (:class:`~hil.errors.HilError`: a config's or a command line's, a running
+bench's) are printed as diagnostics and exit with their status (1); no traceback is shown
+for them.
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ from hil.controllers.config import ControllersConfig, controllers_for
 from hil.bus_config.types import SceneObject
 from hil.cli import common
 from hil.description import GeometryKind, PackagePath, RobotDescription, load_description
-from hil.errors import HilError, Severity
+from hil.errors import ConfigError, Severity, UsageError
 from hil.plant import Plant
 from hil.simulator import bench_plant
 
@@ -37,15 +37,15 @@ def run(args: argparse.Namespace) -> int:
         config = replace(config, warnings=config.warnings + plant.warnings +
                          controllers.warnings)
         if args.strict and config.warnings:
-            raise HilError([replace(w, severity=Severity.ERROR) for w in config.warnings])
+            raise ConfigError([replace(w, severity=Severity.ERROR) for w in config.warnings])
         print(bus_summary(config))
         print(controllers_summary(controllers))
         return 0
     if args.path.suffix not in (".xacro", ".urdf"):
-        raise HilError.single(f"cannot check '{args.path}': not a .xacro, .urdf or .yaml file",
-                              hint="give a robot description, e.g. "
-                                   "robots/ur3_description/urdf/ur3.xacro, or a bus config, "
-                                   "e.g. bus_config/ur3.yaml")
+        raise UsageError.single(f"cannot check '{args.path}': not a .xacro, .urdf or .yaml file",
+                                hint="give a robot description, e.g. "
+                                     "robots/ur3_description/urdf/ur3.xacro, or a bus config, "
+                                     "e.g. bus_config/ur3.yaml")
     description = load_description(args.path, package_path, strict=args.strict)
     print(summary(description, Plant(description), package_path))
     return 0

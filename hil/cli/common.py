@@ -17,7 +17,7 @@ from hil.can.capabilities import capabilities
 from hil.can.zenoh_receipts import AWAIT_MONITOR
 from hil.description import PackagePath
 from hil.durations import parse_duration
-from hil.errors import HilError
+from hil.errors import ProcessError, UsageError
 from hil.bus_config.locate import config_path  # noqa: F401  (the commands call common.config_path)
 from hil.realtime import LOCK_STEP, REAL_TIME
 from hil.supervisor import parse_cpus
@@ -70,12 +70,12 @@ def _finite(text: str, holds, what: str) -> float:
 
 
 def robot_name(name: str) -> str:
-    """A robot's name as given on the command line, checked: HilError where it cannot
+    """A robot's name as given on the command line, checked: UsageError where it cannot
     address one robot's keys (``**`` would address every robot's)."""
     problem = key_name_problem(name)
     if problem:
-        raise HilError.single(f"robot name {name!r}: {problem}",
-                              hint="give one robot's name, e.g. ur3")
+        raise UsageError.single(f"robot name {name!r}: {problem}",
+                                hint="give one robot's name, e.g. ur3")
     return name
 
 
@@ -153,25 +153,25 @@ def tokens(zenoh: ZenohSettings, key_expr: str, timeout: float = PEER_WAIT) -> l
 
 
 def refuse_a_second(zenoh: ZenohSettings, robot: str, process: str) -> None:
-    """HilError if a ``hil <process>`` for ``robot`` already runs on this Zenoh network: two
+    """ProcessError if a ``hil <process>`` for ``robot`` already runs on this Zenoh network: two
     simulators would both answer every frame (two nodes of one id on a CAN bus), two
     controllers would both command the drives. With no endpoints every process of the host
     meets every other, so a forgotten one in another terminal is found here."""
     found = tokens(zenoh, f"hil/{robot}/{process}")
     if found:
-        raise HilError.single(
+        raise ProcessError.single(
             f"a hil {process} for robot '{robot}' already runs on this Zenoh network",
             hint=f"stop that one first, or give this one a network of its own (--listen and "
                  f"--connect, or ${MEETING_VARIABLE})")
 
 
-def no_controller(zenoh: ZenohSettings, robot: str) -> HilError:
+def no_controller(zenoh: ZenohSettings, robot: str) -> ProcessError:
     """The error for a client whose robot's ``hil control`` never answered, with why where
     the session reached nobody at all (``why_unreached``)."""
     what = f"no hil control for robot '{robot}' is reachable"
     why = why_unreached(zenoh)
-    return HilError.single(f"{what}: {why}" if why else what,
-                           hint="start `hil control CONFIG` (or check --connect)")
+    return ProcessError.single(f"{what}: {why}" if why else what,
+                               hint="start `hil control CONFIG` (or check --connect)")
 
 
 def add_ros(parser: argparse.ArgumentParser, what: str) -> None:
@@ -200,14 +200,14 @@ def ros_settings(args: argparse.Namespace):
         return RosSettings.from_environment(args.ros_domain_id, args.ros_namespace,
                                             args.ros_distro, args.ros_router)
     except ValueError as exc:
-        raise HilError.single(f"--ros: {exc}", hint="see hil COMMAND --help, group ROS 2"
-                              ) from None
+        raise UsageError.single(f"--ros: {exc}", hint="see hil COMMAND --help, group ROS 2"
+                                ) from None
 
 
 @contextmanager
 def ros_node(settings, name: str, serving: str, timeout: float, hint: str):
     """A ROS 2 node ``name`` for a command-line client, once the service ``serving`` (fully
-    qualified) has a server in the graph; HilError with ``hint`` if none within
+    qualified) has a server in the graph; ProcessError with ``hint`` if none within
     ``timeout``. Closed, with its session, on exit."""
     from hil.messaging.ros.face import open_context            # noqa: PLC0415 (only with --ros)
     from hil.messaging.ros.rmw_zenoh import EntityKind         # noqa: PLC0415
@@ -215,8 +215,8 @@ def ros_node(settings, name: str, serving: str, timeout: float, hint: str):
     node = context.node(name, settings.namespace)
     try:
         if not context.wait_for(EntityKind.SERVICE, serving, timeout):
-            raise HilError.single(f"no server of {serving} on ROS domain "
-                                  f"{settings.domain_id} via {settings.router}", hint=hint)
+            raise ProcessError.single(f"no server of {serving} on ROS domain "
+                                      f"{settings.domain_id} via {settings.router}", hint=hint)
         yield node
     finally:
         node.close()
@@ -246,8 +246,8 @@ def can_overrides(args: argparse.Namespace) -> tuple[str | None, dict[str, str]]
     for item in args.channel:
         bus, sep, channel = item.partition("=")
         if not sep or not bus or not channel:
-            raise HilError.single(f"--channel '{item}' is not BUS=CHANNEL",
-                                  hint="e.g. --channel arm=vcan0")
+            raise UsageError.single(f"--channel '{item}' is not BUS=CHANNEL",
+                                    hint="e.g. --channel arm=vcan0")
         channels[bus] = channel
     return args.interface, channels
 
@@ -313,12 +313,12 @@ def cpus(args: argparse.Namespace) -> set[int] | None:
     try:
         chosen = parse_cpus(args.cpus)
     except ValueError:
-        raise HilError.single(f"--cpus '{args.cpus}' is not a list of CPU numbers",
-                              hint="e.g. --cpus 1 or --cpus 2,3") from None
+        raise UsageError.single(f"--cpus '{args.cpus}' is not a list of CPU numbers",
+                                hint="e.g. --cpus 1 or --cpus 2,3") from None
     usable = os.sched_getaffinity(0)
     if not chosen <= usable:
-        raise HilError.single(f"--cpus {args.cpus}: this process may use CPUs "
-                              f"{','.join(map(str, sorted(usable)))} only")
+        raise UsageError.single(f"--cpus {args.cpus}: this process may use CPUs "
+                                f"{','.join(map(str, sorted(usable)))} only")
     return chosen
 
 

@@ -16,7 +16,7 @@ from hil.can.capabilities import capabilities
 from hil.cli import common
 from hil.control_node import ControlNode
 from hil.controllers.config import DEFAULT_GOAL_TOLERANCE, controllers_for
-from hil.errors import HilError
+from hil.errors import UsageError
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface
 from hil.messaging.zenoh_api import key
 from hil.realtime import REAL_TIME_PRIORITY, enter_real_time
@@ -162,8 +162,8 @@ def _ros_faces(args: argparse.Namespace, config) -> list:
     settings = common.ros_settings(args)
     if settings is None:
         if args.ros_use_sim_time:
-            raise HilError.single("--ros-use-sim-time is for the ROS 2 face",
-                                  hint="add --ros")
+            raise UsageError.single("--ros-use-sim-time is for the ROS 2 face",
+                                    hint="add --ros")
         return []
     from hil.messaging.ros.face import ACTION, PlantClock, RosControlFace  # noqa: PLC0415
     from hil.visualisation.urdf_export import viewer_urdf            # noqa: PLC0415

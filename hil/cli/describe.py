@@ -8,8 +8,9 @@ from __future__ import annotations
 import argparse
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig, load_bus_config
+from hil.can.frame import Frame, FrameSpec
 from hil.cli import common
-from hil.protocols import protocol
+from hil.protocols import Protocol, protocol
 from hil.resources import BUS_CONFIGS, data_dir
 from hil.zenoh_session import meeting_endpoint
 
@@ -46,15 +47,15 @@ def _describe_bus(config: SystemConfig, bus: BusConfig) -> None:
     else:
         print(f"  join it: can.Bus(interface=\"{bus.interface}\", channel=\"{bus.channel}\")"
               + (f"; candump {bus.channel}" if bus.interface == "socketcan" else ""))
-    if bus.uses_sync:
-        print(f"  the master's: NMT 0x000 (node id in byte 1), SYNC 0x080 every cycle "
-              f"({bus.cycle_hz:g}/s): the CiA 402 drives answer each SYNC with their TPDOs")
+    bus_wide = bus.bus_wide_frames()
+    if bus_wide:
+        print(f"  the master's: {', '.join(_bus_wide(spec, bus.cycle_hz) for spec in bus_wide)}")
     for drive in bus.drives:
         _describe_drive(config, bus, drive)
 
 
 def _describe_drive(config: SystemConfig, bus: BusConfig, drive: DriveConfig) -> None:
-    spec = protocol(drive.protocol)
+    family = protocol(drive.protocol)
     reduction = config.robot.reduction(drive.actuator)
     # the reduction is per unit of the first joint (RobotDescription.reduction): a prismatic
     # joint's is a metre
@@ -64,21 +65,37 @@ def _describe_drive(config: SystemConfig, bus: BusConfig, drive: DriveConfig) ->
           f"{drive.encoder_counts_per_rev} counts a motor turn; rated "
           f"{drive.rated_torque:.4g} N·m, peak {drive.peak_torque:.4g} N·m")
     options = {drive.node_id: drive.options}
-    for can_id, size, rate in bus.frames(drive):
-        what = _what(spec, can_id, size, options)
-        when = f"{rate:g}/s" if rate > 0 else "on events"
-        print(f"    0x{can_id & 0x1FFFFFFF:03X}{' ext' if can_id > 0x7FF else ''}  "
-              f"{size} B  {when:>9s}  {what}")
+    for frame in bus.frames(drive):
+        what = _what(family, frame, options)
+        when = f"{frame.rate:g}/s" if frame.rate > 0 else "on events"
+        print(f"    {_identifier(frame)}  {frame.length} B  {when:>9s}  {what}")
 
 
-def _what(spec, can_id: int, size: int, drives: dict) -> str:
-    """The frame as its protocol names it, told as a bus monitor tells it."""
+def _identifier(spec: FrameSpec) -> str:
+    return f"0x{spec.identifier:03X}{' ext' if spec.extended else ''}"
+
+
+def _bus_wide(spec: FrameSpec, cycle_hz: float) -> str:
+    """A frame of the bus as a whole, as the master sends it: every cycle, at its own rate
+    or on events."""
+    if spec.rate == cycle_hz:
+        when = f" every cycle ({spec.rate:g}/s)"
+    else:
+        when = f" {spec.rate:g}/s" if spec.rate > 0 else " on events"
+    return f"{spec.what} {_identifier(spec)}{when}"
+
+
+def _what(family: type[Protocol], frame: FrameSpec, drives: dict) -> str:
+    """The frame as its protocol names it, told as a bus monitor tells it (a protocol that
+    does not tell its frames' sources: as it declares it)."""
     node = next(iter(drives))
+    size = frame.length
     for data in (bytes([node]) + bytes(max(0, size - 1)), bytes(size)):
+        sent = Frame(frame.identifier, data, frame.extended, frame.fd, frame.bitrate_switch)
         try:
-            found = spec.frame_source(can_id, data, False, drives)
+            found = family.frame_source(sent, drives)
         except NotImplementedError:
-            return ""
+            return frame.what
         if found is not None:
             return f"{found.sender.value}: {found.what}"
     return ""

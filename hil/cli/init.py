@@ -12,7 +12,7 @@ from hil.commissioning.initial import initial_config
 from hil.commissioning.watchdog import watchdog_choices
 from hil.cli import common
 from hil.description import load_description
-from hil.errors import HilError
+from hil.errors import ConfigError, UsageError
 from hil.protocols import BUILTIN, protocol
 from hil.resources import BUS_CONFIGS, data_dir
 
@@ -39,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if not args.rate > 0 or args.rate > 10_000:
-        raise HilError.single(f"--rate {args.rate:g}: give a control rate in Hz, e.g. 500")
+        raise UsageError.single(f"--rate {args.rate:g}: give a control rate in Hz, e.g. 500")
     motor = _motor(args.protocol, args.motor)
     package_path = common.package_path(args)
     if not args.description.exists() and args.description.suffix not in (".urdf", ".xacro"):
@@ -47,15 +47,15 @@ def run(args: argparse.Namespace) -> int:
     robot = load_description(args.description, package_path)
     output = args.output or Path(f"{robot.name}.yaml")
     if output.suffix not in (".yaml", ".yml"):
-        raise HilError.single(f"-o {output}: a bus config is a .yaml file")
+        raise UsageError.single(f"-o {output}: a bus config is a .yaml file")
     if output.exists() and not args.force:
-        raise HilError.single(f"{output} exists already", hint="give another -o, or --force")
+        raise UsageError.single(f"{output} exists already", hint="give another -o, or --force")
     written = initial_config(robot, args.description, output, args.protocol, args.rate, motor)
     if written.drives == 0:
-        raise HilError.single(f"'{robot.name}' has no joint hil can drive: no movable joint "
-                              "that is not a mimic", args.description,
-                              hint="hil drives revolute, continuous and prismatic joints; "
-                                   "check that this is the robot's main file, not an include")
+        raise ConfigError.single(f"'{robot.name}' has no joint hil can drive: no movable joint "
+                                 "that is not a mimic", args.description,
+                                 hint="hil drives revolute, continuous and prismatic joints; "
+                                      "check that this is the robot's main file, not an include")
     output.write_text(written.text)
     config = load_bus_config(output, package_path)      # as `hil check` and `hil up` will
     coupled = coupled_gains(config)
@@ -92,27 +92,27 @@ def _shipped_description(name: str, package_path) -> Path:
     """A robot's name: the description its bus config names."""
     try:
         config = common.config_path(name)
-    except HilError:
+    except UsageError:
         shipped = sorted(p.stem for p in data_dir(BUS_CONFIGS).glob("*.yaml"))
-        raise HilError.single(f"robot description '{name}' does not exist",
-                              hint="give the path of a .urdf or .xacro file, or a robot hil "
-                                   f"ships: {', '.join(shipped)}") from None
+        raise UsageError.single(f"robot description '{name}' does not exist",
+                                hint="give the path of a .urdf or .xacro file, or a robot hil "
+                                     f"ships: {', '.join(shipped)}") from None
     return load_bus_config(config, package_path).robot.source
 
 
 def _motor(protocol_name: str, name: str | None) -> str | None:
-    """``--motor``'s model, as the protocol names it; HilError listing the known ones."""
+    """``--motor``'s model, as the protocol names it; UsageError listing the known ones."""
     models = protocol(protocol_name).models
     if name is None:
         return None
     if not models:
-        raise HilError.single(f"--motor {name}: protocol '{protocol_name}' knows no makers' "
-                              "models", hint="give the drives' limits in the bus config")
+        raise UsageError.single(f"--motor {name}: protocol '{protocol_name}' knows no makers' "
+                                "models", hint="give the drives' limits in the bus config")
     found = next((key for key in models if _plain(key) == _plain(name)
                   or _plain(key) == "DM" + _plain(name)), None)
     if found is None:
-        raise HilError.single(f"--motor {name}: no {protocol_name} model of that name",
-                              hint=f"one of: {', '.join(models)}")
+        raise UsageError.single(f"--motor {name}: no {protocol_name} model of that name",
+                                hint=f"one of: {', '.join(models)}")
     return found
 
 

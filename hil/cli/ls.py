@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from hil.cli import common
-from hil.errors import HilError
+from hil.errors import ProcessError
 from hil.zenoh_security import ROLES
 from hil.zenoh_session import close_all, why_unreached
 
@@ -31,9 +31,10 @@ def run(args: argparse.Namespace) -> int:
              f"listen {list(zenoh.listen)}, connect {list(zenoh.connect)}")
     if not found:
         why = why_unreached(zenoh)
-        raise HilError.single(f"no hil process is reachable ({where}){f': {why}' if why else ''}",
-                              hint="start one (hil up ROBOT, or hil sim / hil control CONFIG), "
-                                   "or give the endpoints it listens on (--connect)")
+        raise ProcessError.single(
+            f"no hil process is reachable ({where}){f': {why}' if why else ''}",
+            hint="start one (hil up ROBOT, or hil sim / hil control CONFIG), or give the "
+                 "endpoints it listens on (--connect)")
     robots: dict[str, list[str]] = {}
     for token in found:
         _, robot, process = token.split("/", 2)

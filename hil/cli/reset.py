@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from hil.cli import common
-from hil.errors import HilError
+from hil.errors import UsageError
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient
 from hil.zenoh_session import close_all, session
 
@@ -27,11 +27,11 @@ def run(args: argparse.Namespace) -> int:
     settings = common.ros_settings(args)
     if settings is not None:
         if args.robot is not None:
-            raise HilError.single(f"with --ros, give no robot name ({args.robot})",
-                                  hint="hil reset --ros [--service NAME]")
+            raise UsageError.single(f"with --ros, give no robot name ({args.robot})",
+                                    hint="hil reset --ros [--service NAME]")
         return _reset_ros(args, settings)
     if args.robot is None:
-        raise HilError.single("give the robot's name", hint="hil reset ur3")
+        raise UsageError.single("give the robot's name", hint="hil reset ur3")
     common.robot_name(args.robot)
     zenoh = common.zenoh_settings(args)
     client = TrajectoryActionClient(session(zenoh), args.robot)

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from hil.cli import common
-from hil.errors import HilError
+from hil.errors import UsageError
 from hil.supervisor import run_foreground
 from hil.visualisation.review import RunSummary, review
 from hil.visualisation.segments import segment_files
@@ -43,9 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     files = segment_files(args.recording)
     if files == [args.recording] and not args.recording.exists():
-        raise HilError.single(f"no recording {args.recording} (nor its segments "
-                              f"{args.recording.stem}-0001{args.recording.suffix}, ...)",
-                              hint="give the --save of hil up or hil viz (default run.rrd)")
+        raise UsageError.single(f"no recording {args.recording} (nor its segments "
+                                f"{args.recording.stem}-0001{args.recording.suffix}, ...)",
+                                hint="give the --save of hil up or hil viz (default run.rrd)")
     reviewed = review(files)
     unreadable = {damage.segment for damage in reviewed.damaged if not damage.is_recording}
     viewable = [path for path in files if path not in unreadable]
@@ -58,8 +58,8 @@ def run(args: argparse.Namespace) -> int:
     for damage in reviewed.damaged:
         print(f"hil review: {damage.segment.name} damaged: {damage.reason}")
     if not viewable:
-        raise HilError.single(f"{args.recording}: no file of it is a rerun recording",
-                              hint="give the --save of hil up or hil viz (default run.rrd)")
+        raise UsageError.single(f"{args.recording}: no file of it is a rerun recording",
+                                hint="give the --save of hil up or hil viz (default run.rrd)")
     for run in reviewed.runs:
         _print_run(run)
     found = reviewed.diagnostics

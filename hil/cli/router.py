@@ -9,7 +9,7 @@ import threading
 import zenoh
 
 from hil.cli import common
-from hil.errors import HilError
+from hil.errors import ProcessError
 from hil.messaging.ros.router import DEFAULT_LISTEN, open_router
 
 
@@ -24,9 +24,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         router = open_router(listen)
     except zenoh.ZError as exc:
-        raise HilError.single(f"cannot start a Zenoh router on {', '.join(listen)}: {exc}",
-                              hint="is a router (rmw_zenohd, zenohd, hil router) already "
-                                   "running there? choose another with --listen") from None
+        raise ProcessError.single(f"cannot start a Zenoh router on {', '.join(listen)}: {exc}",
+                                  hint="is a router (rmw_zenohd, zenohd, hil router) already "
+                                       "running there? choose another with --listen") from None
     stop = threading.Event()
     previous = common.on_stop_signals(stop.set)
     print(f"hil router: Zenoh router {router.zid()} listening on {', '.join(listen)} "

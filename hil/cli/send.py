@@ -19,7 +19,7 @@ from hil.controllers import (
     HARDWARE_FAULT, GoalRejected, GoalStatus, JointTolerance, TrajectoryGoal,
     TrajectoryPoint,
 )
-from hil.errors import HilError
+from hil.errors import ConfigError, UsageError
 from hil.input_files import read_input_file
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient
 from hil.zenoh_session import close_all, session
@@ -57,16 +57,16 @@ def run(args: argparse.Namespace) -> int:
     settings = common.ros_settings(args)
     if settings is not None:
         if len(args.target) > 1 or (args.target and not _is_trajectory_file(args.target[0])):
-            raise HilError.single(f"with --ros, give no robot name: {' '.join(args.target)}",
-                                  hint="hil send --ros [FILE] [--joint NAME --to POS ...] "
-                                       "[--action NAME]")
+            raise UsageError.single(f"with --ros, give no robot name: {' '.join(args.target)}",
+                                    hint="hil send --ros [FILE] [--joint NAME --to POS ...] "
+                                         "[--action NAME]")
         args.file = Path(args.target[0]) if args.target else None
         return _send_ros(args, settings, _goal(args))
     if not args.target or len(args.target) > 2:
-        raise HilError.single("give a robot name, then optionally a trajectory file"
-                              if not args.target else
-                              f"too many arguments: {' '.join(args.target[2:])}",
-                              hint="hil send ROBOT [FILE] [--joint NAME --to POS ...]")
+        raise UsageError.single("give a robot name, then optionally a trajectory file"
+                                if not args.target else
+                                f"too many arguments: {' '.join(args.target[2:])}",
+                                hint="hil send ROBOT [FILE] [--joint NAME --to POS ...]")
     args.robot = common.robot_name(args.target[0])
     args.file = Path(args.target[1]) if len(args.target) == 2 else None
     goal = _goal(args)
@@ -192,8 +192,8 @@ def _goal(args: argparse.Namespace) -> TrajectoryGoal:
     if args.file is not None:
         return goal_from_file(args.file)
     if not args.joint or len(args.joint) != len(args.to):
-        raise HilError.single("give a trajectory file, or --joint NAME --to POSITION pairs",
-                              hint="e.g. hil send ur3 --joint joint2 --to 0.5 --in 2s")
+        raise UsageError.single("give a trajectory file, or --joint NAME --to POSITION pairs",
+                                hint="e.g. hil send ur3 --joint joint2 --to 0.5 --in 2s")
     return TrajectoryGoal(tuple(args.joint), (TrajectoryPoint(args.duration, tuple(args.to)),))
 
 
@@ -218,9 +218,9 @@ def goal_from_file(path: Path) -> TrajectoryGoal:
                               float(data.get("goal_time_tolerance", 0.0)))
     except (yaml.YAMLError, json.JSONDecodeError, KeyError, TypeError, ValueError,
             AttributeError, OverflowError, RecursionError) as exc:   # what bad data raises
-        raise HilError.single(f"'{path}' is not a trajectory: {exc!r}", path,
-                              hint="needs joint_names and points with positions and "
-                                   "time_from_start") from None
+        raise ConfigError.single(f"'{path}' is not a trajectory: {exc!r}", path,
+                                 hint="needs joint_names and points with positions and "
+                                      "time_from_start") from None
     _check_numbers(goal, path)
     return goal
 
@@ -233,13 +233,13 @@ def _check_numbers(goal: TrajectoryGoal, path: Path) -> None:
     durations.append(("goal_time_tolerance", goal.goal_time_tolerance))
     for what, seconds in durations:
         if not math.isfinite(seconds) or not 0 <= seconds < 2**31:
-            raise HilError.single(f"{what} is {seconds}: not a duration", path,
-                                  hint="give seconds as a finite number from 0 (below 2^31)")
+            raise ConfigError.single(f"{what} is {seconds}: not a duration", path,
+                                     hint="give seconds as a finite number from 0 (below 2^31)")
     for key, tolerances in (("path_tolerance", goal.path_tolerance),
                             ("goal_tolerance", goal.goal_tolerance)):
         for tolerance in tolerances:
             if not math.isfinite(tolerance.position):
-                raise HilError.single(f"{key} of joint '{tolerance.name}' is "
-                                      f"{tolerance.position}", path,
-                                      hint="give radians (0: the controller's default, "
-                                           "< 0: not checked)")
+                raise ConfigError.single(f"{key} of joint '{tolerance.name}' is "
+                                         f"{tolerance.position}", path,
+                                         hint="give radians (0: the controller's default, "
+                                              "< 0: not checked)")

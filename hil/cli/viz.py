@@ -15,7 +15,7 @@ from hil.bus_config import SystemConfig, check_together, load_bus_config, open_b
 from hil.can.monitor import BusMonitor
 from hil.cli import common
 from hil.cli.written_files import previous_outputs
-from hil.errors import HilError
+from hil.errors import UsageError
 from hil.realtime import enter_background, leave_background
 from hil.visualisation import RunRecorder
 from hil.visualisation.blueprint import run_blueprint
@@ -75,10 +75,10 @@ def run(args: argparse.Namespace) -> int:
                for c in args.config]
     check_together(configs)
     if args.no_can and args.can_log:
-        raise HilError.single("--can-log needs the CAN buses, but --no-can was given")
+        raise UsageError.single("--can-log needs the CAN buses, but --no-can was given")
     if len(configs) > 1 and (args.channel or args.interface):
-        raise HilError.single("--channel and --interface are for one robot's buses",
-                              hint="give the robots' channels in their bus configs")
+        raise UsageError.single("--channel and --interface are for one robot's buses",
+                                hint="give the robots' channels in their bus configs")
     zenoh = common.zenoh_settings(args)
     background = not (args.timing.lock_step or args.normal_scheduling)
     if background:
@@ -170,12 +170,12 @@ def _sinks(args: argparse.Namespace) -> _Sinks:
         else:
             save = Path("run.rrd")
     if args.segment is not None and save is None:
-        raise HilError.single("--segment divides the file of --save: give --save FILE.rrd")
+        raise UsageError.single("--segment divides the file of --save: give --save FILE.rrd")
     if args.segment is not None and args.serve:
         # each segment sets the sinks anew: a client reconnects, a server would bind again
-        raise HilError.single("--segment and --serve together: the web viewer's server would "
-                              "start again with each segment",
-                              hint="stream to a viewer with --viewer URL, or --spawn")
+        raise UsageError.single("--segment and --serve together: the web viewer's server would "
+                                "start again with each segment",
+                                hint="stream to a viewer with --viewer URL, or --spawn")
     outputs = {"--save": save} if save else {}
     if args.can_log:
         outputs["--can-log"] = args.can_log

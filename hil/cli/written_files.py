@@ -23,12 +23,12 @@ import os
 import stat
 from pathlib import Path
 
-from hil.errors import HilError
+from hil.errors import UsageError
 from hil.visualisation.segments import segment_files
 
 
 def check_writable(path: Path, what: str) -> None:
-    """HilError naming ``path`` (a ``what``: "--record", ...) where no file can be written
+    """UsageError naming ``path`` (a ``what``: "--record", ...) where no file can be written
     there: a folder, no regular file (a device such as /dev/full, a FIFO), or in a place
     that is no folder or cannot be written."""
     hint = f"give {what} a file in a folder you can write, e.g. {what} run.rrd"
@@ -37,21 +37,21 @@ def check_writable(path: Path, what: str) -> None:
     except FileNotFoundError:
         found = None
     except OSError as exc:
-        raise HilError.single(f"{what} '{path}': {exc.strerror}", hint=hint) from None
+        raise UsageError.single(f"{what} '{path}': {exc.strerror}", hint=hint) from None
     if found is not None and stat.S_ISDIR(found.st_mode):
-        raise HilError.single(f"{what} '{path}' is a folder", hint=hint)
+        raise UsageError.single(f"{what} '{path}' is a folder", hint=hint)
     if found is not None and not stat.S_ISREG(found.st_mode):
-        raise HilError.single(f"{what} '{path}' is not a regular file (a device, a FIFO): no "
-                              "place to keep a run", hint=hint)
+        raise UsageError.single(f"{what} '{path}' is not a regular file (a device, a FIFO): no "
+                                "place to keep a run", hint=hint)
     place = Path(path).absolute().parent
     while not place.exists():                 # the folders to be made: the first that is
         place = place.parent
     if not place.is_dir():
-        raise HilError.single(f"{what} '{path}': '{place}' is not a folder", hint=hint)
+        raise UsageError.single(f"{what} '{path}': '{place}' is not a folder", hint=hint)
     # os.access: as the process may, read-only file systems included (EROFS)
     if not os.access(place, os.W_OK | os.X_OK) or (
             found is not None and not os.access(path, os.W_OK)):
-        raise HilError.single(f"{what} '{path}': cannot write in '{place}'", hint=hint)
+        raise UsageError.single(f"{what} '{path}': cannot write in '{place}'", hint=hint)
 
 
 def described(path: Path) -> str:

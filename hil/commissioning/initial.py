@@ -28,7 +28,7 @@ from hil.commissioning.sizing import (
 )
 from hil.bus_config.joint_limits import KEYS as LIMIT_KEYS
 from hil.bus_config.transmissions import SIMPLE, actuator_of
-from hil.bus_config.types import LOAD_WARNING, SYNC_PAYLOAD, Gains
+from hil.bus_config.types import LOAD_WARNING, Gains
 from hil.can import bus_load
 from hil.description import (
     Joint, JointLimits, RobotDescription, TransmissionActuator, TransmissionJoint,
@@ -174,11 +174,11 @@ def _transmission(sizing: Sizing) -> TransmissionSpec:
 def _drives_per_bus(protocol_name: str, rate: float) -> int:
     """How many drives of the protocol fit on one bus at ``rate`` under LOAD_WARNING."""
     spec = protocol(protocol_name)
-    one = [(payload, hz, can_id > 0x7FF) for can_id, payload, hz in
-           spec.bus_frames(spec.node_ids.start or 1, rate, HEARTBEAT_PERIOD, None) if hz > 0]
-    sync = bus_load(BITRATE, [(SYNC_PAYLOAD, rate)] if spec.uses_sync else [])
+    one = [frame for frame in spec.bus_frames(spec.node_ids.start or 1, rate, HEARTBEAT_PERIOD)
+           if frame.rate > 0]
+    bus_wide = bus_load(BITRATE, [frame for frame in spec.bus_wide_frames(rate) if frame.rate > 0])
     per_drive = bus_load(BITRATE, one).worst_bits_per_second
-    budget = LOAD_WARNING * BITRATE - sync.worst_bits_per_second
+    budget = LOAD_WARNING * BITRATE - bus_wide.worst_bits_per_second
     return max(1, min(int(budget // per_drive), len(spec.node_ids) - 1))
 
 

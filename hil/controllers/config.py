@@ -22,7 +22,7 @@ from hil.controllers.forward import FORWARD_TYPES
 from hil.controllers.jtc_section import read_jtc, read_joint_names
 from hil.controllers.param_file import NodeSection, named, node_sections, parameters_for
 from hil.controllers.parameters import COMMAND_INTERFACES, JointConstraint, JtcParameters
-from hil.errors import Diagnostic, HilError, Severity
+from hil.errors import ConfigError, Diagnostic, Severity, UsageError
 from hil.input_files import read_input_file
 
 #: rad (or m) each joint may end from a goal in hil's own controller set (hil control
@@ -85,7 +85,7 @@ def controllers_for(config: SystemConfig, goal_tolerance: float | None = None,
                     file: Path | None = None) -> ControllersConfig:
     """What the controller runs for a bus config: the controllers file ``file`` (with the
     config's ``controllers:`` names and values), else the config's own, else hil's set with
-    ``goal_tolerance`` (None: DEFAULT_GOAL_TOLERANCE). HilError where a file's constraints
+    ``goal_tolerance`` (None: DEFAULT_GOAL_TOLERANCE). UsageError where a file's constraints
     and ``goal_tolerance`` would both set the goal tolerance."""
     source = config.controllers
     if file is not None:
@@ -94,16 +94,16 @@ def controllers_for(config: SystemConfig, goal_tolerance: float | None = None,
     if source is None:
         return hil_controllers(driven, goal_tolerance or DEFAULT_GOAL_TOLERANCE)
     if goal_tolerance is not None:
-        raise HilError.single("--goal-tolerance is for hil's own controllers: the "
-                              f"controllers file {source.path} sets each joint's goal "
-                              "tolerance (constraints: <joint>: goal)",
-                              hint="leave out --goal-tolerance, or change the file")
+        raise UsageError.single("--goal-tolerance is for hil's own controllers: the "
+                                f"controllers file {source.path} sets each joint's goal "
+                                "tolerance (constraints: <joint>: goal)",
+                                hint="leave out --goal-tolerance, or change the file")
     return load_controllers(source, driven, config.cycle_hz)
 
 
 def load_controllers(source: ControllersSource, driven: tuple[str, ...],
                      cycle_hz: float) -> ControllersConfig:
-    """Read ``source.path`` for a robot whose driven joints are ``driven``; HilError with
+    """Read ``source.path`` for a robot whose driven joints are ``driven``; ConfigError with
     every problem found (file, line, what to do)."""
     path = source.path
     text = read_input_file(path, "controllers file",
@@ -153,7 +153,7 @@ def load_controllers(source: ControllersSource, driven: tuple[str, ...],
 
 def _raise_errors(reader: Reader) -> None:
     if any(d.severity is Severity.ERROR for d in reader.diagnostics):
-        raise HilError(reader.diagnostics)
+        raise ConfigError(reader.diagnostics)
 
 
 def _substitute(reader: Reader, text: str, variables: dict[str, str]) -> str:

@@ -4,7 +4,7 @@ that name the file, the line and what to do.
 xacro (the PyPI package, ROS 2's xacro) does the expansion, guarded so that a description
 runs no code and reads nothing outside what the user allowed
 (:mod:`hil.description.xacro_guard`); this module translates its failures into
-:class:`~hil.errors.HilError` and records which files took part, so later checks can point
+:class:`~hil.errors.ConfigError` and records which files took part, so later checks can point
 at lines in them.
 """
 
@@ -18,7 +18,7 @@ from pathlib import Path
 
 from hil.description.packages import AmentPrefix, PackagePath
 from hil.description.xacro_guard import Allowed, guarded
-from hil.errors import Diagnostic, HilError, error, warning
+from hil.errors import ConfigError, Diagnostic, error, warning
 from hil.input_files import read_input_file
 
 
@@ -103,20 +103,20 @@ def read_robot_source(path: Path, package_path: PackagePath) -> RobotSource:
                          tuple(corrections))
 
 
-def _xml_error(path: Path, text: str, lineno: int, offset: int, reason: str) -> HilError:
+def _xml_error(path: Path, text: str, lineno: int, offset: int, reason: str) -> ConfigError:
     """Explain an XML syntax error, recognising the seeds' common defects: a comment inside
     a start tag is reported with every other one in the file, so that one run finds all."""
     lines = text.splitlines()
     line = lines[lineno - 1] if 0 < lineno <= len(lines) else ""
     if line[offset:].startswith("<!--"):
-        return HilError([error(
+        return ConfigError([error(
             f"XML comment inside the start tag of <{tag}> (column {column}): "
             "XML allows comments only between tags, not between attributes", path, number,
             hint=f"move the comment after the '>' that closes <{tag} ...>, "
                  "e.g. <joint name=\"j\" type=\"revolute\">  <!-- note -->")
             for number, column, tag in comments_in_start_tags(text)])
-    return HilError.single(f"malformed XML: {reason} (column {offset + 1})", path, lineno,
-                           hint="fix the XML syntax at that position")
+    return ConfigError.single(f"malformed XML: {reason} (column {offset + 1})", path, lineno,
+                              hint="fix the XML syntax at that position")
 
 
 def comments_in_start_tags(text: str) -> list[tuple[int, int, str]]:
@@ -160,21 +160,21 @@ def _expand_xacro(path: Path, package_path: PackagePath, corrected: str | None,
             current = Path(xacro.filestack[-1] or path).resolve() if xacro.filestack else path
             raise _xacro_error(exc, current, package_path) from None
         except RecursionError:
-            raise HilError.single("xacro expansion nests without end (a macro that calls "
-                                  "itself, or includes that include each other?)", path,
-                                  hint="give each recursive macro a condition that ends "
-                                       "it") from None
+            raise ConfigError.single("xacro expansion nests without end (a macro that calls "
+                                     "itself, or includes that include each other?)", path,
+                                     hint="give each recursive macro a condition that ends "
+                                          "it") from None
         includes = [Path(p).resolve() for p in xacro.all_includes[known_includes:]]
     files = tuple(dict.fromkeys((path.resolve(), *includes)))
     return RobotSource(path, ET.fromstring(doc.toxml()), files, corrections)
 
 
-def _xacro_error(exc, current: Path, package_path: PackagePath) -> HilError:
+def _xacro_error(exc, current: Path, package_path: PackagePath) -> ConfigError:
     cause = exc.exc
     if type(cause).__name__ == "PackageNotFoundError":
         package = re.search(r"'([^']+)'", str(cause))
         name = package.group(1) if package else str(cause)
-        return HilError.single(
+        return ConfigError.single(
             f"$(find {name}): no package named '{name}' on the package search path "
             f"({package_path.describe()})",
             current, first_line_of(current, f"$(find {name})"),
@@ -182,14 +182,14 @@ def _xacro_error(exc, current: Path, package_path: PackagePath) -> HilError:
                  f"or the HIL_PACKAGE_PATH environment variable")
     if isinstance(cause, OSError) and getattr(cause, "filename", None):
         missing = Path(cause.filename)
-        return HilError.single(
+        return ConfigError.single(
             f"included file '{missing}' does not exist",
             current, first_line_of(current, missing.name),
             hint="fix the <xacro:include filename=...> or add the missing file")
     line = _xacro_line(str(exc), current)
-    return HilError.single(f"xacro: {' '.join(str(exc).split())}", current, line,
-                           hint="fix the xacro at that line" if line else
-                           "fix the xacro at the named file")
+    return ConfigError.single(f"xacro: {' '.join(str(exc).split())}", current, line,
+                              hint="fix the xacro at that line" if line else
+                              "fix the xacro at the named file")
 
 
 #: what each kind of xacro error names, and how that appears in the file

@@ -20,21 +20,21 @@ from hil.description.reader import ElementReader
 from hil.description.source import RobotSource, first_line_of
 from hil.description.urdf_checks import check_mimic, check_tree, check_visuals
 from hil.description.urdf_transmissions import check_transmissions, read_transmission
-from hil.errors import HilError, Severity, error, warning
+from hil.errors import ConfigError, Severity, error, warning
 
 
 def parse_urdf(source: RobotSource, package_path: PackagePath) -> RobotDescription:
-    """Build a validated description; raise :class:`HilError` listing every error."""
+    """Build a validated description; raise :class:`ConfigError` listing every error."""
     root = source.root
     if root.tag != "robot":
-        raise HilError.single(f"the root element is <{root.tag}>, not <robot>", source.path,
-                              first_line_of(source.path, f"<{root.tag}"),
-                              hint="a URDF file starts with <robot name=\"...\">")
+        raise ConfigError.single(f"the root element is <{root.tag}>, not <robot>", source.path,
+                                 first_line_of(source.path, f"<{root.tag}"),
+                                 hint="a URDF file starts with <robot name=\"...\">")
     if root.find("link") is None:
-        raise HilError.single("the robot has no <link>: there is nothing to simulate",
-                              source.path, first_line_of(source.path, "<robot"),
-                              hint="give the robot's full description (a file of "
-                              "xacro macros alone defines no links until a macro is called)")
+        raise ConfigError.single("the robot has no <link>: there is nothing to simulate",
+                                 source.path, first_line_of(source.path, "<robot"),
+                                 hint="give the robot's full description (a file of "
+                                 "xacro macros alone defines no links until a macro is called)")
     reader = ElementReader(source, package_path)
     reader.diagnostics.extend(source.corrections)
     links = tuple(_read_link(reader, e) for e in root.findall("link"))
@@ -56,7 +56,7 @@ def parse_urdf(source: RobotSource, package_path: PackagePath) -> RobotDescripti
     errors = [d for d in reader.diagnostics if d.severity is Severity.ERROR]
     warnings = tuple(d for d in reader.diagnostics if d.severity is Severity.WARNING)
     if errors:
-        raise HilError(errors + list(warnings))
+        raise ConfigError(errors + list(warnings))
     return RobotDescription(
         name=root.get("name") or source.path.stem, source=source.path, links=links,
         joints=joints, transmissions=transmissions, warnings=warnings, files=source.files)

@@ -36,7 +36,7 @@ from hil.description import (
     WORLD, Joint, JointType, Link, RobotDescription,
 )
 from hil.description.reader import SourceIndex
-from hil.errors import HilError
+from hil.errors import ConfigError
 from hil.plant.shapes import ScenePart, add_collisions, add_scene, add_visuals, rpy_to_quat
 from hil.transmissions import SimpleTransmission, Transmission
 
@@ -174,10 +174,10 @@ def compile_model(spec: mujoco.MjSpec, description: RobotDescription) -> mujoco.
                 "joint" if name in {joint.name for joint in description.joints} else None)
         file, line = (SourceIndex(description.files).locate(kind, name) if kind
                       else (description.source, None))
-        raise HilError.single(f"MuJoCo rejects the model of '{description.name}': {text}",
-                              file, line,
-                              hint=f"check {kind} '{name}' (its inertial and limits)" if kind
-                              else "check the links' inertials and the joints' limits") from None
+        raise ConfigError.single(f"MuJoCo rejects the model of '{description.name}': {text}",
+                                 file, line,
+                                 hint=f"check {kind} '{name}' (its inertial and limits)" if kind
+                                 else "check the links' inertials and the joints' limits") from None
 
 
 def _reflected_joint_armature(description: RobotDescription,

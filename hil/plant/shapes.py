@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from hil.description import Geometry, GeometryKind, Link, Pose
-from hil.errors import HilError
+from hil.errors import ConfigError
 
 _VISUAL_GROUP = 1
 #: MuJoCo's geom group of collision shapes (hidden in its viewer by default)
@@ -136,9 +136,9 @@ def add_scene(spec: mujoco.MjSpec, scene: tuple[ScenePart, ...]) -> None:
     # the robot's parts are in the spec: their names begin with their links' and joints'
     claimed = [e.name for e in (*spec.bodies, *spec.joints) if e.name.startswith(SCENE_NAMESPACE)]
     if scene and claimed:
-        raise HilError.single(f"the robot's link or joint '{claimed[0]}' is named as hil names "
-                              f"the scene's objects in the plant ('{SCENE_NAMESPACE}<name>')",
-                              hint="rename that link or joint, or leave out the scene")
+        raise ConfigError.single(f"the robot's link or joint '{claimed[0]}' is named as hil names "
+                                 f"the scene's objects in the plant ('{SCENE_NAMESPACE}<name>')",
+                                 hint="rename that link or joint, or leave out the scene")
     for part in scene:
         _add_part(spec, part)
     if not scene:

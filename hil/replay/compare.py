@@ -25,8 +25,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hil.bus_config import DriveConfig, SystemConfig
+from hil.can.frame import Frame
 from hil.drives.profile import Reading
-from hil.errors import HilError
+from hil.errors import UsageError
 from hil.transmissions import build_transmissions
 
 #: the measured quantities a tolerance can be set for, with their unit in messages
@@ -46,7 +47,7 @@ class Tolerances:
     @classmethod
     def parse(cls, texts: list[str], base: dict[str, float], config: SystemConfig
               ) -> Tolerances:
-        """``[JOINT:]QUANTITY=VALUE`` items over ``base`` (HilError naming a bad one)."""
+        """``[JOINT:]QUANTITY=VALUE`` items over ``base`` (UsageError naming a bad one)."""
         joints = {j for d in config.drives for j in d.joints}
         default, per_joint = dict(base), {}
         for text in texts:
@@ -58,7 +59,7 @@ class Tolerances:
                 number = -1.0
             if not sep or quantity not in UNITS or not number >= 0 or (joint and joint not in
                                                                         joints):
-                raise HilError.single(
+                raise UsageError.single(
                     f"--tolerance {text}: give [JOINT:]QUANTITY=VALUE, QUANTITY one of "
                     f"{', '.join(f'{q} ({u})' for q, u in UNITS.items())}, VALUE >= 0"
                     + (f", JOINT one of {', '.join(sorted(joints))}" if joint else ""))
@@ -114,7 +115,7 @@ class Divergence:
 class Answer:
     """A frame of a drive's, waiting for its counterpart on the other side."""
 
-    data: bytes
+    frame: Frame
     cycle: int
     time: float
     log_frame: int | None = None
@@ -123,9 +124,9 @@ class Answer:
 class AnswerStream:
     """One drive's frames of one id, the log's against the replay's, in order."""
 
-    def __init__(self, bus: str, drive: DriveConfig, can_id: int, what: str):
-        self.bus, self.drive, self.can_id = bus, drive, can_id
-        self.frame = f"{what} 0x{can_id:03X}"
+    def __init__(self, bus: str, drive: DriveConfig, identifier: int, what: str):
+        self.bus, self.drive = bus, drive
+        self.frame = f"{what} 0x{identifier:03X}"
         self.logged: deque[Answer] = deque()
         self.replayed: deque[Answer] = deque()
         self.compared = 0

@@ -25,7 +25,7 @@ import can.io.mf4
 from can.io.blf import BLFParseError
 from can.io.generic import MessageReader, TextIOMessageReader
 
-from hil.errors import HilError
+from hil.errors import ConfigError, HilError
 from hil.input_files import open_input_stream, size_in_words
 
 #: the largest log file hil reads: a text log (ASC, candump: 45-70 bytes a frame) of
@@ -74,9 +74,9 @@ def log_files(path: Path) -> list[Path]:
         return [path]
     found = sorted(f for f in path.iterdir() if f.suffix.lower() in LOG_SUFFIXES)
     if not found:
-        raise HilError.single(f"{path} is a folder with no CAN log in it",
-                              hint="give a log file, or a folder of a log per bus named after "
-                                   f"it ({', '.join(f'BUS{s}' for s in READERS)})")
+        raise ConfigError.single(f"{path} is a folder with no CAN log in it",
+                                 hint="give a log file, or a folder of a log per bus named after "
+                                      f"it ({', '.join(f'BUS{s}' for s in READERS)})")
     return found
 
 
@@ -94,7 +94,7 @@ def read_log(path: Path) -> Iterator[can.Message]:
               else heapq.merge(*map(named, files), key=lambda msg: msg.timestamp))
     for count, msg in enumerate(merged, 1):
         if count > MAX_LOG_FRAMES:
-            raise HilError.single(
+            raise ConfigError.single(
                 f"CAN log '{path}' holds over {MAX_LOG_FRAMES:,} frames, the most hil replay "
                 "reads", hint="replay a stretch of it: write the frames of a few minutes to a "
                               "log of their own (python-can's LogReader and Logger)")
@@ -103,11 +103,11 @@ def read_log(path: Path) -> Iterator[can.Message]:
 
 def open_log(path: Path) -> MessageReader:
     """python-can's reader of the log file ``path``, given the file open and checked (the
-    module doc's bounds); HilError naming it where hil does not read it."""
+    module doc's bounds); ConfigError naming it where hil does not read it."""
     suffix = path.suffix.lower()
     if suffix not in READERS:
         said = REFUSED.get(suffix, f"'{path.suffix}' is no CAN log format python-can reads")
-        raise HilError.single(f"cannot read CAN log '{path}': {said}", hint=FORMATS_HINT)
+        raise ConfigError.single(f"cannot read CAN log '{path}': {said}", hint=FORMATS_HINT)
     stream = open_input_stream(path, "CAN log", FORMATS_HINT, MAX_LOG_BYTES)
     reader_type = READERS[suffix]
     if issubclass(reader_type, TextIOMessageReader):
@@ -122,8 +122,8 @@ def open_log(path: Path) -> MessageReader:
     except BaseException as exc:
         stream.close()
         if isinstance(exc, (*_DAMAGED, ImportError)):
-            raise HilError.single(f"cannot read CAN log '{path}': {exc}",
-                                  hint=FORMATS_HINT) from None
+            raise ConfigError.single(f"cannot read CAN log '{path}': {exc}",
+                                     hint=FORMATS_HINT) from None
         raise
 
 
@@ -140,8 +140,8 @@ class _BoundedLines(io.TextIOWrapper):
         if not line:
             raise StopIteration
         if len(line) > MAX_LINE_CHARS:
-            raise HilError.single(f"CAN log '{self.path}' has a line of over {MAX_LINE_CHARS:,} "
-                                  "characters: no text log of CAN frames", hint=FORMATS_HINT)
+            raise ConfigError.single(f"CAN log '{self.path}' has a line of over {MAX_LINE_CHARS:,} "
+                                     "characters: no text log of CAN frames", hint=FORMATS_HINT)
         return line
 
 
@@ -154,7 +154,7 @@ class _BoundedReads:
 
     def read(self, size: int = -1) -> bytes:
         if not 0 <= size <= MAX_OBJECT_BYTES:
-            raise HilError.single(
+            raise ConfigError.single(
                 f"CAN log '{self.path}' is damaged: at byte {self._stream.tell()} it gives a "
                 f"length of {size:,} bytes, where a BLF's objects are of 0 to "
                 f"{size_in_words(MAX_OBJECT_BYTES)}",
@@ -170,9 +170,9 @@ def _read_file(path: Path) -> Iterator[can.Message]:
     try:
         yield from reader
     except _DAMAGED as exc:
-        raise HilError.single(f"CAN log '{path}' is damaged: {exc}",
-                              hint="a log cut off mid-frame replays up to there only if its "
-                                   "format allows: cut it at a whole frame") from None
+        raise ConfigError.single(f"CAN log '{path}' is damaged: {exc}",
+                                 hint="a log cut off mid-frame replays up to there only if its "
+                                      "format allows: cut it at a whole frame") from None
     finally:
         reader.stop()
 

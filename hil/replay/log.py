@@ -28,7 +28,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hil.bus_config import BusConfig, SystemConfig
-from hil.errors import HilError, error
+from hil.can.frame import Frame
+from hil.can.messages import frame_of
+from hil.errors import ConfigError, UsageError, error
 from hil.file_names import file_stem
 from hil.protocols import FrameSource, Sender, protocol
 from hil.replay.files import read_log
@@ -55,9 +57,7 @@ class LoggedFrame:
     number: int               # its place in the log, from 1
     time: float               # the log's timestamp (s)
     bus: int                  # index of its bus in the config
-    can_id: int
-    data: bytes
-    remote: bool
+    frame: Frame
     source: FrameSource
 
 
@@ -71,24 +71,25 @@ class BusFrames:
             by_protocol.setdefault(drive.protocol, {})[drive.node_id] = drive.options
         self._protocols = [(protocol(name), drives) for name, drives in by_protocol.items()]
         self.node_ids = sorted(d.node_id for d in bus.drives)
-        #: (id, remote) -> its source, for the ids whose bytes do not matter
-        self._known: dict[tuple[int, bool], FrameSource | None] = {}
+        #: (identifier, extended, remote) -> its source, for the frames whose bytes do not
+        #: matter
+        self._known: dict[tuple[int, bool, bool], FrameSource | None] = {}
 
-    def source(self, can_id: int, data: bytes, remote: bool) -> FrameSource | None:
-        key = (can_id, remote)
+    def source(self, frame: Frame) -> FrameSource | None:
+        key = (frame.identifier, frame.extended, frame.remote)
         if key in self._known:
             return self._known[key]
-        found = self._told(can_id, data, remote)
-        if not any(spec.source_reads_data(can_id, drives) for spec, drives in self._protocols):
+        found = self._told(frame)
+        if not any(spec.source_reads_data(frame, drives) for spec, drives in self._protocols):
             self._known[key] = found
         return found
 
-    def _told(self, can_id: int, data: bytes, remote: bool) -> FrameSource | None:
+    def _told(self, frame: Frame) -> FrameSource | None:
         for spec, drives in self._protocols:
             try:
-                found = spec.frame_source(can_id, data, remote, drives)
+                found = spec.frame_source(frame, drives)
             except NotImplementedError as exc:
-                raise HilError.single(f"bus '{self.name}': {exc}; it cannot be replayed") \
+                raise ConfigError.single(f"bus '{self.name}': {exc}; it cannot be replayed") \
                     from None
             if found is not None:
                 return found
@@ -163,8 +164,8 @@ def parse_channels(pairs: list[str], config: SystemConfig) -> dict[str, int]:
     for pair in pairs:
         channel, sep, bus = pair.partition("=")
         if not sep or bus not in names:
-            raise HilError.single(f"--channel {pair}: give LOGCHANNEL=BUS with BUS one of "
-                                  f"{', '.join(names)}")
+            raise UsageError.single(f"--channel {pair}: give LOGCHANNEL=BUS with BUS one of "
+                                    f"{', '.join(names)}")
         mapping[channel] = names.index(bus)
     return mapping
 
@@ -207,13 +208,13 @@ class ChannelMap:
             return 0
         return None
 
-    def refusal(self, config: SystemConfig, path: Path) -> HilError:
+    def refusal(self, config: SystemConfig, path: Path) -> ConfigError:
         listed = ", ".join(f"{c} ({n} frames from frame {first})"
                            for c, (first, n) in self.unmatched.items())
         if self._given:
-            return HilError.single(f"{path}: channel(s) {listed} of the log have no --channel",
-                                   hint="give LOGCHANNEL=BUS for each")
-        return HilError.single(
+            return ConfigError.single(f"{path}: channel(s) {listed} of the log have no --channel",
+                                      hint="give LOGCHANNEL=BUS for each")
+        return ConfigError.single(
             f"{path}: the log's channel(s) {listed} are not the config's buses "
             f"({', '.join(f'{b.name} on {b.channel}' for b in config.buses)})",
             hint="map them: --channel LOGCHANNEL=BUS for each (BLF and ASC number channels "
@@ -233,10 +234,8 @@ def frames(path: Path, config: SystemConfig, channels: dict[object, int],
             if msg.is_error_frame:
                 continue
             bus = channels[msg.channel]
-            data = bytes(msg.data)
-            source = tellers[bus].source(msg.arbitration_id, data, msg.is_remote_frame)
-            yield LoggedFrame(number, msg.timestamp, bus, msg.arbitration_id, data,
-                              msg.is_remote_frame, source)
+            frame = frame_of(msg)
+            yield LoggedFrame(number, msg.timestamp, bus, frame, tellers[bus].source(frame))
     return in_time_order(told(), reorder_window)
 
 
@@ -254,7 +253,7 @@ def in_time_order(logged: Iterable[LoggedFrame], window: float = REORDER_WINDOW
 
 
 def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
-    """Read the whole log once: refuse it (HilError, every misfit) if it does not fit the
+    """Read the whole log once: refuse it (ConfigError, every misfit) if it does not fit the
     config, else count what it holds."""
     begun = time.perf_counter()
     period = 1.0 / config.cycle_hz
@@ -262,7 +261,7 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
     tellers = [BusFrames(bus) for bus in config.buses]
     result = Survey(path, channels.buses, cycle_frames=[{} for _ in tellers],
                     last_drive_time=[None] * len(tellers))
-    misfits: dict[tuple[int, int], list] = {}
+    misfits: dict[tuple[int, int, bool], list] = {}
     newest, most_disordered = -math.inf, 0
     for number, msg in enumerate(read_log(path), 1):
         if msg.is_error_frame:
@@ -277,9 +276,10 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
         bus = channels.bus(msg.channel, number)
         if bus is None:
             continue
-        source = tellers[bus].source(msg.arbitration_id, bytes(msg.data), msg.is_remote_frame)
+        source = tellers[bus].source(frame_of(msg))
         if source is None:
-            misfit = misfits.setdefault((bus, msg.arbitration_id), [number, msg.timestamp, 0])
+            misfit = misfits.setdefault((bus, msg.arbitration_id, msg.is_extended_id),
+                                        [number, msg.timestamp, 0])
             misfit[2] += 1
         elif source.sender is Sender.MASTER:
             addressed = (bus, source.node_id)
@@ -301,13 +301,13 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
             result.last_drive_time[bus] = msg.timestamp if last is None else max(last,
                                                                                  msg.timestamp)
     if not result.frames:
-        raise HilError.single(f"{path}: the log holds no CAN frame")
+        raise ConfigError.single(f"{path}: the log holds no CAN frame")
     if channels.unmatched:
         raise channels.refusal(config, path)
     if misfits:
-        raise HilError(_refusal(misfits, tellers, result))
+        raise ConfigError(_refusal(misfits, tellers, result))
     if result.disorder > MAX_REORDER:
-        raise HilError.single(
+        raise ConfigError.single(
             f"{path}: frame {most_disordered} is written {result.disorder:.1f} s after frames "
             f"stamped later; hil replay puts a log back in time order over at most "
             f"{MAX_REORDER:g} s (it holds that much of the log to do it)",
@@ -316,17 +316,18 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
     return result
 
 
-def _refusal(misfits: dict[tuple[int, int], list], tellers: list[BusFrames],
+def _refusal(misfits: dict[tuple[int, int, bool], list], tellers: list[BusFrames],
              found: Survey) -> list:
     start = found.first_time or 0.0
     shown = sorted(misfits.items(), key=lambda item: item[1][0])
     diagnostics = [error(
-        f"{found.path}: frame 0x{can_id:03X} on bus '{tellers[bus].name}' ({count} in all, the "
-        f"first at {time - start:.3f} s, frame {number} of the log) is no frame of the bus' "
+        f"{found.path}: frame 0x{can_id:03X}{' ext' if extended else ''} on bus "
+        f"'{tellers[bus].name}' ({count} in all, the first at {time - start:.3f} s, frame "
+        f"{number} of the log) is no frame of the bus' "
         f"drives (node ids {', '.join(map(str, tellers[bus].node_ids))}) nor of their master",
         hint="a log of another robot or bus, a node the config lacks, or channels mapped to "
              "the wrong buses (--channel LOGCHANNEL=BUS)")
-        for (bus, can_id), (number, time, count) in shown[:MISFITS_SHOWN]]
+        for (bus, can_id, extended), (number, time, count) in shown[:MISFITS_SHOWN]]
     if len(shown) > MISFITS_SHOWN:
         diagnostics.append(error(f"and {len(shown) - MISFITS_SHOWN} more ids that do not fit"))
     return diagnostics

@@ -33,13 +33,15 @@ from __future__ import annotations
 import math
 import time
 import uuid
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import can
 import numpy as np
 
 from hil.bus_config import SystemConfig
-from hil.can.messages import data_frame
+from hil.can.delivery import FrameListener
+from hil.can.frame import Frame
+from hil.can.messages import frame_of
 from hil.drives.profile import DriveProfile
 from hil.protocols import Sender
 from hil.replay.compare import (
@@ -63,14 +65,17 @@ QUANTITY_INDEX = {q: i for i, q in enumerate(JointStatistics.QUANTITIES)}
 BATCH = 512
 
 
-class _Answers(can.Listener):
+class _Answers(FrameListener):
     """The replayed drives' frames of one bus, as they come (in the feeding thread)."""
 
     def __init__(self):
-        self.frames: list[can.Message] = []
+        self.frames: list[Frame] = []
+
+    def on_frames(self, frames: Sequence[Frame]) -> None:
+        self.frames.extend(frames)
 
     def on_message_received(self, msg: can.Message) -> None:
-        self.frames.append(msg)
+        self.frames.append(frame_of(msg))
 
 
 class Replay:
@@ -108,7 +113,8 @@ class Replay:
         actuators = tuple(self.sim.plant.actuator_names)
         self._actuator = {key: actuators.index(c.actuator) for key, (c, _) in self._drives.items()}
         self.report.statistics = JointStatistics(config, actuators, 1.0 / config.cycle_hz)
-        self._streams: dict[tuple[int, int, int], AnswerStream] = {}
+        #: (bus index, node id, identifier, extended) -> the drive's frames of that id
+        self._streams: dict[tuple[int, int, int, bool], AnswerStream] = {}
         self._timed: dict[tuple[int, int, int], TimedStates] = {}
         #: cycle -> (logged, replayed) x quantity x actuator, motor side SI (NaN: none yet)
         self._rows: dict[int, list[float]] = {}
@@ -171,10 +177,10 @@ class Replay:
             self.sim.now()
         plant_time = self.sim.plant.time
         cycle = round(plant_time * self.config.cycle_hz)
-        self._feeders[frame.bus].send(data_frame(frame.can_id, frame.data, frame.remote))
+        self._feeders[frame.bus].send_frames((frame.frame,))
         for bus, answers in enumerate(self._answers):     # a lock-step cycle ends on one bus,
-            for msg in answers.frames:                      # the drives answer on every bus
-                self._replayed(bus, frame.time, msg, cycle, plant_time)
+            for sent in answers.frames:                     # the drives answer on every bus
+                self._replayed(bus, frame.time, sent, cycle, plant_time)
             answers.frames.clear()
         concerned = frame.source.node_id
         for node, drive in self._on_bus[frame.bus]:
@@ -223,44 +229,44 @@ class Replay:
         for can_id in drive.timed_ids():
             self._timed_states(bus, node, can_id).replay(drive.timed_content(can_id), cycle, now)
 
-    def _replayed(self, bus: int, cause: float, msg: can.Message, cycle: int, now: float
+    def _replayed(self, bus: int, cause: float, sent: Frame, cycle: int, now: float
                   ) -> None:
         """A replayed drive's frame on ``bus``, in answer to a master frame logged at
         ``cause``."""
-        data = bytes(msg.data)
-        source = self._tellers[bus].source(msg.arbitration_id, data, msg.is_remote_frame)
+        source = self._tellers[bus].source(sent)
         if source is None or source.sender is not Sender.DRIVE:
             return
         _, drive = self._drives[bus, source.node_id]
-        if drive.timed(msg.arbitration_id, data):
+        if drive.timed(sent):
             return           # a heartbeat on the wall clock (canopen's own timer thread)
-        stream = self._stream(bus, source.node_id, msg.arbitration_id, source.what)
+        stream = self._stream(bus, source.node_id, sent, source.what)
         last = self.survey.last_drive_time[bus]
         if last is None or cause > last:
             self.report.after_the_log += 1
             return
-        stream.replayed.append(Answer(data, cycle, now))
+        stream.replayed.append(Answer(sent, cycle, now))
         self._compare(bus, source.node_id, stream)
 
-    def _logged(self, frame: LoggedFrame) -> None:
-        key = (frame.bus, frame.source.node_id)
+    def _logged(self, logged: LoggedFrame) -> None:
+        key = (logged.bus, logged.source.node_id)
         _, drive = self._drives[key]
-        if drive.timed(frame.can_id, frame.data):
-            if frame.can_id in drive.timed_ids():
-                self._timed_states(frame.bus, frame.source.node_id, frame.can_id).log(
-                    frame.data, frame.number)
+        frame = logged.frame
+        if drive.timed(frame):
+            if frame.identifier in drive.timed_ids():
+                self._timed_states(logged.bus, logged.source.node_id, frame.identifier).log(
+                    frame.data, logged.number)
             return
-        stream = self._stream(frame.bus, frame.source.node_id, frame.can_id, frame.source.what)
-        stream.logged.append(Answer(frame.data, 0, 0.0, frame.number))
-        self._compare(frame.bus, frame.source.node_id, stream)
+        stream = self._stream(logged.bus, logged.source.node_id, frame, logged.source.what)
+        stream.logged.append(Answer(frame, 0, 0.0, logged.number))
+        self._compare(logged.bus, logged.source.node_id, stream)
 
-    def _stream(self, bus: int, node: int, can_id: int, what: str) -> AnswerStream:
-        key = (bus, node, can_id)
+    def _stream(self, bus: int, node: int, frame: Frame, what: str) -> AnswerStream:
+        key = (bus, node, frame.identifier, frame.extended)
         stream = self._streams.get(key)
         if stream is None:
             drive_config, _ = self._drives[bus, node]
             stream = self._streams[key] = AnswerStream(self.config.buses[bus].name,
-                                                       drive_config, can_id, what)
+                                                       drive_config, frame.identifier, what)
         return stream
 
     def _timed_states(self, bus: int, node: int, can_id: int) -> TimedStates:
@@ -276,12 +282,11 @@ class Replay:
 
     def _compare(self, bus: int, node: int, stream: AnswerStream) -> None:
         drive_config, drive = self._drives[bus, node]
-        can_id = stream.can_id
         for logged, replayed in stream.pairs():
             self.report.compared += 1
-            same = logged.data == replayed.data
-            expected = drive.readings(can_id, logged.data)
-            got = expected if same else drive.readings(can_id, replayed.data)
+            same = logged.frame.data == replayed.frame.data
+            expected = drive.readings(logged.frame)
+            got = expected if same else drive.readings(replayed.frame)
             if not self._seeded and expected:
                 self._first_state(bus, node, expected)
             if self._step_slack and expected:
@@ -295,7 +300,8 @@ class Replay:
                 continue
             if expected is None or got is None or len(expected) != len(got):
                 self._diverged(stream.divergence(logged, replayed, "bytes",
-                                                 logged.data.hex(" "), replayed.data.hex(" ")))
+                                                 logged.frame.data.hex(" "),
+                                                 replayed.frame.data.hex(" ")))
                 continue
             for a, b in zip(expected, got):
                 self._check(bus, stream, logged, replayed, drive_config, a, b)

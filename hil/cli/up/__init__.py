@@ -28,7 +28,7 @@ from hil.cli.up.children import make_children, start_in_order
 from hil.cli.up.demo import supervise
 from hil.cli.up.outputs import replace_previous
 from hil.cli.up.robots import RobotRun
-from hil.errors import HilError
+from hil.errors import UsageError
 from hil.realtime.stalls import BENCH_STALL_STATUS
 from hil.supervisor import ChildFailed, Child, Run, kill_later, viz_summary
 from hil.visualisation.segments import SegmentLimit, segment_files
@@ -122,8 +122,8 @@ def run(args: argparse.Namespace) -> int:
     check_together(configs)
     several = len(configs) > 1
     if several and (args.can or args.channel or args.fault):
-        raise HilError.single("--can, --channel and --fault name one robot's buses and "
-                              "processes", hint="run that robot alone with them")
+        raise UsageError.single("--can, --channel and --fault name one robot's buses and "
+                                "processes", hint="run that robot alone with them")
     for config in configs:
         for warning in config.warnings:
             print(warning, file=sys.stderr)

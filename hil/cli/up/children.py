@@ -11,7 +11,7 @@ from hil.bus_config import SystemConfig
 from hil.can.faults import ProcessFault
 from hil.cli import common
 from hil.cli.up.robots import RobotRun
-from hil.errors import HilError
+from hil.errors import UsageError
 from hil.hardware import BOOT_TIMEOUT
 from hil.messaging.zenoh_api import ProcessWatch, RunSubscriber
 from hil.realtime import lock_step_cpus, real_time_cpus
@@ -143,7 +143,7 @@ def can_options(args: argparse.Namespace, config: SystemConfig) -> list[str]:
         options.append(f"--interface={args.interface}")
     if args.can:
         if len(args.can) != len(config.buses):
-            raise HilError.single(
+            raise UsageError.single(
                 f"--can gave {len(args.can)} channel(s) for {len(config.buses)} bus(es) "
                 f"({', '.join(b.name for b in config.buses)})", config.path,
                 hint="give one --can CHANNEL per bus, in the config's order")
