@@ -28,7 +28,7 @@ from typing import BinaryIO, Literal
 
 import yaml
 
-from hil.errors import HilError
+from hil.errors import ConfigError, HilError
 
 #: the largest input file hil reads (bytes), where its reader names no other limit
 MAX_FILE_BYTES = 16 * 1024 * 1024
@@ -45,7 +45,7 @@ def open_input_stream(path: os.PathLike | str, what: str, hint: str,
                       limit: int = MAX_FILE_BYTES) -> BinaryIO:
     """``path`` (a ``what``: "CAN log", "bus config", ...) open for reading in binary, for a
     reader that streams it (a log, a recording) or reads it whole (read_input_bytes);
-    HilError naming it where it is missing, no regular file, over ``limit`` bytes, or cannot
+    ConfigError naming it where it is missing, no regular file, over ``limit`` bytes, or cannot
     be opened (``hint``: what to do). The descriptor checked is the one read, so nothing can
     be put in the file's place between the check and the read."""
     path = Path(path)
@@ -67,7 +67,7 @@ def open_input_stream(path: os.PathLike | str, what: str, hint: str,
 
 def read_input_bytes(path: Path, what: str, hint: str, limit: int = MAX_FILE_BYTES) -> bytes:
     """The bytes of ``path`` (a ``what``: "bus config", ...) as open_input_stream opens it;
-    HilError naming the file where it is missing, no regular file, over ``limit`` bytes, or
+    ConfigError naming the file where it is missing, no regular file, over ``limit`` bytes, or
     cannot be read."""
     path = Path(path)
     with open_input_stream(path, what, hint, limit) as file:
@@ -94,7 +94,7 @@ def file_problem(path: Path, limit: int = MAX_FILE_BYTES) -> str | None:
 def read_input_file(path: Path, what: str, hint: str, limit: int = MAX_FILE_BYTES,
                     syntax: Syntax | None = None) -> str:
     """The text of ``path`` as read_input_bytes reads it, decoded as UTF-8 (a byte order
-    mark dropped): HilError naming the line of the first byte that is not UTF-8. With a
+    mark dropped): ConfigError naming the line of the first byte that is not UTF-8. With a
     ``syntax``, its nesting checked (check_nesting) before anything parses it."""
     path = Path(path)
     data = read_input_bytes(path, what, hint, limit)
@@ -102,7 +102,7 @@ def read_input_file(path: Path, what: str, hint: str, limit: int = MAX_FILE_BYTE
         text = data.decode(_declared_encoding(data) if syntax == "xml" else "utf-8-sig")
     except UnicodeDecodeError as exc:
         line = data.count(b"\n", 0, exc.start) + 1
-        raise HilError.single(f"{what} is not UTF-8 text: byte 0x{data[exc.start]:02X} "
+        raise ConfigError.single(f"{what} is not UTF-8 text: byte 0x{data[exc.start]:02X} "
                               f"cannot start or continue a character", path, line,
                               hint=f"save the {what} as UTF-8 text") from None
     if syntax is not None:
@@ -136,7 +136,7 @@ def _declared_encoding(data: bytes) -> str:
 
 def check_nesting(text: str, syntax: Syntax, path: Path, what: str,
                   limit: int = MAX_NESTING) -> None:
-    """HilError with the line where ``text`` (JSON or JSON5, YAML, or XML) nests deeper than
+    """ConfigError with the line where ``text`` (JSON or JSON5, YAML, or XML) nests deeper than
     ``limit``; for XML, also where it declares a document type (entities). Counted without
     recursion: only the parser that runs after may recurse. Text the scan cannot read is
     left to that parser, which names the syntax error better."""
@@ -149,11 +149,11 @@ def check_nesting(text: str, syntax: Syntax, path: Path, what: str,
         return
     line, doctype = found
     if doctype:
-        raise HilError.single(f"{what} declares an XML document type (<!DOCTYPE ...>)", path,
+        raise ConfigError.single(f"{what} declares an XML document type (<!DOCTYPE ...>)", path,
                               line, hint="remove the <!DOCTYPE ...>: hil reads no document "
                                          "type declaration (its entities can expand without "
                                          "end)")
-    raise HilError.single(f"{what} is nested more than {limit} deep", path, line,
+    raise ConfigError.single(f"{what} is nested more than {limit} deep", path, line,
                           hint=f"flatten it: a {what} nests a dozen levels at most")
 
 
@@ -203,9 +203,9 @@ def _os_problem(path: Path, exc: OSError) -> str:
     return f"cannot be read: {exc.strerror}"
 
 
-def _refused(path: Path, what: str, hint: str, problem: str) -> HilError:
+def _refused(path: Path, what: str, hint: str, problem: str) -> ConfigError:
     shown = str(path) if len(str(path)) <= 200 else str(path)[:200] + "..."
-    return HilError.single(f"{what} '{shown}' {problem}", hint=hint)
+    return ConfigError.single(f"{what} '{shown}' {problem}", hint=hint)
 
 
 #: what a JSON5 scan steps over: strings (either quote), comments, and anything but brackets

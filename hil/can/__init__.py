@@ -17,7 +17,7 @@ import can
 
 from hil.can.capabilities import UNBATCHED, BusCapabilities, capabilities
 from hil.can.frames import BusLoad, bus_load, frame_bits
-from hil.errors import HilError
+from hil.errors import BusError
 from hil.realtime.stalls import Stall
 
 __all__ = ["BusCapabilities", "BusLoad", "batching", "capabilities", "bus_load",
@@ -99,20 +99,20 @@ def open_bus(interface: str, channel: str, bitrate: int | None = None, **options
     except OSError as exc:
         raise _explain(interface, channel, exc) from None
     except (can.CanError, ValueError, ImportError) as exc:
-        raise HilError.single(
+        raise BusError.single(
             f"cannot open CAN bus '{channel}' with python-can interface '{interface}': {exc}",
             hint="check 'interface' and 'channel' in the bus config "
                  f"(python-can knows: {', '.join(sorted(can.VALID_INTERFACES))})") from None
 
 
-def _explain(interface: str, channel: str, exc: OSError) -> HilError:
+def _explain(interface: str, channel: str, exc: OSError) -> BusError:
     if exc.errno == errno.EAFNOSUPPORT:
-        return HilError.single(
+        return BusError.single(
             f"cannot open '{channel}': this kernel has no SocketCAN (AF_CAN)",
             hint="use interface 'zenoh' (cross-process over loopback), or run inside "
                  "User-Mode Linux with tools/uml_run.py, which has vcan")
     if exc.errno in (errno.ENODEV, errno.ENXIO):
-        return HilError.single(
+        return BusError.single(
             f"CAN interface '{channel}' does not exist",
             hint=f"create it: sudo tools/vcan-setup.sh {channel}")
-    return HilError.single(f"cannot open CAN bus '{channel}' ({interface}): {exc}")
+    return BusError.single(f"cannot open CAN bus '{channel}' ({interface}): {exc}")
