@@ -22,6 +22,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from hil.can.frame import Frame, FrameSpec
 from hil.protocols.base import (DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender,
                                 SettingField)
 from hil.protocols.odrive.endpoints import EndpointFile, load_endpoints
@@ -151,6 +152,12 @@ def can_id(node_id: int, cmd: int) -> int:
     return (node_id << 5) | cmd
 
 
+def command_name(cmd: int) -> str:
+    """A command id in the words of ODrive's DBC ("Set_Input_Pos"); an unknown one by its
+    number."""
+    return Cmd(cmd).name.title() if cmd in Cmd.__members__.values() else f"cmd 0x{cmd:02X}"
+
+
 #: each cyclic message's rate option (``axis.config.can.*_msg_rate_ms``) and its message
 RATE_OPTIONS = {"encoder_msg_rate_ms": Cmd.GET_ENCODER_ESTIMATES,
                 "torques_msg_rate_ms": Cmd.GET_TORQUES, "error_msg_rate_ms": Cmd.GET_ERROR,
@@ -240,37 +247,42 @@ class ODrive(Protocol):
         return {"encoder_msg_rate_ms": 0}
 
     @classmethod
-    def frame_source(cls, can_id: int, data: bytes, remote: bool,
-                     drives: Mapping[int, object]) -> FrameSource | None:
-        node, cmd = can_id >> 5, can_id & 0x1F
+    def frame_source(cls, frame: Frame, drives: Mapping[int, object]) -> FrameSource | None:
+        if frame.extended:
+            # hil's axes have 11-bit ids (node 0..0x3F, ODrive's CAN protocol page); the
+            # firmware's extended ids (``can_node_id_extended``) are not simulated
+            return None
+        node, cmd = frame.identifier >> 5, frame.identifier & 0x1F
         if node == BROADCAST_NODE_ID and cmd == Cmd.ADDRESS and node not in drives:
             # discovery's RTR and a client's set-address / connect, to every ODrive
-            return FrameSource(Sender.MASTER, None, "Address request" if remote else "Address")
+            return FrameSource(Sender.MASTER, None,
+                               "Address request" if frame.remote else "Address")
         if node not in drives:
             return None
-        name = Cmd(cmd).name.title() if cmd in Cmd.__members__.values() else f"cmd 0x{cmd:02X}"
-        if remote:       # the cyclic master's Get_Encoder_Estimates RTR is a cycle's request
+        name = command_name(cmd)
+        if frame.remote:   # the cyclic master's Get_Encoder_Estimates RTR is a cycle's request
             return FrameSource(Sender.MASTER, node, f"{name} request",
                                cycle=cmd == Cmd.GET_ENCODER_ESTIMATES)
         return FrameSource(Sender.DRIVE if cmd in AXIS_SENDS else Sender.MASTER, node, name)
 
     @classmethod
-    def source_reads_data(cls, can_id: int, drives: Mapping[int, object]) -> bool:
+    def source_reads_data(cls, frame: Frame, drives: Mapping[int, object]) -> bool:
         return False                       # the id is node and command
 
     @classmethod
     def bus_frames(cls, node_id: int, cycle_hz: float, heartbeat_period: float,
-                   options: ODriveOptions | None = None) -> list[tuple[int, int, float]]:
+                   options: ODriveOptions | None = None) -> list[FrameSpec]:
         """A cyclic master's exchange: Set_Input_Pos, RTR + answer for Get_Torques and
         Get_Encoder_Estimates per cycle; the heartbeat and configured cyclic messages;
         every other command id is reserved for events."""
         options = options or ODriveOptions()
-        frames = {cmd: (can_id(node_id, cmd), 0, 0.0) for cmd in Cmd}
-        frames[Cmd.SET_INPUT_POS] = (can_id(node_id, Cmd.SET_INPUT_POS), 8, cycle_hz)
-        frames[Cmd.HEARTBEAT] = (can_id(node_id, Cmd.HEARTBEAT), 8, 1.0 / heartbeat_period)
-        result = list(frames.values())
+        rates = {Cmd.SET_INPUT_POS: cycle_hz, Cmd.HEARTBEAT: 1.0 / heartbeat_period}
+        result = [FrameSpec(can_id(node_id, cmd), 8 if cmd in rates else 0, rates.get(cmd, 0.0),
+                            command_name(cmd)) for cmd in Cmd]
         for cmd in (Cmd.GET_TORQUES, Cmd.GET_ENCODER_ESTIMATES):     # the master's RTR + answer
-            result += [(can_id(node_id, cmd), 8, cycle_hz), (can_id(node_id, cmd), 0, cycle_hz)]
-        result += [(can_id(node_id, cmd), 8, 1.0 / period)
+            name = command_name(cmd)
+            result += [FrameSpec(can_id(node_id, cmd), 8, cycle_hz, name),
+                       FrameSpec(can_id(node_id, cmd), 0, cycle_hz, f"{name} request")]
+        result += [FrameSpec(can_id(node_id, cmd), 8, 1.0 / period, command_name(cmd))
                    for cmd, period in options.rates().items()]
         return result

@@ -14,7 +14,9 @@ from __future__ import annotations
 import time
 
 from hil.bus_config.types import DriveConfig
-from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind, Frame
+from hil.can.frame import Frame
+from hil.can.router import Subscription
+from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind
 from hil.protocols.odrive import (
     LAYOUT, TURN, AxisState, Cmd, ControlMode, ODrive, ODriveError, ODriveOptions, can_id,
 )
@@ -22,6 +24,9 @@ from hil.protocols.odrive import (
 PASSTHROUGH = 1
 #: Set_Input_Pos carries feed-forwards as int16 in units of 0.001
 FF_SCALE = 1000
+#: the layouts of each cycle's frames, looked up once
+INPUT_POS, ESTIMATES, TORQUES = (LAYOUT[cmd] for cmd in (
+    Cmd.SET_INPUT_POS, Cmd.GET_ENCODER_ESTIMATES, Cmd.GET_TORQUES))
 
 
 class ODriveAxis(Axis):
@@ -35,18 +40,30 @@ class ODriveAxis(Axis):
         self.disarm_reason = ODriveError.NONE
         self._requested_closed_loop = False
         self._pending: list[Frame] = []
+        #: the requests of every cycle, and the heartbeat's while enabling: the same frames
+        self._torques_request = self._request(Cmd.GET_TORQUES)
+        self._estimates_request = self._request(Cmd.GET_ENCODER_ESTIMATES)
+        self._heartbeat_request = self._request(Cmd.HEARTBEAT)
+        self._input_pos_id = self._id(Cmd.SET_INPUT_POS)
 
     def _id(self, cmd: Cmd) -> int:
         return can_id(self.node_id, cmd)
 
-    def subscriptions(self):
-        return {self._id(Cmd.HEARTBEAT): self._on_heartbeat,
-                self._id(Cmd.GET_ENCODER_ESTIMATES): self._on_estimates,
-                self._id(Cmd.GET_TORQUES): self._on_torques,
-                self._id(Cmd.GET_ERROR): self._on_error}
+    def _request(self, cmd: Cmd) -> Frame:
+        """The RTR that asks for a Get_* message (or the heartbeat)."""
+        return Frame(self._id(cmd), remote=True)
 
-    def _on_heartbeat(self, can_id_, data, timestamp) -> None:
-        layout = LAYOUT[Cmd.HEARTBEAT]
+    def _command(self, cmd: Cmd, *values) -> Frame:
+        return Frame(self._id(cmd), LAYOUT[cmd].pack(*values))
+
+    def subscriptions(self) -> list[Subscription]:
+        return [Subscription(self._id(Cmd.HEARTBEAT), self._on_heartbeat),
+                Subscription(self._id(Cmd.GET_ENCODER_ESTIMATES), self._on_estimates),
+                Subscription(self._id(Cmd.GET_TORQUES), self._on_torques),
+                Subscription(self._id(Cmd.GET_ERROR), self._on_error)]
+
+    def _on_heartbeat(self, frame: Frame) -> None:
+        layout, data = LAYOUT[Cmd.HEARTBEAT], frame.data
         if len(data) < layout.size:
             return
         error, state, _, _ = layout.unpack_from(data)
@@ -56,24 +73,24 @@ class ODriveAxis(Axis):
         if state != AxisState.CLOSED_LOOP_CONTROL:
             self._requested_closed_loop = False
         if error and self.disarm_reason == ODriveError.NONE:
-            self._pending.append((self._id(Cmd.GET_ERROR), b"", True))
+            self._pending.append(self._request(Cmd.GET_ERROR))
         self.booted.set()
         self.last_heard = time.monotonic()
 
-    def _on_estimates(self, can_id_, data, timestamp) -> None:
-        layout = LAYOUT[Cmd.GET_ENCODER_ESTIMATES]
-        if len(data) >= layout.size:
-            position, velocity = layout.unpack_from(data)
+    def _on_estimates(self, frame: Frame) -> None:
+        data = frame.data
+        if len(data) >= ESTIMATES.size:
+            position, velocity = ESTIMATES.unpack_from(data)
             self.feedback.position, self.feedback.velocity = position * TURN, velocity * TURN
             self.answered()
 
-    def _on_torques(self, can_id_, data, timestamp) -> None:
-        layout = LAYOUT[Cmd.GET_TORQUES]
-        if len(data) >= layout.size:
-            self.feedback.torque = layout.unpack_from(data)[1]
+    def _on_torques(self, frame: Frame) -> None:
+        data = frame.data
+        if len(data) >= TORQUES.size:
+            self.feedback.torque = TORQUES.unpack_from(data)[1]
 
-    def _on_error(self, can_id_, data, timestamp) -> None:
-        layout = LAYOUT[Cmd.GET_ERROR]
+    def _on_error(self, frame: Frame) -> None:
+        layout, data = LAYOUT[Cmd.GET_ERROR], frame.data
         if len(data) >= layout.size:
             active, reason = layout.unpack_from(data)
             self.disarm_reason = ODriveError(reason)
@@ -84,17 +101,14 @@ class ODriveAxis(Axis):
         """Clear errors and ask for a heartbeat (the axis answers at once)."""
         super().reset()
         self.disarm_reason = ODriveError.NONE
-        self._pending += [(self._id(Cmd.CLEAR_ERRORS), LAYOUT[Cmd.CLEAR_ERRORS].pack(0), False),
-                          (self._id(Cmd.HEARTBEAT), b"", True)]
+        self._pending += [self._command(Cmd.CLEAR_ERRORS, 0), self._heartbeat_request]
 
     def configure(self) -> None:
         c = self.config
         self._pending += [
-            (self._id(Cmd.SET_CONTROLLER_MODE),
-             LAYOUT[Cmd.SET_CONTROLLER_MODE].pack(ControlMode.POSITION_CONTROL, PASSTHROUGH),
-             False),
-            (self._id(Cmd.SET_LIMITS), LAYOUT[Cmd.SET_LIMITS].pack(
-                c.max_velocity / TURN, c.peak_torque / self.options.torque_constant), False)]
+            self._command(Cmd.SET_CONTROLLER_MODE, ControlMode.POSITION_CONTROL, PASSTHROUGH),
+            self._command(Cmd.SET_LIMITS, c.max_velocity / TURN,
+                          c.peak_torque / self.options.torque_constant)]
 
     # --- cyclic ------------------------------------------------------------------------
 
@@ -115,10 +129,9 @@ class ODriveAxis(Axis):
                 and not self._requested_closed_loop and self.at_standstill()
                 and self.axis_state == AxisState.IDLE):
             self._requested_closed_loop = True
-            frames.append((self._id(Cmd.SET_AXIS_STATE),
-                           LAYOUT[Cmd.SET_AXIS_STATE].pack(AxisState.CLOSED_LOOP_CONTROL), False))
+            frames.append(self._command(Cmd.SET_AXIS_STATE, AxisState.CLOSED_LOOP_CONTROL))
         if not self.enabled:
-            frames.append((self._id(Cmd.HEARTBEAT), b"", True))     # watch it come up
+            frames.append(self._heartbeat_request)                    # watch it come up
         if stopping or enabling or not self.enabled:
             target, velocity = self.feedback.position, 0.0           # hold where it is
         if stopping or not self.enabled:
@@ -126,15 +139,12 @@ class ODriveAxis(Axis):
         feed_forward = max(-32768, min(32767, round(velocity / TURN * FF_SCALE)))
         torque_ff = max(-32768, min(32767, round(torque * FF_SCALE)))
         frames += [
-            (self._id(Cmd.SET_INPUT_POS),
-             LAYOUT[Cmd.SET_INPUT_POS].pack(target / TURN, feed_forward, torque_ff), False),
-            (self._id(Cmd.GET_TORQUES), b"", True),
-            (self._id(Cmd.GET_ENCODER_ESTIMATES), b"", True)]
+            Frame(self._input_pos_id, INPUT_POS.pack(target / TURN, feed_forward, torque_ff)),
+            self._torques_request, self._estimates_request]
         return frames
 
     def disable_rounds(self) -> list[list[Frame]]:
-        return [[(self._id(Cmd.SET_AXIS_STATE), LAYOUT[Cmd.SET_AXIS_STATE].pack(AxisState.IDLE),
-                  False)]]
+        return [[self._command(Cmd.SET_AXIS_STATE, AxisState.IDLE)]]
 
     def fault(self, stopping: bool = False) -> AxisFault | None:
         if not self.axis_error:
@@ -146,5 +156,4 @@ class ODriveAxis(Axis):
 
     def forget_faults(self) -> None:
         self.axis_error = self.disarm_reason = ODriveError.NONE   # the next heartbeat tells
-        self._pending.append((self._id(Cmd.CLEAR_ERRORS), LAYOUT[Cmd.CLEAR_ERRORS].pack(0),
-                              False))
+        self._pending.append(self._command(Cmd.CLEAR_ERRORS, 0))

@@ -16,19 +16,22 @@ POS_FILTER, ...) are taken as PASSTHROUGH, which hil's docs say.
 from __future__ import annotations
 
 import math
-import time
 from contextlib import AbstractContextManager
 from dataclasses import replace
 
+from hil.bus_config.types import DriveConfig
+from hil.can.frame import Frame, frame_of_fields
+from hil.can.router import FrameRouter, Subscription
 from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power
 from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.odrive import (
-    BROADCAST_NODE_ID, BUS_VOLTAGE, LAYOUT, SERIAL_NUMBER_BASE, TURN, AxisState, Cmd,
-    ControlMode, InputMode, ODrive, ODriveError, ODriveOptions, can_id,
+    BROADCAST_NODE_ID, LAYOUT, SERIAL_NUMBER_BASE, TURN, AxisState, Cmd, ControlMode, InputMode,
+    ODrive, ODriveError, ODriveOptions, can_id,
 )
+from hil.protocols.odrive.answers import ANSWERS, READINGS
 from hil.protocols.odrive.backed import backings
-from hil.protocols.odrive.sdo import Address, EndpointServer, Responders
+from hil.protocols.odrive.sdo import Address, EndpointServer
 
 CONTROL_MODES = {ControlMode.TORQUE_CONTROL: Mode.TORQUE,
                  ControlMode.VELOCITY_CONTROL: Mode.VELOCITY,
@@ -43,6 +46,9 @@ VELOCITY_TOLERANCE = 1.2
 HARDWARE, FIRMWARE = (4, 0, 0), (0, 6, 10)
 #: the RTRs of discovery, on the unaddressed node's Address id (0x7E6)
 ADDRESS_BROADCAST = can_id(BROADCAST_NODE_ID, Cmd.ADDRESS)
+#: the firmware's command buffer: a shorter frame's missing bytes read as 0 (module doc)
+BUFFER = 8
+INPUT_POS = LAYOUT[Cmd.SET_INPUT_POS]
 
 
 class ODriveDrive(DriveProfile):
@@ -54,20 +60,22 @@ class ODriveDrive(DriveProfile):
 
     protocol = ODrive
 
-    def __init__(self, node_id: int, core: DriveCore, lock: AbstractContextManager,
-                 rated_torque: float, heartbeat_period: float = 0.1,
-                 options: ODriveOptions | None = None):
-        super().__init__(node_id, core, lock)
-        self.options = options or ODriveOptions()
-        self.heartbeat_period = heartbeat_period
+    def __init__(self, config: DriveConfig, core: DriveCore, lock: AbstractContextManager):
+        super().__init__(config, core, lock)
+        node_id = config.node_id
+        self.options: ODriveOptions = config.options or ODriveOptions()
+        self.heartbeat_period = config.heartbeat_period
         self.axis_state = AxisState.IDLE
         self.active_errors = ODriveError.NONE
         self.disarm_reason = ODriveError.NONE
         self.control_mode = ControlMode.POSITION_CONTROL
         self.input_mode = 1                       # passthrough
         self.current_limit = core.parameters.peak_torque / self.options.torque_constant
+        #: the timed messages' periods (s): the heartbeat's, the configured rates'
+        self._periods = {Cmd.HEARTBEAT: self.heartbeat_period, **self.options.rates()}
         self._due: dict[Cmd, float] = {}
-        self._reply = b""
+        self._reply: Frame | None = None
+        self._estimates_id = can_id(node_id, Cmd.GET_ENCODER_ESTIMATES)
         core.set_mode(Mode.POSITION)
         handlers = {Cmd.ESTOP: self._estop, Cmd.SET_AXIS_STATE: self._set_axis_state,
                     Cmd.SET_CONTROLLER_MODE: self._set_controller_mode,
@@ -80,9 +88,6 @@ class ODriveDrive(DriveProfile):
                     Cmd.SET_TRAJ_INERTIA: self._set_traj_inertia,
                     Cmd.SET_ABSOLUTE_POSITION: self._set_absolute_position,
                     Cmd.SET_POS_GAIN: self._set_pos_gain, Cmd.SET_VEL_GAINS: self._set_vel_gains}
-        self._receivers = {can_id(node_id, cmd): self._receiver(cmd, handler)
-                           for cmd, handler in handlers.items()}
-        self._receivers[ADDRESS_BROADCAST] = self._on_address
         file = self.options.endpoint_file
         self.hardware_version = file.hw_version if file else HARDWARE
         self.firmware_version = file.fw_version if file else FIRMWARE
@@ -90,12 +95,9 @@ class ODriveDrive(DriveProfile):
                                if self.options.serial_number is not None
                                else SERIAL_NUMBER_BASE + node_id)
         self._endpoints = EndpointServer(file, backings(self, handlers)) if file else None
-        self._receivers[can_id(node_id, Cmd.RX_SDO)] = self._on_rx_sdo
-        self._requests = {can_id(node_id, cmd): self._on_request for cmd in ANSWERS}
-        if node_id != BROADCAST_NODE_ID:    # node 63's own Address id is the broadcast's
-            self._requests[can_id(node_id, Cmd.ADDRESS)] = self._answer_address
-        self._receivers.update({can_id(node_id, cmd): self._data_request for cmd in ANSWERS
-                                if cmd is not Cmd.HEARTBEAT})
+        #: the Get_* message each request id asks for
+        self._asked = {can_id(node_id, cmd): cmd for cmd in ANSWERS}
+        self._subscriptions = self._subscribed(handlers)
         #: Set_Traj_* (turns/s, turns/s², N·m/(turns/s²)), gains as sent: the firmware's
         #: config values; TRAP_TRAJ moves at the limits
         self.traj_vel_limit, self.traj_accel_limit, self.traj_decel_limit = 2.0, 0.5, 0.5
@@ -104,63 +106,85 @@ class ODriveDrive(DriveProfile):
 
     # --- bus ----------------------------------------------------------------------
 
-    def subscriptions(self):
-        return self._receivers
+    def _subscribed(self, handlers) -> list[Subscription]:
+        """Every frame the axis hears: its commands, discovery's Address frames (which every
+        ODrive on the bus hears: the router calls each), RxSdo, and the Get_* requests, by
+        RTR or by a data frame of length 0 (module doc)."""
+        node_id = self.node_id
+        subscriptions = [Subscription(can_id(node_id, cmd), self._receiver(cmd, handler))
+                         for cmd, handler in handlers.items() if cmd is not Cmd.SET_INPUT_POS]
+        subscriptions += [
+            Subscription(can_id(node_id, Cmd.SET_INPUT_POS), self._on_input_pos),
+            Subscription(ADDRESS_BROADCAST, self._on_address),
+            Subscription(ADDRESS_BROADCAST, self._answer_address, remote=True),
+            Subscription(can_id(node_id, Cmd.RX_SDO), self._on_rx_sdo)]
+        subscriptions += [Subscription(identifier, self._on_estimates_request
+                                       if cmd is Cmd.GET_ENCODER_ESTIMATES else self._on_request,
+                                       remote=True) for identifier, cmd in self._asked.items()]
+        if node_id != BROADCAST_NODE_ID:    # node 63's own Address id is the broadcast's
+            subscriptions.append(Subscription(can_id(node_id, Cmd.ADDRESS), self._answer_address,
+                                              remote=True))
+        subscriptions += [Subscription(identifier, self._data_request)
+                          for identifier, cmd in self._asked.items() if cmd is not Cmd.HEARTBEAT]
+        return subscriptions
 
-    def remote_subscriptions(self):
-        return self._requests
+    def subscriptions(self) -> list[Subscription]:
+        return list(self._subscriptions)
 
-    def attach(self, network) -> None:
-        super().attach(network)
-        Responders.of(network.frame_listener.remote_handlers, ADDRESS_BROADCAST).join(
-            self._answer_address)
-        self._due = {Cmd.HEARTBEAT: 0.0, **{cmd: 0.0 for cmd in self.options.rates()}}
-
-    def detach(self) -> None:
-        if self.network is not None:
-            Responders.of(self.network.frame_listener.remote_handlers,
-                          ADDRESS_BROADCAST).leave(self._answer_address)
-        super().detach()
+    def attach(self, router: FrameRouter) -> None:
+        super().attach(router)
+        self._due = {cmd: 0.0 for cmd in self._periods}
 
     # --- discovery and endpoints (hil.protocols.odrive.sdo) -------------------------
 
-    def _answer_address(self, arbitration_id: int) -> None:
+    def _answer_address(self, frame: Frame) -> None:
         """An Address RTR, broadcast or to this node: node id, serial, connection id."""
         with self.lock:
             payload = self.address.payload()
-        self.send(can_id(self.node_id, Cmd.ADDRESS), payload)
+        self.send(Frame(can_id(self.node_id, Cmd.ADDRESS), payload))
 
-    def _on_address(self, arbitration_id: int, data: bytes, timestamp: float) -> None:
+    def _on_address(self, frame: Frame) -> None:
         """A set-address / connect frame on the broadcast id: this drive's when it names
         its serial number."""
         with self.lock:
-            self.address.take(bytes(data))
+            self.address.take(frame.data)
 
-    def _on_rx_sdo(self, arbitration_id: int, data: bytes, timestamp: float) -> None:
+    def _on_rx_sdo(self, frame: Frame) -> None:
         """An endpoint read or write: answered from the endpoints file (none: silent), the
         watchdog fed as by every frame to the axis."""
         with self.lock:
-            self.core.new_setpoint(now=time.monotonic())
-            answer = self._endpoints.answer(bytes(data)) if self._endpoints else None
+            self.core.new_setpoint(now=self.clock())
+            answer = self._endpoints.answer(frame.data) if self._endpoints else None
         if answer is not None:
-            self.send(can_id(self.node_id, Cmd.TX_SDO), answer)
+            self.send(Frame(can_id(self.node_id, Cmd.TX_SDO), answer))
 
     def _receiver(self, cmd: Cmd, handler):
-        """A frame handler: the frame's 8-byte buffer decoded by the layout (the module
-        doc), the watchdog fed, under the lock."""
+        """A command's frame handler: the frame's 8-byte buffer decoded by the layout (the
+        module doc), the watchdog fed, under the lock."""
         layout = LAYOUT.get(cmd)
 
-        def receive(arbitration_id: int, data: bytes, timestamp: float) -> None:
-            buffer = bytes(data).ljust(8, b"\0")
+        def receive(frame: Frame) -> None:
+            buffer = frame.data.ljust(BUFFER, b"\0")
             with self.lock:
-                self.core.new_setpoint(now=time.monotonic())       # the watchdog's feed
+                self.core.new_setpoint(now=self.clock())       # the watchdog's feed
                 handler(layout.unpack_from(buffer) if layout is not None else ())
         return receive
 
-    def _data_request(self, arbitration_id: int, data: bytes, timestamp: float) -> None:
+    def _on_input_pos(self, frame: Frame) -> None:
+        """Set_Input_Pos, a cyclic master's setpoint each cycle: decoded here, the watchdog
+        fed by the setpoint's own core call (the receiver of the other commands makes two)."""
+        data = frame.data
+        values = INPUT_POS.unpack_from(data if len(data) >= BUFFER else data.ljust(BUFFER, b"\0"))
+        with self.lock:
+            self._set_input_pos(values, self.clock())
+
+    def _data_request(self, frame: Frame) -> None:
         """A data frame on a Get_* id: of length 0, a request as an RTR is."""
-        if len(data) == 0:
-            self._on_request(arbitration_id)
+        if not frame.data:
+            if frame.identifier == self._estimates_id:
+                self._on_estimates_request(frame)
+            else:
+                self._on_request(frame)
 
     # --- commands -----------------------------------------------------------------
 
@@ -193,17 +217,21 @@ class ODriveDrive(DriveProfile):
             return Mode.PROFILE_POSITION
         return CONTROL_MODES.get(self.control_mode, Mode.POSITION)
 
-    def _set_input_pos(self, values) -> None:
+    def _set_input_pos(self, values, now: float | None = None) -> None:
+        """Set_Input_Pos (or the ``input_pos`` endpoint): the watchdog fed ``now`` (None:
+        the clock's now), in the setpoint's own core call where there is one."""
         position, velocity_ff, torque_ff = values
-        if not math.isfinite(position):
+        core = self.core
+        if now is None:
+            now = self.clock()
+        if math.isfinite(position) and core.mode is not Mode.PROFILE_POSITION:
+            core.new_setpoint(position=position * TURN, now=now,
+                              velocity_ff=velocity_ff * 0.001 * TURN, torque_ff=torque_ff * 0.001)
             return
-        if self.core.mode is Mode.PROFILE_POSITION:          # TRAP_TRAJ
+        core.new_setpoint(now=now)
+        if math.isfinite(position):                          # TRAP_TRAJ
             self._trajectory_limits()
-            self.core.move_to(position * TURN)
-        else:
-            self.core.new_setpoint(position=position * TURN, now=time.monotonic(),
-                                   velocity_ff=velocity_ff * 0.001 * TURN,
-                                   torque_ff=torque_ff * 0.001)
+            core.move_to(position * TURN)
 
     def _trajectory_limits(self) -> None:
         self.core.parameters = replace(
@@ -240,11 +268,11 @@ class ODriveDrive(DriveProfile):
         velocity, torque_ff = values
         if math.isfinite(velocity) and math.isfinite(torque_ff):
             self.core.new_setpoint(velocity=velocity * TURN, torque_ff=torque_ff,
-                                   now=time.monotonic())
+                                   now=self.clock())
 
     def _set_input_torque(self, values) -> None:
         if math.isfinite(values[0]):
-            self.core.new_setpoint(torque=values[0], now=time.monotonic())
+            self.core.new_setpoint(torque=values[0], now=self.clock())
 
     def _set_limits(self, values) -> None:
         velocity_limit, current_limit = values
@@ -278,20 +306,27 @@ class ODriveDrive(DriveProfile):
 
     # --- answers ------------------------------------------------------------------
 
-    def _on_request(self, arbitration_id: int) -> None:
-        cmd = Cmd(arbitration_id & 0x1F)
+    def _on_estimates_request(self, frame: Frame) -> None:
+        """Get_Encoder_Estimates asked for: the cycle's command, its answer sampled now and
+        sent with the bus' replies (:meth:`take_replies`)."""
         with self.lock:
-            self.core.new_setpoint(now=time.monotonic())           # the watchdog's feed
-            data = self._payload(cmd)
-            if cmd is Cmd.GET_ENCODER_ESTIMATES:
-                self._reply = data
-                self.on_command(self)
-                return
-        self.send(arbitration_id, data)
+            self.core.new_setpoint(now=self.clock())           # the watchdog's feed
+            self._reply = frame_of_fields((self._estimates_id,
+                                           self._payload(Cmd.GET_ENCODER_ESTIMATES),
+                                           False, False, False, False, False, 0.0))
+            self.on_command(self)
 
-    def take_replies(self) -> list[tuple[int, bytes]]:
-        reply, self._reply = self._reply, b""
-        return [(can_id(self.node_id, Cmd.GET_ENCODER_ESTIMATES), reply)] if reply else []
+    def _on_request(self, frame: Frame) -> None:
+        """Another Get_* message (or the heartbeat) asked for: answered at once."""
+        identifier = frame.identifier
+        with self.lock:
+            self.core.new_setpoint(now=self.clock())           # the watchdog's feed
+            data = self._payload(self._asked[identifier])
+        self.send(frame_of_fields((identifier, data, False, False, False, False, False, 0.0)))
+
+    def take_replies(self) -> list[Frame]:
+        reply, self._reply = self._reply, None
+        return [reply] if reply is not None else []
 
     def _payload(self, cmd: Cmd) -> bytes:
         """A Get_* message (or the heartbeat) with the axis' values now."""
@@ -310,36 +345,34 @@ class ODriveDrive(DriveProfile):
     def tick(self, now: float) -> None:
         if not self.attached:
             return
-        periods = {Cmd.HEARTBEAT: self.heartbeat_period, **self.options.rates()}
         for cmd, due in self._due.items():
             if now >= due:
-                self._due[cmd] = max(due + periods[cmd], now)
-                self.send(can_id(self.node_id, cmd), self._payload(cmd))
+                self._due[cmd] = max(due + self._periods[cmd], now)
+                self.send(Frame(can_id(self.node_id, cmd), self._payload(cmd)))
 
     # --- what a replay compares ---------------------------------------------------------
 
-    def timed(self, can_id: int, data: bytes) -> bool:
+    def timed(self, frame: Frame) -> bool:
         """The heartbeat and the messages sent at a configured rate (which also answer an
         RTR: a replay cannot tell the two apart, and checks neither frame by frame)."""
-        cmd = can_id & 0x1F
-        return cmd == Cmd.HEARTBEAT or cmd in self.options.rates()
+        return frame.identifier & 0x1F in self._periods
 
     def timed_ids(self) -> tuple[int, ...]:
         return (can_id(self.node_id, Cmd.HEARTBEAT),)
 
-    def timed_content(self, can_id: int) -> bytes | None:
-        if can_id & 0x1F == Cmd.HEARTBEAT:
+    def timed_content(self, identifier: int) -> bytes | None:
+        if identifier & 0x1F == Cmd.HEARTBEAT:
             return self._payload(Cmd.HEARTBEAT)
         return None
 
-    def readings(self, can_id: int, data: bytes) -> tuple[Reading, ...] | None:
+    def readings(self, frame: Frame) -> tuple[Reading, ...] | None:
         """Encoder estimates in turns and turns/s, torques in N·m, the other Get_* values
         derived from them; None for what is exact (version, errors)."""
-        cmd = can_id & 0x1F
+        cmd = frame.identifier & 0x1F
         quantities = READINGS.get(cmd)
-        if quantities is None or len(data) < LAYOUT[cmd].size:
+        if quantities is None or len(frame.data) < LAYOUT[cmd].size:
             return None
-        values = LAYOUT[cmd].unpack_from(data)
+        values = LAYOUT[cmd].unpack_from(frame.data)
         return tuple(Reading(f"{Cmd(cmd).name.lower()}[{k}]", value, quantity, scale)
                      for k, (value, (quantity, scale)) in enumerate(zip(values, quantities)))
 
@@ -354,36 +387,3 @@ class ODriveDrive(DriveProfile):
     def state_text(self) -> str:
         errors = f" {self.active_errors!r}" if self.active_errors else ""
         return f"{self.axis_state.name}{errors}"
-
-
-def _power(status) -> float:
-    return status.torque * status.velocity
-
-
-#: what each Get_* message (and the heartbeat) carries: (drive, core status) -> values
-ANSWERS = {
-    Cmd.GET_VERSION: lambda drive, status: (2, *drive.hardware_version,
-                                            *drive.firmware_version, 0),
-    Cmd.HEARTBEAT: lambda drive, status: (int(drive.active_errors), int(drive.axis_state), 0,
-                                          int(drive.trajectory_done(status))),
-    Cmd.GET_ERROR: lambda drive, status: (int(drive.active_errors), int(drive.disarm_reason)),
-    Cmd.GET_ENCODER_ESTIMATES: lambda drive, status: (status.position / TURN,
-                                                      status.velocity / TURN),
-    Cmd.GET_IQ: lambda drive, status: (status.torque / drive.options.torque_constant,) * 2,
-    Cmd.GET_TEMPERATURE: lambda drive, status: (35.0, 40.0),
-    Cmd.GET_BUS_VOLTAGE_CURRENT: lambda drive, status: (BUS_VOLTAGE,
-                                                        abs(_power(status)) / BUS_VOLTAGE),
-    Cmd.GET_TORQUES: lambda drive, status: (status.torque, status.torque),
-    Cmd.GET_POWERS: lambda drive, status: (abs(_power(status)), _power(status)),
-}
-
-#: how a replay reads the Get_* answers that carry measured values: (quantity, scale to SI)
-#: per field (hil.drives.profile.Reading)
-READINGS = {
-    Cmd.GET_ENCODER_ESTIMATES: (("position", TURN), ("velocity", TURN)),
-    Cmd.GET_TORQUES: (("torque", 1.0), ("torque", 1.0)),
-    Cmd.GET_IQ: (("derived", 1.0), ("derived", 1.0)),
-    Cmd.GET_BUS_VOLTAGE_CURRENT: ((None, 1.0), ("derived", 1.0)),
-    Cmd.GET_POWERS: (("derived", 1.0), ("derived", 1.0)),
-    Cmd.GET_TEMPERATURE: ((None, 1.0), (None, 1.0)),
-}

@@ -86,7 +86,7 @@ class EndpointServer:
 
     def answer(self, data: bytes) -> bytes | None:
         """The TxSdo payload for an RxSdo (its 8-byte buffer), or None: no answer."""
-        buffer = bytes(data).ljust(8, b"\0")
+        buffer = data.ljust(8, b"\0")
         opcode, endpoint_id = buffer[0] & OPCODE_MASK, int.from_bytes(buffer[1:3], "little")
         header = buffer[:4]
         if endpoint_id == 0:
@@ -135,30 +135,3 @@ def _pack(layout: struct.Struct, kind: str, value: float) -> bytes:
     if kind == "bool":
         return layout.pack(bool(value))
     return layout.pack(int(value))
-
-
-class Responders:
-    """The handler of one RTR id that every ODrive on a bus answers (discovery's broadcast):
-    the network keeps one handler an id, this one calls each drive's in turn."""
-
-    def __init__(self):
-        self._answers: list[Callable[[int], None]] = []
-
-    @classmethod
-    def of(cls, handlers: dict, can_id: int) -> Responders:
-        """The responders of ``can_id`` in a network's RTR ``handlers``, made there if new."""
-        found = handlers.get(can_id)
-        if not isinstance(found, cls):
-            found = handlers[can_id] = cls()
-        return found
-
-    def join(self, answer: Callable[[int], None]) -> None:
-        self._answers.append(answer)
-
-    def leave(self, answer: Callable[[int], None]) -> None:
-        if answer in self._answers:
-            self._answers.remove(answer)
-
-    def __call__(self, can_id: int) -> None:
-        for answer in list(self._answers):
-            answer(can_id)
