@@ -15,13 +15,13 @@ Two time modes:
   may go faster than real time. The replies leave only after the step, so
   the controller cannot start the next cycle early.
 
-Threads: python-can's Notifier calls back per bus (or the sender's thread
-delivers, on ``hil-virtual``); one re-entrant lock guards the plant and all
-drives (in real time inside PlantPresent; in lock-step a plain one). The
-watchdogs run on the wall clock in both modes; in lock-step they are
-stretched to at least LOCK_STEP_WATCHDOG, since nothing moves between
-commands there: a late controller is no hazard, and the watchdog only has to
-find a dead one.
+Threads: each bus' frame router (:mod:`hil.can.router`) is called back by
+python-can's Notifier (or by the sender's thread, on ``hil-virtual``); one
+re-entrant lock guards the plant and all drives (in real time inside
+PlantPresent; in lock-step a plain one). The watchdogs run on the wall
+clock in both modes; in lock-step they are stretched to at least
+LOCK_STEP_WATCHDOG, since nothing moves between commands there: a late
+controller is no hazard, and the watchdog only has to find a dead one.
 """
 
 from __future__ import annotations
@@ -40,9 +40,9 @@ from hil.bus_config import BusConfig, DriveConfig, SystemConfig
 from hil.drives import DriveCore, DriveParameters, DriveProfile, Fault
 from hil.can import deliver_under
 from hil.can.faults import DriveFaultKind
-from hil.can.network import start_network
+from hil.can.frame import Frame
+from hil.can.router import FrameRouter, start_router
 from hil.drives.group import CoreGroup
-from hil.drives.profile import DriveNetwork
 from hil.drives.tuning import tuned_gains
 from hil.errors import HilError
 from hil.plant import Plant
@@ -104,7 +104,9 @@ class SimulatedBus:
     config: BusConfig
     bus: can.BusABC
     drives: list
-    network: DriveNetwork | None = None         # started by Simulator.start
+    #: the drives' side of the bus (frames a bus refuses counted in its lost_frames);
+    #: started by Simulator.start
+    router: FrameRouter | None = None
 
 
 class Simulator:
@@ -151,9 +153,8 @@ class Simulator:
                         parameters.watchdog_timeout, LOCK_STEP_WATCHDOG))
                 core = DriveCore(parameters)
                 core.set_cycle(bus_config.cycle)
-                drive = protocol(drive_config.protocol).drive_class()(
-                    drive_config.node_id, core, self.lock, drive_config.rated_torque,
-                    drive_config.heartbeat_period, drive_config.options)
+                drive = protocol(drive_config.protocol).drive_class()(drive_config, core,
+                                                                      self.lock)
                 drive.on_command = self._on_command
                 drives.append(drive)
                 self._entries.append((bus_config.name, drive_config, drive))
@@ -161,19 +162,25 @@ class Simulator:
             self.buses.append(SimulatedBus(bus_config, buses[bus_config.name], drives))
             self.drives += drives
         self._waiting: set[DriveProfile] = set(self.drives)   # lock-step: no command yet
+        #: the drives on their bus (attached by start, until silenced or closed), kept here:
+        #: asking each drive (DriveProfile.attached) at every lock-step cycle costs a call a
+        #: drive, and this set is the next cycle's waiting set as it is
+        self._attached: set[DriveProfile] = set()
         self._stop = threading.Event()
         self._measure()
 
     # --- life cycle -------------------------------------------------------------
 
     def start(self) -> None:
-        """Connect every drive to its bus: boot-up messages, heartbeats, SYNC handling."""
+        """Connect every drive to its bus: boot-up messages, heartbeats, cycle frames."""
         # a message of frames (a cycle's, over Zenoh) in one entry of the plant's lock
         deliver_under((simulated.bus for simulated in self.buses), self.lock)
         for simulated in self.buses:
-            simulated.network = start_network(simulated.bus, 0.2, DriveNetwork)
+            # the drives' side: a frame the bus refuses is lost and counted, the plant runs on
+            simulated.router = start_router(simulated.bus, keep_sending=True, timeout=0.2)
             for drive in simulated.drives:
-                drive.attach(simulated.network)
+                drive.attach(simulated.router)
+                self._attached.add(drive)
 
     def close(self) -> None:
         """Disable every drive (brakes on), stop heartbeats, release the buses."""
@@ -184,9 +191,9 @@ class Simulator:
         for simulated in self.buses:
             for drive in simulated.drives:
                 drive.detach()
-            if simulated.network is not None:
-                simulated.network.notifier.stop(1.0)
-                simulated.network.bus = None
+                self._attached.discard(drive)
+            if simulated.router is not None:
+                simulated.router.stop(1.0)
 
     def stop(self) -> None:
         self._stop.set()
@@ -228,6 +235,7 @@ class Simulator:
         with self.lock:
             if kind is DriveFaultKind.SILENCE:
                 drive.detach()
+                self._attached.discard(drive)
                 self._waiting.discard(drive)
             elif kind is DriveFaultKind.RESTART:
                 drive.restart()
@@ -355,29 +363,29 @@ class Simulator:
     def cycle_begun(self) -> bool:
         """Lock-step: whether a drive on its bus has had its command of the open cycle."""
         with self.lock:
-            return any(d.network is not None and d not in self._waiting for d in self.drives)
+            return not self._attached <= self._waiting
 
     def _complete_cycle(self) -> None:
         for _ in range(self.steps_per_cycle):
             self._step()
         self.cycles += 1
-        # DriveProfile.attached read inline: its property call, six a cycle, cost more
-        self._waiting = {d for d in self.drives if d.network is not None}
+        self._waiting = set(self._attached)
         self._send_replies()
 
     def _send_replies(self) -> None:
         """Lock-step: every drive's reply, in config order, those of a bus in one send
         (a profile that sends its own, in its place)."""
+        attached = self._attached
         for simulated in self.buses:
-            replies: list[tuple[int, bytes]] = []
+            replies: list[Frame] = []
             for drive in simulated.drives:
                 frames = drive.take_replies()
                 if frames is None:
                     if replies:
-                        simulated.network.send_frames(replies)
+                        simulated.router.send_frames(replies)
                         replies = []
                     drive.send_replies()
-                elif drive.network is not None:
+                elif drive in attached:
                     replies += frames
             if replies:
-                simulated.network.send_frames(replies)
+                simulated.router.send_frames(replies)

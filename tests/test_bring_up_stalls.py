@@ -12,7 +12,7 @@ import pytest
 
 import hil.control_node.bring_up as bring_up
 from hil.control_node.bring_up import BRING_UP_STALL, BringUpStalled, judged_bring_up
-from hil.errors import HilError
+from hil.errors import BootTimeout, BringUpError, HilError
 from hil.realtime.stalls import BENCH_STALL_STATUS, Stall
 
 NOT_ANSWERED = "drive node 1 (joint1) on bus 'arm' does not answer SDO: No SDO response"
@@ -51,6 +51,23 @@ def test_a_bring_up_that_fails_during_a_stall_of_the_simulator_is_the_benchs(sho
     assert "is the drive powered" not in text           # the hint sends the user to the drive
     assert "the bench itself stalled during the bring-up: the simulator stalled 400 ms" in text
     assert "the bench broke real time, the drive need not have failed" in text
+
+
+def test_a_boot_timeout_told_as_the_benchs_is_still_a_bring_up_error_of_its_drives(short_grace):
+    """hil.errors: a user's test catches a bring-up that failed as BringUpError, whether or not
+    the bench stalled meanwhile; the stalled one keeps the failure's bus, node and drives."""
+    drive = "drive node 1 (joint1) on bus 'arm'"
+
+    def boot_timeout() -> None:
+        raise BootTimeout.single(f"{drive}: not heard within 3 s after reset", timeout=3.0,
+                                 drives=(drive,), bus="arm", node=1)
+
+    reports = _Reports(Stall("sim", time.time() - 0.1, 0.4))
+    with pytest.raises(BringUpError) as raised:
+        judged_bring_up(boot_timeout, reports.publish, reports.heard, lambda: False)
+    assert isinstance(raised.value, BringUpStalled)
+    assert raised.value.exit_status == BENCH_STALL_STATUS
+    assert (raised.value.drives, raised.value.bus, raised.value.node) == ((drive,), "arm", 1)
 
 
 def test_a_stall_reported_after_the_failure_within_the_grace_still_explains_it(short_grace):

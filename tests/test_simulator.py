@@ -14,16 +14,17 @@ import time
 import uuid
 
 import can
-import canopen
 import numpy as np
 import pytest
 
-from conftest import ROOT, UR3_VIRTUAL, Bench, free_port
+from conftest import ROOT, UR3_VIRTUAL, CanopenBench, free_port
 
 from hil.bus_config import load_bus_config
+from hil.can.router import start_router
 from hil.cli import common
 from hil.cli.sim import status_lines
 from hil.drives import Fault
+from hil.errors import BootTimeout, BringUpError
 from hil.hardware import (LOCK_STEP_REPLY_TIMEOUT, MISSED_ANSWER_LIMIT, CanHardwareInterface,
                           FaultKind)
 from hil.simulator import LOCK_STEP_WATCHDOG, MAX_CATCH_UP, Simulator
@@ -33,9 +34,9 @@ REDUCTIONS = (120, 120, 120, 100, 100, 100)
 COUNTS = 131072
 
 
-def run_lock_step(channel: str, cycles: int = 120) -> tuple[np.ndarray, list[bytes]]:
+def run_lock_step(cycles: int = 120) -> tuple[np.ndarray, list[bytes]]:
     """Drive all six ur3 axes through a fixed setpoint sequence with a raw CAN master."""
-    bench = Bench("virtual", channel, LOCK_STEP)
+    bench = CanopenBench(lock_step=True)
     reader = can.BufferedReader()
     bench.network.notifier.add_listener(reader)
     send = bench.master_bus.send
@@ -73,15 +74,15 @@ def run_lock_step(channel: str, cycles: int = 120) -> tuple[np.ndarray, list[byt
 
 
 def test_lock_step_runs_are_bit_identical():
-    first, first_replies = run_lock_step("hil-lockstep-a")
-    second, second_replies = run_lock_step("hil-lockstep-b")
+    first, first_replies = run_lock_step()
+    second, second_replies = run_lock_step()
     assert np.abs(first).max() > 0.05            # the arm really moved
     assert np.array_equal(first, second)         # bit for bit
     assert sorted(first_replies) == sorted(second_replies)
 
 
 def test_lock_step_advances_one_control_period_per_sync():
-    bench = Bench("virtual", "hil-lockstep-period", LOCK_STEP)
+    bench = CanopenBench(lock_step=True)
     try:
         reader = can.BufferedReader()
         bench.network.notifier.add_listener(reader)
@@ -199,6 +200,27 @@ def test_a_lock_step_bring_up_whose_cycle_outlasts_the_boot_wait_goes_on_once_al
         assert len(hardware.start().positions) == 6
 
 
+def test_drives_not_heard_within_the_boot_timeout_are_a_boot_timeout_naming_them():
+    """hil.errors: a master whose drives are not heard after their reset (no sim on the bus)
+    raises BootTimeout, a BringUpError and a TimeoutError, with the drives, their bus and the
+    timeout, and the message it always gave."""
+    config = load_bus_config(UR3_VIRTUAL)
+    bus = can.Bus(interface="virtual", channel=f"hil-boot-{uuid.uuid4().hex[:8]}")
+    hardware = CanHardwareInterface(config, {"arm": bus}, boot_timeout=0.0)
+    try:
+        with pytest.raises(BootTimeout) as raised:
+            hardware.start()
+    finally:
+        hardware.stop()
+        bus.shutdown()
+    assert isinstance(raised.value, BringUpError) and isinstance(raised.value, TimeoutError)
+    assert raised.value.drives == tuple(axis.label for axis in hardware.axes)
+    assert (raised.value.bus, raised.value.node, raised.value.timeout) == ("arm", None, 0.0)
+    assert str(raised.value).startswith(
+        "error: drive node 1 (joint1) on bus 'arm'; drive node 2 ")
+    assert ": not heard within 0 s after reset" in str(raised.value)
+
+
 def test_a_lock_step_master_waits_for_a_bring_up_answer_as_long_as_a_drive_may_be_silent():
     """In lock-step a stalled sim is slow, not dead: a bring-up request waits as long as the
     cycles let a drive go unheard (MISSED_ANSWER_LIMIT answers of LOCK_STEP_REPLY_TIMEOUT);
@@ -221,10 +243,9 @@ def test_a_bring_up_waits_its_request_timeout_for_each_sdo_answer(request_timeou
     from hil.protocols.cia402.axis import Cia402Axis
     config = load_bus_config(UR3_VIRTUAL)
     bus = can.Bus(interface="virtual", channel=f"hil-sdo-{uuid.uuid4().hex[:8]}")
-    network = canopen.Network(bus)
-    network.notifier = can.Notifier(bus, network.listeners, 0.1)
+    router = start_router(bus)
     axis = Cia402Axis(config.drives[0], "arm")
-    axis.attach(network)
+    axis.attach(router)
     axis.request_timeout = request_timeout
     try:
         began = time.monotonic()
@@ -234,7 +255,7 @@ def test_a_bring_up_waits_its_request_timeout_for_each_sdo_answer(request_timeou
         assert time.monotonic() - began >= waits
         assert axis.node.sdo.RESPONSE_TIMEOUT == waits
     finally:
-        network.notifier.stop(1)
+        router.stop(1)
         bus.shutdown()
 
 
@@ -354,7 +375,7 @@ def test_a_frame_the_bus_will_not_send_is_lost_and_counted_and_the_plant_runs_on
     sim.raise_fault("arm", 1)                        # its EMCY cannot go out
     wall[0] += 10 * dt
     assert sim.now() == pytest.approx(before + 10 * dt)
-    assert runtime.network.lost_frames == 1
+    assert runtime.router.lost_frames == 1
     assert sim.drive("arm", 1).core.fault is Fault.FOLLOWING_ERROR
     assert any("lost 1 frame(s)" in line for line in status_lines(sim))
     sim.stop()

@@ -1,10 +1,11 @@
 """The floor under ``hil bench``'s across-processes runs, measured in the same bench run.
 
-The same frames per cycle (every drive's cyclic frames and SYNC out, their answers back,
-per bus) exchanged between two processes over the same transport, python-can on both ends
-and no hil code on the answering side, paced like the controller, each end on the CPU of
-the process it stands for (in lock-step, both on one CPU, as ``hil up --lock-step``
-places sim and controller). The ratio stack / floor says what hil adds to the transport.
+The same frames per cycle (every drive's cyclic frames and the bus' cycle-end frames out,
+their answers back, per bus) exchanged between two processes over the same transport,
+python-can on both ends and no hil code on the answering side, paced like the controller,
+each end on the CPU of the process it stands for (in lock-step, both on one CPU, as
+``hil up --lock-step`` places sim and controller). The ratio stack / floor says what hil
+adds to the transport.
 Both ends send a cycle's frames as hil's do: together, one message per process and direction
 (the master in ``sent_together``, the answers from inside their delivery).
 
@@ -30,7 +31,7 @@ import can
 from hil.bench.frames import cyclic_frames
 from hil.bus_config import SystemConfig
 from hil.can import sent_together
-from hil.hardware.can_interface import LOCK_STEP_REPLY_TIMEOUT
+from hil.hardware.exchange import LOCK_STEP_REPLY_TIMEOUT
 from hil.realtime import (CyclePacer, PeriodStatistics, Ring, enter_real_time, lock_step_cpus,
                           real_time_cpus)
 from hil.zenoh_session import free_loopback_port
@@ -39,15 +40,15 @@ from hil.zenoh_session import free_loopback_port
 def floor_across_processes(config: SystemConfig, seconds: float, paced: bool = True) -> dict:
     """The config's frames per cycle between this process (paced like the controller, or
     unpaced as in lock-step: each cycle as soon as the last one's answers are in) and a bare
-    answering process, over Zenoh on loopback: round trip SYNC -> last answer; unpaced, also
-    the speed-up over real time the exchange alone allows."""
+    answering process, over Zenoh on loopback: round trip last frame -> last answer;
+    unpaced, also the speed-up over real time the exchange alone allows."""
     endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
     channels = {bus.name: f"bench-floor/{os.getpid()}/{bus.name}" for bus in config.buses}
     sim_cpus, control_cpus, _ = real_time_cpus() if paced else lock_step_cpus()
     spec = json.dumps({"endpoint": endpoint, "seconds": seconds + 30, "real_time": paced,
                        "cpus": sorted(sim_cpus or ()), "buses": [
         {"channel": channels[name], "trigger": out[-1].arbitration_id,
-         "answers": [[a.arbitration_id, len(a.data)] for a in answers]}
+         "answers": [[a.arbitration_id, len(a.data), a.is_extended_id] for a in answers]}
         for name, out, answers in cyclic_frames(config)]})
     responder = subprocess.Popen([sys.executable, "-m", "hil.bench.responder", spec],
                                  stdout=subprocess.PIPE, text=True, start_new_session=True)

@@ -5,9 +5,9 @@ recording a file and the CAN log) as separate processes on the Zenoh CAN transpo
 loopback, in real time, placed on the CPUs as ``hil up`` places them (or in lock-step, as
 ``hil up --lock-step`` runs them: the speed-up over real time), for a while, stops
 them as ``hil up`` does and reads the controller's own report (``hil control --report``):
-period error, missed cycles, busy time, the round trip from each cycle's SYNC to its last
-answer, faults; and each process' CPU share from /proc. Beside each, the floor of the same
-transport (:mod:`hil.bench.floor`).
+period error, missed cycles, busy time, the round trip from each cycle's last frame to its
+last answer, faults; and each process' CPU share from /proc. Beside each, the floor of the
+same transport (:mod:`hil.bench.floor`).
 
 Rates above a config's own are run on buses of proportionally higher bitrate (the load
 stays what the config has at its rate; the transport has no bitrate of its own).

@@ -28,8 +28,8 @@ def respond(spec: dict) -> None:
     buses = []
     for bus_spec in spec["buses"]:
         bus = can.Bus(interface="zenoh", channel=bus_spec["channel"], listen=[spec["endpoint"]])
-        answers = [can.Message(arbitration_id=i, data=bytes(n), is_extended_id=False)
-                   for i, n in bus_spec["answers"]]
+        answers = [can.Message(arbitration_id=i, data=bytes(n), is_extended_id=extended)
+                   for i, n, extended in bus_spec["answers"]]
 
         def answer(msg: can.Message, bus=bus, answers=answers,
                    trigger=bus_spec["trigger"]) -> None:

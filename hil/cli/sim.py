@@ -175,7 +175,7 @@ def frame_report(simulator: Simulator) -> list[str]:
     lines = []
     for simulated in simulator.buses:
         refused = sum(drive.malformed for drive in simulated.drives)
-        lost = simulated.network.lost_frames if simulated.network is not None else 0
+        lost = simulated.router.lost_frames if simulated.router is not None else 0
         lines.append(f"bus {simulated.config.name}: the drives refused {refused} malformed "
                      f"frame(s) and could not send {lost}")
     return lines
@@ -190,8 +190,8 @@ def status_lines(simulator: Simulator) -> list[str]:
         joints = dict(zip(plant.joint_names, plant.joint_positions()))
         for simulated in simulator.buses:
             name = simulated.config.name
-            if simulated.network is not None and simulated.network.lost_frames:
-                lines.append(f"  {name:>8} lost {simulated.network.lost_frames}"
+            if simulated.router is not None and simulated.router.lost_frames:
+                lines.append(f"  {name:>8} lost {simulated.router.lost_frames}"
                              " frame(s) the bus would not send")
             for drive, config in zip(simulated.drives, simulated.config.drives):
                 status = drive.core.status()

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import TypeVar
 
 from hil.control_node.attribution import GRACE, stalls_in_words
-from hil.errors import HilError, error
+from hil.errors import BringUpError, HilError, error
 from hil.realtime.stalls import BENCH_STALL_STATUS, Stall, StallWatch
 
 #: a stall this long during the bring-up can fail it (s). hil's own choice (no maker's
@@ -28,21 +28,24 @@ _POLL = 0.05
 Feedback = TypeVar("Feedback")
 
 
-class BringUpStalled(HilError):
+class BringUpStalled(BringUpError):
     """A bring-up that failed while the bench itself stalled: the failure's diagnostics
-    (their hints left out: they send the user to the drive), then the stalls."""
+    (their hints left out: they send the user to the drive), then the stalls. A bring-up
+    error still (the drives were not brought up), about the failure's drives."""
 
     exit_status = BENCH_STALL_STATUS
 
     def __init__(self, failure: HilError, stalls: list[Stall]):
         self.stalls = tuple(sorted(stalls, key=lambda stall: stall.at))
         told = "; ".join(stalls_in_words(self.stalls))
+        where = ({"drives": failure.drives, "bus": failure.bus, "node": failure.node}
+                 if isinstance(failure, BringUpError) else {})
         super().__init__([dataclasses.replace(d, hint=None) for d in failure.diagnostics] + [
             error(f"the bench itself stalled during the bring-up: {told}: the bench broke real "
                   "time, the drive need not have failed",
                   hint="a host that pauses the bench's processes (a shared VM) or a slow link "
                        "between them does this: run again, on quieter CPUs (--cpus), over a "
-                       "quicker link, or in lock-step (--lock-step)")])
+                       "quicker link, or in lock-step (--lock-step)")], **where)
 
 
 def judged_bring_up(start: Callable[[], Feedback], publish: Callable[[Stall], None],

@@ -16,13 +16,12 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar, NamedTuple
+from typing import ClassVar, NamedTuple
 
 from hil.bus_config.types import DriveConfig
+from hil.can.frame import Frame
+from hil.can.router import FrameRouter, Subscription
 from hil.protocols.base import Protocol
-
-if TYPE_CHECKING:
-    import canopen
 
 #: fraction of the max velocity below which an axis counts as still (enable only then)
 STANDSTILL = 0.01
@@ -91,10 +90,6 @@ class AxisFeedback:
     heard: bool = False        # an answer has set the values (until then they are defaults)
 
 
-#: one frame to send: (arbitration id, data, remote)
-Frame = tuple[int, bytes, bool]
-
-
 class Axis(ABC):
     """One drive as the master sees it."""
 
@@ -112,7 +107,7 @@ class Axis(ABC):
         self.label = (f"drive node {config.node_id} ({', '.join(config.joints)}) on bus "
                       f"'{bus_name}'")
         self.feedback = AxisFeedback()
-        self.network: canopen.Network | None = None
+        self.router: FrameRouter | None = None
         self.last_heard = time.monotonic()      # the drive's last sign of life
         self.booted = threading.Event()          # heard from since reset()
         #: configured (:meth:`configure` done) and not heard booting again since
@@ -126,8 +121,8 @@ class Axis(ABC):
     # --- what a protocol must say -------------------------------------------------------
 
     @abstractmethod
-    def subscriptions(self) -> dict[int, object]:
-        """The ids this axis listens to, with their handlers (canopen Network callbacks)."""
+    def subscriptions(self) -> list[Subscription]:
+        """The frames this axis listens to, each with its handler."""
 
     @abstractmethod
     def cycle_frames(self, command: AxisCommand) -> list[Frame]:
@@ -146,10 +141,11 @@ class Axis(ABC):
 
     # --- shared behaviour -----------------------------------------------------------
 
-    def attach(self, network: canopen.Network) -> None:
-        self.network = network
-        for can_id, handler in self.subscriptions().items():
-            network.subscribe(can_id, handler)
+    def attach(self, router: FrameRouter) -> None:
+        """Listen on the bus of ``router`` and send through it."""
+        self.router = router
+        for subscription in self.subscriptions():
+            subscription.join(router)
 
     def reset(self) -> None:
         """Ask the drive to start afresh; :attr:`booted` is set once it is heard."""

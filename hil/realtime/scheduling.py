@@ -16,8 +16,9 @@ REAL_TIME_PRIORITY = 50
 IO_PRIORITY = REAL_TIME_PRIORITY - 1
 #: SCHED_FIFO priority of a real-time process' side work (goals decoded, recordings encoded):
 #: below its frame handling, which must preempt it (threads of one SCHED_FIFO priority do
-#: not share a CPU: a first recording encoded on the controller's CPU held its frames
-#: 10-14 ms, measured), above every normal process (its GIL must not wait behind them)
+#: not share a CPU: a first recording encoded on the controller's CPU held its frames for
+#: cycles, docs/performance.md, "2026-12-06, later: figures from code comments"), above every
+#: normal process (its GIL must not wait behind them)
 SIDE_PRIORITY = 40
 #: the interpreter's thread switch interval while a real-time loop runs (s; Python's default
 #: is 5 ms): the longest a thread holding the GIL (decoding a large goal, say) keeps the loop
@@ -42,12 +43,12 @@ def use_fifo(priority: int) -> tuple[bool, str]:
 def enter_real_time(priority: int = IO_PRIORITY, cpus: set[int] | None = None) -> str:
     """A real-time process, from its start: the calling thread under SCHED_FIFO
     ``priority`` (on ``cpus`` if given), and with it every thread started afterwards
-    (Zenoh's, python-can's, canopen's), and a short thread switch interval. Call it before
+    (Zenoh's, python-can's, hil's own), and a short thread switch interval. Call it before
     opening Zenoh sessions or buses. Under the normal scheduler a process' frame handling
     waited behind any other runnable thread of the machine (the visualiser's, a
     neighbour's); sim and controller each on a CPU of their own answered a cycle's frames
-    in 1.1-1.5 ms at p99 where they shared two CPUs in 2.0 ms (measured). Returns the
-    scheduling, in words."""
+    sooner at p99 than sharing two CPUs (docs/performance.md,
+    "2026-12-06, later: figures from code comments"). Returns the scheduling, in words."""
     sys.setswitchinterval(min(sys.getswitchinterval(), REAL_TIME_SWITCH_INTERVAL))
     words = use_fifo(priority)[1]
     if cpus:
@@ -77,8 +78,8 @@ def lock_step_cpus(cpus: set[int] | None = None) -> tuple[set[int] | None, set[i
     controller together on the last CPU this process may use, the visualiser on the others.
     In lock-step the two take turns, never run at once, and a hand-over within one CPU costs
     less than waking a process on another (an inter-processor interrupt, dear in a virtual
-    machine): the ur3's demo took 23 s so against 38 s apart on 2 vCPUs (2026-11-29,
-    docs/performance.md). None: anywhere (a single CPU)."""
+    machine): the ur3's demo ran faster that way on 2 vCPUs (docs/performance.md, "2026-11-29,
+    afternoon: `hil up --lock-step` start-up and placement"). None: anywhere (a single CPU)."""
     usable = sorted(cpus if cpus is not None else os.sched_getaffinity(0))
     if len(usable) < 2:
         return None, None, None
