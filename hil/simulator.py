@@ -118,7 +118,8 @@ class Simulator:
         self.timing = timing
         self.lock_step = timing.lock_step       # read at every frame
         # lock-step: nothing moves the plant between commands, nothing to advance on entry
-        # (a plain lock: 4 % off a ur3 cycle, docs/performance.md)
+        # (a plain lock, cheaper a cycle: docs/performance.md, "2026-11-28, fourth step: a bus'
+        # cycle in one send (issue 48)")
         self.lock: AbstractContextManager = (threading.RLock() if timing.lock_step
                                              else PlantPresent(self._advance))
         self.plant = bench_plant(config)
@@ -329,7 +330,8 @@ class Simulator:
     def _measure(self, dt: float = 0.0) -> None:
         """Each drive's motor position and velocity now, ``dt`` after the last (0: the
         first)."""
-        # Python floats: numpy scalars would make every drive's loop arithmetic ~5x slower
+        # Python floats: numpy scalars make every drive's loop arithmetic slower
+        # (docs/performance.md, "2026-12-06, later: figures from code comments")
         self._cores.measure(self.plant.motor_positions().tolist(),
                             self.plant.motor_velocities().tolist(), dt)
 

@@ -9,8 +9,8 @@ stands upright (a floating base's tilt is not known to the master). A joint that
 another puts its load on its leader (virtual work: ``tau_leader += multiplier tau``); a
 movable joint no drive moves is taken at zero.
 
-Written in plain floats: 20-26 us a call for the ur3 and the pigot, where numpy on a few
-3-vectors per joint cost 0.3-1 ms, the cycle's whole budget at 1 kHz.
+Written in plain floats: numpy on a few 3-vectors per joint cost as much as a 1 kHz cycle's
+whole budget (docs/performance.md, "2026-12-06, later: figures from code comments").
 """
 
 from __future__ import annotations

@@ -316,7 +316,8 @@ def _avoid_slow_clock() -> None:
     MuJoCo reads its timer about 30 times per step for the statistics in
     ``mjData.timer``, which hil does not use. Where the clock has no vDSO
     (User-Mode Linux, some sandboxes) each read is a system call and a step
-    becomes ~1000x slower. There, MuJoCo gets libc's ``drand48`` as its time
+    becomes orders of magnitude slower (docs/performance.md, "2026-12-06, later: figures
+    from code comments"). There, MuJoCo gets libc's ``drand48`` as its time
     source: native, no system call (a Python callable would cost more than
     the step); its timer statistics are then meaningless.
     """
@@ -327,7 +328,7 @@ def _avoid_slow_clock() -> None:
     start = time.perf_counter()
     for _ in range(200):
         time.perf_counter()
-    if (time.perf_counter() - start) / 200 < 2e-6:    # vDSO clock: ~50 ns per read
+    if (time.perf_counter() - start) / 200 < 2e-6:    # a vDSO clock reads well under this
         return
     source = ctypes.CDLL(None).drand48
     source.restype, source.argtypes = ctypes.c_double, []

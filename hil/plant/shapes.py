@@ -142,8 +142,9 @@ def add_scene(spec: mujoco.MjSpec, scene: tuple[ScenePart, ...]) -> None:
     for part in scene:
         _add_part(spec, part)
     if not scene:
-        # nothing for the links to touch: no collision detection at all (about 0.6 us of a
-        # 4-8 us plant step of the shipped arms, measured)
+        # nothing for the links to touch: no collision detection at all (a share of every
+        # plant step of the shipped arms: docs/performance.md, "2026-12-06, later: figures
+        # from code comments")
         spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     if any(part.mass > 0 for part in scene):
         # what holds a grasp (MuJoCo's "Preventing slip", Menagerie's grippers): elliptic

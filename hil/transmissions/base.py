@@ -47,9 +47,10 @@ class Transmission(ABC):
     def _effort_matrix(self) -> np.ndarray:
         """E: actuator efforts from joint efforts."""
 
-    # the maps by ndarray.dot, not @: numpy's matmul goes through its gufunc machinery, about
-    # 2.5x the time of dot on these small maps (a control cycle maps five times), with the
-    # same result to the bit (docs/performance.md, 2026-12-01)
+    # the maps by ndarray.dot, not @: numpy's matmul goes through its gufunc machinery, slower
+    # than dot on these small maps (a control cycle maps five times), with the same result
+    # to the bit (docs/performance.md, "2026-12-01: the in-process cycle in a fifth fewer
+    # instructions")
     def joint_to_actuator_position(self, q) -> np.ndarray:
         q = np.asarray(q, dtype=float)
         return self.position_matrix.dot(q - self.joint_offsets if self._has_offsets else q)

@@ -37,8 +37,9 @@ def make_children(args: argparse.Namespace, robots: list[RobotRun], faults: list
     # the visualiser logs the CAN buses: in lock-step, whole from each process' first frame
     logged = ["--await-monitor"] if args.timing.lock_step else []
     # over TLS the processes are not pinned to a CPU each: pinned, every `hil up ur3 --secure`
-    # on 2 CPUs faulted within a second as soon as a third process took the traffic (the
-    # transport 40-107 ms late), unpinned 3 of 3 ran clean (docs/performance.md)
+    # on 2 CPUs faulted within a second as soon as a third process took the traffic,
+    # unpinned every run was clean (docs/performance.md, "Stalls of the bench, told apart
+    # from drive faults (2026-11-24, issue 28)")
     placement = lock_step_cpus() if lock_step else real_time_cpus()
     placed = {name: [] if args.secure else cpus_argument(cpus)
               for name, cpus in zip(("sim", "control", "viz"), placement)}
@@ -85,8 +86,9 @@ def start_in_order(robots: list[RobotRun], viz: Child, supervised: Run, zenoh: Z
     """Start the sims, the visualiser and the controllers in turn, each once the one before
     is alive on Zenoh; the controllers held before their bring-up until all of them have
     started, so that no real-time loop runs while another process starts (the import of a
-    controller took the CPU from the first robot's loop: its transport 29-43 ms late and its
-    drives silent, in 2 of 2 runs of ``hil up ur3 pigot`` on 2 CPUs). ``together`` (lock-step,
+    controller took the CPU from the first robot's loop until its drives fell silent, in every
+    run of ``hil up ur3 pigot`` on 2 CPUs: docs/performance.md, "Two robots on 2 CPUs: `hil up
+    ur3 pigot --duration 60` (2026-11-28, issue 48)"). ``together`` (lock-step,
     where no loop can be starved): all of them started at once, their imports overlapping,
     then waited for in the same order (Zenoh's meeting point takes any order of start). The
     watchers it makes go into ``watchers`` (to be closed however the start ends)."""

@@ -15,7 +15,7 @@ from hil.protocols.cia402.objects import PROFILE_PARAMETERS
 @dataclass(frozen=True)
 class PdoLayout:
     """A PDO mapping compiled to one struct. canopen packs and unpacks a PDO variable by
-    variable through the object dictionary (about 30 us a PDO here), too slow for the
+    variable through the object dictionary (docs/performance.md, "2026-12-06, later: figures from code comments"), too slow for the
     per-SYNC path of six drives; its PdoMap stays the source of the mapping."""
 
     indices: tuple[int, ...]
@@ -48,7 +48,8 @@ class Rpdo:
     profile: tuple[int, ...]               # the profile parameters it maps, in its order
     offsets: bool                          # maps a target velocity or a velocity/torque offset
     # what else it maps, asked at every apply: flags made once, not membership tests of
-    # `at` (those cost 1 % of a ur3 lock-step cycle, measured)
+    # `at` (those cost a share of every cycle: docs/performance.md, "2026-12-06, later:
+    # figures from code comments")
     mode: bool = False                     # modes of operation (0x6060)
     controlword: bool = False              # 0x6040
     targets: tuple[int, ...] = ()          # target positions mapped: 0x607A, 0x60C1
