@@ -10,7 +10,7 @@ import subprocess
 import sys
 import threading
 import time
-import uuid
+from collections.abc import Callable
 from pathlib import Path
 
 import can
@@ -20,18 +20,17 @@ import numpy as np
 import pytest
 import yaml
 
-from hil.bus_config import load_bus_config, open_buses
+from hil.bus_config import load_bus_config
 from hil.can import socketcan_missing as can_socketcan_missing
 from hil.cli import main
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.description import PackagePath, load_description
 from hil.messaging.zenoh_api import ProcessWatch, TrajectoryActionClient
-from hil.simulator import Simulator
 from hil.stack import Stack
+from hil.testing import DrivesBench
 from hil.zenoh_session import (
     MEETING_VARIABLE, ZenohSettings, close, free_loopback_port, session,
 )
-from hil.realtime import REAL_TIME, Timing
 
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
@@ -107,6 +106,12 @@ class FrameRecorder(can.Listener):
         with self._arrived:
             return self._arrived.wait_for(lambda: len(self.frames) >= count, timeout)
 
+    def wait_for_message(self, match: Callable[[can.Message], bool], timeout: float) -> bool:
+        """Whether a frame that ``match`` accepts is in within ``timeout`` seconds."""
+        with self._arrived:
+            return self._arrived.wait_for(
+                lambda: any(match(msg) for msg, _ in self.frames), timeout)
+
 
 @pytest.fixture(scope="session")
 def package_path() -> PackagePath:
@@ -177,14 +182,14 @@ def socketcan_missing(*channels: str) -> str | None:
 
 
 @pytest.fixture(params=["virtual", pytest.param("socketcan", marks=pytest.mark.socketcan)])
-def transport(request):
-    """(interface, channel) of a fresh bus: python-can virtual, or SocketCAN vcan0."""
+def transport(request) -> str | None:
+    """The SocketCAN interface of a bench's drives (vcan0), or None: python-can virtual."""
     if request.param == "socketcan":
         missing = socketcan_missing()
         if missing:
             pytest.skip(missing)
-        return "socketcan", "vcan0"
-    return "virtual", f"hil-test-{uuid.uuid4().hex[:8]}"
+        return "vcan0"
+    return None
 
 
 #: how much longer than canopen's defaults (SDO answer 0.3 s, 402 state change 0.4 s, all
@@ -205,22 +210,23 @@ def patient(node):
     return node
 
 
-class Bench:
-    """A Simulator of the ur3 fixture config plus a master-side bus and canopen network."""
+class CanopenBench:
+    """python canopen's master on a DrivesBench of a config (the ur3 fixture's): a Network on
+    the master's bus of its bus "arm", SYNC produced on demand, CiA 402 nodes of hil's EDS.
+    Real time unless ``lock_step``; on SocketCAN interface ``vcan`` where given."""
 
-    def __init__(self, interface: str, channel: str, timing: Timing = REAL_TIME,
-                 config: Path = UR3_VIRTUAL):
-        self.interface, self.channel = interface, channel
-        self.config = load_bus_config(config)
-        self.sim_bus = can.Bus(interface=interface, channel=channel)
-        self.master_bus = can.Bus(interface=interface, channel=channel)
-        self.sim = Simulator(self.config, {"arm": self.sim_bus}, timing)
+    def __init__(self, config: Path = UR3_VIRTUAL, vcan: str | None = None,
+                 lock_step: bool = False):
+        self.drives = DrivesBench(config, lock_step=lock_step,
+                                  vcan=None if vcan is None else {"arm": vcan})
+        self.config, self.sim = self.drives.config, self.drives.sim
+        #: the master's bus: python-can's, beside the drives' (a fresh master joins with
+        #: ``can.Bus(interface=bench.interface, channel=bench.channel)``)
+        self.interface, self.channel = self.drives.interface, self.drives.channel("arm")
+        self.master_bus = self.drives.bus("arm")
         self.network = canopen.Network(self.master_bus)
         self.network.notifier = can.Notifier(self.master_bus, self.network.listeners, 0.1)
         self._sync_running = False
-        self.sim.start()
-        self.thread = threading.Thread(target=self.sim.run, daemon=True)
-        self.thread.start()
 
     def stop_sync(self) -> None:
         """Stop the SYNC producer (idempotent: a second BCM delete fails on SocketCAN)."""
@@ -241,65 +247,62 @@ class Bench:
         self.stop_sync()
         for node in self.network.values():
             node.rpdo.stop()
-        self.sim.stop()
-        self.thread.join(5)
-        self.sim.close()
         self.network.notifier.stop(1)
-        self.master_bus.shutdown()
-        self.sim_bus.shutdown()
+        self.drives.close()
 
 
 @pytest.fixture
-def bench(transport, request):
+def canopen_bench(transport, request):
+    """A CanopenBench of the ur3 fixture, real time, on the test's transport."""
     judged_in_real_time(request)
-    made = Bench(*transport)
+    made = CanopenBench(vcan=transport)
     yield made
     made.close()
 
 
-class ClientBench:
-    """A bus config's drives in a real-time Simulator of this process, on a Zenoh channel of
-    their own (or a SocketCAN channel), for a client library to drive; a master's
-    python-can bus beside them (:meth:`ask`). One bus configs only."""
+class RealTimeMaster:
+    """A master's python-can bus on a real-time DrivesBench of a one-drive config, for a
+    client library's test: :meth:`ask` sends a frame and takes the drive's answer; the joint
+    and the simulated drive (for what its protocol does not report) at hand. ``channel``:
+    where a client library opens its own bus (python-can ``virtual``, or the bench's vcan)."""
 
-    def __init__(self, config_path: Path, interface: str = "zenoh", channel: str | None = None):
-        self.config = load_bus_config(config_path)
-        self.channel = channel or f"bench-{uuid.uuid4().hex[:8]}"
-        name = self.config.buses[0].name
-        self.sim_buses = open_buses(self.config, ZenohSettings.meeting(), interface,
-                                    channels={name: self.channel})
-        self.sim = Simulator(self.config, self.sim_buses, REAL_TIME)
-        self.drive = self.sim.drives[0]
-        self.sim.start()
-        self._thread = threading.Thread(target=self.sim.run, daemon=True)
-        self._thread.start()
-        self.master = can.Bus(interface=interface, channel=self.channel)
+    def __init__(self, bench: DrivesBench):
+        self.bench = bench
+        self.interface = bench.interface
+        self.channel = bench.channel(bench.config.buses[0].name)
+        self.bus = bench.bus()
+        #: the simulated drive
+        self.drive = bench.sim.drives[0]
+        self._joint = bench.config.buses[0].drives[0].joints[0]
+
+    @classmethod
+    def of(cls, config: Path, vcan: str | None = None) -> RealTimeMaster:
+        """A master of a new bench of ``config`` (its drives on SocketCAN interface ``vcan``
+        where given), closed with :meth:`close`."""
+        loaded = load_bus_config(config)
+        return cls(DrivesBench(loaded, vcan=None if vcan is None else
+                               {loaded.buses[0].name: vcan}))
 
     def ask(self, can_id: int, data: bytes = b"", timeout: float = 2.0, remote: bool = False,
             answer_id: int | None = None) -> can.Message | None:
         """Send a frame; the next frame the drives send (on ``answer_id`` if given)."""
-        while self.master.recv(0) is not None:
+        while self.bus.recv(0) is not None:
             pass
-        self.master.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False,
-                                     is_remote_frame=remote))
+        self.bus.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False,
+                                  is_remote_frame=remote))
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            reply = self.master.recv(max(0.0, deadline - time.monotonic()))
+            reply = self.bus.recv(max(0.0, deadline - time.monotonic()))
             if reply is not None and (answer_id is None or reply.arbitration_id == answer_id):
                 return reply
         return None
 
     def joint(self) -> float:
-        with self.sim.lock:
-            return float(self.sim.plant.joint_positions()[0])
+        """The position of the drive's (first) joint, now."""
+        return self.bench.joint(self._joint)
 
-    def close(self):
-        self.master.shutdown()
-        self.sim.stop()
-        self._thread.join(5)
-        self.sim.close()
-        for bus in self.sim_buses.values():
-            bus.shutdown()
+    def close(self) -> None:
+        self.bench.close()
 
 
 def hils_master_moves(config_path: Path, joint: str, target: float):

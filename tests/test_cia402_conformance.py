@@ -102,8 +102,8 @@ def pre_operational(bench, node_id: int = 1) -> canopen.BaseNode402:
 # --- NMT states ---------------------------------------------------------------------------
 
 @pytest.mark.wire("NMT frames from another process, through the kernel")
-def test_a_stopped_node_answers_only_nmt_and_heartbeat(bench):
-    node = pre_operational(bench)
+def test_a_stopped_node_answers_only_nmt_and_heartbeat(canopen_bench):
+    node = pre_operational(canopen_bench)
     node.nmt.state = "OPERATIONAL"
     node.nmt.state = "STOPPED"
     node.nmt.wait_for_heartbeat(timeout=1)
@@ -112,9 +112,9 @@ def test_a_stopped_node_answers_only_nmt_and_heartbeat(bench):
     node.sdo.RESPONSE_TIMEOUT, node.sdo.MAX_RETRIES = 0.3, 1     # one request, no retry
     with pytest.raises(canopen.SdoCommunicationError):
         node.sdo[0x1000].raw
-    with FrameTap(bench) as tap:
-        syncs(bench, 5)
-        raw(bench, 0x080, b"\x01\x02\x03")                  # a SYNC of the wrong length
+    with FrameTap(canopen_bench) as tap:
+        syncs(canopen_bench, 5)
+        raw(canopen_bench, 0x080, b"\x01\x02\x03")          # a SYNC of the wrong length
         time.sleep(0.3)
     assert not tap.of(0x181) and not tap.of(0x281), "TPDOs in STOPPED"
     assert not tap.of(0x081), "EMCY in STOPPED"
@@ -123,12 +123,12 @@ def test_a_stopped_node_answers_only_nmt_and_heartbeat(bench):
     assert node.sdo[0x1000].raw == 0x00020192
 
 
-def test_a_pre_operational_node_ignores_pdos_without_emcy(bench):
-    node = pre_operational(bench)
-    with FrameTap(bench) as tap:
-        raw(bench, 0x201, b"\x0f\x00\x01")                  # too short for RPDO1
-        raw(bench, 0x201, struct.pack("<Hi", 0x06, 0))      # a shutdown command by RPDO
-        syncs(bench, 5)
+def test_a_pre_operational_node_ignores_pdos_without_emcy(canopen_bench):
+    node = pre_operational(canopen_bench)
+    with FrameTap(canopen_bench) as tap:
+        raw(canopen_bench, 0x201, b"\x0f\x00\x01")          # too short for RPDO1
+        raw(canopen_bench, 0x201, struct.pack("<Hi", 0x06, 0))  # a shutdown command by RPDO
+        syncs(canopen_bench, 5)
         time.sleep(0.2)
     assert not tap.of(0x081), "an EMCY for a PDO in PRE-OPERATIONAL"
     assert not tap.of(0x181), "a TPDO in PRE-OPERATIONAL"
@@ -137,18 +137,18 @@ def test_a_pre_operational_node_ignores_pdos_without_emcy(bench):
 
 @pytest.mark.wire("the frame order another socket sees")
 @pytest.mark.parametrize("command", [0x81, 0x82], ids=["reset node", "reset communication"])
-def test_the_boot_up_is_the_first_frame_a_node_sends_after_a_reset(bench, command):
+def test_the_boot_up_is_the_first_frame_a_node_sends_after_a_reset(canopen_bench, command):
     """CiA 301 7.2.8.3.2.1: after a reset the node sends its boot-up (0x700 + id, 00), then
     heartbeats; issue 44 saw a heartbeat 0x7F 3 ms before it (the heartbeat now follows the
     drive's clock under its lock, so no frame can slip in between)."""
-    node = pre_operational(bench)
+    node = pre_operational(canopen_bench)
     node.sdo[0x1017].raw = 10                       # a heartbeat every 10 ms: many chances
     # when the drive took the reset, by the simulator's clock: on this bus (python-can's
     # virtual, SocketCAN) a frame reaches the drive in another thread, some time after the
     # master sent it, and a heartbeat the drive sent meanwhile is one from before the reset
     # (CI saw one: [7f, 00, 7f] from the master's send on)
     took: list[float] = []
-    router = bench.sim.buses[0].router          # the tap first, then the drives' handlers
+    router = canopen_bench.sim.buses[0].router          # the tap first, then the drives' handlers
     handlers = router.handlers(0x000)
     for handler in handlers:
         router.unsubscribe(0x000, handler)
@@ -157,33 +157,33 @@ def test_the_boot_up_is_the_first_frame_a_node_sends_after_a_reset(bench, comman
         router.subscribe(0x000, handler)
     for _ in range(10):
         took.clear()
-        with FrameTap(bench) as tap:
+        with FrameTap(canopen_bench) as tap:
             node.nmt.send_command(command)
             assert wait_until(lambda: len(tap.of(0x701)) >= 3, 2)
         after = [bytes(m.data) for m in tap.of(0x701) if m.timestamp >= took[0]]
         assert after[:2] == [b"\x00", b"\x7f"], after
 
 
-def test_reset_node_restores_the_application_parameters(bench):
+def test_reset_node_restores_the_application_parameters(canopen_bench):
     """CiA 301 7.2.8.3.2.1: reset node (0x81) sets the application area to its power-on
     values (issue 44: 0x6065 written before the reset read the written value after)."""
-    node = pre_operational(bench)
+    node = pre_operational(canopen_bench)
     default = node.sdo[0x6065].raw
     node.sdo[0x6065].raw = default + 1234
     node.sdo[0x6007].raw = 3 if node.sdo[0x6007].raw != 3 else 1
     option = node.sdo[0x6007].raw
-    with FrameTap(bench) as tap:
+    with FrameTap(canopen_bench) as tap:
         node.nmt.send_command(0x81)
         assert wait_until(lambda: any(bytes(m.data) == b"\0" for m in tap.of(0x701)), 2)
     assert node.sdo[0x6065].raw == default
     assert node.sdo[0x6007].raw != option
 
 
-def test_reset_communication_restores_the_communication_parameters(bench):
-    node = pre_operational(bench)
+def test_reset_communication_restores_the_communication_parameters(canopen_bench):
+    node = pre_operational(canopen_bench)
     node.sdo[0x1017].raw = 40
     node.sdo[0x6065].raw = 1234                         # an application parameter
-    with FrameTap(bench) as tap:
+    with FrameTap(canopen_bench) as tap:
         node.nmt.send_command(0x82)                     # reset communication
         assert wait_until(lambda: any(bytes(m.data) == b"\0" for m in tap.of(0x701)), 2)
     assert node.sdo[0x1017].raw == 100                  # the bus config's heartbeat period
@@ -202,8 +202,8 @@ def test_reset_communication_restores_the_communication_parameters(bench):
     ("a homing method it does not run", 0x06090030),
     ("a profile acceleration of zero", 0x06090032),
 ])
-def test_sdo_requests_are_refused_with_the_cia301_abort_code(bench, what, code):
-    node = pre_operational(bench)
+def test_sdo_requests_are_refused_with_the_cia301_abort_code(canopen_bench, what, code):
+    node = pre_operational(canopen_bench)
     actions = {
         "an object the drive does not have": lambda: node.sdo.upload(0x5FFF, 0),
         "a sub-index the object does not have": lambda: node.sdo.upload(0x608F, 9),
@@ -219,40 +219,41 @@ def test_sdo_requests_are_refused_with_the_cia301_abort_code(bench, what, code):
     assert abort_code(actions[what]) == code
 
 
-def test_an_sdo_segment_without_a_transfer_is_aborted(bench):
-    pre_operational(bench)
-    with FrameTap(bench) as tap:
-        raw(bench, 0x601, bytes([0x00]) + bytes(7))          # a download segment, out of the blue
-        raw(bench, 0x601, bytes([0x60]) + bytes(7))          # an upload segment, out of the blue
+def test_an_sdo_segment_without_a_transfer_is_aborted(canopen_bench):
+    pre_operational(canopen_bench)
+    with FrameTap(canopen_bench) as tap:
+        raw(canopen_bench, 0x601, bytes([0x00]) + bytes(7))  # a download segment, out of the blue
+        raw(canopen_bench, 0x601, bytes([0x60]) + bytes(7))  # an upload segment, out of the blue
         assert wait_until(lambda: len(tap.of(0x581)) == 2, 2)
     for answer in tap.of(0x581):
         command, _, _, code = struct.unpack("<BHBL", answer.data)
         assert (command, code) == (0x80, 0x05040001)
 
 
-def test_an_expedited_download_without_size_takes_the_objects_size(bench):
+def test_an_expedited_download_without_size_takes_the_objects_size(canopen_bench):
     """CiA 301 7.2.4.3.3: e=1, s=0 (0x22): the data is the object's; CANopenNode takes it
     (issue 44: hil aborted it)."""
-    node = pre_operational(bench)
-    with FrameTap(bench) as tap:
-        raw(bench, 0x601, bytes([0x22, 0x65, 0x60, 0x00]) + struct.pack("<I", 4321))
+    node = pre_operational(canopen_bench)
+    with FrameTap(canopen_bench) as tap:
+        raw(canopen_bench, 0x601, bytes([0x22, 0x65, 0x60, 0x00]) + struct.pack("<I", 4321))
         assert wait_until(lambda: tap.of(0x581), 2)
     assert tap.of(0x581)[0].data[0] == 0x60                 # download response, no abort
     assert node.sdo[0x6065].raw == 4321                      # following error window, UNSIGNED32
-    with FrameTap(bench) as tap:
-        raw(bench, 0x601, bytes([0x22, 0x60, 0x60, 0x00, 0x01, 0, 0, 0]))   # INTEGER8, mode 1
+    with FrameTap(canopen_bench) as tap:
+        # INTEGER8, mode 1
+        raw(canopen_bench, 0x601, bytes([0x22, 0x60, 0x60, 0x00, 0x01, 0, 0, 0]))
         assert wait_until(lambda: tap.of(0x581), 2)
     assert tap.of(0x581)[0].data[0] == 0x60
     assert node.sdo[0x6060].raw == 1
 
 
 @pytest.mark.wire("a segmented transfer's frames back to back")
-def test_the_device_name_and_versions_come_by_segmented_upload(bench):
+def test_the_device_name_and_versions_come_by_segmented_upload(canopen_bench):
     """CiA 301 0x1008-0x100A (VISIBLE_STRING, const): longer than 4 bytes, so uploaded in
     segments (issue 44: no object was larger than 4 bytes); a write is refused as to any
     constant (0x06010002)."""
-    node = pre_operational(bench)
-    with FrameTap(bench) as tap:
+    node = pre_operational(canopen_bench)
+    with FrameTap(canopen_bench) as tap:
         name = node.sdo[0x1008].raw
     assert name == "hil virtual CiA 402 servo drive"
     assert tap.of(0x581)[0].data[0] & 0xE3 == 0x41          # initiate upload: segmented, sized
@@ -260,21 +261,21 @@ def test_the_device_name_and_versions_come_by_segmented_upload(bench):
     assert abort_code(lambda: node.sdo[0x1008].__setattr__("raw", "x")) == 0x06010002
 
 
-def test_sdo_requests_of_the_wrong_length_are_not_answered(bench):
-    node = pre_operational(bench)
-    with FrameTap(bench) as tap:
-        raw(bench, 0x601, bytes([0x40, 0x00, 0x10, 0x00]))   # an upload request, 4 bytes
-        raw(bench, 0x000, b"\x01")                           # an NMT command, 1 byte
+def test_sdo_requests_of_the_wrong_length_are_not_answered(canopen_bench):
+    node = pre_operational(canopen_bench)
+    with FrameTap(canopen_bench) as tap:
+        raw(canopen_bench, 0x601, bytes([0x40, 0x00, 0x10, 0x00]))  # an upload request, 4 bytes
+        raw(canopen_bench, 0x000, b"\x01")                   # an NMT command, 1 byte
         time.sleep(0.3)
     assert not tap.of(0x581)
     assert node.sdo[0x1000].raw == 0x00020192               # and the node works on
-    assert bench.sim.drive("arm", 1).malformed >= 2
+    assert canopen_bench.sim.drive("arm", 1).malformed >= 2
 
 
 # --- PDO mapping and communication parameters -------------------------------------------
 
-def test_canopen_pdo_save_remaps_a_tpdo_with_three_objects_in_cia301_order(bench):
-    node = pre_operational(bench)
+def test_canopen_pdo_save_remaps_a_tpdo_with_three_objects_in_cia301_order(canopen_bench):
+    node = pre_operational(canopen_bench)
     tpdo = node.tpdo[3]
     tpdo.clear()
     for index in (0x6041, 0x6064, 0x6061):
@@ -283,8 +284,8 @@ def test_canopen_pdo_save_remaps_a_tpdo_with_three_objects_in_cia301_order(bench
     tpdo.save()                 # disable, count 0, entries, count, enable (canopen's order)
     node.sdo[0x6060].raw = 8
     node.nmt.state = "OPERATIONAL"
-    with FrameTap(bench) as tap:
-        syncs(bench, 3)
+    with FrameTap(canopen_bench) as tap:
+        syncs(canopen_bench, 3)
         assert wait_until(lambda: tap.of(0x381), 2), "no TPDO3 after the remap"
     data = bytes(tap.of(0x381)[-1].data)
     statusword, position, mode = struct.unpack("<HiB", data)
@@ -310,8 +311,8 @@ def test_canopen_pdo_save_remaps_a_tpdo_with_three_objects_in_cia301_order(bench
     ("a valid PDO on a heartbeat's CAN-ID", 0x06090030),
     ("a valid PDO on the SYNC's CAN-ID", 0x06090030),
 ])
-def test_invalid_pdo_parameters_are_refused_with_the_cia301_abort_code(bench, what, code):
-    node = pre_operational(bench)
+def test_invalid_pdo_parameters_are_refused_with_the_cia301_abort_code(canopen_bench, what, code):
+    node = pre_operational(canopen_bench)
     sdo = node.sdo
     disabled = 0x80000000 | 0x381
 
@@ -350,10 +351,10 @@ def test_invalid_pdo_parameters_are_refused_with_the_cia301_abort_code(bench, wh
     assert abort_code(actions[what]) == code
     # nothing half-written survives: the node still starts and its default PDOs still work
     node.nmt.state = "OPERATIONAL"
-    with FrameTap(bench) as tap:
-        syncs(bench, 3)
+    with FrameTap(canopen_bench) as tap:
+        syncs(canopen_bench, 3)
         assert wait_until(lambda: tap.of(0x181), 2), "TPDO1 stopped after a refused write"
-    assert bench.sim.drive("arm", 1).node.pdo_valid(0x1800)
+    assert canopen_bench.sim.drive("arm", 1).node.pdo_valid(0x1800)
 
 
 # --- transmission types -------------------------------------------------------------------
@@ -370,28 +371,28 @@ def _retype_tpdo(node, number: int, trans_type: int, entries=None, event_timer: 
 
 
 @pytest.mark.wire("SYNC and TPDOs on a real bus")
-def test_a_tpdo_of_transmission_type_n_goes_out_at_every_nth_sync(bench):
-    node = pre_operational(bench)
+def test_a_tpdo_of_transmission_type_n_goes_out_at_every_nth_sync(canopen_bench):
+    node = pre_operational(canopen_bench)
     _retype_tpdo(node, 2, 3)
     node.nmt.state = "OPERATIONAL"
     time.sleep(0.1)
-    with FrameTap(bench) as tap:
-        syncs(bench, 12, period=0.03)
+    with FrameTap(canopen_bench) as tap:
+        syncs(canopen_bench, 12, period=0.03)
         time.sleep(0.2)
     assert len(tap.of(0x181)) == 12
     assert len(tap.of(0x281)) == 4
 
 
-def test_a_tpdo_of_transmission_type_0_goes_out_at_a_sync_after_a_change(bench):
-    node = pre_operational(bench)
+def test_a_tpdo_of_transmission_type_0_goes_out_at_a_sync_after_a_change(canopen_bench):
+    node = pre_operational(canopen_bench)
     _retype_tpdo(node, 3, 0, entries=(0x6041, 0x6061))
     node.nmt.state = "OPERATIONAL"
-    with FrameTap(bench) as tap:
-        syncs(bench, 6, period=0.03)
+    with FrameTap(canopen_bench) as tap:
+        syncs(canopen_bench, 6, period=0.03)
         time.sleep(0.1)
         first = len(tap.of(0x381))
         node.sdo[0x6060].raw = 9                         # the mode display changes
-        syncs(bench, 6, period=0.03)
+        syncs(canopen_bench, 6, period=0.03)
         time.sleep(0.2)
     assert first == 1                                   # once, then nothing changed
     assert len(tap.of(0x381)) == 2
@@ -399,11 +400,11 @@ def test_a_tpdo_of_transmission_type_0_goes_out_at_a_sync_after_a_change(bench):
 
 
 @pytest.mark.wire("a drive's own timer against the wire")
-def test_an_event_driven_tpdo_goes_out_on_its_event_timer_without_sync(bench):
-    node = pre_operational(bench)
+def test_an_event_driven_tpdo_goes_out_on_its_event_timer_without_sync(canopen_bench):
+    node = pre_operational(canopen_bench)
     _retype_tpdo(node, 3, 254, entries=(0x6041,), event_timer=50)
     node.nmt.state = "OPERATIONAL"
-    with FrameTap(bench) as tap:
+    with FrameTap(canopen_bench) as tap:
         # waited for, not counted in a second: a loaded machine runs the drive's clock less
         # often (fewer frames, never more)
         assert wait_until(lambda: len(tap.of(0x381)) >= 6, 20), "no TPDO3 on its event timer"
@@ -413,22 +414,22 @@ def test_an_event_driven_tpdo_goes_out_on_its_event_timer_without_sync(bench):
     assert statistics.median(_sent_intervals(tap, 0x381)) >= 0.03
 
 
-def test_an_event_driven_rpdo_applies_at_once_without_sync(bench):
-    node = pre_operational(bench)
+def test_an_event_driven_rpdo_applies_at_once_without_sync(canopen_bench):
+    node = pre_operational(canopen_bench)
     node.sdo[0x1400][1].raw = 0x80000201
     node.sdo[0x1400][2].raw = 255
     node.sdo[0x1400][1].raw = 0x201
     node.nmt.state = "OPERATIONAL"
-    raw(bench, 0x201, struct.pack("<Hi", 0x06, 0))      # shutdown, and no SYNC
+    raw(canopen_bench, 0x201, struct.pack("<Hi", 0x06, 0))  # shutdown, and no SYNC
     assert wait_until(lambda: node.sdo[0x6041].raw & 0x6F == 0x21, 2)
 
 
 # --- heartbeat, EMCY, 0x6007, 0x60C2 ------------------------------------------------------
 
-def test_the_heartbeat_producer_follows_0x1017(bench):
-    node = pre_operational(bench)
+def test_the_heartbeat_producer_follows_0x1017(canopen_bench):
+    node = pre_operational(canopen_bench)
     node.sdo[0x1017].raw = 50
-    with FrameTap(bench) as tap:
+    with FrameTap(canopen_bench) as tap:
         assert wait_until(lambda: len(tap.of(0x701)) >= 8, 20), "no heartbeat"
     intervals = _sent_intervals(tap, 0x701)
     # every 50 ms while the machine runs the drive's clock, no burst after a stall (a loaded
@@ -446,10 +447,10 @@ def _sent_intervals(tap: FrameTap, can_id: int) -> list[float]:
 
 
 @pytest.mark.wire("a master's heartbeat lost on the wire stops the axis")
-def test_the_heartbeat_consumer_quick_stops_when_the_masters_heartbeat_stops(bench):
-    node = enable_csp(bench)
+def test_the_heartbeat_consumer_quick_stops_when_the_masters_heartbeat_stops(canopen_bench):
+    node = enable_csp(canopen_bench)
     node.sdo[0x2010].raw = 0                            # the setpoint watchdog off: the
-    heartbeat = bench.network.send_periodic(0x77F, [0x05], 0.05)   # heartbeat alone tells
+    heartbeat = canopen_bench.network.send_periodic(0x77F, [0x05], 0.05)  # heartbeat alone tells
     try:
         node.sdo[0x1016][1].raw = (0x7F << 16) | 300     # master node 0x7F, 300 ms
         time.sleep(0.6)
@@ -464,8 +465,8 @@ def test_the_heartbeat_consumer_quick_stops_when_the_masters_heartbeat_stops(ben
     assert 0x8250 not in [e.code for e in node.emcy.log]
 
 
-def test_one_heartbeat_consumer_entry_per_producer(bench):
-    node = pre_operational(bench)
+def test_one_heartbeat_consumer_entry_per_producer(canopen_bench):
+    node = pre_operational(canopen_bench)
     node.sdo[0x1016][1].raw = (0x7F << 16) | 300
     assert abort_code(lambda: node.sdo.download(
         0x1016, 2, struct.pack("<L", (0x7F << 16) | 500))) == 0x06040043
@@ -474,8 +475,8 @@ def test_one_heartbeat_consumer_entry_per_producer(bench):
 @pytest.mark.parametrize("option, state", [(0, "OPERATION ENABLED"), (1, "FAULT"),
                                            (2, "SWITCH ON DISABLED"),
                                            (3, "QUICK STOP ACTIVE")])
-def test_the_abort_connection_option_0x6007_chooses_the_reaction(bench, option, state):
-    node = enable_csp(bench)
+def test_the_abort_connection_option_0x6007_chooses_the_reaction(canopen_bench, option, state):
+    node = enable_csp(canopen_bench)
     node.sdo[0x6007].raw = option
     node.nmt.state = "PRE-OPERATIONAL"                  # the master leaves the drive
     time.sleep(0.3)
@@ -483,20 +484,20 @@ def test_the_abort_connection_option_0x6007_chooses_the_reaction(bench, option, 
     assert state_of(word) == state, hex(word)
 
 
-def test_an_rpdo_longer_than_its_mapping_gives_emcy_0x8220_and_is_applied(bench):
-    node = enable_csp(bench)
+def test_an_rpdo_longer_than_its_mapping_gives_emcy_0x8220_and_is_applied(canopen_bench):
+    node = enable_csp(canopen_bench)
     node.rpdo[1].stop()
-    bench.stop_sync()
+    canopen_bench.stop_sync()
     here = node.tpdo[1]["Position actual value"].raw
-    raw(bench, 0x201, struct.pack("<Hi", 0x02, here) + b"\xaa")   # quick stop, 7 bytes
-    bench.network.sync.transmit()
+    raw(canopen_bench, 0x201, struct.pack("<Hi", 0x02, here) + b"\xaa")  # quick stop, 7 bytes
+    canopen_bench.network.sync.transmit()
     assert emcy_logged_after(node, 0x8220)
     assert wait_until(lambda: node.sdo[0x6041].raw & 0x6F == 0x07, 2)   # applied
 
 
-def test_the_interpolation_period_0x60c2_is_the_csp_interpolation_period(bench):
-    node = pre_operational(bench)
-    core = bench.sim.drive("arm", 1).core
+def test_the_interpolation_period_0x60c2_is_the_csp_interpolation_period(canopen_bench):
+    node = pre_operational(canopen_bench)
+    core = canopen_bench.sim.drive("arm", 1).core
     assert (node.sdo[0x60C2][1].raw, node.sdo[0x60C2][2].raw) == (10, -3)   # 100 Hz SYNC
     node.sdo[0x60C2][1].raw = 4
     assert core.cycle == pytest.approx(0.004)
@@ -526,8 +527,8 @@ def _enable_in(bench, mode: str) -> canopen.BaseNode402:
 
 
 @pytest.mark.wire("a move commanded over the wire")
-def test_profile_position_moves_to_a_target_with_a_set_point_handshake(bench):
-    node = _enable_in(bench, "PROFILED POSITION")
+def test_profile_position_moves_to_a_target_with_a_set_point_handshake(canopen_bench):
+    node = _enable_in(canopen_bench, "PROFILED POSITION")
     velocity = round(20 / (2 * math.pi) * COUNTS)       # 20 rad/s at the motor
     node.sdo[0x6081].raw = velocity
     node.sdo[0x6083].raw = node.sdo[0x6084].raw = 10 * velocity
@@ -548,11 +549,11 @@ def test_profile_position_moves_to_a_target_with_a_set_point_handshake(bench):
     time.sleep(0.1)
     assert wait_until(lambda: node.tpdo[1]["Statusword"].raw & 0x0400, 5)
     assert node.tpdo[1]["Position actual value"].raw == pytest.approx(target + relative, abs=20)
-    assert bench.sim.plant.joint_positions()[0] == pytest.approx(0.05, abs=2e-3)
+    assert canopen_bench.sim.plant.joint_positions()[0] == pytest.approx(0.05, abs=2e-3)
 
 
-def test_profile_velocity_reaches_the_target_velocity_and_halts(bench):
-    node = _enable_in(bench, "PROFILED VELOCITY")
+def test_profile_velocity_reaches_the_target_velocity_and_halts(canopen_bench):
+    node = _enable_in(canopen_bench, "PROFILED VELOCITY")
     velocity = round(0.2 * JOINT_COUNTS)                 # 0.2 rad/s at the joint
     node.sdo[0x6083].raw = node.sdo[0x6084].raw = 5 * velocity
     node.sdo[0x60FF].raw = velocity
@@ -565,8 +566,8 @@ def test_profile_velocity_reaches_the_target_velocity_and_halts(bench):
     assert node.tpdo[1]["Statusword"].raw & 0x1000           # speed is 0
 
 
-def test_homing_on_the_current_position_sets_the_home_offset(bench):
-    node = _enable_in(bench, "HOMING")
+def test_homing_on_the_current_position_sets_the_home_offset(canopen_bench):
+    node = _enable_in(canopen_bench, "HOMING")
     node.sdo[0x6098].raw = 35
     node.sdo[0x607C].raw = 123456
     # before the start: "interrupted or not started" (target reached, not attained)
@@ -577,7 +578,7 @@ def test_homing_on_the_current_position_sets_the_home_offset(bench):
     # homing attained, and target reached once the axis has settled where it stands
     assert wait_until(lambda: node.tpdo[1]["Statusword"].raw & 0x3400 == 0x1400, 3)
     assert node.tpdo[1]["Position actual value"].raw == pytest.approx(123456, abs=100)
-    assert bench.sim.plant.joint_positions()[0] == pytest.approx(0.0, abs=1e-3)   # no move
+    assert canopen_bench.sim.plant.joint_positions()[0] == pytest.approx(0.0, abs=1e-3)  # no move
 
 
 # --- safety ---------------------------------------------------------------------------------
@@ -593,8 +594,8 @@ def _csp_to(node, joint: float, node_counts_per_joint_rad: float = JOINT_COUNTS)
 
 
 @pytest.mark.parametrize("how", ["controlword", "watchdog"])
-def test_a_quick_stop_at_standstill_holds_where_the_axis_stands(bench, how):
-    node = enable_csp(bench, 3)
+def test_a_quick_stop_at_standstill_holds_where_the_axis_stands(canopen_bench, how):
+    node = enable_csp(canopen_bench, 3)
     goal = _csp_to(node, 0.1)
     time.sleep(0.2)                                          # standing still at +0.1 rad
     if how == "controlword":
@@ -605,16 +606,16 @@ def test_a_quick_stop_at_standstill_holds_where_the_axis_stands(bench, how):
     time.sleep(0.5)
     node.tpdo[1].wait_for_reception(1)
     assert node.tpdo[1]["Position actual value"].raw == pytest.approx(goal, abs=200)
-    assert bench.sim.plant.joint_positions()[2] == pytest.approx(0.1, abs=1e-3)
+    assert canopen_bench.sim.plant.joint_positions()[2] == pytest.approx(0.1, abs=1e-3)
 
 
 @pytest.mark.parametrize("how", ["rpdo", "sdo"])
-def test_repeated_disable_commands_do_not_let_a_braked_axis_creep(bench, how):
-    node = pre_operational(bench, 2)                        # the shoulder: gravity pulls it
+def test_repeated_disable_commands_do_not_let_a_braked_axis_creep(canopen_bench, how):
+    node = pre_operational(canopen_bench, 2)                # the shoulder: gravity pulls it
     node.nmt.state = "OPERATIONAL"
-    bench.start_sync(CYCLE)
+    canopen_bench.start_sync(CYCLE)
     time.sleep(0.5)                                         # the brake has taken the load
-    before = bench.sim.plant.joint_positions()[1]
+    before = canopen_bench.sim.plant.joint_positions()[1]
     if how == "rpdo":
         node.rpdo[1]["Controlword"].raw = 0x06
         node.rpdo[1]["Target position"].raw = 0
@@ -625,15 +626,16 @@ def test_repeated_disable_commands_do_not_let_a_braked_axis_creep(bench, how):
         for _ in range(200):
             node.sdo[0x6040].raw = 0x06
             node.sdo[0x6040].raw = 0x00
-    after = bench.sim.plant.joint_positions()[1]
+    after = canopen_bench.sim.plant.joint_positions()[1]
     assert after == pytest.approx(before, abs=1e-3)
 
 
 @pytest.mark.parametrize("mode", [8, 9, 10], ids=["CSP", "CSV", "CST"])
-def test_statusword_bit_12_says_the_drive_follows_the_target_in_every_cyclic_mode(bench, mode):
+def test_statusword_bit_12_says_the_drive_follows_the_target_in_every_cyclic_mode(
+        canopen_bench, mode):
     """CiA 402 (IEC 61800-7-201) 0x6041 bit 12 in CSP, CSV and CST: 1, the drive follows the
     target value (issue 44: 0 in CST while following)."""
-    node = pre_operational(bench)
+    node = pre_operational(canopen_bench)
     node.sdo[0x6060].raw = mode
     for controlword in (0x06, 0x07, 0x0F):
         node.sdo[0x6040].raw = controlword
@@ -645,11 +647,11 @@ def test_statusword_bit_12_says_the_drive_follows_the_target_in_every_cyclic_mod
 
 # --- EMCY, the error register 0x1001 and the error history 0x1003 ---------------------------
 
-def test_a_silence_emcy_and_0x1001_agree_and_an_error_reset_emcy_follows_re_enabling(bench):
+def test_a_silence_emcy_and_0x1001_agree_and_an_error_reset_emcy_follows_re_enabling(canopen_bench):
     """CiA 301 7.2.7.3.2: an EMCY carries 0x1001 as it is with the error in, and an EMCY
     0x0000 (error reset) follows when the last error goes (issue 44: the watchdog's EMCY
     carried 0x11 while 0x1001 read 0, and no error reset came)."""
-    node = enable_csp(bench)
+    node = enable_csp(canopen_bench)
     node.sdo[0x6007].raw = 3                         # silence: quick stop, not a fault
     node.rpdo[1].stop()                              # the setpoints stop: the watchdog fires
     assert emcy_logged_after(node, 0x8250)
@@ -663,11 +665,11 @@ def test_a_silence_emcy_and_0x1001_agree_and_an_error_reset_emcy_follows_re_enab
     assert node.emcy.log[-1].register == 0 and node.sdo[0x1001].raw == 0
 
 
-def test_the_error_history_0x1003_lists_the_newest_first_and_clears_on_0(bench):
+def test_the_error_history_0x1003_lists_the_newest_first_and_clears_on_0(canopen_bench):
     """CiA 301 7.5.2.3: sub-index 0 counts the errors, sub-index 1 is the newest; writing 0
     to sub-index 0 deletes the history, any other value is refused (0x06090030)."""
-    node = pre_operational(bench)
-    bench.sim.raise_fault("arm", 1)
+    node = pre_operational(canopen_bench)
+    canopen_bench.sim.raise_fault("arm", 1)
     assert emcy_logged_after(node, 0x8611)                   # (it may precede a wait() call)
     assert node.sdo[0x1001].raw & 0x21 == 0x21
     assert (node.sdo[0x1003][0].raw, node.sdo[0x1003][1].raw) == (1, 0x8611)

@@ -10,19 +10,17 @@ CO_LSSslave.c implements it.
 from __future__ import annotations
 
 import time
-import uuid
 from pathlib import Path
 
 import canopen
 import pytest
 
-from conftest import UR3_VIRTUAL, Bench
+from conftest import UR3_VIRTUAL, CanopenBench
 from test_cia402_conformance import FrameTap, wait_until
 from test_cia402_drive import enable_csp
 
 from hil.bus_config import load_bus_config
 from hil.errors import HilError
-from hil.realtime import REAL_TIME
 from hil.testing import DrivesBench
 
 #: judged against the host's stalls (tests/host_stalls.py): the drives run in real time beside
@@ -45,7 +43,7 @@ def _config(tmp_path: Path, first: str = "{node_id: 255, joint: joint1, "
 
 @pytest.fixture
 def unconfigured(tmp_path):
-    bench = Bench("virtual", f"lss-{uuid.uuid4().hex}", REAL_TIME, _config(tmp_path))
+    bench = CanopenBench(_config(tmp_path))
     yield bench
     bench.close()
 
@@ -144,7 +142,7 @@ def test_two_drives_given_one_node_id_both_stay_on_the_bus(tmp_path, caplog, com
     both send on the id's COB-IDs (their frames collide where a master can see it). The
     drive that took the id replaced the other in canopen's node dictionary, which then
     heard no NMT at all. The simulator says so (a warning) where a bus shows collisions."""
-    bench = Bench("virtual", f"lss-{uuid.uuid4().hex}", REAL_TIME, _config(
+    bench = CanopenBench(_config(
         tmp_path, "{node_id: 1, joint: joint1, options: {serial_number: 1}}"))
     try:
         lss = bench.network.lss

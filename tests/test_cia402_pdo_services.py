@@ -35,26 +35,27 @@ def _operational(bench):
 
 
 @pytest.mark.wire("RTR frames exist on a real bus")
-def test_an_rtr_on_a_tpdo_that_allows_it_is_answered_with_the_tpdo(bench):
-    node = _operational(bench)
-    answers = _answers_to_rtr(bench, TPDO2)
+def test_an_rtr_on_a_tpdo_that_allows_it_is_answered_with_the_tpdo(canopen_bench):
+    node = _operational(canopen_bench)
+    answers = _answers_to_rtr(canopen_bench, TPDO2)
     assert len(answers) == 1 and len(answers[0].data) == 6   # velocity, torque actual
     node.sdo[0x1801][1].raw = 0x40000000 | TPDO2   # bit 30: no RTR allowed
     node.nmt.state = "PRE-OPERATIONAL"
     node.nmt.state = "OPERATIONAL"
-    assert _answers_to_rtr(bench, TPDO2) == []
+    assert _answers_to_rtr(canopen_bench, TPDO2) == []
 
 
 @pytest.mark.wire("RTR frames exist on a real bus")
-def test_an_rtr_outside_operational_is_not_answered(bench):
-    node = _operational(bench)
+def test_an_rtr_outside_operational_is_not_answered(canopen_bench):
+    node = _operational(canopen_bench)
     node.nmt.state = "PRE-OPERATIONAL"
-    assert _answers_to_rtr(bench, TPDO2) == []
+    assert _answers_to_rtr(canopen_bench, TPDO2) == []
 
 
 @pytest.mark.wire("a SYNC's counter byte on the wire")
-def test_with_a_sync_counter_a_sync_must_carry_it_and_a_tpdo_starts_at_its_start_value(bench):
-    node = pre_operational(bench)
+def test_with_a_sync_counter_a_sync_must_carry_it_and_a_tpdo_starts_at_its_start_value(
+        canopen_bench):
+    node = pre_operational(canopen_bench)
     assert abort_code(lambda: node.sdo.download(0x1019, 0, b"\x01")) == 0x06090030
     node.sdo[0x1019].raw = 10                    # SYNCs count 1..10
     node.sdo[0x1800][1].raw = 0x80000181         # TPDO1 not valid while its start changes
@@ -62,9 +63,9 @@ def test_with_a_sync_counter_a_sync_must_carry_it_and_a_tpdo_starts_at_its_start
     node.sdo[0x1800][6].raw = 3                  # from the SYNC whose counter is 3
     node.sdo[0x1800][1].raw = 0x181
     node.nmt.state = "OPERATIONAL"
-    with FrameTap(bench) as tap:
+    with FrameTap(canopen_bench) as tap:
         for counter in range(1, 9):
-            bench.network.sync.transmit(counter)
+            canopen_bench.network.sync.transmit(counter)
             time.sleep(0.05)
         assert wait_until(lambda: len(tap.of(0x181)) >= 3)
         time.sleep(0.3)
@@ -72,14 +73,14 @@ def test_with_a_sync_counter_a_sync_must_carry_it_and_a_tpdo_starts_at_its_start
     # start value ignored would have sent it at 2, 4, 6, 8 (four times)
     assert len(tap.of(0x181)) == 3
     node.emcy.reset()
-    bench.network.sync.transmit()                # no counter where one is due
+    canopen_bench.network.sync.transmit()        # no counter where one is due
     assert wait_until(lambda: any(e.code == 0x8240 for e in node.emcy.log))
 
 
-def test_profile_torque_ramps_to_the_target_on_the_torque_slope_and_halts_to_zero(bench):
+def test_profile_torque_ramps_to_the_target_on_the_torque_slope_and_halts_to_zero(canopen_bench):
     """CiA 402 profile torque (mode 4): 0x6071 reached at 0x6087 (per mille of 0x6076 per
     second); statusword bit 10 once there; halt (bit 8) ramps the torque to 0."""
-    node = pre_operational(bench)
+    node = pre_operational(canopen_bench)
     node.sdo[0x6060].raw = 4
     node.sdo[0x6087].raw = 1000                  # the rated torque in one second
     assert abort_code(lambda: node.sdo.download(0x6088, 0, b"\x01\x00")) == 0x06090030
@@ -87,12 +88,12 @@ def test_profile_torque_ramps_to_the_target_on_the_torque_slope_and_halts_to_zer
     for word in (0x06, 0x07, 0x0F):
         node.sdo[0x6040].raw = word
     assert wait_until(lambda: node.sdo[0x6041].raw & 0x6F == 0x27)
-    drive = bench.sim.drive("arm", 1)
+    drive = canopen_bench.sim.drive("arm", 1)
     target, slope = drive.rated_torque * 0.1, drive.rated_torque    # per s
     node.sdo[0x6071].raw = 100                   # 10 % of the rated torque: 0.1 s away
     # the drive's lock held, nothing else steps the ramp: a step of 10 ms on the drive's
     # clock moves the torque by the slope's 10 ms, never further (no host clock judged)
-    with bench.sim.lock:
+    with canopen_bench.sim.lock:
         before = drive.machine.torque_demand
         drive.machine.ramp_torque(0.01)
         stepped = drive.machine.torque_demand - before

@@ -17,20 +17,18 @@ import math
 import struct
 import threading
 import time
-import uuid
 from pathlib import Path
 
 import canopen
 import pytest
 from canopen.objectdictionary import NUMBER_TYPES, ODVariable
 
-from conftest import UR3_VIRTUAL, Bench, judged_in_real_time, patient
+from conftest import UR3_VIRTUAL, CanopenBench, judged_in_real_time, patient
 
 from hil.bus_config import load_bus_config
 from hil.errors import HilError
 from hil.protocols.cia402.node import normalise_access_types
 from hil.protocols.cia402.ranges import RATES
-from hil.realtime import REAL_TIME
 
 EDS_DIR = Path(__file__).parent / "eds"
 #: node id -> the vendor file that drive presents
@@ -62,12 +60,11 @@ buses:
     return path
 
 
-class VendorBench(Bench):
+class VendorBench(CanopenBench):
     """The vendors' bus in a real-time Simulator, python canopen's master beside it."""
 
     def __init__(self, tmp_path: Path):
-        super().__init__("virtual", f"vendors-{uuid.uuid4().hex}", REAL_TIME,
-                         _config(tmp_path))
+        super().__init__(_config(tmp_path))
 
     def master_of(self, node_id: int) -> canopen.RemoteNode:
         """A master's node from the vendor's file, made a DCF: each writable object's
@@ -296,7 +293,7 @@ def test_a_vendors_velocity_unit_0x60a9_gives_0x6080_and_0x607f_their_units(tmp_
                                      ("6080", "Max motor speed", 1000))))
     config = _config(tmp_path)
     config.write_text(config.read_text().replace(str(EDS_DIR / VENDORS[4]), str(rpm_file)))
-    bench = Bench("virtual", f"vendors-{uuid.uuid4().hex}", REAL_TIME, config)
+    bench = CanopenBench(config)
     try:
         node = patient(canopen.RemoteNode(4, str(rpm_file)))
         bench.network.add_node(node)

@@ -142,47 +142,45 @@ def _bench(tmp_path, options: str, node_id: int = 1, vcan: str | None = None,
 
 
 @pytest.fixture
-def bench():
+def master(hil_drives):
     """The AK80-9 of tests/fixtures/cubemars_one_axis.yaml, and a master's bus beside it."""
-    made = RealTimeMaster.of(CONFIG)
-    yield made
-    made.close()
+    return RealTimeMaster(hil_drives(CONFIG))
 
 
-def test_every_frame_is_answered_with_8_bytes_on_the_reply_id(bench):
-    reply = bench.ask(0x001, ENTER_MOTOR_MODE)
+def test_every_frame_is_answered_with_8_bytes_on_the_reply_id(master):
+    reply = master.ask(0x001, ENTER_MOTOR_MODE)
     assert reply.arbitration_id == 0x000 and len(reply.data) == 8
     assert reply.data[0] == 1 and reply.data[6] == 25 and reply.data[7] == 0
-    assert bench.drive.core.power is Power.ENABLED
+    assert master.drive.core.power is Power.ENABLED
 
 
 @pytest.mark.parametrize("special", [SET_ZERO, EXIT_MOTOR_MODE, ENTER_MOTOR_MODE],
                          ids=["set-zero", "exit", "enter"])
-def test_no_special_frame_moves_an_enabled_motor(bench, special):
-    bench.ask(0x001, ENTER_MOTOR_MODE)
-    bench.ask(0x001, pack_command(MitCommand(bench.joint(), 0.0, 20.0, 0.5, 0.0), AK80_9))
+def test_no_special_frame_moves_an_enabled_motor(master, special):
+    master.ask(0x001, ENTER_MOTOR_MODE)
+    master.ask(0x001, pack_command(MitCommand(master.joint(), 0.0, 20.0, 0.5, 0.0), AK80_9))
     time.sleep(0.2)
-    before = bench.joint()
+    before = master.joint()
     for _ in range(10):
-        bench.ask(0x001, special)
+        master.ask(0x001, special)
     time.sleep(0.3)
-    assert bench.joint() == pytest.approx(before, abs=0.01)
+    assert master.joint() == pytest.approx(before, abs=0.01)
 
 
-def test_a_command_outside_motor_mode_moves_nothing_and_is_answered(bench):
-    before = bench.joint()
-    reply = bench.ask(0x001, pack_command(MitCommand(before + 1.0, 0.0, 50.0, 1.0, 0.0),
+def test_a_command_outside_motor_mode_moves_nothing_and_is_answered(master):
+    before = master.joint()
+    reply = master.ask(0x001, pack_command(MitCommand(before + 1.0, 0.0, 50.0, 1.0, 0.0),
                                           AK80_9))
     time.sleep(0.3)
-    assert reply is not None and bench.joint() == pytest.approx(before, abs=1e-3)
+    assert reply is not None and master.joint() == pytest.approx(before, abs=1e-3)
 
 
-def test_set_zero_makes_here_the_answers_zero(bench):
-    bench.ask(0x001, ENTER_MOTOR_MODE)
-    bench.ask(0x001, pack_command(MitCommand(0.5, 0.0, 20.0, 0.5, 0.0), AK80_9))
+def test_set_zero_makes_here_the_answers_zero(master):
+    master.ask(0x001, ENTER_MOTOR_MODE)
+    master.ask(0x001, pack_command(MitCommand(0.5, 0.0, 20.0, 0.5, 0.0), AK80_9))
     time.sleep(0.5)
-    bench.ask(0x001, SET_ZERO)
-    reply = bench.ask(0x001, ENTER_MOTOR_MODE)
+    master.ask(0x001, SET_ZERO)
+    reply = master.ask(0x001, ENTER_MOTOR_MODE)
     assert abs(((reply.data[1] << 8) | reply.data[2]) - 32767) <= 30      # about 0 rad
 
 
@@ -215,79 +213,79 @@ def test_no_watchdog_by_default(tmp_path):
 
 # --- servo mode ------------------------------------------------------------------------
 
-def _send_extended(bench, mode: int, node_id: int, data: bytes) -> None:
-    bench.bus.send(can.Message(arbitration_id=mode << 8 | node_id, data=data,
+def _send_extended(master, mode: int, node_id: int, data: bytes) -> None:
+    master.bus.send(can.Message(arbitration_id=mode << 8 | node_id, data=data,
                                is_extended_id=True))
 
 
-def _statuses(bench, node_id: int, seconds: float) -> list[can.Message]:
+def _statuses(master, node_id: int, seconds: float) -> list[can.Message]:
     found, deadline = [], time.monotonic() + seconds
     while time.monotonic() < deadline:
-        msg = bench.bus.recv(0.05)
+        msg = master.bus.recv(0.05)
         if msg is not None and msg.is_extended_id and msg.arbitration_id == 0x2900 | node_id:
             found.append(msg)
     return found
 
 
 def test_servo_mode_uploads_its_status_at_the_configured_rate(tmp_path):
-    bench = _bench(tmp_path, "{model: AK80-9, control: servo, status_rate: 50}")
+    master = _bench(tmp_path, "{model: AK80-9, control: servo, status_rate: 50}")
     try:
-        frames = _statuses(bench, 1, 1.0)
+        frames = _statuses(master, 1, 1.0)
         assert 35 <= len(frames) <= 65                        # 50 Hz, a loaded host's slack
         assert all(len(f.data) == 8 for f in frames)
     finally:
-        bench.close()
+        master.close()
 
 
 def test_servo_position_speed_moves_at_its_speed_and_reports_in_tenths_of_degrees(tmp_path):
-    bench = _bench(tmp_path, "{model: AK80-9, control: servo}")
+    master = _bench(tmp_path, "{model: AK80-9, control: servo}")
     try:
         ak80_9 = MODELS["AK80-9"]
         # 45 deg at 3000 erpm (300 x 10) and 30000 erpm/s (3000 x 10): §5.1.7
-        _send_extended(bench, 6, 1, struct.pack(">ihh", 45 * 10000, 300, 3000))
+        _send_extended(master, 6, 1, struct.pack(">ihh", 45 * 10000, 300, 3000))
         time.sleep(0.05)
-        assert bench.drive.core.parameters.profile_velocity == pytest.approx(
+        assert master.drive.core.parameters.profile_velocity == pytest.approx(
             ak80_9.output_speed(3000))
         for _ in range(40):
-            _send_extended(bench, 6, 1, struct.pack(">ihh", 45 * 10000, 300, 3000))
+            _send_extended(master, 6, 1, struct.pack(">ihh", 45 * 10000, 300, 3000))
             time.sleep(0.05)
-        assert bench.joint() == pytest.approx(math.radians(45), abs=0.01)
-        status = unpack_status(_statuses(bench, 1, 0.2)[-1].data, ak80_9, 1)
-        assert status.position == pytest.approx(bench.joint(), abs=2 * STATUS_LSB)
+        assert master.joint() == pytest.approx(math.radians(45), abs=0.01)
+        status = unpack_status(_statuses(master, 1, 0.2)[-1].data, ak80_9, 1)
+        assert status.position == pytest.approx(master.joint(), abs=2 * STATUS_LSB)
     finally:
-        bench.close()
+        master.close()
 
 
 def test_a_standard_frame_of_a_servo_commands_number_is_not_that_command(tmp_path):
     """0x401 standard is not position mode's extended 4 << 8 | 1 (SocketCAN tells them by
     CAN_EFF_FLAG; so does hil's dispatch)."""
-    bench = _bench(tmp_path, "{model: AK80-9, control: servo}")
+    master = _bench(tmp_path, "{model: AK80-9, control: servo}")
     try:
-        before = bench.joint()
+        before = master.joint()
         for _ in range(10):
-            bench.bus.send(can.Message(arbitration_id=0x401, is_extended_id=False,
+            master.bus.send(can.Message(arbitration_id=0x401, is_extended_id=False,
                                        data=struct.pack(">i", 90 * 10000)))
             time.sleep(0.03)
-        assert bench.joint() == pytest.approx(before, abs=1e-3)
-        assert bench.drive.core.power is Power.DISABLED
+        assert master.joint() == pytest.approx(before, abs=1e-3)
+        assert master.drive.core.power is Power.DISABLED
     finally:
-        bench.close()
+        master.close()
 
 
 @pytest.mark.parametrize("origin", [0, 1, 2])
 def test_set_origin_moves_nothing(tmp_path, origin):
-    bench = _bench(tmp_path, "{model: AK80-9, control: servo}")
+    master = _bench(tmp_path, "{model: AK80-9, control: servo}")
     try:
-        _send_extended(bench, 4, 1, struct.pack(">i", 20 * 10000))
+        _send_extended(master, 4, 1, struct.pack(">i", 20 * 10000))
         time.sleep(1.0)
-        before = bench.joint()
+        before = master.joint()
         for _ in range(5):
-            _send_extended(bench, 5, 1, bytes([origin]))
+            _send_extended(master, 5, 1, bytes([origin]))
             time.sleep(0.05)
         time.sleep(0.3)
-        assert bench.joint() == pytest.approx(before, abs=0.01)
+        assert master.joint() == pytest.approx(before, abs=0.01)
     finally:
-        bench.close()
+        master.close()
 
 
 # --- servo commands while a move is in progress, lock-step on the plant ------------------
@@ -388,13 +386,13 @@ def test_tmotorcancontrol_drives_the_motor_through_its_readme_sequence(can0, tmp
     a module its own 1.2.6 wheel names ``mit_can``)."""
     from TMotorCANControl.mit_can import TMotorManager_mit_can
 
-    bench = _bench(tmp_path, "{model: AK80-9}", vcan="hil-can0",
-                   watchdog=0)           # UML's stalls are not the client's silence
+    master = _bench(tmp_path, "{model: AK80-9}", vcan="hil-can0",
+                    watchdog=0)           # UML's stalls are not the client's silence
     try:
         with TMotorManager_mit_can(motor_type="AK80-9", motor_ID=1) as dev:
             dev.set_impedance_gains_real_unit(K=20, B=0.5)
             deadline = time.monotonic() + 20.0
-            while time.monotonic() < deadline and abs(bench.joint() - 1.0) > 0.005:
+            while time.monotonic() < deadline and abs(master.joint() - 1.0) > 0.005:
                 dev.position = 1.0
                 dev.update()
                 time.sleep(0.01)
@@ -402,14 +400,14 @@ def test_tmotorcancontrol_drives_the_motor_through_its_readme_sequence(can0, tmp
                 dev.position = 1.0
                 dev.update()
                 time.sleep(0.01)
-            assert bench.drive.core.power is Power.ENABLED
+            assert master.drive.core.power is Power.ENABLED
             assert dev.position == pytest.approx(1.0, abs=0.02)
-            assert dev.position == pytest.approx(bench.joint(), abs=0.01)
+            assert dev.position == pytest.approx(master.joint(), abs=0.01)
             assert dev.error == 0 and dev.temperature == 25
         time.sleep(0.1)
-        assert bench.drive.core.power is Power.DISABLED
+        assert master.drive.core.power is Power.DISABLED
     finally:
-        bench.close()
+        master.close()
 
 
 @pytest.mark.socketcan
@@ -419,18 +417,18 @@ def test_motor_python_drives_an_ak60_6_v3_through_its_readme_sequence(can0, tmp_
     set_position(90.0), stop; held a while after each as a bench script does."""
     from motor_python import Motor
 
-    bench = _bench(tmp_path, "{model: AK60-6 V3, firmware: v3}", node_id=3,
-                   vcan="hil-can0", watchdog=0)
+    master = _bench(tmp_path, "{model: AK60-6 V3, firmware: v3}", node_id=3,
+                    vcan="hil-can0", watchdog=0)
     try:
         with Motor(motor_can_id=0x03) as motor:
             motor.enable_mit_mode()
-            assert bench.drive.core.power is Power.ENABLED
+            assert master.drive.core.power is Power.ENABLED
             motor.set_velocity(3000)
             time.sleep(0.5)
-            assert bench.drive.core.status().velocity > 0.5
+            assert master.drive.core.status().velocity > 0.5
             motor.set_position(90.0)
             deadline = time.monotonic() + 20.0          # its refresh thread holds the command
-            while time.monotonic() < deadline and abs(bench.joint() - math.pi / 2) > 0.01:
+            while time.monotonic() < deadline and abs(master.joint() - math.pi / 2) > 0.01:
                 time.sleep(0.1)
             time.sleep(0.5)
             # motor-python 0.0.11's get_status returns the last reply it holds, however old,
@@ -446,12 +444,12 @@ def test_motor_python_drives_an_ak60_6_v3_through_its_readme_sequence(can0, tmp_
             assert status is not None and status.error_code == 0
             assert status.position_degrees == pytest.approx(90.0, abs=1.5)
             assert math.radians(status.position_degrees) == pytest.approx(
-                bench.joint(), abs=2 * STATUS_LSB)
+                master.joint(), abs=2 * STATUS_LSB)
             motor.stop()
             time.sleep(0.1)
-            assert bench.drive.core.power is Power.DISABLED
+            assert master.drive.core.power is Power.DISABLED
     finally:
-        bench.close()
+        master.close()
 
 
 # --- hil's own side: hil init with a model, hil's master -----------------------------------

@@ -82,15 +82,13 @@ def test_options_name_the_model_and_refuse_an_unknown_one():
 # --- a simulated motor on a bus -------------------------------------------------------
 
 @pytest.fixture
-def bench():
+def master(hil_drives):
     """The DM4310 of tests/fixtures/damiao_one_axis.yaml, and a master's bus beside it."""
-    made = RealTimeMaster.of(CONFIG)
-    yield made
-    made.close()
+    return RealTimeMaster(hil_drives(CONFIG))
 
 
-def test_every_frame_is_answered_with_8_bytes_of_feedback_on_the_master_id(bench):
-    reply = bench.ask(0x001, ENABLE)
+def test_every_frame_is_answered_with_8_bytes_of_feedback_on_the_master_id(master):
+    reply = master.ask(0x001, ENABLE)
     assert reply.arbitration_id == 0x11 and len(reply.data) == 8
     assert reply.data[0] == (State.ENABLED << 4) | 1
     assert reply.data[6] == reply.data[7] == 25                     # °C: no heating modelled
@@ -98,62 +96,62 @@ def test_every_frame_is_answered_with_8_bytes_of_feedback_on_the_master_id(bench
 
 @pytest.mark.parametrize("special", [CLEAR_ERROR, SAVE_ZERO, DISABLE, ENABLE],
                          ids=["clear-error", "save-zero", "disable", "enable"])
-def test_no_special_frame_moves_an_enabled_motor(bench, special):
+def test_no_special_frame_moves_an_enabled_motor(master, special):
     """Issue 42: hil took FF x 7 FB for an MIT command at full scale (1.0 -> 4.6 rad in
     20 ms). The maker: FB clears an error, FE saves the zero, FD disables, FC enables; none
     is a setpoint."""
-    bench.ask(0x001, ENABLE)
-    hold = pack_command(MitCommand(bench.joint(), 0.0, 20.0, 0.5, 0.0), DM4310)
-    bench.ask(0x001, hold)
+    master.ask(0x001, ENABLE)
+    hold = pack_command(MitCommand(master.joint(), 0.0, 20.0, 0.5, 0.0), DM4310)
+    master.ask(0x001, hold)
     time.sleep(0.2)
-    before = bench.joint()
+    before = master.joint()
     for _ in range(10):
-        bench.ask(0x001, special)
+        master.ask(0x001, special)
     time.sleep(0.3)
-    assert bench.joint() == pytest.approx(before, abs=0.01)
+    assert master.joint() == pytest.approx(before, abs=0.01)
 
 
-def test_a_command_of_another_mode_moves_nothing(bench):
-    bench.ask(0x001, ENABLE)
-    before = bench.joint()
-    reply = bench.ask(0x201, struct.pack("<f", 5.0) + bytes(4))      # VEL, CTRL_MODE is MIT
+def test_a_command_of_another_mode_moves_nothing(master):
+    master.ask(0x001, ENABLE)
+    before = master.joint()
+    reply = master.ask(0x201, struct.pack("<f", 5.0) + bytes(4))      # VEL, CTRL_MODE is MIT
     time.sleep(0.3)
-    assert reply is not None and bench.joint() == pytest.approx(before, abs=0.01)
+    assert reply is not None and master.joint() == pytest.approx(before, abs=0.01)
 
 
-def test_registers_read_write_and_the_control_mode_takes_effect(bench):
-    read = bench.ask(0x7FF, bytes([1, 0, 0x33, 10, 0, 0, 0, 0]))
+def test_registers_read_write_and_the_control_mode_takes_effect(master):
+    read = master.ask(0x7FF, bytes([1, 0, 0x33, 10, 0, 0, 0, 0]))
     assert bytes(read.data) == bytes([1, 0, 0x33, 10]) + struct.pack("<I", 1)   # MIT
     assert read.arbitration_id == 0x11
-    pmax = bench.ask(0x7FF, bytes([1, 0, 0x33, 21, 0, 0, 0, 0]))
+    pmax = master.ask(0x7FF, bytes([1, 0, 0x33, 21, 0, 0, 0, 0]))
     assert struct.unpack("<f", bytes(pmax.data[4:]))[0] == pytest.approx(12.5)
-    wrote = bench.ask(0x7FF, bytes([1, 0, 0x55, 10]) + struct.pack("<I", 3))   # VEL
+    wrote = master.ask(0x7FF, bytes([1, 0, 0x55, 10]) + struct.pack("<I", 3))   # VEL
     assert bytes(wrote.data) == bytes([1, 0, 0x55, 10]) + struct.pack("<I", 3)
-    bench.ask(0x001, ENABLE)
-    bench.ask(0x201, struct.pack("<f", 2.0) + bytes(4))
+    master.ask(0x001, ENABLE)
+    master.ask(0x201, struct.pack("<f", 2.0) + bytes(4))
     time.sleep(0.4)
-    assert bench.drive.core.status().velocity == pytest.approx(2.0, abs=0.2)
-    bench.ask(0x201, struct.pack("<f", 0.0) + bytes(4))
+    assert master.drive.core.status().velocity == pytest.approx(2.0, abs=0.2)
+    master.ask(0x201, struct.pack("<f", 0.0) + bytes(4))
 
 
-def test_a_register_write_it_cannot_take_leaves_it_and_answers_what_it_kept(bench):
-    wrote = bench.ask(0x7FF, bytes([1, 0, 0x55, 10]) + struct.pack("<I", 9))
+def test_a_register_write_it_cannot_take_leaves_it_and_answers_what_it_kept(master):
+    wrote = master.ask(0x7FF, bytes([1, 0, 0x55, 10]) + struct.pack("<I", 9))
     assert struct.unpack("<I", bytes(wrote.data[4:]))[0] == 1
-    other = bench.ask(0x7FF, bytes([2, 0, 0x33, 10, 0, 0, 0, 0]), timeout=0.3)
+    other = master.ask(0x7FF, bytes([2, 0, 0x33, 10, 0, 0, 0, 0]), timeout=0.3)
     assert other is None                                      # motor 2 is not on this bus
 
 
-def test_silence_past_the_timeout_is_lost_communication_until_cleared(bench):
-    bench.ask(0x7FF, bytes([1, 0, 0x55, 9]) + struct.pack("<I", 2000))     # 2000 x 50 us
-    bench.ask(0x001, ENABLE)
-    bench.ask(0x001, pack_command(MitCommand(bench.joint(), 0, 10.0, 0.3, 0), DM4310))
+def test_silence_past_the_timeout_is_lost_communication_until_cleared(master):
+    master.ask(0x7FF, bytes([1, 0, 0x55, 9]) + struct.pack("<I", 2000))     # 2000 x 50 us
+    master.ask(0x001, ENABLE)
+    master.ask(0x001, pack_command(MitCommand(master.joint(), 0, 10.0, 0.3, 0), DM4310))
     time.sleep(0.4)                                            # the watchdog: 0.1 s
-    reply = bench.ask(0x7FF, bytes([1, 0, 0xCC, 0, 0, 0, 0, 0]))           # refresh
+    reply = master.ask(0x7FF, bytes([1, 0, 0xCC, 0, 0, 0, 0, 0]))           # refresh
     assert reply.data[0] >> 4 == State.LOST_COMMUNICATION
-    assert bench.drive.core.power is not Power.ENABLED
-    assert bench.ask(0x001, ENABLE).data[0] >> 4 == State.LOST_COMMUNICATION   # not cleared
-    assert bench.ask(0x001, CLEAR_ERROR).data[0] >> 4 == State.DISABLED
-    assert bench.ask(0x001, ENABLE).data[0] >> 4 == State.ENABLED
+    assert master.drive.core.power is not Power.ENABLED
+    assert master.ask(0x001, ENABLE).data[0] >> 4 == State.LOST_COMMUNICATION   # not cleared
+    assert master.ask(0x001, CLEAR_ERROR).data[0] >> 4 == State.DISABLED
+    assert master.ask(0x001, ENABLE).data[0] >> 4 == State.ENABLED
 
 
 # --- what a master writes never moves the motor where the firmware would not, lock-step ----
@@ -336,13 +334,13 @@ def test_timeout_is_off_by_default(tmp_path):
 
 # --- published client libraries ---------------------------------------------------------
 
-def test_damiao_motor_drives_the_motor_through_its_readme_sequence(bench):
+def test_damiao_motor_drives_the_motor_through_its_readme_sequence(master):
     """python ``damiao-motor`` 1.0.6's README: a controller on the bus, add_motor, enable_all,
     ensure_control_mode("MIT"), send_cmd_mit, get_states, shutdown (its controller reads
-    the bus itself, here the ``zenoh`` interface)."""
+    the bus itself, here python-can's ``virtual``)."""
     from damiao_motor import DaMiaoController
 
-    controller = DaMiaoController(channel=bench.channel, bustype=bench.interface)
+    controller = DaMiaoController(channel=master.channel, bustype=master.interface)
     try:
         motor = controller.add_motor(motor_id=0x01, feedback_id=0x11, motor_type="4310")
         controller.enable_all()
@@ -355,10 +353,10 @@ def test_damiao_motor_drives_the_motor_through_its_readme_sequence(bench):
         state = motor.get_states()
         assert state["status"] == "ENABLED"
         assert state["pos"] == pytest.approx(1.0, abs=0.02)
-        assert state["pos"] == pytest.approx(bench.joint(), abs=2 * POSITION_LSB)
+        assert state["pos"] == pytest.approx(master.joint(), abs=2 * POSITION_LSB)
         controller.disable_all()
         time.sleep(0.1)
-        assert bench.drive.core.power is Power.DISABLED
+        assert master.drive.core.power is Power.DISABLED
     finally:
         controller.shutdown()
 
@@ -373,7 +371,7 @@ def test_motorbridge_drives_the_motor_through_its_readme_sequence_over_socketcan
         pytest.skip(missing)
     from motorbridge import Controller, Mode
 
-    bench = RealTimeMaster.of(CONFIG, vcan="vcan0")
+    master = RealTimeMaster.of(CONFIG, vcan="vcan0")
     try:
         with Controller("vcan0") as controller:
             motor = controller.add_damiao_motor(0x01, 0x11, "4310")
@@ -387,12 +385,12 @@ def test_motorbridge_drives_the_motor_through_its_readme_sequence_over_socketcan
             state = motor.get_state()
             assert state is not None and state.status_code == State.ENABLED
             assert state.pos == pytest.approx(-0.8, abs=0.02)
-            assert state.pos == pytest.approx(bench.joint(), abs=2 * POSITION_LSB)
+            assert state.pos == pytest.approx(master.joint(), abs=2 * POSITION_LSB)
             controller.disable_all()
             time.sleep(0.1)
-            assert bench.drive.core.power is Power.DISABLED
+            assert master.drive.core.power is Power.DISABLED
     finally:
-        bench.close()
+        master.close()
 
 
 # --- hil's own side: hil init with a model, hil's master ----------------------------------

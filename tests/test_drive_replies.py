@@ -3,17 +3,15 @@ sent with the other replies of its bus in one go, or sent by the profile itself.
 
 from __future__ import annotations
 
-import uuid
 
 import can
 import pytest
 
-from conftest import Bench
+from conftest import CanopenBench
 
 from hil.can.frame import Frame
 from hil.drives.profile import DriveProfile
 from hil.protocols.cia402 import Cia402
-from hil.realtime import LOCK_STEP
 
 
 class Silent(DriveProfile):
@@ -30,7 +28,7 @@ def test_a_profile_that_defines_neither_way_of_replying_is_refused_when_made():
 
 @pytest.fixture
 def lock_step_bench():
-    bench = Bench("hil-virtual", f"replies-{uuid.uuid4().hex[:8]}", LOCK_STEP)
+    bench = CanopenBench(lock_step=True)
     yield bench
     bench.close()
 

@@ -139,3 +139,14 @@ def test_a_master_on_socketcan_reaches_the_drives_of_a_vcan_bench():
             assert node.sdo[0x1000].raw == 0x00020192           # CiA 402 servo drive
         finally:
             network.disconnect()
+
+
+def test_a_frozen_bench_stands_still_and_its_drives_answer_from_there(ur3_bench):
+    ur3_bench.freeze()
+    frozen = ur3_bench.sim.now()
+    bus = ur3_bench.bus("arm")
+    bus.send(can.Message(arbitration_id=0x000, data=[0x01, 0x00], is_extended_id=False))
+    bus.send(can.Message(arbitration_id=0x080, is_extended_id=False))     # SYNC: the TPDOs
+    answers = iter(lambda: bus.recv(5), None)
+    assert any(msg.arbitration_id == 0x181 for msg in answers)
+    assert ur3_bench.sim.now() == frozen

@@ -16,9 +16,10 @@ import time
 import can
 import pytest
 
-from conftest import TESTS, ClientBench
+from conftest import TESTS, RealTimeMaster
 from hil.bus_config import load_bus_config
-from hil.can.network import start_network
+from hil.can.frame import Frame
+from hil.can.router import start_router
 from hil.drives import Power
 from hil.protocols.odrive import TURN, AxisState, Cmd, InputMode, ODriveError, can_id
 from hil.realtime import LOCK_STEP
@@ -32,36 +33,34 @@ CONFIG = TESTS / "fixtures" / "odrive_one_axis.yaml"
 
 
 @pytest.fixture
-def bench():
-    made = ClientBench(CONFIG)
-    yield made
-    made.close()
+def master(hil_drives):
+    return RealTimeMaster(hil_drives(CONFIG))
 
 
-def _heartbeat(bench) -> tuple[int, int, int, int]:
-    reply = bench.ask(can_id(0, Cmd.HEARTBEAT), remote=True, answer_id=can_id(0, Cmd.HEARTBEAT))
+def _heartbeat(master) -> tuple[int, int, int, int]:
+    reply = master.ask(can_id(0, Cmd.HEARTBEAT), remote=True, answer_id=can_id(0, Cmd.HEARTBEAT))
     return struct.unpack("<IBBB", bytes(reply.data[:7]))
 
 
-def test_the_makers_can_guide_example_drives_the_axis(bench):
+def test_the_makers_can_guide_example_drives_the_axis(master):
     """ODrive's CAN guide (Python): closed loop with ``struct.pack('<I', 8)`` (4 bytes), wait
     for the heartbeat to say so, a position, the cyclic encoder estimates, then IDLE."""
     node_id = 0
-    master = bench.master
-    while master.recv(timeout=0) is not None:
+    bus = master.bus
+    while bus.recv(timeout=0) is not None:
         pass
-    master.send(can.Message(arbitration_id=node_id << 5 | 0x07, data=struct.pack("<I", 8),
+    bus.send(can.Message(arbitration_id=node_id << 5 | 0x07, data=struct.pack("<I", 8),
                             is_extended_id=False))
-    for msg in master:
+    for msg in bus:
         if msg.arbitration_id == node_id << 5 | 0x01:
             error, state, result, traj_done = struct.unpack("<IBBB", bytes(msg.data[:7]))
             if state == 8:
                 break
-    master.send(can.Message(arbitration_id=node_id << 5 | 0x0C,
+    bus.send(can.Message(arbitration_id=node_id << 5 | 0x0C,
                             data=struct.pack("<fhh", 0.5, 0, 0), is_extended_id=False))
     time.sleep(1.0)
     estimates = []
-    for msg in master:                 # the estimates come every 10 ms without a request
+    for msg in bus:                    # the estimates come every 10 ms without a request
         if msg.arbitration_id == node_id << 5 | 0x09:
             estimates.append(struct.unpack("<ff", bytes(msg.data)))
             if len(estimates) == 20:
@@ -69,21 +68,21 @@ def test_the_makers_can_guide_example_drives_the_axis(bench):
     position = estimates[-1][0]
     assert position == pytest.approx(0.5, abs=0.01)
     # the motor side in turns is the joint's through the 10:1 gear
-    assert position * TURN / 10 == pytest.approx(bench.joint(), abs=2e-3)
-    master.send(can.Message(arbitration_id=node_id << 5 | 0x07, data=struct.pack("<I", 1),
+    assert position * TURN / 10 == pytest.approx(master.joint(), abs=2e-3)
+    bus.send(can.Message(arbitration_id=node_id << 5 | 0x07, data=struct.pack("<I", 1),
                             is_extended_id=False))
     time.sleep(0.1)
-    assert bench.drive.core.power is not Power.ENABLED
+    assert master.drive.core.power is not Power.ENABLED
 
 
-def test_odrive_can_drives_the_axis_through_its_readme_sequence(bench):
+def test_odrive_can_drives_the_axis_through_its_readme_sequence(master):
     """``odrive-can`` 2.1 (ROX Automation): ODriveCAN on the bus, start (waits for a
     heartbeat), clear_errors, set_controller_mode, set_axis_state CLOSED_LOOP_CONTROL,
     set_input_pos, get_encoder_estimates (an RTR), stop (IDLE)."""
     from odrive_can.odrive import ODriveCAN
 
     async def sequence() -> dict:
-        drive = ODriveCAN(axis_id=0, can_bus=can.Bus(interface="zenoh", channel=bench.channel))
+        drive = ODriveCAN(axis_id=0, can_bus=master.bench.bus())
         await drive.start()
         drive.clear_errors()
         drive.set_controller_mode("POSITION_CONTROL", "PASSTHROUGH")
@@ -97,28 +96,28 @@ def test_odrive_can_drives_the_axis_through_its_readme_sequence(bench):
 
     estimates = asyncio.run(sequence())
     assert estimates["Pos_Estimate"] == pytest.approx(-0.75, abs=0.01)
-    assert estimates["Pos_Estimate"] * TURN / 10 == pytest.approx(bench.joint(), abs=2e-3)
-    assert bench.drive.axis_state is AxisState.IDLE
+    assert estimates["Pos_Estimate"] * TURN / 10 == pytest.approx(master.joint(), abs=2e-3)
+    assert master.drive.axis_state is AxisState.IDLE
 
 
-def test_short_frames_are_decoded_from_the_8_byte_buffer_as_the_firmware_does(bench):
-    bench.ask(can_id(0, Cmd.SET_AXIS_STATE), bytes([8]), timeout=0.2)          # one byte
-    assert _heartbeat(bench)[1] == AxisState.CLOSED_LOOP_CONTROL
-    bench.ask(can_id(0, Cmd.SET_AXIS_STATE), bytes([1]), timeout=0.2)
-    assert _heartbeat(bench)[1] == AxisState.IDLE
+def test_short_frames_are_decoded_from_the_8_byte_buffer_as_the_firmware_does(master):
+    master.ask(can_id(0, Cmd.SET_AXIS_STATE), bytes([8]), timeout=0.2)          # one byte
+    assert _heartbeat(master)[1] == AxisState.CLOSED_LOOP_CONTROL
+    master.ask(can_id(0, Cmd.SET_AXIS_STATE), bytes([1]), timeout=0.2)
+    assert _heartbeat(master)[1] == AxisState.IDLE
 
 
-def test_a_data_frame_of_length_zero_requests_like_an_rtr(bench):
-    reply = bench.ask(can_id(0, Cmd.GET_VERSION), b"", answer_id=can_id(0, Cmd.GET_VERSION))
+def test_a_data_frame_of_length_zero_requests_like_an_rtr(master):
+    reply = master.ask(can_id(0, Cmd.GET_VERSION), b"", answer_id=can_id(0, Cmd.GET_VERSION))
     assert reply is not None and len(reply.data) == 8 and reply.data[5] == 6    # fw 0.6
 
 
-def test_the_watchdog_is_off_as_the_firmware_ships_it(bench):
-    assert bench.drive.core.parameters.watchdog_timeout == 0
-    bench.ask(can_id(0, Cmd.SET_AXIS_STATE), struct.pack("<I", 8), timeout=0.2)
-    bench.ask(can_id(0, Cmd.SET_INPUT_POS), struct.pack("<fhh", 0.0, 0, 0), timeout=0.2)
+def test_the_watchdog_is_off_as_the_firmware_ships_it(master):
+    assert master.drive.core.parameters.watchdog_timeout == 0
+    master.ask(can_id(0, Cmd.SET_AXIS_STATE), struct.pack("<I", 8), timeout=0.2)
+    master.ask(can_id(0, Cmd.SET_INPUT_POS), struct.pack("<fhh", 0.0, 0, 0), timeout=0.2)
     time.sleep(0.5)                       # silence: no watchdog disarms the axis
-    error, state, _, _ = _heartbeat(bench)
+    error, state, _, _ = _heartbeat(master)
     assert (error, state) == (ODriveError.NONE, AxisState.CLOSED_LOOP_CONTROL)
 
 
@@ -128,14 +127,14 @@ def test_a_configured_watchdog_disarms_a_silent_axis(tmp_path):
                                                  f"robot: {TESTS / 'fixtures' / 'one_axis.urdf'}")
                       .replace("holding_brake: false}", "holding_brake: false, "
                                "watchdog_timeout: 0.1}"))
-    bench = ClientBench(config)
+    master = RealTimeMaster.of(config)
     try:
-        bench.ask(can_id(0, Cmd.SET_AXIS_STATE), struct.pack("<I", 8), timeout=0.2)
+        master.ask(can_id(0, Cmd.SET_AXIS_STATE), struct.pack("<I", 8), timeout=0.2)
         time.sleep(0.4)
-        error, state, _, _ = _heartbeat(bench)
+        error, state, _, _ = _heartbeat(master)
         assert error & ODriveError.WATCHDOG_TIMER_EXPIRED and state == AxisState.IDLE
     finally:
-        bench.close()
+        master.close()
 
 
 def test_a_trap_traj_move_takes_the_time_its_limits_imply():
@@ -148,11 +147,11 @@ def test_a_trap_traj_move_takes_the_time_its_limits_imply():
     sim = Simulator(config, {"axis": bus}, LOCK_STEP)
     sim.start()
     answers = []
-    network = start_network(master)
-    network.subscribe(can_id(0, Cmd.HEARTBEAT), lambda i, d, t: answers.append(bytes(d)))
+    router = start_router(master)
+    router.subscribe(can_id(0, Cmd.HEARTBEAT), lambda frame: answers.append(frame.data))
     try:
         def send(cmd, data=b"", remote=False):
-            network.send_message(can_id(0, cmd), data, remote)
+            router.send(Frame(can_id(0, cmd), data, remote=remote))
 
         send(Cmd.SET_CONTROLLER_MODE, struct.pack("<II", 3, InputMode.TRAP_TRAJ))
         send(Cmd.SET_TRAJ_VEL_LIMIT, struct.pack("<f4x", 1.0))
@@ -173,7 +172,7 @@ def test_a_trap_traj_move_takes_the_time_its_limits_imply():
         period = 1 / config.cycle_hz
         assert abs(cycles * period - (2.0 / 1.0 + 1.0 / 2.0)) <= period + 1e-9, cycles
     finally:
-        network.notifier.stop(1)
+        router.stop(1)
         sim.close()
         bus.shutdown()
         master.shutdown()
@@ -184,14 +183,14 @@ def test_a_trap_traj_move_takes_the_time_its_limits_imply():
     (Cmd.SET_ABSOLUTE_POSITION, struct.pack("<f4x", 5.0)),
     (Cmd.SET_TRAJ_VEL_LIMIT, struct.pack("<f4x", 9.0)),
     (Cmd.SET_POS_GAIN, struct.pack("<f4x", 80.0))], ids=lambda v: getattr(v, "name", ""))
-def test_no_frame_but_a_setpoint_moves_an_enabled_axis(bench, command, data):
+def test_no_frame_but_a_setpoint_moves_an_enabled_axis(master, command, data):
     """Issue 42: a frame moves a motor only where the product moves on it. Estop disarms
     (the axis coasts, here at rest); Set_Absolute_Position moves the position scale, not the
     axis (the setpoint moves with it)."""
-    bench.ask(can_id(0, Cmd.SET_AXIS_STATE), struct.pack("<I", 8), timeout=0.2)
-    bench.ask(can_id(0, Cmd.SET_INPUT_POS), struct.pack("<fhh", 0.2, 0, 0), timeout=0.2)
+    master.ask(can_id(0, Cmd.SET_AXIS_STATE), struct.pack("<I", 8), timeout=0.2)
+    master.ask(can_id(0, Cmd.SET_INPUT_POS), struct.pack("<fhh", 0.2, 0, 0), timeout=0.2)
     time.sleep(0.6)
-    before = bench.joint()
-    bench.ask(can_id(0, command), data, timeout=0.2)
+    before = master.joint()
+    master.ask(can_id(0, command), data, timeout=0.2)
     time.sleep(0.5)
-    assert bench.joint() == pytest.approx(before, abs=2e-3)
+    assert master.joint() == pytest.approx(before, abs=2e-3)

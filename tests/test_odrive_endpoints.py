@@ -20,7 +20,7 @@ import time
 
 import pytest
 
-from conftest import TESTS, ClientBench, socketcan_missing
+from conftest import TESTS, RealTimeMaster, socketcan_missing
 from hil.bus_config import load_bus_config
 from hil.errors import HilError
 from hil.drives import Power
@@ -62,7 +62,7 @@ ENDPOINTS = {
 UNBACKED = 32            # vel_integrator_limit: in the file, not simulated
 
 
-def _config(tmp_path, endpoints=ENDPOINTS, interface="zenoh", channel="odrive/axis"):
+def _config(tmp_path, endpoints=ENDPOINTS):
     """The one-axis ODrive config with ``endpoints`` as its flat_endpoints.json."""
     (tmp_path / "flat_endpoints.json").write_text(
         endpoints if isinstance(endpoints, str) else json.dumps(endpoints))
@@ -70,8 +70,6 @@ def _config(tmp_path, endpoints=ENDPOINTS, interface="zenoh", channel="odrive/ax
     robot = TESTS / "fixtures" / "one_axis.urdf"
     config.write_text(CONFIG.read_text()
                       .replace("robot: one_axis.urdf", f"robot: {robot}")
-                      .replace("interface: zenoh", f"interface: {interface}")
-                      .replace("channel: odrive/axis", f"channel: {channel}")
                       .replace("{node_id: 0, joint: yaw}",
                                "{node_id: 0, joint: yaw, options: "
                                "{endpoints: flat_endpoints.json, encoder_msg_rate_ms: 0}}"))
@@ -79,33 +77,31 @@ def _config(tmp_path, endpoints=ENDPOINTS, interface="zenoh", channel="odrive/ax
 
 
 @pytest.fixture
-def bench(tmp_path):
-    made = ClientBench(_config(tmp_path))
-    yield made
-    made.close()
+def master(tmp_path, hil_drives):
+    return RealTimeMaster(hil_drives(_config(tmp_path)))
 
 
-def _sdo(bench, opcode: int, endpoint: int, value: bytes = b"", sequence: int = 0x10,
+def _sdo(master, opcode: int, endpoint: int, value: bytes = b"", sequence: int = 0x10,
          connection: int = 0):
     """An RxSdo and the TxSdo answer (None: none within 0.5 s)."""
     header = bytes([connection | opcode]) + endpoint.to_bytes(2, "little") + bytes([sequence])
-    reply = bench.ask(can_id(0, Cmd.RX_SDO), header + value, timeout=0.5,
+    reply = master.ask(can_id(0, Cmd.RX_SDO), header + value, timeout=0.5,
                       answer_id=can_id(0, Cmd.TX_SDO))
     return None if reply is None else bytes(reply.data)
 
 
-def test_the_broadcast_address_rtr_is_answered_with_node_serial_and_connection(bench):
+def test_the_broadcast_address_rtr_is_answered_with_node_serial_and_connection(master):
     """can_enumerate.py's discovery: an RTR on node 63's Address id; the answer carries the
     node id, the serial number (6 bytes, LE) and, from 0.6.11, a non-zero Connection_ID
     (libodrive finds one with 0 not connectable and ignores a 7-byte one)."""
-    reply = bench.ask(ADDRESS_BROADCAST, remote=True, answer_id=can_id(0, Cmd.ADDRESS))
+    reply = master.ask(ADDRESS_BROADCAST, remote=True, answer_id=can_id(0, Cmd.ADDRESS))
     assert reply is not None and len(reply.data) == 8
     assert reply.data[0] == 0
     assert int.from_bytes(reply.data[1:7], "little") == SERIAL_NUMBER_BASE
     assert reply.data[7] != 0
 
 
-def test_the_address_answer_and_the_txsdo_decode_with_odrives_dbc(bench):
+def test_the_address_answer_and_the_txsdo_decode_with_odrives_dbc(master):
     """The DBC (0.6.10) spells Address as Node_ID (byte 0) and Serial_Number (bytes 1-6),
     TxSdo as Reserved0, Endpoint_ID, Reserved1, Value; an RTR on the node's own Address id
     is answered too."""
@@ -114,40 +110,41 @@ def test_the_address_answer_and_the_txsdo_decode_with_odrives_dbc(bench):
     import cantools
     dbc = cantools.database.load_file(
         str(importlib.resources.files("odrive_can") / "dbc" / "odrive-cansimple-0.6.10.dbc"))
-    reply = bench.ask(can_id(0, Cmd.ADDRESS), remote=True, answer_id=can_id(0, Cmd.ADDRESS))
+    reply = master.ask(can_id(0, Cmd.ADDRESS), remote=True, answer_id=can_id(0, Cmd.ADDRESS))
     address = dbc.get_message_by_name("Axis0_Address").decode(bytes(reply.data))
     assert (address["Node_ID"], address["Serial_Number"]) == (0, SERIAL_NUMBER_BASE)
-    answer = _sdo(bench, OPCODE_READ, 10)                       # vbus_voltage
+    answer = _sdo(master, OPCODE_READ, 10)                       # vbus_voltage
     sdo = dbc.get_message_by_name("Axis0_TxSdo").decode(answer, decode_choices=False)
     assert sdo["Endpoint_ID"] == 10
     assert struct.unpack("<f", answer[4:8])[0] == pytest.approx(24.0)
 
 
 def test_discovery_frames_are_told_as_the_masters_to_every_odrive():
+    from hil.can.frame import Frame
     from hil.protocols.odrive import ODrive
     for remote in (True, False):
-        source = ODrive.frame_source(ADDRESS_BROADCAST, b"", remote, {0: object()})
+        source = ODrive.frame_source(Frame(ADDRESS_BROADCAST, remote=remote), {0: object()})
         assert (source.sender.value, source.node_id) == ("master", None)
-    answer = ODrive.frame_source(can_id(0, Cmd.ADDRESS), bytes(8), False, {0: object()})
+    answer = ODrive.frame_source(Frame(can_id(0, Cmd.ADDRESS), bytes(8)), {0: object()})
     assert (answer.sender.value, answer.node_id) == ("drive", 0)
 
 
-def test_a_connect_frame_for_this_serial_gives_the_drive_the_clients_connection_id(bench):
+def test_a_connect_frame_for_this_serial_gives_the_drive_the_clients_connection_id(master):
     serial = SERIAL_NUMBER_BASE.to_bytes(6, "little")
-    bench.ask(ADDRESS_BROADCAST, bytes([0]) + serial + bytes([0x78]), timeout=0.1)
-    reply = bench.ask(ADDRESS_BROADCAST, remote=True, answer_id=can_id(0, Cmd.ADDRESS))
+    master.ask(ADDRESS_BROADCAST, bytes([0]) + serial + bytes([0x78]), timeout=0.1)
+    reply = master.ask(ADDRESS_BROADCAST, remote=True, answer_id=can_id(0, Cmd.ADDRESS))
     assert reply.data[7] == 0x78
 
 
-def test_endpoint_zero_serves_the_descriptor_and_its_fibre_version_id(bench):
+def test_endpoint_zero_serves_the_descriptor_and_its_fibre_version_id(master):
     """The odrive library's get_json_id (offset 0xFFFFFFFF) and get_json (4 bytes an offset,
     a shorter answer at the end); the answers repeat the request's first and fourth bytes."""
-    answer = _sdo(bench, OPCODE_READ, 0, b"\xff\xff\xff\xff", sequence=0x30, connection=0x14)
+    answer = _sdo(master, OPCODE_READ, 0, b"\xff\xff\xff\xff", sequence=0x30, connection=0x14)
     assert answer[:4] == bytes([0x14, 0, 0, 0x30])
     version_id = int.from_bytes(answer[4:], "little")
     descriptor = b""
     while True:
-        chunk = _sdo(bench, OPCODE_READ, 0, len(descriptor).to_bytes(4, "little"))[4:]
+        chunk = _sdo(master, OPCODE_READ, 0, len(descriptor).to_bytes(4, "little"))[4:]
         descriptor += chunk
         if len(chunk) < 4:
             break
@@ -159,50 +156,50 @@ def test_endpoint_zero_serves_the_descriptor_and_its_fibre_version_id(bench):
     assert tree["clear_errors"]["type"] == "function"
 
 
-def test_get_version_gives_the_endpoints_files_versions(bench):
+def test_get_version_gives_the_endpoints_files_versions(master):
     """can_param_access.py asserts the file's fw_version and hw_version against Get_Version."""
-    reply = bench.ask(can_id(0, Cmd.GET_VERSION), remote=True,
+    reply = master.ask(can_id(0, Cmd.GET_VERSION), remote=True,
                       answer_id=can_id(0, Cmd.GET_VERSION))
     assert tuple(reply.data[1:7]) == (4, 4, 58, 0, 6, 11)
 
 
-def test_endpoints_read_and_write_as_the_can_commands_of_the_same_meaning(bench):
+def test_endpoints_read_and_write_as_the_can_commands_of_the_same_meaning(master):
     """requested_state is Set_Axis_State, input_pos is Set_Input_Pos; writes are confirmed
     (from 0.6.11) with the header alone."""
-    assert _sdo(bench, OPCODE_WRITE, 21, bytes([AxisState.CLOSED_LOOP_CONTROL])) \
+    assert _sdo(master, OPCODE_WRITE, 21, bytes([AxisState.CLOSED_LOOP_CONTROL])) \
         == bytes([OPCODE_WRITE, 21, 0, 0x10])
-    assert _sdo(bench, OPCODE_READ, 20)[4] == AxisState.CLOSED_LOOP_CONTROL
-    _sdo(bench, OPCODE_WRITE, 33, struct.pack("<f", 0.5))
+    assert _sdo(master, OPCODE_READ, 20)[4] == AxisState.CLOSED_LOOP_CONTROL
+    _sdo(master, OPCODE_WRITE, 33, struct.pack("<f", 0.5))
     time.sleep(1.0)
-    position = struct.unpack("<f", _sdo(bench, OPCODE_READ, 23)[4:8])[0]
+    position = struct.unpack("<f", _sdo(master, OPCODE_READ, 23)[4:8])[0]
     assert position == pytest.approx(0.5, abs=0.01)
-    assert position * TURN / 10 == pytest.approx(bench.joint(), abs=2e-3)
+    assert position * TURN / 10 == pytest.approx(master.joint(), abs=2e-3)
 
 
 @pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf])
-def test_an_input_pos_write_of_nan_or_inf_is_refused_and_moves_nothing(bench, value):
-    _sdo(bench, OPCODE_WRITE, 21, bytes([AxisState.CLOSED_LOOP_CONTROL]))
+def test_an_input_pos_write_of_nan_or_inf_is_refused_and_moves_nothing(master, value):
+    _sdo(master, OPCODE_WRITE, 21, bytes([AxisState.CLOSED_LOOP_CONTROL]))
     time.sleep(0.3)
-    before = bench.joint()
-    assert _sdo(bench, OPCODE_WRITE, 33, struct.pack("<f", value)) is None
+    before = master.joint()
+    assert _sdo(master, OPCODE_WRITE, 33, struct.pack("<f", value)) is None
     time.sleep(0.3)
-    assert bench.joint() == pytest.approx(before, abs=2e-3)
+    assert master.joint() == pytest.approx(before, abs=2e-3)
 
 
-def test_closed_loop_by_endpoint_is_refused_while_errors_stand_as_set_axis_state_is(bench):
-    bench.ask(can_id(0, Cmd.ESTOP), timeout=0.2)
-    _sdo(bench, OPCODE_WRITE, 21, bytes([AxisState.CLOSED_LOOP_CONTROL]))
-    assert _sdo(bench, OPCODE_READ, 20)[4] == AxisState.IDLE
-    assert bench.drive.core.power is not Power.ENABLED
-    _sdo(bench, OPCODE_WRITE, 40)                                # clear_errors()
-    _sdo(bench, OPCODE_WRITE, 21, bytes([AxisState.CLOSED_LOOP_CONTROL]))
-    assert _sdo(bench, OPCODE_READ, 20)[4] == AxisState.CLOSED_LOOP_CONTROL
+def test_closed_loop_by_endpoint_is_refused_while_errors_stand_as_set_axis_state_is(master):
+    master.ask(can_id(0, Cmd.ESTOP), timeout=0.2)
+    _sdo(master, OPCODE_WRITE, 21, bytes([AxisState.CLOSED_LOOP_CONTROL]))
+    assert _sdo(master, OPCODE_READ, 20)[4] == AxisState.IDLE
+    assert master.drive.core.power is not Power.ENABLED
+    _sdo(master, OPCODE_WRITE, 40)                                # clear_errors()
+    _sdo(master, OPCODE_WRITE, 21, bytes([AxisState.CLOSED_LOOP_CONTROL]))
+    assert _sdo(master, OPCODE_READ, 20)[4] == AxisState.CLOSED_LOOP_CONTROL
 
 
 @pytest.mark.parametrize("endpoint", [UNBACKED, 9, 999], ids=["unbacked", "uint64", "unknown"])
-def test_endpoints_hil_does_not_back_are_not_answered(bench, endpoint):
-    assert _sdo(bench, OPCODE_READ, endpoint) is None
-    assert _sdo(bench, OPCODE_WRITE, endpoint, struct.pack("<f", 1.0)) is None
+def test_endpoints_hil_does_not_back_are_not_answered(master, endpoint):
+    assert _sdo(master, OPCODE_READ, endpoint) is None
+    assert _sdo(master, OPCODE_WRITE, endpoint, struct.pack("<f", 1.0)) is None
 
 
 @pytest.mark.parametrize("content, says", [
@@ -237,8 +234,7 @@ def test_the_makers_odrive_library_discovers_and_moves_the_axis_over_socketcan(
     from odrive.device_manager import close_device_manager
     # the library caches descriptors under $XDG_CACHE_HOME: this test's, so it reads ours
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    bench = ClientBench(_config(tmp_path, interface="socketcan", channel="vcan0"),
-                        "socketcan", "vcan0")
+    master = RealTimeMaster.of(_config(tmp_path), vcan="vcan0")
 
     async def session():
         try:
@@ -262,9 +258,9 @@ def test_the_makers_odrive_library_discovers_and_moves_the_axis_over_socketcan(
         assert odrv._dev.serial_number == f"{SERIAL_NUMBER_BASE:012X}"
         assert state == AxisState.CLOSED_LOOP_CONTROL
         assert position == pytest.approx(0.5, abs=0.01)
-        assert position * TURN / 10 == pytest.approx(bench.joint(), abs=2e-3)
+        assert position * TURN / 10 == pytest.approx(master.joint(), abs=2e-3)
     finally:
-        bench.close()
+        master.close()
 
 
 def test_a_serial_number_is_48_bits_as_the_address_message_carries():

@@ -204,6 +204,13 @@ class DrivesBench:
         with self.sim.lock:
             return drive.state_text
 
+    def freeze(self) -> None:
+        """Stop the plant's clock (idempotent): the plant stands where it is and the drives
+        answer from it, without timed messages or watchdogs, until :meth:`close`; for a
+        master that reads back a state that no longer moves."""
+        self.sim.stop()
+        self._thread.join(5)
+
     # --- life cycle -------------------------------------------------------------------
 
     def close(self) -> None:

@@ -1,0 +1,136 @@
+"""A device family from outside hil sends and answers 29-bit CAN FD frames of 64 bytes with the
+bit-rate switch through hil's simulator and master (issue 66's acceptance).
+
+The family is tests/fixtures/toy_protocol: a package and its ``.dist-info`` as pip leaves an
+installed one, registered under the entry-point group ``hil.protocols``
+(:mod:`hil.protocols`), with nothing of it inside hil. Its frames cross an in-process bus
+(``hil-virtual``) and a Zenoh bus in lock-step; a python-can listener on the bus and a BLF
+log (as ``hil replay`` reads) see them as ISO 11898-1:2015 says a CAN FD frame is: FDF (python-can's
+``is_fd``), BRS (``bitrate_switch``), IDE (``is_extended_id``) and 64 data bytes.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import uuid
+
+import can
+import numpy as np
+import pytest
+
+from conftest import TESTS, FrameRecorder
+from hil import protocols
+from hil.bus_config import load_bus_config, open_buses
+from hil.can.frame import Frame
+from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
+from hil.realtime import LOCK_STEP
+from hil.simulator import Simulator
+from hil.zenoh_session import ZenohSettings
+
+#: the family's distribution: its package and .dist-info side by side
+TOY = TESTS / "fixtures" / "toy_protocol"
+ROBOT = TESTS / "fixtures" / "damiao_one_axis.urdf"
+#: python-can's side of each bus for the listener: the plain ``virtual`` interface shares
+#: hil-virtual's channels
+LISTENER = {"hil-virtual": "virtual", "zenoh": "zenoh"}
+
+
+@pytest.fixture
+def toy_installed(monkeypatch):
+    """The toy family installed for this test only: its folder on sys.path (where
+    importlib.metadata finds the .dist-info's entry point), hil's registry read afresh, and
+    forgotten afterwards."""
+    monkeypatch.syspath_prepend(str(TOY))
+    protocols._registered.cache_clear()
+    protocols.protocol.cache_clear()
+    yield
+    protocols._registered.cache_clear()
+    protocols.protocol.cache_clear()
+    for name in [name for name in sys.modules if name.startswith("hil_toy_protocol")]:
+        del sys.modules[name]
+
+
+def toy_config(folder, interface: str, channel: str):
+    path = folder / "toy.yaml"
+    path.write_text(f"""\
+robot: {ROBOT}
+transmissions:
+  yaw: {{reduction: 1, rotor_inertia: 0.0018}}
+defaults: {{protocol: toy}}
+buses:
+  - name: axis
+    interface: {interface}
+    channel: {channel}
+    cycle_hz: 100
+    drives:
+      - {{node_id: 1, joint: yaw}}
+""")
+    return load_bus_config(path)
+
+
+class ToyBus:
+    """The toy config's bus with its ends in this process: the drive in a lock-step
+    Simulator, hil's master (CanHardwareInterface), and a python-can listener logging every
+    frame."""
+
+    def __init__(self, config, interface: str, log):
+        settings = ZenohSettings.meeting()
+        self.sim_buses = open_buses(config, settings, lossless=True)
+        self.master_buses = open_buses(config, settings, lossless=True)
+        self.listener = can.Bus(interface=LISTENER[interface], channel=config.buses[0].channel)
+        self.recorder = FrameRecorder()
+        self.notifier = can.Notifier(self.listener, [self.recorder, can.Logger(log)])
+        self.sim = Simulator(config, self.sim_buses, LOCK_STEP)
+        self.sim.start()
+        self.thread = threading.Thread(target=self.sim.run, daemon=True)
+        self.thread.start()
+        self.master = CanHardwareInterface(config, self.master_buses,
+                                           reply_timeout=LOCK_STEP_REPLY_TIMEOUT)
+
+    def close(self) -> None:
+        self.master.stop()
+        self.sim.stop()
+        self.thread.join(5)
+        self.sim.close()
+        self.notifier.stop()               # and its log: the file closed
+        for bus in [self.listener, *self.sim_buses.values(), *self.master_buses.values()]:
+            bus.shutdown()
+
+
+def fd_fields(msg: can.Message) -> tuple:
+    return msg.is_fd, msg.bitrate_switch, msg.is_extended_id, msg.dlc, bytes(msg.data)
+
+
+def as_logged(frame: Frame) -> tuple:
+    """What a python-can listener says of a toy frame sent whole."""
+    return True, True, True, 64, frame.data
+
+
+@pytest.mark.parametrize("interface", ["hil-virtual", "zenoh"])
+def test_a_family_from_an_entry_point_sends_and_answers_29_bit_64_byte_fd_frames(
+        toy_installed, tmp_path, interface):
+    from hil_toy_protocol import REPLY_BASE, values_of
+
+    config = toy_config(tmp_path, interface, f"toy/{uuid.uuid4().hex[:8]}")
+    log = tmp_path / "toy.blf"
+    toy = ToyBus(config, interface, log)
+    try:
+        toy.master.start()                                     # heard, enabled
+        drive, axis = toy.sim.drives[0], toy.master.axes[0]
+        toy.master.write(np.array([0.1]), np.array([0.0]))
+        toy.master.read()
+        command, reply = drive.command, drive.reply
+        # the axis' setpoint arrived bit for bit, and the drive's answer came back so
+        target = toy.master.transmissions.joint_to_actuator_position(np.array([0.1]))[0]
+        assert command.identifier == 1 and values_of(command) == (target, 0.0)
+        assert reply.identifier == REPLY_BASE + 1
+        assert values_of(reply) == (axis.feedback.position, axis.feedback.velocity)
+        for frame in (command, reply):
+            assert toy.recorder.wait_for_message(
+                lambda msg, frame=frame: fd_fields(msg) == as_logged(frame), timeout=30)
+    finally:
+        toy.close()
+    logged = [fd_fields(msg) for msg in can.LogReader(log)]
+    assert as_logged(command) in logged and as_logged(reply) in logged
+    assert all(fields[:4] == (True, True, True, 64) for fields in logged)
