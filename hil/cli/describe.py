@@ -11,14 +11,7 @@ from hil.bus_config import BusConfig, DriveConfig, SystemConfig, load_bus_config
 from hil.can.frame import Frame, FrameSpec
 from hil.cli import common
 from hil.protocols import Protocol, protocol
-from hil.resources import BUS_CONFIGS, data_dir
 from hil.zenoh_session import meeting_endpoint
-
-EDS = "cia402_drive.eds"
-#: the PDO mapping objects of the EDS and the PDO each maps
-PDO_MAPS = {0x1600: "RPDO1", 0x1601: "RPDO2", 0x1602: "RPDO3", 0x1603: "RPDO4",
-            0x1A00: "TPDO1", 0x1A01: "TPDO2", 0x1A02: "TPDO3", 0x1A03: "TPDO4"}
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
@@ -32,8 +25,11 @@ def run(args: argparse.Namespace) -> int:
           f"bus(es); positions at the motor (after the gear), SI units unless said")
     for bus in config.buses:
         _describe_bus(config, bus)
-    if any(d.protocol == "cia402" for d in config.drives):
-        _describe_eds()
+    for name in dict.fromkeys(d.protocol for d in config.drives):
+        lines = protocol(name).description()
+        if lines:
+            print()
+            print("\n".join(lines))
     return 0
 
 
@@ -99,23 +95,3 @@ def _what(family: type[Protocol], frame: FrameSpec, drives: dict) -> str:
         if found is not None:
             return f"{found.sender.value}: {found.what}"
     return ""
-
-
-def _describe_eds() -> None:
-    import canopen                                    # noqa: PLC0415 (CiA 402 buses only)
-
-    path = data_dir(BUS_CONFIGS) / EDS
-    od = canopen.import_od(str(path))
-    print(f"\nCiA 402 drives: object dictionary and default PDO mapping {path} (canopen, "
-          "ros2_canopen and PLCs read it); units: positions in encoder counts, velocities in "
-          "counts/s, torques in per mille of the rated torque (0x6076)")
-    for index, pdo in PDO_MAPS.items():
-        if index not in od:
-            continue
-        record = od[index]
-        mapped = []
-        for sub in range(1, (record[0].default or 0) + 1):
-            entry = record[sub].default
-            target = od.get_variable(entry >> 16, (entry >> 8) & 0xFF)
-            mapped.append(f"0x{entry >> 16:04X} {target.name if target else '?'}")
-        print(f"  {pdo}: {', '.join(mapped) or '(none mapped)'}")

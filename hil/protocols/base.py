@@ -153,6 +153,12 @@ class Protocol(ABC):
         return []
 
     @classmethod
+    def description(cls) -> list[str]:
+        """What ``hil describe`` prints once for a config with drives of this protocol,
+        after its buses (CiA 402: the EDS and its PDO mapping). None by default."""
+        return []
+
+    @classmethod
     def torque_feed_forward_frames(cls, node_id: int, cycle_hz: float, options=None
                                    ) -> list[FrameSpec]:
         """The frames a master adds to :meth:`bus_frames` to send a torque feed-forward

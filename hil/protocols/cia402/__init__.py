@@ -175,6 +175,12 @@ class Cia402(Protocol):
                 FrameSpec(0x600 + node_id, 8, 0.0, "SDO request")]
 
     @classmethod
+    def description(cls) -> list[str]:
+        from hil.protocols.cia402.summary import dictionary_summary   # loads canopen
+
+        return dictionary_summary()
+
+    @classmethod
     def bus_wide_frames(cls, cycle_hz: float) -> list[FrameSpec]:
         """The master's NMT commands (on events; the node addressed in byte 1) and its SYNC,
         empty, every cycle (CiA 301 7.2.8.3.1, 7.2.5)."""
