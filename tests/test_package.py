@@ -197,3 +197,28 @@ def test_the_hardware_interface_loads_no_yaml_parser_and_no_description_reader()
     readers = ("yaml", "xacro", "hil.bus_config.parse", "hil.bus_config.yaml_reader",
                "hil.description.reader", "hil.description.urdf", "hil.description.source")
     assert sorted(m for m in modules if m.startswith(readers)) == []
+
+
+def test_every_module_named_by_a_string_lies_where_a_plain_import_of_it_would_be_allowed():
+    """import-linter sees no import by string: the three places that load by name stay within
+    what the contracts allow a plain import. A package's lazy exports name its own modules;
+    a protocol's drive and axis lie in its own folder, on the side the contracts give them
+    (``hil.protocols.*.drive`` the drives', ``hil.protocols.*.axis`` the master's); the
+    commands are ``hil.cli``'s own."""
+    import ast
+
+    from hil.cli import COMMANDS
+    from hil.protocols import BUILTIN, protocol
+
+    for init in sorted((ROOT / "hil").rglob("__init__.py")):
+        package = ".".join(init.relative_to(ROOT).parent.parts)
+        for call in ast.walk(ast.parse(init.read_text())):
+            if isinstance(call, ast.Call) and getattr(call.func, "id", "") == "lazy_exports":
+                modules = [value.value for value in call.args[1].values]
+                assert modules and all(m.startswith(package + ".") for m in modules), init
+    for name in BUILTIN:
+        family = protocol(name)
+        folder = f"hil.protocols.{name}."
+        assert family.drive.partition(":")[0] == folder + "drive", name
+        assert family.axis.partition(":")[0] == folder + "axis", name
+    assert COMMANDS and all("." not in command for command in COMMANDS)
