@@ -18,7 +18,7 @@ import pytest
 from hil.bus_config import load_bus_config
 from hil.description import PackagePath, load_description
 from hil.can.frame import Frame
-from hil.can.zenoh_bus import MAX_SENDERS
+from hil.can.link_account import MAX_SENDERS
 from hil.can.zenoh_wire import Echo, Message
 from hil.cli import main
 from hil.controllers import GoalResult, GoalStatus
@@ -113,7 +113,7 @@ def test_a_bus_remembers_a_bounded_number_of_senders(tmp_path):
         for sender in range(1, 3 * MAX_SENDERS):
             bus._on_message(Message(bus._channel, sender, 1, time.time(), Echo(), [frame]),
                             time.time(), time.monotonic())
-        assert len(bus.heard()) <= MAX_SENDERS and len(bus._quickest) <= MAX_SENDERS
+        assert len(bus.heard()) <= MAX_SENDERS and len(bus._account._quickest) <= MAX_SENDERS
     finally:
         bus.shutdown()
 

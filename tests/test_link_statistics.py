@@ -1,9 +1,15 @@
 """A zenoh bus' count of each sender's lost frames from its sequence numbers
-(hil.can.link_statistics.SenderSequences): gaps are lost, a late message fills its own."""
+(hil.can.link_statistics.SenderSequences): gaps are lost, a late message fills its own; and
+its account of the link's round trip (hil.can.link_account.LinkAccount)."""
 
 from __future__ import annotations
 
+import pytest
+
+from hil.can.frame import Frame
+from hil.can.link_account import LinkAccount
 from hil.can.link_statistics import GAPS_KEPT, SenderSequences
+from hil.can.zenoh_wire import NO_ECHO, Echo, Message, decode_frames, encode_frames
 
 
 def lost_after(messages: list[tuple[int, int]], sender: int = 7) -> tuple[int, int]:
@@ -54,3 +60,33 @@ def test_senders_are_counted_apart_and_forgotten_oldest_first():
     assert sequences.forget_oldest() == 1
     assert sequences.arrived(1, 20, 1) == 0                       # counted afresh
     assert sequences.arrived(2, 11, 1) == 0
+
+
+def test_a_message_heard_after_the_send_read_its_clock_is_echoed_as_held_0_s():
+    """The receiving thread may note a message after the sending thread read ``now``: the
+    echo was held 0 s, not a negative time that the receiver refuses as malformed (and with
+    it the message's frames: seen from `hil viz` beside a loaded host, 2026-12-06)."""
+    account = LinkAccount(sender=1, where="test")
+    now = 1000.0
+    account.arrived(Message("test", 7, 41, 0.0, NO_ECHO, [Frame(0x42)]),
+                    0.0, now + 5e-5)                  # heard 50 us after the send's clock read
+    echo = account.sent(1, 1, now)
+    (message,) = decode_frames(encode_frames("test", 1, 1, 0.0, [Frame(0x42, b"ok")], echo))
+    assert message.echo == Echo(7, 41, 0.0)
+
+
+def test_a_slow_link_is_one_stall_per_stretch_not_one_per_message():
+    """Messages 2 ms apart, each answered 40 ms later: once four in a row were slow, one
+    stall covers a round trip; the messages put inside it add none."""
+    account = LinkAccount(sender=1, where="test")
+    start = 1000.0
+    stalls = []
+    for k in range(30):
+        account.sent(k + 1, 1, start + k * 0.002)
+        arrived = start + k * 0.002 + 0.040
+        answer = Message("test", 2, k + 1, arrived, Echo(1, k + 1, 0.0), [Frame(0x181)])
+        stalls += account.arrived(answer, arrived, arrived)
+    assert [round(s.at - start, 3) for s in stalls] == [0.006, 0.046]
+    assert all(s.process == "link" and s.length == pytest.approx(0.040) for s in stalls)
+    assert account.counters.round_trips == 30
+    assert account.counters.round_trip_floor == pytest.approx(0.040)

@@ -32,23 +32,16 @@ Frames sent together (inside ``with bus.batch():``, or in answer to a message be
 delivered) go in one Zenoh message of a section per bus (docs/design.md, "The Zenoh CAN
 transport", says why).
 
-Each section carries the sender's clock at the put, so a receiver tells a late sender
-from a slow delivery: a message over STALL_THRESHOLD later than the quickest of that
-sender's (of the last 10 to 20 s, as clocks drift; so across hosts too) is a
-:class:`~hil.realtime.stalls.Stall` of the transport (``on_stall``). Each section also
-echoes the message its sender heard last and how long it held it, as an RTCP receiver
-report does: the echoed sender takes its own put time and the hold out of the arrival and
-has the link's round trip on its own clock (:attr:`FrameCounters.round_trip`; a drive's
-answer echoes the master's SYNC). SLOW_LINK_ECHOES of them in a row over STALL_THRESHOLD
-are a :class:`~hil.realtime.stalls.Stall` of the link, the cause of the silence a slow
-link makes of every drive on it.
+Each section carries the sender's clock at the put and echoes the message its sender
+heard last, so that a receiver tells a late delivery (a stall of the transport) and a slow
+link (a stall of the link) from a late process, and has the link's round trip
+(``watch_stalls``; :mod:`hil.can.link_account`, the account a bus keeps of its link).
 
 The wire format is :mod:`hil.can.zenoh_wire`'s; what a bus counts, :mod:`hil.can.link_statistics`'.
 """
 
 from __future__ import annotations
 
-import collections
 import logging
 import os
 import queue
@@ -65,29 +58,22 @@ import zenoh
 
 from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
-from hil.can.link_statistics import SEQUENCE_MASK, FrameCounters, Quickest, SenderSequences
 from hil.can.frame import Frame
+from hil.can.link_account import LinkAccount
 from hil.can.messages import frame_of, message_of
 from hil.can.zenoh_channels import Channels
 from hil.can.zenoh_links import not_linked
 from hil.can.zenoh_receipts import LINGER, wait_until_heard
-from hil.can.zenoh_wire import KEY_PREFIX, NO_ECHO, Echo, Message, encode_frames
-from hil.realtime.stalls import STALL_THRESHOLD, Stall
+from hil.can.zenoh_wire import KEY_PREFIX, Message, encode_frames
+from hil.realtime.stalls import Stall
 from hil.zenoh_session import ZenohSettings, session, why_unreached
 
 log = logging.getLogger(__name__)
 
-#: senders a bus remembers (sequence numbers, quickest delivery) before it forgets the
-#: oldest: a bus has a handful; a flood of made-up sender ids must not grow the memory
-MAX_SENDERS = 1024
 #: frames a bus holds for ``recv`` before it drops new ones (a CAN controller's RX FIFO)
 RECEIVE_FIFO = 8192
 #: a malformed payload is logged the first time, then every this many
 LOG_EVERY = 1000
-#: put times kept for echoes to be matched with (messages)
-PUTS_KEPT = 1024
-#: a link is slow when this many round trips in a row are over STALL_THRESHOLD
-SLOW_LINK_ECHOES = 4
 #: how long opening a bus waits to be linked to every peer on its channel (s): hil's choice,
 #: where gossip linked a new peer within milliseconds on an idle host and a loaded CI host
 #: took long enough for a one-shot frame to go unheard (the ``link_timeout`` option)
@@ -145,17 +131,9 @@ class ZenohBus(can.BusABC, BusCapabilities):
         self._receive_own = receive_own_messages
         self._sender = random.getrandbits(63) ^ os.getpid()
         self._sequence = 0
-        self._sequences = SenderSequences()    # each sender's last number heard, its gaps
-        self._quickest: dict[int, Quickest] = {}
-        # the last message heard (sender, first sequence, monotonic arrival): echoed
-        self._last_heard: tuple[int, int, float] | None = None
-        self._puts: dict[int, float] = {}    # first sequence -> monotonic put time
-        self._recent_trips: collections.deque[float] = collections.deque(
-            maxlen=SLOW_LINK_ECHOES)
-        self._link_stall_end = 0.0            # when the link stall reported last ended
+        self._account = LinkAccount(self._sender, self._channel)
+        self.counters = self._account.counters
         self._on_stall: Callable[[Stall], None] | None = None
-        self.counters = FrameCounters()
-        self._count_lock = threading.Lock()   # Zenoh delivers from a thread per link
         self._queue: queue.Queue[can.Message] = queue.Queue(RECEIVE_FIFO)
         self._direct: DirectDelivery | None = None
         if settings is None:
@@ -197,8 +175,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
 
     def heard(self) -> dict[int, int]:
         """Each sender's last sequence number heard."""
-        with self._count_lock:
-            return dict(self._sequences.last)
+        return self._account.heard()
 
     def unreached(self) -> str | None:
         """Why this bus' session reaches no other process, in words, if it reaches none
@@ -208,9 +185,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
     def _count_malformed(self, problem: ValueError) -> None:
         """A payload on this bus' key that was not a message: counted, and logged the first
         time and every LOG_EVERY."""
-        with self._count_lock:
-            self.counters.malformed += 1
-            malformed = self.counters.malformed
+        malformed = self._account.malformed()
         if malformed % LOG_EVERY == 1:
             log.warning("%s: dropped %d malformed message(s) from Zenoh: %s",
                         self.channel_info, malformed, problem)
@@ -218,39 +193,12 @@ class ZenohBus(can.BusABC, BusCapabilities):
     def _on_message(self, message: Message, arrived: float, now: float) -> None:
         """A section of a message for this bus' channel, arrived at ``arrived`` (wall clock)
         and ``now`` (monotonic)."""
-        self._last_heard = (message.sender, message.sequence, now)
-        stalls = (self._count_arrival(message.sender, message.sequence, len(message.frames),
-                                      arrived - message.sent_at, arrived),
-                  self._count_round_trip(message.echo, now, arrived))
+        stalls = self._account.arrived(message, arrived, now)
         on_stall = self._on_stall
-        if on_stall is not None:
-            for stall in filter(None, stalls):
+        if stalls and on_stall is not None:
+            for stall in stalls:
                 on_stall(stall)
         self._take(message.frames, message.sent_at if self.monitors else arrived)
-
-    def _count_round_trip(self, echo: Echo, now: float, arrived: float) -> Stall | None:
-        """The link's round trip, if ``echo`` is of a message of this bus; a stall of the
-        link while its floor (SLOW_LINK_ECHOES round trips in a row) is over
-        STALL_THRESHOLD, one per stretch of them (a slow link would otherwise report each
-        of its messages; a single late echo is a hiccup of an end, which the processes'
-        and the transport's own accounting report)."""
-        if echo.sender != self._sender:
-            return None
-        put = self._puts.get(echo.sequence)
-        if put is None:
-            return None
-        round_trip = max(0.0, now - put - echo.held)
-        with self._count_lock:
-            recent = self._recent_trips
-            recent.append(round_trip)
-            floor = min(recent)
-            self.counters.add_round_trip(round_trip, floor)
-            # a stall covers this message's round trip: the next begins after it ends
-            if (len(recent) < SLOW_LINK_ECHOES or not floor > STALL_THRESHOLD
-                    or arrived - round_trip < self._link_stall_end):
-                return None
-            self._link_stall_end = arrived
-        return Stall("link", arrived - round_trip, round_trip, where=self._channel)
 
     def _take(self, frames: Sequence[Frame], timestamp: float, is_rx: bool = True) -> None:
         """Frames for this bus, to the listeners (as they are where they all take frames)
@@ -267,31 +215,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
             try:
                 self._queue.put_nowait(message_of(frame, self._channel, is_rx, timestamp))
             except queue.Full:
-                with self._count_lock:
-                    self.counters.overrun += 1
-
-    def _count_arrival(self, sender: int, sequence: int, frames: int, transit: float,
-                       arrived: float) -> Stall | None:
-        """Counts a message of ``frames`` from ``sender``; the transport's stall if it came
-        late."""
-        counters = self.counters
-        with self._count_lock:
-            counters.received += frames
-            counters.messages_received += 1
-            if sender not in self._sequences.last and len(self._sequences.last) >= MAX_SENDERS:
-                # a bounded memory of senders (each message may claim a new one)
-                self._quickest.pop(self._sequences.forget_oldest(), None)
-            counters.lost += self._sequences.arrived(sender, sequence, frames)
-            quickest = self._quickest.get(sender)
-            if quickest is None:
-                self._quickest[sender] = Quickest(transit, transit, arrived)
-                return None
-            late = quickest.lateness(transit, arrived)
-            if not late > STALL_THRESHOLD:
-                return None
-            counters.late += 1
-            counters.latest = max(counters.latest, late)
-        return Stall("transport", arrived - late, late, where=self._channel)
+                self._account.overrun()
 
     def deliver_to(self, listeners: Iterable[can.Listener],
                    accept: Callable[[can.Message], can.Message | None] | None = None
@@ -355,14 +279,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
         so that its numbers keep the order of the puts): its first sequence number and bytes."""
         first = self._sequence + 1
         self._sequence += len(frames)
-        self.counters.sent += len(frames)
-        self.counters.messages_sent += 1
-        heard = self._last_heard
-        # heard after ``now`` was read (another thread): held 0 s; a negative hold is malformed
-        echo = NO_ECHO if heard is None else Echo(heard[0], heard[1], max(0.0, now - heard[2]))
-        self._puts[first & SEQUENCE_MASK] = now
-        if len(self._puts) > PUTS_KEPT:
-            del self._puts[next(iter(self._puts))]       # the oldest
+        echo = self._account.sent(first, len(frames), now)
         return first, encode_frames(self._channel, self._sender, first, sent_at, frames, echo)
 
     def _to_neighbours(self, first: int, frames: Sequence[Frame]) -> None:
@@ -373,7 +290,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
         if not neighbours:
             return
         for neighbour in neighbours:
-            neighbour._count_arrival(self._sender, first, len(frames), 0.0, 0.0)
+            neighbour._account.count(self._sender, first, len(frames), 0.0, 0.0)
             neighbour._take(frames, time.time(), neighbour is not self)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
