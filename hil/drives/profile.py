@@ -66,7 +66,7 @@ class DriveProfile(ABC):
         """The drive of ``config`` (its node id, ratings, heartbeat and the protocol's
         ``options``) around ``core``. ``lock`` is held around everything a frame does to the drive; its owner holds it
         while stepping the physics (the simulator's also brings the plant up to the present
-        on entry: hil.simulator.PlantPresent)."""
+        on entry: hil.realtime.present.PlantPresent)."""
         profile = type(self)
         if (profile.take_replies is DriveProfile.take_replies
                 and profile.send_replies is DriveProfile.send_replies):
