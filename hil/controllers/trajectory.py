@@ -19,62 +19,36 @@
   cancel does. A new goal preempts the active one.
 * Continuous joints: goal positions are unwrapped to the nearest turn and errors are the
   shortest angle.
+
+This module holds the controller's state under its lock and its lifecycle; its jobs each
+have a module: a goal checked and splined (:mod:`~hil.controllers.planning`), started from
+the state now (:mod:`~hil.controllers.active_goal`), judged each cycle against its
+tolerances (:mod:`~hil.controllers.tolerance_check`), the stop after a cancel or an abort
+(:mod:`~hil.controllers.stopping`), and the state reported
+(:mod:`~hil.controllers.controller_state`).
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-from dataclasses import dataclass, field
 
 import numpy as np
 
+from hil.controllers.active_goal import ActiveGoal, start_goal
+from hil.controllers.controller_state import ControllerState
 from hil.controllers.goal import (
-    DEACTIVATED, GOAL_TIME_ABORT, GOAL_TOLERANCE_VIOLATED, HARDWARE_FAULT, INVALID_GOAL,
-    PATH_ABORT, PATH_TOLERANCE_VIOLATED, PREEMPTED, REACHED, SUCCESSFUL, GoalRejected,
+    DEACTIVATED, HARDWARE_FAULT, INVALID_GOAL, PREEMPTED, SUCCESSFUL, GoalRejected,
     GoalResult, GoalStatus, TrajectoryGoal,
 )
-from hil.controllers.parameters import JtcParameters, SegmentTolerances
-from hil.controllers.planning import (
-    GoalPlan, JointLimitTable, check_reachable, plan_goal,
-)
-from hil.controllers.spline import Spline
+from hil.controllers.parameters import JtcParameters
+from hil.controllers.planning import JointLimitTable, plan_goal
 from hil.controllers.stop_ramp import StopRamp
+from hil.controllers.stopping import stop_ramp
+from hil.controllers.tolerance_check import judge
 from hil.description import RobotDescription
 
 log = logging.getLogger(__name__)
-
-
-@dataclass
-class _ActiveGoal:
-    goal_id: str
-    indices: np.ndarray            # controller joint index of each goal joint
-    spline: Spline                 # on the goal's clock: 0 = its stamp
-    start: float                   # the goal's stamp on the controller's clock
-    end: float
-    tolerances: SegmentTolerances  # over every controller joint
-    sampled: bool = False
-    result: GoalResult | None = None
-
-
-@dataclass
-class ControllerState:
-    """What the controller reports each cycle (control_msgs feedback fields)."""
-
-    time: float
-    joint_names: tuple[str, ...]
-    desired_positions: np.ndarray
-    desired_velocities: np.ndarray
-    actual_positions: np.ndarray
-    actual_velocities: np.ndarray
-    goal_id: str | None
-    #: the trajectory point the active goal moves to now (control_msgs 6's feedback
-    #: ``index``: "the currently used point"); 0 before it starts and without a goal
-    point_index: int = 0
-    errors: np.ndarray = field(init=False)
-
-    def __post_init__(self):
-        self.errors = self.desired_positions - self.actual_positions
 
 
 class JointTrajectoryController:
@@ -102,7 +76,7 @@ class JointTrajectoryController:
         self.limits = JointLimitTable.of(robot, self.joints)
         n = len(self.joints)
         self._lock = threading.Lock()
-        self._active: _ActiveGoal | None = None
+        self._active: ActiveGoal | None = None
         self._ramp: StopRamp | None = None
         self._finished: list[tuple[str, GoalResult]] = []
         self._desired = np.zeros(n)
@@ -179,7 +153,8 @@ class JointTrajectoryController:
             log.warning("goal %s: %s", goal_id, plan.tolerance_warning)
         with self._lock:
             self._check_accepting()
-            active = self._start(goal_id, goal, plan)
+            active = start_goal(goal_id, goal, plan, self.limits, self.parameters, self._now,
+                                self._state_before(plan.indices))
             if self._active is not None and self._active.result is None:
                 self._finish(self._active, GoalResult(GoalStatus.ABORTED, INVALID_GOAL,
                                                       PREEMPTED))
@@ -265,101 +240,46 @@ class JointTrajectoryController:
 
     # --- internals (lock held) ----------------------------------------------------
 
-    def _follow(self, goal: _ActiveGoal, now: float) -> None:
-        """The JTC's update for a goal: sample, then the path tolerance while the trajectory
-        runs (and on its first sample), the goal tolerance from its last point on."""
+    def _follow(self, goal: ActiveGoal, now: float) -> None:
+        """The JTC's update for a goal: sample it, then judge its tolerances
+        (:func:`hil.controllers.tolerance_check.judge`)."""
         idx, t = goal.indices, now - goal.start
         p, v, a = goal.spline.sample(t)
         self._desired[idx], self._desired_velocity[idx], self._desired_acceleration[idx] = p, v, a
-        before_last_point = t < goal.spline.end
-        if not before_last_point:
+        late = t - goal.spline.end
+        if late >= 0.0:
             self._desired_velocity[idx] = self._desired_acceleration[idx] = 0.0
         first, goal.sampled = not goal.sampled, True
-        error = self._wrap(self._desired - self._actual)
         velocity_error = (self._desired_velocity - self._actual_velocity
-                          if self.parameters.commands_velocity else np.zeros_like(error))
-        tolerances = goal.tolerances
-        if before_last_point or first:
-            broken = _outside(error, velocity_error, tolerances.path_position,
-                              tolerances.path_velocity)
-            if broken is not None:
-                log.warning("goal %s: joint '%s' %s at t=%.3f s", goal.goal_id,
-                            self.joint_names[broken[0]], broken[1], t)
+                          if self.parameters.commands_velocity
+                          else np.zeros_like(self._desired))
+        ending = judge(goal, late, first, self._desired - self._actual, velocity_error,
+                       self.limits.continuous, self.parameters, self.joint_names)
+        if ending is not None:
+            if ending.stop:
                 self._stop_moving()
-                self._finish(goal, GoalResult(GoalStatus.ABORTED, PATH_TOLERANCE_VIOLATED,
-                                              PATH_ABORT))
-                return
-        if before_last_point:
-            return
-        late = t - goal.spline.end
-        broken = _outside(error, velocity_error, tolerances.goal_position,
-                          tolerances.goal_velocity)
-        timeout = self.parameters.effective_cmd_timeout()
-        if broken is not None and timeout > 0 and late > timeout:
-            # the JTC holds on a command timeout, then (holding, no tolerance is checked)
-            # reports the goal reached on its next update: the same result here
-            log.warning("goal %s: Aborted due to command timeout", goal.goal_id)
-            self._stop_moving()
-            self._finish(goal, GoalResult(GoalStatus.SUCCEEDED, SUCCESSFUL, REACHED))
-        elif broken is None:
-            self._finish(goal, GoalResult(GoalStatus.SUCCEEDED, SUCCESSFUL, REACHED))
-        elif tolerances.goal_time != 0 and late > tolerances.goal_time:
-            log.warning("goal %s: joint '%s' %s, %.3f s after the last point", goal.goal_id,
-                        self.joint_names[broken[0]], broken[1], late)
-            self._stop_moving()
-            self._finish(goal, GoalResult(GoalStatus.ABORTED, GOAL_TOLERANCE_VIOLATED,
-                                          GOAL_TIME_ABORT.format(late)))
+            self._finish(goal, ending.result)
 
-    def _finish(self, goal: _ActiveGoal, result: GoalResult) -> None:
+    def _finish(self, goal: ActiveGoal, result: GoalResult) -> None:
         goal.result = result
         self._finished.append((goal.goal_id, result))
 
     def _stop_moving(self) -> None:
-        """After a cancel or an abort: hold the measured position, or with
-        decelerate_on_cancel ramp down to rest (where every joint has a deceleration)."""
-        deceleration = np.array([self.parameters.constraint(j).max_deceleration_on_cancel
-                                 for j in self.joint_names])
-        if self.parameters.decelerate_on_cancel and np.all(deceleration > 0):
-            self._ramp = StopRamp(self._now, self._actual.copy(),
-                                  self._actual_velocity.copy(), deceleration)
+        """After a cancel or an abort: hold the measured position, or ramp down to rest
+        (:func:`hil.controllers.stopping.stop_ramp`)."""
+        self._ramp = stop_ramp(self.parameters, self.joint_names, self._now, self._actual,
+                               self._actual_velocity)
+        if self._ramp is None:
+            self._hold_actual()
+        else:
             self._desired, self._desired_velocity, self._desired_acceleration = \
                 self._ramp.sample(self._now)
-        else:
-            self._hold_actual()
 
     def _hold_actual(self) -> None:
         self._ramp = None
         self._desired = self._actual.copy()
         self._desired_velocity = np.zeros_like(self._desired)
         self._desired_acceleration = np.zeros_like(self._desired)
-
-    def _wrap(self, difference: np.ndarray) -> np.ndarray:
-        wrapped = (difference + np.pi) % (2 * np.pi) - np.pi
-        return np.where(self.limits.continuous, wrapped, difference)
-
-    def _start(self, goal_id: str, goal: TrajectoryGoal, plan: GoalPlan) -> _ActiveGoal:
-        """The planned goal from the controller's state now (lock held): its clock from its
-        stamp (now when none), continuous joints on the turn nearest where they are, the
-        first segment from the measured (or desired) state now to point 0. Points it leaves
-        to allow_integration_in_goal_trajectories are integrated from that state: planned
-        again here only where it differs from the state when the goal arrived."""
-        indices, now = plan.indices, self._now
-        stamp = now if goal.start_time is None else goal.start_time
-        if stamp + plan.end < now:
-            raise GoalRejected(f"Received trajectory with non-zero start time ({stamp:f}) that "
-                               f"ends in the past ({stamp + plan.end:f}); now is {now:f}")
-        here, v0, a0 = self._state_before(indices)
-        spline = plan.spline_from(self.limits, goal.joint_names, here, v0, a0, at=now - stamp)
-        if plan.integrating is None or plan.integrating.given.positions[0]:
-            # point 0 as given goes on the turn nearest the joints; integrated, it is there
-            turns = np.round((spline.points[0] - here) / (2 * np.pi))
-            spline.shift(np.where(self.limits.continuous[indices], -turns * 2 * np.pi, 0.0))
-        available = float(spline.t1[0]) - (now - stamp)
-        spline.start_from(here, v0, a0, at=now - stamp)
-        if self.parameters.reject_unreachable_first_point:
-            check_reachable(self.limits, self.parameters, indices, here, spline,
-                            now - stamp, available)
-        return _ActiveGoal(goal_id, indices, spline, stamp, stamp + spline.end, plan.tolerances)
 
     def _state_before(self, indices: np.ndarray | slice = slice(None)
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -376,17 +296,3 @@ class JointTrajectoryController:
         v0 = self._actual_velocity[indices].copy() if measured else np.zeros_like(here)
         return here, v0, np.zeros_like(here)
 
-
-def _outside(error: np.ndarray, velocity_error: np.ndarray, position: np.ndarray,
-             velocity: np.ndarray) -> tuple[int, str] | None:
-    """The first joint outside its tolerances (check_state_tolerance_per_joint: a tolerance
-    of 0 is not checked) and how, or None."""
-    for what, values, tolerance in (("position error", error, position),
-                                    ("velocity error", velocity_error, velocity)):
-        broken = (tolerance > 0) & (np.abs(values) > tolerance)
-        # not .any(), a Python function in numpy and slower (docs/performance.md,
-        # "2026-12-01: the in-process cycle in a fifth fewer instructions")
-        if np.count_nonzero(broken):
-            i = int(np.argmax(broken))
-            return i, f"{what} {values[i]:+.4f} exceeds its tolerance {tolerance[i]:g}"
-    return None
