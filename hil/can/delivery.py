@@ -45,16 +45,12 @@ class DirectDelivery:
     """A bus' listeners, called in the thread that brings each frame; what a
     ``can.Notifier`` is to a queued bus (``stop``, ``add_listener``), without its thread.
 
-    One frame at a time, as a Notifier thread would have it; the lock is re-entrant so that
+    One delivery at a time, as a Notifier thread would have it; the lock is re-entrant so that
     a listener may send frames that come back to this bus. A listener that raises is logged
     and the others still get the frame. ``on_stop`` is the bus' own: from then on it queues
     its frames for ``recv`` again. Once :meth:`stop` returns no listener runs any more, as
     once a Notifier's thread is joined.
     """
-
-    #: as ``can.Notifier.exception`` (canopen checks it after each send): listener errors
-    #: are logged here, never kept
-    exception: Exception | None = None
 
     def __init__(self, listeners: Iterable[can.Listener],
                  accept: Callable[[can.Message], can.Message | None] | None,
