@@ -17,6 +17,7 @@ so a process' own access rules (``--secure``) see who sent each message it acts 
 from __future__ import annotations
 
 import json
+import logging
 import os
 import socket
 import threading
@@ -28,6 +29,8 @@ import zenoh
 from hil.errors import HilError
 from hil.input_files import read_input_file
 from hil.zenoh_security import Identity, secured_endpoint
+
+log = logging.getLogger(__name__)
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7450"     # 7447 is Zenoh's and ROS 2's router port
 #: the environment variable that moves the meeting point (tests, two benches on one host)
@@ -264,12 +267,23 @@ def close(settings: ZenohSettings) -> None:
     with _lock:
         opened = _sessions.pop(settings, None)
     if opened is not None:
-        opened.close()
+        _closed(opened)
 
 
 def close_all() -> None:
     """Close every session this process opened."""
     with _lock:
         for opened in _sessions.values():
-            opened.close()
+            _closed(opened)
         _sessions.clear()
+
+
+def _closed(opened: zenoh.Session) -> None:
+    # Zenoh's close waits a bounded time for its tasks and raises ZError "close operation
+    # timed out" past it (seen in `hil send` stopped by SIGINT on a loaded CI host): the
+    # session is being let go either way, so a process ending keeps its own exit status
+    # and says so in one line, not a traceback
+    try:
+        opened.close()
+    except zenoh.ZError as exc:
+        log.warning("the Zenoh session did not close in time: %s", exc)
