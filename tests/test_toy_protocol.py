@@ -23,6 +23,7 @@ from conftest import TESTS, FrameRecorder
 from hil import protocols
 from hil.bus_config import load_bus_config, open_buses
 from hil.can.frame import Frame
+from hil.can.monitor import NumberedChannels
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface
 from hil.realtime import LOCK_STEP
 from hil.simulator import Simulator
@@ -80,7 +81,9 @@ class ToyBus:
         self.master_buses = open_buses(config, settings, lossless=True)
         self.listener = can.Bus(interface=LISTENER[interface], channel=config.buses[0].channel)
         self.recorder = FrameRecorder()
-        self.notifier = can.Notifier(self.listener, [self.recorder, can.Logger(log)])
+        # the log as hil's monitor writes one: BLF numbers channels (hil.can.monitor)
+        self.notifier = can.Notifier(self.listener, [
+            self.recorder, NumberedChannels(can.Logger(log), {config.buses[0].channel: 1})])
         self.sim = Simulator(config, self.sim_buses, LOCK_STEP)
         self.sim.start()
         self.thread = threading.Thread(target=self.sim.run, daemon=True)

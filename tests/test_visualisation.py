@@ -142,8 +142,10 @@ def test_bus_load_meter_counts_each_bus_in_bits_against_its_bitrate():
 @pytest.mark.parametrize("interface", ["virtual", "hil-virtual"])   # a Notifier; delivered as
 def test_the_can_log_holds_every_frame_as_sent_its_channels_numbered_where_the_format_does(
         tmp_path, suffix, named, interface):                         # they come (deliver_to)
+    # channels ending in digits past BLF's 16-bit channel number: python-can's writer reads
+    # a name's trailing digits as its number (can.util.channel2int)
     tag = f"{suffix[1:]}-{tmp_path.name}"
-    channels = {"arm": f"log-arm-{tag}", "wrist": f"log-wrist-{tag}"}
+    channels = {"arm": f"log-arm-{tag}/700001", "wrist": f"log-wrist-{tag}/700002"}
     senders = {name: can.Bus(interface=interface, channel=c) for name, c in channels.items()}
     watched = {name: can.Bus(interface=interface, channel=c) for name, c in channels.items()}
     path = tmp_path / f"run.can{suffix}"
@@ -151,7 +153,10 @@ def test_the_can_log_holds_every_frame_as_sent_its_channels_numbered_where_the_f
     sent = []
     for k in range(200):
         name = ("arm", "wrist")[k % 2]
-        frame = can.Message(arbitration_id=0x180 + k % 7, data=bytes([k % 256, k // 256, 7]),
+        fd = k % 3 == 0                              # CAN FD frames of 64 bytes, BRS on some
+        frame = can.Message(arbitration_id=0x180 + k % 7,
+                            data=bytes([k % 256, k // 256, 7]) * (21 if fd else 1)
+                            + bytes(fd), is_fd=fd, bitrate_switch=fd and k % 2 == 0,
                             is_extended_id=k % 5 == 0, timestamp=1000.0 + k * 1e-4)
         senders[name].send(frame)
         sent.append((name, frame))
@@ -162,12 +167,16 @@ def test_the_can_log_holds_every_frame_as_sent_its_channels_numbered_where_the_f
     logged = list(can.LogReader(path))
     assert monitor.channel_numbers == ({} if named else {"arm": 1, "wrist": 2})
     assert len(logged) == len(sent)
+
+    def fields(f: can.Message) -> tuple:
+        return (f.arbitration_id, bytes(f.data), f.is_extended_id, f.dlc, f.is_fd,
+                f.bitrate_switch)
+
     for name in channels:        # each bus in its order (a notifier thread per bus)
         channel = channels[name] if named else monitor.channel_numbers[name]
         mine = [frame for bus, frame in sent if bus == name]
         back = [frame for frame in logged if frame.channel == channel]
-        assert [(f.arbitration_id, bytes(f.data), f.is_extended_id, f.dlc) for f in back] == [
-            (f.arbitration_id, bytes(f.data), f.is_extended_id, f.dlc) for f in mine]
+        assert [fields(f) for f in back] == [fields(f) for f in mine]
 
 
 def recorder_actuators(robot) -> dict[str, tuple[str, ...]]:

@@ -15,6 +15,7 @@ import can
 
 from hil.can.capabilities import capabilities
 from hil.can.frames import fd_frame_bits, frame_bits
+from hil.can.messages import received_copy
 
 
 @dataclass(frozen=True)
@@ -80,17 +81,18 @@ NUMBERED_CHANNELS = (".blf", ".asc", ".trc")
 
 class NumberedChannels(can.Listener):
     """Passes each frame on to a log writer with its channel's number instead of its name
-    (BLF, ASC and TRC store a number; python-can's writers put every named channel on 1)."""
+    (BLF, ASC and TRC store a number; python-can's writers read a name's trailing digits as
+    one, or put it on 1), every other field of the frame kept."""
 
     def __init__(self, writer: can.Listener, numbers: dict[str, int]):
         self._writer, self._numbers = writer, numbers
 
     def on_message_received(self, msg: can.Message) -> None:
-        self._writer.on_message_received(can.Message(
-            timestamp=msg.timestamp, arbitration_id=msg.arbitration_id,
-            is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
-            is_error_frame=msg.is_error_frame, dlc=msg.dlc, data=msg.data, is_rx=msg.is_rx,
-            channel=self._numbers.get(str(msg.channel), 0)))
+        # a copy, FD, BRS and ESI kept: python-can's writers number a named channel by its
+        # trailing digits (can.util.channel2int), and BLF's channel is 16 bits, so a channel
+        # named "toy/6b754898" stopped the writer's thread with struct.error
+        self._writer.on_message_received(received_copy(
+            msg, msg.timestamp, self._numbers.get(str(msg.channel), 0), msg.is_rx))
 
     def stop(self) -> None:
         self._writer.stop()

@@ -36,6 +36,7 @@ import can
 
 from hil.bus_config import DriveConfig, SystemConfig, config_path, load_bus_config, open_buses
 from hil.can.faults import DRIVE_FAULT_WORDS, DriveFaultKind
+from hil.can.monitor import NumberedChannels
 from hil.description import PackagePath
 from hil.errors import HilError
 from hil.file_names import file_stem
@@ -147,7 +148,8 @@ class DrivesBench:
         for name, channel in self.channels.items():
             listener = can.Bus(interface=self.interface, channel=channel)
             path = folder / f"{file_stem(name)}.blf"   # a name over NAME_MAX: cut
-            self._logs.append((can.Notifier(listener, [can.Logger(path)]), listener))
+            log = NumberedChannels(can.Logger(path), {channel: 1})
+            self._logs.append((can.Notifier(listener, [log]), listener))
             paths.append(path)
         return paths
 
