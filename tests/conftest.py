@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 import yaml
 
+from hil import protocols
 from hil.bus_config import load_bus_config
 from hil.can import socketcan_missing as can_socketcan_missing
 from hil.cli import main
@@ -111,6 +112,26 @@ class FrameRecorder(can.Listener):
         with self._arrived:
             return self._arrived.wait_for(
                 lambda: any(match(msg) for msg, _ in self.frames), timeout)
+
+
+#: a device family from outside hil, 29-bit CAN FD frames only: its package and .dist-info
+#: side by side, as pip leaves an installed one (test_toy_protocol.py)
+TOY = TESTS / "fixtures" / "toy_protocol"
+
+
+@pytest.fixture
+def toy_installed(monkeypatch):
+    """The toy family installed for this test only: its folder on sys.path (where
+    importlib.metadata finds the .dist-info's entry point), hil's registry read afresh, and
+    forgotten afterwards."""
+    monkeypatch.syspath_prepend(str(TOY))
+    protocols._registered.cache_clear()
+    protocols.protocol.cache_clear()
+    yield
+    protocols._registered.cache_clear()
+    protocols.protocol.cache_clear()
+    for name in [name for name in sys.modules if name.startswith("hil_toy_protocol")]:
+        del sys.modules[name]
 
 
 @pytest.fixture(scope="session")

@@ -14,6 +14,7 @@ import pytest
 
 from hil.can.frame import FD_LENGTHS, Frame, FrameSpec
 from hil.can.frames import BusLoad, bus_load
+from hil.can.messages import message_of
 from hil.can.router import FrameRouter, start_router
 from hil.can.zenoh_wire import decode_frames, encode_frames
 
@@ -158,24 +159,42 @@ def test_a_router_that_does_not_keep_sending_raises_what_its_bus_refuses():
 def opener(request):
     """Opens buses on one new channel of the parameter's interface: the first the sender's
     (zenoh: listening on loopback, the others' session connecting to it, as bus_pair has
-    them), ``reader=True`` python-can's own bus for the interface."""
+    them), ``reader=True`` python-can's own bus for the interface; ``fd`` python-can's
+    option (hil.can.fd_option)."""
     opened: list[can.BusABC] = []
     zenoh = request.param == "zenoh"
     endpoint = request.getfixturevalue("endpoint") if zenoh else None
     channel = f"test/{time.monotonic_ns()}" if zenoh else f"fd-{uuid.uuid4().hex[:8]}"
 
-    def open_bus(reader: bool = False) -> can.BusABC:
+    def open_bus(reader: bool = False, fd: bool = True) -> can.BusABC:
         if not zenoh:
-            bus = can.Bus(interface="virtual" if reader else "hil-virtual", channel=channel)
+            bus = can.Bus(interface="virtual" if reader else "hil-virtual", channel=channel,
+                          fd=fd)
         else:
             side = {"connect": [endpoint]} if opened else {"listen": [endpoint]}
-            bus = can.Bus(interface="zenoh", channel=channel, **side)
+            bus = can.Bus(interface="zenoh", channel=channel, fd=fd, **side)
         opened.append(bus)
         return bus
 
     yield open_bus
     for bus in opened:
         bus.shutdown()
+
+
+def test_a_bus_opened_without_fd_refuses_to_send_an_fd_frame_and_hears_none(opener):
+    """As a SocketCAN raw socket without CAN_RAW_FD_FRAMES (Linux's
+    Documentation/networking/can.rst): EINVAL on send, FD frames not passed to it."""
+    fd_end, classical_end = opener(), opener(fd=False)
+    assert (fd_end.protocol, classical_end.protocol) == (can.CanProtocol.CAN_FD,
+                                                         can.CanProtocol.CAN_20)
+    fd_msg = message_of(FD_FRAME)
+    with pytest.raises(can.CanOperationError, match="fd=True"):
+        classical_end.send(fd_msg)
+    fd_end.send(fd_msg)
+    fd_end.send(can.Message(arbitration_id=0x123, data=b"\x01"))     # a classical frame
+    heard = classical_end.recv(5)
+    assert heard is not None and (heard.arbitration_id, heard.is_fd) == (0x123, False)
+    assert classical_end.recv(0.2) is None
 
 
 def test_a_64_byte_fd_extended_frame_with_bit_rate_switch_crosses_the_bus_bit_for_bit(

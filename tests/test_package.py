@@ -88,6 +88,7 @@ def test_a_protocol_from_an_installed_package_drives_a_joint(tmp_path):
             interface: virtual
             channel: hil-package-toy
             bitrate: 1000000
+            fd: true
             cycle_hz: 100
             drives: [{{node_id: 1, joint: joint1}}, {{node_id: 2, joint: joint2}},
                      {{node_id: 3, joint: joint3}}, {{node_id: 4, joint: joint4}},

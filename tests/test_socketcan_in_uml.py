@@ -33,7 +33,10 @@ def test_socketcan_suite_passes_inside_user_mode_linux(request):
          "--vcan", "vcan0", "--vcan", "vcan1",
          # can0: the name client libraries that open SocketCAN hard-wire (TMotorCANControl,
          # motor-python), a vxcan pair whose other end hil-can0 the simulated drives take
-         "--vcan", "can0:hil-can0", "--",
+         "--vcan", "can0:hil-can0",
+         # vcancc0: a classical-only vcan (MTU 16; a vcan takes CAN FD frames), where the
+         # kernel refuses an FD frame (test_toy_protocol.py)
+         "--vcan", "vcancc0+classic", "--",
          sys.executable, "-m", "pytest", "-m", "socketcan", "-p", "no:cacheprovider",
          "-q", "-rfEs", "--tb=short", "--color=no",
          # a lock-step demo inside UML on CI's shared vCPUs: over 300 s

@@ -11,7 +11,6 @@ log (as ``hil replay`` reads) see them as ISO 11898-1:2015 says a CAN FD frame i
 
 from __future__ import annotations
 
-import sys
 import threading
 import uuid
 
@@ -19,8 +18,7 @@ import can
 import numpy as np
 import pytest
 
-from conftest import TESTS, FrameRecorder
-from hil import protocols
+from conftest import TESTS, FrameRecorder, socketcan_missing
 from hil.bus_config import load_bus_config, open_buses
 from hil.can.frame import Frame
 from hil.can.monitor import NumberedChannels
@@ -29,27 +27,13 @@ from hil.realtime import LOCK_STEP
 from hil.simulator import Simulator
 from hil.zenoh_session import ZenohSettings
 
-#: the family's distribution: its package and .dist-info side by side
-TOY = TESTS / "fixtures" / "toy_protocol"
 ROBOT = TESTS / "fixtures" / "damiao_one_axis.urdf"
 #: python-can's side of each bus for the listener: the plain ``virtual`` interface shares
 #: hil-virtual's channels
-LISTENER = {"hil-virtual": "virtual", "zenoh": "zenoh"}
-
-
-@pytest.fixture
-def toy_installed(monkeypatch):
-    """The toy family installed for this test only: its folder on sys.path (where
-    importlib.metadata finds the .dist-info's entry point), hil's registry read afresh, and
-    forgotten afterwards."""
-    monkeypatch.syspath_prepend(str(TOY))
-    protocols._registered.cache_clear()
-    protocols.protocol.cache_clear()
-    yield
-    protocols._registered.cache_clear()
-    protocols.protocol.cache_clear()
-    for name in [name for name in sys.modules if name.startswith("hil_toy_protocol")]:
-        del sys.modules[name]
+LISTENER = {"hil-virtual": "virtual", "zenoh": "zenoh", "socketcan": "socketcan"}
+#: a vcan, which takes CAN FD frames (its MTU 72), and one with the classical MTU 16
+#: (tools/uml_run.py --vcan vcancc0+classic)
+FD_VCAN, CLASSICAL_VCAN = "vcan0", "vcancc0"
 
 
 def toy_config(folder, interface: str, channel: str):
@@ -64,6 +48,7 @@ buses:
     interface: {interface}
     channel: {channel}
     cycle_hz: 100
+    fd: true
     drives:
       - {{node_id: 1, joint: yaw}}
 """)
@@ -79,7 +64,8 @@ class ToyBus:
         settings = ZenohSettings.meeting()
         self.sim_buses = open_buses(config, settings, lossless=True)
         self.master_buses = open_buses(config, settings, lossless=True)
-        self.listener = can.Bus(interface=LISTENER[interface], channel=config.buses[0].channel)
+        self.listener = can.Bus(interface=LISTENER[interface], channel=config.buses[0].channel,
+                                fd=True)
         self.recorder = FrameRecorder()
         # the log as hil's monitor writes one: BLF numbers channels (hil.can.monitor)
         self.notifier = can.Notifier(self.listener, [
@@ -110,12 +96,16 @@ def as_logged(frame: Frame) -> tuple:
     return True, True, True, 64, frame.data
 
 
-@pytest.mark.parametrize("interface", ["hil-virtual", "zenoh"])
+@pytest.mark.parametrize("interface", [
+    "hil-virtual", "zenoh", pytest.param("socketcan", marks=pytest.mark.socketcan)])
 def test_a_family_from_an_entry_point_sends_and_answers_29_bit_64_byte_fd_frames(
         toy_installed, tmp_path, interface):
     from hil_toy_protocol import REPLY_BASE, values_of
 
-    config = toy_config(tmp_path, interface, f"toy/{uuid.uuid4().hex[:8]}")
+    if interface == "socketcan" and (missing := socketcan_missing(FD_VCAN)):
+        pytest.skip(missing)
+    channel = FD_VCAN if interface == "socketcan" else f"toy/{uuid.uuid4().hex[:8]}"
+    config = toy_config(tmp_path, interface, channel)
     log = tmp_path / "toy.blf"
     toy = ToyBus(config, interface, log)
     try:
@@ -137,3 +127,23 @@ def test_a_family_from_an_entry_point_sends_and_answers_29_bit_64_byte_fd_frames
     logged = [fd_fields(msg) for msg in can.LogReader(log)]
     assert as_logged(command) in logged and as_logged(reply) in logged
     assert all(fields[:4] == (True, True, True, 64) for fields in logged)
+
+
+@pytest.mark.socketcan
+def test_the_kernel_refuses_an_fd_frame_on_a_classical_vcan():
+    """What a client meets that sends CAN FD to a classical bus over SocketCAN: an interface
+    of the classical MTU (16) refuses the frame (EINVAL, python-can's CanOperationError),
+    one of CAN FD's (72) carries it (Linux's Documentation/networking/can.rst)."""
+    if missing := socketcan_missing(CLASSICAL_VCAN, FD_VCAN):
+        pytest.skip(missing)
+    fd_frame = can.Message(arbitration_id=0x1ABCDE, data=bytes(64), is_extended_id=True,
+                           is_fd=True, bitrate_switch=True)
+    with can.Bus(interface="socketcan", channel=CLASSICAL_VCAN, fd=True) as classical, \
+            can.Bus(interface="socketcan", channel=FD_VCAN, fd=True) as fd_bus, \
+            can.Bus(interface="socketcan", channel=FD_VCAN, fd=True) as listener:
+        with pytest.raises(can.CanOperationError):
+            classical.send(fd_frame)
+        fd_bus.send(fd_frame)
+        heard = listener.recv(5)
+    assert heard is not None and (heard.is_fd, heard.bitrate_switch, heard.dlc) == (
+        True, True, 64)

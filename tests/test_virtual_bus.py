@@ -23,8 +23,9 @@ def channel():
 
 @pytest.fixture
 def pair(channel):
-    sender = can.Bus(interface="hil-virtual", channel=channel)
-    receiver = can.Bus(interface="hil-virtual", channel=channel)
+    """Two ends of one channel, each opened for CAN FD frames too (python-can's fd=True)."""
+    sender = can.Bus(interface="hil-virtual", channel=channel, fd=True)
+    receiver = can.Bus(interface="hil-virtual", channel=channel, fd=True)
     yield sender, receiver
     sender.shutdown()
     receiver.shutdown()

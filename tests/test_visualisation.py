@@ -13,6 +13,8 @@ import pytest
 import rerun as rr
 import rerun.chunk
 
+from hil.can.frame import FrameSpec
+from hil.can.frames import BitRates, bus_load
 from hil.can.monitor import BusLoadMeter, BusMonitor, MeasuredLoad
 from hil.controllers.demo import demo_goal
 from hil.description.source import read_robot_source
@@ -122,7 +124,8 @@ def test_sim_time_map_interpolates_between_clock_pairs_and_extrapolates_at_their
 
 
 def test_bus_load_meter_counts_each_bus_in_bits_against_its_bitrate():
-    meter = BusLoadMeter({"vcan0": ("arm", 1_000_000), "vcan1": ("wrist", 500_000)}, now=0.0)
+    meter = BusLoadMeter({"vcan0": ("arm", BitRates(1_000_000)),
+                          "vcan1": ("wrist", BitRates(500_000))}, now=0.0)
     for _ in range(100):
         meter.on_message_received(can.Message(arbitration_id=0x181, data=bytes(8),
                                               channel="vcan0", is_extended_id=False))
@@ -138,6 +141,22 @@ def test_bus_load_meter_counts_each_bus_in_bits_against_its_bitrate():
     assert all(load.frames_per_second == 0 for load in meter.take(now=0.2))
 
 
+@pytest.mark.parametrize("switch", [True, False])
+def test_the_meter_counts_an_fd_frames_data_phase_at_the_data_rate_as_the_estimate_does(
+        switch):
+    rates = BitRates(1_000_000, 5_000_000)
+    meter = BusLoadMeter({"can0": ("arm", rates)}, now=0.0)
+    for _ in range(100):
+        meter.on_message_received(can.Message(
+            arbitration_id=0x01, data=bytes(8), is_fd=True, bitrate_switch=switch,
+            channel="can0", is_extended_id=False))
+    (load,) = meter.take(now=0.1)
+    estimate = bus_load(rates.nominal, [FrameSpec(0x01, 8, 1000, fd=True,
+                                                  bitrate_switch=switch)], rates.data)
+    assert load.worst_case == pytest.approx(estimate.worst_ratio)
+    assert load.nominal == pytest.approx(estimate.nominal_ratio)
+
+
 @pytest.mark.parametrize("suffix, named", [(".blf", False), (".log", True)])
 @pytest.mark.parametrize("interface", ["virtual", "hil-virtual"])   # a Notifier; delivered as
 def test_the_can_log_holds_every_frame_as_sent_its_channels_numbered_where_the_format_does(
@@ -146,10 +165,13 @@ def test_the_can_log_holds_every_frame_as_sent_its_channels_numbered_where_the_f
     # a name's trailing digits as its number (can.util.channel2int)
     tag = f"{suffix[1:]}-{tmp_path.name}"
     channels = {"arm": f"log-arm-{tag}/700001", "wrist": f"log-wrist-{tag}/700002"}
-    senders = {name: can.Bus(interface=interface, channel=c) for name, c in channels.items()}
-    watched = {name: can.Bus(interface=interface, channel=c) for name, c in channels.items()}
+    senders = {name: can.Bus(interface=interface, channel=c, fd=True)
+               for name, c in channels.items()}
+    watched = {name: can.Bus(interface=interface, channel=c, fd=True)
+               for name, c in channels.items()}
     path = tmp_path / f"run.can{suffix}"
-    monitor = BusMonitor(watched, channels, {"arm": 1_000_000, "wrist": 1_000_000}, path)
+    monitor = BusMonitor(watched, channels, {"arm": BitRates(1_000_000, 5_000_000), "wrist": BitRates(1_000_000, 5_000_000)},
+                         path)
     sent = []
     for k in range(200):
         name = ("arm", "wrist")[k % 2]

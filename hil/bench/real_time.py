@@ -12,6 +12,7 @@ import numpy as np
 from hil.bench.settings import DID_NOT_START, ROBOTS, BenchSettings
 from hil.bus_config import SystemConfig, load_bus_config
 from hil.can import socketcan_missing
+from hil.can.frames import BitRates
 from hil.can.monitor import BusLoadMeter
 from hil.messaging import cdr
 from hil.messaging.samples import ControlSamples
@@ -81,9 +82,9 @@ class _Listener:
     """A third bus on a channel with a load meter, fed in the sender's thread as the stack's
     own buses are (a Notifier thread waking for each frame would compete with the loop)."""
 
-    def __init__(self, channel: str, bus_name: str, bitrate: int):
-        self.bus = can.Bus(interface=IN_PROCESS, channel=channel)
-        self.meter = BusLoadMeter({channel: (bus_name, bitrate)}, time.time())
+    def __init__(self, channel: str, bus_name: str, bit_rates: BitRates):
+        self.bus = can.Bus(interface=IN_PROCESS, channel=channel, fd=True)
+        self.meter = BusLoadMeter({channel: (bus_name, bit_rates)}, time.time())
         self.delivery = self.bus.deliver_to([self.meter])
 
     def stop(self) -> None:
@@ -92,7 +93,7 @@ class _Listener:
 
 
 def _listen(config: SystemConfig, channels: dict[str, str]) -> list[tuple[_Listener, object]]:
-    return [(_Listener(channels[bus.name], bus.name, bus.bitrate), bus) for bus in config.buses]
+    return [(_Listener(channels[bus.name], bus.name, bus.bit_rates), bus) for bus in config.buses]
 
 
 class _LatencyProbe:

@@ -6,7 +6,7 @@ import logging
 
 import can
 
-from hil.bus_config.types import SystemConfig
+from hil.bus_config.types import BusConfig, SystemConfig
 from hil.can import open_bus
 from hil.can.zenoh_receipts import AWAIT_MONITOR, wait_for_monitor
 from hil.errors import HilError, UsageError
@@ -38,11 +38,11 @@ def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None
     try:
         for bus in config.buses:
             name = interface or bus.interface
-            options = {}
+            options = _fd_options(name, bus)
             if name == "zenoh":
                 zenoh_buses.append(bus.name)
-                options = {"settings": zenoh, "timestamps": "sent" if logging else "arrival",
-                           "lossless": lossless}
+                options |= {"settings": zenoh, "timestamps": "sent" if logging else "arrival",
+                            "lossless": lossless}
             opened[bus.name] = open_bus(name, channels.get(bus.name, bus.channel), bus.bitrate,
                                         **options)
     except HilError:
@@ -53,3 +53,20 @@ def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None
         log.warning("no CAN monitor joined bus(es) %s within %g s: a log begun later lacks "
                     "the frames sent before it", ", ".join(zenoh_buses), AWAIT_MONITOR)
     return opened
+
+
+#: interfaces whose ends take python-can's ``fd`` option alone (no bit timing to set)
+_FD_BY_OPTION = ("socketcan", "hil-virtual", "zenoh")
+
+
+def _fd_options(interface: str, bus: BusConfig) -> dict:
+    """python-can's FD options for one of hil's ends of ``bus``. SocketCAN's and hil's own
+    ends take FD frames on every bus (a raw socket with CAN_RAW_FD_FRAMES, as candump opens
+    one): on a classical bus a stray FD frame reaches the drives' router, which reports it
+    and lets no device act on it. An interface with bit timing of its own (pcan, kvaser)
+    is set up for FD where the bus is FD, its data phase at the bus' ``data_bitrate``."""
+    if interface in _FD_BY_OPTION:
+        return {"fd": True}
+    if bus.fd:
+        return {"fd": True, "data_bitrate": bus.data_bitrate}
+    return {}

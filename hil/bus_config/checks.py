@@ -10,6 +10,7 @@ from hil.description.corrections import massless_free_links
 from hil.errors import ConfigError, HilError
 from hil.protocols import names as protocol_names
 from hil.protocols import protocol
+from hil.protocols.base import CanFd
 
 
 def check_system(reader: Reader, config: SystemConfig, transmissions, top: LineMapping) -> None:
@@ -29,6 +30,7 @@ def check_system(reader: Reader, config: SystemConfig, transmissions, top: LineM
                             f"{drive.label}", drive.line, hint="give every drive on a bus its own node id")
             seen[key] = drive
         _check_ids(reader, bus)
+        _check_fd(reader, bus)
         ratio = config.plant_rate_hz / bus.cycle_hz
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             reader.fail(f"bus '{bus.name}': cycle_hz {bus.cycle_hz:g} does not divide "
@@ -123,6 +125,29 @@ def _check_ids(reader: Reader, bus: BusConfig) -> None:
                 shared[key] = drive.protocol
 
 
+def _check_fd(reader: Reader, bus: BusConfig) -> None:
+    """An FD-only device needs an FD bus; a classical-only one cannot share a bus with FD
+    frames (it destroys them with error frames: :class:`hil.protocols.base.CanFd`)."""
+    if any(d.protocol not in protocol_names() for d in bus.drives):
+        return
+    families = {drive.protocol: protocol(drive.protocol).can_fd for drive in bus.drives}
+    for drive in bus.drives:
+        if families[drive.protocol] is CanFd.FD_ONLY and not bus.fd:
+            reader.fail(f"bus '{bus.name}': {drive.label} speaks CAN FD only ({drive.protocol}), "
+                        "on a classical bus", drive.line or bus.line,
+                        hint="add fd: true (and data_bitrate) to the bus")
+    fd_families = sorted(name for name, kind in families.items() if kind is not CanFd.CLASSIC)
+    if not bus.fd or not fd_families:
+        return
+    for drive in bus.drives:
+        if families[drive.protocol] is CanFd.CLASSIC:
+            reader.fail(f"bus '{bus.name}': {drive.label} is a classical CAN device "
+                        f"({drive.protocol}) on an FD bus whose {', '.join(fd_families)} "
+                        "drives exchange FD frames: its controller would answer each with an "
+                        "error frame", drive.line or bus.line,
+                        hint="put the classical drives on a bus of their own (no fd: true)")
+
+
 def _check_load(reader: Reader, bus: BusConfig) -> None:
     if not bus.drives or any(d.protocol not in protocol_names() for d in bus.drives):
         return
@@ -130,13 +155,14 @@ def _check_load(reader: Reader, bus: BusConfig) -> None:
     summary = (f"bus '{bus.name}': {len(bus.drives)} drive(s) at {bus.cycle_hz:g} Hz need "
                f"{load.worst_bits_per_second / 1e3:,.0f} kbit/s worst case "
                f"({load.nominal_bits_per_second / 1e3:,.0f} nominal, "
-               f"{load.frames_per_second:,.0f} frames/s) on a {bus.bitrate / 1e3:,.0f} kbit/s bus: "
+               f"{load.frames_per_second:,.0f} frames/s) on a {bus.rates} bus: "
                f"{load.worst_ratio:.0%}")
     if load.worst_ratio <= LOAD_WARNING:
         return
     # the bus-wide frames (a SYNC) stay however the drives are split
     shared_bits = bus_load(bus.bitrate, [spec for spec in bus.bus_wide_frames()
-                                         if spec.rate > 0]).worst_bits_per_second
+                                         if spec.rate > 0],
+                           bus.data_bitrate).worst_bits_per_second
     per_drive = (load.worst_bits_per_second - shared_bits) / len(bus.drives)
     budget = LOAD_WARNING * bus.bitrate
     fitting_rate = budget / (load.worst_bits_per_second / bus.cycle_hz)   # the load is > 0 here

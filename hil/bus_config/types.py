@@ -3,15 +3,16 @@ drive. Drive quantities are motor side, SI units (rad, rad/s, N·m)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from hil.can import BusLoad, bus_load
+from hil.can.frames import BitRates
 from hil.can.frame import Frame, FrameSpec
 from hil.description import Geometry, Pose, RobotDescription
 from hil.errors import Diagnostic
 from hil.protocols import protocol
-from hil.protocols.base import Protocol, ProtocolOptions
+from hil.protocols.base import CanFd, Protocol, ProtocolOptions
 
 #: Bus load above which a bus has no room left for SDO, EMCY, heartbeats and retries.
 LOAD_WARNING = 0.8
@@ -120,6 +121,9 @@ class DriveConfig:
     #: (from the description: ``hil.hardware.gravity``) to each setpoint, in the protocol's
     #: own field (CiA 402 0x60B2, ODrive's Torque_FF, MIT's t_ff): ``gravity``; or ``none``
     torque_feed_forward: str = "none"
+    #: its bus carries CAN FD (the bus' ``fd``): a family that follows the bus
+    #: (:class:`~hil.protocols.base.CanFd`) sends FD frames with the bit-rate switch
+    can_fd: bool = False
 
     @property
     def label(self) -> str:
@@ -135,10 +139,27 @@ class BusConfig:
     cycle_hz: float
     drives: tuple[DriveConfig, ...]
     line: int | None = None
+    #: CAN FD (ISO 11898-1:2015): FD frames may cross it, their data phase at
+    #: ``data_bitrate`` bit/s where the bit-rate switch is set (None on a classical bus)
+    fd: bool = False
+    data_bitrate: int | None = None
 
     @property
     def cycle(self) -> float:
         return 1.0 / self.cycle_hz
+
+    @property
+    def bit_rates(self) -> BitRates:
+        return BitRates(self.bitrate, self.data_bitrate)
+
+    @property
+    def rates(self) -> str:
+        """Its bit rates in words: "1,000 kbit/s", or "1,000 kbit/s CAN FD, 5,000 kbit/s
+        data"."""
+        nominal = f"{self.bitrate / 1e3:,.0f} kbit/s"
+        if not self.fd:
+            return nominal
+        return f"{nominal} CAN FD, {self.data_bitrate / 1e3:,.0f} kbit/s data"
 
     @property
     def protocols(self) -> tuple[type[Protocol], ...]:
@@ -164,6 +185,8 @@ class BusConfig:
         frames = spec.bus_frames(node_id, self.cycle_hz, drive.heartbeat_period, drive.options)
         if drive.torque_feed_forward != "none":
             frames += spec.torque_feed_forward_frames(node_id, self.cycle_hz, drive.options)
+        if self.fd and spec.can_fd is CanFd.FOLLOWS_BUS:
+            frames = [replace(frame, fd=True, bitrate_switch=True) for frame in frames]
         return frames
 
     def running_frames(self, drive: DriveConfig) -> list[FrameSpec]:
@@ -175,6 +198,20 @@ class BusConfig:
             return self.frames(drive, min(spec.node_ids))
         return self.frames(drive)
 
+    def frame_owner(self, frame: Frame) -> str | None:
+        """Which drive of the bus a frame is from or for, in words ("node 3, RPDO1"), as its
+        protocol tells by the frame (:meth:`Protocol.frame_source`); None where none does."""
+        for kind in self.protocols:
+            drives = {d.node_id: d.options for d in self.drives if d.protocol == kind.name}
+            try:
+                source = kind.frame_source(frame, drives)
+            except NotImplementedError:
+                continue
+            if source is not None:
+                node = "every node" if source.node_id is None else f"node {source.node_id}"
+                return f"{node}, {source.what}"
+        return None
+
     def load(self) -> BusLoad:
         """Worst-case traffic of every drive's cyclic exchange and timed messages (each
         profile's own frames and lengths) once running, plus the bus-wide frames of its
@@ -182,7 +219,8 @@ class BusConfig:
         specs = self.bus_wide_frames()
         for drive in self.drives:
             specs += self.running_frames(drive)
-        return bus_load(self.bitrate, [spec for spec in specs if spec.rate > 0])
+        return bus_load(self.bitrate, [spec for spec in specs if spec.rate > 0],
+                        self.data_bitrate)
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from hil.can.frame import CLASSIC_MAX_LENGTH, FD_LENGTHS, FrameSpec
 
@@ -52,6 +53,18 @@ def fd_frame_bits(payload: int, extended: bool = False, rate_ratio: float = 1.0
     return unstuffed, worst
 
 
+class BitRates(NamedTuple):
+    """A bus' bit rates (bit/s): its nominal one, and CAN FD's data phase where frames
+    switch to it (None on a classical bus)."""
+
+    nominal: int
+    data: int | None = None
+
+    def data_ratio(self, bitrate_switch: bool) -> float:
+        """How many times faster than the nominal rate a frame's data phase runs."""
+        return (self.data or self.nominal) / self.nominal if bitrate_switch else 1.0
+
+
 @dataclass(frozen=True)
 class BusLoad:
     """Traffic of one bus against its bitrate."""
@@ -76,8 +89,8 @@ def spec_bits(spec: FrameSpec, bitrate: int, data_bitrate: int | None = None
     of ``bitrate`` (and ``data_bitrate`` for CAN FD's switched data phase)."""
     if not spec.fd:
         return frame_bits(spec.length, spec.extended)
-    ratio = (data_bitrate or bitrate) / bitrate if spec.bitrate_switch else 1.0
-    return fd_frame_bits(spec.length, spec.extended, ratio)
+    return fd_frame_bits(spec.length, spec.extended,
+                         BitRates(bitrate, data_bitrate).data_ratio(spec.bitrate_switch))
 
 
 def bus_load(bitrate: int, specs: Iterable[FrameSpec], data_bitrate: int | None = None

@@ -14,7 +14,7 @@ from pathlib import Path
 import can
 
 from hil.can.capabilities import capabilities
-from hil.can.frames import fd_frame_bits, frame_bits
+from hil.can.frames import BitRates, fd_frame_bits, frame_bits
 from hil.can.messages import received_copy
 
 
@@ -32,14 +32,16 @@ class MeasuredLoad:
 class BusLoadMeter(can.Listener):
     """Counts frames and bits per bus; :meth:`take` gives the load since the last call.
 
-    ``channels`` maps each bus' python-can channel to (bus name, bitrate);
-    frames are told apart by ``Message.channel``.
+    ``channels`` maps each bus' python-can channel to (bus name, its bit rates); frames
+    are told apart by ``Message.channel``. An FD frame with the bit-rate switch is counted
+    with its data phase at the bus' data rate, as ``hil check`` estimates it
+    (:func:`hil.can.frames.bus_load`).
     """
 
-    def __init__(self, channels: dict[str, tuple[str, int]], now: float):
+    def __init__(self, channels: dict[str, tuple[str, BitRates]], now: float):
         self._buses = {str(channel): name for channel, (name, _) in channels.items()}
         self._counts = {name: [0, 0, 0] for name, _ in channels.values()}
-        self._bitrates = dict(channels.values())
+        self._rates = dict(channels.values())
         self._since = now
         self._lock = threading.Lock()
         self.unknown_channel_frames = 0
@@ -52,9 +54,8 @@ class BusLoadMeter(can.Listener):
             self.unknown_channel_frames += 1
             return
         if msg.is_fd:
-            # a switched data phase counted at the nominal rate: the monitor knows no data
-            # bit rate (an upper bound of the frame's time)
-            nominal, worst = fd_frame_bits(len(msg.data), msg.is_extended_id)
+            nominal, worst = fd_frame_bits(len(msg.data), msg.is_extended_id,
+                                           self._rates[bus].data_ratio(msg.bitrate_switch))
         else:
             nominal, worst = frame_bits(0 if msg.is_remote_frame else len(msg.data),
                                         msg.is_extended_id)
@@ -70,8 +71,9 @@ class BusLoadMeter(can.Listener):
             interval, self._since = now - self._since, now
         if interval <= 0:
             return []
-        return [MeasuredLoad(bus, frames / interval, nominal / interval / self._bitrates[bus],
-                             worst / interval / self._bitrates[bus], interval)
+        return [MeasuredLoad(bus, frames / interval,
+                             nominal / interval / self._rates[bus].nominal,
+                             worst / interval / self._rates[bus].nominal, interval)
                 for bus, (frames, nominal, worst) in counts.items()]
 
 
@@ -105,9 +107,9 @@ class BusMonitor:
     numbered in the order given (``channel_numbers``)."""
 
     def __init__(self, buses: dict[str, can.BusABC], channels: dict[str, str],
-                 bitrates: dict[str, int], log_path=None, now: float = 0.0):
+                 bit_rates: dict[str, BitRates], log_path=None, now: float = 0.0):
         self.buses = buses
-        self.meter = BusLoadMeter({channels[name]: (name, bitrates[name]) for name in buses},
+        self.meter = BusLoadMeter({channels[name]: (name, bit_rates[name]) for name in buses},
                                   now)
         #: bus name -> its channel number in the log (formats that number them), else empty
         self.channel_numbers: dict[str, int] = {}

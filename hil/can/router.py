@@ -60,16 +60,28 @@ class FrameRouter(FrameListener):
     lost and counted in :attr:`lost_frames`, as a drive's CAN controller loses it, and the
     sender runs on (the drives' side: a send error must not stop the plant mid-step);
     otherwise the error is raised to the sender (a master must know).
+
+    ``classical``: the name of the bus where it is a classical CAN bus. An FD frame on it
+    reaches no subscriber: a classical CAN controller destroys it with an error frame
+    (:class:`hil.protocols.base.CanFd`), so no device acts on it. It is counted in
+    :attr:`fd_on_classical` and logged, the first time per identifier and every LOG_EVERY,
+    naming the bus and what ``describe`` says of the frame (the node it is for).
     """
 
     LOG_EVERY = 1000
 
-    def __init__(self, bus: can.BusABC, keep_sending: bool = False):
+    def __init__(self, bus: can.BusABC, keep_sending: bool = False,
+                 classical: str | None = None,
+                 describe: Callable[[Frame], str | None] | None = None):
         self.bus = bus
         self.keep_sending = keep_sending
+        self.classical = classical
+        self._describe = describe
         #: frames a subscriber could not take; frames the bus would not send (keep_sending)
         self.refused = 0
         self.lost_frames = 0
+        #: FD frames that arrived on a classical bus
+        self.fd_on_classical = 0
         # data frames by identifier, standard and extended apart (an extended id below 0x800
         # is another frame than the standard one of that number); remote frames apart
         self._routes: tuple[dict[int, list[Handler]], ...] = ({}, {}, {}, {})
@@ -115,9 +127,12 @@ class FrameRouter(FrameListener):
     # --- receiving --------------------------------------------------------------------
 
     def on_frames(self, frames: Iterable[Frame]) -> None:
-        routes, masked = self._routes, self._masked
+        routes, masked, classical = self._routes, self._masked, self.classical
         for frame in frames:
             if frame.error:
+                continue
+            if frame.fd and classical is not None:
+                self._fd_on_classical(frame)
                 continue
             handlers = routes[frame.extended + 2 * frame.remote].get(frame.identifier)
             if handlers is not None:
@@ -152,6 +167,18 @@ class FrameRouter(FrameListener):
                         getattr(handler, "__qualname__", handler), type(exc).__name__, exc,
                         count)
         log.debug("frame %s refused", frame, exc_info=exc)
+
+    def _fd_on_classical(self, frame: Frame) -> None:
+        self.fd_on_classical += 1
+        count = self._refused_by_id.get(frame.identifier, 0) + 1
+        self._refused_by_id[frame.identifier] = count
+        if count % self.LOG_EVERY == 1:
+            what = self._describe(frame) if self._describe is not None else None
+            log.warning("bus '%s': CAN FD frame %s%s on this classical bus: dropped, as a "
+                        "classical CAN controller destroys it with an error frame (%d so "
+                        "far; fd: true on the bus if its devices speak CAN FD)",
+                        self.classical, frame, f" ({what})" if what else "",
+                        self.fd_on_classical)
 
     # --- sending ------------------------------------------------------------------------
 
@@ -197,12 +224,14 @@ class FrameRouter(FrameListener):
             delivery.stop(timeout)
 
 
-def start_router(bus: can.BusABC, keep_sending: bool = False, timeout: float = 0.1
-                 ) -> FrameRouter:
+def start_router(bus: can.BusABC, keep_sending: bool = False, timeout: float = 0.1,
+                 classical: str | None = None,
+                 describe: Callable[[Frame], str | None] | None = None) -> FrameRouter:
     """A router on ``bus`` with its frames flowing: handed over in the thread that brings
     them where the bus can (``deliver_to``: hil-virtual, zenoh; see hil.can.delivery), else
-    read by a python-can Notifier (``timeout``: its read's)."""
-    router = FrameRouter(bus, keep_sending)
+    read by a python-can Notifier (``timeout``: its read's). ``classical`` and ``describe``:
+    see :class:`FrameRouter`."""
+    router = FrameRouter(bus, keep_sending, classical, describe)
     router._delivery = (capabilities(bus).deliver_to([router])
                         or can.Notifier(bus, [router], timeout))
     return router

@@ -23,7 +23,8 @@ hear each other; a bus without direct delivery queues its frames for ``recv`` as
 frame that python-can's own ``virtual`` bus sends to a bus with direct delivery is handed
 over in the sender's thread too (:class:`Inbox`): a user's master on ``virtual`` in front of
 hil's drives (``hil.testing.DrivesBench``) has its frame taken by the drive when its ``send``
-returns, as a lock-step bench needs. Picked by ``interface="hil-virtual"``.
+returns, as a lock-step bench needs. ``fd=True`` lets it send and hear CAN FD frames, as
+a SocketCAN socket (:mod:`hil.can.fd_option`). Picked by ``interface="hil-virtual"``.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from can.interfaces import virtual
 
 from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
+from hil.can.fd_option import fd_protocol, refuse_fd_send, takes_fd
 from hil.can.frame import Frame
 from hil.can.messages import frame_of, message_of, received_copy
 
@@ -65,8 +67,10 @@ class Inbox(queue.Queue):
 class VirtualBus(virtual.VirtualBus, BusCapabilities):
     """python-can's VirtualBus, sending without ``copy.deepcopy``, with direct delivery."""
 
-    def __init__(self, channel: Any = "channel-0", **kwargs):
-        super().__init__(channel, **kwargs)
+    def __init__(self, channel: Any = "channel-0", fd: bool = False, **kwargs):
+        protocol = fd_protocol(fd, kwargs)
+        super().__init__(channel, protocol=protocol, **kwargs)
+        self._fd = takes_fd(protocol)       # hil.can.fd_option
         # python-can's queue, swapped for one that also delivers: a frame a sender put into
         # the old one meanwhile (a bus opened mid-burst) moves over, in order
         inbox = Inbox(self.queue.maxsize)
@@ -97,6 +101,8 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         if not self._open:                  # python-can's _check_if_open, one call less
             self._check_if_open()
+        if msg.is_fd and not self._fd:
+            refuse_fd_send(self.channel_info, msg)
         timestamp = msg.timestamp if self.preserve_timestamps else time.time()
         all_sent = True
         for bus_queue in self.channel:
@@ -147,6 +153,12 @@ class VirtualBus(virtual.VirtualBus, BusCapabilities):
         # a receiver that wants messages (python-can's bus, a listener of yours, this bus)
         for frame in frames:
             self.send(message_of(frame))
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        msg, filtered = super()._recv_internal(timeout)
+        if msg is not None and msg.is_fd and not self._fd:
+            return None, False      # unheard (hil.can.fd_option); recv waits on
+        return msg, filtered
 
     def shutdown(self) -> None:
         with _DIRECT_LOCK:

@@ -58,6 +58,7 @@ import zenoh
 
 from hil.can.capabilities import BusCapabilities
 from hil.can.delivery import DirectDelivery
+from hil.can.fd_option import fd_protocol, refuse_fd_send, takes_fd
 from hil.can.frame import Frame
 from hil.can.link_account import LinkAccount
 from hil.can.messages import frame_of, message_of
@@ -111,14 +112,17 @@ class ZenohBus(can.BusABC, BusCapabilities):
     being a process that may be late); ``lossless``: a send waits for room in a congested
     link instead of dropping the frame (see the module doc); ``link_timeout`` (s): how long
     the open may wait to be linked to every peer on the channel (:meth:`_await_links`).
+    ``fd``: it sends and hears CAN FD frames, as a SocketCAN socket (:mod:`hil.can.fd_option`).
     ``watch_stalls`` sets who is told (in Zenoh's delivering thread) of each late delivery.
     """
 
     def __init__(self, channel: str, listen=(), connect=(), zenoh_config=None,
                  receive_own_messages: bool = False, settings: ZenohSettings | None = None,
                  timestamps: str = "arrival", lossless: bool = False,
-                 link_timeout: float | str = LINK_TIMEOUT, **kwargs):
+                 link_timeout: float | str = LINK_TIMEOUT, fd: bool = False, **kwargs):
         self.channel_info = f"Zenoh {KEY_PREFIX}{channel}"
+        protocol = fd_protocol(fd, kwargs)
+        self._fd = takes_fd(protocol)           # hil.can.fd_option
         self._channel = str(channel)
         if len(self._channel.encode()) > 255:
             raise ValueError(f"channel '{channel}': a name of at most 255 bytes (UTF-8)")
@@ -157,6 +161,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
         self._key = key
         self._channels, self._neighbours = Channels.join(self._session, key, self)
         super().__init__(channel=channel, **kwargs)
+        self._can_protocol = protocol
         _open_buses.add(self)
         self._await_links(link_timeout)
 
@@ -245,6 +250,8 @@ class ZenohBus(can.BusABC, BusCapabilities):
         return self._channels.together
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if msg.is_fd and not self._fd:
+            refuse_fd_send(self.channel_info, msg)
         frame = frame_of(msg)
         problem = frame.problem()     # hil's own senders' frames are valid by construction
         if problem is not None:
@@ -295,9 +302,12 @@ class ZenohBus(can.BusABC, BusCapabilities):
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         try:
-            return self._queue.get(timeout=timeout), False
+            msg = self._queue.get(timeout=timeout)
         except queue.Empty:
             return None, False
+        if msg.is_fd and not self._fd:
+            return None, False      # unheard (hil.can.fd_option); recv waits on
+        return msg, False
 
     def shutdown(self) -> None:
         if self._is_shutdown:

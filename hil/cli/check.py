@@ -66,7 +66,7 @@ def bus_summary(config: SystemConfig) -> str:
     for bus in config.buses:
         load = bus.load()
         lines += ["", f"  bus '{bus.name}': {bus.interface} {bus.channel}, "
-                      f"{bus.bitrate / 1e3:,.0f} kbit/s, {len(bus.drives)} drive(s); load "
+                      f"{bus.rates}, {len(bus.drives)} drive(s); load "
                       f"{load.worst_ratio:.0%} worst case, {load.nominal_ratio:.0%} nominal "
                       f"({load.frames_per_second:,.0f} frames/s)",
                   f"    {'node':>4}  {'joint(s)':<22}{'protocol':<9}{'counts/rev':>11}"

@@ -218,5 +218,5 @@ def _monitor(configs: list[SystemConfig], recorders: list[RunRecorder], zenoh: Z
             buses[name] = opened[bus]
             config_bus = next(b for b in config.buses if b.name == bus)
             channel_of[name] = channels.get(bus, config_bus.channel)
-            bitrates[name] = config_bus.bitrate
+            bitrates[name] = config_bus.bit_rates
     return BusMonitor(buses, channel_of, bitrates, args.can_log)

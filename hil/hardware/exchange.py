@@ -48,6 +48,7 @@ class CycleExchange:
                                                                        self._answered)
                                  for bus in config.buses for drive in bus.drives]
         self.routers: dict[str, FrameRouter] = {}
+        self._configs = {bus.name: bus for bus in config.buses}
         #: per bus, what its protocols' master sends once after a cycle's frames
         self._cycle_end = {bus.name: list(bus.cycle_end_frames) for bus in config.buses
                            if bus.cycle_end_frames}
@@ -64,7 +65,9 @@ class CycleExchange:
     def open(self) -> None:
         """A router on every bus, every axis on its bus' router."""
         for name, bus in self._buses.items():
-            self.routers[name] = start_router(bus)
+            fd = self._configs[name].fd
+            self.routers[name] = start_router(bus, classical=None if fd else name,
+                                              describe=self._configs[name].frame_owner)
         self._batched = batching(self._buses.values())     # what send sends together
         for axis in self.axes:
             axis.attach(self.routers[axis.bus_name])

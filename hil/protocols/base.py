@@ -27,6 +27,20 @@ class Sender(enum.Enum):
     DRIVE = "drive"
 
 
+class CanFd(enum.Enum):
+    """Which frames a family's devices send and take (ISO 11898-1:2015's classical and FD
+    frames). A classical CAN controller that is not FD-tolerant takes an FD frame for a
+    malformed one and destroys it with an error frame (CiA's CAN FD guidance: such nodes
+    cannot share a bus with FD traffic)."""
+
+    #: classical frames only (hil's CiA 402, ODrive CANSimple, MIT, CubeMars)
+    CLASSIC = "classic"
+    #: classical frames on a classical bus; on an FD bus FD frames with the bit-rate switch
+    FOLLOWS_BUS = "follows the bus"
+    #: FD frames only: no place on a classical bus
+    FD_ONLY = "FD only"
+
+
 @dataclass(frozen=True)
 class FrameSource:
     """Who sends a frame of a protocol, which drive it concerns and what it is."""
@@ -115,6 +129,9 @@ class Protocol(ABC):
     link_loss_codes: ClassVar[frozenset[int]] = frozenset()
     #: the node ids the protocol can address
     node_ids: ClassVar[range] = range(1, 128)
+    #: the frames its devices speak; a family that follows the bus declares its
+    #: :meth:`bus_frames` classical, and the bus config makes them FD with BRS on an FD bus
+    can_fd: ClassVar[CanFd] = CanFd.CLASSIC
     #: a node id with which a drive boots without one, for a master to assign it (CiA 305
     #: LSS: 255); None where the protocol has none
     unconfigured_node_id: ClassVar[int | None] = None

@@ -125,7 +125,10 @@ class Simulator:
         deliver_under((simulated.bus for simulated in self.buses), self.lock)
         for simulated in self.buses:
             # the drives' side: a frame the bus refuses is lost and counted, the plant runs on
-            simulated.router = start_router(simulated.bus, keep_sending=True, timeout=0.2)
+            bus = simulated.config
+            simulated.router = start_router(simulated.bus, keep_sending=True, timeout=0.2,
+                                            classical=None if bus.fd else bus.name,
+                                            describe=bus.frame_owner)
             for drive in simulated.drives:
                 drive.attach(simulated.router)
                 self._cycles.attached.add(drive)

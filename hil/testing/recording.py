@@ -33,7 +33,7 @@ class StackRecording:
         buses = open_buses(config, ZenohSettings.meeting(), IN_PROCESS, self.channels,
                            logging=True)
         self._monitor = BusMonitor(buses, self.channels,
-                                   {b.name: b.bitrate for b in config.buses}, self.can_log)
+                                   {b.name: b.bit_rates for b in config.buses}, self.can_log)
         self._recorded: tuple | None = None
 
     def record(self, stack: Stack) -> None:
