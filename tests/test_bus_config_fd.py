@@ -112,3 +112,13 @@ def test_an_fd_frame_on_a_classical_bus_reaches_no_device_and_is_reported(tmp_pa
     assert taken == [rpdo1._replace(fd=False, bitrate_switch=False)]
     assert router.fd_on_classical == 1
     assert "bus 'axis': CAN FD frame" in caplog.text and "(node 1, RPDO1)" in caplog.text
+
+
+def test_describe_tells_an_fd_bus_its_data_rate_its_fd_frames_and_how_to_join_it(
+        tmp_path, toy_installed, capsys):
+    path = config(tmp_path, "    fd: true", "- {node_id: 1, joint: yaw, protocol: toy}")
+    assert main(["describe", str(path)]) == 0
+    said = capsys.readouterr().out
+    assert "1,000 kbit/s CAN FD, 5,000 kbit/s data" in said
+    assert 'can.Bus(interface="hil-virtual", channel="fd-test", fd=True)' in said
+    assert "(CAN FD, BRS)" in said

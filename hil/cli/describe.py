@@ -34,14 +34,15 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _describe_bus(config: SystemConfig, bus: BusConfig) -> None:
-    print(f"\nbus '{bus.name}': {bus.interface} channel {bus.channel}, "
-          f"{bus.bitrate // 1000} kbit/s, cycle {bus.cycle_hz:g} Hz")
+    print(f"\nbus '{bus.name}': {bus.interface} channel {bus.channel}, {bus.rates}, "
+          f"cycle {bus.cycle_hz:g} Hz")
+    fd = ", fd=True" if bus.fd else ""        # without it python-can sends and hears no FD frame
     if bus.interface == "zenoh":
-        print(f"  join it: can.Bus(interface=\"zenoh\", channel=\"{bus.channel}\") (python-can; "
+        print(f"  join it: can.Bus(interface=\"zenoh\", channel=\"{bus.channel}\"{fd}) (python-can; "
               f"this host's hil processes meet at {meeting_endpoint()}; from another host add "
               "connect=[\"tcp/HOST:PORT\"], the endpoint hil sim --listen's)")
     else:
-        print(f"  join it: can.Bus(interface=\"{bus.interface}\", channel=\"{bus.channel}\")"
+        print(f"  join it: can.Bus(interface=\"{bus.interface}\", channel=\"{bus.channel}\"{fd})"
               + (f"; candump {bus.channel}" if bus.interface == "socketcan" else ""))
     bus_wide = bus.bus_wide_frames()
     if bus_wide:
@@ -64,7 +65,14 @@ def _describe_drive(config: SystemConfig, bus: BusConfig, drive: DriveConfig) ->
     for frame in bus.frames(drive):
         what = _what(family, frame, options)
         when = f"{frame.rate:g}/s" if frame.rate > 0 else "on events"
-        print(f"    {_identifier(frame)}  {frame.length} B  {when:>9s}  {what}")
+        print(f"    {_identifier(frame)}  {frame.length} B  {when:>9s}  {what}{_fd_flags(frame)}")
+
+
+def _fd_flags(spec: FrameSpec) -> str:
+    """ " (CAN FD, BRS)" for an FD frame, nothing for a classical one."""
+    if not spec.fd:
+        return ""
+    return " (CAN FD, BRS)" if spec.bitrate_switch else " (CAN FD)"
 
 
 def _identifier(spec: FrameSpec) -> str:
