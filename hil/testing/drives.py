@@ -148,7 +148,9 @@ class DrivesBench:
         for name, channel in self.channels.items():
             listener = can.Bus(interface=self.interface, channel=channel)
             path = folder / f"{file_stem(name)}.blf"   # a name over NAME_MAX: cut
-            log = NumberedChannels(can.Logger(path), {channel: 1})
+            # channel 0 as python-can reads it back: what a name without digits got before
+            # (a name's trailing digits became a number too large for BLF's 16 bits)
+            log = NumberedChannels(can.Logger(path), {channel: 0})
             self._logs.append((can.Notifier(listener, [log]), listener))
             paths.append(path)
         return paths
