@@ -36,6 +36,7 @@ from hil.description import (
 )
 from hil.plant import Plant
 from hil.protocols import protocol
+from hil.protocols.base import CanFd
 
 BITRATE = 1_000_000
 HEARTBEAT_PERIOD = 0.1
@@ -255,6 +256,8 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
         lines += [f"  - name: bus{number}", "    interface: zenoh",
                   f"    channel: {robot.name}/bus{number}", f"    bitrate: {BITRATE}",
                   f"    cycle_hz: {rate:g}", "    drives:"]
+        if protocol(protocol_name).can_fd is CanFd.FD_ONLY:      # no place on a classical bus
+            lines.insert(-1, "    fd: true")
         for drive in drives:
             key = (f"joint: {drive.joint}" if drive.sizing is not None
                    else f"actuator: {drive.actuator}")

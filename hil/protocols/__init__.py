@@ -20,7 +20,8 @@ from hil.protocols.base import FrameSource, Protocol, Sender, SettingField, load
 #: hil's own protocols: name -> "module:Class" of their Protocol
 BUILTIN = {"cia402": "hil.protocols.cia402:Cia402", "odrive": "hil.protocols.odrive:ODrive",
            "mit": "hil.protocols.mit:Mit", "damiao": "hil.protocols.damiao:Damiao",
-           "cubemars": "hil.protocols.cubemars:CubeMars"}
+           "cubemars": "hil.protocols.cubemars:CubeMars",
+           "moteus": "hil.protocols.moteus:Moteus"}
 ENTRY_POINT_GROUP = "hil.protocols"
 
 
