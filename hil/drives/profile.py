@@ -27,7 +27,7 @@ from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from typing import ClassVar
 
-from hil.bus_config.types import DriveConfig
+from hil.bus_config.types import BusConfig, DriveConfig
 from hil.can.frame import Frame
 from hil.can.router import FrameRouter, Subscription
 from hil.drives.core import DriveCore
@@ -93,6 +93,10 @@ class DriveProfile(ABC):
         """The frames this drive listens to, each with its handler."""
 
     # --- shared behaviour ------------------------------------------------------------
+
+    def on_bus(self, bus: BusConfig) -> None:
+        """Built on ``bus``, before it is attached (the simulator's builder tells it): a
+        profile whose frames follow the bus' (its CAN FD rates) reads it here."""
 
     @property
     def attached(self) -> bool:

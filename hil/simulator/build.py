@@ -99,4 +99,6 @@ def _drive(drive_config: DriveConfig, bus_config: BusConfig, motor_inertia: floa
             parameters.watchdog_timeout, LOCK_STEP_WATCHDOG))
     core = DriveCore(parameters)
     core.set_cycle(bus_config.cycle)
-    return protocol(drive_config.protocol).drive_class()(drive_config, core, lock)
+    drive = protocol(drive_config.protocol).drive_class()(drive_config, core, lock)
+    drive.on_bus(bus_config)
+    return drive

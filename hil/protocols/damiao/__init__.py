@@ -21,6 +21,8 @@ From the maker's documents (the DM-J manuals' CAN protocol; Damiao's sample code
   value (4 bytes, little-endian)]``, op 0x33 read, 0x55 write, 0xAA save, 0xCC refresh; a
   read and a write are answered on the master's id with the same layout and the register's
   value (uint32 or float32 by register).
+* On CAN FD (CAN_BR, register 35, an FD rate code: :mod:`hil.protocols.damiao.fd`), the same
+  8-byte payloads: every answer an FD frame with the bit-rate switch, DLC 8.
 """
 
 from __future__ import annotations
@@ -30,8 +32,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from hil.can.frame import Frame, FrameSpec
-from hil.protocols.base import (DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender,
-                                SettingField)
+from hil.protocols.base import (CanFd, DriveSetting, FrameSource, Protocol, ProtocolOptions,
+                                Sender, SettingField)
+from hil.protocols.damiao.fd import MAX_RATE_CODE
 from hil.protocols.damiao.models import MODELS, DamiaoModel, model
 from hil.protocols.damiao.registers import REGISTER_ID, REGISTERS, TIMEOUT_UNIT, Op
 from hil.protocols.mit import MitRanges, pack_motion, unpack_motion
@@ -93,8 +96,13 @@ class DamiaoOptions(ProtocolOptions):
     #: tuning, see hil.protocols.damiao.axis)
     kp: float = 0.0
     kd: float = 0.0
+    #: CAN_BR (register 35), the motor's rate code: classic 0-4 or CAN FD 5-11
+    #: (:mod:`hil.protocols.damiao.fd`); None: its bus' rates (hil's choice: a motor set up
+    #: for its bus, as Damiao's tool sets it)
+    can_br: int | None = None
 
-    KEYS = ("model", "master_id", "p_max", "v_max", "t_max", "control_mode", "kp", "kd")
+    KEYS = ("model", "master_id", "p_max", "v_max", "t_max", "control_mode", "kp", "kd",
+            "can_br")
     #: off: TIMEOUT (register 9) is 0 in the factory configuration, as the DM4310's firmware
     #: writes it to an erased flash (recovered in github.com/umeow0716/damiao_firmware,
     #: app/src/app_config.c, ``communication_timeout = 0``)
@@ -114,7 +122,8 @@ class DamiaoOptions(ProtocolOptions):
                              f"{', '.join(m.name for m in ControlMode)}") from None
         master = parse_standard_id(values, "master_id", None)
         kp, kd = parse_gains(values)
-        return cls(found, master, control_mode=mode, kp=kp, kd=kd, **ranges)
+        return cls(found, master, control_mode=mode, kp=kp, kd=kd,
+                   can_br=parse_rate_code(values.get("can_br")), **ranges)
 
     def drive_defaults(self) -> dict[str, float | bool]:
         """The model's output-shaft figures: peak and rated torque, no-load speed; no
@@ -127,6 +136,16 @@ class DamiaoOptions(ProtocolOptions):
     def ranges(self) -> MitRanges:
         """The MIT mapping the motor starts with (its PMAX/VMAX/TMAX registers)."""
         return model_ranges(self.model, self.p_max, self.v_max, self.t_max)
+
+
+def parse_rate_code(value) -> int | None:
+    """CAN_BR as the options give it; ValueError for a code the firmware has not."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_RATE_CODE:
+        raise ValueError(f"'can_br' {value!r} is not a rate code 0-{MAX_RATE_CODE} (0-4 "
+                         "classic CAN, 5-11 CAN FD)")
+    return value
 
 
 @dataclass(frozen=True)
@@ -169,6 +188,8 @@ class Damiao(Protocol):
     carries_torque_feed_forward = True
     has_following_error = False
     node_ids = range(1, 0x100)          # the mode offsets 0x100..0x300 must not collide
+    #: classic CAN or CAN FD by CAN_BR, which follows the bus (hil.protocols.damiao.fd)
+    can_fd = CanFd.FOLLOWS_BUS
     models = MODELS
     setting_fields = {"watchdog_timeout": SettingField(1 / TIMEOUT_UNIT, 0, 0xFFFFFFFF,
                                                        "register 9 TIMEOUT, uint32 of 50 us")}

@@ -3,16 +3,20 @@ MIT commands, as a MIT-protocol motor takes them (:class:`~hil.protocols.mit.axi
 enable at standstill, one command per cycle, hold while stopping), and the motor's 8-byte
 feedback, whose state nibble the master watches: an error the motor reports (lost
 communication, overload, ...) is a fault, cleared with the clear-error frame on a reset.
+On a CAN FD bus every frame goes as an FD frame with the bit-rate switch, as openarm_can
+sends them (:func:`hil.protocols.damiao.fd.master_frame`).
 """
 
 from __future__ import annotations
 
 from hil.bus_config.types import DriveConfig
-from hil.hardware.axis import AxisFault, FaultKind
+from hil.can.frame import Frame
+from hil.hardware.axis import AxisCommand, AxisFault, FaultKind
 from hil.protocols.damiao import (
     CLEAR_ERROR, ControlMode, Damiao, DamiaoOptions, Feedback, State, is_register_answer,
     unpack_feedback,
 )
+from hil.protocols.damiao.fd import master_frame
 from hil.protocols.mit import MitRanges
 from hil.protocols.mit.axis import MitAxis, MotorAnswers
 
@@ -46,6 +50,15 @@ class DamiaoAxis(MitAxis):
         MitAxis.require(config, options.control_mode is ControlMode.MIT and options.kp > 0,
                         "Damiao motors in MIT mode", "control_mode: MIT")
         return options.ranges(), options.kp, options.kd, options.reply_id(config.node_id)
+
+    def cycle_frames(self, command: AxisCommand) -> list[Frame]:
+        return self._on_bus(super().cycle_frames(command))
+
+    def disable_rounds(self) -> list[list[Frame]]:
+        return [self._on_bus(frames) for frames in super().disable_rounds()]
+
+    def _on_bus(self, frames: list[Frame]) -> list[Frame]:
+        return [master_frame(frame, self.config.can_fd) for frame in frames]
 
     @property
     def state(self) -> str:

@@ -20,6 +20,10 @@ read back as written. Saved values (0xAA, taken only while the motor is disabled
 firmware takes them) survive a restart within the run (``hil sim --fault
 restart:...``); unsaved ones are lost with it.
 
+On CAN FD (CAN_BR, register 35, an FD code; by default the bus' rates) every answer is an FD
+frame with the bit-rate switch; a frame whose format is not the motor's is taken all the
+same and reported once (:mod:`hil.protocols.damiao.fd`).
+
 A command is never left over from another mode or another enable: as the firmware keeps
 one command and zeroes it when CTRL_MODE changes (parameter_protocol.c, write_register)
 and when the motor is disabled (app_commands.c), the motor enabled, or switched to a new
@@ -35,16 +39,18 @@ import struct
 from contextlib import AbstractContextManager
 from dataclasses import replace
 
-from hil.bus_config.types import DriveConfig
-from hil.can.frame import Frame, frame_of_fields
+from hil.bus_config.types import BusConfig, DriveConfig
+from hil.can.frame import Frame
 from hil.can.router import Subscription
 from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power, SilenceReaction
 from hil.drives.profile import Reading
+from hil.errors import ConfigError
 from hil.protocols.damiao import (
     CLEAR_ERROR, DISABLE, ENABLE, SAVE_ZERO, ControlMode, Damiao, DamiaoOptions, Feedback, Op,
     REGISTER_ID, State, is_register_answer, pack_feedback, unpack_feedback,
 )
+from hil.protocols.damiao.fd import FormatWatch, answer, is_fd_code, rate_code
 from hil.protocols.damiao.registers import (
     AMBIENT, ID_REGISTERS, REGISTERS, TIMEOUT_UNIT, accepts, initial_values,
 )
@@ -61,6 +67,10 @@ CORE_MODES = {ControlMode.MIT: Mode.IMPEDANCE, ControlMode.POSITION_VELOCITY:
 FAULT_STATES = {Fault.CONTROLLER_SILENT: State.LOST_COMMUNICATION}
 #: ACC or DEC of 0: the reference steps at once (rad/s², finite: it multiplies distances)
 NO_RAMP = 1e9
+#: the bytes each mode's command carries (the module doc of hil.protocols.damiao); the
+#: special frames are MIT's 8
+COMMAND_LENGTHS = {ControlMode.MIT: 8, ControlMode.POSITION_VELOCITY: 8,
+                   ControlMode.VELOCITY: 4, ControlMode.FORCE_POSITION: 8}
 _FORCE_POSITION = struct.Struct("<fHH")
 _TWO_FLOATS = struct.Struct("<ff")
 
@@ -87,6 +97,22 @@ class DamiaoDrive(MitFamilyDrive):
         # TIMEOUT disables the motor, LOST_COMMUNICATION until cleared (the module doc)
         core.silence_reaction = SilenceReaction.DISABLE
         self._apply_registers()
+        self.watch = FormatWatch(f"node {node_id}")
+
+    def on_bus(self, bus: BusConfig) -> None:
+        """CAN_BR: the options' code, else the bus' rates' (the module doc)."""
+        super().on_bus(bus)
+        self.watch.where = f"bus '{bus.name}' node {self.node_id}"
+        code = self.options.can_br
+        if code is None:
+            try:
+                code = rate_code(bus.bitrate, bus.fd, bus.data_bitrate)
+            except ValueError as error:
+                raise ConfigError.single(
+                    f"bus '{bus.name}' drive node {self.node_id}: {error}",
+                    line=self.config.line, hint="give the bus rates a DM-J motor runs, or "
+                    "the drive 'options: {can_br: N}'") from None
+        self.registers[35] = self.saved[35] = code
 
     # --- bus ----------------------------------------------------------------------------
 
@@ -94,7 +120,20 @@ class DamiaoDrive(MitFamilyDrive):
         return [*(Subscription(identifier, self.on_frame) for identifier in self._modes),
                 Subscription(REGISTER_ID, self._on_register)]
 
+    def on_frame(self, frame: Frame) -> None:
+        """A frame on one of the motor's command ids: the firmware reads 8 data bytes of its
+        receive element whatever the DLC (board_mcan_hc32f448.c, ``board_mcan_receive_payload``:
+        ``*length = 8``), an FD frame's first 8, so a command as long as its mode's payload
+        or longer is taken (openarm_can sends the velocity command in 4 bytes:
+        ``pack_vel_control_data``). A shorter one is malformed (hil's choice: the firmware
+        would read the element's bytes of an earlier frame after it)."""
+        if len(frame.data) < COMMAND_LENGTHS[self._modes[frame.identifier]]:
+            self.malformed += 1
+            return
+        super().on_frame(frame._replace(data=frame.data[:8].ljust(8, b"\0")))
+
     def apply(self, frame: Frame) -> Frame:
+        self.watch.note(frame, self.fd)
         mode, data = self._modes[frame.identifier], frame.data
         if mode is ControlMode.MIT and data in SPECIAL_FRAMES:
             SPECIAL_FRAMES[data](self)
@@ -110,7 +149,12 @@ class DamiaoDrive(MitFamilyDrive):
         data = pack_feedback(Feedback(self.node_id, self.state, status.position - self.zero,
                                       status.velocity, status.torque, int(AMBIENT),
                                       int(AMBIENT)), self.ranges)
-        return frame_of_fields((self.reply_id, data, False, False, False, False, False, 0.0))
+        return answer(self.reply_id, data, self.fd)
+
+    @property
+    def fd(self) -> bool:
+        """Whether the motor answers in CAN FD (its CAN_BR now: a write applies at once)."""
+        return is_fd_code(self.registers[35])
 
     @property
     def control_mode(self) -> ControlMode:
@@ -216,10 +260,11 @@ class DamiaoDrive(MitFamilyDrive):
     # --- registers -------------------------------------------------------------------
 
     def _on_register(self, frame: Frame) -> None:
-        data = frame.data
+        data = frame.data[:8]            # an FD frame's first 8 bytes, as a command's
         if len(data) != 8 or (data[0] | (data[1] << 8)) != self.node_id:
             return                       # another motor's, or not a request
         with self.lock:
+            self.watch.note(frame, self.fd)
             op, number = data[2], data[3]
             if op == Op.REFRESH:
                 self.send(self.answer())
@@ -234,7 +279,8 @@ class DamiaoDrive(MitFamilyDrive):
                 return
             if op == Op.WRITE and register.writable:
                 self._write(number, register.decode(data[4:8]))
-            self.send(Frame(self.reply_id, data[:4] + register.encode(self._read(number))))
+            self.send(answer(self.reply_id, data[:4] + register.encode(self._read(number)),
+                             self.fd))
 
     def _write(self, number: int, value: float) -> None:
         """A register write the register can take (the module doc); a new CTRL_MODE zeroes
