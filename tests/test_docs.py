@@ -74,7 +74,7 @@ def test_the_front_pages_name_every_protocol_hil_ships(page):
 
     text = (ROOT / page).read_text().lower()
     words = {"cia402": "cia 402", "odrive": "odrive", "mit": "mit", "damiao": "damiao",
-             "cubemars": "cubemars"}
+             "cubemars": "cubemars", "moteus": "moteus"}
     assert set(words) == set(BUILTIN)
     assert [name for name, word in words.items() if word not in text] == []
 
@@ -83,7 +83,12 @@ def test_the_readme_keeps_its_two_set_up_commands():
     text = (ROOT / "README.md").read_text()
     venv = "python3 -m venv .venv && .venv/bin/pip install -e '.[test]' && "
     assert f"{venv}.venv/bin/hil up pigot --demo\n" in text
-    assert f"{venv}.venv/bin/python -m pytest -n 2\n" in text
+    tests = f"{venv}sh tools/install_lerobot.sh .venv && .venv/bin/python -m pytest -n 2\n"
+    assert tests in text
+    ci = (ROOT / ".ci" / "run").read_text()       # CI runs the same, step by step
+    assert all(step in ci for step in ("pip install --quiet -e '.[test]'",
+                                       "sh tools/install_lerobot.sh .venv",
+                                       ".venv/bin/python -m pytest -n 2"))
 
 
 #: a comment's citation of the performance page and the entry it names: a heading in double
