@@ -107,6 +107,16 @@ def test_hil_check_passes_and_prints_each_fd_bus_load(capsys):
                          rf"{load.nominal_ratio:.0%} nominal \(16,000 frames/s\)", out), out
 
 
+def test_hil_init_openarm_writes_a_config_its_check_passes(tmp_path):
+    """hil init wrote the gripper's rated torque, capped at its effort limit, rounded up past
+    the peak the config derives from that limit ("peak_torque 2.1199 is below rated_torque
+    2.12"): its own config failed hil check."""
+    output = tmp_path / "openarm_cia402.yaml"
+    assert main(["init", "openarm", "-o", str(output)]) == 0
+    config = load_bus_config(output)
+    assert all(d.rated_torque <= d.peak_torque for d in config.drives)
+
+
 def test_the_teleoperation_layout_is_two_openarms_on_four_fd_buses(capsys):
     assert main(["check", "openarm_teleop"]) == 0
     capsys.readouterr()

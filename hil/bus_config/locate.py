@@ -11,6 +11,12 @@ from hil.errors import UsageError, did_you_mean
 from hil.resources import BUS_CONFIGS, data_dir
 
 
+def shipped_names() -> str:
+    """The robots' names whose bus configs hil ships, for a command's help and messages
+    ("openarm, openarm_teleop, pigot, ...")."""
+    return ", ".join(sorted(p.stem for p in data_dir(BUS_CONFIGS).glob("*.yaml")))
+
+
 def search_folders() -> tuple[Path, ...]:
     """Where a robot's name is looked for, in order."""
     return (Path("."), Path("bus_config"), data_dir(BUS_CONFIGS))
@@ -25,8 +31,7 @@ def config_path(name: str) -> Path:
         candidate = folder / f"{name}.yaml"
         if candidate.is_file():
             return candidate
-    shipped = sorted(p.stem for p in data_dir(BUS_CONFIGS).glob("*.yaml"))
     near = sorted({p.stem for folder in search_folders() for p in folder.glob("*.yaml")})
     raise UsageError.single(f"no bus config for robot '{name}'{did_you_mean(name, near)}",
                             hint="give a bus config path, or a robot's name: NAME.yaml here, "
-                                 f"in ./bus_config/ or one hil ships ({', '.join(shipped)})")
+                                 f"in ./bus_config/ or one hil ships ({shipped_names()})")

@@ -8,6 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from hil.bus_config import SystemConfig, load_bus_config
+from hil.bus_config.locate import shipped_names
 from hil.controllers.config import ControllersConfig, controllers_for
 from hil.bus_config.types import SceneObject
 from hil.cli import common
@@ -20,7 +21,7 @@ from hil.simulator import bench_plant
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("path", type=Path,
                         help="robot description (.xacro, .urdf), bus config (.yaml), or the "
-                             "name of a robot with a bus config (ur3, pigot)")
+                             f"name of a robot with a bus config ({shipped_names()})")
     common.add_package_path(parser)
     parser.add_argument("--strict", action="store_true",
                         help="treat warnings (missing meshes, odd colours, ...) as errors")

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from hil.bus_config import load_bus_config, open_buses
+from hil.bus_config.locate import shipped_names
 from hil.can.capabilities import capabilities
 from hil.cli import common
 from hil.control_node import ControlNode
@@ -37,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "stalled (the simulator, the Zenoh transport or this process did not run; the "
         "message names the stalls): the bench broke real time, the drive need not have failed")
     parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
-                                       "name (ur3, pigot)")
+                                       f"name ({shipped_names()})")
     parser.add_argument("--fake", action="store_true",
                         help="no CAN, no physics: echo the commands as the measured state")
     common.add_timing(parser, "run each cycle as soon as the drives answered (with hil sim "

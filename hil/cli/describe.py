@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig, load_bus_config
+from hil.bus_config.locate import shipped_names
 from hil.can.frame import Frame, FrameSpec
 from hil.cli import common
 from hil.protocols import Protocol, protocol
@@ -15,7 +16,7 @@ from hil.zenoh_session import meeting_endpoint
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
-                                       "name (ur3, pigot)")
+                                       f"name ({shipped_names()})")
     common.add_package_path(parser)
 
 

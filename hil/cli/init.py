@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from hil.bus_config import load_bus_config
+from hil.bus_config.locate import shipped_names
 from hil.commissioning.coupled_loops import coupled_gains
 from hil.commissioning.initial import initial_config
 from hil.commissioning.watchdog import watchdog_choices
@@ -20,7 +21,7 @@ from hil.resources import BUS_CONFIGS, data_dir
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("description", type=Path,
                         help="robot description (.xacro or .urdf), or the name of a robot "
-                             "hil ships (ur3, pigot): its description")
+                             f"hil ships ({shipped_names()}): its description")
     parser.add_argument("--protocol", choices=sorted(BUILTIN), default="cia402",
                         help="the drives' protocol (default cia402)")
     parser.add_argument("--motor", metavar="MODEL",

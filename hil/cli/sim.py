@@ -12,6 +12,7 @@ import time
 import numpy as np
 
 from hil.bus_config import load_bus_config, open_buses
+from hil.bus_config.locate import shipped_names
 from hil.cli import common
 from hil.can import watch_deliveries
 from hil.simulator import Simulator
@@ -36,7 +37,7 @@ ROS_CLOCK_PERIOD = 0.01
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", help="bus config, e.g. bus_config/ur3.yaml, or a robot's "
-                                       "name (ur3, pigot)")
+                                       f"name ({shipped_names()})")
     common.add_timing(parser, "advance the plant one control period per SYNC (reproducible, "
                               "as fast as the controller) instead of following the wall clock")
     parser.add_argument("--duration", type=common.duration, metavar="TIME",

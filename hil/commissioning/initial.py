@@ -11,6 +11,7 @@ node ids from 1. Comments in the file say what was assumed.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -190,6 +191,17 @@ def _number(value: float) -> str:
     return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
 
 
+def _number_at_most(value: float) -> str:
+    """:func:`_number`, rounded down where rounding up would pass ``value``: a rated torque
+    capped at the joint's effort limit must not come back above the peak the config
+    derives from that limit at full precision."""
+    text = _number(value)
+    if value <= 0 or float(text) <= value:
+        return text
+    scale = 10.0 ** (3 - math.floor(math.log10(value)))
+    return _number(math.floor(value * scale) / scale)
+
+
 def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_name: str,
           rate: float, sizings: list[Sizing], buses: list[list[Drive]], per_bus: int,
           defaulted: tuple[DefaultedJoint, ...], standing: Stance | None,
@@ -263,7 +275,7 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
                    else f"actuator: {drive.actuator}")
             fields = [f"node_id: {node_id}", key]
             if drive.rated_torque is not None:
-                fields.append(f"rated_torque: {_number(drive.rated_torque)}")
+                fields.append(f"rated_torque: {_number_at_most(drive.rated_torque)}")
             if drive.gravity_feed_forward:
                 fields.append("torque_feed_forward: gravity")
             if drive.velocity_bandwidth_hz is not None:

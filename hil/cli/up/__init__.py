@@ -21,6 +21,7 @@ import threading
 from pathlib import Path
 
 from hil.bus_config import check_together, load_bus_config
+from hil.bus_config.locate import shipped_names
 from hil.can.faults import ProcessFault, parse_fault
 from hil.cli import common
 from hil.cli.run_progress import Progress
@@ -58,7 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "broke real time: a flaky host, not a regression); 130 interrupted. With several "
         f"robots, the worst of theirs (1, then {BENCH_STALL_STATUS})")
     parser.add_argument("target", nargs="*", metavar="ROBOT|CONFIG",
-                        help="a robot with a config in bus_config/ (pigot, ur3) or a bus config "
+                        help=f"a robot with a config in bus_config/ ({shipped_names()}) or a bus config "
                              "path (default: pigot); several: each robot's entities go under "
                              "/<robot>/ in the recording, its process logs are "
                              "<robot>.sim.log and <robot>.control.log, and with --ros it is "
