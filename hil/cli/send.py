@@ -102,7 +102,7 @@ def _follow(client, goal: TrajectoryGoal, args: argparse.Namespace,
         goal_id = client.send_goal(goal)
         print(f"hil send: goal {goal_id[:8]} accepted{by}", flush=True)
         try:
-            with _terminate_raised():
+            with _stop_signals_raised():
                 result = client.wait_result(goal_id, args.timeout, _feedback_printer(args))
         except (KeyboardInterrupt, Terminated) as stop:
             _cancel(client, goal_id, failures, "stopped")
@@ -127,20 +127,27 @@ class Terminated(Exception):
 
 
 @contextmanager
-def _terminate_raised() -> Iterator[None]:
-    """A block in which SIGTERM raises :class:`Terminated`: stopped, the client cancels its
-    goal as it does on Ctrl-C (SIGTERM's default action would end it without)."""
+def _stop_signals_raised() -> Iterator[None]:
+    """A block in which SIGINT raises KeyboardInterrupt and SIGTERM :class:`Terminated`:
+    stopped either way, the client cancels its goal (SIGTERM's default action would end it
+    without). SIGINT's handler is set here too, and both unblocked: a process started with
+    SIGINT ignored (a shell's background job; a parent that ignored it, as a test run's
+    worker did) never raised KeyboardInterrupt, and ran its goal to the end."""
     def terminated(signum, frame) -> None:
         raise Terminated()
 
     if threading.current_thread() is not threading.main_thread():
         yield                   # only the main thread may set a handler (run in a thread)
         return
-    before = signal.signal(signal.SIGTERM, terminated)
+    before = {signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler),
+              signal.SIGTERM: signal.signal(signal.SIGTERM, terminated)}
+    blocked = signal.pthread_sigmask(signal.SIG_UNBLOCK, set(before))
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, before)
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+        for signum, handler in before.items():
+            signal.signal(signum, handler)
 
 
 def _cancel(client, goal_id: str, failures: tuple[type[Exception], ...], why: str) -> None:
