@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from hil.description import PackagePath, load_description
-from hil.description.xacro_guard import ALLOWED_ENV_VARIABLE, Refused, evaluate
+from hil.description.xacro_expressions import Refused, evaluate
+from hil.description.xacro_guard import ALLOWED_ENV_VARIABLE
 from hil.errors import HilError
 
 HEADER = '<?xml version="1.0"?>\n<robot name="probe" xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
@@ -41,6 +42,9 @@ def test_the_comprehension_escape_runs_nothing(tmp_path):
     "().__class__", "(1).real.__class__", "'{0.__class__}'.format(1)", "f'{1}'",
     "(lambda: 1)()", "[x for x in [1]]", "python.type(1)", "python.vars()",
     "9 ** 9 ** 9", "'a' * 10 ** 9", "1 << 10 ** 9",
+    # a string's methods that reach further or grow with an argument
+    "'{0}'.format_map({})", "'ab'.replace('', 'x' * 900000)", "','.join(['x'] * 10)",
+    "'a'.center(10 ** 9)", "'a'.encode()", "'a'.find.__self__", "'a'.__len__()",
 ])
 def test_an_expression_beyond_arithmetic_is_refused(expression):
     import xacro
@@ -53,6 +57,9 @@ def test_an_expression_beyond_arithmetic_is_refused(expression):
     ("1 if 2 > 1 else 0", 1), ("[1, 2, 3][-1] * 2", 6), ("max(1, 5) - min(2, 3)", 3),
     ("len('abc') + python.abs(-1) + round(2.6)", 7), ("not (1 == 2) and 3 in [3]", True),
     ("{'a': 1}['a']", 1), ("str(1) + 'x'", "1x"), ("2 ** 10", 1024),
+    # a string's reading methods (Enactic's openarm_description: prefix.find('right_'))
+    ("'openarm_right_'.find('right_') != -1", True), ("'left_arm'.startswith('left')", True),
+    ("'A_b'.lower().split('_')", ["a", "b"]), ("'x.dae'.endswith('.dae')", True),
 ])
 def test_the_arithmetic_public_descriptions_use_still_evaluates(expression, expected):
     import xacro
