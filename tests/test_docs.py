@@ -74,7 +74,8 @@ def test_the_front_pages_name_every_protocol_hil_ships(page):
 
     text = (ROOT / page).read_text().lower()
     words = {"cia402": "cia 402", "odrive": "odrive", "mit": "mit", "damiao": "damiao",
-             "cubemars": "cubemars", "moteus": "moteus"}
+             "cubemars": "cubemars", "moteus": "moteus", "myactuator": "myactuator",
+             "robstride": "robstride"}
     assert set(words) == set(BUILTIN)
     assert [name for name, word in words.items() if word not in text] == []
 

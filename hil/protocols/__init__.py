@@ -21,7 +21,9 @@ from hil.protocols.base import FrameSource, Protocol, Sender, SettingField, load
 BUILTIN = {"cia402": "hil.protocols.cia402:Cia402", "odrive": "hil.protocols.odrive:ODrive",
            "mit": "hil.protocols.mit:Mit", "damiao": "hil.protocols.damiao:Damiao",
            "cubemars": "hil.protocols.cubemars:CubeMars",
-           "moteus": "hil.protocols.moteus:Moteus"}
+           "moteus": "hil.protocols.moteus:Moteus",
+           "robstride": "hil.protocols.robstride:Robstride",
+           "myactuator": "hil.protocols.myactuator:MyActuator"}
 ENTRY_POINT_GROUP = "hil.protocols"
 
 
