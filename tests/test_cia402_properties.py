@@ -13,7 +13,7 @@ import uuid
 import can
 import pytest
 from canopen.objectdictionary import ODVariable
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from conftest import EDS, TEST_MOTOR_DRIVE
@@ -97,6 +97,9 @@ _SETTINGS = settings(max_examples=60, deadline=None,
 @given(edits=st.lists(_EDIT, min_size=1, max_size=4), node_id=st.integers(1, 127),
        encoding=st.sampled_from(["utf-8", "cp1252", "latin-1"]),
        suffix=st.sampled_from([".eds", ".dcf"]))
+# found by a CI run: 0x1017 of ObjectType 0, which canopen drops, was taken and the drive
+# raised KeyError entering pre-operational (its heartbeat's period)
+@example(edits=[("1017", "ObjectType", "0")], node_id=1, encoding="utf-8", suffix=".eds")
 def test_any_eds_is_taken_or_refused_and_what_is_taken_starts(tmp_path_factory, edits, node_id,
                                                              encoding, suffix):
     path = tmp_path_factory.mktemp("eds") / f"drive{suffix}"

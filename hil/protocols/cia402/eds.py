@@ -52,6 +52,13 @@ def checked_dictionary(eds: Path, text: str, node_id: int) -> canopen.ObjectDict
         why = (f"it has no {' or '.join(missing)}" if missing
                else f"its device type 0x1000 is 0x{device_type:08X}")
         raise ValueError(f"eds: {eds} is not a CiA 402 drive's EDS ({why})")
+    if not isinstance(od.get(0x1017), ODVariable):
+        # hil's drives produce a heartbeat (CiA 301 7.2.8.3.2.2; canopen's NMT slave reads
+        # 0x1017 entering pre-operational): an EDS without it as a variable (missing, or an
+        # ObjectType canopen drops) started a drive that raised KeyError at boot
+        raise ValueError(f"eds: {eds} has no variable 0x1017 (Producer heartbeat time): "
+                         "hil's drives send a heartbeat; add [1017] with ObjectType=0x7, "
+                         "DataType=0x0006 (UNSIGNED16, ms)")
     return od
 
 
