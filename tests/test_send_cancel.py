@@ -80,7 +80,10 @@ def test_a_stopped_send_cancels_its_goal_and_the_arm_stops(sending, stop, status
     """Issue 64: Ctrl-C on `hil send` exited 130 and the goal moved the arm on to its
     target. Stopped at its first feedback, it says it cancels, exits 128 + the signal, the
     goal ends CANCELED and joint2 stays where it stopped."""
-    stack, send, results = sending(60, launcher=parent)
+    # a goal of 600 s: lock-step runs the plant many times faster than real time, and a 60 s
+    # goal once ended between the first feedback the test read and its signal (a CI run:
+    # "not cancelled: it had ended")
+    stack, send, results = sending(600, launcher=parent)
     lines = []
     for line in send.stdout:                  # the goal runs: its first feedback
         lines.append(line)
