@@ -12,7 +12,8 @@ import time
 import pytest
 
 from hil.bus_config import load_bus_config
-from hil.controllers import GoalStatus
+from hil.cli import send
+from hil.controllers import GoalResult, GoalStatus
 from hil.messaging import cdr
 from hil.messaging.keys import ACTION, key
 from hil.realtime import LOCK_STEP
@@ -79,11 +80,11 @@ IGNORING_SIGINT = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.
 def test_a_stopped_send_cancels_its_goal_and_the_arm_stops(sending, stop, status, parent):
     """Issue 64: Ctrl-C on `hil send` exited 130 and the goal moved the arm on to its
     target. Stopped at its first feedback, it says it cancels, exits 128 + the signal, the
-    goal ends CANCELED and joint2 stays where it stopped."""
-    # a goal of 600 s: lock-step runs the plant many times faster than real time, and a 60 s
-    # goal once ended between the first feedback the test read and its signal (a CI run:
-    # "not cancelled: it had ended")
-    stack, send, results = sending(600, launcher=parent)
+    goal ends CANCELED and joint2 stays where it stopped. (CI runs failed here now and then
+    with "not cancelled" and a Zenoh close that timed out: the handler's exception, raised
+    wherever the main thread was, could leave a queue's lock held that Zenoh's receiving
+    thread needed; the handlers only note the signal now.)"""
+    stack, send, results = sending(60, launcher=parent)
     lines = []
     for line in send.stdout:                  # the goal runs: its first feedback
         lines.append(line)
@@ -93,7 +94,7 @@ def test_a_stopped_send_cancels_its_goal_and_the_arm_stops(sending, stop, status
     send.send_signal(stop)
     out, err = send.communicate(timeout=60)
     assert send.returncode == status, out + err
-    assert "stopped: cancelling goal" in err and "canceled" in err, err
+    assert "stopped: cancelling goal" in err and "canceled" in err, out + err
     assert_cancelled_and_still(stack, results)
 
 
@@ -106,3 +107,22 @@ def test_a_send_that_gives_up_waiting_cancels_its_goal(sending):
     assert send.returncode == 1, out + err
     assert "no result: cancelling goal" in err and "canceled" in err, err
     assert_cancelled_and_still(stack, results)
+
+
+class _EndedGoalClient:
+    """A client whose goal ended (aborted) just before its cancel arrived."""
+
+    def cancel(self, goal_id: str) -> bool:
+        return False
+
+    def wait_result(self, goal_id: str, timeout: float):
+        return GoalResult(GoalStatus.ABORTED, -4, "joint2 left its path tolerance")
+
+
+def test_a_cancel_that_finds_its_goal_ended_says_how_it_ended(capsys):
+    """A stopped `hil send` whose goal ended as the cancel went out says how it ended (its
+    result), not only that it was not cancelled."""
+    send._cancel(_EndedGoalClient(), "0123456789abcdef", (TimeoutError,), "stopped")
+    err = capsys.readouterr().err
+    assert "goal 01234567 not cancelled: the controller no longer runs it (it had ended " \
+           "aborted, error_code -4 (joint2 left its path tolerance))" in err, err

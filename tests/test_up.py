@@ -47,6 +47,13 @@ def hil(*args, **kwargs) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True, **kwargs)
 
 
+def killed_temp(tmp_path) -> dict[str, str]:
+    """The environment of a process the test kills with SIGKILL: its temporary folder (hil
+    viz's copy of the description) inside the test's, as nothing cleans up after SIGKILL."""
+    (tmp_path / "tmp").mkdir(exist_ok=True)
+    return {**os.environ, "TMPDIR": str(tmp_path / "tmp")}
+
+
 def gone(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -115,7 +122,7 @@ def test_a_recording_cut_off_by_sigkill_reads_back_up_to_its_last_flush(tmp_path
     assert "hil control:" in control.stdout.readline()
     save = tmp_path / "cut.rrd"
     viz = hil("viz", PIGOT_CONFIG, "--no-can", "--connect", endpoint, *KEEPING_UP,
-              "--save", str(save))
+              "--save", str(save), env=killed_temp(tmp_path))
     processes.append(viz)
     assert "hil viz:" in viz.stdout.readline()
     with published_cycles(endpoint) as published:
@@ -426,7 +433,7 @@ def test_a_recording_in_segments_loses_at_most_its_last_to_a_sigkill(tmp_path, p
     assert "hil control:" in control.stdout.readline()
     save = tmp_path / "long.rrd"
     viz = hil("viz", PIGOT_CONFIG, "--no-can", "--connect", endpoint, *KEEPING_UP,
-              "--save", str(save), "--segment", "1s")
+              "--save", str(save), "--segment", "1s", env=killed_temp(tmp_path))
     processes.append(viz)
     assert "long-0001.rrd and on, segments of 1 s" in viz.stdout.readline()
     with published_cycles(endpoint) as published:

@@ -10,22 +10,27 @@ import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
 
 from hil.cli import common
 from hil.controllers import (
-    HARDWARE_FAULT, GoalRejected, GoalStatus, JointTolerance, TrajectoryGoal,
+    HARDWARE_FAULT, GoalRejected, GoalResult, GoalStatus, JointTolerance, TrajectoryGoal,
     TrajectoryPoint,
 )
 from hil.errors import ConfigError, UsageError
 from hil.input_files import read_input_file
-from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient
+from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient, WaitStopped
 from hil.zenoh_session import close_all, session
 
 # PyYAML's C loader where it was built with libyaml, its pure-Python one elsewhere
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+#: s a stopped client waits for the result of a goal that ended before its cancel arrived
+#: (published as it ended: normally already here)
+ENDED_RESULT_WAIT = 2.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -97,53 +102,63 @@ def _feedback_printer(args: argparse.Namespace):
 def _follow(client, goal: TrajectoryGoal, args: argparse.Namespace,
             failures: tuple[type[Exception], ...], by: str = "") -> int:
     """Send ``goal`` through ``client``, print its feedback and result; the exit status
-    (1 for a goal that did not succeed or for one of ``failures``)."""
+    (1 for a goal that did not succeed or for one of ``failures``, 128 + the signal for a
+    client stopped by SIGINT or SIGTERM, its goal cancelled)."""
     try:
         goal_id = client.send_goal(goal)
         print(f"hil send: goal {goal_id[:8]} accepted{by}", flush=True)
-        try:
-            with _stop_signals_raised():
-                result = client.wait_result(goal_id, args.timeout, _feedback_printer(args))
-        except (KeyboardInterrupt, Terminated) as stop:
-            _cancel(client, goal_id, failures, "stopped")
-            return 128 + (signal.SIGTERM if isinstance(stop, Terminated) else signal.SIGINT)
-        except failures as exc:
-            if not isinstance(exc, ControllerGone):      # else no one runs it any more
-                _cancel(client, goal_id, failures, "no result")
-            raise
+        with _stop_signals_noted() as stop:
+            try:
+                result = client.wait_result(goal_id, args.timeout, _feedback_printer(args),
+                                            stop=stop.asked)
+            except WaitStopped:
+                _cancel(client, goal_id, failures, "stopped")
+                return 128 + stop.signum
+            except failures as exc:
+                if not isinstance(exc, ControllerGone):      # else no one runs it any more
+                    _cancel(client, goal_id, failures, "no result")
+                raise
     except failures as exc:
         print(f"hil send: {exc}", file=sys.stderr)
         _hint_after_a_fault(exc.error_code if isinstance(exc, GoalRejected) else None, args)
         return 1
-    text = f" ({result.error_string})" if result.error_string else ""
-    print(f"hil send: {result.status.name.lower()}, error_code {result.error_code}{text}")
+    print(f"hil send: {_described(result)}")
     _hint_after_a_fault(result.error_code, args)
     return 0 if result.status is GoalStatus.SUCCEEDED else 1
 
 
-class Terminated(Exception):
-    """SIGTERM while a goal ran (raised in the main thread, as SIGINT raises
-    KeyboardInterrupt)."""
+@dataclass
+class StopRequest:
+    """SIGINT or SIGTERM heard while a goal runs: which (``signum``), and ``asked``, set."""
+    asked: threading.Event = field(default_factory=threading.Event)
+    signum: int = 0
+
+    def note(self, signum: int, frame) -> None:
+        self.signum = self.signum or signum      # a second signal changes nothing: the
+        self.asked.set()                         # cancel is bounded (its query's timeout)
 
 
 @contextmanager
-def _stop_signals_raised() -> Iterator[None]:
-    """A block in which SIGINT raises KeyboardInterrupt and SIGTERM :class:`Terminated`:
-    stopped either way, the client cancels its goal (SIGTERM's default action would end it
-    without). SIGINT's handler is set here too, and both unblocked: a process started with
-    SIGINT ignored (a shell's background job; a parent that ignored it, as a test run's
-    worker did) never raised KeyboardInterrupt, and ran its goal to the end."""
-    def terminated(signum, frame) -> None:
-        raise Terminated()
+def _stop_signals_noted() -> Iterator[StopRequest]:
+    """A block in which SIGINT and SIGTERM are noted, not raised: stopped either way, the
+    client cancels its goal (SIGTERM's default action would end it without, SIGINT's
+    KeyboardInterrupt).
 
+    Noted, because an exception raised by a signal handler lands wherever the main thread
+    is: once inside a queue's lock that Zenoh's receiving thread needs for the next
+    feedback, and that thread, blocked, delivered nothing more, the cancel's reply included
+    (a CI run: "not cancelled", then "close operation timed out"). SIGINT's handler is set
+    here too, and both unblocked: a process started with SIGINT ignored (a shell's background
+    job; a parent that ignored it, as a test run's worker did) ran its goal to the end."""
+    stop = StopRequest()
     if threading.current_thread() is not threading.main_thread():
-        yield                   # only the main thread may set a handler (run in a thread)
+        yield stop              # only the main thread may set a handler (run in a thread)
         return
-    before = {signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler),
-              signal.SIGTERM: signal.signal(signal.SIGTERM, terminated)}
+    before = {signum: signal.signal(signum, stop.note)
+              for signum in (signal.SIGINT, signal.SIGTERM)}
     blocked = signal.pthread_sigmask(signal.SIG_UNBLOCK, set(before))
     try:
-        yield
+        yield stop
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         for signum, handler in before.items():
@@ -162,8 +177,23 @@ def _cancel(client, goal_id: str, failures: tuple[type[Exception], ...], why: st
     except failures as exc:
         print(f"hil send: goal {goal_id[:8]} not cancelled: {exc}", file=sys.stderr)
         return
-    print(f"hil send: goal {goal_id[:8]} " + ("canceled" if cancelled else
-          "not cancelled: the controller no longer runs it (it had ended)"), file=sys.stderr)
+    if cancelled:
+        print(f"hil send: goal {goal_id[:8]} canceled", file=sys.stderr)
+        return
+    # the goal ended before the cancel reached it: its result is on its way, or here
+    try:
+        ended = client.wait_result(goal_id, ENDED_RESULT_WAIT)
+    except failures:
+        ended = None
+    print(f"hil send: goal {goal_id[:8]} not cancelled: the controller no longer runs it ("
+          + (f"it had ended {_described(ended)}" if ended is not None else
+             f"no result heard within {ENDED_RESULT_WAIT:g} s") + ")", file=sys.stderr)
+
+
+def _described(result: GoalResult) -> str:
+    """A goal's result in words: ``aborted, error_code -4 (why)``."""
+    text = f" ({result.error_string})" if result.error_string else ""
+    return f"{result.status.name.lower()}, error_code {result.error_code}{text}"
 
 
 def _hint_after_a_fault(error_code: int | None, args: argparse.Namespace) -> None:

@@ -213,6 +213,11 @@ class ControllerGone(RuntimeError):
     """The controller process disappeared (its liveliness token went away)."""
 
 
+class WaitStopped(Exception):
+    """A wait for a goal's result given up because its caller's ``stop`` event was set (the
+    goal still runs: the caller decides whether to cancel it)."""
+
+
 class TrajectoryActionClient:
     """Sends FollowJointTrajectory goals to a hil controller over Zenoh. A context manager:
     ``with TrajectoryActionClient(session, "ur3") as client: ...`` closes it."""
@@ -284,11 +289,16 @@ class TrajectoryActionClient:
         return goal_id
 
     def cancel(self, goal_id: str, timeout: float = 5.0) -> bool:
+        """Ask the controller to cancel a goal: True if it did, False if it does not run
+        that goal (ended, or never known); ControllerGone if no controller answered."""
         info = cdr.msg("action_msgs/msg/GoalInfo", goal_id=cdr.uuid_msg(goal_id),
                        stamp=cdr.time_msg(0.0))
         replies = ask(self.session, f"{self._prefix}/cancel_goal",
                       cdr.encode(cdr.msg(cdr.CANCEL_REQUEST, goal_info=info)), timeout)
-        if not replies or replies[0].err is not None:
+        if not replies:
+            raise ControllerGone(f"no controller answered on {self._prefix}/cancel_goal "
+                                 f"within {timeout:g} s")
+        if replies[0].err is not None:
             return False
         return cdr.decode(replies[0].ok.payload.to_bytes(), cdr.CANCEL_RESPONSE).return_code == 0
 
@@ -302,11 +312,14 @@ class TrajectoryActionClient:
         response = cdr.decode(replies[0].ok.payload.to_bytes(), cdr.TRIGGER_RESPONSE)
         return response.success, response.message
 
-    def wait_result(self, goal_id: str, timeout: float,
-                    on_feedback: Callable | None = None) -> GoalResult:
-        """Wait for a goal's result; raise ControllerGone if the controller dies first."""
+    def wait_result(self, goal_id: str, timeout: float, on_feedback: Callable | None = None,
+                    stop: threading.Event | None = None) -> GoalResult:
+        """Wait for a goal's result; raise ControllerGone if the controller dies first,
+        WaitStopped once ``stop`` is set (seen within 50 ms)."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
+            if stop is not None and stop.is_set():
+                raise WaitStopped(f"stopped waiting for goal {goal_id[:8]}")
             while not self._feedback.empty():        # drained even when nobody looks at it
                 feedback = self._feedback.get_nowait()
                 if on_feedback is not None and cdr.goal_id_of(feedback.goal_id) == goal_id:

@@ -13,7 +13,9 @@ import zenoh
 
 from hil.controllers import GoalStatus
 from hil.messaging import cdr
-from hil.messaging.action import ControllerGone, TrajectoryActionClient, TrajectoryActionServer
+from hil.messaging.action import (
+    ControllerGone, TrajectoryActionClient, TrajectoryActionServer, WaitStopped,
+)
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.keys import key
 from hil.messaging.samples import ControlSamples
@@ -268,4 +270,4 @@ class ProcessWatch:
 __all__ = ["ControlSamplesPublisher", "ControllerGone", "DiagnosticsPublisher", "GoalStatus",
            "JointStatePublisher", "ProcessWatch", "RunSubscriber", "SimClockPublisher",
            "StallPublisher", "StallSubscriber", "decode_stall",
-           "TrajectoryActionClient", "TrajectoryActionServer", "key"]
+           "TrajectoryActionClient", "TrajectoryActionServer", "WaitStopped", "key"]

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 from hil.controllers import GoalRejected, GoalResult, GoalStatus, TrajectoryGoal
 from hil.messaging import cdr
-from hil.messaging.action import submit_goal_request
+from hil.messaging.action import WaitStopped, submit_goal_request
 from hil.messaging.ros.interfaces import FollowJointTrajectory, distro_types
 from hil.messaging.ros.node import NO_LIMIT, RosNode, ServiceError, ServiceRequest
 from hil.messaging.ros.rmw_zenoh import ACTION_STATUS_QOS
@@ -279,14 +279,18 @@ class RosTrajectoryActionClient:
         return cdr.decode(payload, cdr.CANCEL_RESPONSE).return_code == CancelCode.NONE
 
     def wait_result(self, goal_id: str, timeout: float = NO_LIMIT,
-                    on_feedback: Callable | None = None) -> GoalResult:
-        """The goal's result (get_result, answered when the goal ends)."""
+                    on_feedback: Callable | None = None,
+                    stop: threading.Event | None = None) -> GoalResult:
+        """The goal's result (get_result, answered when the goal ends); WaitStopped once
+        ``stop`` is set (seen within 50 ms)."""
         answer: queue.SimpleQueue = queue.SimpleQueue()
         request = cdr.encode(cdr.msg(cdr.GET_RESULT_REQUEST, goal_id=cdr.uuid_msg(goal_id)))
         caller = threading.Thread(target=lambda: answer.put(_call(self._result, request,
                                                                   timeout)), daemon=True)
         caller.start()
         while True:
+            if stop is not None and stop.is_set():
+                raise WaitStopped(f"stopped waiting for goal {goal_id[:8]}")
             while not self._feedback.empty():
                 feedback = cdr.decode(self._feedback.get(), cdr.FEEDBACK_MESSAGE, self._types)
                 if on_feedback is not None and cdr.goal_id_of(feedback.goal_id) == goal_id:
