@@ -34,7 +34,8 @@ def errors_of(path):
     return caught.value.diagnostics
 
 
-@pytest.mark.parametrize("name", ["ur3.yaml", "ur3_1khz.yaml", "pigot.yaml", "pigot_mixed.yaml"])
+@pytest.mark.parametrize("name", ["ur3.yaml", "ur3_1khz.yaml", "pigot.yaml", "pigot_mixed.yaml",
+                                  "openarm.yaml"])
 def test_shipped_configs_load_and_check(name, capsys):
     config = load_bus_config(ROOT / "bus_config" / name)
     assert all(bus.load().worst_ratio <= 1.0 for bus in config.buses)
@@ -256,3 +257,21 @@ def test_the_protocol_table_names_a_close_protocol_for_a_misspelt_one():
     from hil.protocols import protocol
     with pytest.raises(KeyError, match="no protocol 'cubemar' \\(did you mean 'cubemars'\\?\\)"):
         protocol("cubemar")
+
+
+@pytest.mark.parametrize("protocol, options, carried", [
+    ("damiao", "{model: DM4310}", "±12.5"), ("mit", "{kp: 1, kd: 0.1}", "±12.5"),
+    ("cubemars", "{model: AK80-6}", "±12.56"), ("robstride", "{model: RS03}", "±12.57")])
+def test_a_joint_past_what_its_drives_frames_carry_is_named_with_both_ranges(
+        tmp_path, protocol, options, carried):
+    """The UR3's joints turn their motors 100-120 times (its description's transmissions):
+    an MIT-style actuator there, whose frames map a fixed range at its own shaft, saturates
+    its commands and feedback within a tenth of the joint's range (`hil init ur3 --protocol
+    damiao`, then the demo: OVERLOAD at joint4). `hil check` says so, naming both ranges."""
+    drives = "".join(f"- {{node_id: {i}, joint: joint{i}, protocol: {protocol}, options: "
+                     f"{options}}}\n" for i in range(1, 7))
+    config = load_bus_config(write_config(tmp_path, one_bus(drives)))
+    (warning,) = [w for w in config.warnings if "joint 'joint4' asks of its motor" in w.message]
+    assert f"joint 'joint4' asks of its motor (reduction 100) ±314 rad (its range), the " \
+           f"frames carry {carried};" in warning.message, warning.message
+    assert "p_max/v_max" in warning.hint

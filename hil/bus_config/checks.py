@@ -52,6 +52,7 @@ def check_system(reader: Reader, config: SystemConfig, transmissions, top: LineM
                         f"delays it {round(steps)} step(s)", drive.line,
                         hint="give a multiple of the plant step")
         _check_gear(reader, drive, transmissions)
+        _check_carried_range(reader, drive, config.robot)
     for actuator, drives in by_actuator.items():
         if len(drives) > 1:
             reader.fail(f"actuator '{actuator}' has {len(drives)} drives "
@@ -74,6 +75,37 @@ def check_system(reader: Reader, config: SystemConfig, transmissions, top: LineM
         reader.warn("base: floating, and nothing fixed in the scene to stand on: the robot "
                     "falls for as long as the run lasts", top.key_lines.get("base", top.line),
                     hint="add a floor to 'scene:', e.g. - {name: floor, shape: plane}")
+
+
+def _check_carried_range(reader: Reader, drive: DriveConfig, robot) -> None:
+    """A drive whose frames map a fixed range (the MIT-style families) against what its
+    joint asks of its motor: a joint that may go where the frames cannot say (a description's
+    gear ahead of a motor that carries its own) cannot be sent there, nor tell it is there:
+    commands and feedback saturate at the range's end, and the goal ends outside."""
+    carried = drive.options.carried_range() if drive.options is not None else None
+    if carried is None or len(drive.joints) != 1:
+        return
+    joint = robot.joint(drive.joints[0])
+    reduction = abs(robot.reduction(drive.actuator))
+    limits = joint.limits
+    asked = []
+    if limits.lower is not None and limits.upper is not None:
+        reach = max(abs(limits.lower), abs(limits.upper)) * reduction
+        if reach > carried.position * (1 + 1e-9):
+            asked.append(f"±{reach:.4g} rad (its range), the frames carry "
+                         f"±{carried.position:.4g}")
+    speed = limits.velocity * reduction
+    if limits.velocity > 0 and speed > carried.velocity * (1 + 1e-9):
+        asked.append(f"{speed:.4g} rad/s (its velocity limit), the frames carry "
+                     f"±{carried.velocity:.4g}")
+    if asked:
+        geared = f" (reduction {reduction:g})" if reduction != 1 else ""
+        reader.warn(f"{drive.label} ({drive.protocol}): joint '{joint.name}' asks of its "
+                    f"motor{geared} {'; and '.join(asked)}: beyond them its commands and feedback "
+                    "saturate, and a goal there ends outside its tolerance", drive.line,
+                    hint="these actuators carry their gear: mount one at the joint (reduction "
+                         "1), or give p_max/v_max in the drive's options where its firmware "
+                         "maps wider")
 
 
 def _check_gear(reader: Reader, drive: DriveConfig, transmissions) -> None:

@@ -69,6 +69,15 @@ class DriveSetting:
 
 
 @dataclass(frozen=True)
+class CarriedRange:
+    """The largest position and velocity at the motor (after the product's own gear) that a
+    product's frames carry: beyond them its commands and feedback saturate."""
+
+    position: float        # rad: positions map onto [-position, position]
+    velocity: float        # rad/s
+
+
+@dataclass(frozen=True)
 class SettingField:
     """Where a drive setting of the bus config travels in the product: a field holding
     ``round(value * scale)`` in ``low..high`` (named, with its source, for the message that
@@ -105,6 +114,12 @@ class ProtocolOptions:
         """What ``hil check`` says of these settings beyond the drive's table (the objects a
         vendor's EDS has that hil stores without acting on them). None by default."""
         return []
+
+    def carried_range(self) -> CarriedRange | None:
+        """What these settings' frames carry of position and velocity (MIT-style frames map
+        a fixed range onto their fields), for ``hil check`` to hold against the joint's
+        range and speed at the motor. None (the default): any the joint can ask."""
+        return None
 
     def drive_defaults(self) -> dict[str, float | bool]:
         """Drive keys of the bus config (``peak_torque``, ``rated_torque``,

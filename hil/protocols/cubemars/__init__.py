@@ -31,7 +31,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from hil.can.frame import Frame, FrameSpec
-from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender
+from hil.protocols.base import (CarriedRange, DriveSetting, FrameSource, Protocol,
+                                ProtocolOptions, Sender)
 from hil.protocols.cubemars.models import MODELS, SIZED, CubeMarsModel, model
 from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, pack_motion,
@@ -151,6 +152,10 @@ class CubeMarsOptions(ProtocolOptions):
         if not self.model.sizes:
             return super().drive_defaults()
         return {**super().drive_defaults(), **model_figures(self.model)}
+
+    def carried_range(self) -> CarriedRange:
+        ranges = self.ranges()
+        return CarriedRange(ranges.p_max, ranges.v_max)
 
     def ranges(self) -> MitRanges:
         return model_ranges(self.model, self.p_max, self.v_max, self.t_max)

@@ -32,8 +32,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from hil.can.frame import Frame, FrameSpec
-from hil.protocols.base import (CanFd, DriveSetting, FrameSource, Protocol, ProtocolOptions,
-                                Sender, SettingField)
+from hil.protocols.base import (CanFd, CarriedRange, DriveSetting, FrameSource, Protocol,
+                                ProtocolOptions, Sender, SettingField)
 from hil.protocols.damiao.fd import MAX_RATE_CODE
 from hil.protocols.damiao.models import MODELS, DamiaoModel, model
 from hil.protocols.damiao.registers import REGISTER_ID, REGISTERS, TIMEOUT_UNIT, Op
@@ -132,6 +132,10 @@ class DamiaoOptions(ProtocolOptions):
 
     def reply_id(self, node_id: int) -> int:
         return self.master_id if self.master_id is not None else node_id + 0x10
+
+    def carried_range(self) -> CarriedRange:
+        ranges = self.ranges()
+        return CarriedRange(ranges.p_max, ranges.v_max)
 
     def ranges(self) -> MitRanges:
         """The MIT mapping the motor starts with (its PMAX/VMAX/TMAX registers)."""

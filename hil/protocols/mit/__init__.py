@@ -21,7 +21,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from hil.can.frame import Frame, FrameSpec
-from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions
+from hil.protocols.base import (CarriedRange, DriveSetting, FrameSource, Protocol,
+                                ProtocolOptions)
 from hil.protocols.mit.codec import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, MitReply, float_to_uint,
     pack_command, pack_motion, pack_reply, uint_to_float, unpack_command, unpack_motion,
@@ -58,6 +59,9 @@ class MitOptions(ProtocolOptions):
     #: menu says) where the flash holds none (bgkatz/motorcontrol's main.c: 1000 cycles of
     #: its 25 us loop, hw_config.h's DT: 25 ms)
     WATCHDOG_TIMEOUT = 0.0
+
+    def carried_range(self) -> CarriedRange:
+        return CarriedRange(self.ranges.p_max, self.ranges.v_max)
 
     @classmethod
     def from_mapping(cls, values: dict) -> MitOptions:

@@ -23,7 +23,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from hil.can.frame import Frame, FrameSpec
-from hil.protocols.base import DriveSetting, FrameSource, Protocol, ProtocolOptions, Sender
+from hil.protocols.base import (CarriedRange, DriveSetting, FrameSource, Protocol,
+                                ProtocolOptions, Sender)
 from hil.protocols.mit.family import parse_model, parse_ranges
 from hil.protocols.robstride.codec import (
     BROADCAST, DEFAULT_HOST, Comm, PrivateId, Ranges, mit_command_id, private_id,
@@ -108,6 +109,10 @@ class RobstrideOptions(ProtocolOptions):
         return {**super().drive_defaults(), "peak_torque": self.model.peak_torque,
                 "rated_torque": self.model.rated_torque,
                 "max_velocity": self.model.no_load_speed, "holding_brake": False}
+
+    def carried_range(self) -> CarriedRange:
+        ranges = self.ranges()
+        return CarriedRange(ranges.p_max, ranges.v_max)
 
     def ranges(self) -> Ranges:
         found = self.model
