@@ -7,7 +7,7 @@ import logging
 import can
 
 from hil.bus_config.types import BusConfig, SystemConfig
-from hil.can import open_bus
+from hil.can import WITHOUT_BIT_TIMING, open_bus
 from hil.can.zenoh_receipts import AWAIT_MONITOR, wait_for_monitor
 from hil.errors import HilError, UsageError
 from hil.zenoh_session import ZenohSettings, session
@@ -55,17 +55,13 @@ def open_buses(config: SystemConfig, zenoh: ZenohSettings, interface: str | None
     return opened
 
 
-#: interfaces whose ends take python-can's ``fd`` option alone (no bit timing to set)
-_FD_BY_OPTION = ("socketcan", "hil-virtual", "zenoh")
-
-
 def _fd_options(interface: str, bus: BusConfig) -> dict:
     """python-can's FD options for one of hil's ends of ``bus``. SocketCAN's and hil's own
     ends take FD frames on every bus (a raw socket with CAN_RAW_FD_FRAMES, as candump opens
     one): on a classical bus a stray FD frame reaches the drives' router, which reports it
     and lets no device act on it. An interface with bit timing of its own (pcan, kvaser)
     is set up for FD where the bus is FD, its data phase at the bus' ``data_bitrate``."""
-    if interface in _FD_BY_OPTION:
+    if interface in WITHOUT_BIT_TIMING:
         return {"fd": True}
     if bus.fd:
         return {"fd": True, "data_bitrate": bus.data_bitrate}

@@ -22,7 +22,7 @@ from hil.realtime.stalls import Stall
 
 __all__ = ["BusCapabilities", "BusLoad", "batching", "capabilities", "bus_load",
            "deliver_under", "frame_bits", "link_round_trip", "link_unreached", "open_bus",
-           "sent_together", "socketcan_missing", "watch_deliveries"]
+           "sent_together", "socketcan_missing", "watch_deliveries", "WITHOUT_BIT_TIMING"]
 
 
 def sent_together(buses: Iterable[can.BusABC]) -> AbstractContextManager:
@@ -89,11 +89,17 @@ def socketcan_missing(channels: tuple[str, ...] = ("vcan0",)) -> str | None:
     return None
 
 
+#: python-can interfaces with no bit timing of their own to set (SocketCAN's is the link's,
+#: set by ``ip link``; the virtual ones have none): they take no bit rates, and ``fd`` alone
+#: says whether an end sends and receives FD frames
+WITHOUT_BIT_TIMING = frozenset({"socketcan", "virtual", "hil-virtual", "zenoh"})
+
+
 def open_bus(interface: str, channel: str, bitrate: int | None = None, **options) -> can.BusABC:
     """Open a python-can bus, turning the usual set-up failures into clear errors."""
     kwargs = dict(options)
-    if bitrate and interface not in ("socketcan", "virtual", "hil-virtual", "zenoh"):
-        kwargs["bitrate"] = bitrate   # virtual/socketcan/zenoh have no bitrate to set
+    if bitrate and interface not in WITHOUT_BIT_TIMING:
+        kwargs["bitrate"] = bitrate
     try:
         return can.Bus(interface=interface, channel=channel, **kwargs)
     except OSError as exc:

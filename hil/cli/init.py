@@ -27,9 +27,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--motor", metavar="MODEL",
                         help="the product every drive is, for a protocol that knows its "
                              "makers' models (damiao: DM4310, DM4340, DM8009, ...; "
-                             "cubemars: AK60-6_V3.0, AK80-6, ...): its "
-                             "ranges, torques and speed size the drives (default: the "
-                             "smallest model that fits each joint)")
+                             "cubemars: AK60-6_V3.0, AK80-6, ...; robstride: RS00, RS02-RS04, "
+                             "CyberGear; myactuator: X4-24, X8-25, ...; moteus: mj5208, "
+                             "be8108, ...): its ranges, torques and speed size the drives "
+                             "(default: the smallest model that fits each joint)")
     parser.add_argument("--rate", type=common.positive, default=500.0, metavar="HZ",
                         help="control cycle rate of every bus (default 500)")
     parser.add_argument("-o", "--output", type=Path, metavar="FILE.yaml",
