@@ -225,6 +225,10 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
             "# joint's effort limit and whose top speed / reduction covers its velocity limit,",
             "# with the smallest such reduction. Replace them with your real drives' values.",
         ]
+        if any(s.motor.inertia_estimated for s in sizings):
+            lines += [f"# rotor_inertia: the {protocol_name} maker publishes none; hil's estimate, "
+                      "the rotor of", "# a generic servo of the actuator's power times its "
+                      "gear ratio squared", "# (sizing.py estimated_reflected_inertia)."]
     lines += ["", f"robot: {robot_path}", "plant_rate_hz: 1000"]
     if standing is not None:
         lines += ["", f"# The robot stands ({standing.kind}, on {', '.join(standing.feet)}): its "

@@ -44,10 +44,16 @@ class MotorClass:
     peak_torque: float        # N·m
     top_speed: float          # rad/s
     rotor_inertia: float      # kg m^2
+    #: the rotor inertia is hil's estimate (:func:`estimated_reflected_inertia`)
+    inertia_estimated: bool = False
+
+
+#: rad/s: the speed a generic class' rated torque is given at (3000 rpm)
+_CLASS_SPEED = 3000 * 2 * math.pi / 60
 
 
 def _servo(watts: float, top_rpm: float, rotor_inertia: float) -> MotorClass:
-    rated = watts / (3000 * 2 * math.pi / 60)
+    rated = watts / _CLASS_SPEED
     return MotorClass(f"{watts:g} W", round(rated, 4), round(3 * rated, 4),
                       round(top_rpm * 2 * math.pi / 60, 1), rotor_inertia)
 
@@ -135,10 +141,30 @@ def size_joint(joint: Joint, static_load: float = 0.0,
 def models_catalogue(models: Iterable) -> tuple[MotorClass, ...]:
     """A protocol's products (``Protocol.models``' values) as motor classes, smallest peak
     torque first: their figures at the output the drive commands (a geared motor's own gear
-    inside: its rotor's inertia as the output feels it)."""
+    inside: its rotor's inertia as the output feels it, or where its sources give none, a
+    ``reflected_inertia`` of 0, :func:`estimated_reflected_inertia` of its ``gear_ratio``)."""
     return tuple(MotorClass(m.name, m.rated_torque, m.peak_torque, m.no_load_speed,
-                            m.reflected_inertia)
+                            m.reflected_inertia or estimated_reflected_inertia(
+                                m.rated_torque, m.no_load_speed, m.gear_ratio),
+                            inertia_estimated=not m.reflected_inertia)
                  for m in sorted(models, key=lambda m: (m.peak_torque, m.no_load_speed)))
+
+
+def estimated_reflected_inertia(rated_torque: float, output_speed: float,
+                                gear_ratio: float | None) -> float:
+    """hil's estimate (kg·m²) of a geared actuator's rotor inertia as its output feels it,
+    where its maker publishes none (Robstride, CubeMars, MyActuator): the rotor of the
+    smallest generic class (:data:`MOTOR_CLASSES`) whose rated power covers the actuator's,
+    rated torque x no-load speed at the output, times the gear ratio squared (0 without a
+    gear ratio). Its order of magnitude is the point: tuned on the link's inertia alone
+    (no rotor), `hil init`'s MIT gains for a G1's Robstride arms were 150 times softer than
+    for its Damiao ones, and the demo ended 0.7 rad off."""
+    if not gear_ratio:
+        return 0.0
+    power = rated_torque * output_speed
+    found = next((c for c in MOTOR_CLASSES if c.rated_torque * _CLASS_SPEED >= power),
+                 MOTOR_CLASSES[-1])
+    return float(f"{found.rotor_inertia * gear_ratio ** 2:.3g}")
 
 
 def fitting(catalogue: Sequence[MotorClass], peak_torque: float, speed: float) -> MotorClass:
