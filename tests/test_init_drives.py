@@ -141,3 +141,20 @@ def test_an_initialised_telescoping_arm_runs_its_demo(tmp_path):
                         capture_output=True, text=True, timeout=280, cwd=tmp_path)
     assert up.returncode == 0, up.stdout[-3000:] + up.stderr[-3000:]
     assert "hil up: demo succeeded" in up.stdout
+
+
+@needs_corpus
+def test_init_estimates_the_rotor_inertia_a_maker_does_not_publish_and_says_so(tmp_path):
+    """Robstride publishes no rotor inertia: tuned on the links alone, `hil init`'s gains
+    for a G1's RS04 arms were 150 times softer than for Damiao's and its demo ended 0.7 rad
+    off. An RS04 (40 N·m rated, 200 rpm: 838 W) gets the 1 kW class' rotor, 2.6e-4 kg·m²,
+    times its 9:1 gear squared; the file says it is hil's estimate."""
+    output = tmp_path / "g1.yaml"
+    assert main(["init", str(G1), "--protocol", "robstride", "-o", str(output),
+                 "--package-path", str(SHARE)]) == 0
+    text = output.read_text()
+    assert "# rotor_inertia: the robstride maker publishes none; hil's estimate" in text
+    assert "left_elbow_joint: {reduction: 1, rotor_inertia: 0.0211}" in text
+    config = load_bus_config(output, PackagePath((SHARE,)))
+    elbow = next(d for d in config.drives if d.joints == ("left_elbow_joint",))
+    assert elbow.options.kp > 100, elbow.options      # 30.8 on the links alone
