@@ -1,7 +1,8 @@
 """Build hook: the drive core compiled by mypyc where the machine has a C compiler.
 
-The drive core's inner loops and the CiA 402 state machine (``hil.compiled.COMPILED`` lists
-the modules) run for every drive on every plant step and cycle. Compiled, the same typed
+The drive core's inner loops and the CiA 402 state machine run for every drive on every plant
+step and cycle, the master's gravity feed-forward over every link each cycle
+(``hil.compiled.BUILDS`` lists the modules). Compiled, the same typed
 Python takes about 30 % off a lock-step cycle (docs/performance.md). The Python files stay
 the only source: without a compiler the install goes on and they run interpreted
 (``hil.compiled`` tells which form runs).
@@ -17,9 +18,10 @@ from setuptools import setup
 from setuptools.command.build_ext import build_ext
 from setuptools.command.build_py import build_py
 
-#: the modules mypyc compiles, together: hil.compiled's list, read from its file (importing
+#: the modules mypyc compiles, by build: hil.compiled's lists, read from its file (importing
 #: hil would need its dependencies, which a build environment has not)
-MODULES = runpy.run_path("hil/compiled.py")["COMPILED"]
+BUILDS = runpy.run_path("hil/compiled.py")["BUILDS"]
+MODULES = [module for modules in BUILDS.values() for module in modules]
 
 
 class BuildExt(build_ext):
@@ -60,9 +62,10 @@ def optional_extensions():
     # their imports are checked by the tests, not here: the build environment has only mypy
     # one shared library for the group, inside the package (by default it is a top-level
     # module named by a hash of the modules' names)
-    sources = [str(_source(module)) for module in MODULES]
-    extensions = mypycify(["--follow-imports=skip", *sources], opt_level="3",
-                          group_name="hil.drives.compiled")
+    extensions = [extension for group, modules in BUILDS.items()
+                  for extension in mypycify(["--follow-imports=skip",
+                                             *(str(_source(module)) for module in modules)],
+                                            opt_level="3", group_name=group)]
     for extension in extensions:
         extension.optional = True        # a failed compile leaves the modules interpreted
     return extensions

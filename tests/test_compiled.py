@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import math
 import importlib.machinery
 import importlib.util
 import os
@@ -13,8 +14,10 @@ import grimp
 import pytest
 
 import hil.drives.core
-from hil.compiled import COMPILED, import_fresh, is_compiled
-from conftest import TEST_MOTOR_DRIVE
+import hil.hardware.gravity
+from hil.compiled import BUILDS, COMPILED, import_fresh, is_compiled
+from hil.description import load_description
+from conftest import ROOT, TEST_MOTOR_DRIVE
 
 SUFFIX = importlib.machinery.EXTENSION_SUFFIXES[0]
 
@@ -108,10 +111,31 @@ def test_the_compiled_drive_core_computes_what_its_source_does(velocity_mode):
     assert any(fault for *_, fault in compiled)      # the run reached the fault
 
 
-def test_the_modules_of_the_build_load_with_the_drives_all_compiled_or_none():
+@pytest.mark.parametrize("build", list(BUILDS))
+def test_the_modules_of_a_build_load_all_compiled_or_none(build):
     # compiled modules of one build call each other's classes directly (hil.compiled)
-    forms = {name: is_compiled(sys.modules[name]) for name in COMPILED}
+    forms = {name: is_compiled(sys.modules[name]) for name in BUILDS[build]}
     assert len(set(forms.values())) == 1, forms
+
+
+@pytest.mark.skipif(not is_compiled(hil.hardware.gravity),
+                    reason="the master's gravity model is not compiled in this install "
+                           "(setup.py found no C compiler, or hil/hardware/gravity.py changed "
+                           "since `pip install -e .`)")
+def test_the_compiled_gravity_model_computes_what_its_source_does():
+    path = Path(hil.hardware.gravity.__file__).with_name("gravity.py")
+    spec = importlib.util.spec_from_file_location("hil_gravity_source", path)
+    source = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(source)
+    robot = load_description(ROOT / "robots" / "pigot_description" / "urdf" / "pigot.xacro")
+    names = [joint.name for joint in robot.joints if joint.is_movable]
+    compiled = hil.hardware.gravity.GravityModel(robot, names)
+    interpreted = source.GravityModel(robot, names)
+    assert not is_compiled(source)
+    for k in range(50):
+        positions = [math.sin(k + 0.7 * j) for j in range(len(names))]
+        assert compiled.torques(positions) == interpreted.torques(positions)   # bit for bit
+    assert any(compiled.torques([0.0] * len(names)))      # the arm carries a weight
 
 
 def test_each_module_of_the_build_outside_the_drives_is_an_import_the_contracts_see():

@@ -10,7 +10,8 @@ another puts its load on its leader (virtual work: ``tau_leader += multiplier ta
 movable joint no drive moves is taken at zero.
 
 Written in plain floats: numpy on a few 3-vectors per joint cost as much as a 1 kHz cycle's
-whole budget (docs/performance.md, "2026-12-06, later: figures from code comments").
+whole budget (docs/performance.md, "2026-12-06, later: figures from code comments"). The
+install compiles it with mypyc (``hil.compiled.COMPILED_MASTER``): keep it typed.
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ class GravityModel:
             joint = into.get(link)
             inertial = robot.link(link).inertial
             self._mass.append(inertial.mass if inertial is not None else 0.0)
-            self._com.append(tuple(inertial.origin.xyz) if inertial is not None
+            self._com.append(_vec(inertial.origin.xyz) if inertial is not None
                              else (0.0, 0.0, 0.0))
             if joint is None:
                 self._parent.append(-1)
@@ -69,7 +70,7 @@ class GravityModel:
                 continue
             self._parent.append(slot[joint.parent])
             self._turn.append(rpy_matrix(joint.origin.rpy))
-            self._shift.append(tuple(joint.origin.xyz))
+            self._shift.append(_vec(joint.origin.xyz))
             self._axis.append(_unit(joint.axis))
             leader = joint.mimic.joint if joint.mimic is not None else joint.name
             moves = joint.is_movable and leader in index
@@ -143,6 +144,10 @@ def _links_from_root(robot: RobotDescription) -> list[str]:
     for link in order:
         order.extend(children.get(link, []))
     return order
+
+
+def _vec(v) -> Vec:
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def _unit(v) -> Vec:
