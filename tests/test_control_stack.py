@@ -18,7 +18,7 @@ from hil.controllers.goal import PREEMPTED
 from hil.controllers import GoalRejected, GoalStatus, TrajectoryGoal, TrajectoryPoint
 from hil.messaging import cdr
 from hil.messaging.zenoh_api import ControllerGone, TrajectoryActionClient, key
-from hil.zenoh_session import ZenohSettings, session
+from hil.zenoh_session import ZenohSettings, close, session
 from conftest import ROOT, free_port, socketcan_missing, ur3_at_100hz
 
 #: judged against the host's stalls (tests/host_stalls.py): the stacks run in real time, as
@@ -60,7 +60,8 @@ class ProcessStack:
         else:
             self.control = self._spawn(["control", config, "--fake", "--listen", self.endpoint],
                                        "hil control:")
-        self.session = session(ZenohSettings(connect=(self.endpoint,)))
+        self.settings = ZenohSettings(connect=(self.endpoint,))
+        self.session = session(self.settings)
         self.client = TrajectoryActionClient(self.session, self.robot)
         assert self.client.wait_for_controller(30), "controller not alive on Zenoh"
         self.states: list = []
@@ -92,7 +93,7 @@ class ProcessStack:
         if self.client is not None:
             self.client.close()
         if self.session is not None:
-            self.session.close()
+            close(self.settings)
         for process in (self.control, self.sim):
             if process is not None and process.poll() is None:
                 process.send_signal(signal.SIGTERM)
