@@ -11,6 +11,7 @@ import sys
 import pytest
 
 from hil.bench import ACROSS_PROCESSES_QUICK, FIGURES, RATES, ROBOTS
+from hil.cli import main
 from hil.realtime import CyclePacer
 
 #: judged against the host's stalls (tests/host_stalls.py): `hil bench` measures real time
@@ -102,6 +103,37 @@ def test_quick_bench_reports_every_figure(tmp_path):
     assert "control cycle, real time" in result.stdout and "tracking" in result.stdout
     assert "across processes" in result.stdout
     assert report["machine"]["drive_core"] in ("compiled", "interpreted")   # read figures by it
+
+
+@pytest.mark.slow
+def test_the_scale_sweep_alone_runs_the_sizes_and_rates_asked(tmp_path):
+    """`hil bench --scale 3,7 --rate 500 --rate 250`: those robots at those rates, nothing
+    else measured, its JSON and its table (issue 69: the sweep is run on its own, at the
+    sizes a humanoid has)."""
+    report_path = tmp_path / "scale.json"
+    result = subprocess.run([sys.executable, "-m", "hil", "bench", "--scale", "3,7", "--rate",
+                             "500", "--rate", "250", "--seconds", "1s", "--json",
+                             str(report_path)], capture_output=True, text=True, timeout=300,
+                            cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    report = json.loads(report_path.read_text())
+    assert set(report) == {"machine", "settings", "scale"}
+    assert [(r["drives"], r["rate_hz"]) for r in report["scale"]] == [
+        (3, 500.0), (7, 500.0), (3, 250.0), (7, 250.0)]
+    for row in report["scale"]:
+        assert row["cycles"] > 0 and row["cpu_us_per_cycle"]["control"] > 0, row
+    assert result.stdout.startswith("scale (ur3 arms on one base")
+    assert "largest that held: 500 Hz" in result.stdout
+
+
+def test_the_scale_sweeps_options_are_refused_where_they_mean_nothing(capsys):
+    assert main(["bench", "--rate", "500"]) == 1          # a usage error, as hil says them
+    assert "--rate is for --scale" in capsys.readouterr().err
+    assert main(["bench", "--scale", "6", "--soak", "10s"]) == 1
+    assert "two benches" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["bench", "--scale", "6,0"])
+    assert "each drive count must be 1 or more" in capsys.readouterr().err
 
 
 @pytest.mark.slow

@@ -64,18 +64,28 @@ from hil.stack import IN_PROCESS
 from hil.zenoh_session import close_all
 
 __all__ = ["ACROSS_PROCESSES", "ACROSS_PROCESSES_QUICK", "DID_NOT_START", "FIGURES",
-           "LOCK_STEP_WINDOW", "RATES", "ROBOTS", "BenchSettings", "run_bench", "run_soak",
-           "runs_not_started", "tracking_goal", "with_rate"]
+           "LOCK_STEP_WINDOW", "RATES", "ROBOTS", "BenchSettings", "run_bench", "run_scale",
+           "run_soak", "runs_not_started", "scale_not_started", "tracking_goal", "with_rate"]
+
+
+def _machine() -> dict:
+    """What the figures depend on besides the code: CPUs, Python, the compiled modules."""
+    return {"cpus": len(os.sched_getaffinity(0)), "python": platform.python_version(),
+            "platform": platform.platform(),
+            # setup.py compiles it where it can: the figures depend on it
+            "drive_core": "compiled" if is_compiled(core_module) else "interpreted"}
+
+
+def run_scale(settings: BenchSettings, say: Callable[[str], None] = print) -> dict:
+    """The scale sweep alone (``hil bench --scale``): its rows under ``scale``."""
+    with tempfile.TemporaryDirectory(prefix="hil-bench-scale-") as folder:
+        rows = scale(settings, Path(folder), say)
+    return {"machine": _machine(), "settings": {"seconds": settings.seconds}, "scale": rows}
 
 
 def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> dict:
     """Measure every figure; raises RuntimeError if one is missing from the report."""
-    report: dict = {"machine": {"cpus": len(os.sched_getaffinity(0)),
-                                "python": platform.python_version(),
-                                "platform": platform.platform(),
-                                # setup.py compiles it where it can: the figures depend on it
-                                "drive_core": "compiled" if is_compiled(core_module)
-                                              else "interpreted"},
+    report: dict = {"machine": _machine(),
                     "settings": {"seconds": settings.seconds,
                                  "lock_step_cycles": settings.lock_step_cycles}}
     for name in FIGURES:
@@ -132,9 +142,14 @@ def runs_not_started(report: dict) -> list[str]:
     rows += [(f"{row['robot']} at {row['rate_hz']:g} Hz across processes"
               f"{' with the visualiser' if row['viz'] else ''}", row)
              for row in report["across_processes"]]
-    rows += [(f"scale: {row['drives']} drives at {row['rate_hz']:g} Hz", row)
-             for row in report["scale"]]
     if isinstance(report["socketcan"], list):
         rows += [(f"{row['robot']} over SocketCAN", row) for row in report["socketcan"]]
-    return [name for name, row in rows if DID_NOT_START in row]
+    return [name for name, row in rows if DID_NOT_START in row] + scale_not_started(
+        report["scale"])
+
+
+def scale_not_started(rows: list[dict]) -> list[str]:
+    """The scale sweep's runs whose stack did not start, each named in words."""
+    return [f"scale: {row['drives']} drives at {row['rate_hz']:g} Hz" for row in rows
+            if DID_NOT_START in row]
 

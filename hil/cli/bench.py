@@ -11,10 +11,12 @@ from dataclasses import replace
 from pathlib import Path
 
 from hil.bench import (
-    DID_NOT_START, LOCK_STEP_WINDOW, BenchSettings, run_bench, run_soak, runs_not_started,
+    DID_NOT_START, LOCK_STEP_WINDOW, BenchSettings, run_bench, run_scale, run_soak,
+    runs_not_started, scale_not_started,
 )
 from hil.bench.scale import HOLDS_MISSED, largest_holding
 from hil.cli import common
+from hil.errors import UsageError
 from hil.realtime.stalls import BENCH_STALL_STATUS
 from hil.stack import START_ATTEMPTS, StackDidNotStart
 from hil.supervisor import ChildFailed
@@ -39,6 +41,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--soak", type=common.duration, metavar="TIME",
                         help="instead: repeat a trajectory for TIME (e.g. 10min, 90s) and "
                              "report drift, memory growth and missed cycles")
+    parser.add_argument("--scale", type=_drive_counts, metavar="N,N,...",
+                        help="instead: the scale sweep alone, robots of these many drives "
+                             "(e.g. 6,12,24,34,64; ur3 arms on one base, CiA 402, hil init's "
+                             "buses), each --seconds long in real time across processes, at "
+                             "every --rate")
+    parser.add_argument("--rate", type=common.positive, action="append", metavar="HZ",
+                        help="with --scale: a cycle rate (repeat for several; default 500 "
+                             "and 250)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -46,8 +56,17 @@ def run(args: argparse.Namespace) -> int:
     if args.seconds is not None:
         settings = replace(settings, seconds=args.seconds)
     say = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
+    if args.rate and not args.scale:
+        raise UsageError.single("--rate is for --scale", hint="hil bench --scale 6,12 --rate 500")
+    if args.soak and args.scale:
+        raise UsageError.single("--soak and --scale are two benches", hint="give one of them")
+    if args.scale:
+        settings = replace(settings, scale_drives=args.scale,
+                           scale_rates=tuple(args.rate or settings.scale_rates))
     try:
-        return _soak(args, settings, say) if args.soak else _bench(args, settings, say)
+        if args.soak:
+            return _soak(args, settings, say)
+        return _scale(args, settings, say) if args.scale else _bench(args, settings, say)
     except (StackDidNotStart, ChildFailed) as failure:
         # a lock-step run, which no stall of the host fails, or the soak's one long run
         say(f"hil bench: error: {failure}")
@@ -64,6 +83,31 @@ def _soak(args: argparse.Namespace, settings: BenchSettings, say: Callable[[str]
           f" {soak['rss_growth_after_first_bytes'] / 1e6:.2f} MB; missed {soak['missed']} "
           f"of {soak['cycles']} cycles")
     print(f"hil bench: report in {args.json}")
+    return 0
+
+
+def _drive_counts(text: str) -> tuple[int, ...]:
+    """``6,12,24``: robot sizes for --scale (each at least one drive)."""
+    try:
+        counts = tuple(int(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a list of drive counts, e.g. "
+                                         "6,12,24") from None
+    if not counts or min(counts) < 1:
+        raise argparse.ArgumentTypeError(f"'{text}': each drive count must be 1 or more")
+    return counts
+
+
+def _scale(args: argparse.Namespace, settings: BenchSettings, say: Callable[[str], None]) -> int:
+    report = run_scale(settings, say=say)
+    args.json.write_text(json.dumps(report, indent=2))
+    print("\n".join(_scale_lines(report)).lstrip("\n"))
+    print(f"\nhil bench: report in {args.json}")
+    not_started = scale_not_started(report["scale"])
+    if not_started:
+        say(f"hil bench: {len(not_started)} real-time run(s) did not start: "
+            f"{', '.join(not_started)}; their figures are missing from the report")
+        return BENCH_STALL_STATUS
     return 0
 
 
