@@ -164,16 +164,11 @@ _lock = threading.Lock()
 
 
 def session(settings: ZenohSettings) -> zenoh.Session:
-    """The process' session for these settings (opened once, shared; opened again where its
-    holder closed it itself rather than through :func:`close`)."""
+    """The process' session for these settings (opened once, shared)."""
     with _lock:
-        opened = _sessions.get(settings)
-        if opened is None or opened.is_closed():
-            # a closed one handed out failed its next declaration with "session closed": a
-            # test had closed its session directly, and a later one, given the same
-            # loopback port by the OS, got it
-            opened = _sessions[settings] = _open(settings)
-        return opened
+        if settings not in _sessions:
+            _sessions[settings] = _open(settings)
+        return _sessions[settings]
 
 
 def dials_peers(settings: ZenohSettings) -> bool:

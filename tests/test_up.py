@@ -25,6 +25,7 @@ from hil.cli import up
 from hil.cli.run_progress import Progress
 from hil.cli.up.children import make_children
 from hil.cli.up.robots import RobotRun
+from hil.supervisor import RECORDER_STOP_TIMEOUT, STOP_TIMEOUT
 from hil.messaging.zenoh_api import RunSubscriber
 from hil.zenoh_session import ZenohSettings, close, session
 from conftest import ROOT, free_port, read_rrd, rrd_series, rrd_verify_errors
@@ -213,7 +214,9 @@ def test_up_with_a_killed_child_ends_nonzero_naming_it_and_leaves_no_process(
         victim, tmp_path, processes):
     up, pids, _ = start_up(tmp_path, processes)
     os.kill(pids[victim], signal.SIGKILL)
-    up.wait(timeout=60)
+    # hil up's own bound: each child SIGTERMed, then killed past its stop timeout (control
+    # and sim 15 s, the recording visualiser 60 s); a CI run's took more than 60 s in all
+    up.wait(timeout=STOP_TIMEOUT * 2 + RECORDER_STOP_TIMEOUT + 30)
     err = up.stderr.read()
     assert up.returncode == 1
     assert f"{victim} (pid {pids[victim]}) exited with status -9" in err
