@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import enum
 import importlib
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -66,6 +67,33 @@ class DriveSetting:
     kp: float              # N·m/rad: a critically damped position loop on its inertia
     kd: float              # N·m·s/rad
     model: str | None      # the product sized for it (a key of Protocol.models), if any
+
+
+class PublishedFigures:
+    """What a model of a geared actuator whose maker publishes rated and peak torque and a
+    no-load speed at the output, but no rotor inertia, tells ``hil init`` (a mixin for a
+    model dataclass with ``rated_torque``, ``peak_torque`` and ``top_rpm``, each None where
+    the sources give none)."""
+
+    rated_torque: float | None
+    peak_torque: float | None
+    top_rpm: float | None
+
+    @property
+    def sizes(self) -> bool:
+        """Whether the sources give the figures ``hil init --motor`` sizes with."""
+        return None not in (self.rated_torque, self.peak_torque, self.top_rpm)
+
+    @property
+    def no_load_speed(self) -> float:
+        """rad/s at the output (the maker's no-load speed)."""
+        return (self.top_rpm or 0.0) * 2 * math.pi / 60
+
+    @property
+    def reflected_inertia(self) -> float:
+        """0: the sources give no rotor inertia (``hil init`` estimates one:
+        ``hil.commissioning.sizing.estimated_reflected_inertia``)."""
+        return 0.0
 
 
 @dataclass(frozen=True)

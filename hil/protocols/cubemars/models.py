@@ -22,9 +22,11 @@ import math
 import re
 from dataclasses import dataclass
 
+from hil.protocols.base import PublishedFigures
+
 
 @dataclass(frozen=True)
-class CubeMarsModel:
+class CubeMarsModel(PublishedFigures):
     """One AK model: the MIT mapping and output-shaft figures."""
 
     name: str
@@ -38,21 +40,6 @@ class CubeMarsModel:
     rated_torque: float | None = None     # N·m
     peak_torque: float | None = None      # N·m
     top_rpm: float | None = None          # output shaft
-
-    @property
-    def sizes(self) -> bool:
-        """Whether the sources give the figures ``hil init --motor`` sizes with."""
-        return None not in (self.rated_torque, self.peak_torque, self.top_rpm)
-
-    @property
-    def no_load_speed(self) -> float:
-        """rad/s at the output (the top speed of the maker's table)."""
-        return (self.top_rpm or 0.0) * 2 * math.pi / 60
-
-    @property
-    def reflected_inertia(self) -> float:
-        """0: the sources give no rotor inertia (none is added to the joint)."""
-        return 0.0
 
     def erpm(self, output_speed: float) -> float:
         """Electrical rpm of the rotor at ``output_speed`` rad/s."""

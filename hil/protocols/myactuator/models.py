@@ -42,6 +42,8 @@ class RmdModel:
 
     @property
     def reflected_inertia(self) -> float:
+        """0: the sources give no rotor inertia (``hil init`` estimates one:
+        ``hil.commissioning.sizing.estimated_reflected_inertia``)."""
         return 0.0
 
 

@@ -30,12 +30,14 @@ import math
 import re
 from dataclasses import dataclass
 
+from hil.protocols.base import PublishedFigures
+
 #: 4π: the position range of every model (the manuals' "-4π ~ 4π"; 12.57 rad)
 FOUR_PI = 4 * math.pi
 
 
 @dataclass(frozen=True)
-class RobstrideModel:
+class RobstrideModel(PublishedFigures):
     """One model: the ranges its frames map onto and its output-shaft figures."""
 
     name: str
@@ -56,21 +58,6 @@ class RobstrideModel:
     #: a Xiaomi CyberGear: its manual's private protocol, without the later types (the module
     #: doc of hil.protocols.robstride)
     cybergear: bool = False
-
-    @property
-    def sizes(self) -> bool:
-        """Whether the sources give the figures ``hil init --motor`` sizes with."""
-        return None not in (self.rated_torque, self.peak_torque, self.top_rpm)
-
-    @property
-    def no_load_speed(self) -> float:
-        """rad/s at the output (the maker's no-load speed)."""
-        return (self.top_rpm or 0.0) * 2 * math.pi / 60
-
-    @property
-    def reflected_inertia(self) -> float:
-        """0: the sources give no rotor inertia (none is added to the joint)."""
-        return 0.0
 
     @property
     def newton_metres_per_ampere(self) -> float:
