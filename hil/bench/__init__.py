@@ -78,9 +78,14 @@ def _machine() -> dict:
 
 def run_scale(settings: BenchSettings, say: Callable[[str], None] = print) -> dict:
     """The scale sweep alone (``hil bench --scale``): its rows under ``scale``."""
+    return {"machine": _machine(), "settings": {"seconds": settings.seconds},
+            "scale": _scale_rows(settings, say)}
+
+
+def _scale_rows(settings: BenchSettings, say: Callable[[str], None]) -> list[dict]:
+    """The scale sweep's rows, its robots made in a folder of their own."""
     with tempfile.TemporaryDirectory(prefix="hil-bench-scale-") as folder:
-        rows = scale(settings, Path(folder), say)
-    return {"machine": _machine(), "settings": {"seconds": settings.seconds}, "scale": rows}
+        return scale(settings, Path(folder), say)
 
 
 def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> dict:
@@ -126,8 +131,7 @@ def run_bench(settings: BenchSettings, say: Callable[[str], None] = print) -> di
     close_all()
     report["across_processes"] = across_processes(settings, say)
     report["lock_step_across_processes"] = lock_step_across_processes(settings, say)
-    with tempfile.TemporaryDirectory(prefix="hil-bench-scale-") as folder:
-        report["scale"] = scale(settings, Path(folder), say)
+    report["scale"] = _scale_rows(settings, say)
     absent = [name for name in FIGURES if not report.get(name)]
     if absent:
         raise RuntimeError(f"figures missing from the report: {', '.join(absent)}")

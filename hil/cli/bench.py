@@ -103,12 +103,7 @@ def _scale(args: argparse.Namespace, settings: BenchSettings, say: Callable[[str
     args.json.write_text(json.dumps(report, indent=2))
     print("\n".join(_scale_lines(report)).lstrip("\n"))
     print(f"\nhil bench: report in {args.json}")
-    not_started = scale_not_started(report["scale"])
-    if not_started:
-        say(f"hil bench: {len(not_started)} real-time run(s) did not start: "
-            f"{', '.join(not_started)}; their figures are missing from the report")
-        return BENCH_STALL_STATUS
-    return 0
+    return _status(scale_not_started(report["scale"]), say)
 
 
 def _bench(args: argparse.Namespace, settings: BenchSettings, say: Callable[[str], None]) -> int:
@@ -116,7 +111,12 @@ def _bench(args: argparse.Namespace, settings: BenchSettings, say: Callable[[str
     args.json.write_text(json.dumps(report, indent=2))
     print(format_table(report))
     print(f"\nhil bench: report in {args.json}")
-    not_started = runs_not_started(report)
+    return _status(runs_not_started(report), say)
+
+
+def _status(not_started: list[str], say: Callable[[str], None]) -> int:
+    """The exit status of a whole report: BENCH_STALL_STATUS, saying which, where some
+    real-time run did not start."""
     if not_started:
         say(f"hil bench: {len(not_started)} real-time run(s) did not start: "
             f"{', '.join(not_started)}; their figures are missing from the report")
