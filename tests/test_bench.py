@@ -96,6 +96,7 @@ def test_quick_bench_reports_every_figure(tmp_path):
         assert row["cycles"] > 0 and row["buses"] >= row["drives"] // 4
         assert row["cpu_us_per_cycle"]["sim"] > 0 and row["cpu_us_per_cycle"]["control"] > 0
         assert row["holds"] == (row["faults"] == 0 and row["missed"] <= 0.001 * row["cycles"])
+        _assert_the_bare_master_enabled_every_drive(row)
     assert "largest that held: 500 Hz" in result.stdout
     assert "lock-step across processes" in result.stdout
     # each process' CPU with the floor's process in its place beside it
@@ -122,8 +123,20 @@ def test_the_scale_sweep_alone_runs_the_sizes_and_rates_asked(tmp_path):
         (3, 500.0), (7, 500.0), (3, 250.0), (7, 250.0)]
     for row in report["scale"]:
         assert row["cycles"] > 0 and row["cpu_us_per_cycle"]["control"] > 0, row
+        _assert_the_bare_master_enabled_every_drive(row)
     assert result.stdout.startswith("scale (ur3 arms on one base")
     assert "largest that held: 500 Hz" in result.stdout
+    assert re.search(r"yes\s+\d+\s+\d+\s+\d+ 7/7|no\s+\d+\s+\d+\s+\d+ 7/7",
+                     result.stdout), result.stdout
+
+
+def _assert_the_bare_master_enabled_every_drive(row: dict) -> None:
+    """A scale row's bare python-can master (hil.bench.bare_master) brought every drive of
+    the robot up to OPERATION ENABLED and cycled it, its CPU and the sim's measured."""
+    bare = row["bare_master"]
+    assert bare["drives"] == row["drives"] and bare["enabled"] == bare["drives"], bare
+    assert bare["cycles"] > 0 and bare["cpu_us_per_cycle"]["sim"] > 0, bare
+    assert bare["cpu_us_per_cycle"]["control"] > 0, bare
 
 
 def test_the_scale_sweeps_options_are_refused_where_they_mean_nothing(capsys):

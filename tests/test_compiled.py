@@ -15,6 +15,7 @@ import pytest
 
 import hil.drives.core
 import hil.hardware.gravity
+import hil.protocols.mit.codec
 from hil.compiled import BUILDS, COMPILED, import_fresh, is_compiled
 from hil.description import load_description
 from conftest import ROOT, TEST_MOTOR_DRIVE
@@ -96,15 +97,8 @@ def _torques(core_module, velocity_mode: bool) -> list[tuple]:
                            "since `pip install -e .`)")
 @pytest.mark.parametrize("velocity_mode", [False, True])
 def test_the_compiled_drive_core_computes_what_its_source_does(velocity_mode):
-    path = Path(hil.drives.core.__file__).with_name("core.py")
-    spec = importlib.util.spec_from_file_location("hil_drive_core_source", path)
-    source = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = source                  # dataclasses look their module up
-    try:
-        spec.loader.exec_module(source)
-        interpreted = _torques(source, velocity_mode)
-    finally:
-        del sys.modules[spec.name]
+    source = _source_of(hil.drives.core)
+    interpreted = _torques(source, velocity_mode)
     compiled = _torques(hil.drives.core, velocity_mode)
     assert not is_compiled(source)
     assert compiled == interpreted                   # bit for bit: the same float operations
@@ -123,10 +117,7 @@ def test_the_modules_of_a_build_load_all_compiled_or_none(build):
                            "(setup.py found no C compiler, or hil/hardware/gravity.py changed "
                            "since `pip install -e .`)")
 def test_the_compiled_gravity_model_computes_what_its_source_does():
-    path = Path(hil.hardware.gravity.__file__).with_name("gravity.py")
-    spec = importlib.util.spec_from_file_location("hil_gravity_source", path)
-    source = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(source)
+    source = _source_of(hil.hardware.gravity)
     robot = load_description(ROOT / "robots" / "pigot_description" / "urdf" / "pigot.xacro")
     names = [joint.name for joint in robot.joints if joint.is_movable]
     compiled = hil.hardware.gravity.GravityModel(robot, names)
@@ -136,6 +127,46 @@ def test_the_compiled_gravity_model_computes_what_its_source_does():
         positions = [math.sin(k + 0.7 * j) for j in range(len(names))]
         assert compiled.torques(positions) == interpreted.torques(positions)   # bit for bit
     assert any(compiled.torques([0.0] * len(names)))      # the arm carries a weight
+
+
+@pytest.mark.skipif(not is_compiled(hil.protocols.mit.codec),
+                    reason="the MIT codec is not compiled in this install (setup.py found no C "
+                           "compiler, or hil/protocols/mit/codec.py changed since "
+                           "`pip install -e .`)")
+def test_the_compiled_mit_codec_packs_and_unpacks_what_its_source_does():
+    source = _source_of(hil.protocols.mit.codec)
+    compiled = hil.protocols.mit.codec
+    assert not is_compiled(source)
+    ranges = (12.5, 30.0, 500.0, 5.0, 10.0)
+    edges = [math.inf, -math.inf, 1e308, -0.0, 12.5, -12.5, 40.0, 0.1]
+    values = edges + [math.sin(1.3 * k) * 14.0 for k in range(300)]
+    for k, value in enumerate(values):
+        command = (value, values[k - 1], abs(values[k - 2]) * 40, abs(value) / 3, -value)
+        packed = compiled.pack_command(compiled.MitCommand(*command), compiled.MitRanges(*ranges))
+        assert packed == source.pack_command(source.MitCommand(*command),
+                                             source.MitRanges(*ranges))
+        assert compiled.unpack_command(packed, compiled.MitRanges(*ranges)) == \
+            source.unpack_command(packed, source.MitRanges(*ranges))   # bit for bit
+        assert compiled.pack_motion(value, -value, value / 2, compiled.MitRanges(*ranges)) == \
+            source.pack_motion(value, -value, value / 2, source.MitRanges(*ranges))
+    for module in (compiled, source):           # NaN: refused alike, never packed
+        with pytest.raises(ValueError, match="NaN"):
+            module.float_to_uint(math.nan, -1.0, 1.0, 16)
+
+
+def _source_of(module):
+    """``module`` run from its Python source, beside its compiled form (not in sys.modules
+    once loaded: dataclasses look their module up while the class is made)."""
+    name = f"{module.__name__.replace('.', '_')}_source"
+    path = Path(module.__file__).with_name(module.__name__.rpartition(".")[2] + ".py")
+    spec = importlib.util.spec_from_file_location(name, path)
+    source = importlib.util.module_from_spec(spec)
+    sys.modules[name] = source
+    try:
+        spec.loader.exec_module(source)
+    finally:
+        del sys.modules[name]
+    return source
 
 
 def test_each_module_of_the_build_outside_the_drives_is_an_import_the_contracts_see():

@@ -5,6 +5,7 @@ does not.
 
     python tools/cycle_instructions.py ur3 pigot
     python tools/cycle_instructions.py ur3 --root /tmp/base --root .    # two checkouts
+    python tools/cycle_instructions.py g1.yaml --cycles 500             # a bus config
 
 Each count is two runs of the stack (``hil.stack.running_stack``, lock-step) under
 ``valgrind --tool=callgrind --separate-threads=yes``: one of WARM_UP cycles and one of
@@ -36,11 +37,14 @@ CYCLES = 2000
 #: the child: a lock-step stack run for N cycles; prints the cycles the node ran in all
 CHILD = """
 import sys, time
+from pathlib import Path
 from hil.bench.settings import BenchSettings
 from hil.bus_config import load_bus_config
 from hil.realtime.timing import LOCK_STEP
 from hil.stack import running_stack
-config = load_bus_config(BenchSettings.quick().config_dir / (sys.argv[1] + ".yaml"))
+robot = Path(sys.argv[1])
+config = load_bus_config(robot if robot.suffix == ".yaml" else
+                         BenchSettings.quick().config_dir / (sys.argv[1] + ".yaml"))
 with running_stack(config, LOCK_STEP) as stack:
     while stack.node.cycles < int(sys.argv[2]):
         time.sleep(0.01)
@@ -51,13 +55,17 @@ SUMMARY = re.compile(rb"^summary: (\d+)", re.MULTILINE)
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("robots", nargs="+", metavar="ROBOT", help="a seed robot: ur3, pigot")
+    parser.add_argument("robots", nargs="+", metavar="ROBOT",
+                        help="a seed robot (ur3, pigot) or a bus config file (.yaml)")
     parser.add_argument("--cycles", type=int, default=CYCLES)
     parser.add_argument("--root", action="append", type=Path, default=[],
                         help="a checkout whose hil to count (default: the installed one; "
                              "repeat to count several, alternately)")
     parser.add_argument("--pairs", type=int, default=1, help="repeat each count this often")
     args = parser.parse_args()
+    # a config file from here, whichever checkout's folder a run starts in
+    args.robots = [str(Path(robot).resolve()) if robot.endswith(".yaml") else robot
+                   for robot in args.robots]
     if shutil.which("valgrind") is None:
         parser.error("valgrind is not installed (Debian: apt install valgrind)")
     rows = []

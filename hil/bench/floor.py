@@ -56,11 +56,11 @@ def floor_across_processes(config: SystemConfig, seconds: float, paced: bool = T
         if "ready" not in (responder.stdout.readline() or ""):
             raise RuntimeError("the floor's answering process did not start")
         if paced:
-            return _run_floor_master(config, channels, endpoint, seconds, control_cpus, paced,
-                                     responder.pid)
+            return run_paced_master(config, channels, endpoint, seconds, control_cpus, paced,
+                                    responder.pid)
         with _threads_on(control_cpus):     # as `hil control --cpus` keeps all of its own
-            return _run_floor_master(config, channels, endpoint, seconds, None, paced,
-                                     responder.pid)
+            return run_paced_master(config, channels, endpoint, seconds, None, paced,
+                                    responder.pid)
     finally:
         responder.terminate()
         responder.wait(10)
@@ -97,38 +97,62 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _run_floor_master(config: SystemConfig, channels: dict[str, str], endpoint: str,
-                      seconds: float, cpus: set[int] | None, paced: bool,
-                      responder: int) -> dict:
+def run_paced_master(config: SystemConfig, channels: dict[str, str], endpoint: str,
+                     seconds: float, cpus: set[int] | None, paced: bool, answerer: int,
+                     master: PacedMaster | None = None) -> dict:
+    """The config's cyclic frames sent from this process on ``channels`` (Zenoh, at
+    ``endpoint``) for ``seconds``, each cycle's answers awaited (:func:`paced_exchange`); the
+    answering process is ``answerer`` (its CPU share is ``sim``'s). A ``master`` hears every
+    frame, brings the drives up first and rewrites the cyclic frames between cycles; then
+    only the cycle's answers are counted, and the measurement starts after its warm-up."""
     buses = {name: can.Bus(interface="zenoh", channel=channel, connect=[endpoint])
              for name, channel in channels.items()}
     result: dict = {}
     try:
-        exchanges = [(buses[name], out, len(answers))
-                     for name, out, answers in cyclic_frames(config)]
+        cyclic = cyclic_frames(config)
+        exchanges = [(buses[name], out, len(answers)) for name, out, answers in cyclic]
         expected = sum(count for *_, count in exchanges)
-        counter = _Counter()
+        counter = AnswerCounter(None if master is None else {
+            answer.arbitration_id for *_, answers in cyclic for answer in answers})
         for bus in buses.values():
-            bus.deliver_to([counter])
+            bus.deliver_to([counter] if master is None else [counter, master])
         time.sleep(1.0)                               # the sessions find each other
-        thread = threading.Thread(target=_floor_loop, args=(
-            exchanges, expected, counter, 1.0 / config.cycle_hz, seconds, result, cpus, paced,
-            {"sim": responder, "control": os.getpid()}))
-        thread.start()
-        thread.join()
+        runs = [(seconds, result)]
+        if master is not None:
+            master.start({name: (buses[name], out) for name, out, _ in cyclic})
+            runs.insert(0, (master.warm_up, {}))
+        for length, figures in runs:
+            thread = threading.Thread(target=paced_exchange, args=(
+                exchanges, expected, counter, 1.0 / config.cycle_hz, length, figures, cpus,
+                paced, {"sim": answerer, "control": os.getpid()}))
+            thread.start()
+            thread.join()
     finally:
         for bus in buses.values():
             bus.shutdown()
     return result
 
 
-def _floor_loop(exchanges, expected: int, counter: _Counter, period: float, seconds: float,
-                result: dict, cpus: set[int] | None, paced: bool,
-                processes: dict[str, int]) -> None:
-    """In a thread of its own, as the controller's loop: write the cycle, then the answers
-    to it are due before the next one (paced), or the next cycle goes as soon as they are in
-    (unpaced: lock-step, where a reply may take the controller's 2 s). ``processes``: the
-    pids whose CPU share over the cycling goes in the result, by the name each stands for."""
+class PacedMaster(can.Listener):
+    """A master on :func:`run_paced_master`'s loop: it hears every frame."""
+
+    #: how long it cycles before the measurement starts (s): its drives coming up
+    warm_up = 0.0
+
+    def start(self, cycle: dict[str, tuple[can.BusABC, list[can.Message]]]) -> None:
+        """Before the first cycle: each bus, by name, with the messages the loop sends on
+        it every cycle (the master may rewrite their data between cycles)."""
+
+
+def paced_exchange(exchanges, expected: int, counter: AnswerCounter, period: float,
+                   seconds: float, result: dict, cpus: set[int] | None, paced: bool,
+                   processes: dict[str, int]) -> None:
+    """In a thread of its own, as the controller's loop: write the cycle (each exchange's
+    messages as they are then: :mod:`hil.bench.bare_master` rewrites them between cycles),
+    then the answers to it are due before the next one (paced), or the next cycle goes as
+    soon as they are in (unpaced: lock-step, where a reply may take the controller's 2 s).
+    ``processes``: the pids whose CPU share over the cycling goes in the result, by the name
+    each stands for."""
     if paced:
         enter_real_time(cpus=cpus)
     statistics = PeriodStatistics(period)
@@ -165,10 +189,12 @@ def _floor_loop(exchanges, expected: int, counter: _Counter, period: float, seco
     result.update({**figures, **trips.percentiles_us("round_trip"), "late": late, "cpu": cpu})
 
 
-class _Counter(can.Listener):
-    """Counts a cycle's answers; :meth:`wait` returns when the last one arrived."""
+class AnswerCounter(can.Listener):
+    """Counts a cycle's answers (every frame, or those of ``identifiers``); :meth:`wait`
+    returns when the last one arrived."""
 
-    def __init__(self):
+    def __init__(self, identifiers: set[int] | None = None):
+        self._identifiers = identifiers
         self._arrived = threading.Condition()
         self._count = self._expected = 0
         self._last = 0.0
@@ -178,6 +204,8 @@ class _Counter(can.Listener):
             self._count, self._expected = 0, count
 
     def on_message_received(self, msg: can.Message) -> None:
+        if self._identifiers is not None and msg.arbitration_id not in self._identifiers:
+            return
         with self._arrived:
             self._count += 1
             if self._count == self._expected:

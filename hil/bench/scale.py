@@ -8,6 +8,8 @@ drive, spread over the buses ``hil init`` gives them at the rate (four drives a 
 + ``hil control`` in real time, placed as ``hil up`` places them, no visualiser); the cost
 of a cycle is each process' share of a CPU over the measured window divided by the rate. A
 size holds a rate when its run had no fault and missed at most HOLDS_MISSED of its cycles.
+Beside each, ``hil sim`` with a bare python-can master in ``hil control``'s place
+(:mod:`hil.bench.bare_master`): what hil's own master costs over the least a master needs.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from pathlib import Path
 
+from hil.bench.bare_master import bare_master_across_processes
 from hil.bench.processes import stack_across_processes
 from hil.bench.settings import DID_NOT_START, BenchSettings
 from hil.commissioning.initial import initial_config
@@ -46,13 +49,14 @@ def scale(settings: BenchSettings, folder: Path, say: Callable[[str], None]) -> 
             say(f"hil bench: scale, {drives} drives at {rate:g} Hz across processes ...")
             config, buses = scale_bench(drives, rate, folder)
             run = stack_across_processes(config, settings.seconds, False)
+            say(f"hil bench: scale, {drives} drives at {rate:g} Hz, a bare python-can master "
+                "in hil control's place ...")
+            bare = _bare_row(bare_master_across_processes(config, settings.seconds), rate)
             if DID_NOT_START in run:
                 rows.append({"drives": drives, "rate_hz": rate, "buses": buses, "holds": False,
-                             DID_NOT_START: run[DID_NOT_START]})
+                             DID_NOT_START: run[DID_NOT_START], "bare_master": bare})
                 continue
             cycles = max(run.get("cycles", 0), 1)
-            # a CPU share over the measured window, at the rate's cycles a second
-            per_cycle = {name: share / rate * 1e6 for name, share in run["cpu"].items()}
             missed = run.get("missed", 0)
             rows.append({"drives": drives, "rate_hz": rate, "buses": buses,
                          "cycles": run.get("cycles", 0), "missed": missed,
@@ -60,9 +64,26 @@ def scale(settings: BenchSettings, folder: Path, say: Callable[[str], None]) -> 
                          "busy_p50_us": run.get("busy_p50_us", math.nan),
                          "busy_p99_us": run.get("busy_p99_us", math.nan),
                          "round_trip_p99_us": run.get("round_trip_p99_us", math.nan),
-                         "cpu": run["cpu"], "cpu_us_per_cycle": per_cycle,
-                         "holds": run["faults"] == 0 and missed <= HOLDS_MISSED * cycles})
+                         "cpu": run["cpu"], "cpu_us_per_cycle": _per_cycle(run["cpu"], rate),
+                         "holds": run["faults"] == 0 and missed <= HOLDS_MISSED * cycles,
+                         "bare_master": bare})
     return rows
+
+
+def _per_cycle(cpu: dict[str, float], rate: float) -> dict[str, float]:
+    """Each process' CPU share over the measured window, at the rate's cycles a second, as
+    microseconds a cycle."""
+    return {name: share / rate * 1e6 for name, share in cpu.items()}
+
+
+def _bare_row(run: dict, rate: float) -> dict:
+    """The bare master's run (:mod:`hil.bench.bare_master`) as a scale row keeps it."""
+    if DID_NOT_START in run:
+        return run
+    return {"cycles": run["cycles"], "missed": run["missed"],
+            "round_trip_p99_us": run.get("round_trip_p99_us", math.nan), "late": run["late"],
+            "cpu": run["cpu"], "cpu_us_per_cycle": _per_cycle(run["cpu"], rate),
+            "drives": run["drives"], "enabled": run["enabled"]}
 
 
 def largest_holding(rows: list[dict]) -> dict[float, int | None]:

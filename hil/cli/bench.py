@@ -277,10 +277,13 @@ def _scale_lines(report: dict) -> list[str]:
     lines = ["", "scale (ur3 arms on one base, hil init's buses; hil sim and hil control in real "
                  "time across processes, no visualiser);", "  CPU us a cycle: each process' "
                  "share of a CPU over the rate; holds: no fault and at most "
-                 f"{HOLDS_MISSED:.1%} of the cycles missed",
+                 f"{HOLDS_MISSED:.1%} of the cycles missed; bare: hil sim with a bare "
+                 "python-can master in hil control's place (its CPU us a cycle, its missed "
+                 "cycles, the drives it enabled)",
              f"  {'drives':>6} {'Hz':>5} {'buses':>5} {'cycles':>7} {'missed':>7} "
              f"{'busy p50':>9} {'p99':>6} {'rt p99':>7} {'sim us':>7} {'ctl us':>7} "
-             f"{'faults':>6}  holds"]
+             f"{'faults':>6}  holds  {'bare: sim us':>12} {'ctl us':>7} {'missed':>7} "
+             "enabled"]
     for row in report["scale"]:
         if DID_NOT_START in row:
             lines.append(f"  {row['drives']:>6} {row['rate_hz']:>5.0f} {row['buses']:>5} "
@@ -292,12 +295,21 @@ def _scale_lines(report: dict) -> list[str]:
             f"{row['missed']:>7} {row['busy_p50_us']:>9.0f} {row['busy_p99_us']:>6.0f} "
             f"{row['round_trip_p99_us']:>7.0f} {per_cycle.get('sim', math.nan):>7.0f} "
             f"{per_cycle.get('control', math.nan):>7.0f} {row['faults']:>6}  "
-            f"{'yes' if row['holds'] else 'no'}")
+            f"{'yes' if row['holds'] else 'no ':<5}  {_bare_columns(row['bare_master'])}")
     largest = largest_holding(report["scale"])
     lines.append("  largest that held: " + ", ".join(
         f"{rate:g} Hz {drives if drives is not None else 'none'}"
         + (" drives" if drives is not None else "") for rate, drives in largest.items()))
     return lines
+
+
+def _bare_columns(bare: dict) -> str:
+    """A scale row's bare-master figures, as the table's last columns."""
+    if DID_NOT_START in bare:
+        return f"{'':>12} {NOT_STARTED}"
+    per_cycle = bare["cpu_us_per_cycle"]
+    return (f"{per_cycle.get('sim', math.nan):>12.0f} {per_cycle.get('control', math.nan):>7.0f} "
+            f"{bare['missed']:>7} {bare['enabled']}/{bare['drives']}")
 
 
 def _bus_load_lines(report: dict) -> list[str]:

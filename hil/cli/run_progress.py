@@ -13,7 +13,14 @@ import numpy as np
 
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
+from hil.messaging.scene import SceneState
 from hil.realtime.stalls import Stall, StallTally
+
+
+#: a floating base that comes down below this share of the height it started at has fallen
+#: (hil's bound: a standing robot's base sags millimetres under its joints' loops; a
+#: humanoid or quadruped lying on the floor has its base at a fifth of it or less)
+FALLEN_SHARE = 0.6
 
 
 class Progress:
@@ -45,6 +52,8 @@ class Progress:
         #: the stall past ``max_stalls``, on which ``on_too_many`` was called
         self.too_many: Stall | None = None
         self._max_stalls, self._on_too_many = max_stalls, on_too_many
+        #: a floating base's height (m) when first seen, and its lowest since (None: none seen)
+        self._base_heights: tuple[float, float] | None = None
 
     def on_samples(self, batch: ControlSamples) -> None:
         errors = np.abs(batch.reference - batch.position).max(axis=0)
@@ -80,6 +89,25 @@ class Progress:
             self.diagnostics.append(diagnostic)
         print(f"hil up: {self.label}control: {diagnostic.level}: {diagnostic.message}",
               file=sys.stderr, flush=True)
+
+    def on_scene(self, scene: SceneState) -> None:
+        if scene.base is None:
+            return
+        height = float(scene.base[0][2])
+        with self.lock:
+            start, lowest = self._base_heights or (height, height)
+            self._base_heights = (start, min(lowest, height))
+
+    def fallen(self) -> str | None:
+        """How a floating base fell (came down below FALLEN_SHARE of its first height), or
+        None: it did not, or the robot has none."""
+        with self.lock:
+            if self._base_heights is None:
+                return None
+            start, lowest = self._base_heights
+        if lowest >= FALLEN_SHARE * start:
+            return None
+        return f"the robot fell: its base came down from {start:.3f} m to {lowest:.3f} m"
 
     def faults(self) -> int:
         """How many faults (ERROR diagnostics) the controller reported."""

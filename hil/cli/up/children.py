@@ -103,7 +103,8 @@ def start_in_order(robots: list[RobotRun], viz: Child, supervised: Run, zenoh: Z
                 progress = each.progress
                 watchers.extend([watches[each.name], RunSubscriber(
                     session(zenoh), each.name, progress.on_samples, lambda wall, sim: None,
-                    progress.problems.append, progress.on_diagnostic, progress.on_stall)])
+                    progress.problems.append, progress.on_diagnostic, progress.on_stall,
+                    progress.on_scene)])
 
     def sim_alive(robot: RobotRun) -> None:
         wait_alive(supervised, watches[robot.name].wait_alive, robot.children["sim"])

@@ -129,6 +129,9 @@ def _demo(robot: RobotRun, run: Run, zenoh: ZenohSettings, timing: Timing) -> bo
                   f"{min(100, 100 * elapsed / duration):3.0f} %   {progress.line()}", flush=True)
         text = f" ({result.error_string})" if result.error_string else ""
         print(f"{say}demo {result.status.name.lower()}{text}", flush=True)
-        return result.status is GoalStatus.SUCCEEDED
+        fallen = progress.fallen()     # joints that track lying on the floor: no success
+        if fallen is not None:
+            print(f"{say}demo failed: {fallen}", file=sys.stderr, flush=True)
+        return result.status is GoalStatus.SUCCEEDED and fallen is None
     finally:
         client.close()

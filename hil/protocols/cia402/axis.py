@@ -45,7 +45,7 @@ SHUTDOWN, SWITCH_ON, ENABLE = State402.CW_SHUTDOWN, State402.CW_SWITCH_ON, \
 QUICK_STOP, DISABLE_VOLTAGE = State402.CW_QUICK_STOP, State402.CW_DISABLE_VOLTAGE
 FAULT_RESET = State402.CW_SWITCH_ON_DISABLED          # bit 7: fault reset (its rising edge)
 #: the controlword that walks a drive up from each state toward OPERATION ENABLED
-_WALK_UP = {"SWITCH ON DISABLED": SHUTDOWN, "READY TO SWITCH ON": SWITCH_ON,
+WALK_UP = {"SWITCH ON DISABLED": SHUTDOWN, "READY TO SWITCH ON": SWITCH_ON,
             "SWITCHED ON": ENABLE, "OPERATION ENABLED": ENABLE}
 
 
@@ -276,7 +276,7 @@ class Cia402Axis(Axis):
             # enable only at standstill and with last cycle's position as the setpoint: a
             # brake-less axis still falling is caught where it comes to rest, not mid-fall
             return SWITCH_ON
-        return _WALK_UP.get(state, SHUTDOWN)
+        return WALK_UP.get(state, SHUTDOWN)
 
     def rpdo(self, controlword: int, target: float) -> bytes:
         counts = round(target * self.counts_per_rad)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import enum
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from hil.can.frame import Frame, FrameSpec
 from hil.protocols.base import (CanFd, CarriedRange, DriveSetting, FrameSource, Protocol,
@@ -152,8 +153,10 @@ def parse_rate_code(value) -> int | None:
     return value
 
 
-@dataclass(frozen=True)
-class Feedback:
+class Feedback(NamedTuple):
+    """A feedback frame's values (a named tuple: one is made for every answer on each side,
+    as :class:`hil.protocols.mit.MitReply`)."""
+
     motor_id: int          # the low nibble of the motor's id
     state: State
     position: float

@@ -113,6 +113,7 @@ class DamiaoDrive(MitFamilyDrive):
                     line=self.config.line, hint="give the bus rates a DM-J motor runs, or "
                     "the drive 'options: {can_br: N}'") from None
         self.registers[35] = self.saved[35] = code
+        self._apply_registers()
 
     # --- bus ----------------------------------------------------------------------------
 
@@ -127,10 +128,12 @@ class DamiaoDrive(MitFamilyDrive):
         or longer is taken (openarm_can sends the velocity command in 4 bytes:
         ``pack_vel_control_data``). A shorter one is malformed (hil's choice: the firmware
         would read the element's bytes of an earlier frame after it)."""
-        if len(frame.data) < COMMAND_LENGTHS[self._modes[frame.identifier]]:
+        data = frame.data
+        if len(data) < COMMAND_LENGTHS[self._modes[frame.identifier]]:
             self.malformed += 1
             return
-        super().on_frame(frame._replace(data=frame.data[:8].ljust(8, b"\0")))
+        super().on_frame(frame if len(data) == 8 else
+                         frame._replace(data=data[:8].ljust(8, b"\0")))
 
     def apply(self, frame: Frame) -> Frame:
         self.watch.note(frame, self.fd)
@@ -150,20 +153,6 @@ class DamiaoDrive(MitFamilyDrive):
                                       status.velocity, status.torque, int(AMBIENT),
                                       int(AMBIENT)), self.ranges)
         return answer(self.reply_id, data, self.fd)
-
-    @property
-    def fd(self) -> bool:
-        """Whether the motor answers in CAN FD (its CAN_BR now: a write applies at once)."""
-        return is_fd_code(self.registers[35])
-
-    @property
-    def control_mode(self) -> ControlMode:
-        return ControlMode(int(self.registers[10]))
-
-    @property
-    def ranges(self) -> MitRanges:
-        return MitRanges(self.registers[21], self.registers[22], KP_MAX, KD_MAX,
-                         self.registers[23])
 
     @property
     def state(self) -> State:
@@ -300,9 +289,17 @@ class DamiaoDrive(MitFamilyDrive):
         return self.registers[number]
 
     def _apply_registers(self) -> None:
-        """What the registers mean to the motor now (the module doc)."""
+        """What the registers mean to the motor now (the module doc), read once here rather
+        than from the registers for every frame: every change to them comes through here."""
+        registers = self.registers
+        #: CTRL_MODE: which command id moves the motor
+        self.control_mode = ControlMode(int(registers[10]))
+        #: PMAX, VMAX, TMAX: the MIT commands' and every feedback's ranges
+        self.ranges = MitRanges(registers[21], registers[22], KP_MAX, KD_MAX, registers[23])
+        #: whether the motor answers in CAN FD (CAN_BR now: a write applies at once)
+        self.fd = is_fd_code(registers[35])
         self.core.parameters = replace(self.core.parameters,
-                                       watchdog_timeout=self.registers[9] * TIMEOUT_UNIT)
+                                       watchdog_timeout=registers[9] * TIMEOUT_UNIT)
 
     # --- the simulator's side ----------------------------------------------------------
 

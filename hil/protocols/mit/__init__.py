@@ -21,14 +21,19 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from hil.can.frame import Frame, FrameSpec
-from hil.protocols.base import (CarriedRange, DriveSetting, FrameSource, Protocol,
-                                ProtocolOptions)
-from hil.protocols.mit.codec import (
+from hil.compiled import COMPILED_MIT_CODEC, import_fresh
+
+# the codec's build (setup.py), loaded before anything imports it
+import_fresh(*COMPILED_MIT_CODEC)
+
+from hil.protocols.base import (  # noqa: E402
+    CarriedRange, DriveSetting, FrameSource, Protocol, ProtocolOptions)
+from hil.protocols.mit.codec import (  # noqa: E402
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, MitReply, float_to_uint,
     pack_command, pack_motion, pack_reply, uint_to_float, unpack_command, unpack_motion,
     unpack_reply,
 )
-from hil.protocols.mit.family import parse_standard_id, told_by_motor_id
+from hil.protocols.mit.family import parse_standard_id, told_by_motor_id  # noqa: E402
 
 
 class TimeoutReaction(enum.Enum):
