@@ -531,14 +531,16 @@ def example_robot_data() -> Path | None:
     return found if (found / "example-robot-data" / "robots").is_dir() else None
 
 
-def init_check_and_demo(description: Path, folder: Path, share: Path) -> tuple[Path, Path]:
-    """The README's "Adding a robot" commands, unedited, on a public description: ``hil init``,
-    ``hil check``, then ``hil up --demo`` in lock-step recording (CI's two shared CPUs are no
-    place to judge real time; ``hil bench`` is), which must succeed. The config's and the
-    recording's paths."""
+def init_check_and_demo(description: Path, folder: Path, share: Path,
+                        protocol: str | None = None) -> tuple[Path, Path]:
+    """The README's "Adding a robot" commands, unedited, on a public description: ``hil init``
+    (of ``protocol``'s drives, if given), ``hil check``, then ``hil up --demo`` in lock-step
+    recording (CI's two shared CPUs are no place to judge real time; ``hil bench`` is),
+    which must succeed. The config's and the recording's paths."""
     config = folder / "robot.yaml"
     found = ["--package-path", str(share)]
-    assert main(["init", str(description), "-o", str(config), *found]) == 0
+    drives = ["--protocol", protocol] if protocol else []
+    assert main(["init", str(description), "-o", str(config), *drives, *found]) == 0
     assert main(["check", str(config), *found]) == 0
     save = folder / "robot.rrd"
     up = subprocess.run([sys.executable, "-m", "hil", "up", str(config), "--demo", "--lock-step",

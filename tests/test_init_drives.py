@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from conftest import CORPUS, example_robot_data
+from conftest import CORPUS, example_robot_data, init_check_and_demo, rrd_series
 from hil.bus_config import load_bus_config
 from hil.cli import main
 from hil.commissioning.coupled_loops import ROUTH_RATIO
@@ -53,6 +53,20 @@ def test_init_has_no_gravity_feed_forward_for_drives_with_an_integral(tmp_path):
     assert main(["init", str(UR5), "-o", str(output), "--package-path", str(SHARE)]) == 0
     config = load_bus_config(output, PackagePath((SHARE,)))
     assert {d.torque_feed_forward for d in config.drives} == {"none"}
+
+
+@needs_corpus
+@pytest.mark.slow
+@pytest.mark.timeout(600)       # a lock-step demo of 29 drives beside a CI run
+def test_the_damiao_g1_bench_of_hil_init_stands_through_its_demo(tmp_path):
+    """Issue 69: `hil init` of the G1 on Damiao drives, then `hil up --demo`. Its demo went
+    out with the first samples, as its brakes let go, and the robot fell in every run (its
+    joints then tracked on the floor, and some runs said "succeeded"); the demo now waits
+    until the joints it stands on have rested REST_HOLD s, and a fallen base fails it. The
+    base stays within 2 cm of its start height."""
+    _, save = init_check_and_demo(G1, tmp_path, SHARE, protocol="damiao")
+    _, position = rrd_series(save, "/base/position")
+    assert np.ptp(position[:, 2]) < 0.02, (position[:, 2].min(), position[:, 2].max())
 
 
 @needs_corpus

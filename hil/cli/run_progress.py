@@ -52,6 +52,8 @@ class Progress:
         #: the stall past ``max_stalls``, on which ``on_too_many`` was called
         self.too_many: Stall | None = None
         self._max_stalls, self._on_too_many = max_stalls, on_too_many
+        #: each joint's fastest speed in the samples since :meth:`take_fastest` (None: none)
+        self._fastest: np.ndarray | None = None
         #: a floating base's height (m) when first seen, and its lowest since (None: none seen)
         self._base_heights: tuple[float, float] | None = None
 
@@ -64,6 +66,9 @@ class Progress:
             self.control_time = float(batch.control_time[-1])
             self.positions, self.joint_names = batch.position[-1], batch.joint_names
             self.velocities = batch.velocity[-1]
+            fastest = np.abs(batch.velocity).max(axis=0)
+            self._fastest = fastest if self._fastest is None else np.maximum(self._fastest,
+                                                                             fastest)
             if len(errors) and errors.max() > self.worst[0]:
                 self.worst = (float(errors.max()), batch.joint_names[int(errors.argmax())])
 
@@ -89,6 +94,14 @@ class Progress:
             self.diagnostics.append(diagnostic)
         print(f"hil up: {self.label}control: {diagnostic.level}: {diagnostic.message}",
               file=sys.stderr, flush=True)
+
+    def take_fastest(self) -> dict[str, float] | None:
+        """Each joint's fastest speed (rad/s or m/s) in every cycle heard since the last call,
+        by name; None where none was heard since."""
+        with self.lock:
+            fastest, self._fastest = self._fastest, None
+            names = self.joint_names
+        return None if fastest is None else dict(zip(names, fastest.tolist()))
 
     def on_scene(self, scene: SceneState) -> None:
         if scene.base is None:
