@@ -295,7 +295,7 @@ def _scale_lines(report: dict) -> list[str]:
             f"{row['missed']:>7} {row['busy_p50_us']:>9.0f} {row['busy_p99_us']:>6.0f} "
             f"{row['round_trip_p99_us']:>7.0f} {per_cycle.get('sim', math.nan):>7.0f} "
             f"{per_cycle.get('control', math.nan):>7.0f} {row['faults']:>6}  "
-            f"{'yes' if row['holds'] else 'no ':<5}  {_bare_columns(row['bare_master'])}")
+            f"{'yes' if row['holds'] else 'no ':<5}  {_bare_columns(row.get('bare_master'))}")
     largest = largest_holding(report["scale"])
     lines.append("  largest that held: " + ", ".join(
         f"{rate:g} Hz {drives if drives is not None else 'none'}"
@@ -303,8 +303,11 @@ def _scale_lines(report: dict) -> list[str]:
     return lines
 
 
-def _bare_columns(bare: dict) -> str:
-    """A scale row's bare-master figures, as the table's last columns."""
+def _bare_columns(bare: dict | None) -> str:
+    """A scale row's bare-master figures, as the table's last columns (none in a report
+    written before the sweep ran one)."""
+    if bare is None:
+        return f"{'-':>12}"
     if DID_NOT_START in bare:
         return f"{'':>12} {NOT_STARTED}"
     per_cycle = bare["cpu_us_per_cycle"]
