@@ -16,7 +16,6 @@ handling. Only CiA 402 drives are driven (the sweep's robots are all CiA 402).
 
 from __future__ import annotations
 
-import struct
 import tempfile
 import threading
 from pathlib import Path
@@ -27,14 +26,11 @@ from hil.bench.floor import PacedMaster, run_paced_master
 from hil.bench.settings import DID_NOT_START
 from hil.bus_config import load_bus_config
 from hil.protocols.cia402 import Cia402
-from hil.protocols.cia402.axis import SHUTDOWN, WALK_UP, state_of
+from hil.protocols.cia402.axis import RPDO1, SHUTDOWN, TPDO1, WALK_UP, state_of
 from hil.realtime import real_time_cpus
 from hil.supervisor import Child, ChildFailed, Run, cpus_argument
 from hil.zenoh_session import free_loopback_port
 
-#: the default PDO mapping's RPDO1 and TPDO1 (as hil.protocols.cia402.axis packs them)
-_RPDO1 = struct.Struct("<Hi")        # controlword, target position (counts)
-_TPDO1 = struct.Struct("<Hi")        # statusword, position actual (counts)
 #: NMT start remote node, to every node (CiA 301 7.2.8.3.1.1)
 NMT_START_ALL = can.Message(arbitration_id=0x000, data=[0x01, 0x00], is_extended_id=False)
 #: expedited SDO download of one byte to 0x6060:00, the value 8 (cyclic synchronous position)
@@ -113,12 +109,12 @@ class HoldingMaster(PacedMaster):
     def on_message_received(self, msg: can.Message) -> None:
         identifier = msg.arbitration_id
         rpdo1 = self._rpdo1.get((msg.channel, identifier))
-        if rpdo1 is not None and len(msg.data) == _TPDO1.size:
-            statusword, position = _TPDO1.unpack(msg.data)
+        if rpdo1 is not None and len(msg.data) == TPDO1.size:
+            statusword, position = TPDO1.unpack(msg.data)
             state = state_of(statusword)
             self._states[msg.channel, identifier] = state
             # one slice assignment: the paced loop never sends half of it
-            rpdo1.data[:] = _RPDO1.pack(WALK_UP.get(state, SHUTDOWN), position)
+            rpdo1.data[:] = RPDO1.pack(WALK_UP.get(state, SHUTDOWN), position)
         elif 0x581 <= identifier <= 0x5FF and msg.data and msg.data[0] == SDO_DOWNLOADED:
             with self._answered:
                 self._sdo_answers.add((msg.channel, identifier))

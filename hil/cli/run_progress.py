@@ -39,7 +39,6 @@ class Progress:
         self.cycles = 0
         self.control_time = 0.0
         self.positions: np.ndarray | None = None
-        self.velocities: np.ndarray | None = None
         self.joint_names: tuple[str, ...] = ()
         self.worst = (0.0, "")
         self._cycles_shown = 0
@@ -65,7 +64,6 @@ class Progress:
             self.cycles += len(batch)
             self.control_time = float(batch.control_time[-1])
             self.positions, self.joint_names = batch.position[-1], batch.joint_names
-            self.velocities = batch.velocity[-1]
             fastest = np.abs(batch.velocity).max(axis=0)
             self._fastest = fastest if self._fastest is None else np.maximum(self._fastest,
                                                                              fastest)

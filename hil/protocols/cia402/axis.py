@@ -26,12 +26,14 @@ from hil.resources import eds_path
 
 #: NMT states in a heartbeat (CiA 301)
 BOOT_UP, OPERATIONAL, PRE_OPERATIONAL = 0x00, 0x05, 0x7F
-_RPDO1 = struct.Struct("<Hi")       # controlword, target position
-_TPDO1 = struct.Struct("<Hi")       # statusword, position actual
+#: the default mapping's PDOs, as the master packs and reads them (hil's bench's bare master
+#: too: hil.bench.bare_master)
+RPDO1 = struct.Struct("<Hi")        # controlword, target position
+TPDO1 = struct.Struct("<Hi")        # statusword, position actual
 _TPDO2 = struct.Struct("<ih")       # velocity actual, torque actual
 _RPDO4 = struct.Struct("<ih")       # velocity offset, torque offset
 # their sizes as ints: a Struct's size is a C getter, read unspecialised at every answer
-_TPDO1_SIZE, _TPDO2_SIZE = _TPDO1.size, _TPDO2.size
+_TPDO1_SIZE, _TPDO2_SIZE = TPDO1.size, _TPDO2.size
 
 
 def _int32(value: float) -> int:
@@ -105,7 +107,7 @@ class Cia402Axis(Axis):
     def _on_tpdo1(self, frame: Frame) -> None:
         data = frame.data
         if len(data) == _TPDO1_SIZE:
-            statusword, counts = _TPDO1.unpack(data)
+            statusword, counts = TPDO1.unpack(data)
             self.take_statusword(statusword)
             self.feedback.position = counts / self.counts_per_rad
             self.answered()
@@ -281,7 +283,7 @@ class Cia402Axis(Axis):
     def rpdo(self, controlword: int, target: float) -> bytes:
         counts = round(target * self.counts_per_rad)
         # clamped only where out of range: _int32's calls are a cycle's cost in the common case
-        return _RPDO1.pack(controlword, counts if -2**31 <= counts < 2**31 else _int32(counts))
+        return RPDO1.pack(controlword, counts if -2**31 <= counts < 2**31 else _int32(counts))
 
     def fault(self, stopping: bool = False) -> AxisFault | None:
         if self.rebooted:
