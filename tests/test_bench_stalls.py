@@ -180,21 +180,24 @@ def test_a_stopped_simulator_is_named_as_the_bench_fault_and_ends_with_the_bench
     # one stall of the sim, or several ("stalled 2 times from ..., up to 31 ms")
     sim_named = re.compile(r"WARN: bench fault, not a drive fault: .*the simulator stalled "
                            r"(?:(\d+) ms|\d+ times from [\d:.]+, up to (\d+) ms)")
-    for attempt in (1, 2):
-        # a loaded host's own stall in the 1.5 s before the stop (a CI run: Zenoh deliveries
-        # 16 ms late) faulted the drives first, and was named for it, rightly: the stop then
-        # faulted nothing more. Such a run says nothing of the stop: the scenario runs again
+    # measured from the simulator's own 10 ms wake-ups: at least the stop less one period
+    stop_ms = 1e3 * STOP - 10
+    for attempt in (1, 2, 3):
+        # a loaded host's own stall in the 1.5 s before the stop (CI runs: Zenoh deliveries
+        # 16-20 ms late, the simulator 12 ms late) faulted the drives first, and was named for
+        # it, rightly: the stop then faulted nothing more. Such a run says nothing of the
+        # stop: the scenario runs again
         folder = tmp_path / f"run{attempt}"
         folder.mkdir()
         up = _up(folder)
         out, err = _stop_the_sim_once(up)
-        named = sim_named.search(err)
-        if named or attempt == 2 or "bench fault, not a drive fault" not in err:
+        stop_named = [m for m in sim_named.finditer(err)
+                      if int(m.group(1) or m.group(2)) >= stop_ms]
+        if stop_named or "bench fault, not a drive fault" not in err:
             break
     assert up.returncode == 3, out[-3000:] + err[-3000:]
     assert re.search(r"ERROR: drive node \d \(joint\d\) on bus '\w+' is silent", err), err
-    # measured from the simulator's own 10 ms wake-ups: at least the stop less one period
-    assert named and int(named.group(1) or named.group(2)) >= 1e3 * STOP - 10, err[-3000:]
+    assert stop_named, err[-3000:]
     assert "the bench broke real time" in err
     assert re.search(r"hil up: the bench since the controller's bring-up: stalls over 5 ms: "
                      r".*sim [1-9]", out), out[-2000:]

@@ -4,7 +4,7 @@
 | ------------------------------- | -------------------------------------------------------- |
 | every frame on a bus dropped    | goal aborted naming the bus' drives as silent; the drives |
 |                                 | quick-stop by their watchdog                              |
-| a tenth of the frames dropped   | ridden through: the cycle keeps the last answer           |
+| a twentieth of frames dropped   | ridden through: the cycle keeps the last answer           |
 | answers delayed past 5 cycles   | goal aborted naming the drives as silent                  |
 | answers delayed by a cycle      | ridden through on older feedback                          |
 | payload bits flipped            | caught as a drive fault or silence; nothing crashes       |
@@ -52,8 +52,12 @@ def test_dropping_every_frame_aborts_the_goal_and_the_drives_quick_stop(controll
     assert controlled.sim_bus.injected["drop"] > 0
 
 
-def test_a_tenth_of_the_frames_dropped_is_ridden_through(controlled):
-    controlled.sim_bus.add(FrameFault("drop", "arm", 0.1))
+def test_a_twentieth_of_the_frames_dropped_is_ridden_through(controlled):
+    # both directions drop: a drive's answer is missing when its SYNC or its TPDO is lost,
+    # 1 - 0.95^2 = 9.8 % of cycles, and six in a row (silent: MISSED_ANSWER_LIMIT) come once
+    # in 1.2 M drive-cycles. At a tenth (19 %, once in 21,000) a CI run's ~900 drive-cycles
+    # met one: the master was right to call that drive silent, and the test said nothing
+    controlled.sim_bus.add(FrameFault("drop", "arm", 0.05))
     result = controlled.client.wait_result(controlled.move("joint2", 0.2, seconds=1.0), 30)
     assert result.status is GoalStatus.SUCCEEDED, result
     assert controlled.sim_bus.injected["drop"] > 10 and not controlled.node.faults
