@@ -14,6 +14,7 @@ from hil.bus_config.controllers_key import read_controllers
 from hil.bus_config.drive_entry import DRIVE_KEYS
 from hil.bus_config.joint_limits import apply_joint_limits
 from hil.bus_config.scene import read_scene
+from hil.bus_config.sensor_entry import read_sensors
 from hil.bus_config.start_pose import read_start_pose
 from hil.bus_config.transmissions import add_transmissions
 from hil.bus_config.types import SystemConfig
@@ -25,7 +26,7 @@ from hil.zenoh_session import key_name_problem
 from hil.transmissions import build_transmissions
 
 _TOP_KEYS = {"robot", "plant_rate_hz", "base", "start_pose", "defaults", "joint_limits",
-             "transmissions", "buses", "scene", "controllers"}
+             "transmissions", "buses", "scene", "controllers", "sensors"}
 #: the ``base:`` values: the root link welded to the world, or free (a free joint)
 BASES = {"fixed": False, "floating": True}
 
@@ -72,7 +73,8 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
     config = SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses,
                           scene=scene, floating_base=_read_base(reader, top),
                           start_pose=read_start_pose(reader, top, robot),
-                          controllers=read_controllers(reader, top))
+                          controllers=read_controllers(reader, top),
+                          sensors=read_sensors(reader, top, robot))
     check_system(reader, config, transmissions, top)
     errors = [d for d in reader.diagnostics if d.severity is Severity.ERROR]
     warnings = tuple(d for d in reader.diagnostics if d.severity is Severity.WARNING)

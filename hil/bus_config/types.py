@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from hil.bus_config.sensor_types import ImuConfig
 from hil.can import BusLoad, bus_load
 from hil.can.frames import BitRates
 from hil.can.frame import Frame, FrameSpec
@@ -255,6 +256,8 @@ class SystemConfig:
     start_pose: tuple[tuple[str, float], ...] = ()
     #: the user's controller_manager YAML (``controllers:``), or None: hil's own controllers
     controllers: ControllersSource | None = None
+    #: the sensors on the robot's links (``sensors:``, docs/sensors.md)
+    sensors: tuple[ImuConfig, ...] = ()
 
     @property
     def effects(self) -> dict[str, ActuatorEffects]:

@@ -9,6 +9,7 @@ import argparse
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig, load_bus_config
 from hil.bus_config.locate import shipped_names
+from hil.bus_config.sensor_types import ImuConfig
 from hil.can.frame import Frame, FrameSpec
 from hil.cli import common
 from hil.protocols import Protocol, protocol
@@ -26,12 +27,23 @@ def run(args: argparse.Namespace) -> int:
           f"bus(es); positions at the motor (after the gear), SI units unless said")
     for bus in config.buses:
         _describe_bus(config, bus)
+    for sensor in config.sensors:
+        print(f"\nsensor '{sensor.name}': {sensor_line(sensor)}")
+        print(f"  read it: witmotion.IMU(\"{sensor.port}\", baudrate={sensor.baud}) or "
+              f"serial.Serial(\"{sensor.port}\", {sensor.baud}) (pyserial; docs/sensors.md)")
     for name in dict.fromkeys(d.protocol for d in config.drives):
         lines = protocol(name).description()
         if lines:
             print()
             print("\n".join(lines))
     return 0
+
+
+def sensor_line(sensor: ImuConfig) -> str:
+    """A sensor's product, place, wire and output in words."""
+    packets = ", ".join(f"0x{kind:02X}" for kind in sensor.outputs)
+    return (f"{sensor.product} IMU on link '{sensor.link}', serial port {sensor.port} at "
+            f"{sensor.baud} baud, {sensor.rate_hz:g} Hz of packets {packets}")
 
 
 def _describe_bus(config: SystemConfig, bus: BusConfig) -> None:

@@ -14,6 +14,7 @@ import numpy as np
 from hil.bus_config import load_bus_config, open_buses
 from hil.bus_config.locate import shipped_names
 from hil.cli import common
+from hil.cli.describe import sensor_line
 from hil.can import watch_deliveries
 from hil.simulator import Simulator
 from hil.can.faults import (
@@ -109,6 +110,9 @@ def run(args: argparse.Namespace) -> int:
               f"{', '.join(f'{b.name} ({buses[b.name].channel_info})' for b in config.buses)}, "
               f"{args.timing}, plant {config.plant_rate_hz:g} Hz, "
               f"cycle {config.cycle_hz:g} Hz; {scheduling}", flush=True)
+        for sensor, served in zip(config.sensors, simulator.sensors):
+            print(f"hil sim: sensor '{sensor.name}': {sensor_line(sensor)} "
+                  f"({served.port.device})", flush=True)
         print(f"hil sim: your own master's node ids, frames, units and PDO maps: hil describe "
               f"{args.config}", flush=True)
         for thread in threads:

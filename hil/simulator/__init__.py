@@ -47,7 +47,8 @@ from hil.realtime.present import PlantPresent
 from hil.realtime.stalls import Stall, StallDetector
 from hil.realtime.timing import REAL_TIME, Timing
 from hil.simulator.build import (LOCK_STEP_WATCHDOG, SimulatedBus, bench_plant,
-                                 drive_parameters, simulated_buses)
+                                 close_sensors, drive_parameters, serial_sensors,
+                                 simulated_buses)
 from hil.simulator.cycles import CycleBook
 from hil.simulator.faults import FaultInjection
 from hil.simulator.stepping import MAX_CATCH_UP, PlantStepping, RealTimeClock
@@ -68,6 +69,7 @@ class Simulator:
         self.lock_step = timing.lock_step
         self.plant = bench_plant(config)
         self._stepping = PlantStepping(self.plant)
+        self.sensors = self._stepping.sensors = serial_sensors(config, self.plant)
         self._real_time = RealTimeClock(self._stepping)
         # lock-step: nothing moves the plant between commands, nothing to advance on entry
         # (a plain lock, cheaper a cycle: docs/performance.md, "2026-11-28, fourth step: a bus'
@@ -145,6 +147,7 @@ class Simulator:
                 self._cycles.leave(drive)
             if simulated.router is not None:
                 simulated.router.stop(1.0)
+        close_sensors(self.sensors)
 
     def stop(self) -> None:
         self._stop.set()

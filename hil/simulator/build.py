@@ -3,6 +3,7 @@ made from its config entry."""
 
 from __future__ import annotations
 
+import functools
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, replace
 
@@ -11,10 +12,14 @@ import can
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig
 from hil.can.router import FrameRouter
 from hil.drives import DriveCore, DriveParameters, DriveProfile
+from hil.description import Pose
 from hil.drives.tuning import tuned_gains
 from hil.plant import Plant
+from hil.plant.imus import ImuMount
 from hil.protocols import protocol
 from hil.realtime.timing import Timing
+from hil.sensors.imu import SimulatedImu
+from hil.sensors.serial_port import PseudoTerminal
 from hil.simulator.stepping import PlantStepping
 
 #: lock-step's shortest drive watchdog (s): a loaded machine stalls a process, which must not
@@ -55,7 +60,30 @@ def bench_plant(config: SystemConfig) -> Plant:
     scene, its base and its start pose."""
     return Plant(config.robot, timestep=1.0 / config.plant_rate_hz, effects=config.effects,
                  scene=config.scene, floating_base=config.floating_base,
-                 start_pose=dict(config.start_pose))
+                 start_pose=dict(config.start_pose),
+                 imus=tuple(ImuMount(s.name, s.link, Pose(s.xyz, s.rpy))
+                            for s in config.sensors))
+
+
+def serial_sensors(config: SystemConfig, plant: Plant) -> list[SimulatedImu]:
+    """The bus config's sensors, each on a pseudo-terminal linked at its port (closed by
+    :func:`close_sensors`)."""
+    sensors: list[SimulatedImu] = []
+    try:
+        for sensor in config.sensors:
+            port = PseudoTerminal(sensor.port, config.path, sensor.line)
+            sensors.append(SimulatedImu(sensor, functools.partial(plant.imus.read, sensor.name),
+                                        port, start=plant.time))
+    except BaseException:
+        close_sensors(sensors)
+        raise
+    return sensors
+
+
+def close_sensors(sensors: list[SimulatedImu]) -> None:
+    """Close the sensors' ports (their links removed)."""
+    for sensor in sensors:
+        sensor.port.close()
 
 
 @dataclass

@@ -9,6 +9,7 @@ from collections.abc import Callable
 from hil.drives import DriveProfile
 from hil.drives.group import CoreGroup
 from hil.plant import Plant
+from hil.sensors.imu import SimulatedImu
 
 #: real time: a gap longer than this (a stalled process) is skipped, not replayed (s)
 MAX_CATCH_UP = 0.05
@@ -24,6 +25,8 @@ class PlantStepping:
         self.drives: list[DriveProfile] = []
         #: each drive's core with its plant actuator index, walked at every plant step
         self._cores = CoreGroup(len(plant.actuator_names))
+        #: the sensors sampling the plant after each step (hil.sensors)
+        self.sensors: list[SimulatedImu] = []
 
     def add(self, drive: DriveProfile, actuator: int) -> None:
         """A drive whose core drives the plant's actuator of index ``actuator``."""
@@ -38,6 +41,8 @@ class PlantStepping:
         self.measure(dt)
         for drive in self.drives:
             drive.after_update()
+        for sensor in self.sensors:
+            sensor.after_step(self.plant.time)
 
     def measure(self, dt: float = 0.0) -> None:
         """Each drive's motor position and velocity now, ``dt`` after the last (0: the

@@ -1,0 +1,173 @@
+"""The bus config's ``sensors:``: each sensor on a link of the robot, its product, its wire and
+its errors, checked with its line.
+
+Example (a WitMotion IMU on the pelvis, read at 200 Hz over a 460,800-baud serial port)::
+
+    sensors:
+      - name: imu
+        product: wit
+        link: pelvis
+        port: /tmp/hil-imu
+        baud: 460800
+        rate_hz: 200
+        gyroscope: {noise_density: 1.75e-4, bias_instability: 3.9e-5}
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+from hil.bus_config.sensor_types import ZERO, ImuConfig, TriadErrors, Vector
+from hil.bus_config.yaml_reader import LineMapping, Reader
+from hil.description import RobotDescription
+from hil.protocols import wit
+
+#: the products hil serves, by the name a config gives (one so far: docs/sensors.md)
+PRODUCTS = ("wit",)
+#: the factory settings of a WitMotion IMU (its manual: 9600 baud, 10 Hz) and what it sends
+#: unless told (acceleration, angular velocity, angle: the 0x51-0x53 packets)
+DEFAULT_BAUD = 9600
+DEFAULT_RATE_HZ = 10.0
+DEFAULT_OUTPUTS = ("acceleration", "angular_velocity", "angle")
+#: the chip WitMotion's WT901 is built on, InvenSense's MPU-9250 (product specification
+#: rev. 1.1, tables 1 and 2): gyroscope rate noise 0.01 °/s/√Hz, accelerometer noise
+#: 300 µg/√Hz. Its bias instability is not stated there: hil's choice, a MEMS part's
+#: typical floor (gyroscope 10 °/h, accelerometer 0.1 mg)
+DEFAULT_ERRORS = {
+    "accelerometer": TriadErrors(noise_density=300e-6 * wit.G, bias_instability=0.1e-3 * wit.G),
+    "gyroscope": TriadErrors(noise_density=math.radians(0.01),
+                             bias_instability=math.radians(10 / 3600)),
+}
+MAX_SENSORS = 32
+_KEYS = {"name", "product", "link", "xyz", "rpy", "port", "baud", "rate_hz", "outputs",
+         "latency", "seed", "accelerometer", "gyroscope"}
+_ERROR_KEYS = {"noise_density", "bias_instability", "correlation_time", "random_walk", "bias",
+               "scale_factor", "misalignment"}
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
+
+
+def read_sensors(reader: Reader, top: LineMapping,
+                 robot: RobotDescription) -> tuple[ImuConfig, ...]:
+    """The ``sensors:`` list (none: no sensor)."""
+    if "sensors" not in top:
+        return ()
+    raw = top["sensors"]
+    line = top.key_lines.get("sensors", top.line)
+    if not isinstance(raw, list) or len(raw) > MAX_SENSORS:
+        reader.fail(f"'sensors' must be a list of at most {MAX_SENSORS} sensors "
+                    "({name: ..., product: wit, link: ..., ...})", line)
+        return ()
+    links = {link.name for link in robot.links}
+    sensors = tuple(s for s in (_read_sensor(reader, item, number + 1, line, robot.name, links)
+                                for number, item in enumerate(raw)) if s is not None)
+    for kind, seen in (("name", [s.name for s in sensors]), ("port", [s.port for s in sensors])):
+        for sensor in sensors:
+            if seen.count(getattr(sensor, kind)) > 1:
+                reader.fail(f"sensor '{sensor.name}': another sensor has its {kind} "
+                            f"'{getattr(sensor, kind)}'", sensor.line,
+                            hint=f"give every sensor its own {kind}")
+    return sensors
+
+
+def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot: str,
+                 links: set[str]) -> ImuConfig | None:
+    item = reader.mapping(raw, f"sensor {number}", list_line)
+    if not item:
+        return None
+    reader.unknown_keys(item, _KEYS, f"sensor {number}")
+    name = reader.text(item, "name", f"sensor {number}", f"sensor{number}")
+    what = f"sensor '{name}'"
+    if not _NAME.fullmatch(name):
+        reader.fail(f"{what}: a name is a letter, then letters, digits, '_' or '-' (at most "
+                    "64)", item.key_lines.get("name", item.line))
+    product = reader.text(item, "product", what, "")
+    if product not in PRODUCTS:
+        reader.fail(f"{what}: unknown product {product!r}", item.key_lines.get("product",
+                                                                               item.line),
+                    hint=f"products hil serves: {', '.join(PRODUCTS)} (docs/sensors.md)")
+    link = reader.text(item, "link", what, "")
+    if link and link not in links:
+        reader.fail(f"{what}: the robot has no link '{link}'",
+                    item.key_lines.get("link", item.line),
+                    hint="'link' names a link of the robot's description (hil describe lists "
+                         "them)")
+    baud = int(reader.number(item, "baud", what, DEFAULT_BAUD, integer=True))
+    if baud not in wit.BAUD_RATES:
+        reader.fail(f"{what}: 'baud' {baud} is none the product offers",
+                    item.key_lines.get("baud", item.line),
+                    hint=f"one of {', '.join(map(str, wit.BAUD_RATES))}")
+    rate = float(reader.number(item, "rate_hz", what, DEFAULT_RATE_HZ))
+    if rate not in wit.RATES_HZ:
+        reader.fail(f"{what}: 'rate_hz' {rate:g} is none the product offers",
+                    item.key_lines.get("rate_hz", item.line),
+                    hint=f"one of {', '.join(f'{r:g}' for r in wit.RATES_HZ)}")
+    outputs = _read_outputs(reader, item, what)
+    needed = wit.bits_per_second(rate, outputs)
+    if baud in wit.BAUD_RATES and needed > baud:
+        reader.fail(f"{what}: {len(outputs)} packets at {rate:g} Hz take {needed:,.0f} bit/s, "
+                    f"more than {baud} baud carries",
+                    item.key_lines.get("baud", item.line),
+                    hint="raise 'baud', lower 'rate_hz' or send fewer 'outputs' (as the "
+                         "product would lose samples)")
+    latency = float(reader.number(item, "latency", what, 0.0, positive=False))
+    if not 0 <= latency <= 1:
+        reader.fail(f"{what}: 'latency' is 0 to 1 s, not {latency:g}",
+                    item.key_lines.get("latency", item.line))
+    port = Path(reader.text(item, "port", what, f"/tmp/hil-{robot}-{name}"))
+    return ImuConfig(
+        name=name, product=product, link=link,
+        xyz=_vector(reader, item, "xyz", what, 10.0), rpy=_vector(reader, item, "rpy", what,
+                                                                  2 * math.pi),
+        port=port, baud=baud, rate_hz=rate, outputs=tuple(wit.OUTPUTS[o] for o in outputs
+                                                          if o in wit.OUTPUTS),
+        latency=max(latency, 0.0),
+        accelerometer=_read_errors(reader, item, "accelerometer", what),
+        gyroscope=_read_errors(reader, item, "gyroscope", what),
+        seed=int(reader.number(item, "seed", what, 0, positive=False, integer=True)),
+        line=item.line)
+
+
+def _read_outputs(reader: Reader, item: LineMapping, what: str) -> tuple[str, ...]:
+    value = item.get("outputs", list(DEFAULT_OUTPUTS))
+    if (not isinstance(value, list) or not value or len(set(value)) != len(value)
+            or not all(v in wit.OUTPUTS for v in value)):
+        reader.fail(f"{what}: 'outputs' is a list of {', '.join(wit.OUTPUTS)}, each once, "
+                    f"not {value!r}", item.key_lines.get("outputs", item.line))
+        return DEFAULT_OUTPUTS
+    return tuple(value)
+
+
+def _read_errors(reader: Reader, item: LineMapping, key: str, what: str) -> TriadErrors:
+    default = DEFAULT_ERRORS[key]
+    if key not in item:
+        return default
+    errors = reader.mapping(item[key], f"{what}: '{key}'", item.key_lines.get(key, item.line))
+    where = f"{what}: '{key}'"
+    reader.unknown_keys(errors, _ERROR_KEYS, where)
+    numbers = {k: float(reader.number(errors, k, where, getattr(default, k), positive=False))
+               for k in ("noise_density", "bias_instability", "random_walk")}
+    for k, value in numbers.items():
+        if value < 0:
+            reader.fail(f"{where}: '{k}' must be >= 0, not {value:g}",
+                        errors.key_lines.get(k, errors.line))
+            numbers[k] = 0.0
+    correlation = float(reader.number(errors, "correlation_time", where,
+                                      default.correlation_time))
+    return TriadErrors(**numbers, correlation_time=correlation,
+                       bias=_vector(reader, errors, "bias", where, math.inf),
+                       scale_factor=_vector(reader, errors, "scale_factor", where, 0.5),
+                       misalignment=_vector(reader, errors, "misalignment", where, 0.1))
+
+
+def _vector(reader: Reader, item: LineMapping, key: str, what: str, bound: float) -> Vector:
+    value = item.get(key, list(ZERO))
+    if (not isinstance(value, list) or len(value) != 3
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       and math.isfinite(v) and abs(v) <= bound for v in value)):
+        within = "" if math.isinf(bound) else f", each within ±{bound:g}"
+        reader.fail(f"{what}: '{key}' must be three finite numbers{within}, not {value!r}",
+                    item.key_lines.get(key, item.line))
+        return ZERO
+    return (float(value[0]), float(value[1]), float(value[2]))

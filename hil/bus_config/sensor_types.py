@@ -1,0 +1,50 @@
+"""The sensors of a bus config, as typed objects (read by :mod:`.sensor_entry`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+Vector = tuple[float, float, float]
+ZERO: Vector = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class TriadErrors:
+    """The errors of one sensing triad (three alike axes: an accelerometer's or a gyroscope's),
+    in SI units of its quantity (m/s² or rad/s). The terms of IEEE Std 952-1997, Annex C."""
+
+    noise_density: float = 0.0        # white noise, unit/√Hz: Allan deviation N/√τ
+    #: the flat floor of the Allan deviation is 0.664 · bias_instability (unit)
+    bias_instability: float = 0.0
+    #: the time the bias keeps its value (s): its Allan floor lies near 1.89 of it
+    correlation_time: float = 100.0
+    random_walk: float = 0.0          # rate random walk, unit/√s: Allan deviation K·√(τ/3)
+    bias: Vector = ZERO               # turn-on bias of each axis (unit)
+    scale_factor: Vector = ZERO       # each axis' gain error, a fraction (0.01: reads 1 % high)
+    misalignment: Vector = ZERO       # the triad turned by these small angles about x, y, z (rad)
+
+
+@dataclass(frozen=True)
+class ImuConfig:
+    """An IMU on a link of the robot, of a product family, on its wire."""
+
+    name: str
+    product: str                      # "wit": WitMotion / HiWonder on USB serial
+    link: str                         # the robot's link it is fixed to
+    xyz: Vector                       # its place on the link (m)
+    rpy: Vector                       # its axes on the link's (rad)
+    port: Path                        # the link hil makes to its pseudo-terminal
+    baud: int
+    rate_hz: float                    # samples a second
+    outputs: tuple[int, ...]          # the product's packet types, in their order a sample
+    latency: float                    # from sampling to the first byte on the wire (s)
+    accelerometer: TriadErrors
+    gyroscope: TriadErrors
+    seed: int = 0                     # of its noise: a run is the same run again
+    line: int | None = None
+
+    @property
+    def period(self) -> float:
+        return 1.0 / self.rate_hz
+

@@ -1,0 +1,66 @@
+"""A simulated IMU: at each of its sample times (plant time) it reads the plant's IMU at its
+site, adds its product's errors (:mod:`.noise`) and sends the sample on its wire after its
+latency. Called after every plant step, with the simulator's lock held, in real time and in
+lock-step alike: its samples follow plant time, so a lock-step run's are the same every run.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from typing import Protocol
+
+import numpy as np
+
+from hil.bus_config.sensor_types import ImuConfig
+from hil.protocols import wit
+from hil.sensors.noise import TriadNoise
+
+#: the plant's reading of an IMU: specific force, angular velocity, orientation (w, x, y, z)
+Reading = Callable[[], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+class Port(Protocol):
+    """Where a sensor's bytes go (a pseudo-terminal; a test's capture)."""
+
+    #: what the port is, in words (a pseudo-terminal: its /dev/pts path)
+    device: str
+
+    def write(self, data: bytes) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class SimulatedImu:
+    """One IMU of the bus config, sampling ``read`` from plant time ``start`` on."""
+
+    def __init__(self, config: ImuConfig, read: Reading, port: Port, start: float = 0.0):
+        self.config = config
+        self._read = read
+        self.port = port
+        accelerometer, gyroscope = np.random.default_rng(config.seed).spawn(2)
+        self._accelerometer = TriadNoise(config.accelerometer, config.period, accelerometer)
+        self._gyroscope = TriadNoise(config.gyroscope, config.period, gyroscope)
+        self._start = start
+        #: the next sample is due at start + this many periods: the first a period in
+        self._samples = 1
+        self._sending: deque[tuple[float, bytes]] = deque()   # (due, packets) in latency
+        self.sent = 0
+
+    def after_step(self, now: float) -> None:
+        """The plant is at ``now`` (s): take the samples due by then, send those whose
+        latency is over."""
+        period = self.config.period
+        # a step's time is a sum of floats: half a step's worth of slack, not a sample late
+        while self._start + self._samples * period <= now + 1e-9:
+            self._samples += 1
+            self._sending.append((now + self.config.latency, self._sample()))
+        while self._sending and self._sending[0][0] <= now + 1e-9:
+            self.port.write(self._sending.popleft()[1])
+            self.sent += 1
+
+    def _sample(self) -> bytes:
+        acceleration, rate, orientation = self._read()
+        sample = wit.ImuSample(self._accelerometer.apply(acceleration),
+                               self._gyroscope.apply(rate), orientation)
+        return wit.encode(sample, self.config.outputs)
