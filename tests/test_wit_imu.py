@@ -4,6 +4,8 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -17,6 +19,7 @@ import yaml
 from witmotion import IMU, protocol
 
 from hil.bus_config import load_bus_config
+from hil.can.faults import SensorFaultKind
 from hil.errors import ConfigError
 from hil.protocols import wit
 from hil.realtime.timing import REAL_TIME
@@ -247,3 +250,49 @@ def test_the_sensors_block_of_the_docs_loads_as_it_stands(tmp_path):
     assert (imu.link, imu.baud, imu.rate_hz, imu.port) == ("base_link", 460800, 200,
                                                            Path("/tmp/hil-imu"))
     assert imu.gyroscope.noise_density == pytest.approx(math.radians(0.01), rel=0.01)
+
+
+def _faulted_record(tmp_path: Path, kind: SensorFaultKind, at: float = 0.2
+                    ) -> list[bytes]:
+    """Half a second of the still IMU's samples at 50 Hz (each sample's bytes), ``kind``
+    injected at ``at`` s of plant time."""
+    config = load_bus_config(_config(tmp_path, rate_hz=50))
+    plant = bench_plant(config)
+    stepping = PlantStepping(plant)
+    capture = Capture()
+    imu = SimulatedImu(config.sensors[0], lambda: plant.imus.read("imu"), capture)
+    imu.inject(kind, at)
+    stepping.sensors.append(imu)
+    samples = []
+    for _ in range(500):
+        before = len(capture.data)
+        stepping.step()
+        if len(capture.data) > before:
+            samples.append(bytes(capture.data[before:]))
+    return samples
+
+
+def test_a_silenced_imu_sends_nothing_from_its_moment_on(tmp_path):
+    assert len(_faulted_record(tmp_path, SensorFaultKind.SILENCE)) == 9   # 20 ms ... 180 ms
+
+
+def test_a_frozen_imu_repeats_one_sample_from_its_moment_on(tmp_path):
+    samples = _faulted_record(tmp_path, SensorFaultKind.FREEZE)
+    assert len(samples) == 25 and len(set(samples[9:])) == 1 and len(set(samples[:10])) == 10
+
+
+def test_a_spike_is_one_sample_at_full_scale(tmp_path):
+    samples = _faulted_record(tmp_path, SensorFaultKind.SPIKE)
+    spiked = [i for i, sample in enumerate(samples)
+              if _parsed(sample)[wit.ACCELERATION][0].a[0] > 15 * wit.G]
+    assert spiked == [9]
+    assert _parsed(samples[9])[wit.ANGULAR_VELOCITY][0].w == pytest.approx((2000,) * 3,
+                                                                          rel=1e-3)
+
+
+def test_hil_sim_refuses_a_fault_of_a_sensor_the_config_does_not_have(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "hil", "sim", str(_config(tmp_path)),
+                             "--fault", "freeze:gyro@1", "--duration", "0.1"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode != 0 and "--fault freeze:gyro@1: no such sensor" in result.stderr
+    assert "sensors: imu" in result.stderr and "Traceback" not in result.stderr

@@ -11,11 +11,15 @@ Specifications (repeatable options):
 ``fault:BUS/NODE@S``       the drive faults as on a following error (EMCY, FAULT...)
 ``restart:BUS/NODE@S``     the drive restarts as after a power cycle (boots unconfigured)
 ``kill:PROCESS@S``         ``hil up`` kills its child PROCESS (sim, control, viz)
+``silence:SENSOR@S``       the sensor sends nothing more (unplugged)
+``freeze:SENSOR@S``        the sensor sends its last sample again and again (stuck)
+``spike:SENSOR@S``         the sensor's sample at S reads full scale on every axis
 =========================  ===========================================================
 
 S is seconds of the plant's time after every drive was first enabled (drive faults, in
 ``hil sim``: in lock-step, the same moment of the run however fast it goes) or seconds
-after every process is up (kills, in ``hil up``). The random choices come from one seeded
+after every process is up (kills, in ``hil up``), or seconds of the plant's time from
+its start (sensor faults: a sensor serves from the start, with or without a master). The random choices come from one seeded
 generator, so a run can be repeated.
 """
 
@@ -53,6 +57,15 @@ class DriveFaultKind(enum.Enum):
     RESTART = "restart"     # it restarts as after a power cycle
 
 
+class SensorFaultKind(enum.Enum):
+    """What happens to one sensor at a moment of the run (hil's choice of the three ways
+    a sensor fails that a controller must notice: issue 70)."""
+
+    SILENCE = "silence"     # it sends nothing more
+    FREEZE = "freeze"       # it repeats its last sample
+    SPIKE = "spike"         # one sample at full scale
+
+
 @dataclass(frozen=True)
 class FrameFault:
     kind: FrameFaultKind    # or its word ("drop"), made the kind
@@ -75,8 +88,16 @@ class DriveFault:
         object.__setattr__(self, "kind", DriveFaultKind(self.kind))
 
 
+@dataclass(frozen=True)
+class SensorFault:
+    kind: SensorFaultKind
+    sensor: str
+    at: float               # s of plant time
+
+
 FRAME_FAULT_WORDS = tuple(kind.value for kind in FrameFaultKind)
 DRIVE_FAULT_WORDS = tuple(kind.value for kind in DriveFaultKind)
+SENSOR_FAULT_WORDS = tuple(kind.value for kind in SensorFaultKind)
 
 
 @dataclass(frozen=True)
@@ -85,11 +106,11 @@ class ProcessFault:
     at: float
 
 
-def parse_fault(text: str) -> FrameFault | DriveFault | ProcessFault:
+def parse_fault(text: str) -> FrameFault | DriveFault | ProcessFault | SensorFault:
     """One ``--fault`` specification; HilError with the accepted forms otherwise."""
     hint = ("forms: drop:BUS:FRACTION, delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, "
             "silence:BUS/NODE@S, fault:BUS/NODE@S, restart:BUS/NODE@S, "
-            "kill:sim|control|viz@S")
+            "kill:sim|control|viz@S, silence|freeze|spike:SENSOR@S")
     word, _, rest = text.partition(":")
     try:
         if word in FRAME_FAULT_WORDS:
@@ -108,9 +129,11 @@ def parse_fault(text: str) -> FrameFault | DriveFault | ProcessFault:
         if word in DRIVE_FAULT_WORDS and match:
             return DriveFault(DriveFaultKind(word), match.group(1), int(match.group(2)),
                               float(match.group(3)))
-        match = re.fullmatch(r"(\w+)@([\d.]+)s?", rest)
+        match = re.fullmatch(r"(\w[\w-]*)@([\d.]+)s?", rest)
         if word == "kill" and match and match.group(1) in PROCESSES:
             return ProcessFault(match.group(1), float(match.group(2)))
+        if word in SENSOR_FAULT_WORDS and match:
+            return SensorFault(SensorFaultKind(word), match.group(1), float(match.group(2)))
         raise ValueError("not a known fault")
     except ValueError as exc:
         raise HilError.single(f"--fault '{text}': {exc}", hint=hint) from None

@@ -18,7 +18,7 @@ from hil.cli.describe import sensor_line
 from hil.can import watch_deliveries
 from hil.simulator import Simulator
 from hil.can.faults import (
-    DriveFault, FrameFault, ProcessFault, parse_fault, with_frame_faults,
+    DriveFault, FrameFault, ProcessFault, SensorFault, parse_fault, with_frame_faults,
 )
 from hil.drives import Power
 from hil.errors import HilError
@@ -49,7 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="inject a fault (repeatable): drop:BUS:FRACTION, "
                              "delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, silence:BUS/NODE@S, "
                              "restart:BUS/NODE@S, fault:BUS/NODE@S (S: seconds of the plant's "
-                             "time after every drive is enabled)")
+                             "time after every drive is enabled); silence|freeze|spike:SENSOR@S "
+                             "(S: seconds of the plant's time)")
     parser.add_argument("--fault-seed", type=int, default=0, metavar="N",
                         help="seed of the fault injector's random choices (default 0)")
     parser.add_argument("--priority", type=int, default=IO_PRIORITY, metavar="N",
@@ -71,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     for warning in config.warnings:
         print(warning, file=sys.stderr)
     zenoh = common.zenoh_settings(args)
-    frame_faults, drive_faults = _faults(args, config)
+    frame_faults, drive_faults, sensor_faults = _faults(args, config)
     if args.timing.lock_step:
         common.keep_on_cpus(args)
     scheduling = ("lock-step" if args.timing.lock_step
@@ -79,6 +80,10 @@ def run(args: argparse.Namespace) -> int:
     # after the scheduling: Zenoh's runtime threads, started with the session, inherit it
     common.refuse_a_second(zenoh, config.robot.name, "sim")
     simulator, buses, ros_clock = _open(args, config, zenoh, frame_faults)
+    for fault in sensor_faults:
+        simulator.sensor(fault.sensor).inject(fault.kind, fault.at)
+        print(f"hil sim: sensor '{fault.sensor}' will {fault.kind.value} at {fault.at:g} s of "
+              "the plant's time", flush=True)
     token = None
     stop = threading.Event()
 
@@ -142,15 +147,24 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _faults(args: argparse.Namespace, config) -> tuple[list[FrameFault], list[DriveFault]]:
-    """The --fault specs: (frame faults, drive faults), each drive one of the config's."""
+def _faults(args: argparse.Namespace,
+            config) -> tuple[list[FrameFault], list[DriveFault], list[SensorFault]]:
+    """The --fault specs: (frame faults, drive faults, sensor faults), each drive and sensor
+    one of the config's."""
     faults = [parse_fault(text) for text in args.fault]
     if any(isinstance(f, ProcessFault) for f in faults):
         raise HilError.single("kill faults are for `hil up --fault`",
-                              hint="hil sim takes frame and drive faults")
+                              hint="hil sim takes frame, drive and sensor faults")
     drive_faults = [f for f in faults if isinstance(f, DriveFault)]
     _check_drive_faults(config, drive_faults)
-    return [f for f in faults if isinstance(f, FrameFault)], drive_faults
+    sensor_faults = [f for f in faults if isinstance(f, SensorFault)]
+    names = [sensor.name for sensor in config.sensors]
+    for fault in sensor_faults:
+        if fault.sensor not in names:
+            raise HilError.single(f"--fault {fault.kind.value}:{fault.sensor}@{fault.at:g}: no "
+                                  "such sensor", config.path,
+                                  hint=f"sensors: {', '.join(names) or 'none in this config'}")
+    return [f for f in faults if isinstance(f, FrameFault)], drive_faults, sensor_faults
 
 
 def _open(args: argparse.Namespace, config, zenoh, frame_faults: list[FrameFault]):

@@ -13,6 +13,7 @@ from typing import Protocol
 import numpy as np
 
 from hil.bus_config.sensor_types import ImuConfig
+from hil.can.faults import SensorFaultKind
 from hil.protocols import wit
 from hil.sensors.noise import TriadNoise
 
@@ -46,6 +47,16 @@ class SimulatedImu:
         self._samples = 1
         self._sending: deque[tuple[float, bytes]] = deque()   # (due, packets) in latency
         self.sent = 0
+        self._faults: list[tuple[float, SensorFaultKind]] = []   # to come, by plant time
+        self._silent = False
+        self._freezing = False
+        self._frozen: bytes | None = None         # a frozen sensor's sample
+
+    def inject(self, kind: SensorFaultKind, at: float) -> None:
+        """Fail as ``kind`` says at plant time ``at`` (s): fall silent, freeze on the last
+        sample, or send one sample at full scale."""
+        self._faults.append((at, kind))
+        self._faults.sort(key=lambda fault: fault[0])
 
     def after_step(self, now: float) -> None:
         """The plant is at ``now`` (s): take the samples due by then, send those whose
@@ -53,14 +64,29 @@ class SimulatedImu:
         period = self.config.period
         # a step's time is a sum of floats: half a step's worth of slack, not a sample late
         while self._start + self._samples * period <= now + 1e-9:
+            due = self._start + self._samples * period
             self._samples += 1
-            self._sending.append((now + self.config.latency, self._sample()))
+            spike = False
+            while self._faults and self._faults[0][0] <= due + 1e-9:
+                kind = self._faults.pop(0)[1]
+                self._silent |= kind is SensorFaultKind.SILENCE
+                spike |= kind is SensorFaultKind.SPIKE
+                self._freezing |= kind is SensorFaultKind.FREEZE
+            if self._silent:
+                self._sending.clear()
+                return
+            packets = self._sample(spike) if self._frozen is None else self._frozen
+            if self._freezing:
+                self._frozen = packets
+            self._sending.append((now + self.config.latency, packets))
         while self._sending and self._sending[0][0] <= now + 1e-9:
             self.port.write(self._sending.popleft()[1])
             self.sent += 1
 
-    def _sample(self) -> bytes:
+    def _sample(self, spike: bool = False) -> bytes:
         acceleration, rate, orientation = self._read()
+        if spike:               # past the range on every axis: the wire saturates it
+            acceleration, rate = np.full(3, 1e6), np.full(3, 1e6)
         sample = wit.ImuSample(self._accelerometer.apply(acceleration),
                                self._gyroscope.apply(rate), orientation)
         return wit.encode(sample, self.config.outputs)

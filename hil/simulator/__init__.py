@@ -49,6 +49,7 @@ from hil.realtime.timing import REAL_TIME, Timing
 from hil.simulator.build import (LOCK_STEP_WATCHDOG, SimulatedBus, bench_plant,
                                  close_sensors, drive_parameters, serial_sensors,
                                  simulated_buses)
+from hil.sensors.imu import SimulatedImu
 from hil.simulator.cycles import CycleBook
 from hil.simulator.faults import FaultInjection
 from hil.simulator.stepping import MAX_CATCH_UP, PlantStepping, RealTimeClock
@@ -165,6 +166,13 @@ class Simulator:
     def inject(self, kind: DriveFaultKind, drive: DriveProfile) -> None:
         """A drive fault of ``hil sim --fault``'s kinds (:meth:`FaultInjection.inject`)."""
         self._faults.inject(kind, drive)
+
+    def sensor(self, name: str) -> SimulatedImu:
+        """The sensor of that name in the config (KeyError if none)."""
+        found = [sensor for sensor in self.sensors if sensor.config.name == name]
+        if not found:
+            raise KeyError(f"no sensor '{name}'")
+        return found[0]
 
     def silence(self, bus: str, node_id: int) -> None:
         """The drive of ``node_id`` leaves its bus (:meth:`inject`)."""

@@ -103,8 +103,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="inject a fault (repeatable): the sim's (drop:BUS:FRACTION, "
                              "delay:BUS:FRACTION:MS, corrupt:BUS:FRACTION, silence:BUS/NODE@S, "
                              "fault:BUS/NODE@S: S seconds of the plant's time after every "
-                             "drive is enabled), or kill:sim|control|viz@S (seconds after all "
-                             "are up)")
+                             "drive is enabled; silence|freeze|spike:SENSOR@S: seconds of the "
+                             "plant's time), or kill:sim|control|viz@S (seconds after all are "
+                             "up)")
     parser.add_argument("--viewer", metavar="URL", help="also stream to a running rerun viewer")
     parser.add_argument("--secure", type=Path, metavar="DIR",
                         help="mutual TLS between the processes with the keys of `hil keys init "
