@@ -115,7 +115,10 @@ def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot:
     if not 0 <= latency <= 1:
         reader.fail(f"{what}: 'latency' is 0 to 1 s, not {latency:g}",
                     item.key_lines.get("latency", item.line))
-    port = Path(reader.text(item, "port", what, f"/tmp/hil-{robot}-{name}"))
+    # like 'robot', relative to the config's folder: two benches from two folders never
+    # share a port (hil init writes one beside its config)
+    port = reader.path.parent.absolute() / reader.text(item, "port", what,
+                                                       f"/tmp/hil-{robot}-{name}")
     return ImuConfig(
         name=name, product=product, link=link,
         xyz=_vector(reader, item, "xyz", what, 10.0), rpy=_vector(reader, item, "rpy", what,

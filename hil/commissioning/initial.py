@@ -32,7 +32,7 @@ from hil.bus_config.transmissions import SIMPLE, actuator_of
 from hil.bus_config.types import LOAD_WARNING, Gains
 from hil.can import bus_load
 from hil.description import (
-    Joint, JointLimits, RobotDescription, TransmissionActuator, TransmissionJoint,
+    WORLD, Joint, JointLimits, RobotDescription, TransmissionActuator, TransmissionJoint,
     TransmissionSpec,
 )
 from hil.plant import Plant
@@ -242,6 +242,11 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
             lines += ["start_pose:"] + [f"  {name}: {_number(value)}"
                                         for name, value in pose.items()]
         lines += ["scene:", "  - {name: floor, shape: plane}"]
+        if robot.root_link != WORLD:
+            lines += ["", "# An IMU on the base, as a standing robot's balance needs one: "
+                          "WitMotion's, on a", "# serial port beside this file (docs/sensors.md)",
+                      "sensors:", f"  - {{name: imu, product: wit, link: {robot.root_link}, "
+                      f"port: {robot.name}_imu, baud: 460800, rate_hz: 200}}"]
     if defaulted:
         lines += ["", "# No effort or velocity limit in the description: hil's default class",
                   "# (hil/commissioning/sizing.py). Replace them with the joints' real limits.",
