@@ -8,15 +8,10 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import threading
-import time
-from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
-import serial
-from witmotion import protocol
 
 from conftest import CORPUS, example_robot_data, init_check_and_demo, rrd_series
 from hil.bus_config import load_bus_config
@@ -69,45 +64,14 @@ def test_the_damiao_g1_bench_of_hil_init_stands_through_its_demo(tmp_path):
     joints then tracked on the floor, and some runs said "succeeded"); the demo now waits
     until the joints it stands on have rested REST_HOLD s, and a fallen base fails it. The
     base stays within 2 cm of its start height. Issue 70: the IMU `hil init` puts on its
-    pelvis sees the base pitch as its joints move, read off its serial port while it runs."""
-    imu = AngleReader(tmp_path / "g1_29dof_rev_1_0_imu")
-    imu.start()
+    pelvis, read by the controller off its serial port and recorded, sees the base pitch as
+    its joints move."""
     _, save = init_check_and_demo(G1, tmp_path, SHARE, protocol="damiao")
-    imu.join(30)
     _, position = rrd_series(save, "/base/position")
     assert np.ptp(position[:, 2]) < 0.02, (position[:, 2].min(), position[:, 2].max())
-    pitches = [pitch for _, pitch in imu.angles]
-    assert len(pitches) > 100 and np.ptp(pitches) > 1.0, (len(pitches), np.ptp(pitches))
-
-
-class AngleReader(threading.Thread):
-    """Reads a WitMotion IMU's angle packets (roll, pitch in °) off ``port`` from the moment
-    the port appears until it is gone."""
-
-    def __init__(self, port: Path):
-        super().__init__(daemon=True)
-        self.port = port
-        self.angles: list[tuple[float, float]] = []
-
-    def run(self) -> None:
-        deadline = time.monotonic() + 300
-        while not self.port.exists() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        data = bytearray()
-        try:
-            with serial.Serial(str(self.port), 460800, timeout=0.2) as line:
-                while self.port.exists():
-                    data += line.read(4096)
-                    while len(data) >= 11:
-                        if data[0] != 0x55:
-                            del data[0]
-                            continue
-                        if data[1] == protocol.AngleMessage.code:
-                            angle = protocol.AngleMessage.parse(bytes(data[2:10]))
-                            self.angles.append((angle.roll, angle.pitch))
-                        del data[:11]
-        except (serial.SerialException, OSError):     # the run ended: the port is gone
-            pass
+    _, angles = rrd_series(save, "/sensors/imu/angles")
+    pitch = angles[:, 1]
+    assert len(pitch) > 1000 and np.ptp(pitch) > 1.0, (len(pitch), np.ptp(pitch))
 
 
 @needs_corpus

@@ -19,7 +19,7 @@ from hil.control_node import ControlNode
 from hil.controllers.config import DEFAULT_GOAL_TOLERANCE, controllers_for
 from hil.errors import UsageError
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface
-from hil.messaging.zenoh_api import key
+from hil.messaging.zenoh_api import imu_key, key
 from hil.realtime import REAL_TIME_PRIORITY, enter_real_time
 from hil.realtime.stalls import BENCH_STALL_STATUS
 from hil.zenoh_session import close_all, session
@@ -120,6 +120,8 @@ def run(args: argparse.Namespace) -> int:
           f"{args.timing}; goals on "
           f"hil/{config.robot.name}/follow_joint_trajectory; controllers: "
           f"{controllers.summary()}", flush=True)
+    if not args.fake:
+        _announce_sensors(args, config)
     gc.collect()
     gc.freeze()     # start-up's objects out of the collector's way: shorter passes in the loop
     try:
@@ -156,6 +158,17 @@ def _hold(zenoh, robot: str, node: ControlNode) -> None:
                 return
     finally:
         token.undeclare()
+
+
+def _announce_sensors(args: argparse.Namespace, config) -> None:
+    """Where each IMU is read and where its samples go."""
+    for sensor in config.sensors:
+        ros = ""
+        if args.ros:
+            from hil.messaging.ros.face import imu_topic    # noqa: PLC0415 (only with --ros)
+            ros = f" and the ROS topic {imu_topic(sensor.name)}"
+        print(f"hil control: IMU '{sensor.name}' read off {sensor.port}, its samples on "
+              f"hil/{config.robot.name}/{imu_key(sensor.name)}{ros}", flush=True)
 
 
 def _ros_faces(args: argparse.Namespace, config) -> list:

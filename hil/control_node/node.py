@@ -92,6 +92,10 @@ class ControlNode:
         self.faces: list[ControlFace] = [ZenohControlFace(
             session, robot.name, self.manager, self.stamp_to_clock, self.reset_faults)]
         self.faces += [make(self) for make in faces]
+        #: each IMU's sensor_msgs/Imu, packed in the loop as its samples arrive
+        self._imus = {imu.name: cdr.ImuCdr(imu.frame, imu.variances) for imu in hardware.imus}
+        for face in self.faces:
+            face.declare_imus(tuple(self._imus))
         #: faults explained by the bench's own stalls (real time), as diagnosed
         self.bench_faults: list[Attribution] = []
         #: the control loop's own stalls (real time)
@@ -305,6 +309,19 @@ class ControlNode:
         self._publish_results()
         if self.samples.full:
             self._publish_samples()
+        if self._imus:
+            self._publish_imus()
+
+    def _publish_imus(self) -> None:
+        """The IMUs' samples read since the last cycle, each as it came (as ros2_controllers'
+        imu_sensor_broadcaster publishes its sensor's state every update)."""
+        for state in self.hardware.read_sensors():
+            reading = state.reading
+            payload = self._imus[state.sensor].encode(
+                state.received, reading.orientation, reading.angular_velocity,
+                reading.acceleration)
+            for face in self.faces:
+                face.publish_imu(state.sensor, payload)
 
     def _publish_results(self) -> None:
         finished = self.controller.finished()

@@ -13,6 +13,7 @@ through the robot's transmissions.
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 from collections.abc import Callable
@@ -28,8 +29,11 @@ from hil.hardware.exchange import MISSED_ANSWER_LIMIT, CycleExchange
 from hil.hardware.feedback import JointFeedback
 from hil.hardware.interface import HardwareInterface
 from hil.hardware.mapping import JointMapping
+from hil.hardware.serial_imu import ImuDescription, ImuState, SerialImu
 from hil.hardware.watch import FaultWatch
 from hil.realtime.stalls import Stall
+
+log = logging.getLogger(__name__)
 
 
 class CanHardwareInterface(HardwareInterface):
@@ -65,6 +69,10 @@ class CanHardwareInterface(HardwareInterface):
         self.round_trips = self._exchange.round_trips
         #: the round trip of the cycle :meth:`read` last took (s; NaN: not every answer came)
         self.last_round_trip = math.nan
+        #: the bus config's sensors, read off their ports
+        self.sensors = [SerialImu(sensor) for sensor in config.sensors]
+        self.imus = tuple(ImuDescription.of(sensor) for sensor in config.sensors)
+        self._sensor_problems: dict[str, str | None] = {}
 
     def start(self, cancel: threading.Event | None = None) -> JointFeedback:
         return BringUp(self._exchange, self._watch, self._buses, self.boot_timeout).run(
@@ -120,8 +128,11 @@ class CanHardwareInterface(HardwareInterface):
         return self._watch.ready
 
     def stop(self) -> None:
-        """Disable every drive (each in its protocol's way), then release the buses."""
+        """Disable every drive (each in its protocol's way), then release the buses and the
+        sensors' ports."""
         self._exchange.close()
+        for sensor in self.sensors:
+            sensor.close()
 
     def answer_deadlines(self) -> dict[tuple[str, int], float]:
         return {(bus.name, drive.node_id): drive.watchdog_timeout
@@ -129,3 +140,16 @@ class CanHardwareInterface(HardwareInterface):
 
     def watch_transport(self, on_stall: Callable[[Stall], None]) -> None:
         watch_deliveries(self._buses.values(), on_stall)
+
+    def read_sensors(self) -> list[ImuState]:
+        states: list[ImuState] = []
+        for sensor in self.sensors:
+            states += sensor.poll()
+            name = sensor.config.name
+            if sensor.problem != self._sensor_problems.get(name, "not opened yet"):
+                self._sensor_problems[name] = sensor.problem
+                if sensor.problem is None:
+                    log.info("sensor '%s': reading %s", name, sensor.config.port)
+                else:
+                    log.warning("sensor '%s' is not read: %s", name, sensor.problem)
+        return states

@@ -17,6 +17,7 @@ import numpy as np
 from hil.description import RobotDescription
 from hil.hardware.axis import AxisFault
 from hil.hardware.feedback import JointFeedback
+from hil.hardware.serial_imu import ImuDescription, ImuState
 from hil.realtime import Ring
 from hil.realtime.stalls import Stall
 
@@ -26,8 +27,8 @@ class HardwareInterface(ABC):
 
     What a control loop may read of it beyond the joints is declared here with the default
     of hardware that has none of it (``round_trips``, ``last_round_trip``,
-    ``silence_cycles``, ``answer_deadlines``), as python-can's BusABC declares a bus'
-    optional capabilities."""
+    ``silence_cycles``, ``answer_deadlines``, ``imus`` and ``read_sensors``), as
+    python-can's BusABC declares a bus' optional capabilities."""
 
     #: each cycle's round trip (s), from its commands out to the last answer in, where the
     #: hardware measures them (None: it does not)
@@ -38,6 +39,8 @@ class HardwareInterface(ABC):
     #: the round trip of the cycle :meth:`read` last took (s; NaN: not measured, or not every
     #: answer came)
     last_round_trip: float = math.nan
+    #: the IMUs :meth:`read_sensors` gives samples of
+    imus: tuple[ImuDescription, ...] = ()
 
     def __init__(self, robot: RobotDescription):
         self.robot = robot
@@ -88,6 +91,11 @@ class HardwareInterface(ABC):
     def watch_transport(self, on_stall: Callable[[Stall], None]) -> None:
         """From now on call ``on_stall`` (from any thread) with each late delivery the
         transport to the actuators reports; a transport that reports none ignores it."""
+
+    def read_sensors(self) -> list[ImuState]:
+        """The sensors' samples that arrived since the last call, without waiting (none
+        where the hardware has no sensor)."""
+        return []
 
 
 class FakeHardwareInterface(HardwareInterface):

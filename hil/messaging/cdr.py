@@ -104,6 +104,7 @@ for _name, _text in DEFINITIONS.items():
     TYPES.register(get_types_from_msg(_text, _name))
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
+IMU = "sensor_msgs/msg/Imu"
 SEND_GOAL_REQUEST = "control_msgs/action/FollowJointTrajectory_SendGoal_Request"
 SEND_GOAL_RESPONSE = "control_msgs/action/FollowJointTrajectory_SendGoal_Response"
 FEEDBACK_MESSAGE = "control_msgs/action/FollowJointTrajectory_FeedbackMessage"
@@ -199,6 +200,37 @@ class JointStateCdr:
         return self._struct.pack(b"\x00\x01\x00\x00", *seconds_and_nanoseconds(stamp),
                                  *self._static, n, *_floats(positions), n, *_floats(velocities),
                                  n, *_floats(efforts))
+
+
+class ImuCdr:
+    """sensor_msgs/Imu of one sensor as CDR, packed by one struct (as :class:`JointStateCdr`,
+    for the same reason: a sample every few cycles of a real-time loop; tests/test_cdr.py
+    holds the bytes against rosbags' own). A field the sample lacks gets covariance element
+    0 at -1, as sensor_msgs/Imu says; the others their diagonal from ``variances``."""
+
+    def __init__(self, frame_id: str, variances: tuple[float, float, float]):
+        """``variances``: of the orientation (rad²), angular velocity ((rad/s)²) and linear
+        acceleration ((m/s²)²) of each axis (0: unknown)."""
+        name = frame_id.encode() + b"\0"
+        pad = -(12 + len(name)) % 8          # float64s align to 8 after the header
+        self._struct = struct.Struct(f"<4siII{len(name)}s{pad}x37d")
+        self._name = name
+        self._covariances = [[v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v] for v in variances]
+
+    def encode(self, stamp: float, orientation, angular_velocity, linear_acceleration) -> bytes:
+        """The message stamped ``stamp`` (s): ``orientation`` (w, x, y, z), angular velocity
+        (rad/s) and linear acceleration (m/s²) as sequences of floats, each None if absent."""
+        values: list[float] = []
+        for field, size, covariance in zip((orientation, angular_velocity,
+                                            linear_acceleration), (4, 3, 3), self._covariances):
+            if field is None:
+                values += [0.0] * size + [-1.0] + [0.0] * 8
+                continue
+            field = [float(v) for v in field]
+            values += field[1:] + field[:1] if size == 4 else field     # x, y, z, w
+            values += covariance
+        return self._struct.pack(b"\x00\x01\x00\x00", *seconds_and_nanoseconds(stamp),
+                                 len(self._name), self._name, *values)
 
 
 def _floats(values) -> list[float]:

@@ -20,7 +20,7 @@ from hil.messaging.action import TrajectoryActionServer
 from hil.messaging.controller_manager import ControllerManagerServer
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import (
-    ControlSamplesPublisher, DiagnosticsPublisher, JointStatePublisher,
+    ControlSamplesPublisher, DiagnosticsPublisher, ImuPublisher, JointStatePublisher,
 )
 
 
@@ -43,6 +43,13 @@ class ControlFace:
     def publish_samples(self, batch: ControlSamples) -> None:
         """A batch of recorded control cycles."""
 
+    def declare_imus(self, names: tuple[str, ...]) -> None:
+        """The IMUs :meth:`publish_imu` will be given samples of (declared before the loop
+        cycles: a declaration takes longer than a cycle may)."""
+
+    def publish_imu(self, name: str, payload: bytes) -> None:
+        """A sensor_msgs/Imu sample of IMU ``name``."""
+
     def close(self) -> None:
         """Undeclare everything; called once, after the loop's last cycle."""
 
@@ -60,6 +67,8 @@ class ZenohControlFace(ControlFace):
         self._joint_states = JointStatePublisher(session, robot)
         self._samples = ControlSamplesPublisher(session, robot)
         self._diagnostics = DiagnosticsPublisher(session, robot)
+        self._session, self._robot = session, robot
+        self._imus: dict[str, ImuPublisher] = {}
 
     def publish_joint_states(self, payload: bytes) -> None:
         self._joint_states.put(payload)
@@ -76,9 +85,17 @@ class ZenohControlFace(ControlFace):
     def publish_samples(self, batch: ControlSamples) -> None:
         self._samples.publish(batch)
 
+    def declare_imus(self, names: tuple[str, ...]) -> None:
+        self._imus = {name: ImuPublisher(self._session, self._robot, name) for name in names}
+
+    def publish_imu(self, name: str, payload: bytes) -> None:
+        self._imus[name].put(payload)
+
     def close(self) -> None:
         self.server.close()
         self.manager.close()
         self._joint_states.close()
         self._samples.close()
         self._diagnostics.close()
+        for publisher in self._imus.values():
+            publisher.close()

@@ -20,6 +20,7 @@ from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.keys import key
 from hil.messaging.samples import ControlSamples
 from hil.messaging.scene import SceneState
+from hil.messaging.sensors import ImuMessage
 from hil.realtime.side_work import SideWorkQueue
 from hil.realtime.stalls import Stall
 
@@ -36,6 +37,25 @@ class JointStatePublisher:
 
     def close(self) -> None:
         self._publisher.undeclare()
+
+
+class ImuPublisher:
+    """Publishes an IMU's sensor_msgs/Imu samples on ``hil/<robot>/sensors/<name>/imu``."""
+
+    def __init__(self, session: zenoh.Session, robot: str, name: str):
+        self._publisher = session.declare_publisher(key(robot, imu_key(name)))
+
+    def put(self, payload: bytes) -> None:
+        """Put a sample already encoded (:class:`hil.messaging.cdr.ImuCdr`)."""
+        self._publisher.put(payload)
+
+    def close(self) -> None:
+        self._publisher.undeclare()
+
+
+def imu_key(name: str) -> str:
+    """The key of IMU ``name``'s samples, under ``hil/<robot>/``."""
+    return f"sensors/{name}/imu"
 
 
 class ControlSamplesPublisher:
@@ -192,8 +212,8 @@ class DiagnosticsPublisher:
 
 class RunSubscriber:
     """Receives a robot's recorded cycles, sim clock and (given ``on_diagnostic``,
-    ``on_stall`` and ``on_scene``) the controller's diagnostics, the real-time processes'
-    stalls and the plant's scene;
+    ``on_stall``, ``on_scene`` and ``on_imu``) the controller's diagnostics, the real-time
+    processes' stalls, the plant's scene and the IMUs' samples;
     malformed payloads are counted (``malformed.count``) and reported through ``on_error``
     (:class:`MalformedPayloads`), never passed on.""" 
 
@@ -203,7 +223,8 @@ class RunSubscriber:
                  on_error: Callable[[str], None],
                  on_diagnostic: Callable[[DiagnosticStatus], None] | None = None,
                  on_stall: Callable[[Stall], None] | None = None,
-                 on_scene: Callable[[SceneState], None] | None = None):
+                 on_scene: Callable[[SceneState], None] | None = None,
+                 on_imu: Callable[[ImuMessage], None] | None = None):
         self.malformed = MalformedPayloads(on_error)
         self._subscribers: list[zenoh.Subscriber] = []
         self._subscribe(session, key(robot, "control/samples"), ControlSamples.decode,
@@ -221,12 +242,18 @@ class RunSubscriber:
             self._subscribe(session, key(robot, "stalls"), decode_stall, on_stall)
         if on_scene is not None:
             self._subscribe(session, key(robot, "sim/scene"), SceneState.decode, on_scene)
+        if on_imu is not None:
+            self._subscribe(session, key(robot, imu_key("*")), ImuMessage.decode, on_imu,
+                            with_key=True)
 
-    def _subscribe(self, session: zenoh.Session, key_expr: str,
-                   decode: Callable[[bytes], Any], deliver: Callable[[Any], Any]) -> None:
+    def _subscribe(self, session: zenoh.Session, key_expr: str, decode: Callable[..., Any],
+                   deliver: Callable[[Any], Any], with_key: bool = False) -> None:
+        """``decode`` takes the payload, or with ``with_key`` the sample's key and payload."""
         def on_sample(sample: zenoh.Sample) -> None:
             try:
-                decoded = decode(sample.payload.to_bytes())
+                payload = sample.payload.to_bytes()
+                decoded = (decode(str(sample.key_expr), payload) if with_key
+                           else decode(payload))
             except ValueError as exc:
                 self.malformed(sample.key_expr, exc)
                 return

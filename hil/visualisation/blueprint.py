@@ -80,12 +80,12 @@ class CycleSeries:
 
 def robot_view(robot: RobotDescription, series: CycleSeries,
                actuator_joints: dict[str, tuple[str, ...]], buses: tuple[str, ...],
-               root: str = "", floating_base: bool = False, limits: tuple[str, ...] = ()
-               ) -> rrb.Container:
+               root: str = "", floating_base: bool = False, limits: tuple[str, ...] = (),
+               sensors: tuple[str, ...] = ()) -> rrb.Container:
     """One robot's layout, its entities under ``root`` ("" or "/<robot>", as
     ``RunRecorder.root``); ``limits``: the actuators whose peak torque is drawn (in
-    ``drives/limits``, two series each, in that order); the diagnostics, and a floating
-    base's position, are tabs beside the drive states."""
+    ``drives/limits``, two series each, in that order); the diagnostics, a floating
+    base's position and each of ``sensors`` (IMUs) are tabs beside the drive states."""
     cycle = f"{root}/cycle"
     actuators_of = {j: [a for a, js in actuator_joints.items() if j in js]
                     for j in series.joints}
@@ -140,6 +140,14 @@ def robot_view(robot: RobotDescription, series: CycleSeries,
     if floating_base:
         states.append(rrb.TimeSeriesView(name="base position [m]", origin=f"{root}/base",
                                          contents=[f"{root}/base/position"]))
+    for sensor in sensors:          # an IMU's tab: its three quantities, each on its scale
+        origin = f"{root}/sensors/{sensor}"
+        states.append(rrb.Vertical(*(
+            rrb.TimeSeriesView(name=f"{quantity.replace('_', ' ')} [{unit}]",
+                               origin=f"{origin}/{quantity}")
+            for quantity, unit in (("angular_velocity", "rad/s"),
+                                   ("linear_acceleration", "m/s²"), ("angles", "°"))),
+            name=f"IMU {sensor}"))
     loop = {series.loop(q): q for q in LOOP_SERIES}
     hidden = rrb.PlotLegend(visible=False)      # the views' names say what they show
     side = rrb.Vertical(

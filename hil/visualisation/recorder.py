@@ -67,6 +67,7 @@ from hil.description import RobotDescription
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.messaging.scene import SceneState
+from hil.messaging.sensors import ImuMessage
 from hil.realtime.stalls import Stall
 from hil.visualisation.blueprint import CycleSeries, robot_view
 from hil.visualisation.bus_load import BusLoadLog
@@ -77,18 +78,21 @@ from hil.visualisation.drives import DriveStates, TorqueLimits
 from hil.visualisation.events import EventLog
 from hil.visualisation.poses import PoseLog
 from hil.visualisation.scene import SceneLog
+from hil.visualisation.sensors import ImuLog
 
 
 @dataclass(frozen=True)
 class BenchParts:
     """What a bus config adds to its robot that the recording draws: the scene, each drive's
-    peak torque (by actuator, N·m), whether the base floats, and each bus' estimated load
-    (`hil check`'s worst case, a fraction of the bitrate: drawn beside the measured)."""
+    peak torque (by actuator, N·m), whether the base floats, each bus' estimated load
+    (`hil check`'s worst case, a fraction of the bitrate: drawn beside the measured), and its
+    IMUs."""
 
     scene: tuple[SceneObject, ...] = ()
     torque_limits: Mapping[str, float] = field(default_factory=dict)
     floating_base: bool = False
     bus_estimates: Mapping[str, float] = field(default_factory=dict)
+    sensors: tuple[str, ...] = ()        # the IMUs' names
 
 
 class RunRecorder:
@@ -130,6 +134,7 @@ class RunRecorder:
         # a floating base poses the URDF's root link's frame in the world
         self._scene = SceneLog(entities, bench.scene, prefix + self._urdf.root_link().name)
         self._poses = PoseLog(entities, robot, prefix)
+        self._imus = ImuLog(entities, bench.sensors)
 
     @property
     def stalls_logged(self) -> int:
@@ -147,11 +152,13 @@ class RunRecorder:
         self._events.log_static()
         self._loads.log_static()
         self._scene.log_static()
+        self._imus.log_static()
 
     def view(self) -> rrb.Container:
         """This robot's part of the viewer's layout (``hil.visualisation.blueprint``)."""
         return robot_view(self.robot, self.series, self._actuator_joints, self._buses,
-                          self.root, self._floating, tuple(self._limits.limits))
+                          self.root, self._floating, tuple(self._limits.limits),
+                          tuple(self._imus.sensors))
 
     def log_clock(self, wall_time: float, sim_time: float) -> None:
         self.sim_time.add(wall_time, sim_time)
@@ -190,8 +197,13 @@ class RunRecorder:
         self._loads.send(time.time(), final=True)
         self._poses.send()
         self._events.drain()
+        self._imus.flush()
 
     def log_scene(self, state: SceneState) -> None:
         """The moving objects' poses, the contacts and a floating base's pose, at the state's
         wall and sim time."""
         self._scene.log(state)
+
+    def log_imu(self, message: ImuMessage) -> None:
+        """An IMU's sample, at the time the controller received it."""
+        self._imus.log(message)

@@ -153,6 +153,13 @@ _STAMP = struct.Struct("<iI")
 JOINT_STATE_STAMP = 4          # after the encapsulation header
 FEEDBACK_STAMP = 20            # after it and the goal's 16-byte UUID
 DIAGNOSTICS_STAMP = 4
+IMU_STAMP = 4
+
+
+def imu_topic(name: str) -> str:
+    """The topic of IMU ``name``'s samples: ``<name>_sensor_broadcaster/imu``, the topic of an
+    imu_sensor_broadcaster of that name (``imu``: the controller's own default name)."""
+    return f"{name}_sensor_broadcaster/imu"
 
 
 def reset_service_name(settings: RosSettings) -> str:
@@ -240,8 +247,9 @@ class RosControlFace(ControlFace):
         self._plant_clock = plant_clock
         self.context = open_context(settings)
         self._clock = clock
-        hashes = TypeHashes(settings.distro)
+        hashes = self._hashes = TypeHashes(settings.distro)
         self._types = distro_types(settings.distro)
+        self._imus: dict[str, RosPublisher] = {}
         self._own_feedback = FEEDBACK in DISTRO_DEFINITIONS[settings.distro]
         if self._own_feedback:
             encode_feedback_once(controller.joint_names, self._types)
@@ -307,6 +315,14 @@ class RosControlFace(ControlFace):
 
     def publish_diagnostics(self, payload: bytes) -> None:
         self._put(self._diagnostics, payload, DIAGNOSTICS_STAMP)
+
+    def declare_imus(self, names: tuple[str, ...]) -> None:
+        # as ros2_controllers' imu_sensor_broadcaster publishes ~/imu, one per IMU
+        self._imus = {name: self.node.publisher(imu_topic(name), self._hashes.message(cdr.IMU))
+                      for name in names}
+
+    def publish_imu(self, name: str, payload: bytes) -> None:
+        self._put(self._imus[name], payload, IMU_STAMP)
 
     def _put(self, publisher: RosPublisher, payload: bytes, stamp_at: int) -> None:
         if self._plant_clock is not None:

@@ -107,3 +107,70 @@ def encode(sample: ImuSample, outputs: tuple[int, ...]) -> bytes:
 def bits_per_second(rate_hz: float, outputs: tuple[int, ...]) -> float:
     """What a sample stream takes of the serial line (bit/s)."""
     return rate_hz * len(outputs) * PACKET_BYTES * BITS_PER_BYTE
+
+
+@dataclass(frozen=True)
+class ImuReading:
+    """One sample as a reader decodes it, in SI units; a field the sample's packets did not
+    carry is None."""
+
+    acceleration: np.ndarray | None = None
+    angular_velocity: np.ndarray | None = None
+    orientation: np.ndarray | None = None       # (w, x, y, z)
+
+
+def quaternion_of(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """The (w, x, y, z) quaternion of z-y-x Euler angles (rad)."""
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+                     cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
+
+
+class PacketReader:
+    """A byte stream's samples: packets found by their 0x55 header and checked by their
+    checksum (a bad one is counted and skipped, as the maker's sample code does), a sample
+    complete when the last of ``outputs`` arrives."""
+
+    def __init__(self, outputs: tuple[int, ...]):
+        self._last = outputs[-1]
+        self._buffer = bytearray()
+        self._fields: dict[int, tuple[int, ...]] = {}
+        self.bad_packets = 0
+
+    def feed(self, data: bytes) -> list[ImuReading]:
+        """The samples ``data`` completes (with what came before it)."""
+        buffer = self._buffer
+        buffer += data
+        samples = []
+        start = 0
+        while len(buffer) - start >= PACKET_BYTES:
+            if buffer[start] != HEADER:
+                start += 1
+                continue
+            packet = buffer[start:start + PACKET_BYTES]
+            if sum(packet[:10]) & 0xFF != packet[10] or packet[1] not in OUTPUTS.values():
+                self.bad_packets += 1
+                start += 1                  # resynchronise on the next header
+                continue
+            self._fields[packet[1]] = struct.unpack_from("<4h", packet, 2)
+            start += PACKET_BYTES
+            if packet[1] == self._last:
+                samples.append(self._sample())
+        del buffer[:start]
+        return samples
+
+    def _sample(self) -> ImuReading:
+        fields, self._fields = self._fields, {}
+        acceleration = rate = orientation = None
+        if ACCELERATION in fields:
+            acceleration = np.array(fields[ACCELERATION][:3]) / 32768.0 * ACCELERATION_RANGE
+        if ANGULAR_VELOCITY in fields:
+            rate = np.array(fields[ANGULAR_VELOCITY][:3]) / 32768.0 * ANGULAR_VELOCITY_RANGE
+        if QUATERNION in fields:
+            orientation = np.array(fields[QUATERNION]) / 32768.0
+            orientation /= np.linalg.norm(orientation) or 1.0
+        elif ANGLE in fields:
+            orientation = quaternion_of(*(np.array(fields[ANGLE][:3]) / 32768.0 * math.pi))
+        return ImuReading(acceleration, rate, orientation)
