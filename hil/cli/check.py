@@ -12,6 +12,7 @@ from hil.bus_config.locate import shipped_names
 from hil.controllers.config import ControllersConfig, controllers_for
 from hil.bus_config.types import SceneObject
 from hil.cli import common
+from hil.cli.describe import sensor_line
 from hil.description import GeometryKind, PackagePath, RobotDescription, load_description
 from hil.errors import ConfigError, Severity, UsageError
 from hil.plant import Plant
@@ -96,6 +97,9 @@ def bus_summary(config: SystemConfig) -> str:
     lines += ["", f"  contacts: {collision_summary(config.robot)}"
                   + (", touching the scene:" if config.scene else "; no scene to touch")]
     lines += [f"    {scene_line(thing)}" for thing in config.scene]
+    if config.sensors:
+        lines += ["", "  sensors:"] + [f"    {sensor.name}: {sensor_line(sensor)}"
+                                       for sensor in config.sensors]
     lines.append("")
     lines.append("  units: motor side; torque N·m, velocity rad/s, following error rad, "
                  "watchdog s; effects: friction N·m and N·m·s/rad, delay s, no-load speed rad/s")
