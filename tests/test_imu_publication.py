@@ -22,6 +22,7 @@ from hil.messaging.ros.face import RosControlFace, RosSettings
 from hil.messaging.ros.router import open_router
 from hil.messaging.zenoh_api import imu_key
 from hil.protocols import wit
+from hil.protocols.imu import ImuSample
 from hil.realtime import LOCK_STEP
 from hil.sensors.serial_port import PseudoTerminal
 from hil.stack import Stack, running_stack
@@ -81,7 +82,7 @@ def test_the_reader_opens_a_port_that_appears_later_and_reads_its_samples(tmp_pa
     port = PseudoTerminal(config.port)
     try:
         assert reader.poll() == [] and reader.problem is None       # opened, nothing yet
-        sample = wit.ImuSample(np.array([0.0, 0.0, 9.81]), np.zeros(3),
+        sample = ImuSample(np.array([0.0, 0.0, 9.81]), np.zeros(3),
                                np.array([1.0, 0.0, 0.0, 0.0]))
         port.write(wit.encode(sample, config.outputs) * 2)
         states = reader.poll()

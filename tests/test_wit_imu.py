@@ -22,6 +22,7 @@ from hil.bus_config import load_bus_config
 from hil.can.faults import SensorFaultKind
 from hil.errors import ConfigError
 from hil.protocols import wit
+from hil.protocols.imu import ImuSample
 from hil.realtime.timing import REAL_TIME
 from hil.sensors.imu import SimulatedImu
 from hil.sensors.noise import ALLAN_FLOOR, GAUSS_MARKOV_PEAK
@@ -61,6 +62,13 @@ class Capture:
         pass
 
 
+def _imu(config, plant, port) -> SimulatedImu:
+    """The config's first IMU, a WitMotion one, on ``port``."""
+    imu = config.sensors[0]
+    return SimulatedImu(imu, lambda: plant.imus.read(imu.name),
+                        lambda sample: wit.encode(sample, imu.outputs), port)
+
+
 def _parsed(data: bytes) -> dict[int, list]:
     """The witmotion reader's messages in ``data``, by packet type, every checksum checked."""
     found: dict[int, list] = {}
@@ -76,7 +84,7 @@ def _parsed(data: bytes) -> dict[int, list]:
 
 def test_a_sample_is_what_the_witmotion_reader_parses_within_a_step_of_each_field():
     orientation = np.array([math.cos(0.2), math.sin(0.2), 0.0, 0.0])     # 0.4 rad of roll
-    sample = wit.ImuSample(np.array([0.5, -1.25, 9.81]), np.array([0.1, -2.0, 0.0]),
+    sample = ImuSample(np.array([0.5, -1.25, 9.81]), np.array([0.1, -2.0, 0.0]),
                            orientation)
     messages = _parsed(wit.encode(sample, tuple(wit.OUTPUTS.values())))
     a = messages[wit.ACCELERATION][0]
@@ -91,7 +99,7 @@ def test_a_sample_is_what_the_witmotion_reader_parses_within_a_step_of_each_fiel
 
 
 def test_a_reading_past_the_range_saturates_at_the_range():
-    sample = wit.ImuSample(np.array([1e3, -1e3, 0.0]), np.array([100.0, 0.0, -100.0]),
+    sample = ImuSample(np.array([1e3, -1e3, 0.0]), np.array([100.0, 0.0, -100.0]),
                            np.array([1.0, 0.0, 0.0, 0.0]))
     messages = _parsed(wit.encode(sample, (wit.ACCELERATION, wit.ANGULAR_VELOCITY)))
     assert messages[wit.ACCELERATION][0].a[:2] == pytest.approx((16 * wit.G, -16 * wit.G),
@@ -106,8 +114,7 @@ def _still_record(config_path: Path, seconds: float) -> tuple[dict[int, list], o
     plant = bench_plant(config)
     stepping = PlantStepping(plant)
     capture = Capture()
-    stepping.sensors.append(SimulatedImu(config.sensors[0], lambda: plant.imus.read("imu"),
-                                         capture))
+    stepping.sensors.append(_imu(config, plant, capture))
     for _ in range(round(seconds * config.plant_rate_hz)):
         stepping.step()
     return _parsed(bytes(capture.data)), plant
@@ -260,7 +267,7 @@ def _faulted_record(tmp_path: Path, kind: SensorFaultKind, at: float = 0.2
     plant = bench_plant(config)
     stepping = PlantStepping(plant)
     capture = Capture()
-    imu = SimulatedImu(config.sensors[0], lambda: plant.imus.read("imu"), capture)
+    imu = _imu(config, plant, capture)
     imu.inject(kind, at)
     stepping.sensors.append(imu)
     samples = []

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 from hil.bus_config.sensor_types import ImuConfig
 from hil.protocols import wit
+from hil.protocols.imu import ImuReading
 
 #: how often a port that is not there (yet), or held by another program, is tried (s)
 RETRY = 1.0
@@ -56,7 +57,7 @@ class ImuState:
     sensor: str
     frame: str                      # the link it is on (sensor_msgs' frame_id)
     received: float                 # wall time (s)
-    reading: wit.ImuReading
+    reading: ImuReading
 
 
 class SerialImu:

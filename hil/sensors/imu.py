@@ -8,36 +8,42 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
-from typing import Protocol
+from typing import Generic, Protocol, TypeVar
 
 import numpy as np
 
 from hil.bus_config.sensor_types import ImuConfig
 from hil.can.faults import SensorFaultKind
-from hil.protocols import wit
+from hil.protocols.imu import ImuSample
 from hil.sensors.noise import TriadNoise
 
+#: what a wire carries of one sample (bytes, frames)
+Payload = TypeVar("Payload")
 #: the plant's reading of an IMU: specific force, angular velocity, orientation (w, x, y, z)
 Reading = Callable[[], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
-class Port(Protocol):
-    """Where a sensor's bytes go (a pseudo-terminal; a test's capture)."""
+class Port(Protocol[Payload]):
+    """Where a sensor's samples go, each as its wire carries it: a serial port's bytes, a CAN
+    node's frames (or a test's capture)."""
 
     #: what the port is, in words (a pseudo-terminal: its /dev/pts path)
     device: str
 
-    def write(self, data: bytes) -> None: ...
+    def write(self, data: Payload) -> None: ...
 
     def close(self) -> None: ...
 
 
-class SimulatedImu:
-    """One IMU of the bus config, sampling ``read`` from plant time ``start`` on."""
+class SimulatedImu(Generic[Payload]):
+    """One IMU of the bus config, sampling ``read`` from plant time ``start`` on, each sample
+    made its wire's payload by ``encode`` (its product's codec) and written to ``port``."""
 
-    def __init__(self, config: ImuConfig, read: Reading, port: Port, start: float = 0.0):
+    def __init__(self, config: ImuConfig, read: Reading, encode: Callable[[ImuSample], Payload],
+                 port: Port[Payload], start: float = 0.0):
         self.config = config
         self._read = read
+        self._encode = encode
         self.port = port
         accelerometer, gyroscope = np.random.default_rng(config.seed).spawn(2)
         self._accelerometer = TriadNoise(config.accelerometer, config.period, accelerometer)
@@ -45,12 +51,12 @@ class SimulatedImu:
         self._start = start
         #: the next sample is due at start + this many periods: the first a period in
         self._samples = 1
-        self._sending: deque[tuple[float, bytes]] = deque()   # (due, packets) in latency
+        self._sending: deque[tuple[float, Payload]] = deque()   # (due, payload) in latency
         self.sent = 0
         self._faults: list[tuple[float, SensorFaultKind]] = []   # to come, by plant time
         self._silent = False
         self._freezing = False
-        self._frozen: bytes | None = None         # a frozen sensor's sample
+        self._frozen: Payload | None = None         # a frozen sensor's sample
 
     def inject(self, kind: SensorFaultKind, at: float) -> None:
         """Fail as ``kind`` says at plant time ``at`` (s): fall silent, freeze on the last
@@ -83,10 +89,9 @@ class SimulatedImu:
             self.port.write(self._sending.popleft()[1])
             self.sent += 1
 
-    def _sample(self, spike: bool = False) -> bytes:
+    def _sample(self, spike: bool = False) -> Payload:
         acceleration, rate, orientation = self._read()
         if spike:               # past the range on every axis: the wire saturates it
             acceleration, rate = np.full(3, 1e6), np.full(3, 1e6)
-        sample = wit.ImuSample(self._accelerometer.apply(acceleration),
-                               self._gyroscope.apply(rate), orientation)
-        return wit.encode(sample, self.config.outputs)
+        return self._encode(ImuSample(self._accelerometer.apply(acceleration),
+                                      self._gyroscope.apply(rate), orientation))

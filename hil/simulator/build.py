@@ -16,7 +16,7 @@ from hil.description import Pose
 from hil.drives.tuning import tuned_gains
 from hil.plant import Plant
 from hil.plant.imus import ImuMount
-from hil.protocols import protocol
+from hil.protocols import protocol, wit
 from hil.realtime.timing import Timing
 from hil.sensors.imu import SimulatedImu
 from hil.sensors.serial_port import PseudoTerminal
@@ -73,6 +73,7 @@ def serial_sensors(config: SystemConfig, plant: Plant) -> list[SimulatedImu]:
         for sensor in config.sensors:
             port = PseudoTerminal(sensor.port, config.path, sensor.line)
             sensors.append(SimulatedImu(sensor, functools.partial(plant.imus.read, sensor.name),
+                                        functools.partial(wit.encode, outputs=sensor.outputs),
                                         port, start=plant.time))
     except BaseException:
         close_sensors(sensors)

@@ -10,7 +10,7 @@ import numpy as np
 import rerun as rr
 
 from hil.messaging.sensors import ImuMessage
-from hil.protocols.wit import euler_angles
+from hil.protocols.imu import euler_angles
 from hil.visualisation.columns import ScalarTable
 from hil.visualisation.entities import RobotEntities
 

@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import math
 import struct
-from dataclasses import dataclass
-
 import numpy as np
+
+from hil.protocols.imu import ImuReading, ImuSample, euler_angles, quaternion_of, raw
 
 HEADER = 0x55
 ACCELERATION = 0x51
@@ -51,15 +51,6 @@ VERSION = 1
 TEMPERATURE = 25.0
 
 
-@dataclass(frozen=True)
-class ImuSample:
-    """One output of the IMU, in SI units in the sensor's own axes."""
-
-    acceleration: np.ndarray        # specific force (m/s²): a still sensor reads +g up
-    angular_velocity: np.ndarray    # rad/s
-    orientation: np.ndarray         # unit quaternion (w, x, y, z), the sensor in the world
-
-
 def packet(kind: int, values: tuple[int, int, int, int]) -> bytes:
     """One packet of ``kind`` carrying four raw int16 values."""
     body = struct.pack("<BB4h", HEADER, kind, *values)
@@ -68,18 +59,7 @@ def packet(kind: int, values: tuple[int, int, int, int]) -> bytes:
 
 def _raw(values: np.ndarray, full_scale: float) -> list[int]:
     """Values as the int16 of a field whose +32768 is ``full_scale``: rounded, clipped."""
-    scaled = np.rint(np.asarray(values, dtype=float) / full_scale * 32768.0)
-    return [int(v) for v in np.clip(scaled, -32768, 32767)]
-
-
-def euler_angles(quaternion: np.ndarray) -> tuple[float, float, float]:
-    """Roll (x), pitch (y), yaw (z) in rad of a (w, x, y, z) quaternion, in the z-y-x order
-    the family's angle packet uses."""
-    w, x, y, z = (float(v) for v in quaternion)
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return roll, pitch, yaw
+    return raw(values, full_scale / 32768.0)
 
 
 def encode(sample: ImuSample, outputs: tuple[int, ...]) -> bytes:
@@ -107,25 +87,6 @@ def encode(sample: ImuSample, outputs: tuple[int, ...]) -> bytes:
 def bits_per_second(rate_hz: float, outputs: tuple[int, ...]) -> float:
     """What a sample stream takes of the serial line (bit/s)."""
     return rate_hz * len(outputs) * PACKET_BYTES * BITS_PER_BYTE
-
-
-@dataclass(frozen=True)
-class ImuReading:
-    """One sample as a reader decodes it, in SI units; a field the sample's packets did not
-    carry is None."""
-
-    acceleration: np.ndarray | None = None
-    angular_velocity: np.ndarray | None = None
-    orientation: np.ndarray | None = None       # (w, x, y, z)
-
-
-def quaternion_of(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """The (w, x, y, z) quaternion of z-y-x Euler angles (rad)."""
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-                     cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
 
 
 class PacketReader:
