@@ -1,4 +1,5 @@
-"""The data hil ships: robot descriptions, bus configs and the CiA 402 drives' EDS.
+"""The data hil ships: robot descriptions, bus configs, the CiA 402 drives' and the HiPNUC
+IMU's EDS.
 
 They live in the repository's ``robots/`` and ``bus_config/`` folders; a wheel carries them
 inside the package (``hil/data/``, copied there by the build: setup.py). :func:`data_dir`
@@ -32,3 +33,9 @@ def data_dir(name: str) -> Path:
 def eds_path() -> Path:
     """The EDS of hil's virtual CiA 402 drive (written by tools/make_cia402_eds.py)."""
     return data_dir(BUS_CONFIGS) / "cia402_drive.eds"
+
+
+def hipnuc_eds_path() -> Path:
+    """The EDS of a HiPNUC IMU in its CANopen mode as hil serves it (written by
+    tools/make_hipnuc_eds.py)."""
+    return data_dir(BUS_CONFIGS) / "hipnuc_imu.eds"

@@ -26,6 +26,7 @@ from hil.can import socketcan_missing as can_socketcan_missing
 from hil.cli import main
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.description import PackagePath, load_description
+from hil.messaging import cdr
 from hil.messaging.zenoh_api import ProcessWatch, TrajectoryActionClient
 from hil.stack import Stack
 from hil.testing import DrivesBench
@@ -587,3 +588,18 @@ def watched_robot():
     yield endpoint, watch
     watch.close()
     close(settings)
+
+
+def imu_messages(config, count: int) -> list:
+    """The first ``count`` sensor_msgs/Imu samples the controller of a hil.stack.Stack of
+    ``config`` publishes of its IMU named 'imu' (the stack closed after)."""
+    stack = Stack(config)
+    arrived: queue.SimpleQueue = queue.SimpleQueue()
+    subscriber = stack.zenoh.declare_subscriber(
+        f"hil/{config.robot.name}/sensors/imu/imu",
+        lambda sample: arrived.put(sample.payload.to_bytes()))
+    try:
+        return [cdr.decode(arrived.get(timeout=30), cdr.IMU) for _ in range(count)]
+    finally:
+        subscriber.undeclare()
+        stack.close()

@@ -1,5 +1,5 @@
 """The controller's side of an IMU: read off its serial port as a USB device's is, published
-as sensor_msgs/Imu on hil's keys (and the ROS face: tests/test_ros_face.py), recorded."""
+as sensor_msgs/Imu on hil's keys and the ROS face, recorded."""
 
 from __future__ import annotations
 
@@ -10,22 +10,21 @@ import time
 import numpy as np
 import pytest
 import serial
+from conftest import imu_messages
 from ros_spec_client import SpecClient
 from test_wit_imu import _config
 
 from hil.bus_config import load_bus_config
 from hil.hardware.serial_imu import ImuDescription, SerialImu
 from hil.messaging import cdr
-from hil.messaging.keys import key
 from hil.messaging.sensors import ImuMessage
 from hil.messaging.ros.face import RosControlFace, RosSettings
 from hil.messaging.ros.router import open_router
-from hil.messaging.zenoh_api import imu_key
 from hil.protocols import wit
 from hil.protocols.imu import ImuSample
 from hil.realtime import LOCK_STEP
 from hil.sensors.serial_port import PseudoTerminal
-from hil.stack import Stack, running_stack
+from hil.stack import running_stack
 from hil.zenoh_session import free_loopback_port
 
 
@@ -37,15 +36,7 @@ def imu_config(tmp_path):
 
 
 def test_the_controller_publishes_the_imu_it_reads_as_sensor_msgs_imu(imu_config):
-    stack = Stack(imu_config)
-    arrived: queue.SimpleQueue = queue.SimpleQueue()
-    subscriber = stack.zenoh.declare_subscriber(
-        key("ur3", imu_key("imu")), lambda sample: arrived.put(sample.payload.to_bytes()))
-    try:
-        messages = [cdr.decode(arrived.get(timeout=30), cdr.IMU) for _ in range(20)]
-    finally:
-        subscriber.undeclare()
-        stack.close()
+    messages = imu_messages(imu_config, 20)
     last = messages[-1]
     assert last.header.frame_id == "link6"
     acceleration = np.array([last.linear_acceleration.x, last.linear_acceleration.y,

@@ -23,6 +23,7 @@ from conftest import EDS, ROOT, free_port
 
 sys.path.insert(0, str(ROOT / "tools"))
 import make_cia402_eds  # noqa: E402
+import make_hipnuc_eds  # noqa: E402
 
 #: judged against the host's stalls (tests/host_stalls.py): the stacks run in real time under
 #: load
@@ -90,6 +91,8 @@ def test_feedback_no_joint_can_produce_is_a_fault_not_a_joint_state(controlled):
 def test_the_shipped_eds_is_what_its_generator_writes():
     assert EDS.read_text() == make_cia402_eds.render(), \
         "bus_config/cia402_drive.eds was edited by hand: edit tools/make_cia402_eds.py and run it"
+    assert make_hipnuc_eds.OUTPUT.read_text() == make_hipnuc_eds.render(), \
+        "bus_config/hipnuc_imu.eds was edited by hand: edit tools/make_hipnuc_eds.py and run it"
 
 
 # --- floods into running processes ------------------------------------------------------------

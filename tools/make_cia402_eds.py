@@ -234,22 +234,26 @@ def section(name, fields):
 
 
 def render() -> str:
+    return render_eds(HEADER, {"FileName": OUTPUT.name, "FileVersion": 2, "FileRevision": 0,
+                               "EDSVersion": "4.0",
+                               "Description": "hil virtual CiA 402 servo drive",
+                               "CreatedBy": "tools/make_cia402_eds.py"},
+                      DEVICE_INFO, OBJECTS)
+
+
+def render_eds(header: str, file_info: dict, device_info: dict, objects: dict) -> str:
+    """An EDS (CiA 306) of ``objects`` ({index: var(...) or compound(...)})."""
     mandatory = [0x1000, 0x1001, 0x1018]
-    optional = [i for i in sorted(OBJECTS) if i < 0x2000 or i >= 0x6000]
+    optional = [i for i in sorted(objects) if i < 0x2000 or i >= 0x6000]
     optional = [i for i in optional if i not in mandatory]
-    manufacturer = [i for i in sorted(OBJECTS) if 0x2000 <= i < 0x6000]
-    parts = [HEADER,
-             section("FileInfo", {"FileName": OUTPUT.name, "FileVersion": 2, "FileRevision": 0,
-                                  "EDSVersion": "4.0",
-                                  "Description": "hil virtual CiA 402 servo drive",
-                                  "CreatedBy": "tools/make_cia402_eds.py"}),
-             section("DeviceInfo", DEVICE_INFO),
+    manufacturer = [i for i in sorted(objects) if 0x2000 <= i < 0x6000]
+    parts = [header, section("FileInfo", file_info), section("DeviceInfo", device_info),
              section("DummyUsage", {f"Dummy000{k}": int(k > 1) for k in range(1, 8)})]
     for title, indices in (("MandatoryObjects", mandatory), ("OptionalObjects", optional),
                            ("ManufacturerObjects", manufacturer)):
         parts.append(section(title, {"SupportedObjects": len(indices),
                                      **{k + 1: f"0x{i:04X}" for k, i in enumerate(indices)}}))
-    for index, fields in sorted(OBJECTS.items()):
+    for index, fields in sorted(objects.items()):
         parts.append(section(f"{index:04X}", fields))
         for sub, entry in fields.get("_subs", {}).items():
             parts.append(section(f"{index:04X}sub{sub:X}", entry))

@@ -7,7 +7,7 @@ from hil.bus_config.types import LOAD_WARNING, BusConfig, DriveConfig, SystemCon
 from hil.bus_config.yaml_reader import LineMapping, Reader
 from hil.can import bus_load
 from hil.description.corrections import massless_free_links
-from hil.errors import ConfigError, HilError
+from hil.errors import ConfigError
 from hil.protocols import names as protocol_names
 from hil.protocols import protocol
 from hil.protocols.base import CanFd
@@ -132,11 +132,12 @@ def _check_gear(reader: Reader, drive: DriveConfig, transmissions) -> None:
 
 def _check_ids(reader: Reader, bus: BusConfig) -> None:
     """Two drives (of any protocols) must not use the same CAN id on one bus, nor a drive
-    an id of the bus as a whole (CANopen's NMT and SYNC)."""
+    an id of the bus as a whole (CANopen's NMT and SYNC) or of a sensor on it."""
     # an 11-bit and a 29-bit identifier of one number are two frames (ISO 11898-1's IDE bit)
     owners: dict[tuple[int, bool], str] = {
         (spec.identifier, spec.extended): f"the master's {spec.what} ({family.name})"
         for family in bus.protocols for spec in family.bus_wide_frames(bus.cycle_hz)}
+    owners.update({(spec.identifier, spec.extended): spec.what for spec in bus.sensor_frames})
     shared: dict[tuple[int, bool], str] = {}
     for drive in bus.drives:
         spec = protocol(drive.protocol)

@@ -22,6 +22,7 @@ from hil.bus_config.yaml_reader import LineMapping, Reader, parse_yaml
 from hil.description import PackagePath, load_description
 from hil.errors import ConfigError, Severity
 from hil.input_files import read_input_file
+from hil.protocols import hipnuc
 from hil.zenoh_session import key_name_problem
 from hil.transmissions import build_transmissions
 
@@ -69,12 +70,17 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
         raise ConfigError(reader.diagnostics)
     buses = tuple(read_bus(reader, raw, index, robot, transmissions, defaults)
                   for index, raw in enumerate(raw_buses))
+    sensors = read_sensors(reader, top, robot, buses)
+    buses = tuple(replace(bus, sensor_frames=tuple(
+        spec for sensor in sensors if sensor.bus == bus.name
+        for spec in hipnuc.frame_specs(sensor.node_id, sensor.rate_hz, sensor.outputs,
+                                       f"sensor '{sensor.name}'")))
+        for bus in buses)
     scene = read_scene(reader, top, robot)
     config = SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses,
                           scene=scene, floating_base=_read_base(reader, top),
                           start_pose=read_start_pose(reader, top, robot),
-                          controllers=read_controllers(reader, top),
-                          sensors=read_sensors(reader, top, robot))
+                          controllers=read_controllers(reader, top), sensors=sensors)
     check_system(reader, config, transmissions, top)
     errors = [d for d in reader.diagnostics if d.severity is Severity.ERROR]
     warnings = tuple(d for d in reader.diagnostics if d.severity is Severity.WARNING)

@@ -17,40 +17,64 @@ from __future__ import annotations
 
 import math
 import re
-from pathlib import Path
+from dataclasses import dataclass
 
 from hil.bus_config.sensor_types import ZERO, ImuConfig, TriadErrors, Vector
+from hil.bus_config.types import BusConfig
 from hil.bus_config.yaml_reader import LineMapping, Reader
 from hil.description import RobotDescription
-from hil.protocols import wit
+from hil.protocols import hipnuc, wit
 
-#: the products hil serves, by the name a config gives (one so far: docs/sensors.md)
-PRODUCTS = ("wit",)
-#: the factory settings of a WitMotion IMU (its manual: 9600 baud, 10 Hz) and what it sends
-#: unless told (acceleration, angular velocity, angle: the 0x51-0x53 packets)
+SERIAL, CAN = "serial", "can"
+
+
+@dataclass(frozen=True)
+class Product:
+    """What a config may ask of a product family: its wire, outputs and rates."""
+
+    wire: str                              # SERIAL or CAN
+    outputs: dict[str, int]                # output name -> the codec's packet type or TPDO
+    default_outputs: tuple[str, ...]
+    default_rate: float                    # Hz
+    rates: tuple[float, ...] = ()          # the rates it offers (none: any up to max_rate)
+    max_rate: float = math.inf
+
+
+#: the products hil serves, by the name a config gives (docs/sensors.md). WitMotion's
+#: factory settings (its manual): 9600 baud, 10 Hz, the 0x51-0x53 packets (and the
+#: magnetometer's, which hil does not model). HiPNUC's: every TPDO; its default rate is
+#: hil's choice (the maker's code is silent)
+PRODUCTS = {
+    "wit": Product(SERIAL, wit.OUTPUTS, ("acceleration", "angular_velocity", "angle"), 10.0,
+                   rates=tuple(float(r) for r in wit.RATES_HZ)),
+    "hipnuc": Product(CAN, hipnuc.OUTPUTS, tuple(hipnuc.OUTPUTS), 100.0,
+                      max_rate=hipnuc.MAX_RATE_HZ),
+}
 DEFAULT_BAUD = 9600
-DEFAULT_RATE_HZ = 10.0
-DEFAULT_OUTPUTS = ("acceleration", "angular_velocity", "angle")
 #: the chip WitMotion's WT901 is built on, InvenSense's MPU-9250 (product specification
 #: rev. 1.1, tables 1 and 2): gyroscope rate noise 0.01 °/s/√Hz, accelerometer noise
 #: 300 µg/√Hz. Its bias instability is not stated there: hil's choice, a MEMS part's
-#: typical floor (gyroscope 10 °/h, accelerometer 0.1 mg)
+#: typical floor (gyroscope 10 °/h, accelerometer 0.1 mg). HiPNUC's figures are not in
+#: hil's sources: the same defaults stand for its parts
 DEFAULT_ERRORS = {
     "accelerometer": TriadErrors(noise_density=300e-6 * wit.G, bias_instability=0.1e-3 * wit.G),
     "gyroscope": TriadErrors(noise_density=math.radians(0.01),
                              bias_instability=math.radians(10 / 3600)),
 }
 MAX_SENSORS = 32
-_KEYS = {"name", "product", "link", "xyz", "rpy", "port", "baud", "rate_hz", "outputs",
-         "latency", "seed", "accelerometer", "gyroscope"}
+#: the keys of each wire, and of both
+_WIRE_KEYS_OF = {SERIAL: {"port", "baud"}, CAN: {"bus", "node_id"}}
+_WIRE_KEYS = _WIRE_KEYS_OF[SERIAL] | _WIRE_KEYS_OF[CAN]
+_KEYS = {"name", "product", "link", "xyz", "rpy", "rate_hz", "outputs", "latency", "seed",
+         "accelerometer", "gyroscope"} | _WIRE_KEYS
 _ERROR_KEYS = {"noise_density", "bias_instability", "correlation_time", "random_walk", "bias",
                "scale_factor", "misalignment"}
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
 
 
-def read_sensors(reader: Reader, top: LineMapping,
-                 robot: RobotDescription) -> tuple[ImuConfig, ...]:
-    """The ``sensors:`` list (none: no sensor)."""
+def read_sensors(reader: Reader, top: LineMapping, robot: RobotDescription,
+                 buses: tuple[BusConfig, ...]) -> tuple[ImuConfig, ...]:
+    """The ``sensors:`` list (none: no sensor); a CAN sensor on one of ``buses``."""
     if "sensors" not in top:
         return ()
     raw = top["sensors"]
@@ -60,11 +84,13 @@ def read_sensors(reader: Reader, top: LineMapping,
                     "({name: ..., product: wit, link: ..., ...})", line)
         return ()
     links = {link.name for link in robot.links}
-    sensors = tuple(s for s in (_read_sensor(reader, item, number + 1, line, robot.name, links)
+    by_name = {bus.name: bus for bus in buses}
+    sensors = tuple(s for s in (_read_sensor(reader, item, number + 1, line, robot.name, links,
+                                             by_name)
                                 for number, item in enumerate(raw)) if s is not None)
     for kind, seen in (("name", [s.name for s in sensors]), ("port", [s.port for s in sensors])):
         for sensor in sensors:
-            if seen.count(getattr(sensor, kind)) > 1:
+            if getattr(sensor, kind) is not None and seen.count(getattr(sensor, kind)) > 1:
                 reader.fail(f"sensor '{sensor.name}': another sensor has its {kind} "
                             f"'{getattr(sensor, kind)}'", sensor.line,
                             hint=f"give every sensor its own {kind}")
@@ -72,7 +98,7 @@ def read_sensors(reader: Reader, top: LineMapping,
 
 
 def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot: str,
-                 links: set[str]) -> ImuConfig | None:
+                 links: set[str], buses: dict[str, BusConfig]) -> ImuConfig | None:
     item = reader.mapping(raw, f"sensor {number}", list_line)
     if not item:
         return None
@@ -82,49 +108,42 @@ def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot:
     if not _NAME.fullmatch(name):
         reader.fail(f"{what}: a name is a letter, then letters, digits, '_' or '-' (at most "
                     "64)", item.key_lines.get("name", item.line))
-    product = reader.text(item, "product", what, "")
-    if product not in PRODUCTS:
-        reader.fail(f"{what}: unknown product {product!r}", item.key_lines.get("product",
-                                                                               item.line),
+    product_name = reader.text(item, "product", what, "")
+    if product_name not in PRODUCTS:
+        reader.fail(f"{what}: unknown product {product_name!r}",
+                    item.key_lines.get("product", item.line),
                     hint=f"products hil serves: {', '.join(PRODUCTS)} (docs/sensors.md)")
+        return None
+    product = PRODUCTS[product_name]
+    for key in sorted(set(item) & (_WIRE_KEYS - _WIRE_KEYS_OF[product.wire])):
+        reader.fail(f"{what}: '{key}' is not for a {product.wire} sensor ({product_name})",
+                    item.key_lines.get(key, item.line),
+                    hint=f"a {product.wire} sensor takes "
+                         f"{' and '.join(sorted(_WIRE_KEYS_OF[product.wire]))}")
     link = reader.text(item, "link", what, "")
     if link and link not in links:
         reader.fail(f"{what}: the robot has no link '{link}'",
                     item.key_lines.get("link", item.line),
                     hint="'link' names a link of the robot's description (hil describe lists "
                          "them)")
-    baud = int(reader.number(item, "baud", what, DEFAULT_BAUD, integer=True))
-    if baud not in wit.BAUD_RATES:
-        reader.fail(f"{what}: 'baud' {baud} is none the product offers",
-                    item.key_lines.get("baud", item.line),
-                    hint=f"one of {', '.join(map(str, wit.BAUD_RATES))}")
-    rate = float(reader.number(item, "rate_hz", what, DEFAULT_RATE_HZ))
-    if rate not in wit.RATES_HZ:
+    rate = float(reader.number(item, "rate_hz", what, product.default_rate))
+    if (rate not in product.rates) if product.rates else rate > product.max_rate:
+        offered = (f"one of {', '.join(f'{r:g}' for r in product.rates)}" if product.rates
+                   else f"at most {product.max_rate:g} Hz")
         reader.fail(f"{what}: 'rate_hz' {rate:g} is none the product offers",
-                    item.key_lines.get("rate_hz", item.line),
-                    hint=f"one of {', '.join(f'{r:g}' for r in wit.RATES_HZ)}")
-    outputs = _read_outputs(reader, item, what)
-    needed = wit.bits_per_second(rate, outputs)
-    if baud in wit.BAUD_RATES and needed > baud:
-        reader.fail(f"{what}: {len(outputs)} packets at {rate:g} Hz take {needed:,.0f} bit/s, "
-                    f"more than {baud} baud carries",
-                    item.key_lines.get("baud", item.line),
-                    hint="raise 'baud', lower 'rate_hz' or send fewer 'outputs' (as the "
-                         "product would lose samples)")
+                    item.key_lines.get("rate_hz", item.line), hint=offered)
+    outputs = _read_outputs(reader, item, what, product)
     latency = float(reader.number(item, "latency", what, 0.0, positive=False))
     if not 0 <= latency <= 1:
         reader.fail(f"{what}: 'latency' is 0 to 1 s, not {latency:g}",
                     item.key_lines.get("latency", item.line))
-    # like 'robot', relative to the config's folder: two benches from two folders never
-    # share a port (hil init writes one beside its config)
-    port = reader.path.parent.absolute() / reader.text(item, "port", what,
-                                                       f"/tmp/hil-{robot}-{name}")
+    wire = (_read_serial(reader, item, what, rate, outputs, robot, name)
+            if product.wire == SERIAL else _read_can(reader, item, what, buses))
     return ImuConfig(
-        name=name, product=product, link=link,
+        name=name, product=product_name, link=link,
         xyz=_vector(reader, item, "xyz", what, 10.0), rpy=_vector(reader, item, "rpy", what,
                                                                   2 * math.pi),
-        port=port, baud=baud, rate_hz=rate, outputs=tuple(wit.OUTPUTS[o] for o in outputs
-                                                          if o in wit.OUTPUTS),
+        **wire, rate_hz=rate, outputs=tuple(product.outputs[o] for o in outputs),
         latency=max(latency, 0.0),
         accelerometer=_read_errors(reader, item, "accelerometer", what),
         gyroscope=_read_errors(reader, item, "gyroscope", what),
@@ -132,13 +151,55 @@ def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot:
         line=item.line)
 
 
-def _read_outputs(reader: Reader, item: LineMapping, what: str) -> tuple[str, ...]:
-    value = item.get("outputs", list(DEFAULT_OUTPUTS))
+def _read_serial(reader: Reader, item: LineMapping, what: str, rate: float,
+                 outputs: tuple[str, ...], robot: str, name: str) -> dict:
+    """A serial sensor's port and baud rate, checked to carry its stream."""
+    baud = int(reader.number(item, "baud", what, DEFAULT_BAUD, integer=True))
+    if baud not in wit.BAUD_RATES:
+        reader.fail(f"{what}: 'baud' {baud} is none the product offers",
+                    item.key_lines.get("baud", item.line),
+                    hint=f"one of {', '.join(map(str, wit.BAUD_RATES))}")
+    needed = wit.bits_per_second(rate, outputs)
+    if baud in wit.BAUD_RATES and needed > baud:
+        reader.fail(f"{what}: {len(outputs)} packets at {rate:g} Hz take {needed:,.0f} bit/s, "
+                    f"more than {baud} baud carries",
+                    item.key_lines.get("baud", item.line),
+                    hint="raise 'baud', lower 'rate_hz' or send fewer 'outputs' (as the "
+                         "product would lose samples)")
+    # like 'robot', relative to the config's folder: two benches from two folders never
+    # share a port (hil init writes one beside its config)
+    port = reader.path.parent.absolute() / reader.text(item, "port", what,
+                                                       f"/tmp/hil-{robot}-{name}")
+    return {"port": port, "baud": baud}
+
+
+def _read_can(reader: Reader, item: LineMapping, what: str, buses: dict[str, BusConfig]
+              ) -> dict:
+    """A CAN sensor's bus and node id: a classical CAN node, on a bus of the config."""
+    bus = reader.text(item, "bus", what, "")
+    if bus and bus not in buses:
+        reader.fail(f"{what}: the config has no bus '{bus}'", item.key_lines.get("bus",
+                                                                                  item.line),
+                    hint=f"buses: {', '.join(buses)}")
+    elif bus and buses[bus].fd:
+        reader.fail(f"{what}: a classical CAN device on FD bus '{bus}', whose FD frames it "
+                    "would answer with error frames", item.key_lines.get("bus", item.line),
+                    hint="put it on a classical bus (no fd: true)")
+    node_id = int(reader.number(item, "node_id", what, hipnuc.DEFAULT_NODE_ID, integer=True))
+    if not 1 <= node_id <= 127:
+        reader.fail(f"{what}: 'node_id' is 1 to 127 (CANopen), not {node_id}",
+                    item.key_lines.get("node_id", item.line))
+    return {"bus": bus, "node_id": node_id}
+
+
+def _read_outputs(reader: Reader, item: LineMapping, what: str,
+                  product: Product) -> tuple[str, ...]:
+    value = item.get("outputs", list(product.default_outputs))
     if (not isinstance(value, list) or not value or len(set(value)) != len(value)
-            or not all(v in wit.OUTPUTS for v in value)):
-        reader.fail(f"{what}: 'outputs' is a list of {', '.join(wit.OUTPUTS)}, each once, "
+            or not all(v in product.outputs for v in value)):
+        reader.fail(f"{what}: 'outputs' is a list of {', '.join(product.outputs)}, each once, "
                     f"not {value!r}", item.key_lines.get("outputs", item.line))
-        return DEFAULT_OUTPUTS
+        return product.default_outputs
     return tuple(value)
 
 

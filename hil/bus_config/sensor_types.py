@@ -34,8 +34,6 @@ class ImuConfig:
     link: str                         # the robot's link it is fixed to
     xyz: Vector                       # its place on the link (m)
     rpy: Vector                       # its axes on the link's (rad)
-    port: Path                        # the link hil makes to its pseudo-terminal
-    baud: int
     rate_hz: float                    # samples a second
     outputs: tuple[int, ...]          # the product's packet types, in their order a sample
     latency: float                    # from sampling to the first byte on the wire (s)
@@ -43,6 +41,12 @@ class ImuConfig:
     gyroscope: TriadErrors
     seed: int = 0                     # of its noise: a run is the same run again
     line: int | None = None
+    #: a serial sensor's: the link hil makes to its pseudo-terminal, and its baud rate
+    port: Path | None = None
+    baud: int | None = None
+    #: a CAN sensor's: its bus (a bus of the config) and node id
+    bus: str | None = None
+    node_id: int | None = None
 
     @property
     def period(self) -> float:

@@ -144,6 +144,8 @@ class BusConfig:
     #: ``data_bitrate`` bit/s where the bit-rate switch is set (None on a classical bus)
     fd: bool = False
     data_bitrate: int | None = None
+    #: what the CAN sensors on it send (their TPDOs at their rates), for its load and ids
+    sensor_frames: tuple[FrameSpec, ...] = ()
 
     @property
     def cycle(self) -> float:
@@ -216,8 +218,8 @@ class BusConfig:
     def load(self) -> BusLoad:
         """Worst-case traffic of every drive's cyclic exchange and timed messages (each
         profile's own frames and lengths) once running, plus the bus-wide frames of its
-        protocols (CANopen's SYNC)."""
-        specs = self.bus_wide_frames()
+        protocols (CANopen's SYNC) and its sensors' frames."""
+        specs = self.bus_wide_frames() + list(self.sensor_frames)
         for drive in self.drives:
             specs += self.running_frames(drive)
         return bus_load(self.bitrate, [spec for spec in specs if spec.rate > 0],

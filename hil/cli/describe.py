@@ -12,7 +12,8 @@ from hil.bus_config.locate import shipped_names
 from hil.bus_config.sensor_types import ImuConfig
 from hil.can.frame import Frame, FrameSpec
 from hil.cli import common
-from hil.protocols import Protocol, protocol
+from hil.protocols import Protocol, hipnuc, protocol
+from hil.resources import hipnuc_eds_path
 from hil.zenoh_session import meeting_endpoint
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,8 +30,13 @@ def run(args: argparse.Namespace) -> int:
         _describe_bus(config, bus)
     for sensor in config.sensors:
         print(f"\nsensor '{sensor.name}': {sensor_line(sensor)}")
-        print(f"  read it: witmotion.IMU(\"{sensor.port}\", baudrate={sensor.baud}) or "
-              f"serial.Serial(\"{sensor.port}\", {sensor.baud}) (pyserial; docs/sensors.md)")
+        if sensor.bus is None:
+            print(f"  read it: witmotion.IMU(\"{sensor.port}\", baudrate={sensor.baud}) or "
+                  f"serial.Serial(\"{sensor.port}\", {sensor.baud}) (pyserial; "
+                  "docs/sensors.md)")
+        else:
+            print(f"  read it: canopen's RemoteNode({sensor.node_id}, \"{hipnuc_eds_path()}\") on "
+                  f"bus '{sensor.bus}', its TPDOs read from the EDS (docs/sensors.md)")
     for name in dict.fromkeys(d.protocol for d in config.drives):
         lines = protocol(name).description()
         if lines:
@@ -41,6 +47,11 @@ def run(args: argparse.Namespace) -> int:
 
 def sensor_line(sensor: ImuConfig) -> str:
     """A sensor's product, place, wire and output in words."""
+    if sensor.bus is not None:
+        frames = ", ".join(f"{hipnuc.TPDO_NAMES[kind]} 0x{kind + sensor.node_id:03X}"
+                           for kind in sensor.outputs)
+        return (f"{sensor.product} IMU on link '{sensor.link}', CANopen node "
+                f"{sensor.node_id} on bus '{sensor.bus}', {sensor.rate_hz:g} Hz of {frames}")
     packets = ", ".join(f"0x{kind:02X}" for kind in sensor.outputs)
     return (f"{sensor.product} IMU on link '{sensor.link}', serial port {sensor.port} at "
             f"{sensor.baud} baud, {sensor.rate_hz:g} Hz of packets {packets}")

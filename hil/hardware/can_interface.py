@@ -25,6 +25,7 @@ from hil.bus_config.types import SystemConfig
 from hil.can import watch_deliveries
 from hil.hardware.axis import AxisFault
 from hil.hardware.bring_up import BOOT_TIMEOUT, BringUp
+from hil.hardware.can_imu import CanImu
 from hil.hardware.exchange import MISSED_ANSWER_LIMIT, CycleExchange
 from hil.hardware.feedback import JointFeedback
 from hil.hardware.interface import HardwareInterface
@@ -70,7 +71,9 @@ class CanHardwareInterface(HardwareInterface):
         #: the round trip of the cycle :meth:`read` last took (s; NaN: not every answer came)
         self.last_round_trip = math.nan
         #: the bus config's sensors, read off their ports
-        self.sensors = [SerialImu(sensor) for sensor in config.sensors]
+        self.sensors: list[SerialImu | CanImu] = [
+            SerialImu(sensor) if sensor.bus is None else CanImu(sensor)
+            for sensor in config.sensors]
         self.imus = tuple(ImuDescription.of(sensor) for sensor in config.sensors)
         self._sensor_problems: dict[str, str | None] = {}
 
@@ -143,7 +146,10 @@ class CanHardwareInterface(HardwareInterface):
 
     def read_sensors(self) -> list[ImuState]:
         states: list[ImuState] = []
+        routers = self._exchange.routers
         for sensor in self.sensors:
+            if isinstance(sensor, CanImu) and not sensor.attached and sensor.config.bus in routers:
+                sensor.attach(routers[sensor.config.bus])
             states += sensor.poll()
             name = sensor.config.name
             if sensor.problem != self._sensor_problems.get(name, "not opened yet"):

@@ -47,8 +47,8 @@ from hil.realtime.present import PlantPresent
 from hil.realtime.stalls import Stall, StallDetector
 from hil.realtime.timing import REAL_TIME, Timing
 from hil.simulator.build import (LOCK_STEP_WATCHDOG, SimulatedBus, bench_plant,
-                                 close_sensors, drive_parameters, serial_sensors,
-                                 simulated_buses)
+                                 attach_sensors, close_sensors, drive_parameters,
+                                 simulated_buses, simulated_sensors)
 from hil.sensors.imu import SimulatedImu
 from hil.simulator.cycles import CycleBook
 from hil.simulator.faults import FaultInjection
@@ -70,7 +70,7 @@ class Simulator:
         self.lock_step = timing.lock_step
         self.plant = bench_plant(config)
         self._stepping = PlantStepping(self.plant)
-        self.sensors = self._stepping.sensors = serial_sensors(config, self.plant)
+        self.sensors = self._stepping.sensors = simulated_sensors(config, self.plant)
         self._real_time = RealTimeClock(self._stepping)
         # lock-step: nothing moves the plant between commands, nothing to advance on entry
         # (a plain lock, cheaper a cycle: docs/performance.md, "2026-11-28, fourth step: a bus'
@@ -135,6 +135,8 @@ class Simulator:
             for drive in simulated.drives:
                 drive.attach(simulated.router)
                 self._cycles.attached.add(drive)
+        with self.lock:
+            attach_sensors(self.sensors, self.buses)
 
     def close(self) -> None:
         """Disable every drive (brakes on), stop heartbeats, release the buses."""

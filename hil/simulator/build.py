@@ -16,8 +16,9 @@ from hil.description import Pose
 from hil.drives.tuning import tuned_gains
 from hil.plant import Plant
 from hil.plant.imus import ImuMount
-from hil.protocols import protocol, wit
+from hil.protocols import hipnuc, protocol, wit
 from hil.realtime.timing import Timing
+from hil.sensors.can_port import CanSensorPort
 from hil.sensors.imu import SimulatedImu
 from hil.sensors.serial_port import PseudoTerminal
 from hil.simulator.stepping import PlantStepping
@@ -65,20 +66,35 @@ def bench_plant(config: SystemConfig) -> Plant:
                             for s in config.sensors))
 
 
-def serial_sensors(config: SystemConfig, plant: Plant) -> list[SimulatedImu]:
-    """The bus config's sensors, each on a pseudo-terminal linked at its port (closed by
-    :func:`close_sensors`)."""
+def simulated_sensors(config: SystemConfig, plant: Plant) -> list[SimulatedImu]:
+    """The bus config's sensors: a serial one on a pseudo-terminal linked at its port, a CAN
+    one a node waiting for its bus (:func:`attach_sensors`). Closed by :func:`close_sensors`."""
     sensors: list[SimulatedImu] = []
     try:
         for sensor in config.sensors:
+            read = functools.partial(plant.imus.read, sensor.name)
+            if sensor.bus is not None:
+                sensors.append(SimulatedImu(
+                    sensor, read, functools.partial(hipnuc.frames, node_id=sensor.node_id,
+                                                    outputs=sensor.outputs),
+                    CanSensorPort(sensor.bus, sensor.node_id), start=plant.time))
+                continue
             port = PseudoTerminal(sensor.port, config.path, sensor.line)
-            sensors.append(SimulatedImu(sensor, functools.partial(plant.imus.read, sensor.name),
+            sensors.append(SimulatedImu(sensor, read,
                                         functools.partial(wit.encode, outputs=sensor.outputs),
                                         port, start=plant.time))
     except BaseException:
         close_sensors(sensors)
         raise
     return sensors
+
+
+def attach_sensors(sensors: list[SimulatedImu], buses: list[SimulatedBus]) -> None:
+    """The CAN sensors on their buses' routers (started): each boots there."""
+    routers = {simulated.config.name: simulated.router for simulated in buses}
+    for sensor in sensors:
+        if isinstance(sensor.port, CanSensorPort) and sensor.config.bus in routers:
+            sensor.port.attach(routers[sensor.config.bus])
 
 
 def close_sensors(sensors: list[SimulatedImu]) -> None:

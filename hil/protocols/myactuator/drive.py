@@ -31,7 +31,6 @@ What it does, each with the section of protocol V4.2 it follows:
 from __future__ import annotations
 
 import logging
-import math
 import struct
 from contextlib import AbstractContextManager
 from dataclasses import replace
