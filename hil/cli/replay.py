@@ -97,6 +97,11 @@ def summary(report: Report, tolerances: Tolerances) -> list[str]:
              + (f", {report.derived_unchecked} derived values (statusword bits the position loop "
                 "sets, currents, powers) not held to "
                 "a tolerance" if report.derived_unchecked else "")
+             + (f", {report.sensor_frames} sensor frames compared" if report.sensor_frames
+                else "")
+             + (f", {report.sensor_frames_unchecked} sensor frames not compared (a real-time "
+                "log's follow the plant's exact state, which a replay does not repeat)"
+                if report.sensor_frames_unchecked else "")
              + (f", {report.after_the_log} answers after the log's end not compared"
                 if report.after_the_log else "")]
     if report.seeded:

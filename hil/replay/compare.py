@@ -122,10 +122,12 @@ class Answer:
 
 
 class AnswerStream:
-    """One drive's frames of one id, the log's against the replay's, in order."""
+    """One device's frames of one id (a drive's, a sensor's), the log's against the
+    replay's, in order."""
 
-    def __init__(self, bus: str, drive: DriveConfig, identifier: int, what: str):
-        self.bus, self.drive = bus, drive
+    def __init__(self, bus: str, device: str, identifier: int, what: str):
+        """``device``: whose frames, in words (a drive's label, "sensor 'imu'")."""
+        self.bus, self.device = bus, device
         self.frame = f"{what} 0x{identifier:03X}"
         self.logged: deque[Answer] = deque()
         self.replayed: deque[Answer] = deque()
@@ -139,18 +141,18 @@ class AnswerStream:
 
     def divergence(self, logged: Answer, replayed: Answer, field: str, expected: str, got: str,
                    size: float = math.inf) -> Divergence:
-        return Divergence(replayed.cycle, replayed.time, self.bus, self.drive.label, self.frame,
+        return Divergence(replayed.cycle, replayed.time, self.bus, self.device, self.frame,
                           field, expected, got, logged.log_frame, size)
 
     def leftover(self) -> Divergence | None:
         """At the end: the first frame one side has and the other lacks."""
         if self.logged:
             first = self.logged[0]
-            return Divergence(first.cycle, first.time, self.bus, self.drive.label, self.frame,
+            return Divergence(first.cycle, first.time, self.bus, self.device, self.frame,
                               "count", f"{len(self.logged)} more", "none", first.log_frame)
         if self.replayed:
             first = self.replayed[0]
-            return Divergence(first.cycle, first.time, self.bus, self.drive.label, self.frame,
+            return Divergence(first.cycle, first.time, self.bus, self.device, self.frame,
                               "count", "none" if not self.compared else "no more",
                               f"{len(self.replayed)} more: the log lacks this drive's "
                               "answers from here", None)

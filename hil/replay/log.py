@@ -14,8 +14,9 @@ the config's bus order, as ``hil viz`` writes them), else by name (the bus' pyth
 or its name; a folder's file's), else one channel to a config of one bus.
 
 :func:`survey` reads a log once before anything is replayed and refuses one that does not
-fit the config (a node the bus has no drive of, a frame no protocol of the bus knows, a
-channel with no bus) with every misfit, each with its first place in the log.
+fit the config (a node the bus has no drive of, a frame no protocol of the bus knows nor a
+sensor of it sends, a channel with no bus) with every misfit, each with its first place in
+the log.
 """
 
 from __future__ import annotations
@@ -52,13 +53,13 @@ PERIOD_TOLERANCE = 0.1
 
 @dataclass(frozen=True)
 class LoggedFrame:
-    """One frame of a log, placed on a bus and told whose it is."""
+    """One frame of a log, placed on a bus and told whose it is (a sensor's: no source)."""
 
     number: int               # its place in the log, from 1
     time: float               # the log's timestamp (s)
     bus: int                  # index of its bus in the config
     frame: Frame
-    source: FrameSource
+    source: FrameSource | None
 
 
 class BusFrames:
@@ -71,9 +72,16 @@ class BusFrames:
             by_protocol.setdefault(drive.protocol, {})[drive.node_id] = drive.options
         self._protocols = [(protocol(name), drives) for name, drives in by_protocol.items()]
         self.node_ids = sorted(d.node_id for d in bus.drives)
+        #: (identifier, extended) -> what, of the frames of the bus' sensors
+        self._sensors = {(spec.identifier, spec.extended): spec.what
+                         for spec in bus.sensor_frames}
         #: (identifier, extended, remote) -> its source, for the frames whose bytes do not
         #: matter
         self._known: dict[tuple[int, bool, bool], FrameSource | None] = {}
+
+    def sensor(self, frame: Frame) -> str | None:
+        """What a sensor's frame is ("sensor 'imu' TPDO1"); None for another."""
+        return self._sensors.get((frame.identifier, frame.extended))
 
     def source(self, frame: Frame) -> FrameSource | None:
         key = (frame.identifier, frame.extended, frame.remote)
@@ -110,6 +118,8 @@ class Survey:
     cycle_frames: list[dict[int | None, int]] = field(default_factory=list)
     #: per bus: the time of the log's last frame from a drive (None: none)
     last_drive_time: list[float | None] = field(default_factory=list)
+    #: per bus: the time of the log's last frame from a sensor (None: none)
+    last_sensor_time: list[float | None] = field(default_factory=list)
     #: per bus and node (None: to all of the bus), when the master first sent to it
     first_master_times: dict[tuple[int, int | None], float] = field(default_factory=dict)
     #: per bus and node (None: all) of the cycle frames: [the last one's time, the time
@@ -235,7 +245,9 @@ def frames(path: Path, config: SystemConfig, channels: dict[object, int],
                 continue
             bus = channels[msg.channel]
             frame = frame_of(msg)
-            yield LoggedFrame(number, msg.timestamp, bus, frame, tellers[bus].source(frame))
+            teller = tellers[bus]
+            yield LoggedFrame(number, msg.timestamp, bus, frame,
+                              None if teller.sensor(frame) else teller.source(frame))
     return in_time_order(told(), reorder_window)
 
 
@@ -260,7 +272,8 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
     channels = ChannelMap(config, given)
     tellers = [BusFrames(bus) for bus in config.buses]
     result = Survey(path, channels.buses, cycle_frames=[{} for _ in tellers],
-                    last_drive_time=[None] * len(tellers))
+                    last_drive_time=[None] * len(tellers),
+                    last_sensor_time=[None] * len(tellers))
     misfits: dict[tuple[int, int, bool], list] = {}
     newest, most_disordered = -math.inf, 0
     for number, msg in enumerate(read_log(path), 1):
@@ -276,7 +289,13 @@ def survey(path: Path, config: SystemConfig, given: dict[str, int]) -> Survey:
         bus = channels.bus(msg.channel, number)
         if bus is None:
             continue
-        source = tellers[bus].source(frame_of(msg))
+        frame = frame_of(msg)
+        if tellers[bus].sensor(frame) is not None:
+            last = result.last_sensor_time[bus]
+            result.last_sensor_time[bus] = msg.timestamp if last is None else max(
+                last, msg.timestamp)
+            continue
+        source = tellers[bus].source(frame)
         if source is None:
             misfit = misfits.setdefault((bus, msg.arbitration_id, msg.is_extended_id),
                                         [number, msg.timestamp, 0])

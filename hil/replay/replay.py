@@ -69,7 +69,9 @@ class Replay:
             self.sim.follow(lambda: self._now)
         try:
             for frame in frames:
-                if frame.source.sender is Sender.MASTER:
+                if frame.source is None:
+                    self._streams.logged_sensor(frame)
+                elif frame.source.sender is Sender.MASTER:
                     self._feed(frame)
                 elif frame.time >= self.survey.addressed_since(frame.bus,
                                                                frame.source.node_id):

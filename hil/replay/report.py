@@ -25,6 +25,8 @@ class Report:
     states_checked: int = 0               # timed states (heartbeats) found in order
     derived_unchecked: int = 0            # derived values not held to a tolerance
     after_the_log: int = 0                # replayed answers after the log's end
+    sensor_frames: int = 0                # sensors' frames compared byte for byte
+    sensor_frames_unchecked: int = 0      # a real-time log's sensors' frames, not compared
     divergences: list[Divergence] = field(default_factory=list)
     divergence_count: int = 0
     #: drive label -> its divergences

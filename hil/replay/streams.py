@@ -1,6 +1,7 @@
 """The drives' answers, the log's and the replay's, sorted into streams (one per drive and
 CAN id, paired in order) and timed states (a heartbeat's, on the drive's own clock), each
-pair handed to the judge as it is whole.
+pair handed to the judge as it is whole; the sensors' frames likewise, compared byte for
+byte.
 
 Drive frames logged before their drive was first addressed are not compared (the drives'
 boot-up, the heartbeats before the master came: the caller leaves them out), nor the
@@ -39,8 +40,12 @@ class Streams:
         self._timed: dict[tuple[int, int, int], TimedStates] = {}
 
     def replayed(self, bus: int, cause: float, sent: Frame, cycle: int, now: float) -> None:
-        """A replayed drive's frame on ``bus``, in answer to a master frame logged at
+        """A replayed drive's or sensor's frame on ``bus``, after a master frame logged at
         ``cause``."""
+        what = self._tellers[bus].sensor(sent)
+        if what is not None:
+            self._replayed_sensor(bus, cause, sent, what, cycle, now)
+            return
         source = self._tellers[bus].source(sent)
         if source is None or source.sender is not Sender.DRIVE:
             return
@@ -69,6 +74,50 @@ class Streams:
         stream.logged.append(Answer(frame, 0, 0.0, logged.number))
         self._judge.compare(logged.bus, logged.source.node_id, stream)
 
+    def logged_sensor(self, logged: LoggedFrame) -> None:
+        """A sensor's frame of the log: compared byte for byte with the replay's in a
+        lock-step log (its samples fall on the plant's time, which the replay repeats); a
+        real-time log's follow the plant's exact state, which no replay repeats, and hil has
+        no tolerance for them (hil's choice: counted, said, not compared)."""
+        what = self._tellers[logged.bus].sensor(logged.frame)
+        if what is None or what.endswith("boot-up"):     # at power-on, before any master
+            return
+        if self._report.clock != "cycles":
+            self._report.sensor_frames_unchecked += 1
+            return
+        stream = self._sensor_stream(logged.bus, logged.frame, what)
+        stream.logged.append(Answer(logged.frame, 0, 0.0, logged.number))
+        self._compare_bytes(stream)
+
+    def _replayed_sensor(self, bus: int, cause: float, sent: Frame, what: str, cycle: int,
+                         now: float) -> None:
+        last = self._survey.last_sensor_time[bus]
+        if what.endswith("boot-up") or self._report.clock != "cycles":
+            return
+        if last is None or cause > last:
+            self._report.after_the_log += 1
+            return
+        stream = self._sensor_stream(bus, sent, what)
+        stream.replayed.append(Answer(sent, cycle, now))
+        self._compare_bytes(stream)
+
+    def _compare_bytes(self, stream: AnswerStream) -> None:
+        for logged, replayed in stream.pairs():
+            self._report.sensor_frames += 1
+            if logged.frame.data != replayed.frame.data:
+                self._judge.diverged(stream.divergence(logged, replayed, "bytes",
+                                                       logged.frame.data.hex(" "),
+                                                       replayed.frame.data.hex(" ")))
+
+    def _sensor_stream(self, bus: int, frame: Frame, what: str) -> AnswerStream:
+        key = (bus, -1, frame.identifier, frame.extended)
+        stream = self._streams.get(key)
+        if stream is None:
+            device, _, name = what.rpartition(" ")
+            stream = self._streams[key] = AnswerStream(self._bus_names[bus], device,
+                                                       frame.identifier, name)
+        return stream
+
     def sample(self, bus: int, node: int, drive: DriveProfile, cycle: int, now: float) -> None:
         """The replayed drive's timed states, after a master frame that concerns it."""
         for can_id in drive.timed_ids():
@@ -93,7 +142,7 @@ class Streams:
         stream = self._streams.get(key)
         if stream is None:
             drive_config, _ = self._drives[bus, node]
-            stream = self._streams[key] = AnswerStream(self._bus_names[bus], drive_config,
+            stream = self._streams[key] = AnswerStream(self._bus_names[bus], drive_config.label,
                                                        frame.identifier, what)
         return stream
 

@@ -73,9 +73,10 @@ def frames(sample: ImuSample, node_id: int, outputs: tuple[int, ...]) -> list[Fr
 
 def frame_specs(node_id: int, rate_hz: float, outputs: tuple[int, ...],
                 what: str) -> list[FrameSpec]:
-    """The TPDOs on the bus, at the sensor's rate (for the bus' load and its ids)."""
+    """Its frames on the bus: the TPDOs at the sensor's rate and its boot-up (for the bus'
+    load and its ids; a replay tells them by these)."""
     return [FrameSpec(kind + node_id, LENGTHS[kind], rate_hz, f"{what} {TPDO_NAMES[kind]}")
-            for kind in outputs]
+            for kind in outputs] + [FrameSpec(BOOT_UP + node_id, 1, 0.0, f"{what} boot-up")]
 
 
 class FrameReader:
