@@ -245,18 +245,24 @@ def test_a_port_path_taken_by_a_file_is_refused_before_anything_runs(tmp_path, v
     assert (tmp_path / "imu").read_text() == "mine"
 
 
-def test_the_sensors_block_of_the_docs_loads_as_it_stands(tmp_path):
+def test_every_sensors_block_of_the_docs_loads_as_it_stands(tmp_path):
     page = (Path(__file__).parents[1] / "docs" / "sensors.md").read_text()
-    block = next(b for b in page.split("```yaml\n")[1:] if b.startswith("sensors:"))
-    config = yaml.safe_load((FIXTURES / "ur3_virtual.yaml").read_text())
-    config["robot"] = str((FIXTURES / config["robot"]).resolve())
-    config.update(yaml.safe_load(block.split("```")[0]))
-    path = tmp_path / "ur3_docs.yaml"
-    path.write_text(yaml.safe_dump(config))
-    imu, = load_bus_config(path).sensors
-    assert (imu.link, imu.baud, imu.rate_hz, imu.port) == ("base_link", 460800, 200,
-                                                           Path("/tmp/hil-imu"))
-    assert imu.gyroscope.noise_density == pytest.approx(math.radians(0.01), rel=0.01)
+    blocks = [b.split("```")[0] for b in page.split("```yaml\n")[1:] if b.startswith("sensors:")]
+    root = Path(__file__).parents[1] / "bus_config"
+    loaded = []
+    for number, block in enumerate(blocks):
+        config = yaml.safe_load((root / "ur3.yaml").read_text())
+        config["robot"] = str((root / config["robot"]).resolve())
+        config.update(yaml.safe_load(block))
+        path = tmp_path / f"ur3_docs{number}.yaml"
+        path.write_text(yaml.safe_dump(config))
+        loaded += load_bus_config(path).sensors
+    wit_imu, hipnuc_imu = loaded
+    assert (wit_imu.link, wit_imu.baud, wit_imu.rate_hz, wit_imu.port) == (
+        "base_link", 460800, 200, Path("/tmp/hil-imu"))
+    assert wit_imu.gyroscope.noise_density == pytest.approx(math.radians(0.01), rel=0.01)
+    assert (hipnuc_imu.bus, hipnuc_imu.node_id, hipnuc_imu.rate_hz) == ("wrist", 8, 100)
+
 
 
 def _faulted_record(tmp_path: Path, kind: SensorFaultKind, at: float = 0.2
