@@ -20,7 +20,7 @@ from hil.errors import Diagnostic, warning
 from hil.plant.builder import (
     DEFAULT_TIMESTEP, FLOATING_BASE, GEAR_STAGE, ActuatorLosses, build_spec, compile_model,
 )
-from hil.plant.imus import ImuMount, ImuReadings, add_imus
+from hil.plant.sensor_sites import SensorReadings, SensorSite, add_sensor_sites
 from hil.plant.inertia import motor_inertias
 from hil.plant.shapes import (MUJOCO_MESHES, ROBOT_CONTACT, ScenePart, scene_name,
                               unreadable_mesh)
@@ -43,22 +43,22 @@ class Plant:
                  effects: Mapping[str, ActuatorLosses] | None = None,
                  scene: tuple[ScenePart, ...] = (), floating_base: bool = False,
                  start_pose: Mapping[str, float] | None = None,
-                 imus: tuple[ImuMount, ...] = ()):
+                 sensors: tuple[SensorSite, ...] = ()):
         """``effects``: the motor losses of actuators that have any, by actuator name;
         ``scene``: the things in the robot's world; ``floating_base``: the robot's root
         moves freely and starts standing on the scene (:meth:`base_pose`); ``start_pose``:
-        where joints start, over :func:`initial_pose`; ``imus``: the IMUs on its links, read by
-        :attr:`imus`."""
+        where joints start, over :func:`initial_pose`; ``sensors``: the sensors on its links,
+        read by :attr:`sensors`."""
         _avoid_slow_clock()
         self.description = description
         self.scene = scene
         self.transmissions: tuple[Transmission, ...] = build_transmissions(description)
         self.spec, self.bindings = build_spec(description, self.transmissions, timestep,
                                               effects, scene, floating_base)
-        add_imus(self.spec, imus)
+        add_sensor_sites(self.spec, sensors)
         self.model = compile_model(self.spec, description)
         self.data = mujoco.MjData(self.model)
-        self.imus = ImuReadings(self.model, self.data, imus)
+        self.sensors = SensorReadings(self.model, self.data, sensors)
         mujoco.mj_forward(self.model, self.data)
         # views of the data's arrays, made once: reading data.qpos makes a new array each
         # time (a pybind11 property), and the simulator reads these at every plant step

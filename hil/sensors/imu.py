@@ -20,7 +20,7 @@ from hil.sensors.noise import TriadNoise
 #: what a wire carries of one sample (bytes, frames)
 Payload = TypeVar("Payload")
 #: the plant's reading of an IMU: specific force, angular velocity, orientation (w, x, y, z)
-Reading = Callable[[], tuple[np.ndarray, np.ndarray, np.ndarray]]
+Reading = Callable[[], tuple[np.ndarray, ...]]
 
 
 class Port(Protocol[Payload]):

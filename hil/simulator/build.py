@@ -15,7 +15,7 @@ from hil.drives import DriveCore, DriveParameters, DriveProfile
 from hil.description import Pose
 from hil.drives.tuning import tuned_gains
 from hil.plant import Plant
-from hil.plant.imus import ImuMount
+from hil.plant.sensor_sites import SensorSite
 from hil.protocols import hipnuc, protocol, wit
 from hil.realtime.timing import Timing
 from hil.sensors.can_port import CanSensorPort
@@ -62,8 +62,8 @@ def bench_plant(config: SystemConfig) -> Plant:
     return Plant(config.robot, timestep=1.0 / config.plant_rate_hz, effects=config.effects,
                  scene=config.scene, floating_base=config.floating_base,
                  start_pose=dict(config.start_pose),
-                 imus=tuple(ImuMount(s.name, s.link, Pose(s.xyz, s.rpy))
-                            for s in config.sensors))
+                 sensors=tuple(SensorSite(s.name, s.link, Pose(s.xyz, s.rpy))
+                               for s in config.sensors))
 
 
 def simulated_sensors(config: SystemConfig, plant: Plant) -> list[SimulatedImu]:
@@ -72,7 +72,7 @@ def simulated_sensors(config: SystemConfig, plant: Plant) -> list[SimulatedImu]:
     sensors: list[SimulatedImu] = []
     try:
         for sensor in config.sensors:
-            read = functools.partial(plant.imus.read, sensor.name)
+            read = functools.partial(plant.sensors.read, sensor.name)
             if sensor.bus is not None:
                 sensors.append(SimulatedImu(
                     sensor, read, functools.partial(hipnuc.frames, node_id=sensor.node_id,
