@@ -19,8 +19,8 @@ Specifications (repeatable options):
 S is seconds of the plant's time after every drive was first enabled (drive faults, in
 ``hil sim``: in lock-step, the same moment of the run however fast it goes) or seconds
 after every process is up (kills, in ``hil up``), or seconds of the plant's time from
-its start (sensor faults: a sensor serves from the start, with or without a master). The random choices come from one seeded
-generator, so a run can be repeated.
+its start (sensor faults: a sensor serves from the start, with or without a master). The
+random choices come from one seeded generator, so a run can be repeated.
 """
 
 from __future__ import annotations

@@ -35,8 +35,9 @@ def run(args: argparse.Namespace) -> int:
                   f"serial.Serial(\"{sensor.port}\", {sensor.baud}) (pyserial; "
                   "docs/sensors.md)")
         else:
-            print(f"  read it: canopen's RemoteNode({sensor.node_id}, \"{hipnuc_eds_path()}\") on "
-                  f"bus '{sensor.bus}', its TPDOs read from the EDS (docs/sensors.md)")
+            print(f"  read it: canopen's RemoteNode({sensor.node_id}, "
+                  f"\"{hipnuc_eds_path()}\") on bus '{sensor.bus}', its TPDOs read from the "
+                  "EDS (docs/sensors.md)")
     for name in dict.fromkeys(d.protocol for d in config.drives):
         lines = protocol(name).description()
         if lines:

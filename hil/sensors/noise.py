@@ -17,6 +17,9 @@ from hil.plant import rpy_to_quat
 
 #: IEEE Std 952's bias instability B puts the Allan deviation's floor at 0.664 B
 ALLAN_FLOOR = 0.664
+#: samples' normal draws taken from the generator at once (a call per sample cost more than
+#: the draws; a fixed batch keeps a seed's sequence the same every run)
+DRAWS = 256
 
 
 def gauss_markov_allan_peak() -> float:
@@ -55,10 +58,16 @@ class TriadNoise:
         self._drift = sigma * generator.standard_normal(3)       # stationary from the start
         self._walk_step = errors.random_walk * math.sqrt(period)
         self._walk = np.zeros(3)
+        self._draws = np.empty((0, 3, 3))      # drawn DRAWS samples at a time
+        self._next = 0
 
     def apply(self, true: np.ndarray) -> np.ndarray:
         """The triad's reading of the ``true`` vector at the next sample."""
-        draws = self._random.standard_normal((3, 3))
+        if self._next == len(self._draws):
+            self._draws = self._random.standard_normal((DRAWS, 3, 3))
+            self._next = 0
+        draws = self._draws[self._next]
+        self._next += 1
         self._drift = self._decay * self._drift + self._drive * draws[0]
         self._walk += self._walk_step * draws[1]
         return self._gain @ true + self._bias + self._drift + self._walk + self._white * draws[2]

@@ -57,14 +57,14 @@ def frames(sample: ImuSample, node_id: int, outputs: tuple[int, ...]) -> list[Fr
     out = []
     for kind in outputs:
         if kind == ACCELERATION:
-            values = raw(sample.acceleration, ACCELERATION_STEP)
+            values = raw(sample.acceleration.tolist(), ACCELERATION_STEP)
         elif kind == ANGULAR_VELOCITY:
-            values = raw(sample.angular_velocity, ANGULAR_VELOCITY_STEP)
+            values = raw(sample.angular_velocity.tolist(), ANGULAR_VELOCITY_STEP)
         elif kind == ANGLE:
             values = raw(euler_angles(sample.orientation), ANGLE_STEP)
         elif kind == QUATERNION:
             q = sample.orientation if sample.orientation[0] >= 0 else -sample.orientation
-            values = raw(q, QUATERNION_STEP)
+            values = raw(q.tolist(), QUATERNION_STEP)
         else:
             raise ValueError(f"no HiPNUC TPDO 0x{kind:03X}")
         out.append(Frame(kind + node_id, struct.pack(f"<{len(values)}h", *values)))

@@ -57,8 +57,9 @@ def packet(kind: int, values: tuple[int, int, int, int]) -> bytes:
     return body + bytes((sum(body) & 0xFF,))
 
 
-def _raw(values: np.ndarray, full_scale: float) -> list[int]:
-    """Values as the int16 of a field whose +32768 is ``full_scale``: rounded, clipped."""
+def _raw(values, full_scale: float) -> list[int]:
+    """Values (floats) as the int16 of a field whose +32768 is ``full_scale``: rounded,
+    clipped."""
     return raw(values, full_scale / 32768.0)
 
 
@@ -68,17 +69,17 @@ def encode(sample: ImuSample, outputs: tuple[int, ...]) -> bytes:
     out = []
     for kind in outputs:
         if kind == ACCELERATION:
-            out.append(packet(kind, (*_raw(sample.acceleration, ACCELERATION_RANGE),
+            out.append(packet(kind, (*_raw(sample.acceleration.tolist(), ACCELERATION_RANGE),
                                      temperature)))
         elif kind == ANGULAR_VELOCITY:
-            out.append(packet(kind, (*_raw(sample.angular_velocity, ANGULAR_VELOCITY_RANGE),
-                                     temperature)))
+            out.append(packet(kind, (*_raw(sample.angular_velocity.tolist(),
+                                           ANGULAR_VELOCITY_RANGE), temperature)))
         elif kind == ANGLE:
-            out.append(packet(kind, (*_raw(np.array(euler_angles(sample.orientation)),
-                                           math.pi), VERSION)))
+            out.append(packet(kind, (*_raw(euler_angles(sample.orientation), math.pi),
+                                     VERSION)))
         elif kind == QUATERNION:
             q = sample.orientation if sample.orientation[0] >= 0 else -sample.orientation
-            out.append(packet(kind, tuple(_raw(q, 1.0))))
+            out.append(packet(kind, tuple(_raw(q.tolist(), 1.0))))
         else:
             raise ValueError(f"no WIT packet type 0x{kind:02X}")
     return b"".join(out)
