@@ -309,3 +309,11 @@ def test_hil_sim_refuses_a_fault_of_a_sensor_the_config_does_not_have(tmp_path):
                             capture_output=True, text=True, timeout=120)
     assert result.returncode != 0 and "--fault freeze:gyro@1: no such sensor" in result.stderr
     assert "sensors: imu" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_a_link_of_the_users_at_the_port_is_never_removed(tmp_path, virtual_bus):
+    (tmp_path / "imu").symlink_to(tmp_path / "nowhere")            # dangling, not a terminal
+    config = load_bus_config(_config(tmp_path))
+    with pytest.raises(ConfigError, match="is taken: it links to"):
+        Simulator(config, {"arm": virtual_bus}, REAL_TIME)
+    assert (tmp_path / "imu").is_symlink()

@@ -1,5 +1,7 @@
 """Drive protocols, one folder each: codec and description (``__init__``), simulated drive
-(``drive``), master-side axis (``axis``).
+(``drive``), master-side axis (``axis``). The sensors' wires sit beside them as codecs only
+(``wit``, ``hipnuc``, and ``imu``: what every IMU's wire carries): a sensor is no drive, and
+no :class:`Protocol` of this table.
 
 :func:`protocol` finds one by the ``protocol`` name of a bus config: hil's own in
 :data:`BUILTIN`, and any an installed package registers under the entry-point group

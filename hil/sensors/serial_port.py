@@ -19,6 +19,10 @@ from pathlib import Path
 
 from hil.errors import ConfigError
 
+#: where Linux's pseudo-terminals are: a dangling link to one is an earlier run's, replaced;
+#: any other link is the user's, never touched
+PTS = "/dev/pts/"
+
 
 class PseudoTerminal:
     """A pseudo-terminal linked at ``link``; :meth:`write` sends, :meth:`close` removes it."""
@@ -26,14 +30,14 @@ class PseudoTerminal:
     def __init__(self, link: Path, config: Path | None = None, line: int | None = None):
         """``config`` and ``line``: the bus config entry the port is made for (its errors
         name them)."""
-        if link.is_symlink() and not link.exists():
+        if link.is_symlink() and not link.exists() and os.readlink(link).startswith(PTS):
             link.unlink()       # left by a run that did not end cleanly: its terminal is gone
         elif link.is_symlink():
             raise ConfigError.single(f"the sensor port '{link}' is taken: it links to "
-                                     f"{os.readlink(link)}, a terminal that exists", config,
-                                     line, hint="another hil run may be serving it: stop that "
-                                                "run, give this sensor another 'port', or "
-                                                "remove the link if it is stale")
+                                     f"{os.readlink(link)}", config, line,
+                                     hint="another hil run may be serving it: stop that run, "
+                                          "give this sensor another 'port', or remove the "
+                                          "link if it is stale")
         elif link.exists():
             raise ConfigError.single(f"the sensor port '{link}' exists and is not a link",
                                      config, line, hint="give the sensor a 'port' path that is "
