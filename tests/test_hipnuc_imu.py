@@ -132,7 +132,7 @@ def test_the_imu_counts_in_its_bus_load_and_its_ids(tmp_path):
 
 @pytest.mark.parametrize("sensor, message", [
     ({"bus": "nowhere"}, "the config has no bus 'nowhere'"),
-    ({"port": "/tmp/x"}, "'port' is not for a can sensor (hipnuc)"),
+    ({"port": "/tmp/x"}, "'port' is not for a hipnuc sensor"),
     ({"node_id": 200}, "'node_id' is 1 to 127"),
     ({"rate_hz": 400}, "'rate_hz' 400 is none the product offers"),
 ])

@@ -15,6 +15,7 @@ from hil.bus_config.drive_entry import DRIVE_KEYS
 from hil.bus_config.joint_limits import apply_joint_limits
 from hil.bus_config.scene import read_scene
 from hil.bus_config.sensor_entry import read_sensors
+from hil.bus_config.sensor_types import ForceTorqueConfig, Sensor
 from hil.bus_config.start_pose import read_start_pose
 from hil.bus_config.transmissions import add_transmissions
 from hil.bus_config.types import SystemConfig
@@ -22,7 +23,8 @@ from hil.bus_config.yaml_reader import LineMapping, Reader, parse_yaml
 from hil.description import PackagePath, load_description
 from hil.errors import ConfigError, Severity
 from hil.input_files import read_input_file
-from hil.protocols import hipnuc
+from hil.can.frame import FrameSpec
+from hil.protocols import ati_netft, hipnuc
 from hil.zenoh_session import key_name_problem
 from hil.transmissions import build_transmissions
 
@@ -73,9 +75,7 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
     sensors = read_sensors(reader, top, robot, buses)
     buses = tuple(replace(bus, sensor_frames=tuple(
         spec for sensor in sensors if sensor.bus == bus.name
-        for spec in hipnuc.frame_specs(sensor.node_id, sensor.rate_hz, sensor.outputs,
-                                       f"sensor '{sensor.name}'")))
-        for bus in buses)
+        for spec in sensor_frames(sensor))) for bus in buses)
     scene = read_scene(reader, top, robot)
     config = SystemConfig(path=path, robot=robot, plant_rate_hz=float(plant_rate), buses=buses,
                           scene=scene, floating_base=_read_base(reader, top),
@@ -87,6 +87,14 @@ def load_bus_config(path: str | Path, package_path: PackagePath | None = None) -
     if errors:
         raise ConfigError(errors + list(warnings))
     return replace(config, warnings=robot.warnings + warnings)
+
+
+def sensor_frames(sensor: Sensor) -> list[FrameSpec]:
+    """A CAN sensor's frames on its bus, named as the sensor's."""
+    what = f"sensor '{sensor.name}'"
+    if isinstance(sensor, ForceTorqueConfig):
+        return ati_netft.frame_specs(sensor.base_id, what)
+    return hipnuc.frame_specs(sensor.node_id, sensor.rate_hz, sensor.outputs, what)
 
 
 def _read_base(reader: Reader, top: LineMapping) -> bool:

@@ -19,7 +19,9 @@ import math
 import re
 from dataclasses import dataclass
 
-from hil.bus_config.sensor_types import ZERO, ImuConfig, TriadErrors, Vector
+from hil.bus_config.force_torque_entry import FORCE_TORQUE_KEYS, read_force_torque
+from hil.bus_config.sensor_types import ImuConfig, Sensor, TriadErrors
+from hil.bus_config.sensor_values import read_errors, read_vector
 from hil.bus_config.types import BusConfig
 from hil.bus_config.yaml_reader import LineMapping, Reader
 from hil.description import RobotDescription
@@ -62,18 +64,21 @@ DEFAULT_ERRORS = {
                              bias_instability=math.radians(10 / 3600)),
 }
 MAX_SENSORS = 32
-#: the keys of each wire, and of both
+#: the keys every sensor takes, and those of each kind and wire
+_COMMON_KEYS = {"name", "product", "link", "xyz", "rpy", "seed"}
+_IMU_KEYS = {"rate_hz", "outputs", "latency", "accelerometer", "gyroscope"}
 _WIRE_KEYS_OF = {SERIAL: {"port", "baud"}, CAN: {"bus", "node_id"}}
-_WIRE_KEYS = _WIRE_KEYS_OF[SERIAL] | _WIRE_KEYS_OF[CAN]
-_KEYS = {"name", "product", "link", "xyz", "rpy", "rate_hz", "outputs", "latency", "seed",
-         "accelerometer", "gyroscope"} | _WIRE_KEYS
-_ERROR_KEYS = {"noise_density", "bias_instability", "correlation_time", "random_walk", "bias",
-               "scale_factor", "misalignment"}
+#: the force-torque product (its own module: hil.bus_config.force_torque_entry)
+FORCE_TORQUE = "ati_netft"
+_KEYS_OF = {**{name: _COMMON_KEYS | _IMU_KEYS | _WIRE_KEYS_OF[product.wire]
+               for name, product in PRODUCTS.items()},
+            FORCE_TORQUE: _COMMON_KEYS | FORCE_TORQUE_KEYS}
+_KEYS = set().union(*_KEYS_OF.values())
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
 
 
 def read_sensors(reader: Reader, top: LineMapping, robot: RobotDescription,
-                 buses: tuple[BusConfig, ...]) -> tuple[ImuConfig, ...]:
+                 buses: tuple[BusConfig, ...]) -> tuple[Sensor, ...]:
     """The ``sensors:`` list (none: no sensor); a CAN sensor on one of ``buses``."""
     if "sensors" not in top:
         return ()
@@ -88,9 +93,10 @@ def read_sensors(reader: Reader, top: LineMapping, robot: RobotDescription,
     sensors = tuple(s for s in (_read_sensor(reader, item, number + 1, line, robot.name, links,
                                              by_name)
                                 for number, item in enumerate(raw)) if s is not None)
-    for kind, seen in (("name", [s.name for s in sensors]), ("port", [s.port for s in sensors])):
+    for kind in ("name", "port"):
+        seen = [getattr(s, kind, None) for s in sensors]
         for sensor in sensors:
-            if getattr(sensor, kind) is not None and seen.count(getattr(sensor, kind)) > 1:
+            if getattr(sensor, kind, None) is not None and seen.count(getattr(sensor, kind)) > 1:
                 reader.fail(f"sensor '{sensor.name}': another sensor has its {kind} "
                             f"'{getattr(sensor, kind)}'", sensor.line,
                             hint=f"give every sensor its own {kind}")
@@ -98,7 +104,7 @@ def read_sensors(reader: Reader, top: LineMapping, robot: RobotDescription,
 
 
 def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot: str,
-                 links: set[str], buses: dict[str, BusConfig]) -> ImuConfig | None:
+                 links: set[str], buses: dict[str, BusConfig]) -> Sensor | None:
     item = reader.mapping(raw, f"sensor {number}", list_line)
     if not item:
         return None
@@ -109,23 +115,24 @@ def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot:
         reader.fail(f"{what}: a name is a letter, then letters, digits, '_' or '-' (at most "
                     "64)", item.key_lines.get("name", item.line))
     product_name = reader.text(item, "product", what, "")
-    if product_name not in PRODUCTS:
+    if product_name not in _KEYS_OF:
         reader.fail(f"{what}: unknown product {product_name!r}",
                     item.key_lines.get("product", item.line),
-                    hint=f"products hil serves: {', '.join(PRODUCTS)} (docs/sensors.md)")
+                    hint=f"products hil serves: {', '.join(_KEYS_OF)} (docs/sensors.md)")
         return None
-    product = PRODUCTS[product_name]
-    for key in sorted(set(item) & (_WIRE_KEYS - _WIRE_KEYS_OF[product.wire])):
-        reader.fail(f"{what}: '{key}' is not for a {product.wire} sensor ({product_name})",
+    for key in sorted(set(item) & (_KEYS - _KEYS_OF[product_name])):
+        reader.fail(f"{what}: '{key}' is not for a {product_name} sensor",
                     item.key_lines.get(key, item.line),
-                    hint=f"a {product.wire} sensor takes "
-                         f"{' and '.join(sorted(_WIRE_KEYS_OF[product.wire]))}")
+                    hint=f"it takes {', '.join(sorted(_KEYS_OF[product_name]))}")
     link = reader.text(item, "link", what, "")
     if link and link not in links:
         reader.fail(f"{what}: the robot has no link '{link}'",
                     item.key_lines.get("link", item.line),
                     hint="'link' names a link of the robot's description (hil describe lists "
                          "them)")
+    if product_name == FORCE_TORQUE:
+        return read_force_torque(reader, item, what, name, link, buses)
+    product = PRODUCTS[product_name]
     rate = float(reader.number(item, "rate_hz", what, product.default_rate))
     if (rate not in product.rates) if product.rates else rate > product.max_rate:
         offered = (f"one of {', '.join(f'{r:g}' for r in product.rates)}" if product.rates
@@ -141,12 +148,13 @@ def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot:
             if product.wire == SERIAL else _read_can(reader, item, what, buses))
     return ImuConfig(
         name=name, product=product_name, link=link,
-        xyz=_vector(reader, item, "xyz", what, 10.0), rpy=_vector(reader, item, "rpy", what,
-                                                                  2 * math.pi),
+        xyz=read_vector(reader, item, "xyz", what, 10.0),
+        rpy=read_vector(reader, item, "rpy", what, 2 * math.pi),
         **wire, rate_hz=rate, outputs=tuple(product.outputs[o] for o in outputs),
         latency=max(latency, 0.0),
-        accelerometer=_read_errors(reader, item, "accelerometer", what),
-        gyroscope=_read_errors(reader, item, "gyroscope", what),
+        accelerometer=read_errors(reader, item, "accelerometer", what,
+                                  DEFAULT_ERRORS["accelerometer"]),
+        gyroscope=read_errors(reader, item, "gyroscope", what, DEFAULT_ERRORS["gyroscope"]),
         seed=int(reader.number(item, "seed", what, 0, positive=False, integer=True)),
         line=item.line)
 
@@ -201,37 +209,3 @@ def _read_outputs(reader: Reader, item: LineMapping, what: str,
                     f"not {value!r}", item.key_lines.get("outputs", item.line))
         return product.default_outputs
     return tuple(value)
-
-
-def _read_errors(reader: Reader, item: LineMapping, key: str, what: str) -> TriadErrors:
-    default = DEFAULT_ERRORS[key]
-    if key not in item:
-        return default
-    errors = reader.mapping(item[key], f"{what}: '{key}'", item.key_lines.get(key, item.line))
-    where = f"{what}: '{key}'"
-    reader.unknown_keys(errors, _ERROR_KEYS, where)
-    numbers = {k: float(reader.number(errors, k, where, getattr(default, k), positive=False))
-               for k in ("noise_density", "bias_instability", "random_walk")}
-    for k, value in numbers.items():
-        if value < 0:
-            reader.fail(f"{where}: '{k}' must be >= 0, not {value:g}",
-                        errors.key_lines.get(k, errors.line))
-            numbers[k] = 0.0
-    correlation = float(reader.number(errors, "correlation_time", where,
-                                      default.correlation_time))
-    return TriadErrors(**numbers, correlation_time=correlation,
-                       bias=_vector(reader, errors, "bias", where, math.inf),
-                       scale_factor=_vector(reader, errors, "scale_factor", where, 0.5),
-                       misalignment=_vector(reader, errors, "misalignment", where, 0.1))
-
-
-def _vector(reader: Reader, item: LineMapping, key: str, what: str, bound: float) -> Vector:
-    value = item.get(key, list(ZERO))
-    if (not isinstance(value, list) or len(value) != 3
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                       and math.isfinite(v) and abs(v) <= bound for v in value)):
-        within = "" if math.isinf(bound) else f", each within ±{bound:g}"
-        reader.fail(f"{what}: '{key}' must be three finite numbers{within}, not {value!r}",
-                    item.key_lines.get(key, item.line))
-        return ZERO
-    return (float(value[0]), float(value[1]), float(value[2]))

@@ -52,3 +52,30 @@ class ImuConfig:
     def period(self) -> float:
         return 1.0 / self.rate_hz
 
+
+
+@dataclass(frozen=True)
+class ForceTorqueConfig:
+    """A six-axis force-torque sensor on a link of the robot, on its bus: it measures what
+    the link takes from its parent (the load on a wrist sensor whose link is the hand: the
+    hand's and what it holds), in its own axes."""
+
+    name: str
+    product: str                      # "ati_netft": ATI's Net F/T on CAN
+    link: str
+    xyz: Vector
+    rpy: Vector
+    bus: str
+    base_id: int                      # the CAN base identifier (the Net F/T's DIP switches)
+    counts_per_force: float           # its calibration: counts per N
+    counts_per_torque: float          # counts per N·m
+    short_divisors: tuple[float, float]   # long counts per short count: forces, torques
+    force: TriadErrors                # N
+    torque: TriadErrors               # N·m
+    sample_hz: float                  # its internal rate: the noise's sample period
+    seed: int = 0
+    line: int | None = None
+
+
+#: every kind of sensor a bus config holds
+Sensor = ImuConfig | ForceTorqueConfig

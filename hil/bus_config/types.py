@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from hil.bus_config.sensor_types import ImuConfig
+from hil.bus_config.sensor_types import ForceTorqueConfig, ImuConfig, Sensor
 from hil.can import BusLoad, bus_load
 from hil.can.frames import BitRates
 from hil.can.frame import Frame, FrameSpec
@@ -259,7 +259,17 @@ class SystemConfig:
     #: the user's controller_manager YAML (``controllers:``), or None: hil's own controllers
     controllers: ControllersSource | None = None
     #: the sensors on the robot's links (``sensors:``, docs/sensors.md)
-    sensors: tuple[ImuConfig, ...] = ()
+    sensors: tuple[Sensor, ...] = ()
+
+    @property
+    def imus(self) -> tuple[ImuConfig, ...]:
+        """Its IMUs, in config order."""
+        return tuple(s for s in self.sensors if isinstance(s, ImuConfig))
+
+    @property
+    def force_torques(self) -> tuple[ForceTorqueConfig, ...]:
+        """Its force-torque sensors, in config order."""
+        return tuple(s for s in self.sensors if isinstance(s, ForceTorqueConfig))
 
     @property
     def effects(self) -> dict[str, ActuatorEffects]:

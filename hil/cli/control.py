@@ -162,7 +162,7 @@ def _hold(zenoh, robot: str, node: ControlNode) -> None:
 
 def _announce_sensors(args: argparse.Namespace, config) -> None:
     """Where each IMU is read and where its samples go."""
-    for sensor in config.sensors:
+    for sensor in config.imus:
         ros = ""
         if args.ros:
             from hil.messaging.ros.face import imu_topic    # noqa: PLC0415 (only with --ros)

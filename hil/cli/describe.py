@@ -9,7 +9,7 @@ import argparse
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig, load_bus_config
 from hil.bus_config.locate import shipped_names
-from hil.bus_config.sensor_types import ImuConfig
+from hil.bus_config.sensor_types import ForceTorqueConfig, Sensor
 from hil.can.frame import Frame, FrameSpec
 from hil.cli import common
 from hil.protocols import Protocol, hipnuc, protocol
@@ -30,7 +30,10 @@ def run(args: argparse.Namespace) -> int:
         _describe_bus(config, bus)
     for sensor in config.sensors:
         print(f"\nsensor '{sensor.name}': {sensor_line(sensor)}")
-        if sensor.bus is None:
+        if isinstance(sensor, ForceTorqueConfig):
+            print("  read it: send 0x01 to its base id, take the four answers' int32 pairs "
+                  "(docs/sensors.md)")
+        elif sensor.bus is None:
             print(f"  read it: witmotion.IMU(\"{sensor.port}\", baudrate={sensor.baud}) or "
                   f"serial.Serial(\"{sensor.port}\", {sensor.baud}) (pyserial; "
                   "docs/sensors.md)")
@@ -46,8 +49,15 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def sensor_line(sensor: ImuConfig) -> str:
+def sensor_line(sensor: Sensor) -> str:
     """A sensor's product, place, wire and output in words."""
+    if isinstance(sensor, ForceTorqueConfig):
+        return (f"{sensor.product} force-torque sensor on link '{sensor.link}', base "
+                f"0x{sensor.base_id:03X} on bus '{sensor.bus}': requests at 0x"
+                f"{sensor.base_id:03X} (0x01 long, 0x02 short data, 0x04 bias), answers at "
+                f"0x{sensor.base_id + 1:03X}-0x{sensor.base_id + 6:03X}; "
+                f"{sensor.counts_per_force:,.0f} counts/N, {sensor.counts_per_torque:,.0f} "
+                "counts/N·m")
     if sensor.bus is not None:
         frames = ", ".join(f"{hipnuc.TPDO_NAMES[kind]} 0x{kind + sensor.node_id:03X}"
                            for kind in sensor.outputs)

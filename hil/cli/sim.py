@@ -115,9 +115,11 @@ def run(args: argparse.Namespace) -> int:
               f"{', '.join(f'{b.name} ({buses[b.name].channel_info})' for b in config.buses)}, "
               f"{args.timing}, plant {config.plant_rate_hz:g} Hz, "
               f"cycle {config.cycle_hz:g} Hz; {scheduling}", flush=True)
-        for sensor, served in zip(config.sensors, simulator.sensors):
+        for sensor, served in zip(config.imus, simulator.sensors):
             print(f"hil sim: sensor '{sensor.name}': {sensor_line(sensor)} "
                   f"({served.port.device})", flush=True)
+        for sensor in config.force_torques:
+            print(f"hil sim: sensor '{sensor.name}': {sensor_line(sensor)}", flush=True)
         print(f"hil sim: your own master's node ids, frames, units and PDO maps: hil describe "
               f"{args.config}", flush=True)
         for thread in threads:
@@ -158,12 +160,12 @@ def _faults(args: argparse.Namespace,
     drive_faults = [f for f in faults if isinstance(f, DriveFault)]
     _check_drive_faults(config, drive_faults)
     sensor_faults = [f for f in faults if isinstance(f, SensorFault)]
-    names = [sensor.name for sensor in config.sensors]
+    names = [sensor.name for sensor in config.imus]        # a force-torque sensor: none yet
     for fault in sensor_faults:
         if fault.sensor not in names:
             raise HilError.single(f"--fault {fault.kind.value}:{fault.sensor}@{fault.at:g}: no "
-                                  "such sensor", config.path,
-                                  hint=f"sensors: {', '.join(names) or 'none in this config'}")
+                                  "IMU of that name (sensor faults are an IMU's)", config.path,
+                                  hint=f"IMUs: {', '.join(names) or 'none in this config'}")
     return [f for f in faults if isinstance(f, FrameFault)], drive_faults, sensor_faults
 
 

@@ -73,8 +73,8 @@ class CanHardwareInterface(HardwareInterface):
         #: the bus config's sensors, read off their ports
         self.sensors: list[SerialImu | CanImu] = [
             SerialImu(sensor) if sensor.bus is None else CanImu(sensor)
-            for sensor in config.sensors]
-        self.imus = tuple(ImuDescription.of(sensor) for sensor in config.sensors)
+            for sensor in config.imus]
+        self.imus = tuple(ImuDescription.of(sensor) for sensor in config.imus)
         self._sensor_problems: dict[str, str | None] = {}
 
     def start(self, cancel: threading.Event | None = None) -> JointFeedback:

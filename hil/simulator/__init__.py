@@ -48,7 +48,8 @@ from hil.realtime.stalls import Stall, StallDetector
 from hil.realtime.timing import REAL_TIME, Timing
 from hil.simulator.build import (LOCK_STEP_WATCHDOG, SimulatedBus, bench_plant,
                                  attach_sensors, close_sensors, drive_parameters,
-                                 simulated_buses, simulated_sensors)
+                                 simulated_buses, simulated_force_torques,
+                                 simulated_sensors)
 from hil.sensors.imu import SimulatedImu
 from hil.simulator.cycles import CycleBook
 from hil.simulator.faults import FaultInjection
@@ -71,6 +72,7 @@ class Simulator:
         self.plant = bench_plant(config)
         self._stepping = PlantStepping(self.plant)
         self.sensors = self._stepping.sensors = simulated_sensors(config, self.plant)
+        self.force_torques = simulated_force_torques(config, self.plant)
         self._real_time = RealTimeClock(self._stepping)
         # lock-step: nothing moves the plant between commands, nothing to advance on entry
         # (a plain lock, cheaper a cycle: docs/performance.md, "2026-11-28, fourth step: a bus'
@@ -136,7 +138,7 @@ class Simulator:
                 drive.attach(simulated.router)
                 self._cycles.attached.add(drive)
         with self.lock:
-            attach_sensors(self.sensors, self.buses)
+            attach_sensors(self.sensors, self.force_torques, self.buses)
 
     def close(self) -> None:
         """Disable every drive (brakes on), stop heartbeats, release the buses."""
@@ -150,7 +152,7 @@ class Simulator:
                 self._cycles.leave(drive)
             if simulated.router is not None:
                 simulated.router.stop(1.0)
-        close_sensors(self.sensors)
+        close_sensors(self.sensors, self.force_torques)
 
     def stop(self) -> None:
         self._stop.set()

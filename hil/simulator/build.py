@@ -10,15 +10,17 @@ from dataclasses import dataclass, replace
 import can
 
 from hil.bus_config import BusConfig, DriveConfig, SystemConfig
+from hil.bus_config.sensor_types import ImuConfig
 from hil.can.router import FrameRouter
 from hil.drives import DriveCore, DriveParameters, DriveProfile
 from hil.description import Pose
 from hil.drives.tuning import tuned_gains
 from hil.plant import Plant
-from hil.plant.sensor_sites import SensorSite
+from hil.plant.sensor_sites import SensorKind, SensorSite
 from hil.protocols import hipnuc, protocol, wit
 from hil.realtime.timing import Timing
 from hil.sensors.can_port import CanSensorPort
+from hil.sensors.force_torque import SimulatedForceTorque
 from hil.sensors.imu import SimulatedImu
 from hil.sensors.serial_port import PseudoTerminal
 from hil.simulator.stepping import PlantStepping
@@ -62,7 +64,9 @@ def bench_plant(config: SystemConfig) -> Plant:
     return Plant(config.robot, timestep=1.0 / config.plant_rate_hz, effects=config.effects,
                  scene=config.scene, floating_base=config.floating_base,
                  start_pose=dict(config.start_pose),
-                 sensors=tuple(SensorSite(s.name, s.link, Pose(s.xyz, s.rpy))
+                 sensors=tuple(SensorSite(s.name, s.link, Pose(s.xyz, s.rpy),
+                                          SensorKind.IMU if isinstance(s, ImuConfig)
+                                          else SensorKind.FORCE_TORQUE)
                                for s in config.sensors))
 
 
@@ -71,7 +75,7 @@ def simulated_sensors(config: SystemConfig, plant: Plant) -> list[SimulatedImu]:
     one a node waiting for its bus (:func:`attach_sensors`). Closed by :func:`close_sensors`."""
     sensors: list[SimulatedImu] = []
     try:
-        for sensor in config.sensors:
+        for sensor in config.imus:
             read = functools.partial(plant.sensors.read, sensor.name)
             if sensor.bus is not None:
                 sensors.append(SimulatedImu(
@@ -89,18 +93,34 @@ def simulated_sensors(config: SystemConfig, plant: Plant) -> list[SimulatedImu]:
     return sensors
 
 
-def attach_sensors(sensors: list[SimulatedImu], buses: list[SimulatedBus]) -> None:
-    """The CAN sensors on their buses' routers (started): each boots there."""
+def simulated_force_torques(config: SystemConfig, plant: Plant) -> list[SimulatedForceTorque]:
+    """The bus config's force-torque sensors, each waiting for its bus
+    (:func:`attach_sensors`)."""
+    return [SimulatedForceTorque(sensor, functools.partial(plant.sensors.read, sensor.name),
+                                 lambda: plant.time)
+            for sensor in config.force_torques]
+
+
+def attach_sensors(sensors: list[SimulatedImu], force_torques: list[SimulatedForceTorque],
+                   buses: list[SimulatedBus]) -> None:
+    """The CAN sensors on their buses' routers (started): an IMU boots there, a force-torque
+    sensor listens for its master's requests."""
     routers = {simulated.config.name: simulated.router for simulated in buses}
     for sensor in sensors:
         if isinstance(sensor.port, CanSensorPort) and sensor.config.bus in routers:
             sensor.port.attach(routers[sensor.config.bus])
+    for force_torque in force_torques:
+        if force_torque.config.bus in routers:
+            force_torque.attach(routers[force_torque.config.bus])
 
 
-def close_sensors(sensors: list[SimulatedImu]) -> None:
-    """Close the sensors' ports (their links removed)."""
+def close_sensors(sensors: list[SimulatedImu],
+                  force_torques: list[SimulatedForceTorque] = ()) -> None:
+    """Close the sensors' ports (their links removed), take them off their buses."""
     for sensor in sensors:
         sensor.port.close()
+    for force_torque in force_torques:
+        force_torque.close()
 
 
 @dataclass

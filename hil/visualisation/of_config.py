@@ -21,7 +21,7 @@ def config_recorder(recording: rr.RecordingStream, config: SystemConfig, folder:
     urdf.write_bytes(viewer_urdf(config.robot))
     parts = BenchParts(config.scene, {d.actuator: d.peak_torque for d in config.drives},
                        config.floating_base, {b.name: b.load().worst_ratio for b in config.buses},
-                       tuple(sensor.name for sensor in config.sensors))
+                       tuple(sensor.name for sensor in config.imus))
     return RunRecorder(recording, config.robot, urdf, actuator_joints(config),
                        tuple(b.name for b in config.buses), namespaced, parts)
 

@@ -1,0 +1,173 @@
+"""A six-axis force-torque sensor, ATI's Net F/T on CAN: its answers in the manual's layout,
+read by a master written from the manual (ATI publishes no client library), the bias
+command, the config's checks; on the pigot's wrist it weighs the cube the gripper lifts."""
+
+from __future__ import annotations
+
+import struct
+import time
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+import yaml
+
+from hil.bus_config import load_bus_config
+from hil.controllers import TrajectoryGoal, TrajectoryPoint
+from hil.errors import ConfigError
+from hil.messaging.zenoh_api import TrajectoryActionClient
+from hil.protocols import ati_netft
+from hil.realtime import LOCK_STEP
+from hil.stack import IN_PROCESS, running_stack
+
+ROOT = Path(__file__).resolve().parents[1]
+BASE = 0x10
+CUBE_WEIGHT = 0.05 * 9.81          # bus_config/pigot_pick.yaml's cube: 50 g
+
+
+def _pick_config(folder: Path, **sensor) -> Path:
+    """bus_config/pigot_pick.yaml with a Net F/T on the hand (arm_link_6, which carries the
+    fingers) at base 0x10 of the wrist bus, written into ``folder``."""
+    config = yaml.safe_load((ROOT / "bus_config" / "pigot_pick.yaml").read_text())
+    config["robot"] = str((ROOT / "bus_config" / config["robot"]).resolve())
+    config["sensors"] = [{"name": "wrist_ft", "product": "ati_netft", "link": "arm_link_6",
+                          "bus": "wrist", "base_id": BASE, **sensor}]
+    path = folder / "pigot_ft.yaml"
+    path.write_text(yaml.safe_dump(config, sort_keys=False))
+    return path
+
+
+class NetFtReader:
+    """A Net F/T master as the manual (section 15) tells one to be written: a request byte
+    to the base id, the answers' little-endian counts divided by counts per unit."""
+
+    def __init__(self, bus: can.BusABC, base: int, counts_per_force: float = 1e6,
+                 counts_per_torque: float = 1e6):
+        self.bus, self.base = bus, base
+        self.cpf, self.cpt = counts_per_force, counts_per_torque
+
+    def command(self, code: int) -> None:
+        self.bus.send(can.Message(arbitration_id=self.base, data=[code], is_extended_id=False))
+
+    def long(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """(force N, torque N·m, sample number) of one long-data request."""
+        self.command(0x01)
+        frames = self._answers(range(self.base + 1, self.base + 5))
+        pairs = [struct.unpack("<ii", frames[self.base + n]) for n in (1, 2, 3)]
+        status, sample = struct.unpack("<iI", frames[self.base + 4])
+        assert status == 0
+        return (np.array([p[0] for p in pairs]) / self.cpf,
+                np.array([p[1] for p in pairs]) / self.cpt, sample)
+
+    def short(self) -> tuple[np.ndarray, np.ndarray]:
+        """(force, torque) in 16-bit counts of one short-data request (table 15.2)."""
+        self.command(0x02)
+        frames = self._answers((self.base + 5, self.base + 6))
+        fx, tx, fy, ty = struct.unpack("<4h", frames[self.base + 5])
+        fz, tz, status, _ = struct.unpack("<3hH", frames[self.base + 6])
+        assert status == 0
+        return np.array([fx, fy, fz]), np.array([tx, ty, tz])
+
+    def _answers(self, identifiers) -> dict[int, bytes]:
+        wanted, found = set(identifiers), {}
+        deadline = time.monotonic() + 10
+        while wanted - set(found) and time.monotonic() < deadline:
+            message = self.bus.recv(0.5)
+            if message is not None and message.arbitration_id in wanted:
+                found[message.arbitration_id] = bytes(message.data)
+        assert set(found) == wanted, f"answers {sorted(found)} of {sorted(wanted)}"
+        return found
+
+    def mean_force(self, count: int = 20) -> np.ndarray:
+        return np.mean([self.long()[0] for _ in range(count)], axis=0)
+
+
+def test_the_answers_are_the_manuals_layout():
+    frames = ati_netft.short_answer(BASE, [1, -2, 3], [4, -5, 6], 0, 70000)
+    assert [f.identifier for f in frames] == [BASE + 5, BASE + 6]
+    assert struct.unpack("<4h", frames[0].data) == (1, 4, -2, -5)     # Fx Tx Fy Ty
+    assert struct.unpack("<3hH", frames[1].data) == (3, 6, 0, 70000 & 0xFFFF)
+    frames = ati_netft.long_answer(BASE, [10, 20, 30], [-1, -2, -3], 0, 9)
+    assert [struct.unpack("<ii", f.data) for f in frames[:3]] == [(10, -1), (20, -2), (30, -3)]
+    assert ati_netft.counts([1e9, -1e9, 0.5e-6], 1e6, 32) == [2 ** 31 - 1, -2 ** 31, 0]
+
+
+def test_the_wrist_sensor_weighs_the_cube_the_gripper_lifts(tmp_path):
+    config = load_bus_config(_pick_config(tmp_path))
+    with running_stack(config, LOCK_STEP) as stack:
+        bus = can.Bus(interface=IN_PROCESS, channel=stack.channels["wrist"])
+        reader = NetFtReader(bus, BASE)
+        client = TrajectoryActionClient(stack.zenoh, config.robot.name)
+        try:
+            plant = stack.sim.plant
+            arm_rot_3 = float(plant.joint_positions()[plant.joint_names.index("arm_rot_3")])
+            limits = config.robot.joint("arm_rot_3").limits
+            arm_rot_3 = min(max(arm_rot_3, limits.lower), limits.upper)
+            open_fingers = float(plant.joint_positions()[plant.joint_names.index(
+                "finger_pri_1")])
+
+            def hold_then(*points: TrajectoryPoint) -> None:
+                goal = TrajectoryGoal(("arm_rot_3", "finger_pri_1"), points)
+                result = client.wait_result(client.send_goal(goal), 120)
+                assert result.error_code == 0, result
+
+            # the arm raised with the fingers open, at rest: the hand and its fingers alone
+            # (at the start pose the sagged hand rests on the cube: the sensor reads that
+            # push, 50 N, as a real one would)
+            hold_then(TrajectoryPoint(2.0, (arm_rot_3 - 0.2, open_fingers), (0.0, 0.0)),
+                      TrajectoryPoint(3.0, (arm_rot_3 - 0.2, open_fingers), (0.0, 0.0)))
+            empty = reader.mean_force()
+            # back down, then as tests/test_contacts.py's pick: fingers on the cube, the arm
+            # raised, held
+            hold_then(TrajectoryPoint(2.0, (arm_rot_3, open_fingers), (0.0, 0.0)),
+                      TrajectoryPoint(3.0, (arm_rot_3, 0.026), (0.0, 0.0)),
+                      TrajectoryPoint(3.5, (arm_rot_3, 0.026), (0.0, 0.0)),
+                      TrajectoryPoint(5.5, (arm_rot_3 - 0.2, 0.026), (0.0, 0.0)),
+                      TrajectoryPoint(7.0, (arm_rot_3 - 0.2, 0.026), (0.0, 0.0)))
+            lifted = plant.object_pose("cube")[0][2]
+            holding = reader.mean_force()
+        finally:
+            client.close()
+            bus.shutdown()
+    assert lifted > 0.8                                        # off its post (0.76 m)
+    # the hand and its fingers weigh the same either way: the difference is the cube
+    weighed = np.linalg.norm(holding) - np.linalg.norm(empty)
+    assert weighed == pytest.approx(CUBE_WEIGHT, rel=0.05), (empty, holding)
+
+
+def test_bias_zeroes_the_reading_and_short_data_counts_in_its_divisors(tmp_path):
+    config = load_bus_config(_pick_config(tmp_path))
+    with running_stack(config, LOCK_STEP) as stack:
+        bus = can.Bus(interface=IN_PROCESS, channel=stack.channels["wrist"])
+        reader = NetFtReader(bus, BASE)
+        try:
+            loaded = reader.mean_force(5)
+            force, _ = reader.short()
+            reader.command(0x04)
+            biased = reader.mean_force(5)
+            _, _, first = reader.long()
+            time.sleep(0.2)
+            _, _, later = reader.long()
+        finally:
+            bus.shutdown()
+    # at the start pose the sagged hand rests on the cube: some 50 N, past short data's
+    # 16-bit range at 1 mN a count (the default divisor), which saturates there
+    assert np.linalg.norm(loaded) > 1.0
+    assert force == pytest.approx(np.clip(loaded * 1000, -32768, 32767), abs=50)
+    # zeroed at that load (the hand resting on the cube still settles by tens of mN)
+    assert np.linalg.norm(biased) < 0.01 * np.linalg.norm(loaded) and later > first
+
+
+@pytest.mark.parametrize("sensor, message", [
+    ({"base_id": 0x7FD}, "'base_id' is 0 to 0x7F9"),
+    ({"bus": "nowhere"}, "the config has no bus 'nowhere'"),
+    ({"rate_hz": 100}, "'rate_hz' is not for a ati_netft sensor"),
+    ({"short_divisors": [0, 1]}, "'short_divisors' is [forces, torques]"),
+    ({"base_id": 0x184 - 1}, "CAN id 0x184 is used by sensor 'wrist_ft' long data 1 and by "
+                             "node 4"),
+])
+def test_a_bad_force_torque_entry_is_refused_naming_it_and_its_line(tmp_path, sensor, message):
+    with pytest.raises(ConfigError) as refused:
+        load_bus_config(_pick_config(tmp_path, **sensor))
+    assert message in str(refused.value) and "pigot_ft.yaml:" in str(refused.value)
