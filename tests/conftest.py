@@ -593,13 +593,20 @@ def watched_robot():
 def imu_messages(config, count: int) -> list:
     """The first ``count`` sensor_msgs/Imu samples the controller of a hil.stack.Stack of
     ``config`` publishes of its IMU named 'imu' (the stack closed after)."""
+    return sensor_messages(config, "imu", "imu", cdr.IMU, count)
+
+
+def sensor_messages(config, name: str, kind: str, typename: str, count: int) -> list:
+    """The first ``count`` samples (of ROS type ``typename``) the controller of a
+    hil.stack.Stack of ``config`` publishes of its sensor ``name`` on
+    hil/<robot>/sensors/<name>/<kind> (the stack closed after)."""
     stack = Stack(config)
     arrived: queue.SimpleQueue = queue.SimpleQueue()
     subscriber = stack.zenoh.declare_subscriber(
-        f"hil/{config.robot.name}/sensors/imu/imu",
+        f"hil/{config.robot.name}/sensors/{name}/{kind}",
         lambda sample: arrived.put(sample.payload.to_bytes()))
     try:
-        return [cdr.decode(arrived.get(timeout=30), cdr.IMU) for _ in range(count)]
+        return [cdr.decode(arrived.get(timeout=30), typename) for _ in range(count)]
     finally:
         subscriber.undeclare()
         stack.close()

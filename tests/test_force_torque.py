@@ -12,10 +12,12 @@ import can
 import numpy as np
 import pytest
 import yaml
+from conftest import sensor_messages
 
 from hil.bus_config import load_bus_config
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.errors import ConfigError
+from hil.messaging import cdr
 from hil.messaging.zenoh_api import TrajectoryActionClient
 from hil.protocols import ati_netft
 from hil.realtime import LOCK_STEP
@@ -48,6 +50,9 @@ class NetFtReader:
         self.cpf, self.cpt = counts_per_force, counts_per_torque
 
     def command(self, code: int) -> None:
+        # what came before (hil control polls the sensor too) answers earlier requests
+        while self.bus.recv(0) is not None:
+            pass
         self.bus.send(can.Message(arbitration_id=self.base, data=[code], is_extended_id=False))
 
     def long(self) -> tuple[np.ndarray, np.ndarray, int]:
@@ -171,3 +176,24 @@ def test_a_bad_force_torque_entry_is_refused_naming_it_and_its_line(tmp_path, se
     with pytest.raises(ConfigError) as refused:
         load_bus_config(_pick_config(tmp_path, **sensor))
     assert message in str(refused.value) and "pigot_ft.yaml:" in str(refused.value)
+
+
+def test_the_controller_polls_the_sensor_and_publishes_geometry_msgs_wrench(tmp_path):
+    """hil control is the Net F/T's master: long data requested at poll_hz, every answer
+    published as geometry_msgs/WrenchStamped on hil/<robot>/sensors/<name>/wrench."""
+    config = load_bus_config(_pick_config(tmp_path, poll_hz=50))
+    messages = sensor_messages(config, "wrist_ft", "wrench", cdr.WRENCH_STAMPED, 5)
+    last = messages[-1]
+    assert last.header.frame_id == "arm_link_6"
+    force = [last.wrench.force.x, last.wrench.force.y, last.wrench.force.z]
+    assert np.linalg.norm(force) > 0.9          # the hand's weight at least (0.97 N)
+    stamps = [cdr.seconds_of(m.header.stamp) for m in messages]
+    assert stamps == sorted(stamps)
+
+
+def test_the_poll_rate_counts_in_the_bus_load_and_may_not_pass_its_cycle(tmp_path):
+    bare = load_bus_config(ROOT / "bus_config" / "pigot_pick.yaml").buses[1].load()
+    polled = load_bus_config(_pick_config(tmp_path, poll_hz=100)).buses[1].load()
+    assert polled.frames_per_second - bare.frames_per_second == pytest.approx(500)
+    with pytest.raises(ConfigError, match="'poll_hz' 1000 is over its bus' cycle rate"):
+        load_bus_config(_pick_config(tmp_path, poll_hz=1000))

@@ -310,12 +310,8 @@ def test_record_puts_logged_and_replayed_values_side_by_side(ur3_log, tmp_path, 
 def test_a_lock_step_log_with_a_can_imu_replays_its_frames_bit_for_bit(tmp_path, capsys):
     """Issue 70: a HiPNUC IMU's TPDOs are in the log and replay byte for byte (its samples
     fall on the plant's time); a byte changed in one is found, named as the sensor's."""
-    config = yaml.safe_load((ROOT / "bus_config" / "ur3.yaml").read_text())
-    config["robot"] = str((ROOT / "bus_config" / config["robot"]).resolve())
-    config["sensors"] = [{"name": "imu", "product": "hipnuc", "link": "link6", "bus": "wrist",
-                          "node_id": 8, "rate_hz": 100}]
-    path = tmp_path / "ur3_imu.yaml"
-    path.write_text(yaml.safe_dump(config))
+    path = _with_sensor(tmp_path, "ur3", {"name": "imu", "product": "hipnuc", "link": "link6",
+                                          "bus": "wrist", "node_id": 8, "rate_hz": 100})
     log = lock_step_log(path, tmp_path)
     capsys.readouterr()
     status, out = replay(capsys, log, path)
@@ -331,3 +327,28 @@ def test_a_lock_step_log_with_a_can_imu_replays_its_frames_bit_for_bit(tmp_path,
             writer.on_message_received(message)
     status, out = replay(capsys, tmp_path / "changed.blf", path)
     assert status == 1 and "sensor 'imu', TPDO3 0x388 bytes" in out, out
+
+
+@pytest.mark.slow
+def test_a_lock_step_log_with_a_polled_force_torque_sensor_replays_bit_for_bit(tmp_path,
+                                                                                capsys):
+    """Issue 70: hil control polls a Net F/T; the replay feeds the logged requests to the
+    sensor as a master's and compares its answers byte for byte."""
+    path = _with_sensor(tmp_path, "pigot", {"name": "wrist_ft", "product": "ati_netft",
+                                            "link": "arm_link_6", "bus": "wrist",
+                                            "base_id": 0x10, "poll_hz": 100})
+    log = lock_step_log(path, tmp_path)
+    capsys.readouterr()
+    status, out = replay(capsys, log, path)
+    assert status == 0 and "0 divergences: every answer as logged, bit for bit" in out, out
+    assert int(re.search(r"(\d+) sensor frames compared", out).group(1)) > 4 * 100
+
+
+def _with_sensor(folder: Path, robot: str, sensor: dict) -> Path:
+    """bus_config/<robot>.yaml with ``sensor``, written into ``folder``."""
+    config = yaml.safe_load((ROOT / "bus_config" / f"{robot}.yaml").read_text())
+    config["robot"] = str((ROOT / "bus_config" / config["robot"]).resolve())
+    config["sensors"] = [sensor]
+    path = folder / f"{robot}_sensor.yaml"
+    path.write_text(yaml.safe_dump(config))
+    return path

@@ -59,6 +59,7 @@ KILTED_FEEDBACK_MESSAGE_PREFIX = "RIHS01_95618cc7"
 #: the other interfaces hil's ROS faces declare (RosControlFace, RosClockFace, the action,
 #: every node's parameters, /rosout and type descriptions)
 MESSAGES = ("sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu",
+            "geometry_msgs/msg/WrenchStamped",
             "diagnostic_msgs/msg/DiagnosticArray", "std_msgs/msg/String",
             "rosgraph_msgs/msg/Clock", "action_msgs/msg/GoalStatusArray",
             "rcl_interfaces/msg/Log", "rcl_interfaces/msg/ParameterEvent")

@@ -18,7 +18,10 @@ from hil.bus_config.yaml_reader import LineMapping, Reader
 from hil.protocols import ati_netft
 
 FORCE_TORQUE_KEYS = {"bus", "base_id", "counts_per_force", "counts_per_torque",
-                     "short_divisors", "force", "torque"}
+                     "short_divisors", "force", "torque", "poll_hz"}
+#: how often hil control requests long data unless told (hil's choice: a wrench controller's
+#: usual rate; the bus' cycle rate at most)
+DEFAULT_POLL_HZ = 100.0
 #: a Net F/T's calibration as hil assumes it unless told: counts per N and per N·m (the
 #: Ethernet interface's calibration record carries them; ATI's example calibrations give
 #: 1,000,000), and the 16-bit short data's divisors (hil's choice: 1 mN and 0.1 mN·m a
@@ -40,6 +43,11 @@ def read_force_torque(reader: Reader, item: LineMapping, what: str, name: str, l
     if bus and bus not in buses:
         reader.fail(f"{what}: the config has no bus '{bus}'",
                     item.key_lines.get("bus", item.line), hint=f"buses: {', '.join(buses)}")
+    poll = float(reader.number(item, "poll_hz", what, DEFAULT_POLL_HZ))
+    if bus in buses and poll > buses[bus].cycle_hz:
+        reader.fail(f"{what}: 'poll_hz' {poll:g} is over its bus' cycle rate "
+                    f"({buses[bus].cycle_hz:g} Hz): hil control requests at most once a cycle",
+                    item.key_lines.get("poll_hz", item.line))
     base_id = int(reader.number(item, "base_id", what, None, integer=True, positive=False))
     if not 0 <= base_id <= ati_netft.MAX_BASE_ID:
         reader.fail(f"{what}: 'base_id' is 0 to 0x{ati_netft.MAX_BASE_ID:X} (its answers go "
@@ -64,6 +72,6 @@ def read_force_torque(reader: Reader, item: LineMapping, what: str, name: str, l
         short_divisors=(float(divisors[0]), float(divisors[1])),
         force=read_errors(reader, item, "force", what, DEFAULT_FORCE),
         torque=read_errors(reader, item, "torque", what, DEFAULT_TORQUE),
-        sample_hz=SAMPLE_HZ,
+        sample_hz=SAMPLE_HZ, poll_hz=poll,
         seed=int(reader.number(item, "seed", what, 0, positive=False, integer=True)),
         line=item.line)

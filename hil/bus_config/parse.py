@@ -93,7 +93,7 @@ def sensor_frames(sensor: Sensor) -> list[FrameSpec]:
     """A CAN sensor's frames on its bus, named as the sensor's."""
     what = f"sensor '{sensor.name}'"
     if isinstance(sensor, ForceTorqueConfig):
-        return ati_netft.frame_specs(sensor.base_id, what)
+        return ati_netft.frame_specs(sensor.base_id, sensor.poll_hz, what)
     return hipnuc.frame_specs(sensor.node_id, sensor.rate_hz, sensor.outputs, what)
 
 

@@ -73,6 +73,7 @@ class ForceTorqueConfig:
     force: TriadErrors                # N
     torque: TriadErrors               # N·m
     sample_hz: float                  # its internal rate: the noise's sample period
+    poll_hz: float = 100.0            # how often hil control, its master, requests long data
     seed: int = 0
     line: int | None = None
 

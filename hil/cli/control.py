@@ -19,7 +19,7 @@ from hil.control_node import ControlNode
 from hil.controllers.config import DEFAULT_GOAL_TOLERANCE, controllers_for
 from hil.errors import UsageError
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface
-from hil.messaging.zenoh_api import imu_key, key
+from hil.messaging.zenoh_api import IMU, WRENCH, key, sensor_key
 from hil.realtime import REAL_TIME_PRIORITY, enter_real_time
 from hil.realtime.stalls import BENCH_STALL_STATUS
 from hil.zenoh_session import close_all, session
@@ -161,14 +161,19 @@ def _hold(zenoh, robot: str, node: ControlNode) -> None:
 
 
 def _announce_sensors(args: argparse.Namespace, config) -> None:
-    """Where each IMU is read and where its samples go."""
-    for sensor in config.imus:
+    """Where each sensor is read and where its samples go."""
+    read = [(sensor, IMU, f"IMU '{sensor.name}' read off "
+             + (str(sensor.port) if sensor.bus is None else f"bus '{sensor.bus}'"))
+            for sensor in config.imus]
+    read += [(sensor, WRENCH, f"force-torque sensor '{sensor.name}' polled at "
+              f"{sensor.poll_hz:g} Hz on bus '{sensor.bus}'") for sensor in config.force_torques]
+    for sensor, kind, what in read:
         ros = ""
         if args.ros:
-            from hil.messaging.ros.face import imu_topic    # noqa: PLC0415 (only with --ros)
-            ros = f" and the ROS topic {imu_topic(sensor.name)}"
-        print(f"hil control: IMU '{sensor.name}' read off {sensor.port}, its samples on "
-              f"hil/{config.robot.name}/{imu_key(sensor.name)}{ros}", flush=True)
+            from hil.messaging.ros.face import sensor_topic     # noqa: PLC0415 (--ros only)
+            ros = f" and the ROS topic {sensor_topic(sensor.name, kind)}"
+        print(f"hil control: {what}, its samples on "
+              f"hil/{config.robot.name}/{sensor_key(sensor.name, kind)}{ros}", flush=True)
 
 
 def _ros_faces(args: argparse.Namespace, config) -> list:

@@ -34,7 +34,7 @@ from hil.messaging.diagnostics import DiagnosticStatus, fault_values
 from hil.messaging.face import ControlFace, ZenohControlFace
 from hil.messaging.keys import key
 from hil.messaging.samples import ControlSampleBuffer
-from hil.messaging.zenoh_api import StallPublisher, StallSubscriber
+from hil.messaging.zenoh_api import IMU, WRENCH, StallPublisher, StallSubscriber
 from hil.realtime import REAL_TIME, REAL_TIME_PRIORITY, CyclePacer, PeriodStatistics, Timing
 from hil.realtime.stalls import Stall, StallDetector, StallTally
 
@@ -92,10 +92,15 @@ class ControlNode:
         self.faces: list[ControlFace] = [ZenohControlFace(
             session, robot.name, self.manager, self.stamp_to_clock, self.reset_faults)]
         self.faces += [make(self) for make in faces]
-        #: each IMU's sensor_msgs/Imu, packed in the loop as its samples arrive
-        self._imus = {imu.name: cdr.ImuCdr(imu.frame, imu.variances) for imu in hardware.imus}
+        #: each sensor's message (sensor_msgs/Imu, geometry_msgs/WrenchStamped), packed in
+        #: the loop as its samples arrive
+        self._sensors: dict[str, cdr.ImuCdr | cdr.WrenchCdr] = {
+            **{imu.name: cdr.ImuCdr(imu.frame, imu.variances) for imu in hardware.imus},
+            **{name: cdr.WrenchCdr(frame) for name, frame in hardware.force_torques}}
+        declared = tuple((imu.name, IMU) for imu in hardware.imus) + tuple(
+            (name, WRENCH) for name, _ in hardware.force_torques)
         for face in self.faces:
-            face.declare_imus(tuple(self._imus))
+            face.declare_sensors(declared)
         #: faults explained by the bench's own stalls (real time), as diagnosed
         self.bench_faults: list[Attribution] = []
         #: the control loop's own stalls (real time)
@@ -309,19 +314,23 @@ class ControlNode:
         self._publish_results()
         if self.samples.full:
             self._publish_samples()
-        if self._imus:
-            self._publish_imus()
+        if self._sensors:
+            self._publish_sensors()
 
-    def _publish_imus(self) -> None:
-        """The IMUs' samples read since the last cycle, each as it came (as ros2_controllers'
-        imu_sensor_broadcaster publishes its sensor's state every update)."""
+    def _publish_sensors(self) -> None:
+        """The sensors' samples read since the last cycle, each as it came (as ros2_controllers'
+        imu_sensor_broadcaster and force_torque_sensor_broadcaster publish their sensor's
+        state every update)."""
         for state in self.hardware.read_sensors():
-            reading = state.reading
-            payload = self._imus[state.sensor].encode(
-                state.received, reading.orientation, reading.angular_velocity,
-                reading.acceleration)
+            encoder = self._sensors[state.sensor]
+            if isinstance(encoder, cdr.WrenchCdr):
+                payload = encoder.encode(state.received, state.force, state.torque)
+            else:
+                reading = state.reading
+                payload = encoder.encode(state.received, reading.orientation,
+                                         reading.angular_velocity, reading.acceleration)
             for face in self.faces:
-                face.publish_imu(state.sensor, payload)
+                face.publish_sensor(state.sensor, payload)
 
     def _publish_results(self) -> None:
         finished = self.controller.finished()

@@ -25,6 +25,7 @@ from hil.bus_config.types import SystemConfig
 from hil.can import watch_deliveries
 from hil.hardware.axis import AxisFault
 from hil.hardware.bring_up import BOOT_TIMEOUT, BringUp
+from hil.hardware.can_force_torque import CanForceTorque, WrenchState
 from hil.hardware.can_imu import CanImu
 from hil.hardware.exchange import MISSED_ANSWER_LIMIT, CycleExchange
 from hil.hardware.feedback import JointFeedback
@@ -75,6 +76,11 @@ class CanHardwareInterface(HardwareInterface):
             SerialImu(sensor) if sensor.bus is None else CanImu(sensor)
             for sensor in config.imus]
         self.imus = tuple(ImuDescription.of(sensor) for sensor in config.imus)
+        # hil control is the Net F/Ts' master: each polled at its poll_hz, in cycles
+        self._force_torques = [CanForceTorque(sensor, max(1, round(config.cycle_hz /
+                                                                      sensor.poll_hz)))
+                               for sensor in config.force_torques]
+        self.force_torques = tuple((s.name, s.link) for s in config.force_torques)
         self._sensor_problems: dict[str, str | None] = {}
 
     def start(self, cancel: threading.Event | None = None) -> JointFeedback:
@@ -134,7 +140,7 @@ class CanHardwareInterface(HardwareInterface):
         """Disable every drive (each in its protocol's way), then release the buses and the
         sensors' ports."""
         self._exchange.close()
-        for sensor in self.sensors:
+        for sensor in [*self.sensors, *self._force_torques]:
             sensor.close()
 
     def answer_deadlines(self) -> dict[tuple[str, int], float]:
@@ -144,9 +150,14 @@ class CanHardwareInterface(HardwareInterface):
     def watch_transport(self, on_stall: Callable[[Stall], None]) -> None:
         watch_deliveries(self._buses.values(), on_stall)
 
-    def read_sensors(self) -> list[ImuState]:
-        states: list[ImuState] = []
+    def read_sensors(self) -> list[ImuState | WrenchState]:
+        states: list[ImuState | WrenchState] = []
         routers = self._exchange.routers
+        for force_torque in self._force_torques:
+            if not force_torque.attached and force_torque.config.bus in routers:
+                force_torque.attach(routers[force_torque.config.bus])
+            force_torque.request(self._exchange.cycle)
+            states += force_torque.poll()
         for sensor in self.sensors:
             if isinstance(sensor, CanImu) and not sensor.attached and sensor.config.bus in routers:
                 sensor.attach(routers[sensor.config.bus])

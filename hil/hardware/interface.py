@@ -17,6 +17,7 @@ import numpy as np
 from hil.description import RobotDescription
 from hil.hardware.axis import AxisFault
 from hil.hardware.feedback import JointFeedback
+from hil.hardware.can_force_torque import WrenchState
 from hil.hardware.serial_imu import ImuDescription, ImuState
 from hil.realtime import Ring
 from hil.realtime.stalls import Stall
@@ -41,6 +42,8 @@ class HardwareInterface(ABC):
     last_round_trip: float = math.nan
     #: the IMUs :meth:`read_sensors` gives samples of
     imus: tuple[ImuDescription, ...] = ()
+    #: the force-torque sensors it gives samples of: (name, the link it is on) each
+    force_torques: tuple[tuple[str, str], ...] = ()
 
     def __init__(self, robot: RobotDescription):
         self.robot = robot
@@ -92,7 +95,7 @@ class HardwareInterface(ABC):
         """From now on call ``on_stall`` (from any thread) with each late delivery the
         transport to the actuators reports; a transport that reports none ignores it."""
 
-    def read_sensors(self) -> list[ImuState]:
+    def read_sensors(self) -> list[ImuState | WrenchState]:
         """The sensors' samples that arrived since the last call, without waiting (none
         where the hardware has no sensor)."""
         return []

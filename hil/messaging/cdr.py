@@ -105,6 +105,7 @@ for _name, _text in DEFINITIONS.items():
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 IMU = "sensor_msgs/msg/Imu"
+WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
 SEND_GOAL_REQUEST = "control_msgs/action/FollowJointTrajectory_SendGoal_Request"
 SEND_GOAL_RESPONSE = "control_msgs/action/FollowJointTrajectory_SendGoal_Response"
 FEEDBACK_MESSAGE = "control_msgs/action/FollowJointTrajectory_FeedbackMessage"
@@ -231,6 +232,23 @@ class ImuCdr:
             values += covariance
         return self._struct.pack(b"\x00\x01\x00\x00", *seconds_and_nanoseconds(stamp),
                                  len(self._name), self._name, *values)
+
+
+class WrenchCdr:
+    """geometry_msgs/WrenchStamped of one sensor as CDR, packed by one struct (as
+    :class:`ImuCdr`; tests/test_cdr.py holds the bytes against rosbags' own)."""
+
+    def __init__(self, frame_id: str):
+        name = frame_id.encode() + b"\0"
+        pad = -(12 + len(name)) % 8          # float64s align to 8 after the header
+        self._struct = struct.Struct(f"<4siII{len(name)}s{pad}x6d")
+        self._name = name
+
+    def encode(self, stamp: float, force, torque) -> bytes:
+        """The message stamped ``stamp`` (s): force (N) and torque (N·m), three floats each."""
+        return self._struct.pack(b"\x00\x01\x00\x00", *seconds_and_nanoseconds(stamp),
+                                 len(self._name), self._name, *map(float, force),
+                                 *map(float, torque))
 
 
 def _floats(values) -> list[float]:

@@ -20,7 +20,7 @@ from hil.messaging.action import TrajectoryActionServer
 from hil.messaging.controller_manager import ControllerManagerServer
 from hil.messaging.samples import ControlSamples
 from hil.messaging.zenoh_api import (
-    ControlSamplesPublisher, DiagnosticsPublisher, ImuPublisher, JointStatePublisher,
+    ControlSamplesPublisher, DiagnosticsPublisher, JointStatePublisher, SensorPublisher,
 )
 
 
@@ -43,12 +43,13 @@ class ControlFace:
     def publish_samples(self, batch: ControlSamples) -> None:
         """A batch of recorded control cycles."""
 
-    def declare_imus(self, names: tuple[str, ...]) -> None:
-        """The IMUs :meth:`publish_imu` will be given samples of (declared before the loop
-        cycles: a declaration takes longer than a cycle may)."""
+    def declare_sensors(self, sensors: tuple[tuple[str, str], ...]) -> None:
+        """The sensors, (name, kind: IMU or WRENCH of hil.messaging.zenoh_api), that
+        :meth:`publish_sensor` will be given samples of (declared before the loop cycles: a
+        declaration takes longer than a cycle may)."""
 
-    def publish_imu(self, name: str, payload: bytes) -> None:
-        """A sensor_msgs/Imu sample of IMU ``name``."""
+    def publish_sensor(self, name: str, payload: bytes) -> None:
+        """A sample of sensor ``name``: sensor_msgs/Imu or geometry_msgs/WrenchStamped."""
 
     def close(self) -> None:
         """Undeclare everything; called once, after the loop's last cycle."""
@@ -68,7 +69,7 @@ class ZenohControlFace(ControlFace):
         self._samples = ControlSamplesPublisher(session, robot)
         self._diagnostics = DiagnosticsPublisher(session, robot)
         self._session, self._robot = session, robot
-        self._imus: dict[str, ImuPublisher] = {}
+        self._sensors: dict[str, SensorPublisher] = {}
 
     def publish_joint_states(self, payload: bytes) -> None:
         self._joint_states.put(payload)
@@ -85,11 +86,12 @@ class ZenohControlFace(ControlFace):
     def publish_samples(self, batch: ControlSamples) -> None:
         self._samples.publish(batch)
 
-    def declare_imus(self, names: tuple[str, ...]) -> None:
-        self._imus = {name: ImuPublisher(self._session, self._robot, name) for name in names}
+    def declare_sensors(self, sensors: tuple[tuple[str, str], ...]) -> None:
+        self._sensors = {name: SensorPublisher(self._session, self._robot, name, kind)
+                         for name, kind in sensors}
 
-    def publish_imu(self, name: str, payload: bytes) -> None:
-        self._imus[name].put(payload)
+    def publish_sensor(self, name: str, payload: bytes) -> None:
+        self._sensors[name].put(payload)
 
     def close(self) -> None:
         self.server.close()
@@ -97,5 +99,5 @@ class ZenohControlFace(ControlFace):
         self._joint_states.close()
         self._samples.close()
         self._diagnostics.close()
-        for publisher in self._imus.values():
+        for publisher in self._sensors.values():
             publisher.close()

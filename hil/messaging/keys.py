@@ -4,6 +4,8 @@
 ``joint_states``                                       publication, sensor_msgs/JointState
 ``sensors/<name>/imu``                                 publication, sensor_msgs/Imu: an IMU's
                                                        samples as the controller reads them
+``sensors/<name>/wrench``                              publication, geometry_msgs/WrenchStamped:
+                                                       a force-torque sensor's, as it polls it
 ``follow_joint_trajectory/_action/send_goal``          query: SendGoal_Request -> SendGoal_Response
                                                        (rejection: error reply with the reason)
 ``follow_joint_trajectory/_action/cancel_goal``        query: action_msgs CancelGoal

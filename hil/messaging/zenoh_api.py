@@ -20,7 +20,7 @@ from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.keys import key
 from hil.messaging.samples import ControlSamples
 from hil.messaging.scene import SceneState
-from hil.messaging.sensors import ImuMessage
+from hil.messaging.sensors import ImuMessage, WrenchMessage
 from hil.realtime.side_work import SideWorkQueue
 from hil.realtime.stalls import Stall
 
@@ -39,23 +39,28 @@ class JointStatePublisher:
         self._publisher.undeclare()
 
 
-class ImuPublisher:
-    """Publishes an IMU's sensor_msgs/Imu samples on ``hil/<robot>/sensors/<name>/imu``."""
+#: what a sensor's key ends in, by its kind: an IMU's sensor_msgs/Imu, a force-torque
+#: sensor's geometry_msgs/WrenchStamped
+IMU, WRENCH = "imu", "wrench"
 
-    def __init__(self, session: zenoh.Session, robot: str, name: str):
-        self._publisher = session.declare_publisher(key(robot, imu_key(name)))
+
+class SensorPublisher:
+    """Publishes a sensor's samples on ``hil/<robot>/sensors/<name>/<kind>``."""
+
+    def __init__(self, session: zenoh.Session, robot: str, name: str, kind: str):
+        self._publisher = session.declare_publisher(key(robot, sensor_key(name, kind)))
 
     def put(self, payload: bytes) -> None:
-        """Put a sample already encoded (:class:`hil.messaging.cdr.ImuCdr`)."""
+        """Put a sample already encoded (:class:`hil.messaging.cdr.ImuCdr`, ``WrenchCdr``)."""
         self._publisher.put(payload)
 
     def close(self) -> None:
         self._publisher.undeclare()
 
 
-def imu_key(name: str) -> str:
-    """The key of IMU ``name``'s samples, under ``hil/<robot>/``."""
-    return f"sensors/{name}/imu"
+def sensor_key(name: str, kind: str) -> str:
+    """The key of sensor ``name``'s samples of ``kind`` (IMU, WRENCH), under ``hil/<robot>/``."""
+    return f"sensors/{name}/{kind}"
 
 
 class ControlSamplesPublisher:
@@ -212,8 +217,8 @@ class DiagnosticsPublisher:
 
 class RunSubscriber:
     """Receives a robot's recorded cycles, sim clock and (given ``on_diagnostic``,
-    ``on_stall``, ``on_scene`` and ``on_imu``) the controller's diagnostics, the real-time
-    processes' stalls, the plant's scene and the IMUs' samples;
+    ``on_stall``, ``on_scene``, ``on_imu`` and ``on_wrench``) the controller's diagnostics, the
+    real-time processes' stalls, the plant's scene and the sensors' samples;
     malformed payloads are counted (``malformed.count``) and reported through ``on_error``
     (:class:`MalformedPayloads`), never passed on.""" 
 
@@ -224,7 +229,8 @@ class RunSubscriber:
                  on_diagnostic: Callable[[DiagnosticStatus], None] | None = None,
                  on_stall: Callable[[Stall], None] | None = None,
                  on_scene: Callable[[SceneState], None] | None = None,
-                 on_imu: Callable[[ImuMessage], None] | None = None):
+                 on_imu: Callable[[ImuMessage], None] | None = None,
+                 on_wrench: Callable[[WrenchMessage], None] | None = None):
         self.malformed = MalformedPayloads(on_error)
         self._subscribers: list[zenoh.Subscriber] = []
         self._subscribe(session, key(robot, "control/samples"), ControlSamples.decode,
@@ -243,8 +249,11 @@ class RunSubscriber:
         if on_scene is not None:
             self._subscribe(session, key(robot, "sim/scene"), SceneState.decode, on_scene)
         if on_imu is not None:
-            self._subscribe(session, key(robot, imu_key("*")), ImuMessage.decode, on_imu,
-                            with_key=True)
+            self._subscribe(session, key(robot, sensor_key("*", IMU)), ImuMessage.decode,
+                            on_imu, with_key=True)
+        if on_wrench is not None:
+            self._subscribe(session, key(robot, sensor_key("*", WRENCH)), WrenchMessage.decode,
+                            on_wrench, with_key=True)
 
     def _subscribe(self, session: zenoh.Session, key_expr: str, decode: Callable[..., Any],
                    deliver: Callable[[Any], Any], with_key: bool = False) -> None:

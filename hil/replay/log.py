@@ -53,7 +53,8 @@ PERIOD_TOLERANCE = 0.1
 
 @dataclass(frozen=True)
 class LoggedFrame:
-    """One frame of a log, placed on a bus and told whose it is (a sensor's: no source)."""
+    """One frame of a log, placed on a bus and told whose it is (a sensor's: no source; a
+    master's request to a sensor: the master's, to no drive)."""
 
     number: int               # its place in the log, from 1
     time: float               # the log's timestamp (s)
@@ -246,8 +247,12 @@ def frames(path: Path, config: SystemConfig, channels: dict[object, int],
             bus = channels[msg.channel]
             frame = frame_of(msg)
             teller = tellers[bus]
-            yield LoggedFrame(number, msg.timestamp, bus, frame,
-                              None if teller.sensor(frame) else teller.source(frame))
+            sensor = teller.sensor(frame)
+            if sensor is not None and sensor.endswith("request"):   # a master's, to a sensor
+                source: FrameSource | None = FrameSource(Sender.MASTER, None, sensor)
+            else:
+                source = None if sensor is not None else teller.source(frame)
+            yield LoggedFrame(number, msg.timestamp, bus, frame, source)
     return in_time_order(told(), reorder_window)
 
 

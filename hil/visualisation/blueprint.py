@@ -17,6 +17,8 @@ import rerun.blueprint as rrb
 
 from hil.description import RobotDescription
 from hil.description.rotations import rpy_matrix
+from hil.messaging.zenoh_api import IMU
+from hil.visualisation.sensors import QUANTITIES
 
 #: a joint's series in ``cycle``, in order, and their units by joint type
 JOINT_SERIES = ("reference", "measured", "error", "reference velocity", "velocity", "effort")
@@ -81,11 +83,12 @@ class CycleSeries:
 def robot_view(robot: RobotDescription, series: CycleSeries,
                actuator_joints: dict[str, tuple[str, ...]], buses: tuple[str, ...],
                root: str = "", floating_base: bool = False, limits: tuple[str, ...] = (),
-               sensors: tuple[str, ...] = ()) -> rrb.Container:
+               sensors: tuple[tuple[str, str], ...] = ()) -> rrb.Container:
     """One robot's layout, its entities under ``root`` ("" or "/<robot>", as
     ``RunRecorder.root``); ``limits``: the actuators whose peak torque is drawn (in
     ``drives/limits``, two series each, in that order); the diagnostics, a floating
-    base's position and each of ``sensors`` (IMUs) are tabs beside the drive states."""
+    base's position and each of ``sensors`` ((name, kind) each) are tabs beside the drive
+    states."""
     cycle = f"{root}/cycle"
     actuators_of = {j: [a for a, js in actuator_joints.items() if j in js]
                     for j in series.joints}
@@ -140,14 +143,13 @@ def robot_view(robot: RobotDescription, series: CycleSeries,
     if floating_base:
         states.append(rrb.TimeSeriesView(name="base position [m]", origin=f"{root}/base",
                                          contents=[f"{root}/base/position"]))
-    for sensor in sensors:          # an IMU's tab: its three quantities, each on its scale
+    for sensor, kind in sensors:    # a sensor's tab: its quantities, each on its scale
         origin = f"{root}/sensors/{sensor}"
         states.append(rrb.Vertical(*(
             rrb.TimeSeriesView(name=f"{quantity.replace('_', ' ')} [{unit}]",
                                origin=f"{origin}/{quantity}")
-            for quantity, unit in (("angular_velocity", "rad/s"),
-                                   ("linear_acceleration", "m/s²"), ("angles", "°"))),
-            name=f"IMU {sensor}"))
+            for quantity, _, unit in QUANTITIES[kind]),
+            name=f"{'IMU' if kind == IMU else 'force-torque'} {sensor}"))
     loop = {series.loop(q): q for q in LOOP_SERIES}
     hidden = rrb.PlotLegend(visible=False)      # the views' names say what they show
     side = rrb.Vertical(

@@ -20,7 +20,7 @@ from hil.can.monitor import BusMonitor
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.messaging.scene import SceneState
-from hil.messaging.sensors import ImuMessage
+from hil.messaging.sensors import ImuMessage, WrenchMessage
 from hil.messaging.zenoh_api import RunSubscriber, key
 from hil.realtime import Ring
 from hil.realtime.stalls import Stall
@@ -64,7 +64,7 @@ class VizNode:
 
         return RunSubscriber(self._session, recorder.robot.name, put,
                              lambda wall, sim: put((wall, sim)), self._report, put, put, put,
-                             put)
+                             put, put)
 
     @staticmethod
     def _report(text: str) -> None:
@@ -144,8 +144,8 @@ class VizNode:
             recorder.log_stall(item)
         elif isinstance(item, SceneState):
             recorder.log_scene(item)
-        elif isinstance(item, ImuMessage):
-            recorder.log_imu(item)
+        elif isinstance(item, (ImuMessage, WrenchMessage)):
+            recorder.log_sensor(item)
         else:
             recorder.log_clock(*item)
 

@@ -9,6 +9,7 @@ import rerun as rr
 
 from hil.bus_config import SystemConfig
 from hil.file_names import file_stem
+from hil.messaging.zenoh_api import IMU, WRENCH
 from hil.visualisation.recorder import BenchParts, RunRecorder
 from hil.visualisation.urdf_export import viewer_urdf
 
@@ -21,7 +22,8 @@ def config_recorder(recording: rr.RecordingStream, config: SystemConfig, folder:
     urdf.write_bytes(viewer_urdf(config.robot))
     parts = BenchParts(config.scene, {d.actuator: d.peak_torque for d in config.drives},
                        config.floating_base, {b.name: b.load().worst_ratio for b in config.buses},
-                       tuple(sensor.name for sensor in config.imus))
+                       tuple((s.name, IMU) for s in config.imus)
+                       + tuple((s.name, WRENCH) for s in config.force_torques))
     return RunRecorder(recording, config.robot, urdf, actuator_joints(config),
                        tuple(b.name for b in config.buses), namespaced, parts)
 

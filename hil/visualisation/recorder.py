@@ -67,7 +67,7 @@ from hil.description import RobotDescription
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSamples
 from hil.messaging.scene import SceneState
-from hil.messaging.sensors import ImuMessage
+from hil.messaging.sensors import ImuMessage, WrenchMessage
 from hil.realtime.stalls import Stall
 from hil.visualisation.blueprint import CycleSeries, robot_view
 from hil.visualisation.bus_load import BusLoadLog
@@ -78,7 +78,7 @@ from hil.visualisation.drives import DriveStates, TorqueLimits
 from hil.visualisation.events import EventLog
 from hil.visualisation.poses import PoseLog
 from hil.visualisation.scene import SceneLog
-from hil.visualisation.sensors import ImuLog
+from hil.visualisation.sensors import SensorLog
 
 
 @dataclass(frozen=True)
@@ -86,13 +86,14 @@ class BenchParts:
     """What a bus config adds to its robot that the recording draws: the scene, each drive's
     peak torque (by actuator, N·m), whether the base floats, each bus' estimated load
     (`hil check`'s worst case, a fraction of the bitrate: drawn beside the measured), and its
-    IMUs."""
+    sensors."""
 
     scene: tuple[SceneObject, ...] = ()
     torque_limits: Mapping[str, float] = field(default_factory=dict)
     floating_base: bool = False
     bus_estimates: Mapping[str, float] = field(default_factory=dict)
-    sensors: tuple[str, ...] = ()        # the IMUs' names
+    #: its sensors, (name, kind: hil.messaging.zenoh_api's IMU or WRENCH) each
+    sensors: tuple[tuple[str, str], ...] = ()
 
 
 class RunRecorder:
@@ -134,7 +135,7 @@ class RunRecorder:
         # a floating base poses the URDF's root link's frame in the world
         self._scene = SceneLog(entities, bench.scene, prefix + self._urdf.root_link().name)
         self._poses = PoseLog(entities, robot, prefix)
-        self._imus = ImuLog(entities, bench.sensors)
+        self._sensors = SensorLog(entities, bench.sensors)
 
     @property
     def stalls_logged(self) -> int:
@@ -152,13 +153,13 @@ class RunRecorder:
         self._events.log_static()
         self._loads.log_static()
         self._scene.log_static()
-        self._imus.log_static()
+        self._sensors.log_static()
 
     def view(self) -> rrb.Container:
         """This robot's part of the viewer's layout (``hil.visualisation.blueprint``)."""
         return robot_view(self.robot, self.series, self._actuator_joints, self._buses,
                           self.root, self._floating, tuple(self._limits.limits),
-                          tuple(self._imus.sensors))
+                          self._sensors.sensors)
 
     def log_clock(self, wall_time: float, sim_time: float) -> None:
         self.sim_time.add(wall_time, sim_time)
@@ -197,13 +198,13 @@ class RunRecorder:
         self._loads.send(time.time(), final=True)
         self._poses.send()
         self._events.drain()
-        self._imus.flush()
+        self._sensors.flush()
 
     def log_scene(self, state: SceneState) -> None:
         """The moving objects' poses, the contacts and a floating base's pose, at the state's
         wall and sim time."""
         self._scene.log(state)
 
-    def log_imu(self, message: ImuMessage) -> None:
-        """An IMU's sample, at the time the controller received it."""
-        self._imus.log(message)
+    def log_sensor(self, message: ImuMessage | WrenchMessage) -> None:
+        """A sensor's sample, at the time the controller received it."""
+        self._sensors.log(message)

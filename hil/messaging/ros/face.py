@@ -32,6 +32,7 @@ from hil.messaging.ros.controller_manager import RosControllerManager
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.face import ControlFace
 from hil.messaging.keys import direct, key
+from hil.messaging.zenoh_api import IMU, WRENCH
 from hil.messaging.ros.action import RosTrajectoryActionServer
 from hil.messaging.ros.interfaces import (
     DEFAULT_DISTRO, DISTRO_DEFINITIONS, FEEDBACK, FollowJointTrajectory, TypeHashes, distro_types,
@@ -153,13 +154,17 @@ _STAMP = struct.Struct("<iI")
 JOINT_STATE_STAMP = 4          # after the encapsulation header
 FEEDBACK_STAMP = 20            # after it and the goal's 16-byte UUID
 DIAGNOSTICS_STAMP = 4
-IMU_STAMP = 4
+SENSOR_STAMP = 4               # sensor_msgs/Imu's and geometry_msgs/WrenchStamped's
+#: each kind of sensor's message type (the kinds of hil.messaging.zenoh_api)
+SENSOR_TYPES = {IMU: cdr.IMU, WRENCH: cdr.WRENCH_STAMPED}
 
 
-def imu_topic(name: str) -> str:
-    """The topic of IMU ``name``'s samples: ``<name>_sensor_broadcaster/imu``, the topic of an
-    imu_sensor_broadcaster of that name (``imu``: the controller's own default name)."""
-    return f"{name}_sensor_broadcaster/imu"
+def sensor_topic(name: str, kind: str) -> str:
+    """The topic of sensor ``name``'s samples: ``<name>_sensor_broadcaster/imu`` (or
+    ``/wrench``), the topic of ros2_controllers' imu_sensor_broadcaster (or
+    force_torque_sensor_broadcaster) named so (an IMU named ``imu``: the broadcaster's own
+    default name)."""
+    return f"{name}_sensor_broadcaster/{kind}"
 
 
 def reset_service_name(settings: RosSettings) -> str:
@@ -249,7 +254,7 @@ class RosControlFace(ControlFace):
         self._clock = clock
         hashes = self._hashes = TypeHashes(settings.distro)
         self._types = distro_types(settings.distro)
-        self._imus: dict[str, RosPublisher] = {}
+        self._sensors: dict[str, RosPublisher] = {}
         self._own_feedback = FEEDBACK in DISTRO_DEFINITIONS[settings.distro]
         if self._own_feedback:
             encode_feedback_once(controller.joint_names, self._types)
@@ -316,13 +321,15 @@ class RosControlFace(ControlFace):
     def publish_diagnostics(self, payload: bytes) -> None:
         self._put(self._diagnostics, payload, DIAGNOSTICS_STAMP)
 
-    def declare_imus(self, names: tuple[str, ...]) -> None:
-        # as ros2_controllers' imu_sensor_broadcaster publishes ~/imu, one per IMU
-        self._imus = {name: self.node.publisher(imu_topic(name), self._hashes.message(cdr.IMU))
-                      for name in names}
+    def declare_sensors(self, sensors: tuple[tuple[str, str], ...]) -> None:
+        # as ros2_controllers' imu_sensor_broadcaster publishes ~/imu and its
+        # force_torque_sensor_broadcaster ~/wrench, one per sensor
+        self._sensors = {name: self.node.publisher(sensor_topic(name, kind),
+                                                   self._hashes.message(SENSOR_TYPES[kind]))
+                         for name, kind in sensors}
 
-    def publish_imu(self, name: str, payload: bytes) -> None:
-        self._put(self._imus[name], payload, IMU_STAMP)
+    def publish_sensor(self, name: str, payload: bytes) -> None:
+        self._put(self._sensors[name], payload, SENSOR_STAMP)
 
     def _put(self, publisher: RosPublisher, payload: bytes, stamp_at: int) -> None:
         if self._plant_clock is not None:

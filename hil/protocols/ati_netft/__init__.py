@@ -66,9 +66,10 @@ def counts(values, counts_per_unit: float, bits: int) -> list[int]:
     return raw([float(v) for v in values], 1.0 / counts_per_unit, bits)
 
 
-def frame_specs(base_id: int, what: str) -> list[FrameSpec]:
-    """The sensor's frames on the bus: the master's requests and its answers, all sent on
-    request (rate 0: the master's polling rate is the master's)."""
-    return [FrameSpec(base_id, 1, 0.0, f"{what} request")] + [
-        FrameSpec(base_id + n, 8, 0.0, f"{what} {'long' if n < 5 else 'short'} data {n}")
+def frame_specs(base_id: int, poll_hz: float, what: str) -> list[FrameSpec]:
+    """The sensor's frames on the bus: its master's long-data requests at ``poll_hz`` and
+    their answers; the short answers (only on a request of another master: rate 0)."""
+    return [FrameSpec(base_id, 1, poll_hz, f"{what} request")] + [
+        FrameSpec(base_id + n, 8, poll_hz if n < 5 else 0.0,
+                  f"{what} {'long' if n < 5 else 'short'} data {n}")
         for n in LONG_ANSWERS + SHORT_ANSWERS]

@@ -1,0 +1,59 @@
+"""The controller's side of a Net F/T: hil control as its master, requesting long data every
+few cycles (the sensor answers requests only) and taking the four answers off its bus'
+router as they come, decoded as the manual lays them out; the loop gets them at its next
+cycle (:class:`~hil.hardware.bus_sensor.BusSensor`)."""
+
+from __future__ import annotations
+
+import struct
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from hil.bus_config.sensor_types import ForceTorqueConfig
+from hil.can.frame import Frame
+from hil.hardware.bus_sensor import BusSensor
+from hil.protocols import ati_netft
+
+_REQUEST = bytes((ati_netft.LONG,))
+
+
+@dataclass(frozen=True)
+class WrenchState:
+    """A force-torque sensor's sample as the controller received it."""
+
+    sensor: str
+    frame: str                      # the link it is on (geometry_msgs' frame_id)
+    received: float                 # wall time (s)
+    force: np.ndarray               # N, in its axes
+    torque: np.ndarray              # N·m
+
+
+class CanForceTorque(BusSensor[WrenchState]):
+    """One Net F/T of the bus config, polled every ``every`` cycles once attached."""
+
+    def __init__(self, config: ForceTorqueConfig, every: int, clock=time.time):
+        super().__init__(tuple(config.base_id + n for n in ati_netft.LONG_ANSWERS))
+        self.config = config
+        self.every = every
+        self._clock = clock
+        self._parts: dict[int, tuple[int, int]] = {}
+
+    def request(self, cycle: int) -> None:
+        """Ask for long data, on every ``every``-th cycle."""
+        if self.router is not None and cycle % self.every == 0:
+            self.router.send(Frame(self.config.base_id, _REQUEST))
+
+    def on_frame(self, frame: Frame) -> None:
+        if len(frame.data) != 8:
+            return
+        self._parts[frame.identifier - self.config.base_id] = struct.unpack("<ii", frame.data)
+        if frame.identifier != self.identifiers[-1] or len(self._parts) < 4:
+            return
+        parts, self._parts = self._parts, {}
+        config = self.config
+        self.arrived(WrenchState(
+            config.name, config.link, self._clock(),
+            np.array([parts[n][0] for n in (1, 2, 3)]) / config.counts_per_force,
+            np.array([parts[n][1] for n in (1, 2, 3)]) / config.counts_per_torque))
