@@ -15,7 +15,8 @@ from ros_spec_client import SpecClient
 from test_wit_imu import _config
 
 from hil.bus_config import load_bus_config
-from hil.hardware.serial_imu import ImuDescription, SerialImu
+from hil.hardware.sensor_states import ImuDescription
+from hil.hardware.serial_imu import SerialImu
 from hil.messaging import cdr
 from hil.messaging.sensors import ImuMessage
 from hil.messaging.ros.face import RosControlFace, RosSettings

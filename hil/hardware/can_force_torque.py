@@ -7,27 +7,16 @@ from __future__ import annotations
 
 import struct
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
 from hil.bus_config.sensor_types import ForceTorqueConfig
 from hil.can.frame import Frame
 from hil.hardware.bus_sensor import BusSensor
+from hil.hardware.sensor_states import WrenchState
 from hil.protocols import ati_netft
 
 _REQUEST = bytes((ati_netft.LONG,))
-
-
-@dataclass(frozen=True)
-class WrenchState:
-    """A force-torque sensor's sample as the controller received it."""
-
-    sensor: str
-    frame: str                      # the link it is on (geometry_msgs' frame_id)
-    received: float                 # wall time (s)
-    force: np.ndarray               # N, in its axes
-    torque: np.ndarray              # N·m
 
 
 class CanForceTorque(BusSensor[WrenchState]):

@@ -9,7 +9,7 @@ import time
 from hil.bus_config.sensor_types import ImuConfig
 from hil.can.frame import Frame
 from hil.hardware.bus_sensor import BusSensor
-from hil.hardware.serial_imu import ImuState
+from hil.hardware.sensor_states import ImuState
 from hil.protocols import hipnuc
 
 

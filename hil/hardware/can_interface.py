@@ -25,13 +25,14 @@ from hil.bus_config.types import SystemConfig
 from hil.can import watch_deliveries
 from hil.hardware.axis import AxisFault
 from hil.hardware.bring_up import BOOT_TIMEOUT, BringUp
-from hil.hardware.can_force_torque import CanForceTorque, WrenchState
+from hil.hardware.can_force_torque import CanForceTorque
 from hil.hardware.can_imu import CanImu
 from hil.hardware.exchange import MISSED_ANSWER_LIMIT, CycleExchange
 from hil.hardware.feedback import JointFeedback
 from hil.hardware.interface import HardwareInterface
 from hil.hardware.mapping import JointMapping
-from hil.hardware.serial_imu import ImuDescription, ImuState, SerialImu
+from hil.hardware.sensor_states import ImuDescription, ImuState, WrenchState
+from hil.hardware.serial_imu import SerialImu
 from hil.hardware.watch import FaultWatch
 from hil.realtime.stalls import Stall
 
@@ -71,7 +72,7 @@ class CanHardwareInterface(HardwareInterface):
         self.round_trips = self._exchange.round_trips
         #: the round trip of the cycle :meth:`read` last took (s; NaN: not every answer came)
         self.last_round_trip = math.nan
-        #: the bus config's sensors, read off their ports
+        #: the bus config's IMUs, read off their ports or buses
         self.sensors: list[SerialImu | CanImu] = [
             SerialImu(sensor) if sensor.bus is None else CanImu(sensor)
             for sensor in config.imus]
@@ -81,11 +82,19 @@ class CanHardwareInterface(HardwareInterface):
                                                                       sensor.poll_hz)))
                                for sensor in config.force_torques]
         self.force_torques = tuple((s.name, s.link) for s in config.force_torques)
+        #: the sensors on a bus, listening there once its router runs (start)
+        self._bus_sensors: list[CanImu | CanForceTorque] = [
+            *(s for s in self.sensors if isinstance(s, CanImu)), *self._force_torques]
         self._sensor_problems: dict[str, str | None] = {}
 
     def start(self, cancel: threading.Event | None = None) -> JointFeedback:
-        return BringUp(self._exchange, self._watch, self._buses, self.boot_timeout).run(
+        feedback = BringUp(self._exchange, self._watch, self._buses, self.boot_timeout).run(
             self._holding_cycle, len(self.joint_names), cancel)
+        routers = self._exchange.routers          # opened by the bring-up
+        for sensor in self._bus_sensors:
+            if not sensor.attached:
+                sensor.attach(routers[sensor.config.bus])
+        return feedback
 
     def _holding_cycle(self, hold: np.ndarray, watch: bool) -> JointFeedback:
         self.write(hold, np.zeros_like(hold), enabling=True)
@@ -152,21 +161,16 @@ class CanHardwareInterface(HardwareInterface):
 
     def read_sensors(self) -> list[ImuState | WrenchState]:
         states: list[ImuState | WrenchState] = []
-        routers = self._exchange.routers
         for force_torque in self._force_torques:
-            if not force_torque.attached and force_torque.config.bus in routers:
-                force_torque.attach(routers[force_torque.config.bus])
             force_torque.request(self._exchange.cycle)
             states += force_torque.poll()
         for sensor in self.sensors:
-            if isinstance(sensor, CanImu) and not sensor.attached and sensor.config.bus in routers:
-                sensor.attach(routers[sensor.config.bus])
             states += sensor.poll()
             name = sensor.config.name
             if sensor.problem != self._sensor_problems.get(name, "not opened yet"):
                 self._sensor_problems[name] = sensor.problem
                 if sensor.problem is None:
-                    log.info("sensor '%s': reading %s", name, sensor.config.port)
+                    log.info("sensor '%s': read", name)
                 else:
                     log.warning("sensor '%s' is not read: %s", name, sensor.problem)
         return states

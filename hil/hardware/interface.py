@@ -17,8 +17,7 @@ import numpy as np
 from hil.description import RobotDescription
 from hil.hardware.axis import AxisFault
 from hil.hardware.feedback import JointFeedback
-from hil.hardware.can_force_torque import WrenchState
-from hil.hardware.serial_imu import ImuDescription, ImuState
+from hil.hardware.sensor_states import ImuDescription, ImuState, WrenchState
 from hil.realtime import Ring
 from hil.realtime.stalls import Stall
 

@@ -12,52 +12,19 @@ from __future__ import annotations
 
 import errno
 import fcntl
-import math
 import os
 import time
 import tty
-from dataclasses import dataclass
 
 from hil.bus_config.sensor_types import ImuConfig
 from hil.protocols import wit
-from hil.protocols.imu import ImuReading
+from hil.hardware.sensor_states import ImuState
 
 #: how often a port that is not there (yet), or held by another program, is tried (s)
 RETRY = 1.0
 #: the most bytes a cycle reads: 200 Hz of four packets is 8.8 kB/s, a cycle's share a few
 #: hundred bytes; the rest waits for the next cycle
 READ_LIMIT = 4096
-
-
-@dataclass(frozen=True)
-class ImuDescription:
-    """What a controller publishes of an IMU before its first sample: its name, the link it
-    is on (sensor_msgs' frame_id) and the variance of one sample of its orientation (rad²),
-    angular velocity ((rad/s)²) and linear acceleration ((m/s²)²) on each axis."""
-
-    name: str
-    frame: str
-    variances: tuple[float, float, float]
-
-    @classmethod
-    def of(cls, config: ImuConfig) -> ImuDescription:
-        """From the sensor's config: its white noise at its rate, its angles' step (hil
-        models no attitude filter: the angle is the plant's, rounded to the field)."""
-        angle_step = math.pi / 32768
-        return cls(config.name, config.link, (
-            angle_step ** 2 / 12,
-            config.gyroscope.noise_density ** 2 * config.rate_hz,
-            config.accelerometer.noise_density ** 2 * config.rate_hz))
-
-
-@dataclass(frozen=True)
-class ImuState:
-    """A sensor's sample as the controller received it."""
-
-    sensor: str
-    frame: str                      # the link it is on (sensor_msgs' frame_id)
-    received: float                 # wall time (s)
-    reading: ImuReading
 
 
 class SerialImu:
