@@ -19,7 +19,8 @@ from hil.control_node import ControlNode
 from hil.controllers.config import DEFAULT_GOAL_TOLERANCE, controllers_for
 from hil.errors import UsageError
 from hil.hardware import LOCK_STEP_REPLY_TIMEOUT, CanHardwareInterface, FakeHardwareInterface
-from hil.messaging.zenoh_api import IMU, WRENCH, key, sensor_key
+from hil.messaging.keys import IMU, WRENCH, sensor_key
+from hil.messaging.zenoh_api import key
 from hil.realtime import REAL_TIME_PRIORITY, enter_real_time
 from hil.realtime.stalls import BENCH_STALL_STATUS
 from hil.zenoh_session import close_all, session

@@ -32,9 +32,9 @@ from hil.messaging import cdr
 from hil.messaging.action import feedback_message
 from hil.messaging.diagnostics import DiagnosticStatus, fault_values
 from hil.messaging.face import ControlFace, ZenohControlFace
-from hil.messaging.keys import key
+from hil.messaging.keys import IMU, WRENCH, key
 from hil.messaging.samples import ControlSampleBuffer
-from hil.messaging.zenoh_api import IMU, WRENCH, StallPublisher, StallSubscriber
+from hil.messaging.zenoh_api import StallPublisher, StallSubscriber
 from hil.realtime import REAL_TIME, REAL_TIME_PRIORITY, CyclePacer, PeriodStatistics, Timing
 from hil.realtime.stalls import Stall, StallDetector, StallTally
 

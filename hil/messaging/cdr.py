@@ -212,10 +212,7 @@ class ImuCdr:
     def __init__(self, frame_id: str, variances: tuple[float, float, float]):
         """``variances``: of the orientation (rad²), angular velocity ((rad/s)²) and linear
         acceleration ((m/s²)²) of each axis (0: unknown)."""
-        name = frame_id.encode() + b"\0"
-        pad = -(12 + len(name)) % 8          # float64s align to 8 after the header
-        self._struct = struct.Struct(f"<4siII{len(name)}s{pad}x37d")
-        self._name = name
+        self._struct, self._name = _stamped_doubles(frame_id, 37)
         self._covariances = [[v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v] for v in variances]
 
     def encode(self, stamp: float, orientation, angular_velocity, linear_acceleration) -> bytes:
@@ -239,16 +236,22 @@ class WrenchCdr:
     :class:`ImuCdr`; tests/test_cdr.py holds the bytes against rosbags' own)."""
 
     def __init__(self, frame_id: str):
-        name = frame_id.encode() + b"\0"
-        pad = -(12 + len(name)) % 8          # float64s align to 8 after the header
-        self._struct = struct.Struct(f"<4siII{len(name)}s{pad}x6d")
-        self._name = name
+        self._struct, self._name = _stamped_doubles(frame_id, 6)
 
     def encode(self, stamp: float, force, torque) -> bytes:
         """The message stamped ``stamp`` (s): force (N) and torque (N·m), three floats each."""
         return self._struct.pack(b"\x00\x01\x00\x00", *seconds_and_nanoseconds(stamp),
                                  len(self._name), self._name, *map(float, force),
                                  *map(float, torque))
+
+
+def _stamped_doubles(frame_id: str, count: int) -> tuple[struct.Struct, bytes]:
+    """The struct of a message that is a std_msgs/Header of ``frame_id`` then ``count``
+    float64s (XCDR1, little endian, after the encapsulation header), and the frame id as it
+    packs (NUL-terminated)."""
+    name = frame_id.encode() + b"\0"
+    pad = -(12 + len(name)) % 8          # float64s align to 8 after the header
+    return struct.Struct(f"<4siII{len(name)}s{pad}x{count}d"), name
 
 
 def _floats(values) -> list[float]:

@@ -37,6 +37,16 @@ from collections.abc import Callable
 
 import zenoh
 
+#: what a sensor's key ends in, by its kind: an IMU's sensor_msgs/Imu, a force-torque
+#: sensor's geometry_msgs/WrenchStamped
+IMU, WRENCH = "imu", "wrench"
+
+
+def sensor_key(name: str, kind: str) -> str:
+    """The key of sensor ``name``'s samples of ``kind`` (IMU, WRENCH), under ``hil/<robot>/``."""
+    return f"sensors/{name}/{kind}"
+
+
 #: the FollowJointTrajectory action's keys, under ``hil/<robot>/``
 ACTION = "follow_joint_trajectory/_action"
 #: a query that met no one is asked again after this long (s); the least a query waits (s)

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hil.messaging import cdr
+from hil.messaging.keys import IMU, WRENCH
 
 
 @dataclass(frozen=True)
@@ -24,7 +25,7 @@ class ImuMessage:
     @classmethod
     def decode(cls, key_expr: str, payload: bytes) -> ImuMessage:
         """From its key (``.../sensors/<name>/imu``) and CDR; ValueError if malformed."""
-        name = _sensor_of(key_expr, "imu", "IMU")
+        name = _sensor_of(key_expr, IMU, "IMU")
         message = cdr.decode(payload, cdr.IMU)
 
         def field(values, covariance) -> np.ndarray:
@@ -63,7 +64,7 @@ class WrenchMessage:
     @classmethod
     def decode(cls, key_expr: str, payload: bytes) -> WrenchMessage:
         """From its key (``.../sensors/<name>/wrench``) and CDR; ValueError if malformed."""
-        name = _sensor_of(key_expr, "wrench", "force-torque sensor")
+        name = _sensor_of(key_expr, WRENCH, "force-torque sensor")
         message = cdr.decode(payload, cdr.WRENCH_STAMPED)
         return cls(name, cdr.seconds_of(message.header.stamp),
                    np.array(_xyz(message.wrench.force)), np.array(_xyz(message.wrench.torque)))

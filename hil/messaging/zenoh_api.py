@@ -17,7 +17,7 @@ from hil.messaging.action import (
     ControllerGone, TrajectoryActionClient, TrajectoryActionServer, WaitStopped,
 )
 from hil.messaging.diagnostics import DiagnosticStatus
-from hil.messaging.keys import key
+from hil.messaging.keys import IMU, WRENCH, key, sensor_key
 from hil.messaging.samples import ControlSamples
 from hil.messaging.scene import SceneState
 from hil.messaging.sensors import ImuMessage, WrenchMessage
@@ -39,11 +39,6 @@ class JointStatePublisher:
         self._publisher.undeclare()
 
 
-#: what a sensor's key ends in, by its kind: an IMU's sensor_msgs/Imu, a force-torque
-#: sensor's geometry_msgs/WrenchStamped
-IMU, WRENCH = "imu", "wrench"
-
-
 class SensorPublisher:
     """Publishes a sensor's samples on ``hil/<robot>/sensors/<name>/<kind>``."""
 
@@ -56,11 +51,6 @@ class SensorPublisher:
 
     def close(self) -> None:
         self._publisher.undeclare()
-
-
-def sensor_key(name: str, kind: str) -> str:
-    """The key of sensor ``name``'s samples of ``kind`` (IMU, WRENCH), under ``hil/<robot>/``."""
-    return f"sensors/{name}/{kind}"
 
 
 class ControlSamplesPublisher:

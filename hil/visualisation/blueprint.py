@@ -17,7 +17,7 @@ import rerun.blueprint as rrb
 
 from hil.description import RobotDescription
 from hil.description.rotations import rpy_matrix
-from hil.messaging.zenoh_api import IMU
+from hil.messaging.keys import IMU
 from hil.visualisation.sensors import QUANTITIES
 
 #: a joint's series in ``cycle``, in order, and their units by joint type

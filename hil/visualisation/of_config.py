@@ -9,7 +9,7 @@ import rerun as rr
 
 from hil.bus_config import SystemConfig
 from hil.file_names import file_stem
-from hil.messaging.zenoh_api import IMU, WRENCH
+from hil.messaging.keys import IMU, WRENCH
 from hil.visualisation.recorder import BenchParts, RunRecorder
 from hil.visualisation.urdf_export import viewer_urdf
 

@@ -10,8 +10,8 @@ import math
 import numpy as np
 import rerun as rr
 
+from hil.messaging.keys import IMU, WRENCH
 from hil.messaging.sensors import ImuMessage, WrenchMessage
-from hil.messaging.zenoh_api import IMU, WRENCH
 from hil.protocols.imu import euler_angles
 from hil.visualisation.columns import ScalarTable
 from hil.visualisation.entities import RobotEntities

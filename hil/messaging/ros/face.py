@@ -31,8 +31,7 @@ from hil.messaging.action import encode_feedback_once, feedback_message
 from hil.messaging.ros.controller_manager import RosControllerManager
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.face import ControlFace
-from hil.messaging.keys import direct, key
-from hil.messaging.zenoh_api import IMU, WRENCH
+from hil.messaging.keys import IMU, WRENCH, direct, key
 from hil.messaging.ros.action import RosTrajectoryActionServer
 from hil.messaging.ros.interfaces import (
     DEFAULT_DISTRO, DISTRO_DEFINITIONS, FEEDBACK, FollowJointTrajectory, TypeHashes, distro_types,
