@@ -65,8 +65,7 @@ class Capture:
 def _imu(config, plant, port) -> SimulatedImu:
     """The config's first IMU, a WitMotion one, on ``port``."""
     imu = config.sensors[0]
-    return SimulatedImu(imu, lambda: plant.sensors.read(imu.name),
-                        lambda sample: wit.encode(sample, imu.outputs), port)
+    return SimulatedImu(imu, lambda: plant.sensors.read(imu.name), port)
 
 
 def _parsed(data: bytes) -> dict[int, list]:

@@ -19,7 +19,6 @@ from pathlib import Path
 import yaml
 
 from hil.bus_config import load_bus_config
-from hil.protocols import hipnuc, wit
 from hil.sensors.imu import SimulatedImu
 from hil.simulator.build import bench_plant
 from hil.simulator.stepping import PlantStepping
@@ -55,11 +54,9 @@ def stepping(folder: Path, sensor: dict | None) -> PlantStepping:
     loaded = load_bus_config(path)
     plant = bench_plant(loaded)
     steps = PlantStepping(plant)
-    for imu in loaded.sensors:
-        encode = (functools.partial(wit.encode, outputs=imu.outputs) if imu.bus is None else
-                  functools.partial(hipnuc.frames, node_id=imu.node_id, outputs=imu.outputs))
+    for imu in loaded.imus:
         steps.sensors.append(SimulatedImu(imu, functools.partial(plant.sensors.read, imu.name),
-                                          encode, Capture()))
+                                          Capture()))
     return steps
 
 

@@ -47,6 +47,20 @@ def quaternion_of(roll: float, pitch: float, yaw: float) -> np.ndarray:
                      cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
 
 
+def reading_of(acceleration=None, angular_velocity=None, quaternion=None,
+               angles=None) -> ImuReading:
+    """A decoded sample from the fields it carries (SI units, None where not sent): its
+    orientation from the quaternion (normalised: the field's steps leave it off unit) where it
+    carries one, else from its z-y-x angles."""
+    orientation = None
+    if quaternion is not None:
+        orientation = np.asarray(quaternion, dtype=float)
+        orientation = orientation / (np.linalg.norm(orientation) or 1.0)
+    elif angles is not None:
+        orientation = quaternion_of(*angles)
+    return ImuReading(acceleration, angular_velocity, orientation)
+
+
 def raw(values, step: float, bits: int = 16) -> list[int]:
     """Values (Python floats) as the signed integers of a field of ``step`` per count: clipped at the
     field's range (the sensor saturates there), rounded half to even. In Python floats: numpy

@@ -6,6 +6,7 @@ lock-step alike: its samples follow plant time, so a lock-step run's are the sam
 
 from __future__ import annotations
 
+import functools
 from collections import deque
 from collections.abc import Callable
 from typing import Generic, Protocol, TypeVar
@@ -14,6 +15,8 @@ import numpy as np
 
 from hil.bus_config.sensor_types import ImuConfig
 from hil.can.faults import SensorFaultKind
+from hil.can.frame import Frame
+from hil.protocols import hipnuc, wit
 from hil.protocols.imu import ImuSample
 from hil.sensors.noise import TriadNoise
 
@@ -35,16 +38,26 @@ class Port(Protocol[Payload]):
     def close(self) -> None: ...
 
 
+def codec_of(config: ImuConfig) -> Callable[[ImuSample], bytes | list[Frame]]:
+    """Its product's codec: a sample as its wire carries it (WitMotion's packets on a serial
+    port, HiPNUC's TPDOs on a bus)."""
+    if config.bus is None:
+        return functools.partial(wit.encode, outputs=config.outputs)
+    return functools.partial(hipnuc.frames, node_id=config.node_id, outputs=config.outputs)
+
+
 class SimulatedImu(Generic[Payload]):
     """One IMU of the bus config, sampling ``read`` from plant time ``start`` on, each sample
-    made its wire's payload by ``encode`` (its product's codec) and written to ``port``."""
+    made its wire's payload by its product's codec (:func:`codec_of`) and written to
+    ``port``."""
 
-    def __init__(self, config: ImuConfig, read: Reading, encode: Callable[[ImuSample], Payload],
-                 port: Port[Payload], start: float = 0.0):
+    def __init__(self, config: ImuConfig, read: Reading, port: Port[Payload],
+                 start: float = 0.0):
         self.config = config
         self._read = read
-        self._encode = encode
+        self._encode = codec_of(config)
         self.port = port
+        self._period = config.period           # read at every plant step: once
         accelerometer, gyroscope = np.random.default_rng(config.seed).spawn(2)
         self._accelerometer = TriadNoise(config.accelerometer, config.period, accelerometer)
         self._gyroscope = TriadNoise(config.gyroscope, config.period, gyroscope)
@@ -67,7 +80,7 @@ class SimulatedImu(Generic[Payload]):
     def after_step(self, now: float) -> None:
         """The plant is at ``now`` (s): take the samples due by then, send those whose
         latency is over."""
-        period = self.config.period
+        period = self._period
         # a step's time is a sum of floats: half a step's worth of slack, not a sample late
         while self._start + self._samples * period <= now + 1e-9:
             due = self._start + self._samples * period

@@ -17,7 +17,7 @@ from hil.description import Pose
 from hil.drives.tuning import tuned_gains
 from hil.plant import Plant
 from hil.plant.sensor_sites import SensorKind, SensorSite
-from hil.protocols import hipnuc, protocol, wit
+from hil.protocols import protocol
 from hil.realtime.timing import Timing
 from hil.sensors.can_port import CanSensorPort
 from hil.sensors.force_torque import SimulatedForceTorque
@@ -76,16 +76,10 @@ def simulated_sensors(config: SystemConfig, plant: Plant) -> list[SimulatedImu]:
     sensors: list[SimulatedImu] = []
     try:
         for sensor in config.imus:
-            read = functools.partial(plant.sensors.read, sensor.name)
-            if sensor.bus is not None:
-                sensors.append(SimulatedImu(
-                    sensor, read, functools.partial(hipnuc.frames, node_id=sensor.node_id,
-                                                    outputs=sensor.outputs),
-                    CanSensorPort(sensor.bus, sensor.node_id), start=plant.time))
-                continue
-            port = PseudoTerminal(sensor.port, config.path, sensor.line)
-            sensors.append(SimulatedImu(sensor, read,
-                                        functools.partial(wit.encode, outputs=sensor.outputs),
+            port = (PseudoTerminal(sensor.port, config.path, sensor.line) if sensor.bus is None
+                    else CanSensorPort(sensor.bus, sensor.node_id))
+            sensors.append(SimulatedImu(sensor, functools.partial(plant.sensors.read,
+                                                                  sensor.name),
                                         port, start=plant.time))
     except BaseException:
         close_sensors(sensors)

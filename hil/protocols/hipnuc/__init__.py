@@ -25,7 +25,7 @@ import struct
 import numpy as np
 
 from hil.can.frame import Frame, FrameSpec
-from hil.protocols.imu import ImuReading, ImuSample, euler_angles, quaternion_of, raw
+from hil.protocols.imu import ImuReading, ImuSample, euler_angles, raw, reading_of
 
 ACCELERATION = 0x180
 ANGULAR_VELOCITY = 0x280
@@ -100,14 +100,10 @@ class FrameReader:
         if kind != self._last:
             return None
         fields, self._fields = self._fields, {}
-        acceleration = rate = orientation = None
-        if ACCELERATION in fields:
-            acceleration = np.array(fields[ACCELERATION]) * ACCELERATION_STEP
-        if ANGULAR_VELOCITY in fields:
-            rate = np.array(fields[ANGULAR_VELOCITY]) * ANGULAR_VELOCITY_STEP
-        if QUATERNION in fields:
-            orientation = np.array(fields[QUATERNION]) * QUATERNION_STEP
-            orientation /= np.linalg.norm(orientation) or 1.0
-        elif ANGLE in fields:
-            orientation = quaternion_of(*(np.array(fields[ANGLE]) * ANGLE_STEP))
-        return ImuReading(acceleration, rate, orientation)
+
+        def scaled(kind: int, step: float) -> np.ndarray | None:
+            return np.array(fields[kind]) * step if kind in fields else None
+
+        return reading_of(scaled(ACCELERATION, ACCELERATION_STEP),
+                          scaled(ANGULAR_VELOCITY, ANGULAR_VELOCITY_STEP),
+                          scaled(QUATERNION, QUATERNION_STEP), scaled(ANGLE, ANGLE_STEP))

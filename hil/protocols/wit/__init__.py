@@ -23,7 +23,7 @@ import math
 import struct
 import numpy as np
 
-from hil.protocols.imu import ImuReading, ImuSample, euler_angles, quaternion_of, raw
+from hil.protocols.imu import ImuReading, ImuSample, euler_angles, raw, reading_of
 
 HEADER = 0x55
 ACCELERATION = 0x51
@@ -125,14 +125,12 @@ class PacketReader:
 
     def _sample(self) -> ImuReading:
         fields, self._fields = self._fields, {}
-        acceleration = rate = orientation = None
-        if ACCELERATION in fields:
-            acceleration = np.array(fields[ACCELERATION][:3]) / 32768.0 * ACCELERATION_RANGE
-        if ANGULAR_VELOCITY in fields:
-            rate = np.array(fields[ANGULAR_VELOCITY][:3]) / 32768.0 * ANGULAR_VELOCITY_RANGE
-        if QUATERNION in fields:
-            orientation = np.array(fields[QUATERNION]) / 32768.0
-            orientation /= np.linalg.norm(orientation) or 1.0
-        elif ANGLE in fields:
-            orientation = quaternion_of(*(np.array(fields[ANGLE][:3]) / 32768.0 * math.pi))
-        return ImuReading(acceleration, rate, orientation)
+
+        def scaled(kind: int, full_scale: float, count: int = 3) -> np.ndarray | None:
+            if kind not in fields:
+                return None
+            return np.array(fields[kind][:count]) / 32768.0 * full_scale
+
+        return reading_of(scaled(ACCELERATION, ACCELERATION_RANGE),
+                          scaled(ANGULAR_VELOCITY, ANGULAR_VELOCITY_RANGE),
+                          scaled(QUATERNION, 1.0, 4), scaled(ANGLE, math.pi))
