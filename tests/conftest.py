@@ -610,3 +610,24 @@ def sensor_messages(config, name: str, kind: str, typename: str, count: int) -> 
     finally:
         subscriber.undeclare()
         stack.close()
+
+
+def wait_until(condition, timeout: float = 10.0) -> None:
+    """Return once ``condition()`` holds (polled every 10 ms); fail after ``timeout`` s."""
+    pause = threading.Event()
+    for _ in range(int(timeout / 0.01)):
+        if condition():
+            return
+        pause.wait(0.01)
+    raise AssertionError(f"the condition did not come in {timeout:g} s")
+
+
+def sensor_frames_a_second(path: Path) -> float:
+    """The frames a second the sensors of the bus config at ``path`` add to its first bus'
+    load (the config's load less that of a copy without them, written beside it)."""
+    config = yaml.safe_load(path.read_text())
+    del config["sensors"]
+    bare = path.with_name(f"{path.stem}_bare.yaml")
+    bare.write_text(yaml.safe_dump(config))
+    return (load_bus_config(path).buses[0].load().frames_per_second
+            - load_bus_config(bare).buses[0].load().frames_per_second)

@@ -13,7 +13,7 @@ import canopen
 import numpy as np
 import pytest
 import yaml
-from conftest import imu_messages
+from conftest import imu_messages, sensor_frames_a_second, wait_until
 
 from hil.bus_config import load_bus_config
 from hil.errors import ConfigError
@@ -98,33 +98,19 @@ def test_nmt_stop_silences_the_imu_and_start_brings_it_back(tmp_path, master_bus
         boots = [master_end.recv(5) for _ in range(7)]       # six drives' and the IMU's
         assert [bytes(m.data) for m in boots if m.arbitration_id == 0x708] == [b"\x00"]
         master_end.send(can.Message(arbitration_id=0, data=[0x02, 8], is_extended_id=False))
-        _wait(lambda: not port.operational)
+        wait_until(lambda: not port.operational)
         lost = port.lost_frames
-        _wait(lambda: port.lost_frames > lost)                 # samples taken, not sent
+        wait_until(lambda: port.lost_frames > lost)                 # samples taken, not sent
         master_end.send(can.Message(arbitration_id=0, data=[0x01, 0], is_extended_id=False))
-        _wait(lambda: port.operational)
+        wait_until(lambda: port.operational)
     finally:
         sim.stop()
         runner.join(5)
         sim.close()
 
 
-def _wait(condition, timeout: float = 5.0) -> None:
-    deadline = threading.Event()
-    for _ in range(int(timeout / 0.01)):
-        if condition():
-            return
-        deadline.wait(0.01)
-    raise AssertionError("the condition did not come")
-
-
 def test_the_imu_counts_in_its_bus_load_and_its_ids(tmp_path):
-    with_imu = load_bus_config(_config(tmp_path)).buses[0].load()
-    config = yaml.safe_load(_config(tmp_path).read_text())
-    del config["sensors"]
-    (tmp_path / "bare.yaml").write_text(yaml.safe_dump(config))
-    bare = load_bus_config(tmp_path / "bare.yaml").buses[0].load()
-    assert with_imu.frames_per_second - bare.frames_per_second == pytest.approx(400)
+    assert sensor_frames_a_second(_config(tmp_path)) == pytest.approx(400)
     with pytest.raises(ConfigError, match=r"CAN id 0x183 is used by sensor 'imu' TPDO1 and "
                                           r"by node 3"):
         load_bus_config(_config(tmp_path, node_id=3))

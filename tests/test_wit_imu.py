@@ -26,6 +26,7 @@ from hil.protocols.imu import ImuSample
 from hil.realtime.timing import REAL_TIME
 from hil.sensors.imu import SimulatedImu
 from hil.sensors.noise import ALLAN_FLOOR, GAUSS_MARKOV_PEAK
+from hil.sensors.port import Port
 from hil.sensors.serial_port import PseudoTerminal
 from hil.simulator import Simulator
 from hil.simulator.build import bench_plant
@@ -47,7 +48,7 @@ def _config(folder: Path, **sensor) -> Path:
     return path
 
 
-class Capture:
+class Capture(Port[bytes]):
     """A port that keeps what is written to it."""
 
     device = "a test's capture"
@@ -57,9 +58,6 @@ class Capture:
 
     def write(self, data: bytes) -> None:
         self.data += data
-
-    def close(self) -> None:
-        pass
 
 
 def _imu(config, plant, port) -> SimulatedImu:
@@ -258,13 +256,15 @@ def test_every_sensors_block_of_the_docs_loads_as_it_stands(tmp_path):
         path = tmp_path / f"ur3_docs{number}.yaml"
         path.write_text(yaml.safe_dump(config))
         loaded += load_bus_config(path).sensors
-    wit_imu, hipnuc_imu, netft = loaded
+    wit_imu, hipnuc_imu, dm_imu, netft = loaded
     assert (netft.link, netft.base_id, netft.short_divisors) == ("arm_link_6", 0x10,
                                                                  (1000.0, 100.0))
     assert (wit_imu.link, wit_imu.baud, wit_imu.rate_hz, wit_imu.port) == (
         "base_link", 460800, 200, Path("/tmp/hil-imu"))
     assert wit_imu.gyroscope.noise_density == pytest.approx(math.radians(0.01), rel=0.01)
     assert (hipnuc_imu.bus, hipnuc_imu.node_id, hipnuc_imu.rate_hz) == ("wrist", 8, 100)
+    assert (dm_imu.node_id, dm_imu.master_id, dm_imu.firmware, dm_imu.poll_hz,
+            dm_imu.rate_hz) == (1, 0x11, 1022, 100, 1000)
 
 
 

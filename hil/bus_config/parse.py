@@ -24,7 +24,7 @@ from hil.description import PackagePath, load_description
 from hil.errors import ConfigError, Severity
 from hil.input_files import read_input_file
 from hil.can.frame import FrameSpec
-from hil.protocols import ati_netft, hipnuc
+from hil.protocols import ati_netft, dm_imu, hipnuc
 from hil.zenoh_session import key_name_problem
 from hil.transmissions import build_transmissions
 
@@ -94,6 +94,9 @@ def sensor_frames(sensor: Sensor) -> list[FrameSpec]:
     what = f"sensor '{sensor.name}'"
     if isinstance(sensor, ForceTorqueConfig):
         return ati_netft.frame_specs(sensor.base_id, sensor.poll_hz, what)
+    if sensor.product == "dm_imu":
+        return dm_imu.frame_specs(sensor.node_id, sensor.master_id, sensor.poll_hz,
+                                  sensor.outputs, dm_imu.FIRMWARES[sensor.firmware], what)
     return hipnuc.frame_specs(sensor.node_id, sensor.rate_hz, sensor.outputs, what)
 
 

@@ -17,17 +17,36 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-from hil.bus_config.force_torque_entry import FORCE_TORQUE_KEYS, read_force_torque
+from hil.bus_config.force_torque_entry import DEFAULT_POLL_HZ, FORCE_TORQUE_KEYS, read_force_torque
 from hil.bus_config.sensor_types import ImuConfig, Sensor, TriadErrors
 from hil.bus_config.sensor_values import read_errors, read_vector
 from hil.bus_config.types import BusConfig
 from hil.bus_config.yaml_reader import LineMapping, Reader
 from hil.description import RobotDescription
-from hil.protocols import hipnuc, wit
+from hil.protocols import dm_imu, hipnuc, wit
 
 SERIAL, CAN = "serial", "can"
+DEFAULT_BAUD = 9600
+#: the chip WitMotion's WT901 is built on, InvenSense's MPU-9250 (product specification
+#: rev. 1.1, tables 1 and 2): gyroscope rate noise 0.01 °/s/√Hz, accelerometer noise
+#: 300 µg/√Hz. Its bias instability is not stated there: hil's choice, a MEMS part's
+#: typical floor (gyroscope 10 °/h, accelerometer 0.1 mg). HiPNUC's figures are not in
+#: hil's sources: the same defaults stand for its parts
+DEFAULT_ERRORS = {
+    "accelerometer": TriadErrors(noise_density=300e-6 * wit.G, bias_instability=0.1e-3 * wit.G),
+    "gyroscope": TriadErrors(noise_density=math.radians(0.01),
+                             bias_instability=math.radians(10 / 3600)),
+}
+#: the DM-IMU-L1's chip, Bosch's BMI088 (the manual: its figures are the chip's; the
+#: BMI088 data sheet, table 1 and 2: accelerometer 160 µg/√Hz, gyroscope 0.014 °/s/√Hz);
+#: its bias instability, as above, hil's choice
+BMI088_ERRORS = {
+    "accelerometer": TriadErrors(noise_density=160e-6 * wit.G, bias_instability=0.1e-3 * wit.G),
+    "gyroscope": TriadErrors(noise_density=math.radians(0.014),
+                             bias_instability=math.radians(10 / 3600)),
+}
 
 
 @dataclass(frozen=True)
@@ -40,37 +59,36 @@ class Product:
     default_rate: float                    # Hz
     rates: tuple[float, ...] = ()          # the rates it offers (none: any up to max_rate)
     max_rate: float = math.inf
+    #: it answers requests (hil control polls it) rather than streaming
+    polled: bool = False
+    #: its errors where the config sets none, by triad
+    errors: dict[str, TriadErrors] = field(default_factory=lambda: DEFAULT_ERRORS)
 
 
 #: the products hil serves, by the name a config gives (docs/sensors.md). WitMotion's
 #: factory settings (its manual): 9600 baud, 10 Hz, the 0x51-0x53 packets (and the
 #: magnetometer's, which hil does not model). HiPNUC's: every TPDO; its default rate is
-#: hil's choice (the maker's code is silent)
+#: hil's choice (the maker's code is silent). Damiao's DM-IMU-L1: the three registers its
+#: sample code requests; it samples at its top rate (hil's choice: the manual gives none for
+#: its request mode)
 PRODUCTS = {
     "wit": Product(SERIAL, wit.OUTPUTS, ("acceleration", "angular_velocity", "angle"), 10.0,
                    rates=tuple(float(r) for r in wit.RATES_HZ)),
     "hipnuc": Product(CAN, hipnuc.OUTPUTS, tuple(hipnuc.OUTPUTS), 100.0,
                       max_rate=hipnuc.MAX_RATE_HZ),
-}
-DEFAULT_BAUD = 9600
-#: the chip WitMotion's WT901 is built on, InvenSense's MPU-9250 (product specification
-#: rev. 1.1, tables 1 and 2): gyroscope rate noise 0.01 °/s/√Hz, accelerometer noise
-#: 300 µg/√Hz. Its bias instability is not stated there: hil's choice, a MEMS part's
-#: typical floor (gyroscope 10 °/h, accelerometer 0.1 mg). HiPNUC's figures are not in
-#: hil's sources: the same defaults stand for its parts
-DEFAULT_ERRORS = {
-    "accelerometer": TriadErrors(noise_density=300e-6 * wit.G, bias_instability=0.1e-3 * wit.G),
-    "gyroscope": TriadErrors(noise_density=math.radians(0.01),
-                             bias_instability=math.radians(10 / 3600)),
+    "dm_imu": Product(CAN, dm_imu.OUTPUTS, ("acceleration", "angular_velocity", "quaternion"),
+                      1000.0, rates=dm_imu.RATES_HZ, polled=True, errors=BMI088_ERRORS),
 }
 MAX_SENSORS = 32
 #: the keys every sensor takes, and those of each kind and wire
 _COMMON_KEYS = {"name", "product", "link", "xyz", "rpy", "seed"}
 _IMU_KEYS = {"rate_hz", "outputs", "latency", "accelerometer", "gyroscope"}
 _WIRE_KEYS_OF = {SERIAL: {"port", "baud"}, CAN: {"bus", "node_id"}}
+_POLLED_KEYS = {"master_id", "firmware", "poll_hz"}
 #: the force-torque product (its own module: hil.bus_config.force_torque_entry)
 FORCE_TORQUE = "ati_netft"
 _KEYS_OF = {**{name: _COMMON_KEYS | _IMU_KEYS | _WIRE_KEYS_OF[product.wire]
+               | (_POLLED_KEYS if product.polled else set())
                for name, product in PRODUCTS.items()},
             FORCE_TORQUE: _COMMON_KEYS | FORCE_TORQUE_KEYS}
 _KEYS = set().union(*_KEYS_OF.values())
@@ -144,8 +162,12 @@ def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot:
     if not 0 <= latency <= 1:
         reader.fail(f"{what}: 'latency' is 0 to 1 s, not {latency:g}",
                     item.key_lines.get("latency", item.line))
-    wire = (_read_serial(reader, item, what, rate, outputs, robot, name)
-            if product.wire == SERIAL else _read_can(reader, item, what, buses))
+    if product.wire == SERIAL:
+        wire = _read_serial(reader, item, what, rate, outputs, robot, name)
+    elif product.polled:
+        wire = _read_dm_imu(reader, item, what, buses)
+    else:
+        wire = _read_can(reader, item, what, buses)
     return ImuConfig(
         name=name, product=product_name, link=link,
         xyz=read_vector(reader, item, "xyz", what, 10.0),
@@ -153,8 +175,8 @@ def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot:
         **wire, rate_hz=rate, outputs=tuple(product.outputs[o] for o in outputs),
         latency=max(latency, 0.0),
         accelerometer=read_errors(reader, item, "accelerometer", what,
-                                  DEFAULT_ERRORS["accelerometer"]),
-        gyroscope=read_errors(reader, item, "gyroscope", what, DEFAULT_ERRORS["gyroscope"]),
+                                  product.errors["accelerometer"]),
+        gyroscope=read_errors(reader, item, "gyroscope", what, product.errors["gyroscope"]),
         seed=int(reader.number(item, "seed", what, 0, positive=False, integer=True)),
         line=item.line)
 
@@ -184,6 +206,55 @@ def _read_serial(reader: Reader, item: LineMapping, what: str, rate: float,
 def _read_can(reader: Reader, item: LineMapping, what: str, buses: dict[str, BusConfig]
               ) -> dict:
     """A CAN sensor's bus and node id: a classical CAN node, on a bus of the config."""
+    bus = _read_bus(reader, item, what, buses)
+    node_id = int(reader.number(item, "node_id", what, hipnuc.DEFAULT_NODE_ID, integer=True))
+    if not 1 <= node_id <= 127:
+        reader.fail(f"{what}: 'node_id' is 1 to 127 (CANopen), not {node_id}",
+                    item.key_lines.get("node_id", item.line))
+    return {"bus": bus, "node_id": node_id}
+
+
+def _read_dm_imu(reader: Reader, item: LineMapping, what: str,
+                 buses: dict[str, BusConfig]) -> dict:
+    """A DM-IMU's bus, CAN id, master id, firmware and poll rate: its bus at the 1 Mbit/s
+    its firmware speaks, its ids the one-byte values its setting commands take."""
+    bus = _read_bus(reader, item, what, buses)
+    if bus in buses and buses[bus].bitrate != dm_imu.BITRATE:
+        reader.fail(f"{what}: bus '{bus}' runs at {buses[bus].bitrate:,} bit/s; a DM-IMU-L1 "
+                    f"speaks {dm_imu.BITRATE:,} only (its firmware cannot change it)",
+                    item.key_lines.get("bus", item.line),
+                    hint=f"put it on a bus of bitrate: {dm_imu.BITRATE}")
+    ids = {}
+    for key, default, lowest in (("node_id", dm_imu.DEFAULT_NODE_ID, 1),
+                                 ("master_id", dm_imu.DEFAULT_MASTER_ID, 0)):
+        ids[key] = int(reader.number(item, key, what, default, integer=True, positive=False))
+        if not lowest <= ids[key] <= 0xFF:
+            reader.fail(f"{what}: '{key}' is {lowest} to 255 (one byte, as the IMU's setting "
+                        f"command takes it), not {ids[key]}", item.key_lines.get(key, item.line))
+    if ids["node_id"] == ids["master_id"]:
+        reader.fail(f"{what}: 'master_id' is its 'node_id' ({ids['node_id']}): its answers "
+                    "would come on its requests' id", item.key_lines.get("master_id", item.line),
+                    hint=f"the maker's example: node_id {dm_imu.DEFAULT_NODE_ID}, master_id "
+                         f"0x{dm_imu.DEFAULT_MASTER_ID:02X}")
+    firmware = int(reader.number(item, "firmware", what, dm_imu.DEFAULT_FIRMWARE,
+                                 integer=True))
+    if firmware not in dm_imu.FIRMWARES:
+        reader.fail(f"{what}: 'firmware' {firmware} is none hil knows",
+                    item.key_lines.get("firmware", item.line),
+                    hint="1022 (the manual V1.1's protocol: requests at 0x6FF), 1023 "
+                         "(requests at its CAN id, ±24 g) or 1024 (8-byte requests)")
+        firmware = dm_imu.DEFAULT_FIRMWARE
+    poll = float(reader.number(item, "poll_hz", what, DEFAULT_POLL_HZ))
+    if bus in buses and poll > buses[bus].cycle_hz:
+        reader.fail(f"{what}: 'poll_hz' {poll:g} is over its bus' cycle rate "
+                    f"({buses[bus].cycle_hz:g} Hz): hil control requests at most once a cycle",
+                    item.key_lines.get("poll_hz", item.line))
+    return {"bus": bus, **ids, "firmware": firmware, "poll_hz": poll}
+
+
+def _read_bus(reader: Reader, item: LineMapping, what: str, buses: dict[str, BusConfig]
+              ) -> str:
+    """A CAN sensor's bus: a classical bus of the config."""
     bus = reader.text(item, "bus", what, "")
     if bus and bus not in buses:
         reader.fail(f"{what}: the config has no bus '{bus}'", item.key_lines.get("bus",
@@ -193,11 +264,7 @@ def _read_can(reader: Reader, item: LineMapping, what: str, buses: dict[str, Bus
         reader.fail(f"{what}: a classical CAN device on FD bus '{bus}', whose FD frames it "
                     "would answer with error frames", item.key_lines.get("bus", item.line),
                     hint="put it on a classical bus (no fd: true)")
-    node_id = int(reader.number(item, "node_id", what, hipnuc.DEFAULT_NODE_ID, integer=True))
-    if not 1 <= node_id <= 127:
-        reader.fail(f"{what}: 'node_id' is 1 to 127 (CANopen), not {node_id}",
-                    item.key_lines.get("node_id", item.line))
-    return {"bus": bus, "node_id": node_id}
+    return bus
 
 
 def _read_outputs(reader: Reader, item: LineMapping, what: str,

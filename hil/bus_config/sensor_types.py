@@ -30,7 +30,7 @@ class ImuConfig:
     """An IMU on a link of the robot, of a product family, on its wire."""
 
     name: str
-    product: str                      # "wit": WitMotion / HiWonder on USB serial
+    product: str                      # a name of hil.bus_config.sensor_entry.PRODUCTS
     link: str                         # the robot's link it is fixed to
     xyz: Vector                       # its place on the link (m)
     rpy: Vector                       # its axes on the link's (rad)
@@ -44,9 +44,14 @@ class ImuConfig:
     #: a serial sensor's: the link hil makes to its pseudo-terminal, and its baud rate
     port: Path | None = None
     baud: int | None = None
-    #: a CAN sensor's: its bus (a bus of the config) and node id
+    #: a CAN sensor's: its bus (a bus of the config) and node id (a DM-IMU's CAN id)
     bus: str | None = None
     node_id: int | None = None
+    #: a sensor that answers requests (the DM-IMU): the id it answers on, its firmware's
+    #: version (hil.protocols.dm_imu.FIRMWARES) and how often hil control requests a sample
+    master_id: int | None = None
+    firmware: int | None = None
+    poll_hz: float | None = None
 
     @property
     def period(self) -> float:

@@ -163,8 +163,10 @@ def _hold(zenoh, robot: str, node: ControlNode) -> None:
 
 def _announce_sensors(args: argparse.Namespace, config) -> None:
     """Where each sensor is read and where its samples go."""
-    read = [(sensor, IMU, f"IMU '{sensor.name}' read off "
-             + (str(sensor.port) if sensor.bus is None else f"bus '{sensor.bus}'"))
+    read = [(sensor, IMU, f"IMU '{sensor.name}' "
+             + (f"read off {sensor.port}" if sensor.bus is None
+                else f"polled at {sensor.poll_hz:g} Hz on bus '{sensor.bus}'"
+                if sensor.poll_hz is not None else f"read off bus '{sensor.bus}'"))
             for sensor in config.imus]
     read += [(sensor, WRENCH, f"force-torque sensor '{sensor.name}' polled at "
               f"{sensor.poll_hz:g} Hz on bus '{sensor.bus}'") for sensor in config.force_torques]

@@ -12,7 +12,7 @@ from hil.bus_config.locate import shipped_names
 from hil.bus_config.sensor_types import ForceTorqueConfig, Sensor
 from hil.can.frame import Frame, FrameSpec
 from hil.cli import common
-from hil.protocols import Protocol, hipnuc, protocol
+from hil.protocols import Protocol, dm_imu, hipnuc, protocol
 from hil.resources import hipnuc_eds_path
 from hil.zenoh_session import meeting_endpoint
 
@@ -33,7 +33,11 @@ def run(args: argparse.Namespace) -> int:
         if isinstance(sensor, ForceTorqueConfig):
             print("  read it: send 0x01 to its base id, take the four answers' int32 pairs "
                   "(docs/sensors.md)")
-        elif sensor.bus is None:
+        elif sensor.product == "dm_imu":
+            print(f"  read it: request each register as the maker's manual V1.1 section 3 "
+                  f"has it (firmware {sensor.firmware}), decode the answers with its "
+                  "uint_to_float (docs/sensors.md)")
+        elif sensor.product == "wit":
             print(f"  read it: witmotion.IMU(\"{sensor.port}\", baudrate={sensor.baud}) or "
                   f"serial.Serial(\"{sensor.port}\", {sensor.baud}) (pyserial; "
                   "docs/sensors.md)")
@@ -58,6 +62,14 @@ def sensor_line(sensor: Sensor) -> str:
                 f"0x{sensor.base_id + 1:03X}-0x{sensor.base_id + 6:03X}; "
                 f"{sensor.counts_per_force:,.0f} counts/N, {sensor.counts_per_torque:,.0f} "
                 "counts/N·m")
+    if sensor.product == "dm_imu":
+        firmware = dm_imu.FIRMWARES[sensor.firmware]
+        registers = ", ".join(f"0x{kind:02X} {dm_imu.NAMES[kind]}" for kind in sensor.outputs)
+        return (f"dm_imu IMU on link '{sensor.link}', CAN id {sensor.node_id} on bus "
+                f"'{sensor.bus}', firmware {sensor.firmware}: requests at "
+                f"0x{firmware.request_id(sensor.node_id):03X}, answers at "
+                f"0x{sensor.master_id:03X}; polled at {sensor.poll_hz:g} Hz for {registers}; "
+                f"samples at {sensor.rate_hz:g} Hz")
     if sensor.bus is not None:
         frames = ", ".join(f"{hipnuc.TPDO_NAMES[kind]} 0x{kind + sensor.node_id:03X}"
                            for kind in sensor.outputs)

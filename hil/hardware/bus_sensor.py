@@ -42,6 +42,10 @@ class BusSensor(Generic[State]):
         """One of its frames (the router's thread)."""
         raise NotImplementedError
 
+    def request(self, cycle: int) -> None:
+        """Ask for a sample at control cycle ``cycle``, where the sensor answers requests
+        only (a sensor that streams is asked nothing)."""
+
     def arrived(self, state: State) -> None:
         """A sample for the loop."""
         self._queue.append(state)

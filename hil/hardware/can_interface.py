@@ -21,12 +21,13 @@ from collections.abc import Callable
 import can
 import numpy as np
 
+from hil.bus_config.sensor_types import ImuConfig
 from hil.bus_config.types import SystemConfig
 from hil.can import watch_deliveries
 from hil.hardware.axis import AxisFault
 from hil.hardware.bring_up import BOOT_TIMEOUT, BringUp
 from hil.hardware.can_force_torque import CanForceTorque
-from hil.hardware.can_imu import CanImu
+from hil.hardware.can_imu import CanImu, PolledCanImu
 from hil.hardware.exchange import MISSED_ANSWER_LIMIT, CycleExchange
 from hil.hardware.feedback import JointFeedback
 from hil.hardware.interface import HardwareInterface
@@ -73,18 +74,17 @@ class CanHardwareInterface(HardwareInterface):
         #: the round trip of the cycle :meth:`read` last took (s; NaN: not every answer came)
         self.last_round_trip = math.nan
         #: the bus config's IMUs, read off their ports or buses
-        self.sensors: list[SerialImu | CanImu] = [
-            SerialImu(sensor) if sensor.bus is None else CanImu(sensor)
-            for sensor in config.imus]
+        self.sensors: list[SerialImu | CanImu | PolledCanImu] = [
+            _imu_reader(sensor, config.cycle_hz) for sensor in config.imus]
         self.imus = tuple(ImuDescription.of(sensor) for sensor in config.imus)
         # hil control is the Net F/Ts' master: each polled at its poll_hz, in cycles
-        self._force_torques = [CanForceTorque(sensor, max(1, round(config.cycle_hz /
-                                                                      sensor.poll_hz)))
+        self._force_torques = [CanForceTorque(sensor, _cycles_per_poll(config.cycle_hz,
+                                                                       sensor.poll_hz))
                                for sensor in config.force_torques]
         self.force_torques = tuple((s.name, s.link) for s in config.force_torques)
         #: the sensors on a bus, listening there once its router runs (start)
-        self._bus_sensors: list[CanImu | CanForceTorque] = [
-            *(s for s in self.sensors if isinstance(s, CanImu)), *self._force_torques]
+        self._bus_sensors: list[CanImu | PolledCanImu | CanForceTorque] = [
+            *(s for s in self.sensors if not isinstance(s, SerialImu)), *self._force_torques]
         self._sensor_problems: dict[str, str | None] = {}
 
     def start(self, cancel: threading.Event | None = None) -> JointFeedback:
@@ -161,8 +161,9 @@ class CanHardwareInterface(HardwareInterface):
 
     def read_sensors(self) -> list[ImuState | WrenchState]:
         states: list[ImuState | WrenchState] = []
+        for sensor in self._bus_sensors:
+            sensor.request(self._exchange.cycle)
         for force_torque in self._force_torques:
-            force_torque.request(self._exchange.cycle)
             states += force_torque.poll()
         for sensor in self.sensors:
             states += sensor.poll()
@@ -174,3 +175,18 @@ class CanHardwareInterface(HardwareInterface):
                 else:
                     log.warning("sensor '%s' is not read: %s", name, sensor.problem)
         return states
+
+
+def _imu_reader(sensor: ImuConfig, cycle_hz: float) -> SerialImu | CanImu | PolledCanImu:
+    """Its product's reader: WitMotion's off its serial port, HiPNUC's TPDOs off its bus, a
+    DM-IMU polled on its bus."""
+    if sensor.product == "wit":
+        return SerialImu(sensor)
+    if sensor.product == "hipnuc":
+        return CanImu(sensor)
+    return PolledCanImu(sensor, _cycles_per_poll(cycle_hz, sensor.poll_hz))
+
+
+def _cycles_per_poll(cycle_hz: float, poll_hz: float) -> int:
+    """A sensor polled at ``poll_hz`` is asked every this many control cycles."""
+    return max(1, round(cycle_hz / poll_hz))

@@ -9,12 +9,13 @@ from collections.abc import Sequence
 from hil.can.frame import Frame
 from hil.can.router import FrameRouter
 from hil.protocols import hipnuc
+from hil.sensors.port import Port
 
 #: NMT command specifiers (CiA 301)
 START, STOP, PRE_OPERATIONAL, RESET_NODE, RESET_COMMUNICATION = 0x01, 0x02, 0x80, 0x81, 0x82
 
 
-class CanSensorPort:
+class CanSensorPort(Port[Sequence[Frame]]):
     """Node ``node_id`` on ``bus``: boots (its boot-up frame) when attached to the bus' router
     and is then operational on its own; NMT stop or pre-operational silence it, start brings
     it back, a reset boots it again. A malformed NMT frame is ignored, as CiA 301 has it."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 import functools
 from collections import deque
 from collections.abc import Callable
-from typing import Generic, Protocol, TypeVar
+from typing import Generic, TypeVar
 
 import numpy as np
 
@@ -19,31 +19,27 @@ from hil.can.frame import Frame
 from hil.protocols import hipnuc, wit
 from hil.protocols.imu import ImuSample
 from hil.sensors.noise import TriadNoise
+from hil.sensors.port import Port
 
-#: what a wire carries of one sample (bytes, frames)
 Payload = TypeVar("Payload")
+
 #: the plant's reading of an IMU: specific force, angular velocity, orientation (w, x, y, z)
 Reading = Callable[[], tuple[np.ndarray, ...]]
 
 
-class Port(Protocol[Payload]):
-    """Where a sensor's samples go, each as its wire carries it: a serial port's bytes, a CAN
-    node's frames (or a test's capture)."""
-
-    #: what the port is, in words (a pseudo-terminal: its /dev/pts path)
-    device: str
-
-    def write(self, data: Payload) -> None: ...
-
-    def close(self) -> None: ...
-
-
-def codec_of(config: ImuConfig) -> Callable[[ImuSample], bytes | list[Frame]]:
+def codec_of(config: ImuConfig) -> Callable[[ImuSample], bytes | list[Frame] | ImuSample]:
     """Its product's codec: a sample as its wire carries it (WitMotion's packets on a serial
-    port, HiPNUC's TPDOs on a bus)."""
-    if config.bus is None:
+    port, HiPNUC's TPDOs on a bus; a DM-IMU's sample as it is, which its port encodes as
+    each request asks)."""
+    if config.product == "wit":
         return functools.partial(wit.encode, outputs=config.outputs)
-    return functools.partial(hipnuc.frames, node_id=config.node_id, outputs=config.outputs)
+    if config.product == "hipnuc":
+        return functools.partial(hipnuc.frames, node_id=config.node_id, outputs=config.outputs)
+    return _as_it_is
+
+
+def _as_it_is(sample: ImuSample) -> ImuSample:
+    return sample
 
 
 class SimulatedImu(Generic[Payload]):
@@ -88,7 +84,9 @@ class SimulatedImu(Generic[Payload]):
             spike = False
             while self._faults and self._faults[0][0] <= due + 1e-9:
                 kind = self._faults.pop(0)[1]
-                self._silent |= kind is SensorFaultKind.SILENCE
+                if kind is SensorFaultKind.SILENCE and not self._silent:
+                    self._silent = True
+                    self.port.fall_silent()
                 spike |= kind is SensorFaultKind.SPIKE
                 self._freezing |= kind is SensorFaultKind.FREEZE
             if self._silent:

@@ -18,13 +18,14 @@ import tty
 from pathlib import Path
 
 from hil.errors import ConfigError
+from hil.sensors.port import Port
 
 #: where Linux's pseudo-terminals are: a dangling link to one is an earlier run's, replaced;
 #: any other link is the user's, never touched
 PTS = "/dev/pts/"
 
 
-class PseudoTerminal:
+class PseudoTerminal(Port[bytes]):
     """A pseudo-terminal linked at ``link``; :meth:`write` sends, :meth:`close` removes it."""
 
     def __init__(self, link: Path, config: Path | None = None, line: int | None = None):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import can
 
@@ -22,6 +23,7 @@ from hil.realtime.timing import Timing
 from hil.sensors.can_port import CanSensorPort
 from hil.sensors.force_torque import SimulatedForceTorque
 from hil.sensors.imu import SimulatedImu
+from hil.sensors.polled_port import PolledImuPort
 from hil.sensors.serial_port import PseudoTerminal
 from hil.simulator.stepping import PlantStepping
 
@@ -76,15 +78,23 @@ def simulated_sensors(config: SystemConfig, plant: Plant) -> list[SimulatedImu]:
     sensors: list[SimulatedImu] = []
     try:
         for sensor in config.imus:
-            port = (PseudoTerminal(sensor.port, config.path, sensor.line) if sensor.bus is None
-                    else CanSensorPort(sensor.bus, sensor.node_id))
             sensors.append(SimulatedImu(sensor, functools.partial(plant.sensors.read,
                                                                   sensor.name),
-                                        port, start=plant.time))
+                                        _port_of(sensor, config.path), start=plant.time))
     except BaseException:
         close_sensors(sensors)
         raise
     return sensors
+
+
+def _port_of(sensor: ImuConfig, path: Path) -> PseudoTerminal | CanSensorPort | PolledImuPort:
+    """Its product's wire: WitMotion's serial port, HiPNUC's CANopen node, a DM-IMU's
+    answers to requests."""
+    if sensor.product == "wit":
+        return PseudoTerminal(sensor.port, path, sensor.line)
+    if sensor.product == "hipnuc":
+        return CanSensorPort(sensor.bus, sensor.node_id)
+    return PolledImuPort(sensor)
 
 
 def simulated_force_torques(config: SystemConfig, plant: Plant) -> list[SimulatedForceTorque]:
@@ -97,12 +107,13 @@ def simulated_force_torques(config: SystemConfig, plant: Plant) -> list[Simulate
 
 def attach_sensors(sensors: list[SimulatedImu], force_torques: list[SimulatedForceTorque],
                    buses: list[SimulatedBus]) -> None:
-    """The CAN sensors on their buses' routers (started): an IMU boots there, a force-torque
-    sensor listens for its master's requests."""
+    """The CAN sensors on their buses' routers (started): a CANopen IMU boots there, a DM-IMU
+    and a force-torque sensor listen for their master's requests."""
     routers = {simulated.config.name: simulated.router for simulated in buses}
     for sensor in sensors:
-        if isinstance(sensor.port, CanSensorPort) and sensor.config.bus in routers:
-            sensor.port.attach(routers[sensor.config.bus])
+        port = sensor.port
+        if isinstance(port, (CanSensorPort, PolledImuPort)) and sensor.config.bus in routers:
+            port.attach(routers[sensor.config.bus])
     for force_torque in force_torques:
         if force_torque.config.bus in routers:
             force_torque.attach(routers[force_torque.config.bus])
