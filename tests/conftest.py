@@ -631,3 +631,24 @@ def sensor_frames_a_second(path: Path) -> float:
     bare.write_text(yaml.safe_dump(config))
     return (load_bus_config(path).buses[0].load().frames_per_second
             - load_bus_config(bare).buses[0].load().frames_per_second)
+
+
+class RecordingRouter:
+    """What a sensor needs of its bus' router (hil.can.router.FrameRouter): the handlers it
+    subscribed, by identifier, and the frames it sent, in order."""
+
+    def __init__(self):
+        self.handlers: dict[int, Callable] = {}
+        self.sent: list = []
+
+    def subscribe(self, identifier: int, handler: Callable) -> None:
+        self.handlers[identifier] = handler
+
+    def unsubscribe(self, identifier: int, handler: Callable) -> None:
+        del self.handlers[identifier]
+
+    def send(self, frame) -> None:
+        self.sent.append(frame)
+
+    def send_frames(self, frames) -> None:
+        self.sent.extend(frames)

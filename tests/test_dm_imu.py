@@ -13,7 +13,7 @@ import can
 import numpy as np
 import pytest
 import yaml
-from conftest import imu_messages, sensor_frames_a_second, wait_until
+from conftest import RecordingRouter, imu_messages, sensor_frames_a_second, wait_until
 
 from hil.bus_config import load_bus_config
 from hil.can.faults import SensorFaultKind
@@ -190,27 +190,10 @@ def test_later_firmware_takes_requests_at_the_imus_own_id(tmp_path, master_bus, 
     assert answer is not None and answer[0] == 2 and legacy is None
 
 
-class _Router:
-    """What a port needs of a bus' router: what it subscribed and sent."""
-
-    def __init__(self):
-        self.handlers: dict[int, object] = {}
-        self.sent: list[Frame] = []
-
-    def subscribe(self, identifier: int, handler) -> None:
-        self.handlers[identifier] = handler
-
-    def unsubscribe(self, identifier: int, handler) -> None:
-        del self.handlers[identifier]
-
-    def send(self, frame: Frame) -> None:
-        self.sent.append(frame)
-
-
 def test_a_write_or_a_malformed_request_moves_nothing_and_a_silent_imu_answers_nothing(
         tmp_path):
     config = load_bus_config(_config(tmp_path, node_id=1, firmware=1024)).imus[0]
-    port, router = PolledImuPort(config), _Router()
+    port, router = PolledImuPort(config), RecordingRouter()
     port.attach(router)
     request = router.handlers[0x01]
     port.write(ImuSample(np.zeros(3), np.zeros(3), np.array([1.0, 0, 0, 0])))

@@ -12,15 +12,18 @@ import can
 import numpy as np
 import pytest
 import yaml
-from conftest import sensor_messages
+from conftest import RecordingRouter, sensor_messages
 
 from hil.bus_config import load_bus_config
+from hil.can.faults import SensorFaultKind
+from hil.can.frame import Frame
 from hil.controllers import TrajectoryGoal, TrajectoryPoint
 from hil.errors import ConfigError
 from hil.messaging import cdr
 from hil.messaging.zenoh_api import TrajectoryActionClient
 from hil.protocols import ati_netft
 from hil.realtime import LOCK_STEP
+from hil.sensors.force_torque import SimulatedForceTorque
 from hil.stack import IN_PROCESS, running_stack
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -96,6 +99,37 @@ def test_the_answers_are_the_manuals_layout():
     frames = ati_netft.long_answer(BASE, [10, 20, 30], [-1, -2, -3], 0, 9)
     assert [struct.unpack("<ii", f.data) for f in frames[:3]] == [(10, -1), (20, -2), (30, -3)]
     assert ati_netft.counts([1e9, -1e9, 0.5e-6], 1e6, 32) == [2 ** 31 - 1, -2 ** 31, 0]
+
+
+def _long_answers(sensor: SimulatedForceTorque, router: RecordingRouter, now: list[float],
+                  at: float) -> list[tuple[int, ...]] | None:
+    """The long-data answer (Fx Tx ... status sample) a request at plant time ``at`` gets;
+    None if none."""
+    now[0] = at
+    sent = len(router.sent)
+    router.handlers[BASE](Frame(BASE, bytes((ati_netft.LONG,))))
+    frames = router.sent[sent:]
+    return [struct.unpack("<ii", f.data) for f in frames] if frames else None
+
+
+@pytest.mark.parametrize("kind", list(SensorFaultKind))
+def test_a_faulted_net_ft_answers_nothing_the_same_or_one_full_scale_answer(tmp_path, kind):
+    config = load_bus_config(_pick_config(tmp_path)).force_torques[0]
+    load = [np.array([1.0, 2.0, 3.0]), np.zeros(3)]
+    now = [0.0]
+    sensor = SimulatedForceTorque(config, lambda: tuple(load), lambda: now[0])
+    router = RecordingRouter()
+    sensor.attach(router)
+    sensor.inject(kind, 1.0)
+    assert _long_answers(sensor, router, now, 0.5) is not None
+    load[0] = np.array([4.0, 5.0, 6.0])
+    first, second = (_long_answers(sensor, router, now, t) for t in (1.2, 1.3))
+    if kind is SensorFaultKind.SILENCE:
+        assert first is None and second is None
+    elif kind is SensorFaultKind.FREEZE:                  # the sample number stands still too
+        assert first == second and first[0][0] == pytest.approx(4e6, abs=1e4)
+    else:
+        assert first[0][0] == 2 ** 31 - 1 and second[0][0] == pytest.approx(4e6, abs=1e4)
 
 
 class Pick:

@@ -310,7 +310,7 @@ def test_hil_sim_refuses_a_fault_of_a_sensor_the_config_does_not_have(tmp_path):
     result = subprocess.run([sys.executable, "-m", "hil", "sim", str(_config(tmp_path)),
                              "--fault", "freeze:gyro@1", "--duration", "0.1"],
                             capture_output=True, text=True, timeout=120)
-    assert result.returncode != 0 and "--fault freeze:gyro@1: no IMU of that name" in result.stderr
+    assert result.returncode != 0 and "--fault freeze:gyro@1: no sensor of that name" in result.stderr
     assert "IMUs: imu" in result.stderr and "Traceback" not in result.stderr
 
 

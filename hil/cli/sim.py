@@ -160,12 +160,12 @@ def _faults(args: argparse.Namespace,
     drive_faults = [f for f in faults if isinstance(f, DriveFault)]
     _check_drive_faults(config, drive_faults)
     sensor_faults = [f for f in faults if isinstance(f, SensorFault)]
-    names = [sensor.name for sensor in config.imus]        # a force-torque sensor: none yet
+    names = [sensor.name for sensor in config.sensors]
     for fault in sensor_faults:
         if fault.sensor not in names:
             raise HilError.single(f"--fault {fault.kind.value}:{fault.sensor}@{fault.at:g}: no "
-                                  "IMU of that name (sensor faults are an IMU's)", config.path,
-                                  hint=f"IMUs: {', '.join(names) or 'none in this config'}")
+                                  "sensor of that name", config.path,
+                                  hint=f"sensors: {', '.join(names) or 'none in this config'}")
     return [f for f in faults if isinstance(f, FrameFault)], drive_faults, sensor_faults
 
 

@@ -13,7 +13,9 @@ import numpy as np
 from hil.bus_config.sensor_types import ForceTorqueConfig
 from hil.can.frame import Frame
 from hil.can.router import FrameRouter
+from hil.can.faults import SensorFaultKind
 from hil.protocols import ati_netft
+from hil.sensors.faults import SensorFaults
 from hil.sensors.noise import TriadNoise
 
 #: the plant's force (N) and torque (N·m) at the sensor's site, in its axes
@@ -36,6 +38,13 @@ class SimulatedForceTorque:
         self.device = f"Net F/T at 0x{config.base_id:03X} on bus '{config.bus}'"
         self.answered = 0
         self.refused = 0          # commands of a wrong length or an unknown code: ignored
+        self._faults = SensorFaults()
+        self._frozen: dict[int, list[Frame]] = {}     # a frozen sensor's answer, by request
+
+    def inject(self, kind: SensorFaultKind, at: float) -> None:
+        """Fail as ``kind`` says at plant time ``at`` (s): answer nothing more, answer every
+        request as the first after it came, or answer one request at full scale."""
+        self._faults.inject(kind, at)
 
     def attach(self, router: FrameRouter) -> None:
         """On its bus: listen to commands at its base identifier."""
@@ -50,21 +59,30 @@ class SimulatedForceTorque:
             self.refused += 1
             return
         command = data[0]
+        faults = self._faults
+        spike = faults.reach(self._now())
+        if faults.silent:
+            return
         if command == ati_netft.BIAS:
             force, torque = self._measure()
             self._offsets = (self._offsets[0] + force, self._offsets[1] + torque)
         elif command in (ati_netft.LONG, ati_netft.SHORT):
-            self.router.send_frames(self._answer(command))
+            frames = self._frozen.get(command) or self._answer(command, spike)
+            if faults.freezing:
+                self._frozen.setdefault(command, frames)
+            self.router.send_frames(frames)
             self.answered += 1
 
-    def _measure(self) -> tuple[np.ndarray, np.ndarray]:
+    def _measure(self, spike: bool = False) -> tuple[np.ndarray, np.ndarray]:
         force, torque = self._read()
+        if spike:               # past the range on every axis: the counts saturate
+            force, torque = np.full(3, 1e9), np.full(3, 1e9)
         return (self._force.apply(force) - self._offsets[0],
                 self._torque.apply(torque) - self._offsets[1])
 
-    def _answer(self, command: int) -> list[Frame]:
+    def _answer(self, command: int, spike: bool) -> list[Frame]:
         config = self.config
-        force, torque = self._measure()
+        force, torque = self._measure(spike)
         sample = int(self._now() * config.sample_hz)      # its own counter, at its rate
         if command == ati_netft.LONG:
             return ati_netft.long_answer(

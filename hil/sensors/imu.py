@@ -18,6 +18,7 @@ from hil.can.faults import SensorFaultKind
 from hil.can.frame import Frame
 from hil.protocols import hipnuc, wit
 from hil.protocols.imu import ImuSample
+from hil.sensors.faults import SensorFaults
 from hil.sensors.noise import TriadNoise
 from hil.sensors.port import Port
 
@@ -62,38 +63,32 @@ class SimulatedImu(Generic[Payload]):
         self._samples = 1
         self._sending: deque[tuple[float, Payload]] = deque()   # (due, payload) in latency
         self.sent = 0
-        self._faults: list[tuple[float, SensorFaultKind]] = []   # to come, by plant time
-        self._silent = False
-        self._freezing = False
+        self._faults = SensorFaults()
         self._frozen: Payload | None = None         # a frozen sensor's sample
 
     def inject(self, kind: SensorFaultKind, at: float) -> None:
         """Fail as ``kind`` says at plant time ``at`` (s): fall silent, freeze on the last
         sample, or send one sample at full scale."""
-        self._faults.append((at, kind))
-        self._faults.sort(key=lambda fault: fault[0])
+        self._faults.inject(kind, at)
 
     def after_step(self, now: float) -> None:
         """The plant is at ``now`` (s): take the samples due by then, send those whose
         latency is over."""
         period = self._period
+        faults = self._faults
         # a step's time is a sum of floats: half a step's worth of slack, not a sample late
         while self._start + self._samples * period <= now + 1e-9:
             due = self._start + self._samples * period
             self._samples += 1
-            spike = False
-            while self._faults and self._faults[0][0] <= due + 1e-9:
-                kind = self._faults.pop(0)[1]
-                if kind is SensorFaultKind.SILENCE and not self._silent:
-                    self._silent = True
+            was_silent = faults.silent
+            spike = faults.reach(due)
+            if faults.silent:
+                if not was_silent:
                     self.port.fall_silent()
-                spike |= kind is SensorFaultKind.SPIKE
-                self._freezing |= kind is SensorFaultKind.FREEZE
-            if self._silent:
                 self._sending.clear()
                 return
             packets = self._sample(spike) if self._frozen is None else self._frozen
-            if self._freezing:
+            if faults.freezing:
                 self._frozen = packets
             self._sending.append((now + self.config.latency, packets))
         while self._sending and self._sending[0][0] <= now + 1e-9:

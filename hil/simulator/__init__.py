@@ -50,6 +50,7 @@ from hil.simulator.build import (LOCK_STEP_WATCHDOG, SimulatedBus, bench_plant,
                                  attach_sensors, close_sensors, drive_parameters,
                                  simulated_buses, simulated_force_torques,
                                  simulated_sensors)
+from hil.sensors.force_torque import SimulatedForceTorque
 from hil.sensors.imu import SimulatedImu
 from hil.simulator.cycles import CycleBook
 from hil.simulator.faults import FaultInjection
@@ -171,9 +172,10 @@ class Simulator:
         """A drive fault of ``hil sim --fault``'s kinds (:meth:`FaultInjection.inject`)."""
         self._faults.inject(kind, drive)
 
-    def sensor(self, name: str) -> SimulatedImu:
+    def sensor(self, name: str) -> SimulatedImu | SimulatedForceTorque:
         """The sensor of that name in the config (KeyError if none)."""
-        found = [sensor for sensor in self.sensors if sensor.config.name == name]
+        found = [sensor for sensor in [*self.sensors, *self.force_torques]
+                 if sensor.config.name == name]
         if not found:
             raise KeyError(f"no sensor '{name}'")
         return found[0]
