@@ -269,3 +269,5 @@ def test_the_controller_polls_the_imu_and_publishes_what_it_reads(tmp_path):
     assert np.linalg.norm(acceleration) == pytest.approx(9.81, abs=0.15)
     q = last.orientation                         # from the Euler angles: a unit quaternion
     assert math.isclose(q.w ** 2 + q.x ** 2 + q.y ** 2 + q.z ** 2, 1.0, abs_tol=1e-6)
+    # its variance: the yaw and roll fields' step, 360° over 65,535 counts
+    assert last.orientation_covariance[0] == pytest.approx(math.radians(360 / 65535) ** 2 / 12)

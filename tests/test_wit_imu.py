@@ -311,7 +311,7 @@ def test_hil_sim_refuses_a_fault_of_a_sensor_the_config_does_not_have(tmp_path):
                              "--fault", "freeze:gyro@1", "--duration", "0.1"],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode != 0 and "--fault freeze:gyro@1: no sensor of that name" in result.stderr
-    assert "IMUs: imu" in result.stderr and "Traceback" not in result.stderr
+    assert "sensors: imu" in result.stderr and "Traceback" not in result.stderr
 
 
 def test_a_link_of_the_users_at_the_port_is_never_removed(tmp_path, virtual_bus):

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from hil.bus_config.force_torque_entry import DEFAULT_POLL_HZ, FORCE_TORQUE_KEYS, read_force_torque
@@ -61,6 +62,8 @@ class Product:
     max_rate: float = math.inf
     #: it answers requests (hil control polls it) rather than streaming
     polled: bool = False
+    #: the angle one count of the orientation stands for, given its outputs (its codec's)
+    orientation_step: Callable[[tuple[int, ...]], float] = wit.orientation_step
     #: its errors where the config sets none, by triad
     errors: dict[str, TriadErrors] = field(default_factory=lambda: DEFAULT_ERRORS)
 
@@ -75,9 +78,10 @@ PRODUCTS = {
     "wit": Product(SERIAL, wit.OUTPUTS, ("acceleration", "angular_velocity", "angle"), 10.0,
                    rates=tuple(float(r) for r in wit.RATES_HZ)),
     "hipnuc": Product(CAN, hipnuc.OUTPUTS, tuple(hipnuc.OUTPUTS), 100.0,
-                      max_rate=hipnuc.MAX_RATE_HZ),
+                      max_rate=hipnuc.MAX_RATE_HZ, orientation_step=hipnuc.orientation_step),
     "dm_imu": Product(CAN, dm_imu.OUTPUTS, ("acceleration", "angular_velocity", "quaternion"),
-                      1000.0, rates=dm_imu.RATES_HZ, polled=True, errors=BMI088_ERRORS),
+                      1000.0, rates=dm_imu.RATES_HZ, polled=True,
+                      orientation_step=dm_imu.orientation_step, errors=BMI088_ERRORS),
 }
 MAX_SENSORS = 32
 #: the keys every sensor takes, and those of each kind and wire
@@ -158,6 +162,7 @@ def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot:
         reader.fail(f"{what}: 'rate_hz' {rate:g} is none the product offers",
                     item.key_lines.get("rate_hz", item.line), hint=offered)
     outputs = _read_outputs(reader, item, what, product)
+    codes = tuple(product.outputs[o] for o in outputs)
     latency = float(reader.number(item, "latency", what, 0.0, positive=False))
     if not 0 <= latency <= 1:
         reader.fail(f"{what}: 'latency' is 0 to 1 s, not {latency:g}",
@@ -172,8 +177,8 @@ def _read_sensor(reader: Reader, raw, number: int, list_line: int | None, robot:
         name=name, product=product_name, link=link,
         xyz=read_vector(reader, item, "xyz", what, 10.0),
         rpy=read_vector(reader, item, "rpy", what, 2 * math.pi),
-        **wire, rate_hz=rate, outputs=tuple(product.outputs[o] for o in outputs),
-        latency=max(latency, 0.0),
+        **wire, rate_hz=rate, outputs=codes, latency=max(latency, 0.0),
+        orientation_step=product.orientation_step(codes),
         accelerometer=read_errors(reader, item, "accelerometer", what,
                                   product.errors["accelerometer"]),
         gyroscope=read_errors(reader, item, "gyroscope", what, product.errors["gyroscope"]),

@@ -37,6 +37,8 @@ class ImuConfig:
     rate_hz: float                    # samples a second
     outputs: tuple[int, ...]          # the product's packet types, in their order a sample
     latency: float                    # from sampling to the first byte on the wire (s)
+    #: the angle (rad) one count of the orientation its reader takes stands for
+    orientation_step: float
     accelerometer: TriadErrors
     gyroscope: TriadErrors
     seed: int = 0                     # of its noise: a run is the same run again

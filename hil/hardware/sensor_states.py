@@ -4,7 +4,6 @@ before its first sample (:class:`ImuDescription`)."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,11 +24,11 @@ class ImuDescription:
 
     @classmethod
     def of(cls, config: ImuConfig) -> ImuDescription:
-        """From the sensor's config: its white noise at its rate, its angles' step (hil
-        models no attitude filter: the angle is the plant's, rounded to the field)."""
-        angle_step = math.pi / 32768
+        """From the sensor's config: its white noise at its rate, its orientation field's
+        step (hil models no attitude filter: the angle is the plant's, rounded to the
+        field)."""
         return cls(config.name, config.link, (
-            angle_step ** 2 / 12,
+            config.orientation_step ** 2 / 12,
             config.gyroscope.noise_density ** 2 * config.rate_hz,
             config.accelerometer.noise_density ** 2 * config.rate_hz))
 

@@ -95,6 +95,15 @@ def from_field(raw: int, top: float, bits: int = 16) -> float:
     return raw * (2 * top) / ((1 << bits) - 1) - top
 
 
+def orientation_step(outputs: tuple[int, ...]) -> float:
+    """The angle (rad) one count of the orientation a reader takes stands for: the
+    quaternion's 14-bit parts' (a part's step moves the angle about twice as far) where it
+    is sent, else yaw's and roll's 16-bit fields'."""
+    if QUATERNION in outputs:
+        return 2 * 2 / ((1 << 14) - 1)
+    return math.radians(2 * YAW_MAX / ((1 << 16) - 1))
+
+
 def answer(sample: ImuSample, register: int, master_id: int, firmware: Firmware) -> Frame:
     """The answer to a request of ``register``, from ``sample``."""
     if register == QUATERNION:

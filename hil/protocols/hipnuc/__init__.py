@@ -52,6 +52,13 @@ NMT = 0x000
 BOOT_UP = 0x700
 
 
+def orientation_step(outputs: tuple[int, ...]) -> float:
+    """The angle (rad) one count of the orientation a reader takes stands for: the
+    quaternion's (a part's step moves the angle about twice as far) where it is sent, else
+    the angles'."""
+    return 2 * QUATERNION_STEP if QUATERNION in outputs else ANGLE_STEP
+
+
 def frames(sample: ImuSample, node_id: int, outputs: tuple[int, ...]) -> list[Frame]:
     """The TPDOs of one sample, of the kinds in ``outputs``, in that order."""
     out = []

@@ -85,6 +85,13 @@ def encode(sample: ImuSample, outputs: tuple[int, ...]) -> bytes:
     return b"".join(out)
 
 
+def orientation_step(outputs: tuple[int, ...]) -> float:
+    """The angle (rad) one count of the orientation a reader takes stands for: the
+    quaternion's (a part's step moves the angle about twice as far) where it is sent, else
+    the angle packet's."""
+    return 2 / 32768 if QUATERNION in outputs else math.pi / 32768
+
+
 def bits_per_second(rate_hz: float, outputs: tuple[int, ...]) -> float:
     """What a sample stream takes of the serial line (bit/s)."""
     return rate_hz * len(outputs) * PACKET_BYTES * BITS_PER_BYTE
