@@ -25,8 +25,7 @@ class PolledImuPort(Port[ImuSample]):
         self._master_id = config.master_id
         self._firmware = dm_imu.FIRMWARES[config.firmware or dm_imu.DEFAULT_FIRMWARE]
         self._request_id = self._firmware.request_id(self._node_id)
-        self.device = (f"DM-IMU-L1 {self._node_id} on bus '{config.bus}': requests at "
-                       f"0x{self._request_id:03X}, answers at 0x{self._master_id:03X}")
+        self.device = f"DM-IMU-L1 {self._node_id} on bus '{config.bus}'"
         self.router: FrameRouter | None = None
         self._latest: ImuSample | None = None
         self.answered = 0
