@@ -271,3 +271,27 @@ def test_the_controller_polls_the_imu_and_publishes_what_it_reads(tmp_path):
     assert math.isclose(q.w ** 2 + q.x ** 2 + q.y ** 2 + q.z ** 2, 1.0, abs_tol=1e-6)
     # its variance: the yaw and roll fields' step, 360° over 65,535 counts
     assert last.orientation_covariance[0] == pytest.approx(math.radians(360 / 65535) ** 2 / 12)
+
+
+def test_two_dm_imus_on_a_bus_need_their_own_ids(tmp_path):
+    path = _config(tmp_path)
+    config = yaml.safe_load(path.read_text())
+    config["sensors"].append({"name": "imu2", "product": "dm_imu", "link": "link6",
+                              "bus": "arm", "node_id": 1, "master_id": 0x12})
+    config["sensors"].append({"name": "imu3", "product": "dm_imu", "link": "link6",
+                              "bus": "arm", "node_id": 3, "master_id": 0x11})
+    path.write_text(yaml.safe_dump(config))
+    with pytest.raises(ConfigError) as refused:
+        load_bus_config(path)
+    assert "another DM-IMU on bus 'arm' has its node_id 1" in str(refused.value)
+    assert ("CAN id 0x011 is used by sensor 'imu' answer and by sensor 'imu3' answer"
+            in str(refused.value))
+    # two IMUs of their own ids share the manual's 0x6FF for their requests
+    config["sensors"] = config["sensors"][:1] + [{**config["sensors"][1], "node_id": 2}]
+    path.write_text(yaml.safe_dump(config))
+    assert len(load_bus_config(path).imus) == 2
+
+
+def test_a_sensor_on_the_id_of_the_masters_sync_is_refused(tmp_path):
+    with pytest.raises(ConfigError, match=r"CAN id 0x080 is used by the master's SYNC"):
+        load_bus_config(_config(tmp_path, master_id=0x80))

@@ -130,6 +130,12 @@ def _check_gear(reader: Reader, drive: DriveConfig, transmissions) -> None:
                     hint="give the gear's stiffness too")
 
 
+_DRIVE_CLASH = ("change a node id (or a protocol option such as reply_id), or put the drives "
+                "on separate buses")
+_SENSOR_CLASH = ("change the sensor's ids in its entry (node_id, master_id or base_id) or the "
+                 "drive's node id, or put the sensor on another bus")
+
+
 def _check_ids(reader: Reader, bus: BusConfig) -> None:
     """Two drives (of any protocols) must not use the same CAN id on one bus, nor a drive
     an id of the bus as a whole (CANopen's NMT and SYNC) or of a sensor on it."""
@@ -137,7 +143,17 @@ def _check_ids(reader: Reader, bus: BusConfig) -> None:
     owners: dict[tuple[int, bool], str] = {
         (spec.identifier, spec.extended): f"the master's {spec.what} ({family.name})"
         for family in bus.protocols for spec in family.bus_wide_frames(bus.cycle_hz)}
-    owners.update({(spec.identifier, spec.extended): spec.what for spec in bus.sensor_frames})
+    for sensor_frame in bus.sensor_frames:
+        key = (sensor_frame.identifier, sensor_frame.extended)
+        held = owners.get(key)
+        # masters' requests to two sensors may share an id (the DM-IMU manual's 0x6FF
+        # carries the CAN id it asks); any other frame is one device's
+        if held is not None and not (held.endswith("request")
+                                     and sensor_frame.what.endswith("request")):
+            reader.fail(f"bus '{bus.name}': CAN id 0x{key[0]:03X} is used by {held} and by "
+                        f"{sensor_frame.what}", bus.line, hint=_SENSOR_CLASH)
+        owners.setdefault(key, sensor_frame.what)
+    sensor_ids = {(spec.identifier, spec.extended) for spec in bus.sensor_frames}
     shared: dict[tuple[int, bool], str] = {}
     for drive in bus.drives:
         spec = protocol(drive.protocol)
@@ -150,8 +166,7 @@ def _check_ids(reader: Reader, bus: BusConfig) -> None:
             if key in owners:
                 reader.fail(f"bus '{bus.name}': CAN id 0x{can_id:03X}{' ext' if extended else ''}"
                             f" is used by {owners[key]} and by {label}", drive.line,
-                            hint="change a node id (or a protocol option such as reply_id), or "
-                                 "put the drives on separate buses")
+                            hint=_SENSOR_CLASH if key in sensor_ids else _DRIVE_CLASH)
                 continue
             owners[key] = label
             if can_id in sharable:

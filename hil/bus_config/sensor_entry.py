@@ -115,6 +115,12 @@ def read_sensors(reader: Reader, top: LineMapping, robot: RobotDescription,
     sensors = tuple(s for s in (_read_sensor(reader, item, number + 1, line, robot.name, links,
                                              by_name)
                                 for number, item in enumerate(raw)) if s is not None)
+    polled = [s for s in sensors if isinstance(s, ImuConfig) and s.master_id is not None]
+    for sensor in polled:
+        if [(s.bus, s.node_id) for s in polled].count((sensor.bus, sensor.node_id)) > 1:
+            reader.fail(f"sensor '{sensor.name}': another DM-IMU on bus '{sensor.bus}' has its "
+                        f"node_id {sensor.node_id}: a request to one is a request to both",
+                        sensor.line, hint="give every DM-IMU on a bus its own node_id")
     for kind in ("name", "port"):
         seen = [getattr(s, kind, None) for s in sensors]
         for sensor in sensors:
