@@ -107,6 +107,11 @@ def test_values_past_a_fields_range_saturate_at_its_end():
         raw = struct.unpack_from("<3H", dm_imu.answer(sample, register, 0x11,
                                                       dm_imu.FIRMWARES[1022]).data, 2)
         assert raw[:2] == (65535, 0)
+    # an infinite or undefined value answers too (NaN as a Cortex-M converts it: 0)
+    odd = ImuSample(np.array([math.inf, -math.inf, math.nan]), np.zeros(3),
+                    np.array([1.0, 0, 0, 0]))
+    raw = struct.unpack_from("<3H", dm_imu.answer(odd, 1, 0x11, dm_imu.FIRMWARES[1022]).data, 2)
+    assert raw == (65535, 0, 0)
     # firmware 1023 raised the range to ±24 g: the same field, a quarter of the resolution
     raw = struct.unpack_from("<3H", dm_imu.answer(
         ImuSample(np.array([100.0, 0, 0]), np.zeros(3), np.array([1.0, 0, 0, 0])), 1, 0x11,

@@ -85,9 +85,14 @@ DEFAULT_FIRMWARE = 1022
 
 def to_field(value: float, top: float, bits: int = 16) -> int:
     """``value`` in ±``top`` as the manual's float_to_uint maps it: truncated, held at the
-    field's ends (hil's reading: the sensor saturates, the C cast's wrap is not the product)."""
+    field's ends (hil's reading: the sensor saturates, the C cast's wrap is not the product);
+    NaN as an Arm Cortex-M's float-to-integer conversion gives it, 0 (hil's choice: the
+    manual does not name its processor)."""
     steps = (1 << bits) - 1
-    return min(steps, max(0, int((value + top) * steps / (2 * top))))
+    mapped = (value + top) * steps / (2 * top)
+    if mapped != mapped:
+        return 0
+    return min(steps, max(0, int(max(-1.0, min(mapped, steps + 1.0)))))
 
 
 def from_field(raw: int, top: float, bits: int = 16) -> float:
