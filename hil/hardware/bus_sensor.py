@@ -20,8 +20,13 @@ class BusSensor(Generic[State]):
     """A sensor whose frames of ``identifiers`` come to :meth:`on_frame` once
     :meth:`attach` ed; what that queues with :meth:`arrived` the loop :meth:`poll` s."""
 
-    def __init__(self, identifiers: tuple[int, ...]):
+    def __init__(self, identifiers: tuple[int, ...], requests: tuple[Frame, ...] = (),
+                 every: int = 1):
+        """``requests``: the frames that ask a sensor which answers requests only for a
+        sample, sent every ``every`` control cycles (a sensor that streams has none)."""
         self.identifiers = identifiers
+        self.requests = requests
+        self.every = every
         self._queue: deque[State] = deque(maxlen=KEEP)
         self.router: FrameRouter | None = None
         #: why it is not read now (None: it is)
@@ -43,8 +48,10 @@ class BusSensor(Generic[State]):
         raise NotImplementedError
 
     def request(self, cycle: int) -> None:
-        """Ask for a sample at control cycle ``cycle``, where the sensor answers requests
-        only (a sensor that streams is asked nothing)."""
+        """At control cycle ``cycle``: its requests, on every ``every``-th cycle once
+        attached."""
+        if self.requests and self.router is not None and cycle % self.every == 0:
+            self.router.send_frames(self.requests)
 
     def arrived(self, state: State) -> None:
         """A sample for the loop."""

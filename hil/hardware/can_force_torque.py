@@ -16,23 +16,16 @@ from hil.hardware.bus_sensor import BusSensor
 from hil.hardware.sensor_states import WrenchState
 from hil.protocols import ati_netft
 
-_REQUEST = bytes((ati_netft.LONG,))
-
-
 class CanForceTorque(BusSensor[WrenchState]):
-    """One Net F/T of the bus config, polled every ``every`` cycles once attached."""
+    """One Net F/T of the bus config, asked for long data every ``every`` cycles once
+    attached."""
 
     def __init__(self, config: ForceTorqueConfig, every: int, clock=time.time):
-        super().__init__(tuple(config.base_id + n for n in ati_netft.LONG_ANSWERS))
+        super().__init__(tuple(config.base_id + n for n in ati_netft.LONG_ANSWERS),
+                         (Frame(config.base_id, bytes((ati_netft.LONG,))),), every)
         self.config = config
-        self.every = every
         self._clock = clock
         self._parts: dict[int, tuple[int, int]] = {}
-
-    def request(self, cycle: int) -> None:
-        """Ask for long data, on every ``every``-th cycle."""
-        if self.router is not None and cycle % self.every == 0:
-            self.router.send(Frame(self.config.base_id, _REQUEST))
 
     def on_frame(self, frame: Frame) -> None:
         if len(frame.data) != 8:

@@ -19,8 +19,9 @@ class _ImuOnBus(BusSensor[ImuState]):
     """An IMU whose frames of ``identifiers`` ``reader`` decodes into samples."""
 
     def __init__(self, config: ImuConfig, reader: hipnuc.FrameReader | dm_imu.AnswerReader,
-                 identifiers: tuple[int, ...], clock):
-        super().__init__(identifiers)
+                 identifiers: tuple[int, ...], clock, requests: tuple[Frame, ...] = (),
+                 every: int = 1):
+        super().__init__(identifiers, requests, every)
         self.config = config
         self._reader = reader
         self._clock = clock
@@ -46,11 +47,6 @@ class PolledCanImu(_ImuOnBus):
     def __init__(self, config: ImuConfig, every: int, clock=time.time):
         firmware = dm_imu.FIRMWARES[config.firmware]
         super().__init__(config, dm_imu.AnswerReader(config.outputs, firmware),
-                         (config.master_id,), clock)
-        self._requests = [dm_imu.request(register, config.node_id, firmware)
-                          for register in config.outputs]
-        self.every = every
-
-    def request(self, cycle: int) -> None:
-        if self.router is not None and cycle % self.every == 0:
-            self.router.send_frames(self._requests)
+                         (config.master_id,), clock,
+                         tuple(dm_imu.request(register, config.node_id, firmware)
+                               for register in config.outputs), every)

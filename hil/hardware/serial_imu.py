@@ -17,8 +17,8 @@ import time
 import tty
 
 from hil.bus_config.sensor_types import ImuConfig
-from hil.protocols import wit
 from hil.hardware.sensor_states import ImuState
+from hil.protocols import wit
 
 #: how often a port that is not there (yet), or held by another program, is tried (s)
 RETRY = 1.0

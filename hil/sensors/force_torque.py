@@ -11,9 +11,9 @@ from collections.abc import Callable
 import numpy as np
 
 from hil.bus_config.sensor_types import ForceTorqueConfig
+from hil.can.faults import SensorFaultKind
 from hil.can.frame import Frame
 from hil.can.router import FrameRouter
-from hil.can.faults import SensorFaultKind
 from hil.protocols import ati_netft
 from hil.sensors.faults import SensorFaults
 from hil.sensors.noise import TriadNoise
