@@ -17,17 +17,20 @@ import can
 import numpy as np
 import pytest
 
-from conftest import ROOT, UR3_VIRTUAL, CanopenBench, free_port
+from conftest import ROOT, TEST_MOTOR_DRIVE, UR3_VIRTUAL, CanopenBench, free_port
 
 from hil.bus_config import load_bus_config
+from hil.can.frame import Frame
 from hil.can.router import start_router
 from hil.cli import common
 from hil.cli.sim import status_lines
-from hil.drives import Fault
+from hil.drives import DriveCore, DriveParameters, Fault
 from hil.errors import BootTimeout, BringUpError
 from hil.hardware import (LOCK_STEP_REPLY_TIMEOUT, MISSED_ANSWER_LIMIT, CanHardwareInterface,
                           FaultKind)
 from hil.simulator import LOCK_STEP_WATCHDOG, MAX_CATCH_UP, Simulator
+from hil.simulator.build import bench_plant
+from hil.simulator.stepping import PlantStepping
 from hil.realtime import LOCK_STEP, REAL_TIME
 
 REDUCTIONS = (120, 120, 120, 100, 100, 100)
@@ -380,3 +383,53 @@ def test_a_frame_the_bus_will_not_send_is_lost_and_counted_and_the_plant_runs_on
     assert any("lost 1 frame(s)" in line for line in status_lines(sim))
     sim.stop()
     thread.join(5)
+
+
+def test_a_real_time_bus_answers_the_commands_of_one_delivery_in_one_send(real_time_sim):
+    # a master's cycle that arrives in one delivery (a Zenoh message, handled inside one
+    # entry of the lock) is answered in one send of the bus' replies, as in lock-step; a
+    # SYNC that reaches the drives outside such an entry, each drive's reply on its own
+    sim, _ = real_time_sim
+    sim.start()
+    runtime, = sim.buses
+    router = runtime.router
+    router.on_frames([Frame(0x000, bytes([0x01, 0x00]))])        # NMT start: PDOs on
+    sends: list[list[Frame]] = []
+    send_frames = router.send_frames
+    router.send_frames = lambda frames: (sends.append(list(frames)), send_frames(frames))
+    with sim.lock:
+        router.on_frames([Frame(0x080)])                          # SYNC
+        assert sends == []                                        # held while inside
+    tpdos = {0x180 + node for node in range(1, 7)} | {0x280 + node for node in range(1, 7)}
+    assert len(sends) == 1 and {frame.identifier for frame in sends[0]} == tpdos
+    sends.clear()
+    router.on_frames([Frame(0x080)])
+    assert len(sends) == 6 and {frame.identifier for s in sends for frame in s} == tpdos
+
+
+class EventsOnlyDrive:
+    """A drive whose after_update reacts to its core's faults only (the MIT family's,
+    Damiao's, ...): records each call with the faults it found."""
+
+    follows_every_step = False
+
+    def __init__(self):
+        self.core = DriveCore(DriveParameters(**TEST_MOTOR_DRIVE))
+        self.calls: list[list[Fault]] = []
+
+    def after_update(self) -> None:
+        events, self.core.events = self.core.events, []
+        self.calls.append(events)
+
+
+def test_a_drive_that_follows_its_faults_only_is_told_after_the_step_that_leaves_one():
+    stepping = PlantStepping(bench_plant(load_bus_config(UR3_VIRTUAL)))
+    drive = EventsOnlyDrive()
+    stepping.add(drive, 0)
+    stepping.step()
+    assert drive.calls == []                  # no fault: not called
+    drive.core.enable()
+    drive.core.raise_fault(Fault.EMERGENCY_STOP)
+    stepping.step()
+    stepping.step()
+    assert drive.calls == [[Fault.EMERGENCY_STOP]]      # once, after the next step

@@ -29,6 +29,13 @@ class CoreGroup:
             torques[actuators[k]] = core.update(dt)
         return torques
 
+    def any_events(self) -> bool:
+        """Whether a core has faults its drive has not taken (its ``events``)."""
+        for core in self._cores:
+            if core.events:
+                return True
+        return False
+
     def measure(self, positions: list[float], velocities: list[float], dt: float) -> None:
         """Each core's motor position and velocity from the plant's (its actuator's), ``dt``
         after the last (0: the first)."""

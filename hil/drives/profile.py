@@ -12,7 +12,8 @@ subscribes its handlers by identifier and sends :class:`~hil.can.frame.Frame` va
 Cycle contract with the simulator: when a drive receives its cyclic command
 (SYNC for CiA 402, a command frame for MIT and ODrive), it applies it,
 samples the state its reply will carry, and calls :attr:`on_command`. In
-real time the simulator answers at once (:meth:`send_replies`); in lock-step
+real time the simulator answers at once (:meth:`take_replies`, sent as its lock is
+left, a bus' answers to one delivery together; or :meth:`send_replies`); in lock-step
 it first advances the plant one control period, once every drive has had its
 command.
 """
@@ -61,6 +62,11 @@ class DriveProfile(ABC):
 
     #: the protocol it speaks
     protocol: ClassVar[type[Protocol]]
+    #: whether :meth:`after_update` has work after every plant step (its protocol's state
+    #: follow-ups); False: only after a step that left the core faults to report (its
+    #: ``events``), the only steps after which the simulator calls it then (a call a drive a
+    #: step saved: two calls a drive a cycle of a 500 Hz bus on a 1 kHz plant)
+    follows_every_step: ClassVar[bool] = False
 
     def __init__(self, config: DriveConfig, core: DriveCore, lock: AbstractContextManager):
         """The drive of ``config`` (its node id, ratings, heartbeat and the protocol's
@@ -145,7 +151,8 @@ class DriveProfile(ABC):
             self.router.send_frames(replies)
 
     def after_update(self) -> None:
-        """After each plant step (lock held): report new faults, state follow-ups."""
+        """After a plant step (lock held): report new faults, state follow-ups (after every
+        step where :attr:`follows_every_step`, else after a step that left core events)."""
 
     def take_events(self) -> list[Fault]:
         """The faults the core raised since the last call, each logged: the drive's own

@@ -8,8 +8,9 @@ Two time modes:
   inner loops, up to the present; so a frame acts on and samples the state
   at its arrival, and no thread has to wake at the plant's rate (in one
   process such a thread fought the controller's for the GIL). Drives answer
-  each cycle's command (SYNC, or a command frame) at once and send their
-  timed messages when due;
+  each cycle's command (SYNC, or a command frame) at once, as the lock is
+  left (a bus' answers to one delivery in one send), and send their timed
+  messages when due;
 * lock-step: the plant advances exactly one control period once every drive
   has had its command of the cycle, so a run is reproducible bit for bit and
   may go faster than real time. The replies leave only after the step, so
@@ -78,13 +79,15 @@ class Simulator:
         # lock-step: nothing moves the plant between commands, nothing to advance on entry
         # (a plain lock, cheaper a cycle: docs/performance.md, "2026-11-28, fourth step: a bus'
         # cycle in one send (issue 48)")
-        self.lock: AbstractContextManager = (threading.RLock() if timing.lock_step
-                                             else PlantPresent(self._real_time.advance))
+        present = None if timing.lock_step else PlantPresent(self._real_time.advance)
+        self.lock: AbstractContextManager = threading.RLock() if present is None else present
         self.buses: list[SimulatedBus] = simulated_buses(config, buses, timing, self.lock,
                                                          self._stepping)
         self.drives = self._stepping.drives
         self._cycles = CycleBook(self.buses, self.drives, self._stepping.step,
                                  config.steps_per_cycle)
+        if present is not None:        # real time: a delivery's replies sent as it leaves
+            present.leave = self._cycles.send_taken
         # chosen once here: the command path is hot (a call a drive a cycle)
         on_command = (self._cycles.commanded_in_lock_step if timing.lock_step
                       else self._cycles.commanded)

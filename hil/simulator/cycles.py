@@ -1,12 +1,14 @@
-"""The cycles a simulated bench runs: counted in real time; in lock-step, which drives on
-their bus have had the open cycle's command, closing it (the plant's steps, then every
-reply, a bus' in one send)."""
+"""The cycles a simulated bench runs: counted in real time, each drive's reply sent as the
+lock is left; in lock-step, which drives on their bus have had the open cycle's command,
+closing it (the plant's steps, then every reply). Either way a bus' replies of one delivery
+go in one send."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
 from hil.can.frame import Frame
+from hil.can.router import FrameRouter
 from hil.drives import DriveProfile
 from hil.simulator.build import SimulatedBus
 
@@ -30,6 +32,8 @@ class CycleBook:
         #: kept here: asking each drive (DriveProfile.attached) at every lock-step cycle costs
         #: a call a drive, and this set is the next cycle's waiting set as it is
         self.attached: set[DriveProfile] = set()
+        #: real time: the replies taken inside this entry of the lock, by bus
+        self._taken: dict[FrameRouter, list[Frame]] = {}
 
     def leave(self, drive: DriveProfile) -> None:
         """``drive`` has left its bus: no cycle waits for it, no reply of it is sent."""
@@ -37,10 +41,31 @@ class CycleBook:
         self.waiting.discard(drive)
 
     def commanded(self, drive: DriveProfile) -> None:
-        """Real time: a drive has its command of this cycle, and answers at once."""
-        drive.send_replies()
+        """Real time: a drive has its command of this cycle, and answers in this entry of
+        the lock: its reply taken now, sent as the lock is left (:meth:`send_taken`), with
+        the others of its bus taken in the same entry (a master's cycle that came in one
+        delivery, over Zenoh) in one send, as lock-step sends them (a profile that sends
+        its own, at once)."""
+        frames = drive.take_replies()
+        router = drive.router
+        if frames is None:
+            drive.send_replies()
+        elif frames and router is not None:
+            taken = self._taken.get(router)
+            if taken is None:
+                self._taken[router] = frames
+            else:
+                taken += frames
         count = self._commands[drive] = self._commands.get(drive, 0) + 1
         self.cycles = max(self.cycles, count)
+
+    def send_taken(self) -> None:
+        """Real time: the replies taken inside the entry of the lock now being left, a bus'
+        in one send (the lock's ``leave``)."""
+        if self._taken:
+            taken, self._taken = self._taken, {}
+            for router, frames in taken.items():
+                router.send_frames(frames)
 
     def commanded_in_lock_step(self, drive: DriveProfile) -> None:
         """Lock-step: a drive has its command of this cycle; the last one closes it."""

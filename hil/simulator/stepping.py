@@ -23,6 +23,10 @@ class PlantStepping:
         self.plant = plant
         #: every drive, in the config's order (added by :func:`simulated_buses`)
         self.drives: list[DriveProfile] = []
+        # whose after_update runs after every step, and whose only after a step that left
+        # its core events (DriveProfile.follows_every_step)
+        self._every_step: list[DriveProfile] = []
+        self._on_events: list[DriveProfile] = []
         #: each drive's core with its plant actuator index, walked at every plant step
         self._cores = CoreGroup(len(plant.actuator_names))
         #: the sensors sampling the plant after each step (hil.sensors)
@@ -32,6 +36,7 @@ class PlantStepping:
         """A drive whose core drives the plant's actuator of index ``actuator``."""
         self.drives.append(drive)
         self._cores.add(drive.core, actuator)
+        (self._every_step if drive.follows_every_step else self._on_events).append(drive)
 
     def step(self) -> None:
         """One plant step with the drives' inner loops."""
@@ -39,8 +44,12 @@ class PlantStepping:
         self.plant.set_motor_torques(self._cores.update(dt))
         self.plant.step()
         self.measure(dt)
-        for drive in self.drives:
+        for drive in self._every_step:
             drive.after_update()
+        if self._on_events and self._cores.any_events():     # a fault, rarely
+            for drive in self._on_events:
+                if drive.core.events:
+                    drive.after_update()
         for sensor in self.sensors:
             sensor.after_step(self.plant.time)
 

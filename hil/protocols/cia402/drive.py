@@ -75,6 +75,7 @@ class Cia402Drive(DriveProfile):
     """A CiA 402 servo drive on a CANopen network, around a :class:`DriveCore`."""
 
     protocol = Cia402
+    follows_every_step = True       # quick stop's end, homing, a buffered set-point, EMCY
 
     def __init__(self, config: DriveConfig, core: DriveCore, lock: AbstractContextManager):
         super().__init__(config, core, lock)

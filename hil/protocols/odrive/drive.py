@@ -59,6 +59,7 @@ class ODriveDrive(DriveProfile):
     """
 
     protocol = ODrive
+    follows_every_step = True       # the velocity limit's check
 
     def __init__(self, config: DriveConfig, core: DriveCore, lock: AbstractContextManager):
         super().__init__(config, core, lock)
