@@ -79,6 +79,11 @@ class State(enum.IntEnum):
     def is_error(self) -> bool:
         return self >= State.OVER_VOLTAGE
 
+#: each state by its code, and in words ("LOST COMMUNICATION"): looked up once a feedback frame (an IntEnum's call
+#: and a name's replace are four interpreted calls a motor a cycle on the master's side)
+STATES = {state.value: state for state in State}
+STATE_TEXT = {state: state.name.replace("_", " ") for state in State}
+
 
 @dataclass(frozen=True)
 class DamiaoOptions(ProtocolOptions):
@@ -174,7 +179,10 @@ def pack_feedback(feedback: Feedback, ranges: MitRanges) -> bytes:
 
 def unpack_feedback(data: bytes, ranges: MitRanges) -> Feedback:
     """ValueError for a state code the maker does not define."""
-    return Feedback(data[0] & 0x0F, State(data[0] >> 4), *unpack_motion(data, ranges),
+    state = STATES.get(data[0] >> 4)
+    if state is None:
+        raise ValueError(f"{data[0] >> 4} is not a state the maker defines")
+    return Feedback(data[0] & 0x0F, state, *unpack_motion(data, ranges),
                     data[6], data[7])
 
 
@@ -249,5 +257,6 @@ class Damiao(Protocol):
 
 
 __all__ = ["CLEAR_ERROR", "DISABLE", "ENABLE", "SAVE_ZERO", "ControlMode", "Damiao",
-           "DamiaoOptions", "Feedback", "Op", "REGISTER_ID", "State", "TIMEOUT_UNIT",
+           "DamiaoOptions", "Feedback", "Op", "REGISTER_ID", "STATE_TEXT", "STATES", "State",
+           "TIMEOUT_UNIT",
            "is_register_answer", "pack_feedback", "unpack_feedback"]

@@ -13,8 +13,8 @@ from hil.bus_config.types import DriveConfig
 from hil.can.frame import Frame
 from hil.hardware.axis import AxisCommand, AxisFault, FaultKind
 from hil.protocols.damiao import (
-    CLEAR_ERROR, ControlMode, Damiao, DamiaoOptions, Feedback, State, is_register_answer,
-    unpack_feedback,
+    CLEAR_ERROR, STATE_TEXT, ControlMode, Damiao, DamiaoOptions, Feedback, State,
+    is_register_answer, unpack_feedback,
 )
 from hil.protocols.damiao.fd import master_frame
 from hil.protocols.mit import MitRanges
@@ -58,11 +58,13 @@ class DamiaoAxis(MitAxis):
         return [self._on_bus(frames) for frames in super().disable_rounds()]
 
     def _on_bus(self, frames: list[Frame]) -> list[Frame]:
-        return [master_frame(frame, self.config.can_fd) for frame in frames]
+        if not self.config.can_fd:
+            return frames           # as they are (no copy a motor a cycle on a classic bus)
+        return [master_frame(frame, True) for frame in frames]
 
     @property
     def state(self) -> str:
-        return self.answers.reported.name.replace("_", " ")
+        return STATE_TEXT[self.answers.reported]
 
     @property
     def enabled(self) -> bool:

@@ -48,7 +48,7 @@ from hil.drives.profile import Reading
 from hil.errors import ConfigError
 from hil.protocols.damiao import (
     CLEAR_ERROR, DISABLE, ENABLE, SAVE_ZERO, ControlMode, Damiao, DamiaoOptions, Feedback, Op,
-    REGISTER_ID, State, is_register_answer, pack_feedback, unpack_feedback,
+    REGISTER_ID, STATE_TEXT, State, is_register_answer, pack_feedback, unpack_feedback,
 )
 from hil.protocols.damiao.fd import FormatWatch, answer, is_fd_code, rate_code
 from hil.protocols.damiao.registers import (
@@ -136,7 +136,8 @@ class DamiaoDrive(MitFamilyDrive):
                          frame._replace(data=data[:8].ljust(8, b"\0")))
 
     def apply(self, frame: Frame) -> Frame:
-        self.watch.note(frame, self.fd)
+        if frame.fd != self.fd:     # told once (a call less a frame where it matches)
+            self.watch.note(frame, self.fd)
         mode, data = self._modes[frame.identifier], frame.data
         if mode is ControlMode.MIT and data in SPECIAL_FRAMES:
             SPECIAL_FRAMES[data](self)
@@ -325,7 +326,7 @@ class DamiaoDrive(MitFamilyDrive):
 
     @property
     def state_text(self) -> str:
-        return self.state.name.replace("_", " ")
+        return STATE_TEXT[self.state]
 
 
 SPECIAL_FRAMES = {ENABLE: DamiaoDrive._enable, DISABLE: DamiaoDrive._disable,

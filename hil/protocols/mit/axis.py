@@ -116,7 +116,8 @@ class MitAxis(Axis):
         feedback = self.feedback
         feedback.position, feedback.velocity = answer.position, answer.velocity
         feedback.torque = answer.torque
-        self.booted.set()
+        if not self.booted.is_set():      # an Event's set takes its lock each time
+            self.booted.set()
         self.answered()
 
     def reset(self) -> None:
