@@ -1,8 +1,10 @@
 """Modules that the install compiles with mypyc (``setup.py``), and which form of them runs.
 
-:data:`BUILDS` is the one list of them, in two builds: the drives' (:data:`COMPILED`, which
+:data:`BUILDS` is the one list of them, in builds: the drives' (:data:`COMPILED`, which
 ``hil.drives`` loads with :func:`import_fresh`) and the master's (:data:`COMPILED_MASTER`,
-which ``hil.hardware`` loads so), one for each process, neither importing the other.
+which ``hil.hardware`` loads so), one for each process, neither importing the other; the MIT
+codec's and the Zenoh transport's (:data:`COMPILED_TRANSPORT`, which ``hil.can`` loads),
+which both sides run.
 ``setup.py`` reads them from this file (it imports nothing but the standard library, which
 is all a build environment has of hil's needs).
 
@@ -36,9 +38,15 @@ COMPILED_MASTER = ("hil.hardware.gravity",)
 #: 0.32 µs compiled (docs/performance.md, "2026-12-06, issue 69: the MIT family's codec
 #: compiled, a Damiao motor's registers read once")
 COMPILED_MIT_CODEC = ("hil.protocols.mit.codec",)
+#: the Zenoh CAN transport's wire codec and link account, run on both sides for every
+#: message, a section a bus: a G1's cycle (6 buses) encoded, decoded and accounted in
+#: 90 µs interpreted, 50 µs compiled (docs/performance.md, "2026-12-07: the transport's
+#: codec compiled, a drive's calls a cycle cut")
+COMPILED_TRANSPORT = ("hil.can.link_statistics", "hil.can.zenoh_wire", "hil.can.link_account")
 #: each build's shared library (inside the package) and its modules
 BUILDS = {"hil.drives.compiled": COMPILED, "hil.hardware.compiled": COMPILED_MASTER,
-          "hil.protocols.mit.compiled": COMPILED_MIT_CODEC}
+          "hil.protocols.mit.compiled": COMPILED_MIT_CODEC,
+          "hil.can.compiled": COMPILED_TRANSPORT}
 
 
 def import_fresh(*names: str) -> None:

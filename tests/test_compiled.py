@@ -13,9 +13,12 @@ from pathlib import Path
 import grimp
 import pytest
 
+import hil.can.link_account
+import hil.can.zenoh_wire
 import hil.drives.core
 import hil.hardware.gravity
 import hil.protocols.mit.codec
+from hil.can.frame import Frame
 from hil.compiled import BUILDS, COMPILED, import_fresh, is_compiled
 from hil.description import load_description
 from conftest import ROOT, TEST_MOTOR_DRIVE
@@ -152,6 +155,44 @@ def test_the_compiled_mit_codec_packs_and_unpacks_what_its_source_does():
     for module in (compiled, source):           # NaN: refused alike, never packed
         with pytest.raises(ValueError, match="NaN"):
             module.float_to_uint(math.nan, -1.0, 1.0, 16)
+
+
+@pytest.mark.skipif(not is_compiled(hil.can.zenoh_wire),
+                    reason="the Zenoh transport is not compiled in this install (setup.py found "
+                           "no C compiler, or a module of hil.compiled.COMPILED_TRANSPORT "
+                           "changed since `pip install -e .`)")
+def test_the_compiled_transport_encodes_decodes_and_counts_what_its_source_does():
+    wire, account = _source_of(hil.can.zenoh_wire), _source_of(hil.can.link_account)
+    assert not is_compiled(wire) and not is_compiled(account)
+    frames = [Frame(0x123, bytes(range(8))), Frame(0x1ABCDEF0, b"\x01", extended=True),
+              Frame(0x7FF, bytes(3), remote=True), Frame(0x80),
+              Frame(0x201, bytes(range(64)), fd=True, bitrate_switch=True),
+              Frame(0x0, bytes(8), error=True)]
+    sides = [(hil.can.zenoh_wire, hil.can.link_account.LinkAccount(7, "bus")),
+             (wire, account.LinkAccount(7, "bus"))]
+    seen = []
+    for codec, link in sides:
+        payloads, counted = [], []
+        for k in range(40):        # a gap, a late message, echoes of its own puts
+            echo = link.sent(1 + 6 * k, len(frames), 100.0 + 0.002 * k)
+            payload = codec.encode_frames("g1/bus1", 99, 1 + 6 * k, 1e9 + k, frames, echo)
+            payloads.append(payload)
+            first = 1 + 6 * (k if k % 7 else k + 1)
+            message = codec.Message("g1/bus1", 5, first, 1e9 + k,
+                                    codec.Echo(7, 1 + 6 * k, 0.0005), frames)
+            counted.append(link.arrived(message, 1e9 + k + 0.001 * (k % 3),
+                                        100.0 + 0.002 * k + 0.0003))
+            payloads.append(codec.decode_frames(payload + payload))
+        refusals = []
+        for bad in (b"", b"\x03ab", payloads[0][:-3], payloads[0][:60] + b"\xff" * 9):
+            with pytest.raises(ValueError) as refused:
+                codec.decode_frames(bad)
+            refusals.append(str(refused.value))
+        counters = link.counters
+        seen.append((payloads, counted, refusals, str(counters), link.heard(),
+                     counters.round_trip, counters.lost, counters.late))
+    assert seen[0] == seen[1]                  # bit for bit
+    assert seen[0][-2] > 0                     # the gaps counted
 
 
 def _source_of(module):

@@ -8,17 +8,23 @@ inside one process (``hil-virtual``: the same, without a deep copy per frame).
 
 from __future__ import annotations
 
-import errno
-import socket
-from collections.abc import Callable, Iterable
-from contextlib import AbstractContextManager, ExitStack
+from hil.compiled import COMPILED_TRANSPORT, import_fresh
 
-import can
+# compiled by the install where it could be (setup.py): the Zenoh transport's wire codec and
+# link account, one build, loaded together before anything imports one of them
+import_fresh(*COMPILED_TRANSPORT)
 
-from hil.can.capabilities import UNBATCHED, BusCapabilities, capabilities
-from hil.can.frames import BusLoad, bus_load, frame_bits
-from hil.errors import BusError
-from hil.realtime.stalls import Stall
+import errno  # noqa: E402
+import socket  # noqa: E402
+from collections.abc import Callable, Iterable  # noqa: E402
+from contextlib import AbstractContextManager, ExitStack  # noqa: E402
+
+import can  # noqa: E402
+
+from hil.can.capabilities import UNBATCHED, BusCapabilities, capabilities  # noqa: E402
+from hil.can.frames import BusLoad, bus_load, frame_bits  # noqa: E402
+from hil.errors import BusError  # noqa: E402
+from hil.realtime.stalls import Stall  # noqa: E402
 
 __all__ = ["BusCapabilities", "BusLoad", "batching", "capabilities", "bus_load",
            "deliver_under", "frame_bits", "link_round_trip", "link_unreached", "open_bus",

@@ -106,7 +106,7 @@ class SenderSequences:
         if gap >= SEQUENCE_HALF:            # not after the last heard: late, or a repeat
             return -self._fill(sender, sequence, frames)
         self.last[sender] = (sequence + frames - 1) & SEQUENCE_MASK
-        if gap:
+        if gap and last is not None:
             gaps = self._gaps.setdefault(sender, [])
             gaps.append(((last + 1) & SEQUENCE_MASK, gap))
             del gaps[:-GAPS_KEPT]

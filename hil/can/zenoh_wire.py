@@ -87,7 +87,8 @@ class Message(NamedTuple):
 def decode_frames(payload: bytes) -> list[Message]:
     """The sections of the message in ``payload``; raise ValueError for anything that is not
     a well-formed message, naming the section and frame."""
-    sections, offset = [], 0
+    sections: list[Message] = []
+    offset = 0
     while True:
         section, offset = _decode_section(payload, offset, len(sections) + 1)
         sections.append(section)
