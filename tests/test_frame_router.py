@@ -80,6 +80,29 @@ def test_a_mask_subscription_hears_every_identifier_whose_masked_bits_match(rout
     assert len(heard) == 2
 
 
+def test_subscribers_of_one_mask_each_hear_their_own_frames_and_a_shared_one_in_order(router):
+    # as Robstride motors on a bus (29-bit ids, the motor in bits 7-0) and moteus'
+    # broadcast id: a frame goes to the subscribers of its masked bits, in the order they
+    # subscribed; another mask's subscriber of the same frame hears it too
+    motors = {node: _hear(router, node, extended=True, mask=0xFF) for node in range(1, 9)}
+    broadcast = [_hear(router, 0x7F, extended=True, mask=0xFF) for _ in range(2)]
+    heard: list[str] = []
+    router.subscribe(0x7F, lambda frame: heard.append("first"), True, mask=0xFF)
+    router.subscribe(0x7F, lambda frame: heard.append("second"), True, mask=0xFF)
+    wide = _hear(router, 0x1200_0000, extended=True, mask=0x1F00_0000)
+    frames = [Frame(0x1200_FD03, b"\x01", extended=True), Frame(0x0300_FD07, extended=True),
+              Frame(0x0200_FD7F, extended=True), Frame(0x03, b"\x02")]
+    router.on_frames(frames)
+    assert {node: len(each) for node, each in motors.items()} == \
+        {1: 0, 2: 0, 3: 1, 4: 0, 5: 0, 6: 0, 7: 1, 8: 0}
+    assert broadcast[0] == broadcast[1] == [frames[2]] and heard == ["first", "second"]
+    assert wide == [frames[0]]
+    router.unsubscribe(3, motors[3].append, extended=True, mask=0xFF)
+    router.unsubscribe(0x1200_0000, wide.append, extended=True, mask=0x1F00_0000)
+    router.on_frames(frames)
+    assert len(motors[3]) == 1 and len(motors[7]) == 2 and len(wide) == 1
+
+
 def test_a_remote_mask_subscription_hears_remote_frames_only(router):
     asked = _hear(router, 0x600, remote=True, mask=0x780)
     request = Frame(0x601, bytes(8), remote=True)

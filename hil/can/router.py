@@ -85,9 +85,10 @@ class FrameRouter(FrameListener):
         # data frames by identifier, standard and extended apart (an extended id below 0x800
         # is another frame than the standard one of that number); remote frames apart
         self._routes: tuple[dict[int, list[Handler]], ...] = ({}, {}, {}, {})
-        #: (identifier, mask, extended, remote, handler): frames whose id & mask ==
-        #: identifier
-        self._masked: list[tuple[int, int, bool, bool, Handler]] = []
+        #: frames by their identifier's masked bits, a table per (mask, extended, remote):
+        #: a frame is looked up once a mask, not held against every subscriber (a bus of N
+        #: drives subscribed by mask made each frame's dispatch N checks, a cycle's N²)
+        self._masked: list[tuple[int, bool, bool, dict[int, list[Handler]]]] = []
         self._refused_by_id: dict[int, int] = {}
         self._send_lock = threading.Lock()
         self._frame_sender = capabilities(bus).frame_sender()
@@ -100,7 +101,8 @@ class FrameRouter(FrameListener):
         """Call ``handler`` with every data frame of ``identifier`` (a remote frame's with
         ``remote``), or with ``mask``, of every identifier whose masked bits equal it."""
         if mask is not None:
-            self._masked = [*self._masked, (identifier & mask, mask, extended, remote, handler)]
+            self._masked = self._masked_with(identifier, mask, extended, remote,
+                                             lambda handlers: [*handlers, handler])
             return
         routes = self._routes[extended + 2 * remote]
         routes[identifier] = [*routes.get(identifier, ()), handler]   # a new list: read live
@@ -109,8 +111,9 @@ class FrameRouter(FrameListener):
                     remote: bool = False, mask: int | None = None) -> None:
         """Undo one :meth:`subscribe` of these arguments (none: nothing happens)."""
         if mask is not None:
-            entry = (identifier & mask, mask, extended, remote, handler)
-            self._masked = [each for each in self._masked if each != entry]
+            self._masked = self._masked_with(identifier, mask, extended, remote,
+                                             lambda handlers: [each for each in handlers
+                                                               if each != handler])
             return
         routes = self._routes[extended + 2 * remote]
         left = [each for each in routes.get(identifier, ()) if each != handler]
@@ -118,6 +121,26 @@ class FrameRouter(FrameListener):
             routes[identifier] = left
         else:
             routes.pop(identifier, None)
+
+    def _masked_with(self, identifier: int, mask: int, extended: bool, remote: bool,
+                     change: Callable[[list[Handler]], list[Handler]]
+                     ) -> list[tuple[int, bool, bool, dict[int, list[Handler]]]]:
+        """The masked tables with the handlers of ``identifier & mask`` changed, as new
+        lists and tables (a delivery in progress reads the ones it has)."""
+        key = identifier & mask
+        tables = []
+        found = False
+        for each_mask, each_extended, each_remote, table in self._masked:
+            if (each_mask, each_extended, each_remote) == (mask, extended, remote):
+                found, table = True, {**table, key: change(table.get(key, []))}
+                table = {k: handlers for k, handlers in table.items() if handlers}
+            if table:
+                tables.append((each_mask, each_extended, each_remote, table))
+        if not found:
+            handlers = change([])
+            if handlers:
+                tables.append((mask, extended, remote, {key: handlers}))
+        return tables
 
     def handlers(self, identifier: int, extended: bool = False, remote: bool = False
                  ) -> tuple[Handler, ...]:
@@ -135,27 +158,29 @@ class FrameRouter(FrameListener):
                 self._fd_on_classical(frame)
                 continue
             handlers = routes[frame.extended + 2 * frame.remote].get(frame.identifier)
+            if masked:
+                handlers = self._with_masked(frame, masked, handlers)
             if handlers is not None:
                 for handler in handlers:
                     try:
                         handler(frame)
                     except Exception as exc:
                         self._refuse(frame, handler, exc)
-            if masked:
-                self._to_masked(frame, masked)
 
     def on_message_received(self, msg: can.Message) -> None:
         self.on_frames((frame_of(msg),))
 
-    def _to_masked(self, frame: Frame, masked: list[tuple[int, int, bool, bool, Handler]]
-                   ) -> None:
-        for identifier, mask, extended, remote, handler in masked:
-            if (frame.identifier & mask == identifier and frame.extended == extended
-                    and frame.remote == remote):
-                try:
-                    handler(frame)
-                except Exception as exc:
-                    self._refuse(frame, handler, exc)
+    @staticmethod
+    def _with_masked(frame: Frame, masked: list[tuple[int, bool, bool, dict[int, list[Handler]]]],
+                     handlers: list[Handler] | None) -> list[Handler] | None:
+        """``handlers`` (the frame's by identifier, or None), then those of the masked tables
+        that the frame's masked bits select."""
+        for mask, extended, remote, table in masked:
+            if frame.extended == extended and frame.remote == remote:
+                more = table.get(frame.identifier & mask)
+                if more is not None:
+                    handlers = more if handlers is None else [*handlers, *more]
+        return handlers
 
     def _refuse(self, frame: Frame, handler: Handler, exc: Exception) -> None:
         self.refused += 1
@@ -217,6 +242,8 @@ class FrameRouter(FrameListener):
         (its routes are emptied in place, where that delivery reads them)."""
         for routes in self._routes:
             routes.clear()
+        for *_, table in self._masked:
+            table.clear()
         self._masked.clear()
         # a python-can Notifier stops its listeners too (this again): taken first
         delivery, self._delivery = self._delivery, None
