@@ -16,8 +16,8 @@ from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind
 from hil.protocols.mit.axis import MitAxis
 from hil.protocols.robstride import Framing, Robstride, RobstrideOptions
 from hil.protocols.robstride.codec import (
-    TYPE_AND_IDS, Comm, Fault, Motion, MotorMode, fault_words, pack_motion, private_id,
-    unpack_feedback,
+    MODE_NAMES, TYPE_AND_IDS, Comm, Fault, Motion, MotorMode, fault_words, pack_motion,
+    private_id, unpack_feedback,
 )
 
 #: a stop's data: byte 0 = 1 clears the faults (§4.1.5)
@@ -107,7 +107,7 @@ class RobstrideAxis(Axis):
 
     @property
     def state(self) -> str:
-        return self.reported.name
+        return MODE_NAMES[self.reported]
 
     @property
     def enabled(self) -> bool:

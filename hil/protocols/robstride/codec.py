@@ -17,6 +17,7 @@ from __future__ import annotations
 import enum
 import struct
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from hil.protocols.mit import float_to_uint, uint_to_float
 
@@ -71,6 +72,12 @@ class Fault(enum.IntFlag):
     #: bit 20 on the RS firmware (SampleProgram ``mapFaults``: the word's overload bit 14)
     STALL_OVERLOAD = 16
 
+
+#: a feedback frame's mode and fault fields by value, looked up once a frame (an enum's call
+#: is two interpreted calls, a frame a motor a cycle on each side)
+MOTOR_MODES = {mode.value: mode for mode in MotorMode}
+MODE_NAMES = {mode: mode.name for mode in MotorMode}
+FAULTS = {bits: Fault(bits) for bits in range(64)}
 
 #: bits 17 and 20 as the RS firmware means them (SampleProgram ``mapFaults``)
 _RS_WORDS = {Fault.OVERCURRENT: "driver chip fault", Fault.STALL_OVERLOAD: "stall overload"}
@@ -142,9 +149,10 @@ class Ranges:
     kd_max: float
 
 
-@dataclass(frozen=True)
-class Motion:
-    """An operation-control command (§4.1.2), SI at the output."""
+class Motion(NamedTuple):
+    """An operation-control command (§4.1.2), SI at the output. (Named tuples, as Feedback:
+    one is made a frame on each side, a frozen dataclass sets each field through
+    ``object.__setattr__``.)"""
 
     position: float
     velocity: float
@@ -172,8 +180,7 @@ def unpack_motion(identifier: int, data: bytes, ranges: Ranges) -> Motion:
                   uint_to_float(identifier >> 8 & 0xFFFF, -ranges.t_max, ranges.t_max, 16))
 
 
-@dataclass(frozen=True)
-class Feedback:
+class Feedback(NamedTuple):
     """What a feedback frame carries (§4.1.3), SI at the output."""
 
     motor_id: int
@@ -197,6 +204,13 @@ def pack_feedback(feedback: Feedback, ranges: Ranges, host: int) -> tuple[int, b
     return private_id(Comm.FEEDBACK, field, host), data
 
 
+def _motor_mode(value: int) -> MotorMode:
+    mode = MOTOR_MODES.get(value)
+    if mode is None:
+        raise ValueError(f"{value} is not a valid MotorMode")
+    return mode
+
+
 def unpack_feedback(identifier: int, data: bytes, ranges: Ranges) -> Feedback:
     """ValueError for a mode the manual does not define."""
     field = identifier >> 8 & 0xFFFF
@@ -204,7 +218,7 @@ def unpack_feedback(identifier: int, data: bytes, ranges: Ranges) -> Feedback:
     return Feedback(field & 0xFF, uint_to_float(p, -ranges.p_max, ranges.p_max, 16),
                     uint_to_float(v, -ranges.v_max, ranges.v_max, 16),
                     uint_to_float(t, -ranges.t_max, ranges.t_max, 16), temperature / 10,
-                    MotorMode(field >> 14), Fault(field >> 8 & 0x3F))
+                    _motor_mode(field >> 14), FAULTS[field >> 8 & 0x3F])
 
 
 # --- the MIT protocol mode (RS00 manual, MIT chapter) ----------------------------------------
