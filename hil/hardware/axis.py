@@ -39,6 +39,16 @@ class FaultKind(enum.Enum):
     REBOOTED = "rebooted"                 # booted again mid-run: it lost its configuration
 
 
+
+class BootFlag(threading.Event):
+    """An axis' "heard from since reset" flag. Most families set it at every answer: a set
+    that finds it set returns at once (``threading.Event.set`` takes the Event's lock and
+    notifies each time, five interpreted calls an axis a cycle)."""
+
+    def set(self) -> None:
+        if not self._flag:        # threading.Event's own flag, what is_set() returns
+            super().set()
+
 class AxisCommand(NamedTuple):
     """What the master asks of one axis this cycle, in motor units. (A named tuple: one is
     made per axis per cycle, and a frozen dataclass' constructor sets each field through
@@ -110,7 +120,7 @@ class Axis(ABC):
         self.feedback = AxisFeedback()
         self.router: FrameRouter | None = None
         self.last_heard = time.monotonic()      # the drive's last sign of life
-        self.booted = threading.Event()          # heard from since reset()
+        self.booted = BootFlag()                 # heard from since reset()
         #: configured (:meth:`configure` done) and not heard booting again since
         self.configured = False
         #: heard booting again after it was configured (a power cycle, its host restarted):

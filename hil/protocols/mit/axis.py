@@ -116,8 +116,7 @@ class MitAxis(Axis):
         feedback = self.feedback
         feedback.position, feedback.velocity = answer.position, answer.velocity
         feedback.torque = answer.torque
-        if not self.booted.is_set():      # an Event's set takes its lock each time
-            self.booted.set()
+        self.booted.set()
         self.answered()
 
     def reset(self) -> None:

@@ -53,8 +53,7 @@ class MoteusAxis(Axis):
         self.feedback.position = values[Register.POSITION] * TURN
         self.feedback.velocity = values.get(Register.VELOCITY, 0.0) * TURN
         self.feedback.torque = values.get(Register.TORQUE, 0.0)
-        if not self.booted.is_set():      # an Event's set takes its lock each time
-            self.booted.set()
+        self.booted.set()
         self.answered()
 
     @property

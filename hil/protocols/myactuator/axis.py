@@ -60,8 +60,7 @@ class MyActuatorAxis(Axis):
         _, position, velocity, torque = unpack_mit_reply(frame.data)
         feedback = self.feedback
         feedback.position, feedback.velocity, feedback.torque = position, velocity, torque
-        if not self.booted.is_set():      # an Event's set takes its lock each time
-            self.booted.set()
+        self.booted.set()
         self.answered()
 
     def _on_reply(self, frame: Frame) -> None:
@@ -77,8 +76,7 @@ class MyActuatorAxis(Axis):
             self.feedback.velocity = state.speed * _DEGREE
         else:
             return
-        if not self.booted.is_set():      # an Event's set takes its lock each time
-            self.booted.set()
+        self.booted.set()
         self.answered()
 
     def reset(self) -> None:

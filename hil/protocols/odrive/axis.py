@@ -74,8 +74,7 @@ class ODriveAxis(Axis):
             self._requested_closed_loop = False
         if error and self.disarm_reason == ODriveError.NONE:
             self._pending.append(self._request(Cmd.GET_ERROR))
-        if not self.booted.is_set():      # an Event's set takes its lock each time
-            self.booted.set()
+        self.booted.set()
         self.last_heard = time.monotonic()
 
     def _on_estimates(self, frame: Frame) -> None:

@@ -56,8 +56,7 @@ class RobstrideAxis(Axis):
         feedback = self.feedback
         feedback.position, feedback.velocity = answer.position, answer.velocity
         feedback.torque = answer.torque
-        if not self.booted.is_set():      # an Event's set takes its lock each time
-            self.booted.set()
+        self.booted.set()
         self.answered()
 
     def _frame(self, comm: Comm, data: bytes = STOP) -> Frame:
