@@ -92,7 +92,7 @@ def to_field(value: float, top: float, bits: int = 16) -> int:
     mapped = (value + top) * steps / (2 * top)
     if mapped != mapped:
         return 0
-    return min(steps, max(0, int(max(-1.0, min(mapped, steps + 1.0)))))
+    return int(min(max(mapped, 0.0), steps))
 
 
 def from_field(raw: int, top: float, bits: int = 16) -> float:
