@@ -29,7 +29,7 @@ from hil.errors import ConfigError
 from hil.hardware.axis import AxisCommand
 from hil.protocols.damiao import DISABLE, ENABLE, REGISTER_ID, DamiaoOptions, Op, State
 from hil.protocols.damiao.axis import DamiaoAxis
-from hil.protocols.damiao.fd import FD_CODES, answer, master_frame, rate_code
+from hil.protocols.damiao.fd import FD_CODES, answer, rate_code
 from hil.testing import DrivesBench
 
 URDF = TESTS / "fixtures" / "damiao_one_axis.urdf"
@@ -221,12 +221,15 @@ def test_a_bus_whose_rates_no_dm_motor_runs_is_a_config_error(tmp_path):
 
 # --- hil's own master ---------------------------------------------------------------------------
 
-def test_hils_master_sends_fd_frames_with_brs_on_an_fd_bus(tmp_path):
-    bus = load_bus_config(write_config(tmp_path, FD_BUS)).buses[0]
+@pytest.mark.parametrize("bus_text, fd", [(FD_BUS, True), (CLASSIC_BUS, False)],
+                         ids=["fd", "classic"])
+def test_hils_master_sends_fd_frames_with_brs_on_an_fd_bus_classic_ones_on_a_classic(
+        tmp_path, bus_text, fd):
+    bus = load_bus_config(write_config(tmp_path, bus_text)).buses[0]
     axis = DamiaoAxis(bus.drives[0], bus.name)
     frames = [*axis.disable_rounds()[0], *axis.cycle_frames(AxisCommand(0.0, 0.0))]
-    assert all(frame.fd and frame.bitrate_switch and frame.length == 8 for frame in frames)
-    assert master_frame(frames[0], False) == frames[0]
+    assert all(frame.fd is fd and frame.bitrate_switch is fd and frame.length == 8
+               and frame.identifier == bus.drives[0].node_id for frame in frames)
 
 
 def test_hils_master_moves_a_motor_over_can_fd_lock_step(tmp_path):

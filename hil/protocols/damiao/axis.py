@@ -4,19 +4,22 @@ enable at standstill, one command per cycle, hold while stopping), and the motor
 feedback, whose state nibble the master watches: an error the motor reports (lost
 communication, overload, ...) is a fault, cleared with the clear-error frame on a reset.
 On a CAN FD bus every frame goes as an FD frame with the bit-rate switch, as openarm_can
-sends them (:func:`hil.protocols.damiao.fd.master_frame`).
+sends them (:func:`hil.protocols.damiao.fd.master_fd_frame`).
 """
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
+
 from hil.bus_config.types import DriveConfig
 from hil.can.frame import Frame
-from hil.hardware.axis import AxisCommand, AxisFault, FaultKind
+from hil.hardware.axis import AxisFault, FaultKind
 from hil.protocols.damiao import (
     CLEAR_ERROR, STATE_TEXT, ControlMode, Damiao, DamiaoOptions, Feedback, State,
     is_register_answer, unpack_feedback,
 )
-from hil.protocols.damiao.fd import master_frame
+from hil.protocols.damiao.fd import master_fd_frame
 from hil.protocols.mit import MitRanges
 from hil.protocols.mit.axis import MitAxis, MotorAnswers
 
@@ -51,16 +54,12 @@ class DamiaoAxis(MitAxis):
                         "Damiao motors in MIT mode", "control_mode: MIT")
         return options.ranges(), options.kp, options.kd, options.reply_id(config.node_id)
 
-    def cycle_frames(self, command: AxisCommand) -> list[Frame]:
-        return self._on_bus(super().cycle_frames(command))
-
-    def disable_rounds(self) -> list[list[Frame]]:
-        return [self._on_bus(frames) for frames in super().disable_rounds()]
-
-    def _on_bus(self, frames: list[Frame]) -> list[Frame]:
-        if not self.config.can_fd:
-            return frames           # as they are (no copy a motor a cycle on a classic bus)
-        return [master_frame(frame, True) for frame in frames]
+    @staticmethod
+    def frame_maker(config: DriveConfig) -> Callable[[bytes], Frame]:
+        """On a CAN FD bus an FD frame with the bit-rate switch (:func:`master_fd_frame`)."""
+        if config.can_fd:
+            return functools.partial(master_fd_frame, config.node_id)
+        return MitAxis.frame_maker(config)
 
     @property
     def state(self) -> str:

@@ -121,7 +121,7 @@ class DamiaoDrive(MitFamilyDrive):
         return [*(Subscription(identifier, self.on_frame) for identifier in self._modes),
                 Subscription(REGISTER_ID, self._on_register)]
 
-    def on_frame(self, frame: Frame) -> None:
+    def of_other_length(self, frame: Frame) -> Frame | None:
         """A frame on one of the motor's command ids: the firmware reads 8 data bytes of its
         receive element whatever the DLC (board_mcan_hc32f448.c, ``board_mcan_receive_payload``:
         ``*length = 8``), an FD frame's first 8, so a command as long as its mode's payload
@@ -131,9 +131,8 @@ class DamiaoDrive(MitFamilyDrive):
         data = frame.data
         if len(data) < COMMAND_LENGTHS[self._modes[frame.identifier]]:
             self.malformed += 1
-            return
-        super().on_frame(frame if len(data) == 8 else
-                         frame._replace(data=data[:8].ljust(8, b"\0")))
+            return None
+        return frame._replace(data=data[:8].ljust(8, b"\0"))
 
     def apply(self, frame: Frame) -> Frame:
         if frame.fd != self.fd:     # told once (a call less a frame where it matches)

@@ -79,11 +79,11 @@ def answer(identifier: int, data: bytes, fd: bool) -> Frame:
     return frame_of_fields((identifier, data, False, fd, fd, False, False, 0.0))
 
 
-def master_frame(frame: Frame, fd: bool) -> Frame:
-    """A master's frame as it goes on a bus: FD with BRS on an FD bus, as openarm_can sends
-    every frame there (``DMCANDevice::create_canfd_frame``: ``flags = CANFD_BRS``, ``len``
-    the payload's, 8 bytes); as it is on a classic one."""
-    return frame._replace(fd=True, bitrate_switch=True) if fd else frame
+def master_fd_frame(identifier: int, data: bytes) -> Frame:
+    """A master's frame on an FD bus: FD with BRS, as openarm_can sends every frame there
+    (``DMCANDevice::create_canfd_frame``: ``flags = CANFD_BRS``, ``len`` the payload's,
+    8 bytes)."""
+    return frame_of_fields((identifier, data, False, True, True, False, False, 0.0))
 
 
 class FormatWatch:

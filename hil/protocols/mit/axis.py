@@ -15,6 +15,8 @@ its next cycle sends instead of a command (:class:`SpecialFrames`).
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from typing import ClassVar
 
 from hil.bus_config.types import DriveConfig
@@ -87,6 +89,15 @@ class MitAxis(Axis):
         self.specials = SpecialFrames()
         self.motor_mode = False
         self._hold: float | None = None
+        #: a frame of the master's to this motor, of its data (its id and format on the bus:
+        #: :meth:`frame_maker`)
+        self.to_motor = self.frame_maker(config)
+
+    @staticmethod
+    def frame_maker(config: DriveConfig) -> Callable[[bytes], Frame]:
+        """How the master's frames to the motor of ``config`` are made of their data: a
+        classic frame on its node id (a family whose frames differ on some bus says how)."""
+        return functools.partial(Frame, config.node_id)
 
     @staticmethod
     def command_settings(config: DriveConfig) -> tuple[MitRanges, float, float, int]:
@@ -137,11 +148,11 @@ class MitAxis(Axis):
         target, velocity, torque = command.target, command.velocity, command.torque
         stopping, enabling = command.stopping, command.holding
         if self.specials.next is not None:
-            return [Frame(self.node_id, self.specials.take())]
+            return [self.to_motor(self.specials.take())]
         if not self.motor_mode and not stopping and self.at_standstill():
             self.motor_mode = True
             self._hold = self.feedback.position
-            return [Frame(self.node_id, ENTER_MOTOR_MODE)]
+            return [self.to_motor(ENTER_MOTOR_MODE)]
         if not self.motor_mode:
             sent = MitCommand(self.feedback.position, 0.0, 0.0, 0.0, 0.0)
         elif stopping or enabling:
@@ -151,11 +162,11 @@ class MitAxis(Axis):
         else:
             self._hold = None
             sent = MitCommand(target, velocity, self.kp, self.kd, torque)
-        return [Frame(self.node_id, pack_command(sent, self.ranges))]
+        return [self.to_motor(pack_command(sent, self.ranges))]
 
     def disable_rounds(self) -> list[list[Frame]]:
         self.motor_mode = False
-        return [[Frame(self.node_id, EXIT_MOTOR_MODE)]]
+        return [[self.to_motor(EXIT_MOTOR_MODE)]]
 
     def forget_faults(self) -> None:
         self._hold = None
