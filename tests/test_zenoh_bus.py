@@ -531,7 +531,9 @@ def test_the_link_round_trip_comes_from_echoes_without_the_answers_hold_and_a_sl
     link = [s for s in stalls if s.process == "link"]
     assert link and link[0].where == channel and link[0].length >= 0.04
     assert "link round trip" in str(counters)
-    assert "took 4" in str(link[0]) and "ms a round trip" in str(link[0])
+    # the words carry the stall's own length: 40 ms and more, by how loaded the host is (a
+    # CI host's first slow round trip took 54 ms, 2026-12-07)
+    assert f"took {link[0].length * 1e3:.0f} ms a round trip" in str(link[0])
 
 
 def test_a_logging_bus_stamps_frames_with_their_senders_clock(endpoint):
