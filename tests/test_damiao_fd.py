@@ -29,7 +29,7 @@ from hil.errors import ConfigError
 from hil.hardware.axis import AxisCommand
 from hil.protocols.damiao import DISABLE, ENABLE, REGISTER_ID, DamiaoOptions, Op, State
 from hil.protocols.damiao.axis import DamiaoAxis
-from hil.protocols.damiao.fd import FD_CODES, answer, rate_code
+from hil.protocols.damiao.fd import FD_CODES, frame_on_bus, rate_code
 from hil.testing import DrivesBench
 
 URDF = TESTS / "fixtures" / "damiao_one_axis.urdf"
@@ -116,9 +116,9 @@ def test_a_bus_no_dm_motor_runs_is_refused_naming_the_rates():
 
 def test_an_fd_answer_is_8_bytes_with_brs_and_a_classic_one_neither():
     feedback = bytes(range(8))
-    fd = answer(0x11, feedback, True)
+    fd = frame_on_bus(0x11, feedback, True)
     assert (fd.fd, fd.bitrate_switch, fd.data, fd.problem()) == (True, True, feedback, None)
-    classic = answer(0x11, feedback, False)
+    classic = frame_on_bus(0x11, feedback, False)
     assert (classic.fd, classic.bitrate_switch) == (False, False)
 
 

@@ -39,7 +39,6 @@ class FaultKind(enum.Enum):
     REBOOTED = "rebooted"                 # booted again mid-run: it lost its configuration
 
 
-
 class BootFlag(threading.Event):
     """An axis' "heard from since reset" flag. Most families set it at every answer: a set
     that finds it set returns at once (``threading.Event.set`` takes the Event's lock and
@@ -48,6 +47,7 @@ class BootFlag(threading.Event):
     def set(self) -> None:
         if not self._flag:        # threading.Event's own flag, what is_set() returns
             super().set()
+
 
 class AxisCommand(NamedTuple):
     """What the master asks of one axis this cycle, in motor units. (A named tuple: one is

@@ -4,7 +4,7 @@ enable at standstill, one command per cycle, hold while stopping), and the motor
 feedback, whose state nibble the master watches: an error the motor reports (lost
 communication, overload, ...) is a fault, cleared with the clear-error frame on a reset.
 On a CAN FD bus every frame goes as an FD frame with the bit-rate switch, as openarm_can
-sends them (:func:`hil.protocols.damiao.fd.master_fd_frame`).
+sends them (:func:`hil.protocols.damiao.fd.frame_on_bus`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from hil.protocols.damiao import (
     CLEAR_ERROR, STATE_TEXT, ControlMode, Damiao, DamiaoOptions, Feedback, State,
     is_register_answer, unpack_feedback,
 )
-from hil.protocols.damiao.fd import master_fd_frame
+from hil.protocols.damiao.fd import frame_on_bus
 from hil.protocols.mit import MitRanges
 from hil.protocols.mit.axis import MitAxis, MotorAnswers
 
@@ -56,9 +56,9 @@ class DamiaoAxis(MitAxis):
 
     @staticmethod
     def frame_maker(config: DriveConfig) -> Callable[[bytes], Frame]:
-        """On a CAN FD bus an FD frame with the bit-rate switch (:func:`master_fd_frame`)."""
+        """On a CAN FD bus an FD frame with the bit-rate switch (:func:`frame_on_bus`)."""
         if config.can_fd:
-            return functools.partial(master_fd_frame, config.node_id)
+            return functools.partial(frame_on_bus, config.node_id, fd=True)
         return MitAxis.frame_maker(config)
 
     @property

@@ -50,7 +50,7 @@ from hil.protocols.damiao import (
     CLEAR_ERROR, DISABLE, ENABLE, SAVE_ZERO, ControlMode, Damiao, DamiaoOptions, Feedback, Op,
     REGISTER_ID, STATE_TEXT, State, is_register_answer, pack_feedback, unpack_feedback,
 )
-from hil.protocols.damiao.fd import FormatWatch, answer, is_fd_code, rate_code
+from hil.protocols.damiao.fd import FormatWatch, frame_on_bus, is_fd_code, rate_code
 from hil.protocols.damiao.registers import (
     AMBIENT, ID_REGISTERS, REGISTERS, TIMEOUT_UNIT, accepts, initial_values,
 )
@@ -152,7 +152,7 @@ class DamiaoDrive(MitFamilyDrive):
         data = pack_feedback(Feedback(self.node_id, self.state, status.position - self.zero,
                                       status.velocity, status.torque, int(AMBIENT),
                                       int(AMBIENT)), self.ranges)
-        return answer(self.reply_id, data, self.fd)
+        return frame_on_bus(self.reply_id, data, self.fd)
 
     @property
     def state(self) -> State:
@@ -268,7 +268,7 @@ class DamiaoDrive(MitFamilyDrive):
                 return
             if op == Op.WRITE and register.writable:
                 self._write(number, register.decode(data[4:8]))
-            self.send(answer(self.reply_id, data[:4] + register.encode(self._read(number)),
+            self.send(frame_on_bus(self.reply_id, data[:4] + register.encode(self._read(number)),
                              self.fd))
 
     def _write(self, number: int, value: float) -> None:

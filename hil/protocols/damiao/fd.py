@@ -74,16 +74,12 @@ def rate_code(bitrate: int, fd: bool, data_bitrate: int | None) -> int:
     return FD_CODES[data_bitrate]
 
 
-def answer(identifier: int, data: bytes, fd: bool) -> Frame:
-    """A motor's answer: 8 bytes on the master's id, FD with BRS where CAN_BR says FD."""
+def frame_on_bus(identifier: int, data: bytes, fd: bool) -> Frame:
+    """A frame of the family as it goes on its bus, FD with BRS where the bus is FD: a
+    motor's answer (8 bytes on the master's id, FD where CAN_BR says FD), and a master's
+    frame, as openarm_can sends every frame on an FD bus (``DMCANDevice::create_canfd_frame``:
+    ``flags = CANFD_BRS``, ``len`` the payload's, 8 bytes)."""
     return frame_of_fields((identifier, data, False, fd, fd, False, False, 0.0))
-
-
-def master_fd_frame(identifier: int, data: bytes) -> Frame:
-    """A master's frame on an FD bus: FD with BRS, as openarm_can sends every frame there
-    (``DMCANDevice::create_canfd_frame``: ``flags = CANFD_BRS``, ``len`` the payload's,
-    8 bytes)."""
-    return frame_of_fields((identifier, data, False, True, True, False, False, 0.0))
 
 
 class FormatWatch:
