@@ -23,6 +23,7 @@ from hil.description import (
     Joint, JointDynamics, JointLimits, JointType, PackagePath, Pose, load_description,
 )
 from hil.errors import HilError
+from hil.protocols import protocol
 from hil.plant.plant import INITIAL_MARGIN
 
 REAL_WORLD = CORPUS / "real_world"
@@ -103,21 +104,66 @@ def test_init_leaves_the_watchdog_to_the_protocols_default_and_says_which(protoc
     assert ("the protocol's own default" in said) == own.pop()
 
 
-def test_init_spreads_drives_over_buses_by_the_load_check(tmp_path):
+def _chain(tmp_path, joints: int = 12):
+    """A chain of ``joints`` revolute joints, each carrying a 1 kg link."""
     links = "".join(f'<link name="l{i}"><inertial><mass value="1"/><inertia ixx="0.01" ixy="0" '
                     f'ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>'
-                    for i in range(13))
-    joints = "".join(f'<joint name="j{i}" type="revolute"><parent link="l{i}"/><child '
-                     f'link="l{i + 1}"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" '
-                     f'effort="20" velocity="2"/></joint>' for i in range(12))
+                    for i in range(joints + 1))
+    chain = "".join(f'<joint name="j{i}" type="revolute"><parent link="l{i}"/><child '
+                    f'link="l{i + 1}"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" '
+                    f'effort="20" velocity="2"/></joint>' for i in range(joints))
     urdf = tmp_path / "chain.urdf"
-    urdf.write_text(f'<robot name="chain">{links}{joints}</robot>')
+    urdf.write_text(f'<robot name="chain">{links}{chain}</robot>')
+    return urdf
+
+
+def test_init_spreads_drives_over_buses_by_the_load_check(tmp_path):
+    urdf = _chain(tmp_path)
     assert main(["init", str(urdf), "--rate", "1000", "-o", str(tmp_path / "c.yaml")]) == 0
     config = load_bus_config(tmp_path / "c.yaml")
-    per_bus = _drives_per_bus("cia402", 1000.0)
+    per_bus = _drives_per_bus(protocol("cia402"), 1000.0, False)
     assert len(config.buses) == math.ceil(12 / per_bus)
     assert all(bus.load().worst_ratio <= 0.8 for bus in config.buses)
     assert config.warnings == ()
+
+
+@pytest.mark.parametrize("fd", [False, True], ids=["classical", "fd"])
+def test_init_puts_damiao_drives_on_fd_buses_as_many_as_their_fd_load_allows(fd, tmp_path):
+    output = tmp_path / "c.yaml"
+    assert main(["init", str(_chain(tmp_path)), "--protocol", "damiao", "--rate", "1000",
+                 "-o", str(output), *(["--fd"] if fd else [])]) == 0
+    config = load_bus_config(output)
+    per_bus = _drives_per_bus(protocol("damiao"), 1000.0, fd)
+    assert len(config.buses) == math.ceil(12 / per_bus)
+    assert all(bus.fd is fd for bus in config.buses)
+    if fd:     # the data phase OpenArm's and moteus' benches run
+        assert {bus.data_bitrate for bus in config.buses} == {5_000_000}
+        assert per_bus > _drives_per_bus(protocol("damiao"), 1000.0, False)
+    assert all(bus.load().worst_ratio <= 0.8 for bus in config.buses)
+
+
+def test_init_sizes_a_moteus_bench_by_the_fd_load_of_its_data_phase(tmp_path):
+    """moteus speaks CAN FD only: its buses are FD without --fd, and the drives each carries
+    are counted with the 5 Mbit/s data phase it is written with."""
+    output = tmp_path / "c.yaml"
+    assert main(["init", str(_chain(tmp_path)), "--protocol", "moteus", "--rate", "1000",
+                 "-o", str(output)]) == 0
+    config = load_bus_config(output)
+    assert all(bus.fd and bus.data_bitrate == 5_000_000 for bus in config.buses)
+    assert len(config.buses) == math.ceil(12 / _drives_per_bus(protocol("moteus"), 1000.0, True))
+    loads = [bus.load().worst_ratio for bus in config.buses]
+    assert max(loads) <= 0.8
+    # as many as fit: one drive more on the first bus would pass the limit
+    assert loads[0] * (len(config.buses[0].drives) + 1) / len(config.buses[0].drives) > 0.8
+
+
+def test_init_refuses_fd_for_drives_that_speak_classical_can_only(tmp_path, capsys):
+    output = tmp_path / "c.yaml"
+    assert main(["init", str(_chain(tmp_path)), "--fd", "-o", str(output)]) != 0
+    err = capsys.readouterr().err
+    assert "--fd: cia402 drives speak classical CAN only" in err
+    assert "damiao, moteus" in err and "Traceback" not in err
+    assert not output.exists()
 
 
 def test_init_gives_joints_without_limits_the_default_class_and_says_so(tmp_path, capsys):

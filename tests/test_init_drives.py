@@ -101,11 +101,15 @@ def test_the_pd_only_joints_a_robot_stands_on_hold_it_or_init_says_they_cannot(t
 
 @needs_corpus
 @pytest.mark.timeout(300)      # 16 s here beside the other engineers' runs (2026-12-06)
-def test_an_initialised_ur5_on_damiao_drives_runs_its_demo(tmp_path):
+@pytest.mark.parametrize("buses", [[], ["--fd", "--rate", "1000"]], ids=["classical", "fd-1khz"])
+def test_an_initialised_ur5_on_damiao_drives_runs_its_demo(buses, tmp_path):
     """What `hil init --protocol damiao` writes for a UR5 runs its own demo, unedited (it
-    hung 0.21 rad below the demo's goal and aborted, goal_time_tolerance)."""
+    hung 0.21 rad below the demo's goal and aborted, goal_time_tolerance); on CAN FD buses
+    at 1 kHz (`--fd`) too."""
     config, found = tmp_path / "ur5.yaml", ["--package-path", str(SHARE)]
-    assert main(["init", str(UR5), "--protocol", "damiao", "-o", str(config), *found]) == 0
+    assert main(["init", str(UR5), "--protocol", "damiao", "-o", str(config), *buses,
+                 *found]) == 0
+    assert load_bus_config(config, PackagePath((SHARE,))).buses[0].fd is bool(buses)
     up = subprocess.run([sys.executable, "-m", "hil", "up", str(config), "--demo", "--lock-step",
                          "--no-viewer", "--save", str(tmp_path / "ur5.rrd"), *found],
                         capture_output=True, text=True, timeout=280, cwd=tmp_path)

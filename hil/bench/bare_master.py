@@ -11,7 +11,14 @@ position) and the SYNC, answered by TPDO1 (statusword, position) and TPDO2. The 
 walks each drive up to OPERATION ENABLED as its statusword says (the controlwords hil's
 master sends: :data:`hil.protocols.cia402.axis.WALK_UP`), the target always the drive's last
 reported position: it holds where it is, with no trajectory, no feed-forward and no fault
-handling. Only CiA 402 drives are driven (the sweep's robots are all CiA 402).
+handling.
+
+Damiao motors (the sweep's robots at 1 kHz, on CAN FD buses as OpenArm's) are brought up as
+the maker's sample code and python ``damiao-motor`` do: the enable frame (FF x7, FC) to each,
+in the bus' frame format; then each cycle an MIT command holding the position its first
+feedback reported, with the gains the bus config gives the master (``kp``, ``kd``), no
+velocity and no feed-forward, answered by its feedback. A sweep's robot has drives of one
+protocol; hil's other protocols are not driven.
 """
 
 from __future__ import annotations
@@ -24,8 +31,10 @@ import can
 
 from hil.bench.floor import PacedMaster, run_paced_master
 from hil.bench.settings import DID_NOT_START
-from hil.bus_config import load_bus_config
+from hil.bus_config import SystemConfig, load_bus_config
 from hil.protocols.cia402 import Cia402
+from hil.protocols.damiao import ENABLE, Damiao, State, unpack_feedback
+from hil.protocols.mit.codec import MitCommand, MitRanges, pack_command
 from hil.protocols.cia402.axis import RPDO1, SHUTDOWN, TPDO1, WALK_UP, state_of
 from hil.realtime import real_time_cpus
 from hil.supervisor import Child, ChildFailed, Run, cpus_argument
@@ -49,9 +58,7 @@ def bare_master_across_processes(config_path: Path, seconds: float) -> dict:
     does not start is the row :data:`DID_NOT_START`."""
     config = load_bus_config(config_path)
     sim_cpus, control_cpus, _ = real_time_cpus()
-    master = HoldingMaster({bus.name: (bus.channel, [drive.node_id for drive in bus.drives
-                                                     if drive.protocol == Cia402.name])
-                            for bus in config.buses})
+    master = holding_master(config)
     with tempfile.TemporaryDirectory(prefix="hil-bench-bare-") as folder:
         endpoint = f"tcp/127.0.0.1:{free_loopback_port()}"
         sim = Child("sim", ["sim", str(config_path), "--listen", endpoint, "--status-period",
@@ -67,6 +74,16 @@ def bare_master_across_processes(config_path: Path, seconds: float) -> dict:
         finally:
             run.shut_down()
     return {**figures, "drives": master.drives, "enabled": master.enabled()}
+
+
+def holding_master(config: SystemConfig) -> HoldingMaster | DamiaoHoldingMaster:
+    """The bare master for the config's drives: Damiao's where every drive is a Damiao
+    motor, else CiA 402's (which drives the CiA 402 drives among them)."""
+    if all(drive.protocol == Damiao.name for bus in config.buses for drive in bus.drives):
+        return DamiaoHoldingMaster(config)
+    return HoldingMaster({bus.name: (bus.channel, [drive.node_id for drive in bus.drives
+                                                   if drive.protocol == Cia402.name])
+                          for bus in config.buses})
 
 
 class HoldingMaster(PacedMaster):
@@ -123,3 +140,59 @@ class HoldingMaster(PacedMaster):
     def enabled(self) -> int:
         """How many drives last reported OPERATION ENABLED."""
         return sum(state == "OPERATION ENABLED" for state in self._states.values())
+
+
+class DamiaoHoldingMaster(PacedMaster):
+    """Each Damiao motor enabled, then held by MIT commands at the position of its first
+    feedback (the module doc); each feedback's state kept for :meth:`enabled`."""
+
+    warm_up = 1.0
+
+    def __init__(self, config: SystemConfig):
+        #: each motor's (ranges, kp, kd), by its bus' channel and the id it answers on
+        self._motors: dict[tuple[str, int], tuple[MitRanges, float, float]] = {}
+        #: the bus' name and the command id, by the same key
+        self._commands: dict[tuple[str, int], tuple[str, int]] = {}
+        for bus in config.buses:
+            for drive in bus.drives:
+                options = drive.options
+                key = (bus.channel, options.reply_id(drive.node_id))
+                self._motors[key] = (options.ranges(), options.kp, options.kd)
+                self._commands[key] = (bus.name, drive.node_id + options.control_mode.id_offset)
+        self.drives = len(self._motors)
+        #: each motor's command (sent every cycle), by the same key
+        self._command: dict[tuple[str, int], can.Message] = {}
+        self._held: dict[tuple[str, int], float] = {}
+        self._states: dict[tuple[str, int], State] = {}
+
+    def start(self, cycle: dict[str, tuple[can.BusABC, list[can.Message]]]) -> None:
+        """The enable frame to every motor, in the format of its command (FD with BRS on an
+        FD bus); until its first feedback its command asks no torque (all values 0: zero
+        bytes would be each range's low end, the torque's -TMAX)."""
+        for key, (name, identifier) in self._commands.items():
+            bus, out = cycle[name]
+            (command,) = [m for m in out if m.arbitration_id == identifier]
+            command.data[:] = pack_command(MitCommand(0.0, 0.0, 0.0, 0.0, 0.0),
+                                           self._motors[key][0])
+            self._command[key] = command
+            bus.send(can.Message(arbitration_id=identifier, data=ENABLE, is_extended_id=False,
+                                 is_fd=command.is_fd, bitrate_switch=command.bitrate_switch))
+
+    def on_message_received(self, msg: can.Message) -> None:
+        key = (msg.channel, msg.arbitration_id)
+        motor, command = self._motors.get(key), self._command.get(key)
+        if motor is None or command is None or len(msg.data) < 8:
+            return
+        ranges, kp, kd = motor
+        try:
+            feedback = unpack_feedback(bytes(msg.data[:8]), ranges)
+        except ValueError:
+            return
+        self._states[key] = feedback.state
+        held = self._held.setdefault(key, feedback.position)
+        # one slice assignment: the paced loop never sends half of it
+        command.data[:] = pack_command(MitCommand(held, 0.0, kp, kd, 0.0), ranges)
+
+    def enabled(self) -> int:
+        """How many motors last reported ENABLED."""
+        return sum(state is State.ENABLED for state in self._states.values())

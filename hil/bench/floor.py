@@ -105,7 +105,8 @@ def run_paced_master(config: SystemConfig, channels: dict[str, str], endpoint: s
     answering process is ``answerer`` (its CPU share is ``sim``'s). A ``master`` hears every
     frame, brings the drives up first and rewrites the cyclic frames between cycles; then
     only the cycle's answers are counted, and the measurement starts after its warm-up."""
-    buses = {name: can.Bus(interface="zenoh", channel=channel, connect=[endpoint])
+    fd = {bus.name: bus.fd for bus in config.buses}
+    buses = {name: can.Bus(interface="zenoh", channel=channel, connect=[endpoint], fd=fd[name])
              for name, channel in channels.items()}
     result: dict = {}
     try:

@@ -28,11 +28,12 @@ from hil.bench.floor import cpu_seconds, floor_across_processes
 from hil.bench.settings import DID_NOT_START, BenchSettings
 from hil.bus_config import load_bus_config
 from hil.input_files import read_input_file
+from hil.messaging.zenoh_api import ProcessWatch
 from hil.supervisor import Child, ChildFailed, Run, cpus_argument, viz_summary
 from hil.realtime import LOCK_STEP, REAL_TIME, Timing, lock_step_cpus, real_time_cpus
-from hil.zenoh_session import free_loopback_port
+from hil.zenoh_session import ZenohSettings, close, free_loopback_port, session
 
-#: how long after the controller's banner the measurement starts (bring-up, first goal)
+#: how long after the controller's bring-up (its first cycle) the measurement starts
 SETTLE = 2.0
 
 
@@ -92,6 +93,21 @@ def lock_step_across_processes(settings: BenchSettings, say: Callable[[str], Non
     return rows
 
 
+def _await_cycling(run: Run, control: Child, endpoint: str, robot: str) -> None:
+    """Wait until ``control`` runs its cycles (the liveliness token it declares once its
+    bring-up is done), so that a run measures the cycle, not the bring-up: Damiao motors,
+    which have no brakes, come up once their swinging joints stand still (5 s for the ur3
+    arms of the 1 kHz sweep, against the 2 s the bench gave a banner before)."""
+    settings = ZenohSettings(connect=(endpoint,))
+    watch = ProcessWatch(session(settings), robot)
+    try:
+        run.wait_until(control, lambda timeout: watch.wait_alive("control", timeout),
+                       "cycling (no liveliness token 'control')")
+    finally:
+        watch.close()
+        close(settings)
+
+
 def stack_across_processes(config_path: Path, seconds: float, with_viz: bool,
                            timing: Timing = REAL_TIME) -> dict:
     """One run of ``hil sim`` + ``hil control`` (+ ``hil viz``) on the config, placed on the
@@ -123,6 +139,7 @@ def stack_across_processes(config_path: Path, seconds: float, with_viz: bool,
             for child in children:
                 child.start()
                 run.wait_for_line(child, f"hil {child.name}:")
+            _await_cycling(run, children[-1], endpoint, load_bus_config(config_path).robot.name)
             time.sleep(SETTLE)
             cpu_start = {child.name: cpu_seconds(child.pid) for child in children}
             run.wait(seconds)

@@ -2,9 +2,12 @@
 grows, and the largest robot that holds a rate across processes on this machine.
 
 The robots are made here, so that every size is the same kind of machine: ⌈N/6⌉ copies of
-the shipped ur3 on one base (the last one cut short to make N joints), each joint a CiA 402
-drive, spread over the buses ``hil init`` gives them at the rate (four drives a bus at
-500 Hz, nine at 250 Hz). Each runs as ``hil bench``'s across-processes rows do (``hil sim``
+the shipped ur3 on one base (the last one cut short to make N joints), spread over the buses
+``hil init`` gives them at the rate: below 1 kHz each joint a CiA 402 drive on classical
+buses (four drives a bus at 500 Hz, nine at 250 Hz); from 1 kHz on a Damiao motor on CAN FD
+buses of 1 and 5 Mbit/s (``hil init --fd``: seven a bus at 1 kHz), as OpenArm's arms and
+the humanoids of issue 69 run them, where classical CANopen would need a bus for every two
+drives. Each runs as ``hil bench``'s across-processes rows do (``hil sim``
 + ``hil control`` in real time, placed as ``hil up`` places them, no visualiser); the cost
 of a cycle is each process' share of a CPU over the measured window divided by the rate. A
 size holds a rate when its run had no fault and missed at most HOLDS_MISSED of its cycles.
@@ -19,6 +22,8 @@ import math
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from pathlib import Path
+
+import yaml
 
 from hil.bench.bare_master import bare_master_across_processes
 from hil.bench.processes import stack_across_processes
@@ -36,6 +41,8 @@ JOINTS_PER_ARM = 6
 ARM_SPACING = 0.8
 #: a run holds its rate with at most this share of its cycles missed (and no fault)
 HOLDS_MISSED = 0.001
+#: from this rate on the sweep's drives are Damiao motors on CAN FD buses (the module doc)
+FD_FROM_HZ = 1000.0
 #: the attributes that name a link, joint, transmission or actuator of the arm
 _NAME_ATTRIBUTES = ("name", "link", "joint", "reference")
 
@@ -48,17 +55,20 @@ def scale(settings: BenchSettings, folder: Path, say: Callable[[str], None]) -> 
         for drives in settings.scale_drives:
             say(f"hil bench: scale, {drives} drives at {rate:g} Hz across processes ...")
             config, buses = scale_bench(drives, rate, folder)
+            protocol_name, fd = sweep_drives(rate)
             run = stack_across_processes(config, settings.seconds, False)
             say(f"hil bench: scale, {drives} drives at {rate:g} Hz, a bare python-can master "
                 "in hil control's place ...")
             bare = _bare_row(bare_master_across_processes(config, settings.seconds), rate)
             if DID_NOT_START in run:
-                rows.append({"drives": drives, "rate_hz": rate, "buses": buses, "holds": False,
+                rows.append({"drives": drives, "rate_hz": rate, "buses": buses,
+                             "protocol": protocol_name, "fd": fd, "holds": False,
                              DID_NOT_START: run[DID_NOT_START], "bare_master": bare})
                 continue
             cycles = max(run.get("cycles", 0), 1)
             missed = run.get("missed", 0)
             rows.append({"drives": drives, "rate_hz": rate, "buses": buses,
+                         "protocol": protocol_name, "fd": fd,
                          "cycles": run.get("cycles", 0), "missed": missed,
                          "faults": run["faults"], "first_fault": run["first_fault"],
                          "busy_p50_us": run.get("busy_p50_us", math.nan),
@@ -93,21 +103,41 @@ def largest_holding(rows: list[dict]) -> dict[float, int | None]:
             for rate in dict.fromkeys(row["rate_hz"] for row in rows)}
 
 
+def sweep_drives(rate: float) -> tuple[str, bool]:
+    """The protocol of the sweep's drives at ``rate``, and whether their buses are FD."""
+    return ("damiao", True) if rate >= FD_FROM_HZ else ("cia402", False)
+
+
 def scale_bench(drives: int, rate: float, folder: Path) -> tuple[Path, int]:
     """A robot of ``drives`` joints made of ur3 arms, and the bus config ``hil init`` writes
-    for it at ``rate``, in ``folder``: the config's path and its number of buses."""
-    description = folder / f"arms_{drives}.urdf"
-    description.write_bytes(ET.tostring(arms_robot(drives), xml_declaration=True))
+    for it at ``rate`` (:func:`sweep_drives`), in ``folder``: the config's path and its number
+    of buses."""
+    protocol_name, fd = sweep_drives(rate)
+    # Damiao motors carry their gear: the arms without the ur3's transmissions, so that hil
+    # init sizes a model for each joint (the ur3's 100:1 and 120:1 would put a joint's
+    # range far past what the MIT frames carry)
+    description = folder / f"arms_{drives}_{protocol_name}.urdf"
+    description.write_bytes(ET.tostring(arms_robot(drives, transmissions=not fd),
+                                        xml_declaration=True))
     robot = load_description(description)
     output = folder / f"arms_{drives}_{rate:g}hz.yaml"
-    written = initial_config(robot, description, output, "cia402", rate)
+    written = initial_config(robot, description, output, protocol_name, rate, fd=fd)
     output.write_text(written.text)
+    if fd:
+        # hil's choice for the bench: the motors hold the arms on brakes until enabled, as
+        # the ur3's drives do (Damiao's have none: in real time the free arms swung past
+        # the range the MIT frames carry before a master enabled them, and a bare master
+        # enabling at once found some motors in error)
+        config = yaml.safe_load(output.read_text())
+        config["defaults"]["holding_brake"] = True
+        output.write_text(yaml.safe_dump(config, sort_keys=False))
     return output, written.buses
 
 
-def arms_robot(drives: int) -> ET.Element:
+def arms_robot(drives: int, transmissions: bool = True) -> ET.Element:
     """The URDF of ``drives`` joints: ⌈drives/6⌉ ur3 arms on a fixed base, named ``a<k>_``
-    each, the last arm's chain cut after its remaining joints."""
+    each, the last arm's chain cut after its remaining joints; with the ur3's transmissions,
+    or none."""
     if drives < 1:
         raise ValueError(f"a robot of {drives} drives")
     arm = read_robot_source(data_dir(ROBOTS) / ARM, PackagePath.from_environment()).root
@@ -118,7 +148,8 @@ def arms_robot(drives: int) -> ET.Element:
         joints = min(JOINTS_PER_ARM, drives - index * JOINTS_PER_ARM)
         prefix = f"a{index + 1}_"
         for element in _arm_elements(arm, joints):
-            robot.append(_prefixed(element, prefix))
+            if transmissions or element.tag != "transmission":
+                robot.append(_prefixed(element, prefix))
         mount = ET.SubElement(robot, "joint", name=f"{prefix}mount", type="fixed")
         ET.SubElement(mount, "parent", link="base")
         ET.SubElement(mount, "child", link=f"{prefix}{_root_link(arm)}")

@@ -3,7 +3,7 @@ drive. Drive quantities are motor side, SI units (rad, rad/s, N·m)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from hil.bus_config.sensor_types import ForceTorqueConfig, ImuConfig, Sensor
@@ -13,7 +13,7 @@ from hil.can.frame import Frame, FrameSpec
 from hil.description import Geometry, Pose, RobotDescription
 from hil.errors import Diagnostic
 from hil.protocols import protocol
-from hil.protocols.base import CanFd, Protocol, ProtocolOptions
+from hil.protocols.base import Protocol, ProtocolOptions
 
 #: Bus load above which a bus has no room left for SDO, EMCY, heartbeats and retries.
 LOAD_WARNING = 0.8
@@ -188,9 +188,7 @@ class BusConfig:
         frames = spec.bus_frames(node_id, self.cycle_hz, drive.heartbeat_period, drive.options)
         if drive.torque_feed_forward != "none":
             frames += spec.torque_feed_forward_frames(node_id, self.cycle_hz, drive.options)
-        if self.fd and spec.can_fd is CanFd.FOLLOWS_BUS:
-            frames = [replace(frame, fd=True, bitrate_switch=True) for frame in frames]
-        return frames
+        return spec.on_bus(frames, self.fd)
 
     def running_frames(self, drive: DriveConfig) -> list[FrameSpec]:
         """The drive's traffic once it runs: one that boots waiting for a master to assign

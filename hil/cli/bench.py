@@ -43,12 +43,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "report drift, memory growth and missed cycles")
     parser.add_argument("--scale", type=_drive_counts, metavar="N,N,...",
                         help="instead: the scale sweep alone, robots of these many drives "
-                             "(e.g. 6,12,24,34,64; ur3 arms on one base, CiA 402, hil init's "
-                             "buses), each --seconds long in real time across processes, at "
+                             "(e.g. 6,12,24,34,64; ur3 arms on one base on hil init's buses: "
+                             "CiA 402 on classical CAN below 1 kHz, Damiao on CAN FD from "
+                             "1 kHz), each --seconds long in real time across processes, at "
                              "every --rate")
     parser.add_argument("--rate", type=common.positive, action="append", metavar="HZ",
                         help="with --scale: a cycle rate (repeat for several; default 500 "
-                             "and 250)")
+                             "and 1000)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -274,8 +275,9 @@ def _lock_step_across_process_lines(report: dict) -> list[str]:
 
 def _scale_lines(report: dict) -> list[str]:
     """CPU per cycle against the robot's size, and the largest that held each rate."""
-    lines = ["", "scale (ur3 arms on one base, hil init's buses; hil sim and hil control in real "
-                 "time across processes, no visualiser);", "  CPU us a cycle: each process' "
+    lines = ["", "scale (ur3 arms on one base on hil init's buses: CiA 402 on classical CAN below "
+                 "1 kHz, Damiao on CAN FD from 1 kHz; hil sim and hil control in real time "
+                 "across processes, no visualiser);", "  CPU us a cycle: each process' "
                  "share of a CPU over the rate; holds: no fault and at most "
                  f"{HOLDS_MISSED:.1%} of the cycles missed; bare: hil sim with a bare "
                  "python-can master in hil control's place (its CPU us a cycle, its missed "

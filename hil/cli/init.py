@@ -15,6 +15,7 @@ from hil.cli import common
 from hil.description import load_description
 from hil.errors import ConfigError, UsageError
 from hil.protocols import BUILTIN, protocol
+from hil.protocols.base import CanFd
 from hil.resources import BUS_CONFIGS, data_dir
 
 
@@ -33,6 +34,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default: the smallest model that fits each joint)")
     parser.add_argument("--rate", type=common.positive, default=500.0, metavar="HZ",
                         help="control cycle rate of every bus (default 500)")
+    parser.add_argument("--fd", action="store_true",
+                        help="CAN FD buses, 1 Mbit/s arbitration and 5 Mbit/s data (as OpenArm's "
+                             "and moteus' benches run), the drives per bus by their FD load: "
+                             "for drives that speak FD (damiao; moteus speaks nothing else and "
+                             "always gets them)")
     parser.add_argument("-o", "--output", type=Path, metavar="FILE.yaml",
                         help="where to write it (default: ROBOT.yaml in this folder)")
     parser.add_argument("--force", action="store_true", help="replace an existing file")
@@ -43,6 +49,12 @@ def run(args: argparse.Namespace) -> int:
     if not args.rate > 0 or args.rate > 10_000:
         raise UsageError.single(f"--rate {args.rate:g}: give a control rate in Hz, e.g. 500")
     motor = _motor(args.protocol, args.motor)
+    if args.fd and protocol(args.protocol).can_fd is CanFd.CLASSIC:
+        raise UsageError.single(f"--fd: {args.protocol} drives speak classical CAN only",
+                                hint="drop --fd, or pick a protocol whose drives speak CAN FD: "
+                                     + ", ".join(sorted(name for name in BUILTIN
+                                                        if protocol(name).can_fd
+                                                        is not CanFd.CLASSIC)))
     package_path = common.package_path(args)
     if not args.description.exists() and args.description.suffix not in (".urdf", ".xacro"):
         args.description = _shipped_description(str(args.description), package_path)
@@ -52,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError.single(f"-o {output}: a bus config is a .yaml file")
     if output.exists() and not args.force:
         raise UsageError.single(f"{output} exists already", hint="give another -o, or --force")
-    written = initial_config(robot, args.description, output, args.protocol, args.rate, motor)
+    written = initial_config(robot, args.description, output, args.protocol, args.rate, motor,
+                             fd=args.fd)
     if written.drives == 0:
         raise ConfigError.single(f"'{robot.name}' has no joint hil can drive: no movable joint "
                                  "that is not a mimic", args.description,
@@ -63,12 +76,13 @@ def run(args: argparse.Namespace) -> int:
     coupled = coupled_gains(config)
     if coupled.gains:                    # the drives' loops as hil sim would tune them fail
         written = initial_config(robot, args.description, output, args.protocol, args.rate,
-                                 motor, coupled.gains)
+                                 motor, coupled.gains, args.fd)
         output.write_text(written.text)
         config = load_bus_config(output, package_path)
     print(f"hil init: wrote {output}: {written.drives} {args.protocol} drive(s)"
           f"{f' ({motor})' if motor else ''} on "
-          f"{written.buses} bus(es) at {args.rate:g} Hz for '{robot.name}'"
+          f"{written.buses} {'CAN FD ' if config.buses[0].fd else ''}bus(es) at {args.rate:g} Hz "
+          f"for '{robot.name}'"
           f"{f'; {len(config.warnings)} warning(s), see hil check' if config.warnings else ''}")
     if written.standing is not None:
         print(f"  it stands ({written.standing.kind}, on {', '.join(written.standing.feet)}): a "

@@ -6,7 +6,9 @@ and carried by the config (``transmissions:``), so the description stays untouch
 the description gives no effort or velocity limit gets sizing's default class, carried by
 the config too (``joint_limits:``). The
 drives are spread over as many 1 Mbit/s buses as the load check allows at the rate, with
-node ids from 1. Comments in the file say what was assumed.
+node ids from 1: classical buses, or CAN FD ones with a 5 Mbit/s data phase (``fd``, for a
+family whose drives speak FD; always for one that speaks nothing else), as OpenArm's and
+moteus' benches run them. Comments in the file say what was assumed.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from hil.commissioning.stance import Stance, stance, standing_pose
 from hil.commissioning.sizing import (
     MOTOR_CLASSES, Sizing, default_limits, models_catalogue, needs_default_limits, size_joint,
 )
+from hil.bus_config.bus_entry import DEFAULT_DATA_BITRATE
 from hil.bus_config.joint_limits import KEYS as LIMIT_KEYS
 from hil.bus_config.transmissions import SIMPLE, actuator_of
 from hil.bus_config.types import LOAD_WARNING, Gains
@@ -37,7 +40,7 @@ from hil.description import (
 )
 from hil.plant import Plant
 from hil.protocols import protocol
-from hil.protocols.base import CanFd
+from hil.protocols.base import CanFd, Protocol
 
 BITRATE = 1_000_000
 HEARTBEAT_PERIOD = 0.1
@@ -62,14 +65,20 @@ class InitialConfig:
 
 def initial_config(robot: RobotDescription, description: Path, output: Path,
                    protocol_name: str, rate: float, motor: str | None = None,
-                   gains: Mapping[str, Gains] | None = None) -> InitialConfig:
+                   gains: Mapping[str, Gains] | None = None, fd: bool = False
+                   ) -> InitialConfig:
     """The YAML text of a bus config for ``robot`` (read from ``description``), to be
     written at ``output``: a drive for every joint of ``robot.undriven_joints``; a robot
     that stands (:mod:`hil.commissioning.stance`) gets a floating base, a standing start
     pose and a floor, and drives that hold it standing. ``motor``: the product every drive
     is (a key of the protocol's ``models``), else the smallest of them that fits each;
     ``gains``: the drives' loop gains to write, by actuator (:mod:`hil.commissioning.
-    coupled_loops`), else ``hil sim`` tunes them."""
+    coupled_loops`), else ``hil sim`` tunes them; ``fd``: CAN FD buses (ValueError for a
+    family that speaks only classical CAN; a family that speaks only FD gets them anyway)."""
+    spec = protocol(protocol_name)
+    if fd and spec.can_fd is CanFd.CLASSIC:
+        raise ValueError(f"{protocol_name} drives speak classical CAN only: no FD bus for them")
+    fd = fd or spec.can_fd is CanFd.FD_ONLY
     worst = worst_gravity_loads(robot)
     defaulted = tuple(_defaulted(j, worst[j.name]) for j in robot.undriven_joints
                       if needs_default_limits(j))
@@ -81,7 +90,6 @@ def initial_config(robot: RobotDescription, description: Path, output: Path,
     if standing is not None:
         holding = {name: max(load, standing.loads.get(name, 0.0))
                    for name, load in holding.items()}
-    spec = protocol(protocol_name)
     catalogue = (models_catalogue(spec.models[m] for m in (motor,) if m) if motor
                  else models_catalogue(spec.models.values()) if spec.models else MOTOR_CLASSES)
     sizings = [size_joint(joint, holding[joint.name], catalogue)
@@ -100,10 +108,10 @@ def initial_config(robot: RobotDescription, description: Path, output: Path,
         carrying = set(standing.carrying)
         drives = [replace(d, velocity_bandwidth_hz=STANCE_BANDWIDTH_HZ)
                   if carrying & {j.strip() for j in d.joint.split(",")} else d for d in drives]
-    per_bus = _drives_per_bus(protocol_name, rate)
+    per_bus = _drives_per_bus(spec, rate, fd)
     buses = [drives[i:i + per_bus] for i in range(0, len(drives), per_bus)]
     text = _yaml(robot, description, output, protocol_name, rate, sizings, buses, per_bus,
-                 defaulted, standing, pose)
+                 defaulted, standing, pose, fd)
     return InitialConfig(text, len(drives), len(buses), defaulted, standing, tuple(notes))
 
 
@@ -173,13 +181,16 @@ def _transmission(sizing: Sizing) -> TransmissionSpec:
                                         rotor_inertia=sizing.motor.rotor_inertia),))
 
 
-def _drives_per_bus(protocol_name: str, rate: float) -> int:
-    """How many drives of the protocol fit on one bus at ``rate`` under LOAD_WARNING."""
-    spec = protocol(protocol_name)
-    one = [frame for frame in spec.bus_frames(spec.node_ids.start or 1, rate, HEARTBEAT_PERIOD)
+def _drives_per_bus(spec: type[Protocol], rate: float, fd: bool) -> int:
+    """How many drives of the protocol fit on one bus (FD: with its data phase at
+    DEFAULT_DATA_BITRATE) at ``rate`` under LOAD_WARNING."""
+    data_bitrate = DEFAULT_DATA_BITRATE if fd else None
+    one = [frame for frame in spec.on_bus(spec.bus_frames(spec.node_ids.start or 1, rate,
+                                                          HEARTBEAT_PERIOD), fd)
            if frame.rate > 0]
-    bus_wide = bus_load(BITRATE, [frame for frame in spec.bus_wide_frames(rate) if frame.rate > 0])
-    per_drive = bus_load(BITRATE, one).worst_bits_per_second
+    bus_wide = bus_load(BITRATE, [frame for frame in spec.bus_wide_frames(rate) if frame.rate > 0],
+                        data_bitrate)
+    per_drive = bus_load(BITRATE, one, data_bitrate).worst_bits_per_second
     budget = LOAD_WARNING * BITRATE - bus_wide.worst_bits_per_second
     return max(1, min(int(budget // per_drive), len(spec.node_ids) - 1))
 
@@ -205,7 +216,7 @@ def _number_at_most(value: float) -> str:
 def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_name: str,
           rate: float, sizings: list[Sizing], buses: list[list[Drive]], per_bus: int,
           defaulted: tuple[DefaultedJoint, ...], standing: Stance | None,
-          pose: dict[str, float]) -> str:
+          pose: dict[str, float], fd: bool) -> str:
     robot_path = os.path.relpath(description.resolve(), output.resolve().parent)
     if robot_path.startswith(os.pardir):          # not below the config's folder
         robot_path = str(description.resolve())
@@ -213,8 +224,9 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
         f"# Bus config for '{robot.name}', written by `hil init` on {date.today()}.",
         "# Check it, then: hil check THIS.yaml && hil up THIS.yaml --demo",
         "#",
-        f"# Assumed: {protocol_name} drives, node ids from 1 on each bus, {len(buses)} bus(es) of "
-        f"{BITRATE // 1000} kbit/s at {rate:g} Hz",
+        f"# Assumed: {protocol_name} drives, node ids from 1 on each bus, {len(buses)} "
+        f"{'CAN FD ' if fd else ''}bus(es) of {BITRATE // 1000} kbit/s"
+        f"{f' ({DEFAULT_DATA_BITRATE // 1000} kbit/s data)' if fd else ''} at {rate:g} Hz",
         f"# ({per_bus} drive(s) per bus keep the worst-case load under {LOAD_WARNING:.0%}).",
     ]
     if sizings:
@@ -277,8 +289,8 @@ def _yaml(robot: RobotDescription, description: Path, output: Path, protocol_nam
         lines += [f"  - name: bus{number}", "    interface: zenoh",
                   f"    channel: {robot.name}/bus{number}", f"    bitrate: {BITRATE}",
                   f"    cycle_hz: {rate:g}", "    drives:"]
-        if protocol(protocol_name).can_fd is CanFd.FD_ONLY:      # no place on a classical bus
-            lines.insert(-1, "    fd: true")
+        if fd:
+            lines[-1:-1] = ["    fd: true", f"    data_bitrate: {DEFAULT_DATA_BITRATE}"]
         for drive in drives:
             key = (f"joint: {drive.joint}" if drive.sizing is not None
                    else f"actuator: {drive.actuator}")

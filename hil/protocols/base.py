@@ -15,7 +15,7 @@ import importlib
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
 from hil.can.frame import Frame, FrameSpec
@@ -204,6 +204,15 @@ class Protocol(ABC):
         """Every frame a drive of this protocol and its master use on the bus (rate 0 for
         frames sent only on events). For bus load, ``hil describe`` and identifier
         collisions between drives."""
+
+    @classmethod
+    def on_bus(cls, frames: list[FrameSpec], fd: bool) -> list[FrameSpec]:
+        """``frames`` (:meth:`bus_frames`) as the family sends them on a bus, FD (``fd``) or
+        classical: on an FD bus a family that follows the bus sends FD frames with the bit-rate
+        switch (:class:`CanFd`)."""
+        if fd and cls.can_fd is CanFd.FOLLOWS_BUS:
+            return [replace(frame, fd=True, bitrate_switch=True) for frame in frames]
+        return frames
 
     @classmethod
     def bus_wide_frames(cls, cycle_hz: float) -> list[FrameSpec]:
