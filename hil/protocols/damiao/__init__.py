@@ -28,6 +28,7 @@ From the maker's documents (the DM-J manuals' CAN protocol; Damiao's sample code
 from __future__ import annotations
 
 import enum
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -75,14 +76,13 @@ class State(enum.IntEnum):
     LOST_COMMUNICATION = 0xD
     OVERLOAD = 0xE
 
-    @property
-    def is_error(self) -> bool:
-        return self >= State.OVER_VOLTAGE
 
-#: each state by its code, and in words ("LOST COMMUNICATION"): looked up once a feedback frame (an IntEnum's call
-#: and a name's replace are four interpreted calls a motor a cycle on the master's side)
+#: each state by its code, and in words ("LOST COMMUNICATION"), and those that report an
+#: error (the maker's codes from 8 on): looked up once a feedback frame (an IntEnum's call,
+#: a name's replace and a property are interpreted calls a motor a cycle on the master's side)
 STATES = {state.value: state for state in State}
 STATE_TEXT = {state: state.name.replace("_", " ") for state in State}
+ERROR_STATES = frozenset(state for state in State if state >= State.OVER_VOLTAGE)
 
 
 @dataclass(frozen=True)
@@ -171,6 +171,11 @@ class Feedback(NamedTuple):
     rotor_temperature: int = 25
 
 
+#: a Feedback from the tuple of all its fields, built from C (Feedback's own ``__new__`` is
+#: a Python call, one an answer on each side)
+feedback_of_fields = functools.partial(tuple.__new__, Feedback)
+
+
 def pack_feedback(feedback: Feedback, ranges: MitRanges) -> bytes:
     return bytes([(feedback.state << 4) | (feedback.motor_id & 0x0F),
                   *pack_motion(feedback.position, feedback.velocity, feedback.torque, ranges),
@@ -182,8 +187,8 @@ def unpack_feedback(data: bytes, ranges: MitRanges) -> Feedback:
     state = STATES.get(data[0] >> 4)
     if state is None:
         raise ValueError(f"{data[0] >> 4} is not a state the maker defines")
-    return Feedback(data[0] & 0x0F, state, *unpack_motion(data, ranges),
-                    data[6], data[7])
+    return feedback_of_fields((data[0] & 0x0F, state, *unpack_motion(data, ranges),
+                               data[6], data[7]))
 
 
 def is_register_answer(data: bytes) -> bool:

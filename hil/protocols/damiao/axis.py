@@ -16,7 +16,7 @@ from hil.bus_config.types import DriveConfig
 from hil.can.frame import Frame
 from hil.hardware.axis import AxisFault, FaultKind
 from hil.protocols.damiao import (
-    CLEAR_ERROR, STATE_TEXT, ControlMode, Damiao, DamiaoOptions, Feedback, State,
+    CLEAR_ERROR, ERROR_STATES, STATE_TEXT, ControlMode, Damiao, DamiaoOptions, Feedback, State,
     is_register_answer, unpack_feedback,
 )
 from hil.protocols.damiao.fd import frame_on_bus
@@ -70,7 +70,7 @@ class DamiaoAxis(MitAxis):
         return self.motor_mode and self.answers.reported is State.ENABLED
 
     def fault(self, stopping: bool = False) -> AxisFault | None:
-        if self.answers.reported.is_error:
+        if self.answers.reported in ERROR_STATES:
             return self.found(FaultKind.FAULT, f"reports {self.state}",
                               int(self.answers.reported))
         return None

@@ -47,8 +47,9 @@ from hil.drives.definitions import Fault, Mode, Power, SilenceReaction
 from hil.drives.profile import Reading
 from hil.errors import ConfigError
 from hil.protocols.damiao import (
-    CLEAR_ERROR, DISABLE, ENABLE, SAVE_ZERO, ControlMode, Damiao, DamiaoOptions, Feedback, Op,
-    REGISTER_ID, STATE_TEXT, State, is_register_answer, pack_feedback, unpack_feedback,
+    CLEAR_ERROR, DISABLE, ENABLE, SAVE_ZERO, ControlMode, Damiao, DamiaoOptions, Op,
+    REGISTER_ID, STATE_TEXT, State, feedback_of_fields, is_register_answer, pack_feedback,
+    unpack_feedback,
 )
 from hil.protocols.damiao.fd import FormatWatch, frame_on_bus, is_fd_code, rate_code
 from hil.protocols.damiao.registers import (
@@ -67,6 +68,8 @@ CORE_MODES = {ControlMode.MIT: Mode.IMPEDANCE, ControlMode.POSITION_VELOCITY:
 FAULT_STATES = {Fault.CONTROLLER_SILENT: State.LOST_COMMUNICATION}
 #: ACC or DEC of 0: the reference steps at once (rad/s², finite: it multiplies distances)
 NO_RAMP = 1e9
+#: the temperatures the feedback carries (its whole degrees)
+_AMBIENT = int(AMBIENT)
 #: the bytes each mode's command carries (the module doc of hil.protocols.damiao); the
 #: special frames are MIT's 8
 COMMAND_LENGTHS = {ControlMode.MIT: 8, ControlMode.POSITION_VELOCITY: 8,
@@ -149,9 +152,10 @@ class DamiaoDrive(MitFamilyDrive):
     def answer(self) -> Frame:
         """The feedback frame."""
         status = self.core.status()
-        data = pack_feedback(Feedback(self.node_id, self.state, status.position - self.zero,
-                                      status.velocity, status.torque, int(AMBIENT),
-                                      int(AMBIENT)), self.ranges)
+        data = pack_feedback(feedback_of_fields((self.node_id, self.state,
+                                                 status.position - self.zero, status.velocity,
+                                                 status.torque, _AMBIENT, _AMBIENT)),
+                             self.ranges)
         return frame_on_bus(self.reply_id, data, self.fd)
 
     @property

@@ -29,6 +29,10 @@ from hil.protocols.mit import (
     pack_command, unpack_reply,
 )
 
+#: an MitCommand from the tuple of its fields, built from C (MitCommand's own ``__new__`` is
+#: a Python call, one an axis a cycle)
+_command_of_fields = functools.partial(tuple.__new__, MitCommand)
+
 
 class SpecialFrames:
     """The special frame an axis sends in place of its next cycle's command (exit motor
@@ -154,14 +158,15 @@ class MitAxis(Axis):
             self._hold = self.feedback.position
             return [self.to_motor(ENTER_MOTOR_MODE)]
         if not self.motor_mode:
-            sent = MitCommand(self.feedback.position, 0.0, 0.0, 0.0, 0.0)
+            sent = _command_of_fields((self.feedback.position, 0.0, 0.0, 0.0, 0.0))
         elif stopping or enabling:
             if self._hold is None:
                 self._hold = self.feedback.position
-            sent = MitCommand(self._hold, 0.0, self.kp, self.kd, 0.0 if stopping else torque)
+            sent = _command_of_fields((self._hold, 0.0, self.kp, self.kd,
+                                       0.0 if stopping else torque))
         else:
             self._hold = None
-            sent = MitCommand(target, velocity, self.kp, self.kd, torque)
+            sent = _command_of_fields((target, velocity, self.kp, self.kd, torque))
         return [self.to_motor(pack_command(sent, self.ranges))]
 
     def disable_rounds(self) -> list[list[Frame]]:
