@@ -25,13 +25,9 @@ from hil.can.router import Subscription
 from hil.errors import ConfigError
 from hil.hardware.axis import Axis, AxisCommand
 from hil.protocols.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitCommand, MitOptions, MitRanges, MitReply,
-    pack_command, unpack_reply,
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitOptions, MitRanges, MitReply,
+    command_of_fields, pack_command, unpack_reply,
 )
-
-#: an MitCommand from the tuple of its fields, built from C (MitCommand's own ``__new__`` is
-#: a Python call, one an axis a cycle)
-_command_of_fields = functools.partial(tuple.__new__, MitCommand)
 
 
 class SpecialFrames:
@@ -158,15 +154,15 @@ class MitAxis(Axis):
             self._hold = self.feedback.position
             return [self.to_motor(ENTER_MOTOR_MODE)]
         if not self.motor_mode:
-            sent = _command_of_fields((self.feedback.position, 0.0, 0.0, 0.0, 0.0))
+            sent = command_of_fields((self.feedback.position, 0.0, 0.0, 0.0, 0.0))
         elif stopping or enabling:
             if self._hold is None:
                 self._hold = self.feedback.position
-            sent = _command_of_fields((self._hold, 0.0, self.kp, self.kd,
+            sent = command_of_fields((self._hold, 0.0, self.kp, self.kd,
                                        0.0 if stopping else torque))
         else:
             self._hold = None
-            sent = _command_of_fields((target, velocity, self.kp, self.kd, torque))
+            sent = command_of_fields((target, velocity, self.kp, self.kd, torque))
         return [self.to_motor(pack_command(sent, self.ranges))]
 
     def disable_rounds(self) -> list[list[Frame]]:

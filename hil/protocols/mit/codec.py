@@ -9,6 +9,7 @@ cantools has no signals for values packed across nibbles with per-motor ranges.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -49,6 +50,11 @@ class MitCommand(NamedTuple):
     torque: float
 
 
+#: an MitCommand from the tuple of its fields, built from C (MitCommand's own ``__new__`` is
+#: a Python call, one a command on each side)
+command_of_fields = functools.partial(tuple.__new__, MitCommand)
+
+
 def pack_command(command: MitCommand, ranges: MitRanges) -> bytes:
     p = float_to_uint(command.position, -ranges.p_max, ranges.p_max, 16)
     v = float_to_uint(command.velocity, -ranges.v_max, ranges.v_max, 12)
@@ -60,12 +66,12 @@ def pack_command(command: MitCommand, ranges: MitRanges) -> bytes:
 
 
 def unpack_command(data: bytes, ranges: MitRanges) -> MitCommand:
-    return MitCommand(
+    return command_of_fields((
         uint_to_float((data[0] << 8) | data[1], -ranges.p_max, ranges.p_max, 16),
         uint_to_float((data[2] << 4) | (data[3] >> 4), -ranges.v_max, ranges.v_max, 12),
         uint_to_float(((data[3] & 0xF) << 8) | data[4], 0.0, ranges.kp_max, 12),
         uint_to_float((data[5] << 4) | (data[6] >> 4), 0.0, ranges.kd_max, 12),
-        uint_to_float(((data[6] & 0xF) << 8) | data[7], -ranges.t_max, ranges.t_max, 12))
+        uint_to_float(((data[6] & 0xF) << 8) | data[7], -ranges.t_max, ranges.t_max, 12)))
 
 
 # --- the answer: bytes 1-5 (position 16, velocity 12, torque 12) in every family's ---------
