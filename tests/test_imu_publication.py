@@ -37,12 +37,15 @@ def imu_config(tmp_path):
 
 
 def test_the_controller_publishes_the_imu_it_reads_as_sensor_msgs_imu(imu_config):
-    messages = imu_messages(imu_config, 20)
+    # 0.5 s of samples: the first 15 or so (75 ms) see the arm come up (up to 10.24 m/s²)
+    messages = imu_messages(imu_config, 100)
     last = messages[-1]
     assert last.header.frame_id == "link6"
-    acceleration = np.array([last.linear_acceleration.x, last.linear_acceleration.y,
-                             last.linear_acceleration.z])
-    assert np.linalg.norm(acceleration) == pytest.approx(9.81, abs=0.15)   # still: gravity
+    # the last 20 (the noise's 0.045 m/s² a sample averaged): the arm still, gravity alone
+    # (CI, 2026-12-07: the 20th sample read 9.96 on a loaded host, inside the bring-up)
+    accelerations = np.array([[m.linear_acceleration.x, m.linear_acceleration.y,
+                               m.linear_acceleration.z] for m in messages[-20:]])
+    assert np.linalg.norm(accelerations, axis=1).mean() == pytest.approx(9.81, abs=0.15)
     q = last.orientation
     assert math.isclose(q.w ** 2 + q.x ** 2 + q.y ** 2 + q.z ** 2, 1.0, abs_tol=1e-3)
     # the covariances say what hil models: the gyroscope's white noise at 200 Hz
