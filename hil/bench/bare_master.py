@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import tempfile
 import threading
+from dataclasses import dataclass
 from pathlib import Path
 
 import can
@@ -34,7 +35,7 @@ from hil.bench.settings import DID_NOT_START
 from hil.bus_config import SystemConfig, load_bus_config
 from hil.protocols.cia402 import Cia402
 from hil.protocols.damiao import ENABLE, Damiao, State, unpack_feedback
-from hil.protocols.mit.codec import MitCommand, MitRanges, pack_command
+from hil.protocols.mit.codec import MitRanges, command_of_fields, pack_command
 from hil.protocols.cia402.axis import RPDO1, SHUTDOWN, TPDO1, WALK_UP, state_of
 from hil.realtime import real_time_cpus
 from hil.supervisor import Child, ChildFailed, Run, cpus_argument
@@ -142,6 +143,21 @@ class HoldingMaster(PacedMaster):
         return sum(state == "OPERATION ENABLED" for state in self._states.values())
 
 
+@dataclass
+class _HeldMotor:
+    """A Damiao motor as the bare master knows it: its ranges and gains, its bus and command
+    id, and (once started) its command, the position it holds and its last state."""
+
+    ranges: MitRanges
+    kp: float
+    kd: float
+    bus: str
+    command_id: int
+    command: can.Message | None = None
+    held: float | None = None
+    state: State | None = None
+
+
 class DamiaoHoldingMaster(PacedMaster):
     """Each Damiao motor enabled, then held by MIT commands at the position of its first
     feedback (the module doc); each feedback's state kept for :meth:`enabled`."""
@@ -149,50 +165,43 @@ class DamiaoHoldingMaster(PacedMaster):
     warm_up = 1.0
 
     def __init__(self, config: SystemConfig):
-        #: each motor's (ranges, kp, kd), by its bus' channel and the id it answers on
-        self._motors: dict[tuple[str, int], tuple[MitRanges, float, float]] = {}
-        #: the bus' name and the command id, by the same key
-        self._commands: dict[tuple[str, int], tuple[str, int]] = {}
-        for bus in config.buses:
-            for drive in bus.drives:
-                options = drive.options
-                key = (bus.channel, options.reply_id(drive.node_id))
-                self._motors[key] = (options.ranges(), options.kp, options.kd)
-                self._commands[key] = (bus.name, drive.node_id + options.control_mode.id_offset)
+        #: each motor, by its bus' channel and the id it answers on
+        self._motors = {
+            (bus.channel, drive.options.reply_id(drive.node_id)): _HeldMotor(
+                drive.options.ranges(), drive.options.kp, drive.options.kd, bus.name,
+                drive.node_id + drive.options.control_mode.id_offset)
+            for bus in config.buses for drive in bus.drives}
         self.drives = len(self._motors)
-        #: each motor's command (sent every cycle), by the same key
-        self._command: dict[tuple[str, int], can.Message] = {}
-        self._held: dict[tuple[str, int], float] = {}
-        self._states: dict[tuple[str, int], State] = {}
 
     def start(self, cycle: dict[str, tuple[can.BusABC, list[can.Message]]]) -> None:
         """The enable frame to every motor, in the format of its command (FD with BRS on an
         FD bus); until its first feedback its command asks no torque (all values 0: zero
         bytes would be each range's low end, the torque's -TMAX)."""
-        for key, (name, identifier) in self._commands.items():
-            bus, out = cycle[name]
-            (command,) = [m for m in out if m.arbitration_id == identifier]
-            command.data[:] = pack_command(MitCommand(0.0, 0.0, 0.0, 0.0, 0.0),
-                                           self._motors[key][0])
-            self._command[key] = command
-            bus.send(can.Message(arbitration_id=identifier, data=ENABLE, is_extended_id=False,
-                                 is_fd=command.is_fd, bitrate_switch=command.bitrate_switch))
+        for motor in self._motors.values():
+            bus, out = cycle[motor.bus]
+            (command,) = [m for m in out if m.arbitration_id == motor.command_id]
+            command.data[:] = pack_command(command_of_fields((0.0, 0.0, 0.0, 0.0, 0.0)),
+                                           motor.ranges)
+            motor.command = command
+            bus.send(can.Message(arbitration_id=motor.command_id, data=ENABLE,
+                                 is_extended_id=False, is_fd=command.is_fd,
+                                 bitrate_switch=command.bitrate_switch))
 
     def on_message_received(self, msg: can.Message) -> None:
-        key = (msg.channel, msg.arbitration_id)
-        motor, command = self._motors.get(key), self._command.get(key)
-        if motor is None or command is None or len(msg.data) < 8:
+        motor = self._motors.get((msg.channel, msg.arbitration_id))
+        if motor is None or motor.command is None or len(msg.data) < 8:
             return
-        ranges, kp, kd = motor
         try:
-            feedback = unpack_feedback(bytes(msg.data[:8]), ranges)
+            feedback = unpack_feedback(bytes(msg.data[:8]), motor.ranges)
         except ValueError:
             return
-        self._states[key] = feedback.state
-        held = self._held.setdefault(key, feedback.position)
+        motor.state = feedback.state
+        if motor.held is None:
+            motor.held = feedback.position
         # one slice assignment: the paced loop never sends half of it
-        command.data[:] = pack_command(MitCommand(held, 0.0, kp, kd, 0.0), ranges)
+        motor.command.data[:] = pack_command(
+            command_of_fields((motor.held, 0.0, motor.kp, motor.kd, 0.0)), motor.ranges)
 
     def enabled(self) -> int:
         """How many motors last reported ENABLED."""
-        return sum(state is State.ENABLED for state in self._states.values())
+        return sum(motor.state is State.ENABLED for motor in self._motors.values())

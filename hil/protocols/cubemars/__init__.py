@@ -35,8 +35,8 @@ from hil.protocols.base import (CarriedRange, DriveSetting, FrameSource, Protoco
                                 ProtocolOptions, Sender)
 from hil.protocols.cubemars.models import MODELS, SIZED, CubeMarsModel, model
 from hil.protocols.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, pack_motion,
-    uint_to_float, unpack_motion,
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, command_of_fields,
+    pack_motion, uint_to_float, unpack_motion,
 )
 from hil.protocols.mit.family import (
     KD_MAX, KP_MAX, initial_model_options, model_figures, model_ranges, parse_gains,
@@ -230,11 +230,11 @@ def unpack_v3_command(data: bytes, ranges: MitRanges) -> MitCommand:
     kp, kd = (data[0] << 4) | (data[1] >> 4), ((data[1] & 0xF) << 8) | data[2]
     p, v = (data[3] << 8) | data[4], (data[5] << 4) | (data[6] >> 4)
     t = ((data[6] & 0xF) << 8) | data[7]
-    return MitCommand(uint_to_float(p, -ranges.p_max, ranges.p_max, 16),
-                      uint_to_float(v, -ranges.v_max, ranges.v_max, 12),
-                      uint_to_float(kp, 0.0, ranges.kp_max, 12),
-                      uint_to_float(kd, 0.0, ranges.kd_max, 12),
-                      uint_to_float(t, -ranges.t_max, ranges.t_max, 12))
+    return command_of_fields((uint_to_float(p, -ranges.p_max, ranges.p_max, 16),
+                              uint_to_float(v, -ranges.v_max, ranges.v_max, 12),
+                              uint_to_float(kp, 0.0, ranges.kp_max, 12),
+                              uint_to_float(kd, 0.0, ranges.kd_max, 12),
+                              uint_to_float(t, -ranges.t_max, ranges.t_max, 12)))
 
 
 #: the special frames of MIT mode (§5.3), which never move a motor
