@@ -1,9 +1,8 @@
 """Build hook: the drive core compiled by mypyc where the machine has a C compiler.
 
 The drive core's inner loops and the CiA 402 state machine run for every drive on every plant
-step and cycle, the master's gravity feed-forward over every link each cycle, the MIT
-family's frame packing on both sides for every frame (``hil.compiled.BUILDS`` lists the
-modules). Compiled, the same typed
+step and cycle, the MIT family's frame packing and the Zenoh transport's codec on both
+sides for every frame (``hil.compiled.BUILDS`` lists the modules). Compiled, the same typed
 Python takes about 30 % off a lock-step cycle (docs/performance.md). The Python files stay
 the only source: without a compiler the install goes on and they run interpreted
 (``hil.compiled`` tells which form runs).

@@ -1,10 +1,9 @@
 """Modules that the install compiles with mypyc (``setup.py``), and which form of them runs.
 
 :data:`BUILDS` is the one list of them, in builds: the drives' (:data:`COMPILED`, which
-``hil.drives`` loads with :func:`import_fresh`) and the master's (:data:`COMPILED_MASTER`,
-which ``hil.hardware`` loads so), one for each process, neither importing the other; the MIT
-codec's and the Zenoh transport's (:data:`COMPILED_TRANSPORT`, which ``hil.can`` loads),
-which both sides run.
+``hil.drives`` loads with :func:`import_fresh`), which the controller never imports; the
+MIT codec's and the Zenoh transport's (:data:`COMPILED_TRANSPORT`, which ``hil.can``
+loads), which both sides run.
 ``setup.py`` reads them from this file (it imports nothing but the standard library, which
 is all a build environment has of hil's needs).
 
@@ -30,9 +29,6 @@ from types import ModuleType
 #: machine, which runs for every drive on every plant step and calls the core natively
 COMPILED = ("hil.drives.definitions", "hil.drives.references", "hil.drives.core",
             "hil.drives.group", "hil.protocols.cia402.state")
-#: the master's, in a build of its own: the gravity feed-forward, a pass over every link of
-#: the robot each cycle (a G1's 39 links: 136 µs a call interpreted, 40 µs compiled)
-COMPILED_MASTER = ("hil.hardware.gravity",)
 #: the MIT family's codec (MIT, Damiao, CubeMars, Robstride's and MyActuator's MIT modes),
 #: packed and unpacked once a frame on each side: a command packed in 3.3 µs interpreted,
 #: 0.32 µs compiled (docs/performance.md, "2026-12-06, issue 69: the MIT family's codec
@@ -44,8 +40,7 @@ COMPILED_MIT_CODEC = ("hil.protocols.mit.codec",)
 #: "2026-12-07: the transport's codec compiled, a drive's calls a cycle cut")
 COMPILED_TRANSPORT = ("hil.can.link_statistics", "hil.can.zenoh_wire", "hil.can.link_account")
 #: each build's shared library (inside the package) and its modules
-BUILDS = {"hil.drives.compiled": COMPILED, "hil.hardware.compiled": COMPILED_MASTER,
-          "hil.protocols.mit.compiled": COMPILED_MIT_CODEC,
+BUILDS = {"hil.drives.compiled": COMPILED, "hil.protocols.mit.compiled": COMPILED_MIT_CODEC,
           "hil.can.compiled": COMPILED_TRANSPORT}
 
 

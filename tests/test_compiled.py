@@ -16,12 +16,10 @@ import pytest
 import hil.can.link_account
 import hil.can.zenoh_wire
 import hil.drives.core
-import hil.hardware.gravity
 import hil.protocols.mit.codec
 from hil.can.frame import Frame
 from hil.compiled import BUILDS, COMPILED, import_fresh, is_compiled
-from hil.description import load_description
-from conftest import ROOT, TEST_MOTOR_DRIVE
+from conftest import TEST_MOTOR_DRIVE
 
 SUFFIX = importlib.machinery.EXTENSION_SUFFIXES[0]
 
@@ -113,23 +111,6 @@ def test_the_modules_of_a_build_load_all_compiled_or_none(build):
     # compiled modules of one build call each other's classes directly (hil.compiled)
     forms = {name: is_compiled(sys.modules[name]) for name in BUILDS[build]}
     assert len(set(forms.values())) == 1, forms
-
-
-@pytest.mark.skipif(not is_compiled(hil.hardware.gravity),
-                    reason="the master's gravity model is not compiled in this install "
-                           "(setup.py found no C compiler, or hil/hardware/gravity.py changed "
-                           "since `pip install -e .`)")
-def test_the_compiled_gravity_model_computes_what_its_source_does():
-    source = _source_of(hil.hardware.gravity)
-    robot = load_description(ROOT / "robots" / "pigot_description" / "urdf" / "pigot.xacro")
-    names = [joint.name for joint in robot.joints if joint.is_movable]
-    compiled = hil.hardware.gravity.GravityModel(robot, names)
-    interpreted = source.GravityModel(robot, names)
-    assert not is_compiled(source)
-    for k in range(50):
-        positions = [math.sin(k + 0.7 * j) for j in range(len(names))]
-        assert compiled.torques(positions) == interpreted.torques(positions)   # bit for bit
-    assert any(compiled.torques([0.0] * len(names)))      # the arm carries a weight
 
 
 @pytest.mark.skipif(not is_compiled(hil.protocols.mit.codec),

@@ -15,6 +15,7 @@ import yaml
 from hil.hardware.axis import AxisCommand
 from hil.bus_config import load_bus_config
 from hil.bus_config.types import DriveConfig
+from hil.description import load_description
 from hil.errors import HilError
 from hil.hardware.gravity import GravityModel
 from hil.plant import Plant
@@ -62,6 +63,37 @@ def test_the_masters_gravity_model_is_mujocos_at_any_pose(robot, request):
         expected = bias_at_leaders(plant, names, pose)
         np.testing.assert_allclose(model.torques([pose[n] for n in names]), expected,
                                    atol=1e-9)
+
+
+#: an arm on a world link: a 2 kg link whose centre is 0.5 m out along x on a hinge about y,
+#: and 1 m out a hinged tip with no inertial at all (which the description gives 1 g)
+ARM_WITH_A_MASSLESS_TIP = """<robot name="arm">
+  <link name="world"/>
+  <link name="base"/>
+  <joint name="fixed" type="fixed"><parent link="world"/><child link="base"/></joint>
+  <link name="arm"><inertial><origin xyz="0.5 0 0"/><mass value="2"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="arm"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="50" velocity="2"/></joint>
+  <link name="tip"/>
+  <joint name="wrist" type="revolute"><parent link="arm"/><child link="tip"/>
+    <origin xyz="1 0 0"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="5" velocity="2"/></joint>
+</robot>
+"""
+
+
+def test_the_gravity_model_holds_links_on_a_world_link_and_a_massless_tip(tmp_path):
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(ARM_WITH_A_MASSLESS_TIP)
+    description = load_description(urdf)
+    tip = description.link("tip").inertial.mass
+    model = GravityModel(description, ["shoulder", "wrist"])
+    # the weights (2 kg at 0.5 m, the tip's at 1 m) turn the arm about +y (x towards -z):
+    # held by -m g x
+    np.testing.assert_allclose(model.torques([0.0, 0.0]), [-9.81 * (2 * 0.5 + tip), 0.0],
+                               atol=1e-9)
+    # turned down by 90 degrees the weight hangs under the hinge: nothing to hold
+    np.testing.assert_allclose(model.torques([math.pi / 2, 1.0]), [0.0, 0.0], atol=1e-8)
 
 
 def drive(protocol: str, options=None, torque_feed_forward: str = "gravity") -> DriveConfig:

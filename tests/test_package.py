@@ -14,7 +14,9 @@ from conftest import ROOT
 #: hil.protocols), exactly as pip leaves an installed package
 TOY_PACKAGE = ROOT / "tests" / "fixtures" / "toy_protocol"
 
-#: modules of the simulated side, which the controller process must never load
+#: modules of the simulated side, which the controller process must never load (MuJoCo: but
+#: for a drive's gravity feed-forward, whose model of the description it computes with,
+#: hil.hardware.gravity; the configs below ask none)
 DRIVE_SIDE = ("hil.drives", "hil.simulator", "hil.plant", "hil.protocols.cia402.node",
               "hil.protocols.cia402.state", "mujoco")
 

@@ -9,7 +9,6 @@ import numpy as np
 from hil.description import RobotDescription
 from hil.hardware.axis import Axis, AxisFault, FaultKind
 from hil.hardware.feedback import JointFeedback, PlausibilityCheck
-from hil.hardware.gravity import GravityModel
 from hil.transmissions import TransmissionStack, build_transmissions
 
 
@@ -24,9 +23,13 @@ class JointMapping:
         #: joints (joint_names order) <-> actuators (axes order) in one map
         self.transmissions = TransmissionStack(
             build_transmissions(robot), joint_names, tuple(a.config.actuator for a in axes))
-        self._gravity_axes = [a.config.torque_feed_forward == "gravity" for a in axes]
-        self._gravity = (GravityModel(robot, joint_names) if any(self._gravity_axes)
-                         else None)
+        #: whether each axis' config asks the gravity feed-forward
+        self._gravity_axes = np.array([a.config.torque_feed_forward == "gravity" for a in axes])
+        self._gravity = None
+        if self._gravity_axes.any():
+            # imported here: the controller loads MuJoCo only where a drive asks for it
+            from hil.hardware.gravity import GravityModel
+            self._gravity = GravityModel(robot, joint_names)
         self._no_torques = [0.0] * len(axes)
         self._plausibility = PlausibilityCheck(robot, joint_names)
         self._all_heard = False
@@ -46,9 +49,8 @@ class JointMapping:
         gravity at ``positions``, for the drives whose config asks (0 for the others)."""
         if self._gravity is None:
             return self._no_torques
-        joint_torques = self._gravity.torques(np.asarray(positions, dtype=float).tolist())
-        torques = self.transmissions.joint_to_actuator_effort(joint_torques).tolist()
-        return [t if wanted else 0.0 for t, wanted in zip(torques, self._gravity_axes)]
+        torques = self.transmissions.joint_to_actuator_effort(self._gravity.torques(positions))
+        return np.where(self._gravity_axes, torques, 0.0).tolist()
 
     # --- from the axes ----------------------------------------------------------------
 
