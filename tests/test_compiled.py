@@ -133,6 +133,10 @@ def test_the_compiled_mit_codec_packs_and_unpacks_what_its_source_does():
             source.unpack_command(packed, source.MitRanges(*ranges))   # bit for bit
         assert compiled.pack_motion(value, -value, value / 2, compiled.MitRanges(*ranges)) == \
             source.pack_motion(value, -value, value / 2, source.MitRanges(*ranges))
+        assert compiled.pack_answer(k & 0xFF, value, -value, value / 2,
+                                    compiled.MitRanges(*ranges), b"\x19\x1a") == \
+            source.pack_answer(k & 0xFF, value, -value, value / 2, source.MitRanges(*ranges),
+                               b"\x19\x1a")
     for module in (compiled, source):           # NaN: refused alike, never packed
         with pytest.raises(ValueError, match="NaN"):
             module.float_to_uint(math.nan, -1.0, 1.0, 16)

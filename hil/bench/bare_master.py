@@ -35,7 +35,7 @@ from hil.bench.settings import DID_NOT_START
 from hil.bus_config import SystemConfig, load_bus_config
 from hil.protocols.cia402 import Cia402
 from hil.protocols.damiao import ENABLE, Damiao, State, unpack_feedback
-from hil.protocols.mit.codec import MitRanges, command_of_fields, pack_command
+from hil.protocols.mit.codec import MitRanges, pack_command_values
 from hil.protocols.cia402.axis import RPDO1, SHUTDOWN, TPDO1, WALK_UP, state_of
 from hil.realtime import real_time_cpus
 from hil.supervisor import Child, ChildFailed, Run, cpus_argument
@@ -180,8 +180,7 @@ class DamiaoHoldingMaster(PacedMaster):
         for motor in self._motors.values():
             bus, out = cycle[motor.bus]
             (command,) = [m for m in out if m.arbitration_id == motor.command_id]
-            command.data[:] = pack_command(command_of_fields((0.0, 0.0, 0.0, 0.0, 0.0)),
-                                           motor.ranges)
+            command.data[:] = pack_command_values(0.0, 0.0, 0.0, 0.0, 0.0, motor.ranges)
             motor.command = command
             bus.send(can.Message(arbitration_id=motor.command_id, data=ENABLE,
                                  is_extended_id=False, is_fd=command.is_fd,
@@ -199,8 +198,8 @@ class DamiaoHoldingMaster(PacedMaster):
         if motor.held is None:
             motor.held = feedback.position
         # one slice assignment: the paced loop never sends half of it
-        motor.command.data[:] = pack_command(
-            command_of_fields((motor.held, 0.0, motor.kp, motor.kd, 0.0)), motor.ranges)
+        motor.command.data[:] = pack_command_values(motor.held, 0.0, motor.kp, motor.kd, 0.0,
+                                                    motor.ranges)
 
     def enabled(self) -> int:
         """How many motors last reported ENABLED."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from hil.bus_config.types import DriveConfig
 from hil.hardware.axis import AxisFault, FaultKind
-from hil.protocols.cubemars import Answer, CubeMars, CubeMarsOptions, ErrorCode, unpack_mit_answer
+from hil.protocols.cubemars import CubeMars, CubeMarsOptions, ErrorCode, unpack_mit_answer
 from hil.protocols.mit import EXIT_MOTOR_MODE, MitRanges
 from hil.protocols.mit.axis import MitAxis, MotorAnswers
 
@@ -20,7 +20,7 @@ class CubeMarsAnswers(MotorAnswers):
 
     NOTHING = ErrorCode.NONE
 
-    def read(self, data: bytes) -> Answer | None:
+    def read(self, data: bytes) -> tuple[float, float, float] | None:
         if len(data) != 8 or data[0] != self.node_id:
             return None
         try:
@@ -28,7 +28,7 @@ class CubeMarsAnswers(MotorAnswers):
         except ValueError:
             return None                  # an error code the manual does not define
         self.reported = answer.error
-        return answer
+        return answer.position, answer.velocity, answer.torque
 
 
 class CubeMarsAxis(MitAxis):

@@ -39,7 +39,7 @@ from hil.protocols.base import (CanFd, CarriedRange, DriveSetting, FrameSource, 
 from hil.protocols.damiao.fd import MAX_RATE_CODE
 from hil.protocols.damiao.models import MODELS, DamiaoModel, model
 from hil.protocols.damiao.registers import REGISTER_ID, REGISTERS, TIMEOUT_UNIT, Op
-from hil.protocols.mit import MitRanges, pack_motion, unpack_motion
+from hil.protocols.mit import MitRanges, pack_answer, unpack_motion
 from hil.protocols.mit.family import (
     initial_model_options, model_figures, model_ranges, parse_gains, parse_model, parse_ranges,
     parse_standard_id,
@@ -177,9 +177,15 @@ feedback_of_fields = functools.partial(tuple.__new__, Feedback)
 
 
 def pack_feedback(feedback: Feedback, ranges: MitRanges) -> bytes:
-    return bytes([(feedback.state << 4) | (feedback.motor_id & 0x0F),
-                  *pack_motion(feedback.position, feedback.velocity, feedback.torque, ranges),
-                  feedback.mos_temperature & 0xFF, feedback.rotor_temperature & 0xFF])
+    return pack_answer(feedback_head(feedback.motor_id, feedback.state), feedback.position,
+                       feedback.velocity, feedback.torque, ranges,
+                       bytes([feedback.mos_temperature & 0xFF,
+                              feedback.rotor_temperature & 0xFF]))
+
+
+def feedback_head(motor_id: int, state: State) -> int:
+    """D0 of the feedback: the state in the high nibble, the motor's id in the low one."""
+    return (state << 4) | (motor_id & 0x0F)
 
 
 def unpack_feedback(data: bytes, ranges: MitRanges) -> Feedback:

@@ -16,11 +16,11 @@ from hil.bus_config.types import DriveConfig
 from hil.can.frame import Frame
 from hil.hardware.axis import AxisFault, FaultKind
 from hil.protocols.damiao import (
-    CLEAR_ERROR, ERROR_STATES, STATE_TEXT, ControlMode, Damiao, DamiaoOptions, Feedback, State,
-    is_register_answer, unpack_feedback,
+    CLEAR_ERROR, ERROR_STATES, STATE_TEXT, STATES, ControlMode, Damiao, DamiaoOptions, State,
+    is_register_answer,
 )
 from hil.protocols.damiao.fd import frame_on_bus
-from hil.protocols.mit import MitRanges
+from hil.protocols.mit import MitRanges, unpack_motion
 from hil.protocols.mit.axis import MitAxis, MotorAnswers
 
 
@@ -31,16 +31,15 @@ class DamiaoAnswers(MotorAnswers):
 
     NOTHING = State.DISABLED
 
-    def read(self, data: bytes) -> Feedback | None:
+    def read(self, data: bytes) -> tuple[float, float, float] | None:
         if (len(data) != 8 or is_register_answer(data)
                 or (data[0] & 0x0F) != (self.node_id & 0x0F)):
             return None
-        try:
-            feedback = unpack_feedback(data, self.ranges)
-        except ValueError:
+        state = STATES.get(data[0] >> 4)     # D0's high nibble (unpack_feedback's reading)
+        if state is None:
             return None                  # a state code the maker does not define
-        self.reported = feedback.state
-        return feedback
+        self.reported = state
+        return unpack_motion(data, self.ranges)
 
 
 class DamiaoAxis(MitAxis):

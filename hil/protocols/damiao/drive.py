@@ -48,14 +48,13 @@ from hil.drives.profile import Reading
 from hil.errors import ConfigError
 from hil.protocols.damiao import (
     CLEAR_ERROR, DISABLE, ENABLE, SAVE_ZERO, ControlMode, Damiao, DamiaoOptions, Op,
-    REGISTER_ID, STATE_TEXT, State, feedback_of_fields, is_register_answer, pack_feedback,
-    unpack_feedback,
+    REGISTER_ID, STATE_TEXT, State, feedback_head, is_register_answer, unpack_feedback,
 )
 from hil.protocols.damiao.fd import FormatWatch, frame_on_bus, is_fd_code, rate_code
 from hil.protocols.damiao.registers import (
     AMBIENT, ID_REGISTERS, REGISTERS, TIMEOUT_UNIT, accepts, initial_values,
 )
-from hil.protocols.mit import MitRanges, unpack_command
+from hil.protocols.mit import MitRanges, pack_answer, unpack_command_values
 from hil.protocols.mit.drive import MitFamilyDrive, follow, motion_readings
 from hil.protocols.mit.family import KD_MAX, KP_MAX
 
@@ -68,8 +67,8 @@ CORE_MODES = {ControlMode.MIT: Mode.IMPEDANCE, ControlMode.POSITION_VELOCITY:
 FAULT_STATES = {Fault.CONTROLLER_SILENT: State.LOST_COMMUNICATION}
 #: ACC or DEC of 0: the reference steps at once (rad/s², finite: it multiplies distances)
 NO_RAMP = 1e9
-#: the temperatures the feedback carries (its whole degrees)
-_AMBIENT = int(AMBIENT)
+#: the temperatures the feedback carries (its whole degrees): the MOSFETs' and the rotor's
+_TEMPERATURES = bytes([int(AMBIENT), int(AMBIENT)])
 #: the bytes each mode's command carries (the module doc of hil.protocols.damiao); the
 #: special frames are MIT's 8
 COMMAND_LENGTHS = {ControlMode.MIT: 8, ControlMode.POSITION_VELOCITY: 8,
@@ -152,10 +151,9 @@ class DamiaoDrive(MitFamilyDrive):
     def answer(self) -> Frame:
         """The feedback frame."""
         status = self.core.status()
-        data = pack_feedback(feedback_of_fields((self.node_id, self.state,
-                                                 status.position - self.zero, status.velocity,
-                                                 status.torque, _AMBIENT, _AMBIENT)),
-                             self.ranges)
+        data = pack_answer(feedback_head(self.node_id, self.state),
+                           status.position - self.zero, status.velocity, status.torque,
+                           self.ranges, _TEMPERATURES)
         return frame_on_bus(self.reply_id, data, self.fd)
 
     @property
@@ -218,7 +216,7 @@ class DamiaoDrive(MitFamilyDrive):
     # --- commands, one per control mode --------------------------------------------------
 
     def _mit(self, data: bytes) -> None:
-        command = unpack_command(data, self.ranges)
+        command = unpack_command_values(data, self.ranges)
         if self.core.parameters.peak_torque != self._peak:          # after force-position
             self.core.parameters = replace(self.core.parameters, peak_torque=self._peak)
         follow(self.core, command, self.zero)

@@ -25,8 +25,8 @@ from hil.can.router import Subscription
 from hil.errors import ConfigError
 from hil.hardware.axis import Axis, AxisCommand
 from hil.protocols.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitOptions, MitRanges, MitReply,
-    command_of_fields, pack_command, unpack_reply,
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitOptions, MitRanges,
+    pack_command_values, unpack_motion,
 )
 
 
@@ -65,12 +65,13 @@ class MotorAnswers:
         #: what the last answer reported beside the motion (a family's state or error)
         self.reported = self.NOTHING
 
-    def read(self, data: bytes) -> MitReply | None:
-        """The answer ``data`` carries if it is this motor's (it has ``position``,
-        ``velocity`` and ``torque``), else None."""
+    def read(self, data: bytes) -> tuple[float, float, float] | None:
+        """The motion (position, velocity, torque) that ``data`` answers if it is this
+        motor's answer, else None: a plain tuple, as every family's answer carries it in
+        bytes 1-5 (no named tuple made a motor a cycle)."""
         if len(data) != 6 or data[0] != self.node_id:
             return None
-        return unpack_reply(data, self.ranges)
+        return unpack_motion(data, self.ranges)
 
     def forget(self) -> None:
         """Before a fault reset: what the motor reported is forgotten until it answers."""
@@ -121,12 +122,11 @@ class MitAxis(Axis):
         return [Subscription(self.reply_id, self._on_reply)]
 
     def _on_reply(self, frame: Frame) -> None:
-        answer = self.answers.read(frame.data)
-        if answer is None:
+        motion = self.answers.read(frame.data)
+        if motion is None:
             return
         feedback = self.feedback
-        feedback.position, feedback.velocity = answer.position, answer.velocity
-        feedback.torque = answer.torque
+        feedback.position, feedback.velocity, feedback.torque = motion
         self.booted.set()
         self.answered()
 
@@ -154,16 +154,16 @@ class MitAxis(Axis):
             self._hold = self.feedback.position
             return [self.to_motor(ENTER_MOTOR_MODE)]
         if not self.motor_mode:
-            sent = command_of_fields((self.feedback.position, 0.0, 0.0, 0.0, 0.0))
+            data = pack_command_values(self.feedback.position, 0.0, 0.0, 0.0, 0.0, self.ranges)
         elif stopping or enabling:
             if self._hold is None:
                 self._hold = self.feedback.position
-            sent = command_of_fields((self._hold, 0.0, self.kp, self.kd,
-                                       0.0 if stopping else torque))
+            data = pack_command_values(self._hold, 0.0, self.kp, self.kd,
+                                       0.0 if stopping else torque, self.ranges)
         else:
             self._hold = None
-            sent = command_of_fields((target, velocity, self.kp, self.kd, torque))
-        return [self.to_motor(pack_command(sent, self.ranges))]
+            data = pack_command_values(target, velocity, self.kp, self.kd, torque, self.ranges)
+        return [self.to_motor(data)]
 
     def disable_rounds(self) -> list[list[Frame]]:
         self.motor_mode = False

@@ -56,22 +56,36 @@ command_of_fields = functools.partial(tuple.__new__, MitCommand)
 
 
 def pack_command(command: MitCommand, ranges: MitRanges) -> bytes:
-    p = float_to_uint(command.position, -ranges.p_max, ranges.p_max, 16)
-    v = float_to_uint(command.velocity, -ranges.v_max, ranges.v_max, 12)
-    kp = float_to_uint(command.kp, 0.0, ranges.kp_max, 12)
-    kd = float_to_uint(command.kd, 0.0, ranges.kd_max, 12)
-    t = float_to_uint(command.torque, -ranges.t_max, ranges.t_max, 12)
-    return bytes([p >> 8, p & 0xFF, v >> 4, ((v & 0xF) << 4) | (kp >> 8), kp & 0xFF, kd >> 4,
-                  ((kd & 0xF) << 4) | (t >> 8), t & 0xFF])
+    return pack_command_values(command.position, command.velocity, command.kp, command.kd,
+                               command.torque, ranges)
+
+
+def pack_command_values(position: float, velocity: float, kp: float, kd: float,
+                        torque: float, ranges: MitRanges) -> bytes:
+    """A command packed from its values (:func:`pack_command` without an MitCommand: a
+    named tuple made costs as much as the packing, and a cycle's commands need none)."""
+    p = float_to_uint(position, -ranges.p_max, ranges.p_max, 16)
+    v = float_to_uint(velocity, -ranges.v_max, ranges.v_max, 12)
+    kp_bits = float_to_uint(kp, 0.0, ranges.kp_max, 12)
+    kd_bits = float_to_uint(kd, 0.0, ranges.kd_max, 12)
+    t = float_to_uint(torque, -ranges.t_max, ranges.t_max, 12)
+    return bytes([p >> 8, p & 0xFF, v >> 4, ((v & 0xF) << 4) | (kp_bits >> 8), kp_bits & 0xFF,
+                  kd_bits >> 4, ((kd_bits & 0xF) << 4) | (t >> 8), t & 0xFF])
 
 
 def unpack_command(data: bytes, ranges: MitRanges) -> MitCommand:
-    return command_of_fields((
-        uint_to_float((data[0] << 8) | data[1], -ranges.p_max, ranges.p_max, 16),
-        uint_to_float((data[2] << 4) | (data[3] >> 4), -ranges.v_max, ranges.v_max, 12),
-        uint_to_float(((data[3] & 0xF) << 8) | data[4], 0.0, ranges.kp_max, 12),
-        uint_to_float((data[5] << 4) | (data[6] >> 4), 0.0, ranges.kd_max, 12),
-        uint_to_float(((data[6] & 0xF) << 8) | data[7], -ranges.t_max, ranges.t_max, 12)))
+    return command_of_fields(unpack_command_values(data, ranges))
+
+
+def unpack_command_values(data: bytes, ranges: MitRanges
+                          ) -> tuple[float, float, float, float, float]:
+    """A command's position, velocity, kp, kd and torque, in MitCommand's order, as a plain
+    tuple (:func:`unpack_command` without the named tuple, for a motor's every frame)."""
+    return (uint_to_float((data[0] << 8) | data[1], -ranges.p_max, ranges.p_max, 16),
+            uint_to_float((data[2] << 4) | (data[3] >> 4), -ranges.v_max, ranges.v_max, 12),
+            uint_to_float(((data[3] & 0xF) << 8) | data[4], 0.0, ranges.kp_max, 12),
+            uint_to_float((data[5] << 4) | (data[6] >> 4), 0.0, ranges.kd_max, 12),
+            uint_to_float(((data[6] & 0xF) << 8) | data[7], -ranges.t_max, ranges.t_max, 12))
 
 
 # --- the answer: bytes 1-5 (position 16, velocity 12, torque 12) in every family's ---------
@@ -86,6 +100,14 @@ def pack_motion(position: float, velocity: float, torque: float, ranges: MitRang
     v = float_to_uint(velocity, -ranges.v_max, ranges.v_max, 12)
     t = float_to_uint(torque, -ranges.t_max, ranges.t_max, 12)
     return [p >> 8, p & 0xFF, v >> 4, ((v & 0xF) << 4) | (t >> 8), t & 0xFF]
+
+
+def pack_answer(head: int, position: float, velocity: float, torque: float,
+                ranges: MitRanges, tail: bytes) -> bytes:
+    """A whole answer of the family in one call: byte 0 ``head`` (the motor's id; Damiao's
+    state with it), bytes 1-5 the motion (:func:`pack_motion`), then ``tail`` (Damiao's
+    temperatures; none in the mini-cheetah's 6-byte reply)."""
+    return bytes([head, *pack_motion(position, velocity, torque, ranges)]) + tail
 
 
 def unpack_motion(data: bytes, ranges: MitRanges) -> tuple[float, float, float]:
@@ -105,8 +127,8 @@ class MitReply(NamedTuple):
 
 
 def pack_reply(reply: MitReply, ranges: MitRanges) -> bytes:
-    return bytes([reply.motor_id, *pack_motion(reply.position, reply.velocity, reply.torque,
-                                               ranges)])
+    return pack_answer(reply.motor_id, reply.position, reply.velocity, reply.torque, ranges,
+                       b"")
 
 
 def unpack_reply(data: bytes, ranges: MitRanges) -> MitReply:

@@ -21,8 +21,8 @@ from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power, SilenceReaction
 from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, Mit, MitCommand, MitRanges, MitReply,
-    TimeoutReaction, pack_reply, unpack_command, unpack_reply,
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, Mit, MitRanges, MitReply,
+    TimeoutReaction, pack_reply, unpack_command_values, unpack_reply,
 )
 
 
@@ -34,11 +34,14 @@ def enter_motor_mode(core: DriveCore) -> None:
                       stiffness=0.0, damping=0.0)
 
 
-def follow(core: DriveCore, command: MitCommand, zero: float) -> None:
-    """An MIT command: ``t = kp (p - q) + kd (v - q') + t_ff``, its position from the motor's
-    zero."""
-    core.new_setpoint(position=command.position + zero, velocity=command.velocity,
-                      torque=command.torque, stiffness=command.kp, damping=command.kd)
+def follow(core: DriveCore, command: tuple[float, float, float, float, float],
+           zero: float) -> None:
+    """An MIT command (position, velocity, kp, kd, torque: an MitCommand, or the plain tuple
+    of :func:`~hil.protocols.mit.unpack_command_values`): ``t = kp (p - q) + kd (v - q') +
+    t_ff``, its position from the motor's zero."""
+    position, velocity, kp, kd, torque = command
+    core.new_setpoint(position=position + zero, velocity=velocity, torque=torque,
+                      stiffness=kp, damping=kd)
 
 
 def zero_commands(core: DriveCore) -> None:
@@ -65,8 +68,9 @@ class MitFamilyDrive(DriveProfile):
 
     #: the commands' ranges (each family's drive sets them)
     ranges: MitRanges
-    #: an MIT command's layout (CubeMars' firmware V3 has its own)
-    decode_command = staticmethod(unpack_command)
+    #: an MIT command's layout, to the values :func:`follow` takes (CubeMars' firmware V3
+    #: has its own)
+    decode_command = staticmethod(unpack_command_values)
 
     def __init__(self, config: DriveConfig, core: DriveCore, lock: AbstractContextManager):
         super().__init__(config, core, lock)

@@ -16,7 +16,7 @@ from hil.bus_config.types import DriveConfig
 from hil.can.frame import Frame
 from hil.can.router import Subscription
 from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind
-from hil.protocols.mit import command_of_fields, pack_command
+from hil.protocols.mit import pack_command_values
 from hil.protocols.mit.axis import MitAxis
 from hil.protocols.myactuator import MyActuator, MyActuatorOptions, command_id, reply_id
 from hil.protocols.myactuator.codec import (
@@ -111,13 +111,13 @@ class MyActuatorAxis(Axis):
         if command.stopping or command.holding:
             if self._hold is None:
                 self._hold = self.feedback.position
-            sent = command_of_fields((self._hold, 0.0, self.kp, self.kd,
-                                      0.0 if command.stopping else command.torque))
+            data = pack_command_values(self._hold, 0.0, self.kp, self.kd,
+                                       0.0 if command.stopping else command.torque, MIT_RANGES)
         else:
             self._hold = None
-            sent = command_of_fields((command.target, command.velocity, self.kp, self.kd,
-                                      command.torque))
-        return [Frame(MIT_BASE + self.node_id, pack_command(sent, MIT_RANGES))]
+            data = pack_command_values(command.target, command.velocity, self.kp, self.kd,
+                                       command.torque, MIT_RANGES)
+        return [Frame(MIT_BASE + self.node_id, data)]
 
     def disable_rounds(self) -> list[list[Frame]]:
         self.running = False

@@ -41,7 +41,8 @@ from hil.can.router import Subscription
 from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power, SilenceReaction
 from hil.drives.profile import DriveProfile, Reading
-from hil.protocols.mit import unpack_command
+from hil.protocols.mit import unpack_command_values
+from hil.protocols.mit.drive import follow
 from hil.protocols.myactuator import MyActuator, MyActuatorOptions, command_id, reply_id
 from hil.protocols.myactuator.codec import (
     CANID_SETTING_ID, CONTROL, ENCODER_LINES, MIT_BASE, MIT_RANGES, MIT_REPLY_BASE,
@@ -156,12 +157,10 @@ class MyActuatorDrive(MotorReads, DriveProfile):
             return
         with self.lock:
             self.heard()
-            command = unpack_command(bytes(frame.data), MIT_RANGES)
+            command = unpack_command_values(bytes(frame.data), MIT_RANGES)
             if self._powered(Mode.IMPEDANCE):
                 self.run_mode = RunMode.POSITION
-                self.core.new_setpoint(position=command.position + self.zero,
-                                       velocity=command.velocity, torque=command.torque,
-                                       stiffness=command.kp, damping=command.kd)
+                follow(self.core, command, self.zero)
             status = self.core.status()
             self._replies = [Frame(MIT_REPLY_BASE + self.node_id, pack_mit_reply(
                 self.node_id, status.position - self.zero, status.velocity, status.torque))]

@@ -18,7 +18,8 @@ import struct
 from typing import TYPE_CHECKING
 
 from hil.can.frame import Frame, frame_of_fields
-from hil.protocols.mit import unpack_command
+from hil.protocols.mit import unpack_command_values
+from hil.protocols.mit.drive import follow
 from hil.protocols.mit.codec import MitRanges
 from hil.protocols.robstride import Robstride, framing_of
 from hil.protocols.robstride import params as P
@@ -70,10 +71,7 @@ class MitMode:
             if special is not None:
                 return special
         if enabled and drive.run_mode == RunMode.OPERATION:
-            command = unpack_command(data, self.ranges())
-            drive.core.new_setpoint(position=command.position + drive.zero,
-                                    velocity=command.velocity, torque=command.torque,
-                                    stiffness=command.kp, damping=command.kd)
+            follow(drive.core, unpack_command_values(data, self.ranges()), drive.zero)
         return self.answer()
 
     def special(self, b6: int, b7: int) -> Frame | None:
