@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from hil.description import WORLD, Joint, JointType, RobotDescription
+from hil.description.rotations import rpy_quaternion
 
 #: m/s^2: MuJoCo's default, the plant's
 GRAVITY = 9.81
@@ -51,8 +52,6 @@ class GravityModel:
         self._model = spec.compile()
         self._data = mujoco.MjData(self._model)
         self._forces = np.zeros(self._model.nv)
-        self._steps = (mujoco.mj_kinematics, mujoco.mj_comPos)
-        self._rne = mujoco.mj_rne
         # the pure maps between the drives' joints and the model's (hinges and slides only:
         # a joint's qpos and dof share their index): positions in, loads out
         index = {name: k for k, name in enumerate(self.joint_names)}
@@ -74,9 +73,9 @@ class GravityModel:
         the weight it carries at ``positions``."""
         model, data = self._model, self._data
         data.qpos[:] = self._into.dot(np.asarray(positions, dtype=float)) + self._offset
-        for step in self._steps:
-            step(model, data)
-        self._rne(model, data, 0, self._forces)
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_rne(model, data, 0, self._forces)
         return self._onto.dot(self._forces)
 
 
@@ -86,7 +85,8 @@ def _add_link(parent, robot: RobotDescription, name: str, joint: Joint | None) -
     body = parent.add_body(name=name)
     if joint is not None:
         body.pos = joint.origin.xyz
-        body.quat = _quaternion(joint.origin.rpy)
+        x, y, z, w = rpy_quaternion(joint.origin.rpy)
+        body.quat = (w, x, y, z)                     # MuJoCo's order
         if joint.is_movable:
             mj_joint = body.add_joint(name=joint.name)
             mj_joint.type = (mujoco.mjtJoint.mjJNT_SLIDE if joint.type is JointType.PRISMATIC
@@ -102,9 +102,3 @@ def _add_link(parent, robot: RobotDescription, name: str, joint: Joint | None) -
     for child in robot.children_of(name):
         _add_link(body, robot, child.child, child)
 
-
-def _quaternion(rpy) -> np.ndarray:
-    """URDF roll-pitch-yaw (fixed axes X, Y, Z) as MuJoCo's quaternion (w, x, y, z)."""
-    quat = np.zeros(4)
-    mujoco.mju_euler2Quat(quat, np.asarray(rpy, dtype=float), "XYZ")
-    return quat

@@ -36,7 +36,7 @@ from hil.protocols.base import (CarriedRange, DriveSetting, FrameSource, Protoco
 from hil.protocols.cubemars.models import MODELS, SIZED, CubeMarsModel, model
 from hil.protocols.mit import (
     ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, MitCommand, MitRanges, command_of_fields,
-    pack_motion, uint_to_float, unpack_motion,
+    pack_answer, uint_to_float, unpack_motion,
 )
 from hil.protocols.mit.family import (
     KD_MAX, KP_MAX, initial_model_options, model_figures, model_ranges, parse_gains,
@@ -190,9 +190,8 @@ class Answer:
 def pack_mit_answer(answer: Answer, ranges: MitRanges) -> bytes:
     """The V2 MIT answer (§5.3): id, position 16, speed 12, current 12 (on the torque
     range), temperature, error."""
-    return bytes([answer.motor_id & 0xFF,
-                  *pack_motion(answer.position, answer.velocity, answer.torque, ranges),
-                  answer.temperature & 0xFF, int(answer.error)])
+    return pack_answer(answer.motor_id & 0xFF, answer.position, answer.velocity, answer.torque,
+                       ranges, bytes([answer.temperature & 0xFF, int(answer.error)]))
 
 
 def unpack_mit_answer(data: bytes, ranges: MitRanges) -> Answer:

@@ -21,8 +21,8 @@ from hil.drives.core import DriveCore
 from hil.drives.definitions import Fault, Mode, Power, SilenceReaction
 from hil.drives.profile import DriveProfile, Reading
 from hil.protocols.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, Mit, MitRanges, MitReply,
-    TimeoutReaction, pack_reply, unpack_command_values, unpack_reply,
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, SET_ZERO, Mit, MitRanges, TimeoutReaction,
+    pack_answer, unpack_command_values, unpack_reply,
 )
 
 
@@ -148,8 +148,8 @@ class MitDrive(MitFamilyDrive):
 
     def answer(self) -> Frame:
         status = self.core.status()
-        data = pack_reply(MitReply(self.node_id, status.position - self.zero, status.velocity,
-                                   status.torque), self.ranges)
+        data = pack_answer(self.node_id, status.position - self.zero, status.velocity,
+                           status.torque, self.ranges, b"")
         return frame_of_fields((self.options.reply_id, data, False, False, False, False, False,
                                 0.0))
 
