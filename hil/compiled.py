@@ -26,9 +26,13 @@ from types import ModuleType
 
 #: the modules mypyc compiles, in one build (each must type-check with mypy): the drive core's
 #: inner loops with its data types, the loop over a plant's cores, and the CiA 402 state
-#: machine, which runs for every drive on every plant step and calls the core natively
+#: machine, which runs for every drive on every plant step and calls the core natively; the
+#: profile seam and the MIT family's and Damiao's simulated motors, whose handlers run for
+#: every motor on every frame (a G1's lock-step cycle on Damiao motors -8.5 % instructions:
+#: docs/performance.md, "2026-12-07: the Damiao motor's handlers compiled")
 COMPILED = ("hil.drives.definitions", "hil.drives.references", "hil.drives.core",
-            "hil.drives.group", "hil.protocols.cia402.state")
+            "hil.drives.group", "hil.protocols.cia402.state", "hil.drives.profile",
+            "hil.protocols.mit.drive", "hil.protocols.damiao.drive")
 #: the MIT family's codec (MIT, Damiao, CubeMars, Robstride's and MyActuator's MIT modes),
 #: packed and unpacked once a frame on each side: a command packed in 3.3 µs interpreted,
 #: 0.32 µs compiled (docs/performance.md, "2026-12-06, issue 69: the MIT family's codec
@@ -39,9 +43,13 @@ COMPILED_MIT_CODEC = ("hil.protocols.mit.codec",)
 #: in 87 µs from the sources, 60 µs compiled (tools/transport_cost.py; docs/performance.md,
 #: "2026-12-07: the transport's codec compiled, a drive's calls a cycle cut")
 COMPILED_TRANSPORT = ("hil.can.link_statistics", "hil.can.zenoh_wire", "hil.can.link_account")
+#: the master's side of an axis, and the MIT family's and Damiao's axes, whose handlers run
+#: for every axis on every cycle (docs/performance.md, "2026-12-07: the Damiao motor's
+#: handlers compiled")
+COMPILED_AXES = ("hil.hardware.axis", "hil.protocols.mit.axis", "hil.protocols.damiao.axis")
 #: each build's shared library (inside the package) and its modules
 BUILDS = {"hil.drives.compiled": COMPILED, "hil.protocols.mit.compiled": COMPILED_MIT_CODEC,
-          "hil.can.compiled": COMPILED_TRANSPORT}
+          "hil.can.compiled": COMPILED_TRANSPORT, "hil.hardware.compiled": COMPILED_AXES}
 
 
 def import_fresh(*names: str) -> None:

@@ -3,13 +3,16 @@ sent with the other replies of its bus in one go, or sent by the profile itself.
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 
 import can
 import pytest
 
-from conftest import CanopenBench
+from conftest import TEST_MOTOR_DRIVE, CanopenBench
+from test_cia402_files import drive_config
 
 from hil.can.frame import Frame
+from hil.drives import DriveCore, DriveParameters
 from hil.drives.profile import DriveProfile
 from hil.protocols.cia402 import Cia402
 
@@ -23,7 +26,7 @@ class Silent(DriveProfile):
 
 def test_a_profile_that_defines_neither_way_of_replying_is_refused_when_made():
     with pytest.raises(TypeError, match="neither take_replies nor send_replies"):
-        Silent(None, None, None)
+        Silent(drive_config(1), DriveCore(DriveParameters(**TEST_MOTOR_DRIVE)), nullcontext())
 
 
 @pytest.fixture

@@ -16,6 +16,20 @@ mkdir "$work/empty"
 cd "$work/empty"
 echo "wheel check: $(ls "$work"/dist) in a fresh environment, from an empty folder"
 "$work/venv/bin/hil" --version
+# every module of hil.compiled's builds runs compiled from the wheel (.ci/run installs a C
+# compiler): a build that failed (a type error mypyc refused) falls back to the sources
+# without a word (setup.py: optional extensions), and the measured speed with it
+"$work/venv/bin/python" - <<'PY'
+import importlib, sys
+from hil.compiled import BUILDS, is_compiled
+import hil.can, hil.drives, hil.hardware, hil.protocols.mit    # each loads its builds
+modules = [name for names in BUILDS.values() for name in names]
+missing = [name for name in modules if not is_compiled(importlib.import_module(name))]
+if missing:
+    sys.exit(f"wheel check: not compiled in the wheel: {', '.join(missing)} (its build "
+             "failed: `pip wheel -v .` shows mypyc's error)")
+print(f"wheel check: the {len(modules)} modules of {len(BUILDS)} builds run compiled")
+PY
 "$work/venv/bin/hil" check ur3
 # lock-step: this checks what the wheel installs; real time is `hil bench`'s to measure (on a
 # shared 2-CPU VM a hypervisor stall mid-demo is a silent drive, issue 18)

@@ -28,6 +28,8 @@ from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from typing import ClassVar
 
+from mypy_extensions import mypyc_attr
+
 from hil.bus_config.types import BusConfig, DriveConfig
 from hil.can.frame import Frame
 from hil.can.router import FrameRouter, Subscription
@@ -57,6 +59,7 @@ class Reading:
     scale: float = 1.0
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)     # every protocol's drive not compiled
 class DriveProfile(ABC):
     """A virtual drive on a bus, speaking one protocol, around a DriveCore."""
 

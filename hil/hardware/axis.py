@@ -18,6 +18,8 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import ClassVar, NamedTuple
 
+from mypy_extensions import mypyc_attr
+
 from hil.bus_config.types import DriveConfig
 from hil.can.frame import Frame
 from hil.can.router import FrameRouter, Subscription
@@ -39,13 +41,15 @@ class FaultKind(enum.Enum):
     REBOOTED = "rebooted"                 # booted again mid-run: it lost its configuration
 
 
+@mypyc_attr(native_class=False)      # threading.Event's own attributes live in its __dict__
 class BootFlag(threading.Event):
     """An axis' "heard from since reset" flag. Most families set it at every answer: a set
     that finds it set returns at once (``threading.Event.set`` takes the Event's lock and
     notifies each time, five interpreted calls an axis a cycle)."""
 
     def set(self) -> None:
-        if not self._flag:        # threading.Event's own flag, what is_set() returns
+        # threading.Event's own flag, what is_set() returns (not in typeshed's stub)
+        if not self._flag:  # type: ignore[attr-defined]
             super().set()
 
 
@@ -101,6 +105,7 @@ class AxisFeedback:
     heard: bool = False        # an answer has set the values (until then they are defaults)
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)     # every protocol's axis not compiled
 class Axis(ABC):
     """One drive as the master sees it."""
 

@@ -57,10 +57,10 @@ class CycleExchange:
         self.cycle = 0
         self._arrived = threading.Condition()
         self._awaiting = False          # a reader is in _await
-        #: each cycle's round trip (s): its last frame sent to its last answer in
+        #: each cycle's round trip (s): its frames handed to the buses to its last answer in
         self.round_trips = Ring(PeriodStatistics.KEEP)
         self._last_answer = 0.0
-        self._sent: float | None = None     # perf_counter when the last cycle's frames left
+        self._sent: float | None = None     # perf_counter when the last cycle's frames went out
 
     def open(self) -> None:
         """A router on every bus, every axis on its bus' router."""
@@ -91,10 +91,12 @@ class CycleExchange:
         for name, frames in self._cycle_end.items():
             batches[name] += frames
         routers = self.routers
+        # the time the frames are handed to the buses, not after: an answer may come (in
+        # another thread) before the send returns, and its round trip was then negative
+        self._sent = time.perf_counter()
         with sent_together(self._batched):
             for name, frames in batches.items():
                 routers[name].send_frames(frames)
-        self._sent = time.perf_counter()
 
     def await_answers(self, skip_silent: bool) -> float:
         """Wait until every axis' answer of the last cycle is in, or ``reply_timeout`` after

@@ -35,8 +35,7 @@ class CubeMarsAxis(MitAxis):
     protocol = CubeMars
     Answers = CubeMarsAnswers
 
-    @staticmethod
-    def command_settings(config: DriveConfig) -> tuple[MitRanges, float, float, int]:
+    def command_settings(self, config: DriveConfig) -> tuple[MitRanges, float, float, int]:
         options: CubeMarsOptions = config.options or CubeMarsOptions()
         MitAxis.require(config, options.mit_on_standard_id and options.kp > 0,
                         "CubeMars motors in MIT mode on firmware V2", "control: mit, firmware: v2")

@@ -46,19 +46,17 @@ class DamiaoAxis(MitAxis):
     protocol = Damiao
     Answers = DamiaoAnswers
 
-    @staticmethod
-    def command_settings(config: DriveConfig) -> tuple[MitRanges, float, float, int]:
+    def command_settings(self, config: DriveConfig) -> tuple[MitRanges, float, float, int]:
         options: DamiaoOptions = config.options or DamiaoOptions()
         MitAxis.require(config, options.control_mode is ControlMode.MIT and options.kp > 0,
                         "Damiao motors in MIT mode", "control_mode: MIT")
         return options.ranges(), options.kp, options.kd, options.reply_id(config.node_id)
 
-    @staticmethod
-    def frame_maker(config: DriveConfig) -> Callable[[bytes], Frame]:
+    def frame_maker(self, config: DriveConfig) -> Callable[[bytes], Frame]:
         """On a CAN FD bus an FD frame with the bit-rate switch (:func:`frame_on_bus`)."""
         if config.can_fd:
             return functools.partial(frame_on_bus, config.node_id, fd=True)
-        return MitAxis.frame_maker(config)
+        return super().frame_maker(config)
 
     @property
     def state(self) -> str:
@@ -70,8 +68,8 @@ class DamiaoAxis(MitAxis):
 
     def fault(self, stopping: bool = False) -> AxisFault | None:
         if self.answers.reported in ERROR_STATES:
-            return self.found(FaultKind.FAULT, f"reports {self.state}",
-                              int(self.answers.reported))
+            reported: State = self.answers.reported
+            return self.found(FaultKind.FAULT, f"reports {self.state}", int(reported))
         return None
 
     def forget_faults(self) -> None:

@@ -19,6 +19,8 @@ import functools
 from collections.abc import Callable
 from typing import ClassVar
 
+from mypy_extensions import mypyc_attr
+
 from hil.bus_config.types import DriveConfig
 from hil.can.frame import Frame
 from hil.can.router import Subscription
@@ -50,6 +52,7 @@ class SpecialFrames:
         return data
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)     # CubeMars' answers (not compiled)
 class MotorAnswers:
     """Which frames on the master's id are one motor's answers, and what each carries: a
     MIT motor's, 6 bytes naming it in byte 0 (Hobbyking_Cheetah_Compact CAN_com.cpp,
@@ -78,6 +81,7 @@ class MotorAnswers:
         self.reported = self.NOTHING
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)     # CubeMars' axis (not compiled)
 class MitAxis(Axis):
     protocol = Mit
     #: the answers of this family's motors
@@ -94,14 +98,14 @@ class MitAxis(Axis):
         #: :meth:`frame_maker`)
         self.to_motor = self.frame_maker(config)
 
-    @staticmethod
-    def frame_maker(config: DriveConfig) -> Callable[[bytes], Frame]:
+    # frame_maker and command_settings are methods, not static ones: compiled (mypyc), a
+    # static method called on self is the class' own, never an interpreted subclass' override
+    def frame_maker(self, config: DriveConfig) -> Callable[[bytes], Frame]:
         """How the master's frames to the motor of ``config`` are made of their data: a
         classic frame on its node id (a family whose frames differ on some bus says how)."""
         return functools.partial(Frame, config.node_id)
 
-    @staticmethod
-    def command_settings(config: DriveConfig) -> tuple[MitRanges, float, float, int]:
+    def command_settings(self, config: DriveConfig) -> tuple[MitRanges, float, float, int]:
         """The commands' ranges, the master's gains and the id the motor answers on."""
         options: MitOptions = config.options          # kp > 0: checked with the bus config
         return options.ranges, options.kp, options.kd, options.reply_id
@@ -147,8 +151,9 @@ class MitAxis(Axis):
     def cycle_frames(self, command: AxisCommand) -> list[Frame]:
         target, velocity, torque = command.target, command.velocity, command.torque
         stopping, enabling = command.stopping, command.holding
-        if self.specials.next is not None:
-            return [self.to_motor(self.specials.take())]
+        special = self.specials.take()
+        if special is not None:
+            return [self.to_motor(special)]
         if not self.motor_mode and not stopping and self.at_standstill():
             self.motor_mode = True
             self._hold = self.feedback.position

@@ -14,6 +14,8 @@ from __future__ import annotations
 from abc import abstractmethod
 from contextlib import AbstractContextManager
 
+from mypy_extensions import mypyc_attr
+
 from hil.bus_config.types import DriveConfig
 from hil.can.frame import Frame, frame_of_fields
 from hil.can.router import Subscription
@@ -58,6 +60,7 @@ def motion_readings(answer) -> tuple[Reading, Reading, Reading]:
             Reading("torque", answer.torque, "torque"))
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)     # CubeMars' motor (not compiled)
 class MitFamilyDrive(DriveProfile):
     """What a motor of the MIT family does alike, whoever made it: it is built from its
     drive's config with its protocol's options (:attr:`options`); a command frame is 8 bytes
@@ -167,6 +170,7 @@ class MitDrive(MitFamilyDrive):
 
     @property
     def state_text(self) -> str:
-        if self.core.power is Power.FAULT:
-            return f"FAULT ({self.core.fault.text})"
+        fault = self.core.fault         # set while the power is FAULT
+        if self.core.power is Power.FAULT and fault is not None:
+            return f"FAULT ({fault.text})"
         return self.mode_text()
