@@ -28,6 +28,11 @@ class BuildExt(build_ext):
     """Also writes, beside each compiled module, the SHA-256 of the source it was compiled
     from (``<module>.sha256``): ``hil.compiled`` runs the sources where one differs."""
 
+    def finalize_options(self):
+        super().finalize_options()
+        if self.parallel is None:       # the builds' C compiled side by side, a CPU each
+            self.parallel = True
+
     def run(self):
         super().run()
         for module in MODULES:
@@ -59,11 +64,12 @@ def _source(module: str) -> Path:
 
 
 def optional_extensions():
-    # their imports are checked by the tests, not here: the build environment has only mypy
-    # one shared library for the group, inside the package (by default it is a top-level
-    # module named by a hash of the modules' names)
+    # their imports are checked by the tests, not here: the build environment has only mypy,
+    # so a third-party module they import (python-can) is Any to mypyc; one shared library
+    # for the group, inside the package (by default it is a top-level module named by a hash
+    # of the modules' names)
     extensions = [extension for group, modules in BUILDS.items()
-                  for extension in mypycify(["--follow-imports=skip",
+                  for extension in mypycify(["--follow-imports=skip", "--ignore-missing-imports",
                                              *(str(_source(module)) for module in modules)],
                                             opt_level="3", group_name=group)]
     for extension in extensions:

@@ -43,10 +43,11 @@ COMPILED_MIT_CODEC = ("hil.protocols.mit.codec",)
 #: in 87 µs from the sources, 60 µs compiled (tools/transport_cost.py; docs/performance.md,
 #: "2026-12-07: the transport's codec compiled, a drive's calls a cycle cut")
 COMPILED_TRANSPORT = ("hil.can.link_statistics", "hil.can.zenoh_wire", "hil.can.link_account")
-#: the master's side of an axis, and the MIT family's and Damiao's axes, whose handlers run
-#: for every axis on every cycle (docs/performance.md, "2026-12-07: the Damiao motor's
-#: handlers compiled")
-COMPILED_AXES = ("hil.hardware.axis", "hil.protocols.mit.axis", "hil.protocols.damiao.axis")
+#: the master's side of an axis, the MIT family's and Damiao's axes, whose handlers run for
+#: every axis on every cycle, and the cycle's exchange that calls them (docs/performance.md,
+#: "2026-12-07: the Damiao motor's handlers compiled")
+COMPILED_AXES = ("hil.hardware.axis", "hil.protocols.mit.axis", "hil.protocols.damiao.axis",
+                 "hil.hardware.exchange")
 #: each build's shared library (inside the package) and its modules
 BUILDS = {"hil.drives.compiled": COMPILED, "hil.protocols.mit.compiled": COMPILED_MIT_CODEC,
           "hil.can.compiled": COMPILED_TRANSPORT, "hil.hardware.compiled": COMPILED_AXES}
