@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import struct
 import threading
+import time
 from pathlib import Path
 
 import can
@@ -138,13 +139,16 @@ def _running(path: Path, sim_end: can.BusABC):
 
 
 def _answers(master_end: can.BusABC, request: can.Message, answer_id: int,
-             tries: int = 50) -> bytes | None:
-    """The answer at ``answer_id`` to ``request``, resent every 0.1 s (of the bus' frames)
-    until one comes (the IMU answers from its first sample on); None if none comes."""
+             tries: int = 100) -> bytes | None:
+    """The answer at ``answer_id`` to ``request``, resent every 0.1 s until one comes (the
+    IMU answers from its first sample on); None if none comes (a second of silence where a
+    test asks 10 tries). The drives' frames pass too, so a try ends by the clock: ended when
+    the bus fell quiet, which it never does, a try read a thousand of them (17 s)."""
     for _ in range(tries):
         master_end.send(request)
-        for _ in range(1000):                   # the drives' frames pass too
-            message = master_end.recv(0.1)
+        deadline = time.monotonic() + 0.1
+        while (left := deadline - time.monotonic()) > 0:
+            message = master_end.recv(left)
             if message is None:
                 break
             if message.arbitration_id == answer_id:
@@ -162,7 +166,7 @@ def test_a_master_written_from_the_manual_reads_a_still_imu(tmp_path, master_bus
             assert answer is not None, f"no answer to register {register}"
             manual_update(imu, answer)
         # another IMU's request (CANID 2) on the shared 0x6FF: not this one's to answer
-        assert _answers(master_end, manual_request(0x02, 1), 0x11, tries=3) is None
+        assert _answers(master_end, manual_request(0x02, 1), 0x11, tries=10) is None
     finally:
         sim.stop()
         runner.join(5)
@@ -187,7 +191,7 @@ def test_later_firmware_takes_requests_at_the_imus_own_id(tmp_path, master_bus, 
     try:
         answer = _answers(master_end, request_frame, 0x15)
         # the manual's 0x6FF request is not this firmware's
-        legacy = _answers(master_end, manual_request(5, 2), 0x15, tries=3)
+        legacy = _answers(master_end, manual_request(5, 2), 0x15, tries=10)
     finally:
         sim.stop()
         runner.join(5)
@@ -222,7 +226,7 @@ def test_a_silence_fault_stops_the_answers(tmp_path, master_bus):
         with sim.lock:
             sim.sensor("imu").inject(SensorFaultKind.SILENCE, silent_at)
         wait_until(lambda: sim.now() > silent_at + 0.05)
-        after = _answers(master_end, manual_request(0x01, 1), 0x11, tries=3)
+        after = _answers(master_end, manual_request(0x01, 1), 0x11, tries=10)
     finally:
         sim.stop()
         runner.join(5)
