@@ -506,7 +506,8 @@ def rrd_verify_errors(path) -> str:
 
 def rrd_series(path, entity: str) -> tuple[np.ndarray, np.ndarray]:
     """An entity's scalar series in an .rrd file: its sim times (s) and its values (one row
-    per time, a column per series), in time order."""
+    per time, a column per series), in time order; rows logged before the sim was heard (on
+    the wall's timeline only) left out."""
     import rerun.chunk      # noqa: PLC0415 (only the recording tests need rerun)
 
     times, values = [], []
@@ -514,6 +515,8 @@ def rrd_series(path, entity: str) -> tuple[np.ndarray, np.ndarray]:
         if chunk.entity_path != entity or chunk.is_static:
             continue
         batch = chunk.to_record_batch()
+        if "sim_time" not in batch.schema.names:
+            continue
         times += [t / 1e9 for t in batch.column("sim_time").cast("int64").to_pylist()]
         values += batch.column("Scalars:scalars").to_pylist()
     order = np.argsort(times)

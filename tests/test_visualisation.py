@@ -23,6 +23,7 @@ from hil.messaging import cdr
 from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSampleBuffer, ControlSamples
 from hil.visualisation import BenchParts, RunRecorder, SimTimeMap
+from hil.visualisation.bus_time import BusTimeLoads
 from conftest import PIGOT_XACRO, ROOT, UR3_XACRO, read_rrd
 
 PIGOT_CONFIG = ROOT / "bus_config" / "pigot.yaml"
@@ -139,6 +140,53 @@ def test_bus_load_meter_counts_each_bus_in_bits_against_its_bitrate():
     assert loads["wrist"].nominal == pytest.approx(10 * 47 / 5e5)
     assert meter.unknown_channel_frames == 1
     assert all(load.frames_per_second == 0 for load in meter.take(now=0.2))
+
+
+def test_a_stamped_meter_counts_each_frame_in_the_interval_its_timestamp_falls_in():
+    """hil viz's meter (its buses stamp frames with the senders' clocks): a frame heard late
+    is counted in its own interval, one stamped past the interval waits for the next, and a
+    stamp on another clock (a replayed log's) is counted on arrival."""
+    now = time.time()
+    meter = BusLoadMeter({"vcan0": ("arm", BitRates(1_000_000))}, now=now - 1.0,
+                         by_timestamp=True)
+
+    def heard(stamp: float) -> None:
+        meter.on_message_received(can.Message(timestamp=stamp, arbitration_id=0x181,
+                                              data=bytes(8), channel="vcan0",
+                                              is_extended_id=False))
+
+    for _ in range(10):
+        heard(now - 0.9)                     # in the first interval
+        heard(now - 0.2)                     # in the second
+    heard(now - 1e6)                         # another clock: the first take counts it
+    (first,) = meter.take(now=now - 0.5 + meter.lag)
+    assert first.interval == pytest.approx(0.5)
+    assert first.frames_per_second == pytest.approx(11 / 0.5)
+    heard(now - 0.7)                         # late: its interval was taken, so the next
+    (second,) = meter.take(now=now + meter.lag)
+    assert second.frames_per_second == pytest.approx(11 / 0.5)
+    assert meter.take(now=now + 1.0 + meter.lag)[0].frames_per_second == 0
+
+
+def test_bus_time_rows_of_a_lock_step_run_are_its_load_up_to_the_last_cycle_and_after():
+    """Lock-step at 2x (a 2 ms cycle every wall ms): 100 % measured on the wall is 50 % of
+    bus time; the rows up to the run's last cycle go merged on bus time, at the end too, not
+    diluted by the last row past it (the visualiser's, to its stop), which goes on the wall's
+    seconds; rows covered by cycles but short of WINDOW wait for the next."""
+    loads = BusTimeLoads()
+    loads.cycles(np.arange(0.0, 1.0, 0.001), period=0.002)
+    for k in range(10):
+        loads.add(0.1 * k, 0.1 * (k + 1), [100.0, 120.0])
+    assert loads.ready(now=1.0) == ([0.9], [[50.0, 60.0]])       # the last not covered yet
+    loads.cycles(np.arange(1.0, 1.25, 0.001), period=0.002)     # the run's last cycles
+    loads.add(1.0, 1.2, [100.0, 120.0])
+    assert loads.ready(now=1.3) == ([], [])                      # short of WINDOW: waits
+    loads.add(1.2, 3.7, [2.0, 2.4])                              # to the visualiser's stop
+    times, rows = loads.ready(now=3.7, final=True)
+    np.testing.assert_allclose(rows[0], [50.0, 60.0], rtol=0.01)
+    np.testing.assert_allclose(times, [1.2, 3.7])
+    # its 50 cycles on bus time (0.1 s), the wall's seconds after the last (1.249 s)
+    assert rows[1][0] == pytest.approx(2.0 * 2.5 / (0.1 + 3.7 - 1.249), rel=0.01)
 
 
 @pytest.mark.parametrize("switch", [True, False])

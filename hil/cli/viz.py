@@ -219,4 +219,6 @@ def _monitor(configs: list[SystemConfig], recorders: list[RunRecorder], zenoh: Z
             config_bus = next(b for b in config.buses if b.name == bus)
             channel_of[name] = channels.get(bus, config_bus.channel)
             bitrates[name] = config_bus.bit_rates
-    return BusMonitor(buses, channel_of, bitrates, args.can_log)
+    # hil's buses opened for logging stamp each frame with its sender's clock (socketcan's
+    # with the kernel's): counted by it (hil.can.monitor.BusLoadMeter says why)
+    return BusMonitor(buses, channel_of, bitrates, args.can_log, by_timestamp=True)

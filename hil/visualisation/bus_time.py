@@ -44,15 +44,20 @@ class BusTimeLoads:
 
     def ready(self, now: float, final: bool = False) -> tuple[list[float], list[list[float]]]:
         """(end times, rows) that can go: the rows covered by recorded cycles merged into
-        one a WINDOW at least, its bits over its bus time; rows waiting past CLOCKLESS (or
-        at ``final``, the run's end) on wall time."""
+        one a WINDOW at least (less once they waited CLOCKLESS, or at ``final``, the run's
+        end), its bits over its bus time; rows no cycle covers once they waited CLOCKLESS
+        (or at ``final``) on wall time."""
         covered = self._walls[-1] if len(self._walls) else -np.inf
         times, rows = [], []
         while self._pending:
             start, end, row = self._pending[0]
-            group = [item for item in self._pending if item[1] <= covered or final]
+            # at the end, the covered rows first: merged with the tail past the last cycle
+            # (a visualiser's last row, up to its stop) they would be diluted by it
+            group = [item for item in self._pending if item[1] <= covered] or (
+                self._pending if final else [])
             span = group[-1][1] - start if group else 0.0
-            if start < end and group and (span >= WINDOW or final) and covered > start:
+            waited = now - end > CLOCKLESS
+            if start < end and group and (span >= WINDOW or final or waited) and covered > start:
                 self._pending = self._pending[len(group):]
                 bus = self._bus_seconds(start, group[-1][1])
                 weights = np.array([b - a for a, b, _ in group])
@@ -60,7 +65,7 @@ class BusTimeLoads:
                     else np.array(row)
                 times.append(group[-1][1])
                 rows.append(merged.tolist())
-            elif final or start >= end or now - end > CLOCKLESS:   # (no interval said)
+            elif final or start >= end or waited:        # no cycles to it, or no interval said
                 self._pending.pop(0)
                 times.append(end)
                 rows.append(row)

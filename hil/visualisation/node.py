@@ -94,10 +94,7 @@ class VizNode:
                     counted = self.batches
                 if self.monitor is not None and time.monotonic() >= next_load:
                     next_load += self._period
-                    now = time.time()
-                    loads = self.monitor.meter.take(now)
-                    for recorder in self.recorders:
-                        recorder.log_bus_load(now, loads)
+                    self._log_bus_load(time.time())
         finally:
             self._drain()
             for token in tokens:
@@ -109,6 +106,14 @@ class VizNode:
                     self._handle(self._queue.get_nowait())
                 except queue.Empty:
                     break
+            if self.monitor is not None:     # every frame heard: the last row, up to now
+                self._log_bus_load(time.time() + self.monitor.meter.lag)
+
+    def _log_bus_load(self, now: float) -> None:
+        """Each bus' load since the last row, to the meter's lag before ``now``."""
+        loads = self.monitor.meter.take(now)
+        for recorder in self.recorders:
+            recorder.log_bus_load(now - self.monitor.meter.lag, loads)
 
     def _drain(self) -> None:
         """Once stopped: log what is still on its way (a visualiser behind its senders holds
