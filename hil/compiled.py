@@ -47,7 +47,7 @@ COMPILED_TRANSPORT = ("hil.can.link_statistics", "hil.can.zenoh_wire", "hil.can.
 #: every axis on every cycle, and the cycle's exchange that calls them (docs/performance.md,
 #: "2026-12-07: the Damiao motor's handlers compiled")
 COMPILED_AXES = ("hil.hardware.axis", "hil.protocols.mit.axis", "hil.protocols.damiao.axis",
-                 "hil.hardware.exchange")
+                 "hil.protocols.cia402.axis", "hil.hardware.exchange")
 #: each build's shared library (inside the package) and its modules
 BUILDS = {"hil.drives.compiled": COMPILED, "hil.protocols.mit.compiled": COMPILED_MIT_CODEC,
           "hil.can.compiled": COMPILED_TRANSPORT, "hil.hardware.compiled": COMPILED_AXES}

@@ -108,7 +108,7 @@ def drive(protocol: str, options=None, torque_feed_forward: str = "gravity") -> 
 
 def test_each_protocols_master_sends_the_torque_in_its_own_field(monkeypatch):
     cia402 = Cia402Axis(drive("cia402"), "bus")
-    monkeypatch.setattr(Cia402Axis, "enabled", property(lambda self: True))
+    cia402.take_statusword(0x0027)                     # OPERATION ENABLED (CiA 402)
     frames = {f.identifier: f.data for f in cia402.cycle_frames(AxisCommand(1.0, 0.0, 1.5))}
     assert int.from_bytes(frames[0x503][4:6], "little", signed=True) == 750   # 1.5 / 2.0 ‰
     odrive = ODriveAxis(drive("odrive"), "bus")

@@ -2,13 +2,14 @@
 
 from hil.compiled import COMPILED_AXES, import_fresh
 
-# compiled by the install where it could be (setup.py): the axis seam with the MIT family's
-# and Damiao's axes and the cycle's exchange, one build whose modules call each other
+# compiled by the install where it could be (setup.py): the axis seam with the MIT family's,
+# Damiao's and CiA 402's axes and the cycle's exchange, one build whose modules call each other
 # directly: all compiled or none, so they load together, here, before anything imports one
 import_fresh(*COMPILED_AXES)
 
 # the protocol modules loaded with the seam (above), named so that the import contracts see
 # them (pyproject.toml, contract "protocol-seams")
+import hil.protocols.cia402.axis  # noqa: E402,F401
 import hil.protocols.damiao.axis  # noqa: E402,F401
 import hil.protocols.mit.axis  # noqa: E402,F401
 from hil.hardware.axis import AxisFault, FaultKind  # noqa: E402
