@@ -12,16 +12,12 @@ import math
 import struct
 import time
 
-import canopen
-from canopen.profiles.p402 import State402
-
 from hil.bus_config.types import DriveConfig
 from hil.can.frame import Frame, frame_of_fields
 from hil.can.router import FrameRouter, Subscription
 from hil.errors import HilError
 from hil.hardware.axis import Axis, AxisCommand, AxisFault, FaultKind
 from hil.protocols.cia402 import FRAME_ERRORS, UNCONFIGURED, Cia402, Cia402Options, emcy_words
-from hil.protocols.cia402.network import RoutedNetwork
 from hil.resources import eds_path
 
 #: NMT states in a heartbeat (CiA 301)
@@ -41,18 +37,24 @@ def _int32(value: float) -> int:
     ``.state``, compiled, which the controller's side never loads)."""
     return max(-2**31, min(2**31 - 1, round(value)))
 
-# the controlwords, by canopen's names
-SHUTDOWN, SWITCH_ON, ENABLE = State402.CW_SHUTDOWN, State402.CW_SWITCH_ON, \
-    State402.CW_OPERATION_ENABLED
-QUICK_STOP, DISABLE_VOLTAGE = State402.CW_QUICK_STOP, State402.CW_DISABLE_VOLTAGE
-FAULT_RESET = State402.CW_SWITCH_ON_DISABLED          # bit 7: fault reset (its rising edge)
+# canopen's State402 controlwords and statusword masks (CiA 402), written here: this module
+# is compiled with the axis seam, which hil.hardware loads, and canopen (imported below where
+# a drive is made or configured) must not load with it where no bus is CiA 402
+# (tests/test_package.py); tests/test_cia402_master_axis.py holds them to canopen's
+SHUTDOWN, SWITCH_ON, ENABLE, QUICK_STOP, DISABLE_VOLTAGE = 0x06, 0x07, 0x0F, 0x02, 0x00
+FAULT_RESET = 0x80          # bit 7: fault reset (its rising edge)
+#: state name -> (mask, value) of the statusword
+SW_MASK = {"NOT READY TO SWITCH ON": (0x4F, 0x00), "SWITCH ON DISABLED": (0x4F, 0x40),
+           "READY TO SWITCH ON": (0x6F, 0x21), "SWITCHED ON": (0x6F, 0x23),
+           "OPERATION ENABLED": (0x6F, 0x27), "FAULT": (0x4F, 0x08),
+           "FAULT REACTION ACTIVE": (0x4F, 0x0F), "QUICK STOP ACTIVE": (0x6F, 0x07)}
 #: the controlword that walks a drive up from each state toward OPERATION ENABLED
 WALK_UP = {"SWITCH ON DISABLED": SHUTDOWN, "READY TO SWITCH ON": SWITCH_ON,
             "SWITCHED ON": ENABLE, "OPERATION ENABLED": ENABLE}
 
 
 def _state_of_bits(bits: int) -> str:
-    for name, (mask, value) in State402.SW_MASK.items():
+    for name, (mask, value) in SW_MASK.items():
         if bits & mask == value:
             return name
     return "UNKNOWN"
@@ -65,7 +67,7 @@ _STATES = tuple(_state_of_bits(bits) for bits in range(_STATE_BITS + 1))
 
 
 def state_of(statusword: int) -> str:
-    """The CiA 402 state name of a statusword (canopen's own mask table)."""
+    """The CiA 402 state name of a statusword (canopen's mask table, SW_MASK)."""
     return _STATES[statusword & _STATE_BITS]
 
 
@@ -76,6 +78,7 @@ class Cia402Axis(Axis):
 
     def __init__(self, config: DriveConfig, bus_name: str, on_feedback=lambda: None):
         super().__init__(config, bus_name, on_feedback)
+        import canopen  # noqa: PLC0415 (the comment above SW_MASK says why)
         self.node = canopen.RemoteNode(config.node_id, str(eds_path()))
         self.counts_per_rad = config.encoder_counts_per_rev / (2 * math.pi)
         self.rated_torque = config.rated_torque
@@ -101,6 +104,7 @@ class Cia402Axis(Axis):
     def attach(self, router: FrameRouter) -> None:
         """canopen's node (SDO client, NMT, PDO maps) on a network of its own on ``router``,
         before this axis' own handlers."""
+        from hil.protocols.cia402.network import RoutedNetwork  # noqa: PLC0415 (canopen's)
         RoutedNetwork(router).add_node(self.node)
         super().attach(router)
 
@@ -163,6 +167,7 @@ class Cia402Axis(Axis):
                                   "master assigns none (LSS, CiA 305)",
                                   hint="give it a node id in the bus config, or bring it up "
                                        "with your LSS master")
+        import canopen  # noqa: PLC0415 (loaded by __init__ already)
         # canopen's default answer timeout (0.3 s) unless the master waits longer
         self.node.sdo.RESPONSE_TIMEOUT = max(canopen.sdo.client.SdoClient.RESPONSE_TIMEOUT,
                                              self.request_timeout)
