@@ -29,10 +29,15 @@ from types import ModuleType
 #: machine, which runs for every drive on every plant step and calls the core natively; the
 #: profile seam and the MIT family's and Damiao's simulated motors, whose handlers run for
 #: every motor on every frame (a G1's lock-step cycle on Damiao motors -8.5 % instructions:
-#: docs/performance.md, "2026-12-07: the Damiao motor's handlers compiled")
+#: docs/performance.md, "2026-12-07: the Damiao motor's handlers compiled"); the simulated
+#: CiA 402 drive's cyclic path (its RPDOs, SYNC, TPDOs and the step's follow-up, -14 %
+#: instructions a ur3 cycle: "2026-12-07, night: the simulated CiA 402 drive's cyclic path
+#: compiled ...")
 COMPILED = ("hil.drives.definitions", "hil.drives.references", "hil.drives.core",
             "hil.drives.group", "hil.protocols.cia402.state", "hil.drives.profile",
-            "hil.protocols.mit.drive", "hil.protocols.damiao.drive")
+            "hil.protocols.mit.drive", "hil.protocols.damiao.drive",
+            "hil.protocols.cia402.pdo", "hil.protocols.cia402.rpdo", "hil.protocols.cia402.tpdo",
+            "hil.protocols.cia402.drive")
 #: the MIT family's codec (MIT, Damiao, CubeMars, Robstride's and MyActuator's MIT modes),
 #: packed and unpacked once a frame on each side: a command packed in 3.3 µs interpreted,
 #: 0.32 µs compiled (docs/performance.md, "2026-12-06, issue 69: the MIT family's codec

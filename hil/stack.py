@@ -71,7 +71,12 @@ class Stack:
         #: bus name -> the sim's end of it
         self.sim_buses = {b.name: FaultyBus(self._opened[2 * i], []) if injectable
                           else self._opened[2 * i] for i, b in enumerate(config.buses)}
-        self.sim = Simulator(config, self.sim_buses, timing)
+        try:
+            self.sim = Simulator(config, self.sim_buses, timing)
+        except BaseException:       # a config the plant or a sensor refuses: no bus left open
+            for bus in self._opened:
+                bus.shutdown()
+            raise
         self.sim.start()
         self._sim_thread = threading.Thread(target=self.sim.run, daemon=True)
         self._sim_thread.start()

@@ -29,7 +29,8 @@ from hil.errors import ConfigError
 from hil.hardware.axis import AxisCommand
 from hil.protocols.damiao import DISABLE, ENABLE, REGISTER_ID, DamiaoOptions, Op, State
 from hil.protocols.damiao.axis import DamiaoAxis
-from hil.protocols.damiao.fd import FD_CODES, frame_on_bus, rate_code
+from hil.protocols.damiao.fd import FD_CODES, rate_code
+from hil.protocols.mit import frame_on_bus
 from hil.testing import DrivesBench
 
 URDF = TESTS / "fixtures" / "damiao_one_axis.urdf"

@@ -133,13 +133,13 @@ def test_bus_load_meter_counts_each_bus_in_bits_against_its_bitrate():
     meter.on_message_received(can.Message(arbitration_id=0x80, data=b"", channel="vcan1",
                                           is_extended_id=False))
     meter.on_message_received(can.Message(arbitration_id=0x80, channel="elsewhere"))
-    loads = {load.bus: load for load in meter.take(now=0.1)}
+    loads = {load.bus: load for load in meter.take(until=0.1)}
     assert loads["arm"].frames_per_second == pytest.approx(1000)
     assert loads["arm"].nominal == pytest.approx(1000 * 111 / 1e6)     # 47 + 64 bits a frame
     assert loads["arm"].worst_case == pytest.approx(1000 * 135 / 1e6)  # + 24 stuff bits
     assert loads["wrist"].nominal == pytest.approx(10 * 47 / 5e5)
     assert meter.unknown_channel_frames == 1
-    assert all(load.frames_per_second == 0 for load in meter.take(now=0.2))
+    assert all(load.frames_per_second == 0 for load in meter.take(until=0.2))
 
 
 def test_a_stamped_meter_counts_each_frame_in_the_interval_its_timestamp_falls_in():
@@ -159,13 +159,13 @@ def test_a_stamped_meter_counts_each_frame_in_the_interval_its_timestamp_falls_i
         heard(now - 0.9)                     # in the first interval
         heard(now - 0.2)                     # in the second
     heard(now - 1e6)                         # another clock: the first take counts it
-    (first,) = meter.take(now=now - 0.5 + meter.lag)
+    (first,) = meter.take(until=now - 0.5)
     assert first.interval == pytest.approx(0.5)
     assert first.frames_per_second == pytest.approx(11 / 0.5)
     heard(now - 0.7)                         # late: its interval was taken, so the next
-    (second,) = meter.take(now=now + meter.lag)
+    (second,) = meter.take(until=now)
     assert second.frames_per_second == pytest.approx(11 / 0.5)
-    assert meter.take(now=now + 1.0 + meter.lag)[0].frames_per_second == 0
+    assert meter.take(until=now + 1.0)[0].frames_per_second == 0
 
 
 def test_bus_time_rows_of_a_lock_step_run_are_its_load_up_to_the_last_cycle_and_after():
@@ -198,7 +198,7 @@ def test_the_meter_counts_an_fd_frames_data_phase_at_the_data_rate_as_the_estima
         meter.on_message_received(can.Message(
             arbitration_id=0x01, data=bytes(8), is_fd=True, bitrate_switch=switch,
             channel="can0", is_extended_id=False))
-    (load,) = meter.take(now=0.1)
+    (load,) = meter.take(until=0.1)
     estimate = bus_load(rates.nominal, [FrameSpec(0x01, 8, 1000, fd=True,
                                                   bitrate_switch=switch)], rates.data)
     assert load.worst_case == pytest.approx(estimate.worst_ratio)

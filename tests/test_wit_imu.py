@@ -23,7 +23,7 @@ from hil.can.faults import SensorFaultKind
 from hil.errors import ConfigError
 from hil.protocols import wit
 from hil.protocols.imu import ImuSample
-from hil.realtime.timing import REAL_TIME
+from hil.realtime.timing import LOCK_STEP, REAL_TIME
 from hil.sensors.imu import SimulatedImu
 from hil.sensors.noise import ALLAN_FLOOR, GAUSS_MARKOV_PEAK
 from hil.sensors.port import Port
@@ -31,6 +31,7 @@ from hil.sensors.serial_port import PseudoTerminal
 from hil.simulator import Simulator
 from hil.simulator.build import bench_plant
 from hil.simulator.stepping import PlantStepping
+from hil.stack import Stack
 
 FIXTURES = Path(__file__).parent / "fixtures"
 
@@ -320,3 +321,21 @@ def test_a_link_of_the_users_at_the_port_is_never_removed(tmp_path, virtual_bus)
     with pytest.raises(ConfigError, match="is taken: it links to"):
         Simulator(config, {"arm": virtual_bus}, REAL_TIME)
     assert (tmp_path / "imu").is_symlink()
+
+
+def test_a_stack_whose_sensor_port_is_taken_says_so_and_leaves_no_bus_open(tmp_path,
+                                                                            monkeypatch):
+    """The simulator refuses the config (another run serves the port): the error names the
+    port, and the buses the stack had opened are shut down, not left to the collector."""
+    config = load_bus_config(_config(tmp_path))
+    (tmp_path / "imu").symlink_to("/dev/null")          # taken: a link that is not stale
+    opened, make = [], can.Bus
+
+    def bus(**kwargs):
+        opened.append(make(**kwargs))
+        return opened[-1]
+
+    monkeypatch.setattr(can, "Bus", bus)
+    with pytest.raises(ConfigError, match="is taken"):
+        Stack(config, LOCK_STEP)
+    assert opened and all(each._is_shutdown for each in opened)

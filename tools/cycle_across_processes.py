@@ -44,7 +44,8 @@ WINDOW = 4.0
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("robot", nargs="?", default="ur3", help="a seed robot: ur3, pigot")
+    parser.add_argument("robot", nargs="?", default="ur3",
+                        help="a seed robot (ur3, pigot) or a bus config's path (g1.yaml)")
     parser.add_argument("--pairs", type=int, default=1, help="floor and stack, this often")
     args = parser.parse_args()
     if shutil.which("perf") is None:
@@ -53,7 +54,8 @@ def main() -> int:
     if cpus is None:
         parser.error("one CPU only: lock-step places both processes on it anyway, and the "
                      "window would sample this tool too")
-    config = BenchSettings().config_dir / f"{args.robot}.yaml"
+    config = (Path(args.robot) if args.robot.endswith((".yaml", ".yml"))
+              else BenchSettings().config_dir / f"{args.robot}.yaml")
     rows = []
     for _ in range(args.pairs):
         for name, run in (("floor", floor_run), ("stack", stack_run)):

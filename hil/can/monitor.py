@@ -51,7 +51,7 @@ class BusLoadMeter(can.Listener):
     (:func:`hil.can.frames.bus_load`).
 
     ``by_timestamp``: a frame is counted in the interval its timestamp falls in, not the
-    one it reached the meter in, and rows end :attr:`lag` s before the caller's now. For a
+    one it reached the meter in, and a caller ends its rows :attr:`lag` s before now. For a
     monitor whose buses stamp frames with their senders' clock (``hil viz``): it runs at
     idle priority, and on a loaded host heard a lock-step run's frames in bursts, rows of
     48-134 % where the bus carried 91 % (CI, tests/test_openarm.py).
@@ -67,7 +67,8 @@ class BusLoadMeter(can.Listener):
         self._by_timestamp = by_timestamp
         #: (timestamp, bus, nominal bits, worst-case bits) of frames past the last interval
         self._pending: list[tuple[float, str, int, int]] = []
-        #: how long before the caller's now :meth:`take`'s interval ends
+        #: how long before now a caller's :meth:`take` ends its interval (the frames of a
+        #: window have arrived by then)
         self.lag = STAMPED_LAG if by_timestamp else 0.0
         self.unknown_channel_frames = 0
 
@@ -84,9 +85,9 @@ class BusLoadMeter(can.Listener):
         else:
             nominal, worst = frame_bits(0 if msg.is_remote_frame else len(msg.data),
                                         msg.is_extended_id)
+        stamped = self._by_timestamp and abs(msg.timestamp - time.time()) < SAME_CLOCK
         with self._lock:
-            if self._by_timestamp and msg.timestamp > self._since and \
-                    abs(msg.timestamp - time.time()) < SAME_CLOCK:
+            if stamped and msg.timestamp > self._since:
                 heapq.heappush(self._pending, (msg.timestamp, bus, nominal, worst))
                 if len(self._pending) > MAX_PENDING:
                     self._count(*heapq.heappop(self._pending)[1:])
@@ -99,9 +100,8 @@ class BusLoadMeter(can.Listener):
         counts[1] += nominal
         counts[2] += worst
 
-    def take(self, now: float) -> list[MeasuredLoad]:
-        """Each bus' load from the last call's end to ``now`` less :attr:`lag`."""
-        until = now - self.lag
+    def take(self, until: float) -> list[MeasuredLoad]:
+        """Each bus' load from the last call's end to ``until`` (the wall clock's s)."""
         with self._lock:
             while self._pending and self._pending[0][0] <= until:
                 self._count(*heapq.heappop(self._pending)[1:])

@@ -18,6 +18,7 @@ large share of a process' time per cycle (docs/performance.md,
 
 from __future__ import annotations
 
+import functools
 import math
 import struct
 from collections.abc import Sequence
@@ -48,6 +49,9 @@ class Echo(NamedTuple):
 
 
 NO_ECHO = Echo()
+#: an Echo from the tuple of its fields, built from C (Echo's own ``__new__`` is a Python
+#: call, one a section decoded)
+echo_of_fields = functools.partial(tuple.__new__, Echo)
 
 
 def encode_frames(channel: str, sender: int, sequence: int, sent_at: float,
@@ -82,6 +86,10 @@ class Message(NamedTuple):
     sent_at: float
     echo: Echo
     frames: list[Frame]
+
+
+#: a Message from the tuple of its fields, built from C (as :data:`echo_of_fields`)
+message_of_fields = functools.partial(tuple.__new__, Message)
 
 
 def decode_frames(payload: bytes) -> list[Message]:
@@ -157,8 +165,8 @@ def _decode_section(payload: bytes, offset: int, number: int) -> tuple[Message, 
                                 bool(flags & _BITRATE_SWITCH), remote, bool(flags & _ERROR),
                                 sent_at)))
         offset = end
-    return Message(channel, sender, sequence, sent_at, Echo(echo_sender, echo_sequence, held),
-                   frames), offset
+    return message_of_fields((channel, sender, sequence, sent_at,
+                              echo_of_fields((echo_sender, echo_sequence, held)), frames)), offset
 
 
 def _flags_problem(flags: int, identifier: int, length: int) -> str | None:

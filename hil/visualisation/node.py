@@ -94,7 +94,7 @@ class VizNode:
                     counted = self.batches
                 if self.monitor is not None and time.monotonic() >= next_load:
                     next_load += self._period
-                    self._log_bus_load(time.time())
+                    self._log_bus_load(time.time() - self.monitor.meter.lag)
         finally:
             self._drain()
             for token in tokens:
@@ -107,13 +107,13 @@ class VizNode:
                 except queue.Empty:
                     break
             if self.monitor is not None:     # every frame heard: the last row, up to now
-                self._log_bus_load(time.time() + self.monitor.meter.lag)
+                self._log_bus_load(time.time())
 
-    def _log_bus_load(self, now: float) -> None:
-        """Each bus' load since the last row, to the meter's lag before ``now``."""
-        loads = self.monitor.meter.take(now)
+    def _log_bus_load(self, until: float) -> None:
+        """Each bus' load since the last row, to ``until`` (the wall clock's s)."""
+        loads = self.monitor.meter.take(until)
         for recorder in self.recorders:
-            recorder.log_bus_load(now - self.monitor.meter.lag, loads)
+            recorder.log_bus_load(until, loads)
 
     def _drain(self) -> None:
         """Once stopped: log what is still on its way (a visualiser behind its senders holds

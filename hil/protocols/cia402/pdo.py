@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import dataclass, field
+from typing import Any
 
 from hil.protocols.cia402.eds import LIVE_OBJECTS
 from hil.protocols.cia402.network import extended_cob_id
@@ -15,8 +16,9 @@ from hil.protocols.cia402.objects import PROFILE_PARAMETERS
 @dataclass(frozen=True)
 class PdoLayout:
     """A PDO mapping compiled to one struct. canopen packs and unpacks a PDO variable by
-    variable through the object dictionary (docs/performance.md, "2026-12-06, later: figures from code comments"), too slow for the
-    per-SYNC path of six drives; its PdoMap stays the source of the mapping."""
+    variable through the object dictionary (docs/performance.md, "2026-12-06, later:
+    figures from code comments"), too slow for the per-SYNC path of six drives; its PdoMap
+    stays the source of the mapping."""
 
     indices: tuple[int, ...]
     codec: struct.Struct
@@ -41,7 +43,7 @@ class Rpdo:
     """One RPDO as the drive takes it, read from canopen's PdoMap at each (re)configuration
     (the mapping and communication parameters take effect then, not frame by frame)."""
 
-    pdo: object                            # canopen PdoMap
+    pdo: Any                               # canopen PdoMap
     length: int                            # bytes its mapping fills
     immediate: bool                        # types 254, 255: applied on arrival, not at SYNC
     layout: PdoLayout | None
@@ -73,7 +75,7 @@ class Rpdo:
 class TpdoSchedule:
     """When one TPDO goes out: its transmission type, event timer and inhibit time."""
 
-    pdo: object                            # canopen PdoMap
+    pdo: Any                               # canopen PdoMap
     codec: struct.Struct | None            # None: packed by canopen (PdoLayout.of)
     indices: tuple[int, ...]               # the LIVE_OBJECTS it carries (codec only)
     transmission_type: int
@@ -115,11 +117,13 @@ def tpdo_schedules(node) -> list[TpdoSchedule]:
         if not pdo.enabled or pdo.trans_type is None:
             continue
         layout = PdoLayout.of(pdo)
-        live = layout is not None and LIVE_OBJECTS >= set(layout.indices)
+        if layout is not None and LIVE_OBJECTS >= set(layout.indices):
+            codec, indices = layout.codec, layout.indices
+        else:
+            codec, indices = None, ()
         communication = 0x1800 + number - 1
         schedules.append(TpdoSchedule(
-            pdo, layout.codec if live else None, layout.indices if live else (),
-            pdo.trans_type, node.value(communication, 5) / 1000.0,
+            pdo, codec, indices, pdo.trans_type, node.value(communication, 5) / 1000.0,
             node.value(communication, 3) / 10000.0, rtr_allowed=pdo.rtr_allowed,
             start=node.value(communication, 6)))
     return schedules

@@ -4,7 +4,7 @@ enable at standstill, one command per cycle, hold while stopping), and the motor
 feedback, whose state nibble the master watches: an error the motor reports (lost
 communication, overload, ...) is a fault, cleared with the clear-error frame on a reset.
 On a CAN FD bus every frame goes as an FD frame with the bit-rate switch, as openarm_can
-sends them (:func:`hil.protocols.damiao.fd.frame_on_bus`).
+sends them (:func:`hil.protocols.mit.codec.frame_on_bus`).
 """
 
 from __future__ import annotations
@@ -19,8 +19,7 @@ from hil.protocols.damiao import (
     CLEAR_ERROR, ERROR_STATES, STATE_TEXT, STATES, ControlMode, Damiao, DamiaoOptions, State,
     is_register_answer,
 )
-from hil.protocols.damiao.fd import frame_on_bus
-from hil.protocols.mit import MitRanges, unpack_motion
+from hil.protocols.mit import MitRanges, frame_on_bus, unpack_motion
 from hil.protocols.mit.axis import MitAxis, MotorAnswers
 
 

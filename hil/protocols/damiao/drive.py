@@ -50,11 +50,11 @@ from hil.protocols.damiao import (
     CLEAR_ERROR, DISABLE, ENABLE, SAVE_ZERO, ControlMode, Damiao, DamiaoOptions, Op,
     REGISTER_ID, STATE_TEXT, State, feedback_head, is_register_answer, unpack_feedback,
 )
-from hil.protocols.damiao.fd import FormatWatch, frame_on_bus, is_fd_code, rate_code
+from hil.protocols.damiao.fd import FormatWatch, is_fd_code, rate_code
 from hil.protocols.damiao.registers import (
     AMBIENT, ID_REGISTERS, REGISTERS, TIMEOUT_UNIT, accepts, initial_values,
 )
-from hil.protocols.mit import MitRanges, pack_answer, unpack_command_values
+from hil.protocols.mit import MitRanges, frame_on_bus, pack_answer, unpack_command_values
 from hil.protocols.mit.drive import MitFamilyDrive, follow, motion_readings
 from hil.protocols.mit.family import KD_MAX, KP_MAX
 

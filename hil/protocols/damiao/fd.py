@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import logging
 
-from hil.can.frame import Frame, frame_of_fields
+from hil.can.frame import Frame
 
 log = logging.getLogger(__name__)
 
@@ -72,14 +72,6 @@ def rate_code(bitrate: int, fd: bool, data_bitrate: int | None) -> int:
                          f"{', '.join(map(str, FD_CODES))} bit/s data, not {bitrate} and "
                          f"{data_bitrate}")
     return FD_CODES[data_bitrate]
-
-
-def frame_on_bus(identifier: int, data: bytes, fd: bool) -> Frame:
-    """A frame of the family as it goes on its bus, FD with BRS where the bus is FD: a
-    motor's answer (8 bytes on the master's id, FD where CAN_BR says FD), and a master's
-    frame, as openarm_can sends every frame on an FD bus (``DMCANDevice::create_canfd_frame``:
-    ``flags = CANFD_BRS``, ``len`` the payload's, 8 bytes)."""
-    return frame_of_fields((identifier, data, False, fd, fd, False, False, 0.0))
 
 
 class FormatWatch:

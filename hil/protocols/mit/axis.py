@@ -27,7 +27,7 @@ from hil.can.router import Subscription
 from hil.errors import ConfigError
 from hil.hardware.axis import Axis, AxisCommand
 from hil.protocols.mit import (
-    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitOptions, MitRanges,
+    ENTER_MOTOR_MODE, EXIT_MOTOR_MODE, Mit, MitOptions, MitRanges, frame_on_bus,
     pack_command_values, unpack_motion,
 )
 
@@ -103,7 +103,7 @@ class MitAxis(Axis):
     def frame_maker(self, config: DriveConfig) -> Callable[[bytes], Frame]:
         """How the master's frames to the motor of ``config`` are made of their data: a
         classic frame on its node id (a family whose frames differ on some bus says how)."""
-        return functools.partial(Frame, config.node_id)
+        return functools.partial(frame_on_bus, config.node_id, fd=False)
 
     def command_settings(self, config: DriveConfig) -> tuple[MitRanges, float, float, int]:
         """The commands' ranges, the master's gains and the id the motor answers on."""

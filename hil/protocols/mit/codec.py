@@ -13,6 +13,8 @@ import functools
 from dataclasses import dataclass
 from typing import NamedTuple
 
+from hil.can.frame import Frame, frame_of_fields
+
 ENTER_MOTOR_MODE = bytes([0xFF] * 7 + [0xFC])
 EXIT_MOTOR_MODE = bytes([0xFF] * 7 + [0xFD])
 SET_ZERO = bytes([0xFF] * 7 + [0xFE])
@@ -48,6 +50,16 @@ class MitCommand(NamedTuple):
     kp: float
     kd: float
     torque: float
+
+
+def frame_on_bus(identifier: int, data: bytes, fd: bool) -> Frame:
+    """A frame of the family as it goes on its bus, FD with BRS where the bus is FD: a
+    Damiao motor's answer (8 bytes on the master's id, FD where CAN_BR says FD,
+    :mod:`hil.protocols.damiao.fd`), and a master's frame, as openarm_can sends every frame
+    on an FD bus (``DMCANDevice::create_canfd_frame``: ``flags = CANFD_BRS``, ``len`` the
+    payload's, 8 bytes). Built from C, here with the codec: Frame's own ``__new__`` is a
+    Python call, one a frame on each side."""
+    return frame_of_fields((identifier, data, False, fd, fd, False, False, 0.0))
 
 
 #: an MitCommand from the tuple of its fields, built from C (MitCommand's own ``__new__`` is
