@@ -143,18 +143,25 @@ def test_the_boot_up_is_the_first_frame_a_node_sends_after_a_reset(canopen_bench
     drive's clock under its lock, so no frame can slip in between)."""
     node = pre_operational(canopen_bench)
     node.sdo[0x1017].raw = 10                       # a heartbeat every 10 ms: many chances
-    # when the drive took the reset, by the simulator's clock: on this bus (python-can's
-    # virtual, SocketCAN) a frame reaches the drive in another thread, some time after the
-    # master sent it, and a heartbeat the drive sent meanwhile is one from before the reset
-    # (CI saw one: [7f, 00, 7f] from the master's send on)
+    # when the drive took the reset: on this bus (python-can's virtual, SocketCAN) a frame
+    # reaches the drive in another thread, some time after the master sent it, and a
+    # heartbeat the drive sent meanwhile is one from before the reset (CI saw one: [7f, 00,
+    # 7f] from the master's send on). Taken under the drives' lock with the reset itself: a
+    # heartbeat the drive's timer sends while the frame waits for that lock is sent before
+    # (CI inside User-Mode Linux saw [7f, 00, 7f] from a time taken before the lock)
     took: list[float] = []
-    router = canopen_bench.sim.buses[0].router          # the tap first, then the drives' handlers
+    router = canopen_bench.sim.buses[0].router
     handlers = router.handlers(0x000)
     for handler in handlers:
         router.unsubscribe(0x000, handler)
-    router.subscribe(0x000, lambda frame: took.append(time.time()))
-    for handler in handlers:
-        router.subscribe(0x000, handler)
+
+    def taken(frame):
+        with canopen_bench.sim.lock:
+            took.append(time.time())
+            for handler in handlers:
+                handler(frame)
+
+    router.subscribe(0x000, taken)
     for _ in range(10):
         took.clear()
         with FrameTap(canopen_bench) as tap:
