@@ -30,8 +30,9 @@ from pathlib import Path
 
 from hil.bench.floor import floor_across_processes
 from hil.bench.processes import stack_across_processes
-from hil.bench.settings import BenchSettings
 from hil.bus_config import load_bus_config
+from hil.bus_config.locate import config_path
+from hil.errors import UsageError
 from hil.realtime import LOCK_STEP, lock_step_cpus
 
 #: the names Zenoh's runtime gives its threads
@@ -45,7 +46,8 @@ WINDOW = 4.0
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("robot", nargs="?", default="ur3",
-                        help="a seed robot (ur3, pigot) or a bus config's path (g1.yaml)")
+                        help="a robot's name (ur3, pigot) or a bus config's path (g1.yaml), "
+                             "as hil up takes it")
     parser.add_argument("--pairs", type=int, default=1, help="floor and stack, this often")
     args = parser.parse_args()
     if shutil.which("perf") is None:
@@ -54,8 +56,11 @@ def main() -> int:
     if cpus is None:
         parser.error("one CPU only: lock-step places both processes on it anyway, and the "
                      "window would sample this tool too")
-    config = (Path(args.robot) if args.robot.endswith((".yaml", ".yml"))
-              else BenchSettings().config_dir / f"{args.robot}.yaml")
+    try:
+        config = config_path(args.robot)
+    except UsageError as exc:           # its words begin "error:" already
+        print(f"{parser.prog}: {exc}", file=sys.stderr)
+        return 2
     rows = []
     for _ in range(args.pairs):
         for name, run in (("floor", floor_run), ("stack", stack_run)):

@@ -147,6 +147,6 @@ def _round_up(value: float) -> float:
 
 __all__ = ["ENTER_MOTOR_MODE", "EXIT_MOTOR_MODE", "SET_ZERO", "Mit", "MitCommand", "MitOptions",
            "MitRanges", "MitReply", "TimeoutReaction", "command_of_fields", "float_to_uint",
-           "frame_on_bus", "pack_answer", "pack_command", "pack_command_values", "pack_motion", "pack_reply",
-           "uint_to_float", "unpack_command", "unpack_command_values", "unpack_motion",
-           "unpack_reply"]
+           "frame_on_bus", "pack_answer", "pack_command", "pack_command_values", "pack_motion",
+           "pack_reply", "uint_to_float", "unpack_command", "unpack_command_values",
+           "unpack_motion", "unpack_reply"]
