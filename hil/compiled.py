@@ -46,13 +46,17 @@ COMPILED_MIT_CODEC = ("hil.protocols.mit.codec",)
 #: the Zenoh CAN transport's wire codec and link account, run on both sides for every
 #: message, a section a bus: a G1's message each way (6 sections of 5 frames) put and taken
 #: in 87 µs from the sources, 60 µs compiled (tools/transport_cost.py; docs/performance.md,
-#: "2026-12-07: the transport's codec compiled, a drive's calls a cycle cut")
-COMPILED_TRANSPORT = ("hil.can.link_statistics", "hil.can.zenoh_wire", "hil.can.link_account")
+#: "2026-12-07: the transport's codec compiled, a drive's calls a cycle cut"); and the
+#: router's dispatch, every frame to its handlers on both sides, on every bus ("2026-12-08:
+#: the router's dispatch and the fault watch compiled, a watchdog's heartbeats in one message")
+COMPILED_TRANSPORT = ("hil.can.link_statistics", "hil.can.zenoh_wire", "hil.can.link_account",
+                      "hil.can.routes")
 #: the master's side of an axis, the MIT family's and Damiao's axes, whose handlers run for
-#: every axis on every cycle, and the cycle's exchange that calls them (docs/performance.md,
-#: "2026-12-07: the Damiao motor's handlers compiled")
+#: every axis on every cycle, the cycle's exchange that calls them and the watch over their
+#: faults and silences (docs/performance.md, "2026-12-07: the Damiao motor's handlers
+#: compiled"; "2026-12-08: the router's dispatch and the fault watch compiled ...")
 COMPILED_AXES = ("hil.hardware.axis", "hil.protocols.mit.axis", "hil.protocols.damiao.axis",
-                 "hil.protocols.cia402.axis", "hil.hardware.exchange")
+                 "hil.protocols.cia402.axis", "hil.hardware.exchange", "hil.hardware.watch")
 #: each build's shared library (inside the package) and its modules
 BUILDS = {"hil.drives.compiled": COMPILED, "hil.protocols.mit.compiled": COMPILED_MIT_CODEC,
           "hil.can.compiled": COMPILED_TRANSPORT, "hil.hardware.compiled": COMPILED_AXES}

@@ -69,6 +69,6 @@ def test_a_drive_that_leaves_its_bus_leaves_no_handler_on_its_router():
         router.on_frames([Frame(0x000, bytes([0x01, 0]))])      # NMT start: PDOs again
         assert router.sent[0] == Frame(0x701, b"\x00")          # its boot-up
         drive.detach()
-        assert not any(router._routes) and not router._masked
+        assert not router.has_subscribers()
     finally:
         router.bus.shutdown()

@@ -433,3 +433,19 @@ def test_a_drive_that_follows_its_faults_only_is_told_after_the_step_that_leaves
     stepping.step()
     stepping.step()
     assert drive.calls == [[Fault.EMERGENCY_STOP]]      # once, after the next step
+
+
+def test_the_heartbeats_of_one_watchdog_check_go_out_in_one_zenoh_message(endpoint):
+    # every drive's heartbeat falls due at start: a check sends all six, as one message
+    # (one put each was a message, and a wake-up of the master's receiving thread, a beat)
+    bus = can.Bus(interface="zenoh", channel=f"test/{uuid.uuid4().hex[:8]}/arm",
+                  listen=[endpoint])
+    sim = Simulator(load_bus_config(UR3_VIRTUAL), {"arm": bus}, LOCK_STEP)
+    try:
+        sim.start()
+        frames, messages = bus.counters.sent, bus.counters.messages_sent
+        sim._check_watchdogs()
+        assert (bus.counters.sent - frames, bus.counters.messages_sent - messages) == (6, 1)
+    finally:
+        sim.close()
+        bus.shutdown()

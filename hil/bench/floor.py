@@ -7,7 +7,7 @@ each end on the CPU of the process it stands for (in lock-step, both on one CPU,
 ``hil up --lock-step`` places sim and controller). The ratio stack / floor says what hil
 adds to the transport.
 Both ends send a cycle's frames as hil's do: together, one message per process and direction
-(the master in ``sent_together``, the answers from inside their delivery).
+(the master in ``held_together``, the answers from inside their delivery).
 
 The answering process is :mod:`hil.bench.responder`. Each end's CPU share over the cycling
 is reported too (``cpu``: ``sim`` the answering process, ``control`` the master's, the
@@ -30,7 +30,7 @@ import can
 
 from hil.bench.frames import cyclic_frames
 from hil.bus_config import SystemConfig
-from hil.can import sent_together
+from hil.can import batches, held_together
 from hil.hardware.exchange import LOCK_STEP_REPLY_TIMEOUT
 from hil.realtime import (CyclePacer, PeriodStatistics, Ring, enter_real_time, lock_step_cpus,
                           real_time_cpus)
@@ -163,13 +163,14 @@ def paced_exchange(exchanges, expected: int, counter: AnswerCounter, period: flo
     start = time.perf_counter()
     cpu_start = {name: cpu_seconds(pid) for name, pid in processes.items()}
     end, cycles = start + seconds, 0
+    blocks = batches(bus for bus, _, _ in exchanges)       # as the controller: asked once
     try:
         while time.perf_counter() < end:
             if pacer is not None:
                 pacer.release()
             cycles += 1
             counter.expect(expected)
-            with sent_together(bus for bus, _, _ in exchanges):   # as the controller sends
+            with held_together(blocks):                 # as the controller sends
                 for bus, out, _ in exchanges:
                     for frame in out:
                         bus.send(frame)

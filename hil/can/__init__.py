@@ -11,7 +11,8 @@ from __future__ import annotations
 from hil.compiled import COMPILED_TRANSPORT, import_fresh
 
 # compiled by the install where it could be (setup.py): the Zenoh transport's wire codec and
-# link account, one build, loaded together before anything imports one of them
+# link account and the router's dispatch, one build, loaded together before anything imports
+# one of them
 import_fresh(*COMPILED_TRANSPORT)
 
 import errno  # noqa: E402
@@ -26,33 +27,37 @@ from hil.can.frames import BusLoad, bus_load, frame_bits  # noqa: E402
 from hil.errors import BusError  # noqa: E402
 from hil.realtime.stalls import Stall  # noqa: E402
 
-__all__ = ["BusCapabilities", "BusLoad", "batching", "capabilities", "bus_load",
-           "deliver_under", "frame_bits", "link_round_trip", "link_unreached", "open_bus",
-           "sent_together", "socketcan_missing", "watch_deliveries", "WITHOUT_BIT_TIMING"]
+__all__ = ["BusCapabilities", "BusLoad", "batches", "capabilities", "bus_load",
+           "deliver_under", "frame_bits", "held_together", "link_round_trip", "link_unreached",
+           "open_bus", "sent_together", "socketcan_missing", "watch_deliveries",
+           "WITHOUT_BIT_TIMING"]
 
 
 def sent_together(buses: Iterable[can.BusABC]) -> AbstractContextManager:
     """A block (``with sent_together(buses):``) whose frames go out together where the bus
     can do that (``zenoh``: one message for all the buses of a Zenoh session); others send
     each frame as it is sent, as ever."""
-    # one block for the buses that share it (a Zenoh session's): entered once, it holds them
-    # all
-    batches = [batch for batch in dict.fromkeys(capabilities(bus).batch() for bus in buses)
-               if batch is not UNBATCHED]
-    if not batches:             # no ExitStack a cycle where none batches (hil-virtual)
+    return held_together(batches(buses))
+
+
+def batches(buses: Iterable[can.BusABC]) -> tuple[AbstractContextManager, ...]:
+    """The blocks that hold these buses' frames for one message, one per Zenoh session
+    (none for a bus that sends each frame as it is sent): asked once by a sender that sends
+    on the same buses every cycle, which then asks no bus' capabilities every cycle."""
+    return tuple(batch for batch in dict.fromkeys(capabilities(bus).batch() for bus in buses)
+                 if batch is not UNBATCHED)
+
+
+def held_together(blocks: tuple[AbstractContextManager, ...]) -> AbstractContextManager:
+    """A block inside all of ``blocks`` (:func:`batches`), each entered once."""
+    if not blocks:              # no ExitStack a cycle where none batches (hil-virtual)
         return UNBATCHED
-    if len(batches) == 1:       # nor where one block holds them all
-        return batches[0]
+    if len(blocks) == 1:        # nor where one block holds them all (a Zenoh session's)
+        return blocks[0]
     together = ExitStack()
-    for batch in batches:
-        together.enter_context(batch)
+    for block in blocks:
+        together.enter_context(block)
     return together
-
-
-def batching(buses: Iterable[can.BusABC]) -> list[can.BusABC]:
-    """The buses whose frames :func:`sent_together` sends together (asked once: a sender
-    that gives it only these, each cycle, asks no other bus' capabilities every cycle)."""
-    return [bus for bus in buses if capabilities(bus).batch() is not UNBATCHED]
 
 
 def deliver_under(buses: Iterable[can.BusABC], guard: AbstractContextManager) -> None:

@@ -21,12 +21,9 @@ from hil.can.capabilities import capabilities
 from hil.can.delivery import FrameListener
 from hil.can.frame import Frame
 from hil.can.messages import frame_of, message_of
+from hil.can.routes import Handler, Routes
 
 log = logging.getLogger(__name__)
-
-#: what a subscriber is called with: each frame of its identifier
-Handler = Callable[[Frame], None]
-
 
 @dataclass(frozen=True)
 class Subscription:
@@ -82,13 +79,8 @@ class FrameRouter(FrameListener):
         self.lost_frames = 0
         #: FD frames that arrived on a classical bus
         self.fd_on_classical = 0
-        # data frames by identifier, standard and extended apart (an extended id below 0x800
-        # is another frame than the standard one of that number); remote frames apart
-        self._routes: tuple[dict[int, list[Handler]], ...] = ({}, {}, {}, {})
-        #: frames by their identifier's masked bits, a table per (mask, extended, remote):
-        #: a frame is looked up once a mask, not held against every subscriber (a bus of N
-        #: drives subscribed by mask made each frame's dispatch N checks, a cycle's N²)
-        self._masked: list[tuple[int, bool, bool, dict[int, list[Handler]]]] = []
+        #: the subscribers, and the loop that hands them a delivery's frames (compiled)
+        self._routes = Routes(self._refuse, None if classical is None else self._fd_on_classical)
         self._refused_by_id: dict[int, int] = {}
         self._send_lock = threading.Lock()
         self._frame_sender = capabilities(bus).frame_sender()
@@ -100,87 +92,29 @@ class FrameRouter(FrameListener):
                   remote: bool = False, mask: int | None = None) -> None:
         """Call ``handler`` with every data frame of ``identifier`` (a remote frame's with
         ``remote``), or with ``mask``, of every identifier whose masked bits equal it."""
-        if mask is not None:
-            self._masked = self._masked_with(identifier, mask, extended, remote,
-                                             lambda handlers: [*handlers, handler])
-            return
-        routes = self._routes[extended + 2 * remote]
-        routes[identifier] = [*routes.get(identifier, ()), handler]   # a new list: read live
+        self._routes.subscribe(identifier, handler, extended, remote, mask)
 
     def unsubscribe(self, identifier: int, handler: Handler, extended: bool = False,
                     remote: bool = False, mask: int | None = None) -> None:
         """Undo one :meth:`subscribe` of these arguments (none: nothing happens)."""
-        if mask is not None:
-            self._masked = self._masked_with(identifier, mask, extended, remote,
-                                             lambda handlers: [each for each in handlers
-                                                               if each != handler])
-            return
-        routes = self._routes[extended + 2 * remote]
-        left = [each for each in routes.get(identifier, ()) if each != handler]
-        if left:
-            routes[identifier] = left
-        else:
-            routes.pop(identifier, None)
-
-    def _masked_with(self, identifier: int, mask: int, extended: bool, remote: bool,
-                     change: Callable[[list[Handler]], list[Handler]]
-                     ) -> list[tuple[int, bool, bool, dict[int, list[Handler]]]]:
-        """The masked tables with the handlers of ``identifier & mask`` changed, as new
-        lists and tables (a delivery in progress reads the ones it has)."""
-        key = identifier & mask
-        tables = []
-        found = False
-        for each_mask, each_extended, each_remote, table in self._masked:
-            if (each_mask, each_extended, each_remote) == (mask, extended, remote):
-                found, table = True, {**table, key: change(table.get(key, []))}
-                table = {k: handlers for k, handlers in table.items() if handlers}
-            if table:
-                tables.append((each_mask, each_extended, each_remote, table))
-        if not found:
-            handlers = change([])
-            if handlers:
-                tables.append((mask, extended, remote, {key: handlers}))
-        return tables
+        self._routes.unsubscribe(identifier, handler, extended, remote, mask)
 
     def handlers(self, identifier: int, extended: bool = False, remote: bool = False
                  ) -> tuple[Handler, ...]:
         """The subscribers of ``identifier`` by identifier (not by mask)."""
-        return tuple(self._routes[extended + 2 * remote].get(identifier, ()))
+        return self._routes.by_identifier(identifier, extended, remote)
+
+    def has_subscribers(self) -> bool:
+        """Whether any handler is subscribed, by identifier or by mask."""
+        return self._routes.any()
 
     # --- receiving --------------------------------------------------------------------
 
     def on_frames(self, frames: Iterable[Frame]) -> None:
-        routes, masked, classical = self._routes, self._masked, self.classical
-        for frame in frames:
-            if frame.error:
-                continue
-            if frame.fd and classical is not None:
-                self._fd_on_classical(frame)
-                continue
-            handlers = routes[frame.extended + 2 * frame.remote].get(frame.identifier)
-            if masked:
-                handlers = self._with_masked(frame, masked, handlers)
-            if handlers is not None:
-                for handler in handlers:
-                    try:
-                        handler(frame)
-                    except Exception as exc:
-                        self._refuse(frame, handler, exc)
+        self._routes.dispatch(frames)
 
     def on_message_received(self, msg: can.Message) -> None:
-        self.on_frames((frame_of(msg),))
-
-    @staticmethod
-    def _with_masked(frame: Frame, masked: list[tuple[int, bool, bool, dict[int, list[Handler]]]],
-                     handlers: list[Handler] | None) -> list[Handler] | None:
-        """``handlers`` (the frame's by identifier, or None), then those of the masked tables
-        that the frame's masked bits select."""
-        for mask, extended, remote, table in masked:
-            if frame.extended == extended and frame.remote == remote:
-                more = table.get(frame.identifier & mask)
-                if more is not None:
-                    handlers = more if handlers is None else [*handlers, *more]
-        return handlers
+        self._routes.dispatch((frame_of(msg),))
 
     def _refuse(self, frame: Frame, handler: Handler, exc: Exception) -> None:
         self.refused += 1
@@ -240,11 +174,7 @@ class FrameRouter(FrameListener):
         """Stop taking frames from the bus (the bus stays open: its owner closes it): no
         handler is called from now on, not even for the rest of a delivery in progress
         (its routes are emptied in place, where that delivery reads them)."""
-        for routes in self._routes:
-            routes.clear()
-        for *_, table in self._masked:
-            table.clear()
-        self._masked.clear()
+        self._routes.clear()
         # a python-can Notifier stops its listeners too (this again): taken first
         delivery, self._delivery = self._delivery, None
         if delivery is not None:

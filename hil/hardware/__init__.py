@@ -3,8 +3,9 @@
 from hil.compiled import COMPILED_AXES, import_fresh
 
 # compiled by the install where it could be (setup.py): the axis seam with the MIT family's,
-# Damiao's and CiA 402's axes and the cycle's exchange, one build whose modules call each other
-# directly: all compiled or none, so they load together, here, before anything imports one
+# Damiao's and CiA 402's axes, the cycle's exchange and the fault watch, one build whose
+# modules call each other directly: all compiled or none, so they load together, here, before
+# anything imports one
 import_fresh(*COMPILED_AXES)
 
 # the protocol modules loaded with the seam (above), named so that the import contracts see

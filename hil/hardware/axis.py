@@ -208,3 +208,22 @@ class Axis(ABC):
         self.feedback.heard = True
         self.feedback.cycle = self._cycle
         self._on_feedback()
+
+
+def answers_of(axes: list[Axis]) -> tuple[list[float], tuple[str, ...]]:
+    """The axes' last answers (motor side, in their order): every position, then every
+    velocity, then every torque, in one list; and each axis' state. Here, compiled, where the
+    master reads them each cycle: a walk over the axes and four of their fields each."""
+    positions: list[float] = []
+    velocities: list[float] = []
+    torques: list[float] = []
+    states: list[str] = []
+    for axis in axes:
+        feedback = axis.feedback
+        positions.append(feedback.position)
+        velocities.append(feedback.velocity)
+        torques.append(feedback.torque)
+        states.append(axis.state)
+    positions += velocities
+    positions += torques
+    return positions, tuple(states)

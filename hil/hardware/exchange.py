@@ -13,11 +13,12 @@ import itertools
 import math
 import threading
 import time
+from contextlib import AbstractContextManager
 
 import can
 
 from hil.bus_config.types import SystemConfig
-from hil.can import batching, sent_together
+from hil.can import batches, held_together
 from hil.can.frame import Frame
 from hil.can.router import FrameRouter, start_router
 from hil.hardware.axis import Axis, command_of
@@ -52,7 +53,7 @@ class CycleExchange:
         #: per bus, what its protocols' master sends once after a cycle's frames
         self._cycle_end = {bus.name: list(bus.cycle_end_frames) for bus in config.buses
                            if bus.cycle_end_frames}
-        self._batched: list[can.BusABC] = []
+        self._batches: tuple[AbstractContextManager, ...] = ()
         #: cycles sent; the axes' answers carry the cycle they answer
         self.cycle = 0
         self._arrived = threading.Condition()
@@ -69,7 +70,7 @@ class CycleExchange:
             fd = self._configs[name].fd
             self.routers[name] = start_router(bus, classical=None if fd else name,
                                               describe=self._configs[name].frame_owner)
-        self._batched = batching(self._buses.values())     # what send sends together
+        self._batches = batches(self._buses.values())     # what send sends together
         for axis in self.axes:
             axis.attach(self.routers[axis.bus_name])
 
@@ -84,19 +85,19 @@ class CycleExchange:
         # a bus' frames in one send (hil-virtual), the cycle-end frames after the frames they
         # end (CANopen's SYNC after its RPDOs, CiA 301 7.2.5); every bus' in one put where
         # they can (zenoh)
-        batches: dict[str, list[Frame]] = {name: [] for name in self.routers}
+        on_bus: dict[str, list[Frame]] = {name: [] for name in self.routers}
         for axis, target, speed, torque in zip(self.axes, targets, speeds, torques):
             axis.begin_cycle(cycle)     # a torque only where the protocol carries one
-            batches[axis.bus_name] += axis.cycle_frames(
+            on_bus[axis.bus_name] += axis.cycle_frames(
                 command_of((target, speed, torque, stopping, holding)))
         for name, frames in self._cycle_end.items():
-            batches[name] += frames
+            on_bus[name] += frames
         routers = self.routers
         # the time the frames are handed to the buses, not after: an answer may come (in
         # another thread) before the send returns, and its round trip was then negative
         self._sent = time.perf_counter()
-        with sent_together(self._batched):
-            for name, frames in batches.items():
+        with held_together(self._batches):
+            for name, frames in on_bus.items():
                 routers[name].send_frames(frames)
 
     def await_answers(self, skip_silent: bool) -> float:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from hil.description import RobotDescription
-from hil.hardware.axis import Axis, AxisFault, FaultKind
+from hil.hardware.axis import Axis, AxisFault, FaultKind, answers_of
 from hil.hardware.feedback import JointFeedback, PlausibilityCheck
 from hil.transmissions import TransmissionStack, build_transmissions
 
@@ -58,14 +58,12 @@ class JointMapping:
         """The axes' last answers in joint space, and what no joint can produce: (joint,
         the fault of its first drive) for each joint whose feedback is implausible (it keeps
         its last plausible values; see :class:`~hil.hardware.feedback.PlausibilityCheck`)."""
-        feedback = [axis.feedback for axis in self.axes]
-        n = len(feedback)
-        measured = np.array([f.position for f in feedback] + [f.velocity for f in feedback]
-                            + [f.torque for f in feedback])
+        answers, states = answers_of(self.axes)
+        n = len(states)
+        measured = np.array(answers)
         joint = self.transmissions.actuator_to_joint_feedback(measured)
         checked, implausible = self._plausibility.check(
-            JointFeedback(joint[:n], joint[n:2 * n], joint[2 * n:], measured[2 * n:],
-                          tuple([a.state for a in self.axes])),
+            JointFeedback(joint[:n], joint[n:2 * n], joint[2 * n:], measured[2 * n:], states),
             self._heard_joints())
         if not implausible:
             return checked, []
