@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import collections
+import os
+import signal
+import threading
 import time
 import math
 import xml.etree.ElementTree as ET
@@ -24,6 +27,7 @@ from hil.messaging.diagnostics import DiagnosticStatus
 from hil.messaging.samples import ControlSampleBuffer, ControlSamples
 from hil.visualisation import BenchParts, RunRecorder, SimTimeMap
 from hil.visualisation.bus_time import BusTimeLoads
+from hil.visualisation.node import VizNode
 from conftest import PIGOT_XACRO, ROOT, UR3_XACRO, read_rrd
 
 PIGOT_CONFIG = ROOT / "bus_config" / "pigot.yaml"
@@ -653,3 +657,34 @@ def test_review_web_says_what_a_headless_browser_needs(tmp_path, pigot, package_
     assert "web viewer at http://127.0.0.1:9300/?url=rerun%2Bhttp://127.0.0.1:9301/proxy" in said
     assert "needs WebGL" in said and "`chromium --screenshot` shoots at once" in said
     assert served and "--serve-web" in served[0]
+
+
+def test_a_stop_signal_ends_the_visualiser_whose_handler_outlasts_its_wait():
+    """A signal whose handler outlasts the loop's wait for batches (a loaded host), then no
+    more batches (its senders gone, as when hil up is SIGKILLed): the loop still ends once
+    stopped. On CPython 3.11 a SimpleQueue's get(timeout) waited for the next item for ever
+    after such a handler, and a CI run's visualiser outlived its hil up."""
+    node = VizNode([], session=None)             # no robot: no Zenoh session needed
+
+    def slow_stop(signum, frame) -> None:
+        time.sleep(0.2)                          # longer than the wait (50 ms)
+        threading.Thread(target=node.stop).start()
+
+    def give_up(signum, frame) -> None:
+        raise TimeoutError("the visualiser's loop did not end")
+
+    previous = {signal.SIGUSR1: signal.signal(signal.SIGUSR1, slow_stop),
+                signal.SIGUSR2: signal.signal(signal.SIGUSR2, give_up)}
+    stopping = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGUSR1))
+    rescue = threading.Timer(10.0, os.kill, (os.getpid(), signal.SIGUSR2))
+    try:
+        stopping.start()
+        rescue.start()
+        started = time.monotonic()
+        node.run()                               # the main thread: where handlers run
+        assert time.monotonic() - started < 5.0
+    finally:
+        stopping.cancel()
+        rescue.cancel()
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)

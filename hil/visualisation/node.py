@@ -54,7 +54,12 @@ class VizNode:
         self._status_period = status_period
         self._session = session
         self._period = 1.0 / bus_load_hz
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        # not a SimpleQueue: on CPython 3.11 its get(timeout) waits for the next item, with no
+        # timeout, once a signal's handler has outlasted the timeout (its loop turns the time
+        # left negative, which means forever); a SIGTERM's then never ended a visualiser whose
+        # senders were gone (a CI run, hil up SIGKILLed). Queue waits on threading's lock,
+        # which ends a wait whose time ran out in a handler
+        self._queue: queue.Queue = queue.Queue()
         self._stop = threading.Event()
         self.subscribers = [self._subscribe(recorder) for recorder in recorders]
 

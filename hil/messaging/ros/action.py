@@ -283,7 +283,7 @@ class RosTrajectoryActionClient:
                     stop: threading.Event | None = None) -> GoalResult:
         """The goal's result (get_result, answered when the goal ends); WaitStopped once
         ``stop`` is set (seen within 50 ms)."""
-        answer: queue.SimpleQueue = queue.SimpleQueue()
+        answer: queue.Queue = queue.Queue()  # not SimpleQueue: see hil.visualisation.node
         request = cdr.encode(cdr.msg(cdr.GET_RESULT_REQUEST, goal_id=cdr.uuid_msg(goal_id)))
         caller = threading.Thread(target=lambda: answer.put(_call(self._result, request,
                                                                   timeout)), daemon=True)
