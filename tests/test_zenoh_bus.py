@@ -15,7 +15,7 @@ import can
 import canopen
 import pytest
 
-from hil.can import sent_together
+from hil.can import batches, held_together
 from hil.can.frame import Frame
 from hil.can.link_statistics import Quickest as _Quickest
 from hil.can.messages import frame_of, message_of
@@ -334,10 +334,10 @@ def test_frames_sent_in_a_batch_arrive_as_one_message_in_order(bus_pair):
 
 
 def test_a_block_over_buses_of_two_sessions_sends_one_message_from_each_at_its_end(bus_pair):
-    """sent_together holds each session's buses once: over two sessions, each sends what
+    """held_together holds each session's buses once: over two sessions, each sends what
     its buses sent in the block as one message, when the block ends."""
     a, b = bus_pair
-    with sent_together([a, b]):
+    with held_together(batches([a, b])):
         for i in range(3):
             a.send(can.Message(arbitration_id=0x300 + i, data=bytes([i]), is_extended_id=False))
             b.send(can.Message(arbitration_id=0x400 + i, data=bytes([i]), is_extended_id=False))
@@ -391,7 +391,7 @@ def test_a_cycle_on_several_buses_is_one_zenoh_message_each_way(endpoint):
         for drive in drives:
             _answering_each_sync(drive)
         time.sleep(0.5)                                # the sessions find each other
-        with sent_together(master):
+        with held_together(batches(master)):
             for bus in master:
                 bus.send(can.Message(arbitration_id=0x201, data=bytes(6), is_extended_id=False))
                 bus.send(can.Message(arbitration_id=0x80, data=b"", is_extended_id=False))

@@ -29,15 +29,8 @@ from hil.realtime.stalls import Stall  # noqa: E402
 
 __all__ = ["BusCapabilities", "BusLoad", "batches", "capabilities", "bus_load",
            "deliver_under", "frame_bits", "held_together", "link_round_trip", "link_unreached",
-           "open_bus", "sent_together", "socketcan_missing", "watch_deliveries",
+           "open_bus", "socketcan_missing", "watch_deliveries",
            "WITHOUT_BIT_TIMING"]
-
-
-def sent_together(buses: Iterable[can.BusABC]) -> AbstractContextManager:
-    """A block (``with sent_together(buses):``) whose frames go out together where the bus
-    can do that (``zenoh``: one message for all the buses of a Zenoh session); others send
-    each frame as it is sent, as ever."""
-    return held_together(batches(buses))
 
 
 def batches(buses: Iterable[can.BusABC]) -> tuple[AbstractContextManager, ...]:
@@ -49,7 +42,9 @@ def batches(buses: Iterable[can.BusABC]) -> tuple[AbstractContextManager, ...]:
 
 
 def held_together(blocks: tuple[AbstractContextManager, ...]) -> AbstractContextManager:
-    """A block inside all of ``blocks`` (:func:`batches`), each entered once."""
+    """A block (``with held_together(blocks):``) inside all of ``blocks`` (:func:`batches`),
+    each entered once: its frames go out together where the bus can do that (``zenoh``: one
+    message for all the buses of a Zenoh session); others send each frame as it is sent."""
     if not blocks:              # no ExitStack a cycle where none batches (hil-virtual)
         return UNBATCHED
     if len(blocks) == 1:        # nor where one block holds them all (a Zenoh session's)

@@ -25,6 +25,7 @@ from hil.can.routes import Handler, Routes
 
 log = logging.getLogger(__name__)
 
+
 @dataclass(frozen=True)
 class Subscription:
     """Frames a drive or an axis listens to, with their handler: the arguments of one

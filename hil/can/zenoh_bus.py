@@ -246,7 +246,7 @@ class ZenohBus(can.BusABC, BusCapabilities):
         """Frames this thread sends inside the block, on this bus and on every other bus of
         its Zenoh session, go out in one message at its end (nested blocks: at the
         outermost's end), in the order sent. Every bus of a session returns the same block,
-        so that :func:`hil.can.sent_together` enters it once for them all."""
+        so that :func:`hil.can.held_together` enters it once for them all."""
         return self._channels.together
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:

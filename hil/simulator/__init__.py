@@ -94,7 +94,7 @@ class Simulator:
         for drive in self.drives:
             drive.on_command = on_command
         self._faults = FaultInjection(config, self.buses, self.lock, self._cycles)
-        #: the buses whose frames a watchdog check sends together
+        #: the blocks that hold the buses' frames for one message (a watchdog check's)
         self._batches = batches(buses.values())
         #: real time: the process' own stalls, found from the watchdog's wake-ups
         self.stalls = StallDetector("sim", WATCHDOG_PERIOD)
